@@ -1,0 +1,28 @@
+"""softarm solver: quasi-static Cosserat rods for multi-section pneumatic soft arms.
+
+Pure numerics: numpy, scipy and numba only (never gymnasium), usable on its own::
+
+    import solver
+    arm = solver.designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90.0, payload_kg=0.25)
+    eq = solver.solve(arm, [30 * solver.PSI, 0, 0, 0, 0, 0], scene)
+    eq.tip, eq.converged, eq.stable
+"""
+
+from solver import actuator, designs
+from solver.actuator import PSI, pressure_from_stretch, stretch_from_pressure
+from solver.scene import Scene
+from solver.solve import (
+    MODELS,
+    Equilibrium,
+    Settings,
+    SolverError,
+    rest_strains,
+    solve,
+    solve_batch,
+)
+
+__all__ = [
+    "actuator", "designs", "PSI", "pressure_from_stretch", "stretch_from_pressure", "Scene",
+    "MODELS", "Equilibrium", "Settings", "SolverError", "rest_strains", "solve", "solve_batch",
+]

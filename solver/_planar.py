@@ -1,0 +1,347 @@
+"""Planar quasi-static Cosserat kernels: shooting on the base moment with RK4.
+
+Planar statics of the thesis's Eqs. (2.25)–(2.27) and (2.55)–(2.57), written in the
+rest-strain form of DESIGN §2. In section i, with s the reference arc length,
+
+    x' = v3 cos θ − v1 sin θ,   y' = v3 sin θ + v1 cos θ          (2.25)–(2.26)
+    θ' = u*_i + m / EI_i                                          (2.27), (2.30)
+    m' = −(r' × n)_z = v1 n3 − v3 n1                              (2.29)
+    v1 = n1 / GA_i,  v3 = v*_i + n3 / EA_i                        (2.31)
+    n1 = n · d1,  n3 = n · d3,  d3 = (cos θ, sin θ), d1 = (−sin θ, cos θ),
+
+where u*_i, v*_i are the rest curvature and stretch the pressurised tubes impose. With dead
+loads only the internal force is known in closed form from global equilibrium,
+n(s) = n_end_i + q_i·(L_i − σ) in section i (σ the local coordinate; q_i the weight per
+length; n_end_i includes the endplate and everything distal), so shooting has one unknown,
+the base moment m0, and one residual, m(L) − M_tip. The sensitivities a = ∂θ/∂m0,
+b = ∂m/∂m0 are integrated alongside:
+
+    a' = b / EI,   b' = [(1/GA − 1/EA)(n1² − n3²) + v*_i n3] · a.
+
+Stability (Jacobi / conjugate-point test for the clamped–free rod under dead loads): the
+equilibrium is stable iff b(s) = ∂m(s)/∂m0 stays positive on (0, L]. For the upright Euler
+column this gives b = cos(√(P/EI)·s), which first vanishes at P·L²/EI = π²/4.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from solver._jit import njit, prange
+from solver.actuator import _stretch
+
+# Columns of the recorded samples.
+S, X, Y, THETA, M, N1, N3, V1, V3, U = range(10)
+N_COLUMNS = 10
+
+
+@njit
+def _rest_strains(p_channel, tube_channel, tube_first, tube_last, tube_eat, tube_e, tube_ratio,
+                  tube_cos, tube_a, tube_b, sec_ea, sec_ei, u1_out, u2_out, v3_out):
+    """Rest curvature and stretch of every section from channel pressures (DESIGN §2).
+
+    Each tube k carries F_k = E·At·(λ_k − 1) (Eq. 2.11) at offset (a_k, b_k) along (d1, d2)
+    in every section it spans, giving v3* = 1 + ΣF/EA, u1* = ΣF·b/EI, u2* = −ΣF·a/EI: the
+    geometric form of Eqs. (2.47)–(2.53) and (2.62)–(2.64).
+    """
+    ns = sec_ea.shape[0]
+    for i in range(ns):
+        u1_out[i] = 0.0
+        u2_out[i] = 0.0
+        v3_out[i] = 0.0
+    for k in range(tube_channel.shape[0]):
+        lam = _stretch(p_channel[tube_channel[k]], tube_e[k], tube_ratio[k], tube_cos[k])
+        f = tube_eat[k] * (lam - 1.0)
+        for i in range(tube_first[k], tube_last[k] + 1):
+            v3_out[i] += f
+            u1_out[i] += f * tube_b[k]
+            u2_out[i] -= f * tube_a[k]
+    for i in range(ns):
+        v3_out[i] = 1.0 + v3_out[i] / sec_ea[i]
+        u1_out[i] /= sec_ei[i]
+        u2_out[i] /= sec_ei[i]
+
+
+@njit
+def _rhs(sig, th, m, a, b, length, c_a, c_g, c_i, u_rest, v_rest, nex, ney, qx, qy):
+    """Right-hand side of the planar state (θ, m, a, b, x, y) at local coordinate ``sig``."""
+    nx = nex + qx * (length - sig)
+    ny = ney + qy * (length - sig)
+    c = math.cos(th)
+    sn = math.sin(th)
+    n1 = -nx * sn + ny * c
+    n3 = nx * c + ny * sn
+    v1 = n1 * c_g
+    v3 = v_rest + n3 * c_a
+    dth = u_rest + m * c_i
+    dm = v1 * n3 - v3 * n1
+    da = b * c_i
+    db = ((c_g - c_a) * (n1 * n1 - n3 * n3) + v_rest * n3) * a
+    dx = v3 * c - v1 * sn
+    dy = v3 * sn + v1 * c
+    return dth, dm, da, db, dx, dy
+
+
+@njit
+def _integrate(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q,
+               record, out):
+    """One RK4 pass base → tip from base moment ``m0``.
+
+    Args:
+        m0: base moment (N m). theta0: base orientation θ0 (rad).
+        sec_len, sec_steps: (ns,) section lengths (m) and RK4 steps per section.
+        c_a, c_g, c_i: (ns,) compliances 1/EA, 1/GA (0 if unshearable), 1/EI.
+        u_rest, v_rest: (ns,) rest curvature (rad/m) and stretch.
+        n_end: (ns, 2) internal force just proximal of each section end (N).
+        q: (ns, 2) distributed external force per reference length (N/m).
+        record: write samples to ``out`` ((Σsteps + ns, N_COLUMNS)) when True.
+
+    Returns:
+        (θ, m, ∂m/∂m0, x, y at the tip, min over nodes of ∂m/∂m0 on (0, L]).
+    """
+    th = theta0
+    m = m0
+    a = 0.0
+    b = 1.0
+    x = 0.0
+    y = 0.0
+    s0 = 0.0
+    row = 0
+    bmin = 1.0
+    for i in range(sec_len.shape[0]):
+        length = sec_len[i]
+        nst = sec_steps[i]
+        h = length / nst
+        ca = c_a[i]
+        cg = c_g[i]
+        ci = c_i[i]
+        ur = u_rest[i]
+        vr = v_rest[i]
+        nex = n_end[i, 0]
+        ney = n_end[i, 1]
+        qx = q[i, 0]
+        qy = q[i, 1]
+        for j in range(nst + 1):
+            sig = j * h
+            if record:
+                nx = nex + qx * (length - sig)
+                ny = ney + qy * (length - sig)
+                c = math.cos(th)
+                sn = math.sin(th)
+                n1 = -nx * sn + ny * c
+                n3 = nx * c + ny * sn
+                out[row, S] = s0 + sig
+                out[row, X] = x
+                out[row, Y] = y
+                out[row, THETA] = th
+                out[row, M] = m
+                out[row, N1] = n1
+                out[row, N3] = n3
+                out[row, V1] = n1 * cg
+                out[row, V3] = vr + n3 * ca
+                out[row, U] = ur + m * ci
+                row += 1
+            if j == nst:
+                break
+            k1 = _rhs(sig, th, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
+            hh = 0.5 * h
+            k2 = _rhs(sig + hh, th + hh * k1[0], m + hh * k1[1], a + hh * k1[2], b + hh * k1[3],
+                      length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
+            k3 = _rhs(sig + hh, th + hh * k2[0], m + hh * k2[1], a + hh * k2[2], b + hh * k2[3],
+                      length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
+            k4 = _rhs(sig + h, th + h * k3[0], m + h * k3[1], a + h * k3[2], b + h * k3[3],
+                      length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
+            w = h / 6.0
+            th += w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            m += w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            a += w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+            b += w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
+            x += w * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4])
+            y += w * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5])
+            if b < bmin:
+                bmin = b
+        s0 += length
+    return th, m, b, x, y, bmin
+
+
+@njit
+def _newton(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q, m_tip,
+            tol, max_iter, max_step, dummy):
+    """Newton on m(L; m0) = M_tip with the exact shooting derivative ∂m(L)/∂m0.
+
+    Steps are clipped to ``max_step`` (N m) so a poor guess cannot fling the iterate onto a
+    distant branch. Returns (m0, converged, iterations, |residual|, stable, bmin).
+    """
+    res = math.inf
+    bmin = 1.0
+    for it in range(max_iter + 1):
+        th, m, b, x, y, bmin = _integrate(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i,
+                                          u_rest, v_rest, n_end, q, False, dummy)
+        res = m - m_tip
+        if not math.isfinite(res) or not math.isfinite(b):
+            return m0, False, it, math.inf, False, bmin
+        if abs(res) <= tol:
+            return m0, True, it, abs(res), bmin > 0.0, bmin
+        if it == max_iter or b == 0.0:
+            break
+        step = -res / b
+        if step > max_step:
+            step = max_step
+        elif step < -max_step:
+            step = -max_step
+        m0 += step
+    return m0, False, max_iter, abs(res), bmin > 0.0, bmin
+
+
+@njit
+def _level(t, p_a, p_b, load_a_end, load_b_end, load_a_q, load_b_q, mtip_a, mtip_b, p_out,
+           n_end, q):
+    """Interpolate the homotopy: pressures, section-end forces and distributed loads at ``t``."""
+    for c in range(p_a.shape[0]):
+        p_out[c] = p_a[c] + t * (p_b[c] - p_a[c])
+    for i in range(n_end.shape[0]):
+        for d in range(2):
+            n_end[i, d] = load_a_end[i, d] + t * (load_b_end[i, d] - load_a_end[i, d])
+            q[i, d] = load_a_q[i, d] + t * (load_b_q[i, d] - load_a_q[i, d])
+    return mtip_a + t * (mtip_b - mtip_a)
+
+
+@njit
+def _scan(theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q, m_tip, tol,
+          max_iter, max_step, m_bound, n_scan, guess, dummy):
+    """Stable root of m(L; m0) = M_tip nearest ``guess``, by a scan over |m0| ≤ m_bound.
+
+    Used where continuation cannot proceed (a fold passed, or a bifurcation such as Euler
+    buckling): every sign change on the scan grid is polished by Newton and the stable root
+    closest to ``guess`` is taken (ties broken towards positive m0). Returns (m0, found, its).
+    """
+    best = math.nan
+    best_d = math.inf
+    its = 0
+    prev_r = math.nan
+    prev_m = 0.0
+    for k in range(n_scan + 1):
+        mk = -m_bound + 2.0 * m_bound * k / n_scan
+        th, m, b, x, y, bmin = _integrate(mk, theta0, sec_len, sec_steps, c_a, c_g, c_i,
+                                          u_rest, v_rest, n_end, q, False, dummy)
+        r = m - m_tip
+        its += 1
+        if k > 0 and math.isfinite(r) and math.isfinite(prev_r) and (r == 0.0 or prev_r * r < 0.0):
+            # Secant start inside the bracket, then Newton.
+            start = prev_m - prev_r * (mk - prev_m) / (r - prev_r)
+            root, ok, n_it, res, stable, bm = _newton(start, theta0, sec_len, sec_steps, c_a, c_g,
+                                                       c_i, u_rest, v_rest, n_end, q, m_tip, tol,
+                                                       max_iter, max_step, dummy)
+            its += n_it
+            if ok and stable:
+                d = abs(root - guess)
+                if d < best_d - 1e-12 * m_bound or (abs(d - best_d) <= 1e-12 * m_bound and root > best):
+                    best = root
+                    best_d = d
+        prev_r = r
+        prev_m = mk
+    return best, math.isfinite(best), its
+
+
+@njit
+def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, tubes_i,
+            tubes_f, p_a, p_b, load_a_end, load_b_end, load_a_q, load_b_q, mtip_a, mtip_b, tol,
+            max_iter, max_step, m_bound, dt0, dt_min, n_scan, u1, u2, v3, p_now, n_end, q, dummy):
+    """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
+
+    The homotopy ramps pressures and loads linearly from state A to state B. Each step
+    predicts m0 by secant, corrects by Newton, and is accepted only if Newton converged in
+    few iterations, landed on a stable equilibrium and did not jump far from the prediction;
+    otherwise the step is halved. Below ``dt_min`` a fold (or bifurcation) has been passed:
+    :func:`_scan` picks the stable equilibrium nearest the prediction and the result is
+    flagged as a snap. Returns (m0, converged, iterations, snapped, stable, |residual|).
+
+    ``tubes_i`` = (channel, first, last) int columns; ``tubes_f`` = (E·At, E, At/A, cos α,
+    a, b) float columns.
+    """
+    t = t_start
+    dt = dt0
+    slope = 0.0
+    total = 0
+    snapped = False
+    stable = True
+    res = 0.0
+    jump = 0.5 * max_step
+    while t < 1.0:
+        t_new = min(1.0, t + dt)
+        m_tip = _level(t_new, p_a, p_b, load_a_end, load_b_end, load_a_q, load_b_q, mtip_a,
+                       mtip_b, p_now, n_end, q)
+        _rest_strains(p_now, tubes_i[:, 0], tubes_i[:, 1], tubes_i[:, 2], tubes_f[:, 0],
+                      tubes_f[:, 1], tubes_f[:, 2], tubes_f[:, 3], tubes_f[:, 4], tubes_f[:, 5],
+                      sec_ea, sec_ei, u1, u2, v3)
+        guess = m0 + slope * (t_new - t)
+        root, ok, its, res, stab, bm = _newton(guess, theta0, sec_len, sec_steps, c_a, c_g, c_i,
+                                               u2, v3, n_end, q, m_tip, tol, max_iter, max_step,
+                                               dummy)
+        total += its
+        if ok and stab and (abs(root - guess) <= jump or dt <= dt_min):
+            slope = (root - m0) / (t_new - t)
+            m0 = root
+            t = t_new
+            dt = min(2.0 * dt, 1.0)
+            stable = True
+            continue
+        if dt > dt_min:
+            dt *= 0.5
+            continue
+        # A fold or bifurcation lies between t and t_new: snap to the nearest stable state.
+        root, found, its = _scan(theta0, sec_len, sec_steps, c_a, c_g, c_i, u2, v3, n_end, q,
+                                 m_tip, tol, max_iter, max_step, m_bound, n_scan, guess, dummy)
+        total += its
+        if not found:
+            # No stable equilibrium at this level: report the Newton result as it stands.
+            return root if math.isfinite(root) else m0, ok, total, snapped, False, res
+        snapped = True
+        slope = 0.0
+        m0 = root
+        t = t_new
+        dt = dt0
+    # Final residual and stability at t = 1.
+    m_tip = _level(1.0, p_a, p_b, load_a_end, load_b_end, load_a_q, load_b_q, mtip_a, mtip_b,
+                   p_now, n_end, q)
+    _rest_strains(p_now, tubes_i[:, 0], tubes_i[:, 1], tubes_i[:, 2], tubes_f[:, 0],
+                  tubes_f[:, 1], tubes_f[:, 2], tubes_f[:, 3], tubes_f[:, 4], tubes_f[:, 5],
+                  sec_ea, sec_ei, u1, u2, v3)
+    root, ok, its, res, stable, bm = _newton(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u2,
+                                             v3, n_end, q, m_tip, tol, max_iter, max_step, dummy)
+    return root, ok, total + its, snapped, stable, res
+
+
+@njit(parallel=True)
+def _batch(m0_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, tubes_i, tubes_f,
+           p_targets, load_end, load_q, mtip, tol, max_iter, max_step, m_bound, dt0, dt_min,
+           n_scan, tips, ok, stable_out):
+    """Cold solves of many pressure vectors in parallel (one per row of ``p_targets``).
+
+    Every point follows the same path :func:`solver.solve` takes from the loaded,
+    unactuated equilibrium ``m0_start``: the result does not depend on sweep order.
+    """
+    n = p_targets.shape[0]
+    ns = sec_len.shape[0]
+    nc = p_targets.shape[1]
+    for k in prange(n):
+        u1 = np.empty(ns)
+        u2 = np.empty(ns)
+        v3 = np.empty(ns)
+        p_now = np.empty(nc)
+        n_end = np.empty((ns, 2))
+        q = np.empty((ns, 2))
+        dummy = np.empty((1, N_COLUMNS))
+        zero = np.zeros(nc)
+        root, conv, its, snapped, stab, res = _follow(
+            m0_start, 0.0, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, tubes_i,
+            tubes_f, zero, p_targets[k], load_end, load_end, load_q, load_q, mtip, mtip, tol,
+            max_iter, max_step, m_bound, dt0, dt_min, n_scan, u1, u2, v3, p_now, n_end, q, dummy)
+        th, m, b, x, y, bmin = _integrate(root, theta0, sec_len, sec_steps, c_a, c_g, c_i, u2, v3,
+                                          n_end, q, False, dummy)
+        tips[k, 0] = x
+        tips[k, 1] = y
+        ok[k] = conv and math.isfinite(x) and math.isfinite(y)
+        stable_out[k] = stab

@@ -1,0 +1,518 @@
+"""Arm designs as frozen, validated parameter objects, each number traced to its source.
+
+An :class:`ArmDesign` is a chain of :class:`Section` s (stiffness, mass, endplate) plus the
+:class:`Tube` s that actuate it. A tube has an explicit angular position about d3 (measured
+from +d1 towards +d2), a radial offset, the section range it spans and the spatial channel
+it belongs to. Channels are named; ``planar_channels`` says which spatial channels a planar
+channel drives together (planar operation pressurises II and III as one, §2.3.2.1).
+
+Channel maps, in one place:
+
+* OctArm (V, VI): spatial channels ``s{k}_I, s{k}_II, s{k}_III`` per section k, centred at
+  0°, 120°, 240° from +d1. With 6 tubes a channel is the two adjacent tubes at ±30° of its
+  centre line; with 3 tubes, one tube. Planar channels, in order:
+  ``[s1_I, s1_II+III, s2_I, s2_II+III, s3_I, s3_II+III]``.
+* CT (chapter 5, Table 5.1): six tubes at the base. The inner three (ring radius 2Ro/√3,
+  at 0°/120°/240°) run base to tip; the outer three (radius 4Ro/√3, nestled in the gaps,
+  at 60°/180°/300°) end at the section-1/2 junction. Spatial channels
+  ``inner_I, inner_II, inner_III, outer_I, outer_II, outer_III``; the outer tube of channel
+  k sits opposite the inner tube of channel k (outer_I at 180°). Planar channels, in order:
+  ``[inner_I, inner_II+III, outer_I, outer_II+III]`` — inner_I bends the whole arm
+  clockwise, outer_I bends section 1 counter-clockwise, and so on.
+
+Bending stiffness, ``ei=`` (DESIGN §2):
+
+* ``"eq2.32"`` (default): ``EI = E·N_t·(I_tube + At·Ro²/2)`` as Eq. (2.32) and Table 4.2;
+  for the CT base section Table 5.1's ``E·(6·I_tube + 5·At·Ro²/2)``.
+* ``"tubes"``: parallel-axis sum over the actual tube positions, ``E·Σ(I_tube + At·y_k²)``
+  (a bundle bonded along its length; an upper bound).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field, replace
+
+from solver.actuator import PSI, max_stretch
+
+__all__ = [
+    "TubeMaterial", "Section", "Tube", "ArmDesign", "octarm_v", "octarm_vi", "ct",
+    "octarm_two_section", "rod", "pneumatic", "hydraulic", "from_json", "load", "get",
+    "DESIGN_NAMES",
+]
+
+
+def _positive(obj, *names):
+    for n in names:
+        v = getattr(obj, n)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"{type(obj).__name__}.{n} must be a finite number > 0; got {v!r}")
+
+
+def _non_negative(obj, *names):
+    for n in names:
+        v = getattr(obj, n)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"{type(obj).__name__}.{n} must be a finite number >= 0; got {v!r}")
+
+
+@dataclass(frozen=True)
+class TubeMaterial:
+    """An extensor actuator: neo-Hookean rubber tube in a braid (thesis §2.2).
+
+    Attributes:
+        youngs_modulus: E of the rubber (Pa).
+        shear_modulus: G of the rubber (Pa).
+        density: rubber density (kg/m³).
+        inner_radius: Ri (m).
+        outer_radius: Ro (m).
+        wind_angle_deg: initial braid angle α (deg), in (54.74°, 90°).
+    """
+
+    youngs_modulus: float
+    shear_modulus: float
+    density: float
+    inner_radius: float
+    outer_radius: float
+    wind_angle_deg: float
+
+    def __post_init__(self):
+        _positive(self, "youngs_modulus", "shear_modulus", "density", "inner_radius", "outer_radius")
+        if self.inner_radius >= self.outer_radius:
+            raise ValueError(
+                f"tube inner radius {self.inner_radius} m must be smaller than outer radius "
+                f"{self.outer_radius} m")
+        lock = math.degrees(math.acos(1.0 / math.sqrt(3.0)))
+        if not (lock < self.wind_angle_deg < 90.0):
+            raise ValueError(
+                f"wind_angle_deg must lie in ({lock:.2f}, 90) for an extensor; got {self.wind_angle_deg}")
+
+    @property
+    def area(self) -> float:
+        """Rubber cross-section At = π(Ro² − Ri²) (m²)."""
+        return math.pi * (self.outer_radius**2 - self.inner_radius**2)
+
+    @property
+    def bore_area(self) -> float:
+        """Internal (fluid) cross-section A = πRi² (m²)."""
+        return math.pi * self.inner_radius**2
+
+    @property
+    def second_moment(self) -> float:
+        """I_tube = π(Ro⁴ − Ri⁴)/4 about the tube's own axis (m⁴)."""
+        return math.pi * (self.outer_radius**4 - self.inner_radius**4) / 4.0
+
+    @property
+    def max_stretch(self) -> float:
+        """Braid lock-up stretch λmax = 1/(√3 cos α)."""
+        return max_stretch(self.wind_angle_deg)
+
+
+@dataclass(frozen=True)
+class Section:
+    """One arm section: a uniform Cosserat rod segment with an optional endplate at its end.
+
+    Attributes:
+        length: reference length L (m).
+        EA, GA: axial and shear stiffness (N).
+        EI: bending stiffness about d1 and d2 (N m²).
+        GJ: torsional stiffness (N m²).
+        mass_per_length: mass per reference length, rubber plus any fluid (kg/m).
+        endplate_mass: lumped mass at the distal end of the section (kg).
+        n_tubes: number of extensors in the cross-section (0 for a passive rod).
+    """
+
+    length: float
+    EA: float
+    GA: float
+    EI: float
+    GJ: float
+    mass_per_length: float = 0.0
+    endplate_mass: float = 0.0
+    n_tubes: int = 0
+
+    def __post_init__(self):
+        _positive(self, "length", "EA", "GA", "EI", "GJ")
+        _non_negative(self, "mass_per_length", "endplate_mass")
+        if int(self.n_tubes) != self.n_tubes or self.n_tubes < 0:
+            raise ValueError(f"n_tubes must be a non-negative integer; got {self.n_tubes}")
+
+
+@dataclass(frozen=True)
+class Tube:
+    """One extensor, placed in the cross-section and assigned to a channel.
+
+    Attributes:
+        channel: index into :attr:`ArmDesign.channels` (the spatial channel that feeds it).
+        angle_deg: angular position about d3, from +d1 towards +d2 (deg).
+        radius: distance of the tube axis from the backbone (m).
+        first_section, last_section: the sections it spans (inclusive, 0-based).
+        material: its actuator model.
+    """
+
+    channel: int
+    angle_deg: float
+    radius: float
+    first_section: int
+    last_section: int
+    material: TubeMaterial
+
+    def __post_init__(self):
+        _non_negative(self, "radius")
+        if not (0 <= self.first_section <= self.last_section):
+            raise ValueError(
+                f"tube spans sections {self.first_section}..{self.last_section}: need "
+                "0 <= first_section <= last_section")
+        if isinstance(self.material, dict):
+            object.__setattr__(self, "material", TubeMaterial(**self.material))
+
+    @property
+    def offset(self) -> tuple[float, float]:
+        """Position in the cross-section, components along (d1, d2) (m)."""
+        a = math.radians(self.angle_deg)
+        return self.radius * math.cos(a), self.radius * math.sin(a)
+
+
+@dataclass(frozen=True)
+class ArmDesign:
+    """A multi-section soft arm: sections, tubes, channels and the rated pressure.
+
+    Attributes:
+        name: short identifier (``"octarm_v"``).
+        sections: base to tip.
+        tubes: every extensor, with position, span and channel.
+        channels: names of the spatial channels (one pressure each in spatial mode).
+        planar_channels: ``(name, (spatial channel indices...))`` pairs; in planar mode one
+            pressure per entry drives all its spatial channels.
+        max_pressure: rated maximum channel pressure (Pa).
+        source: where the numbers come from, and what was assumed.
+    """
+
+    name: str
+    sections: tuple[Section, ...]
+    tubes: tuple[Tube, ...] = ()
+    channels: tuple[str, ...] = ()
+    planar_channels: tuple[tuple[str, tuple[int, ...]], ...] = ()
+    max_pressure: float = 0.0
+    source: str = ""
+    extra: dict = field(default_factory=dict, compare=False, hash=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "sections", tuple(
+            s if isinstance(s, Section) else Section(**s) for s in self.sections))
+        object.__setattr__(self, "tubes", tuple(
+            t if isinstance(t, Tube) else Tube(**t) for t in self.tubes))
+        object.__setattr__(self, "channels", tuple(self.channels))
+        object.__setattr__(self, "planar_channels", tuple(
+            (str(n), tuple(int(i) for i in idx)) for n, idx in self.planar_channels))
+        if not self.sections:
+            raise ValueError(f"design {self.name!r} has no sections")
+        n_sec, n_ch = len(self.sections), len(self.channels)
+        for k, t in enumerate(self.tubes):
+            if t.last_section >= n_sec:
+                raise ValueError(
+                    f"design {self.name!r}: tube {k} spans up to section {t.last_section}, "
+                    f"but there are only {n_sec} sections")
+            if not (0 <= t.channel < n_ch):
+                raise ValueError(
+                    f"design {self.name!r}: tube {k} belongs to channel {t.channel}, which is "
+                    f"outside every channel (0..{n_ch - 1})")
+        used = {t.channel for t in self.tubes}
+        for c, name in enumerate(self.channels):
+            if c not in used:
+                raise ValueError(f"design {self.name!r}: channel {name!r} drives no tube")
+        for name, idx in self.planar_channels:
+            if not idx or any(not (0 <= i < n_ch) for i in idx):
+                raise ValueError(f"design {self.name!r}: planar channel {name!r} maps to {idx}")
+        if self.tubes and not self.max_pressure > 0:
+            raise ValueError(f"design {self.name!r}: max_pressure must be > 0 Pa")
+
+    @property
+    def length(self) -> float:
+        """Total reference length (m)."""
+        return float(sum(s.length for s in self.sections))
+
+    @property
+    def n_channels(self) -> int:
+        """Number of spatial channels."""
+        return len(self.channels)
+
+    def n_inputs(self, planar: bool = True) -> int:
+        """Number of pressures :func:`solver.solve` expects in the given mode."""
+        return len(self.planar_channels) if planar else len(self.channels)
+
+    def input_names(self, planar: bool = True) -> tuple[str, ...]:
+        """Names of the pressures :func:`solver.solve` expects, in order."""
+        return tuple(n for n, _ in self.planar_channels) if planar else self.channels
+
+    @property
+    def mass(self) -> float:
+        """Total mass of rod and endplates (kg)."""
+        return float(sum(s.mass_per_length * s.length + s.endplate_mass for s in self.sections))
+
+    def to_json(self) -> str:
+        """Serialise to JSON (round-trips through :func:`from_json`)."""
+        data = asdict(self)
+        data.pop("extra")
+        return json.dumps(data, indent=2)
+
+
+def from_json(text: str) -> ArmDesign:
+    """Build a design from the JSON written by :meth:`ArmDesign.to_json`.
+
+    Raises:
+        ValueError: malformed JSON, unknown or missing fields, or invalid values.
+    """
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"design file is not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError("design file must hold a JSON object")
+    try:
+        return ArmDesign(**data)
+    except TypeError as exc:
+        raise ValueError(f"design file has missing or unknown fields: {exc}") from None
+
+
+def load(path) -> ArmDesign:
+    """Read a design JSON file (see :func:`from_json`)."""
+    with open(path, encoding="utf-8") as fh:
+        return from_json(fh.read())
+
+
+# --------------------------------------------------------------------------- builders
+
+OCTARM_V_TUBE = TubeMaterial(
+    youngs_modulus=2.0e6, shear_modulus=0.4e6, density=1500.0,
+    inner_radius=9.3e-3, outer_radius=14.0e-3, wind_angle_deg=78.0)
+"""OctArm V extensor, Table 2.1."""
+
+
+def _ring_radius(material: TubeMaterial, n_tubes: int) -> float:
+    """Circumradius δ = Ro / sin(π/N_t) of N_t touching tubes (Eq. 2.52)."""
+    return material.outer_radius / math.sin(math.pi / n_tubes)
+
+
+def _octarm_tubes(n_tubes: int, section: int, material: TubeMaterial) -> list[Tube]:
+    """Tubes of one OctArm section: channel k centred at 120°·k from +d1."""
+    delta = _ring_radius(material, n_tubes)
+    per = n_tubes // 3
+    tubes = []
+    for k in range(3):
+        centre = 120.0 * k
+        for off in _spread(per, 360.0 / n_tubes):
+            tubes.append(Tube(channel=3 * section + k, angle_deg=(centre + off) % 360.0,
+                              radius=delta, first_section=section, last_section=section,
+                              material=material))
+    return tubes
+
+
+def _spread(count: int, spacing: float) -> list[float]:
+    """``count`` angles symmetric about 0 with ``spacing`` degrees between neighbours."""
+    return [spacing * (i - (count - 1) / 2.0) for i in range(count)]
+
+
+def _bending_stiffness(material: TubeMaterial, tubes: list[Tube], n_tubes: int, ei: str) -> float:
+    """EI of a section by the named formula (module docstring)."""
+    if ei == "eq2.32":
+        return material.youngs_modulus * n_tubes * (
+            material.second_moment + material.area * material.outer_radius**2 / 2.0)
+    if ei == "tubes":
+        return material.youngs_modulus * sum(
+            material.second_moment + material.area * t.offset[0] ** 2 for t in tubes)
+    raise ValueError(f"unknown ei formula {ei!r}; choose 'eq2.32' or 'tubes'")
+
+
+def _tube_section(material: TubeMaterial, length: float, n_tubes: int, tubes, ei: str,
+                  endplate_mass: float = 0.0, fluid_density: float = 0.0,
+                  EI: float | None = None) -> Section:
+    """Section stiffness from N_t identical tubes (Eqs. 2.31–2.33)."""
+    area = n_tubes * material.area
+    bending = _bending_stiffness(material, tubes, n_tubes, ei) if EI is None else EI
+    return Section(
+        length=length, EA=material.youngs_modulus * area, GA=material.shear_modulus * area,
+        EI=bending, GJ=2.0 * bending * material.shear_modulus / material.youngs_modulus,
+        mass_per_length=material.density * area + fluid_density * n_tubes * material.bore_area,
+        endplate_mass=endplate_mass, n_tubes=n_tubes)
+
+
+def _octarm(name, lengths, counts, material, max_pressure, ei, endplate_masses, source,
+            fluid_density=0.0) -> ArmDesign:
+    sections, tubes, channels, planar = [], [], [], []
+    for i, (length, n) in enumerate(zip(lengths, counts)):
+        if n % 3:
+            raise ValueError(f"an OctArm section needs a multiple of 3 tubes; got {n}")
+        sec_tubes = _octarm_tubes(n, i, material)
+        tubes += sec_tubes
+        sections.append(_tube_section(material, length, n, sec_tubes, ei,
+                                      endplate_mass=endplate_masses[i], fluid_density=fluid_density))
+        channels += [f"s{i + 1}_I", f"s{i + 1}_II", f"s{i + 1}_III"]
+        planar += [(f"s{i + 1}_I", (3 * i,)), (f"s{i + 1}_II+III", (3 * i + 1, 3 * i + 2))]
+    return ArmDesign(name=name, sections=tuple(sections), tubes=tuple(tubes),
+                     channels=tuple(channels), planar_channels=tuple(planar),
+                     max_pressure=max_pressure, source=source)
+
+
+def octarm_v(ei: str = "eq2.32", endplate_mass: float = 0.0) -> ArmDesign:
+    """OctArm V, Table 2.1: sections 25/28/30 cm with 6/3/3 tubes, rated 100 psi.
+
+    Args:
+        ei: bending-stiffness formula, ``"eq2.32"`` (default) or ``"tubes"``.
+        endplate_mass: lumped mass at each section end (kg). Table 2.1 lists none and the
+            chapter-2 model carries none, so the default is 0.
+    """
+    return _octarm(
+        "octarm_v", (0.25, 0.28, 0.30), (6, 3, 3), OCTARM_V_TUBE, 100.0 * PSI, ei,
+        (endplate_mass,) * 3,
+        "Table 2.1 (L, N_t, Ro, Ri, rho, E, G, alpha); 100 psi rating from the §2.4 workspace "
+        "range; GJ = 2·EI·G/E (thin-walled bundle, J = 2I) is an assumption (planar results "
+        "do not depend on it).")
+
+
+OCTARM_VI_YOUNGS = 1.2e6
+"""OctArm VI rubber modulus: Table 3.1's pneumatic design, which §3.4.1 says is based on
+OctArm VI (natural rubber)."""
+
+
+def octarm_vi() -> ArmDesign:
+    """OctArm VI, Table 4.2: measured EA, GA = EA/3, EI; 280/265/325 mm; 6-6-3 tubes; 90 psi.
+
+    Table 4.2 gives stiffnesses, not tubes. With E = 1.2 MPa (Table 3.1 pneumatic design,
+    "based on OctArm VI"), EA = 6·E·At and EI = 6·E·(I_tube + At·Ro²/2) give
+    Ro = 12.38 mm, Ri = 6.25 mm; the 3-tube section then reproduces EA3 and EI3 exactly
+    (half of sections 1–2), which checks the reading. α = 78° (Table 4.2), ρ = 1500 kg/m³
+    (Table 3.1). Encoder cables run at R = 42.9 mm (Table 4.2); see ``extra``.
+    """
+    ea6, ei6 = 2584.0, 0.3225
+    e = OCTARM_VI_YOUNGS
+    at = ea6 / (6 * e)
+    # 3Ro² + Ri² = 4·EI/(6·E·At) and Ro² − Ri² = At/π  ->  solve for Ro², Ri².
+    s1 = 4.0 * ei6 / (6.0 * e * at)
+    s2 = at / math.pi
+    ro2 = (s1 + s2) / 4.0
+    ri2 = ro2 - s2
+    material = TubeMaterial(youngs_modulus=e, shear_modulus=e / 3.0, density=1500.0,
+                            inner_radius=math.sqrt(ri2), outer_radius=math.sqrt(ro2),
+                            wind_angle_deg=78.0)
+    design = _octarm(
+        "octarm_vi", (0.280, 0.265, 0.325), (6, 6, 3), material, 90.0 * PSI, "eq2.32",
+        (0.0, 0.0, 0.0),
+        "Table 4.2 (EA, GA = EA/3, EI, alpha, cable radius R, lengths); 6-6-3 tubes (§3.4.3); "
+        "E = 1.2 MPa and rho = 1500 from Table 3.1; Ro, Ri derived from EA and EI; 90 psi "
+        "rating from the §4.3 study range.")
+    # Use Table 4.2's stiffnesses verbatim (the derived tube reproduces them to rounding).
+    table = ((2584.0, 0.3225), (2584.0, 0.3225), (1292.0, 0.1613))
+    sections = tuple(replace(s, EA=ea, GA=ea / 3.0, EI=ei_, GJ=2.0 * ei_ / 3.0)
+                     for s, (ea, ei_) in zip(design.sections, table))
+    return replace(design, sections=sections, extra={"cable_radius": 42.9e-3})
+
+
+def ct(ei: str = "eq2.32", lengths: tuple[float, float] = (0.25, 0.28),
+       max_pressure: float = 70.0 * PSI) -> ArmDesign:
+    """Continuous-tube arm, chapter 5: two sections, no endplates, all manifolding at the base.
+
+    Inner tubes (3, ring radius 2Ro/√3 — touching) span both sections; outer tubes (3, at
+    4Ro/√3 in the gaps) end at the junction. These radii reproduce the moment coefficients of
+    Table 5.1 (√3/3 and 1 for the inner ring, 4√3/3 for an outer tube on the axis).
+
+    Numbers the thesis does not give, chosen here: the OctArm V tube (Table 2.1 — the CT
+    prototype of Fig. 5.1 uses the same extensors) and section lengths 25/28 cm (the first
+    two OctArm V sections, so that the §5.3.1 comparison arm is :func:`octarm_two_section`);
+    70 psi rating (the §5.3.1 study range).
+    """
+    m = OCTARM_V_TUBE
+    inner = 2.0 * m.outer_radius / math.sqrt(3.0)
+    outer = 4.0 * m.outer_radius / math.sqrt(3.0)
+    tubes = [Tube(channel=k, angle_deg=120.0 * k, radius=inner, first_section=0, last_section=1,
+                  material=m) for k in range(3)]
+    tubes += [Tube(channel=3 + k, angle_deg=(120.0 * k + 180.0) % 360.0, radius=outer,
+                   first_section=0, last_section=0, material=m) for k in range(3)]
+    if ei == "eq2.32":
+        ei1 = m.youngs_modulus * (6 * m.second_moment + 2.5 * m.area * m.outer_radius**2)
+    else:
+        ei1 = None
+    s1 = _tube_section(m, lengths[0], 6, tubes, ei, EI=ei1)
+    s2 = _tube_section(m, lengths[1], 3, tubes[:3], ei)
+    channels = ("inner_I", "inner_II", "inner_III", "outer_I", "outer_II", "outer_III")
+    planar = (("inner_I", (0,)), ("inner_II+III", (1, 2)), ("outer_I", (3,)),
+              ("outer_II+III", (4, 5)))
+    return ArmDesign(
+        name="ct", sections=(s1, s2), tubes=tuple(tubes), channels=channels,
+        planar_channels=planar, max_pressure=max_pressure,
+        source="Chapter 5, Table 5.1 (tube layout, I_1 = 6I + 5AtRo²/2, A_T); OctArm V tube "
+               "(Table 2.1) and 25/28 cm sections assumed; 70 psi from §5.3.1.")
+
+
+def octarm_two_section(endplate_mass: float = 0.0, ei: str = "eq2.32") -> ArmDesign:
+    """The OctArm-type two-section arm of §5.3.1: OctArm V sections 1–2 (6 + 3 tubes)."""
+    d = _octarm("octarm_2s", (0.25, 0.28), (6, 3), OCTARM_V_TUBE, 70.0 * PSI, ei,
+                (endplate_mass, endplate_mass),
+                "OctArm V sections 1-2 (Table 2.1) as the §5.3.1 comparison arm; 70 psi.")
+    return d
+
+
+def rod(length: float = 1.0, EI: float = 1.0, EA: float = 1e9, GA: float = 1e9,
+        mass_per_length: float = 0.0, GJ: float | None = None) -> ArmDesign:
+    """A passive uniform rod (no channels): for oracles and tests."""
+    sec = Section(length=length, EA=EA, GA=GA, EI=EI, GJ=EI if GJ is None else GJ,
+                  mass_per_length=mass_per_length)
+    return ArmDesign(name="rod", sections=(sec,), source="user-defined passive rod")
+
+
+@dataclass(frozen=True)
+class FluidDesign:
+    """Table 3.1 design parameters (pneumatic or hydraulic)."""
+
+    youngs_modulus: float
+    density: float
+    wind_angle_deg: float
+    outer_radius: float
+    length: float
+    test_pressure: float
+    max_pressure: float
+    beta: float
+    fluid_density: float
+
+
+PNEUMATIC = FluidDesign(1.2e6, 1500.0, 78.0, 15e-3, 1.0, 0.14e6, 0.7e6, 0.09, 0.0)
+HYDRAULIC = FluidDesign(12e6, 1500.0, 78.0, 15e-3, 1.0, 1.4e6, 7.0e6, 0.09, 1000.0)
+
+
+def _fluid_arm(name, params: FluidDesign, tube_counts, lengths, thickness, outer_radius=None,
+               ei="eq2.32") -> ArmDesign:
+    ro = params.outer_radius if outer_radius is None else outer_radius
+    if not 0 < thickness < ro:
+        raise ValueError(f"tube thickness {thickness} m must lie in (0, Ro={ro} m)")
+    material = TubeMaterial(youngs_modulus=params.youngs_modulus,
+                            shear_modulus=params.youngs_modulus / 3.0, density=params.density,
+                            inner_radius=ro - thickness, outer_radius=ro,
+                            wind_angle_deg=params.wind_angle_deg)
+    return _octarm(name, lengths, tube_counts, material, params.max_pressure, ei,
+                   (0.0,) * len(lengths),
+                   f"Table 3.1 {name} design; G = E/3 (incompressible rubber); no endplates.",
+                   fluid_density=params.fluid_density)
+
+
+def pneumatic(tube_counts, lengths, thickness, outer_radius=None, ei="eq2.32") -> ArmDesign:
+    """A Table 3.1 pneumatic arm (E 1.2 MPa, α 78°, 0.7 MPa rating) with the given layout."""
+    return _fluid_arm("pneumatic", PNEUMATIC, tube_counts, lengths, thickness, outer_radius, ei)
+
+
+def hydraulic(tube_counts, lengths, thickness, outer_radius=None, ei="eq2.32") -> ArmDesign:
+    """A Table 3.1 hydraulic arm (E 12 MPa, 7 MPa rating; tubes filled with water)."""
+    return _fluid_arm("hydraulic", HYDRAULIC, tube_counts, lengths, thickness, outer_radius, ei)
+
+
+_NAMED = {"octarm_v": octarm_v, "octarm_vi": octarm_vi, "ct": ct,
+          "octarm_2s": octarm_two_section}
+DESIGN_NAMES = tuple(_NAMED)
+
+
+def get(name: str, **kwargs) -> ArmDesign:
+    """A named design (``octarm_v``, ``octarm_vi``, ``ct``, ``octarm_2s``)."""
+    try:
+        return _NAMED[name](**kwargs)
+    except KeyError:
+        raise ValueError(f"unknown design {name!r}; choose one of {', '.join(_NAMED)}") from None

@@ -1,0 +1,564 @@
+"""Public solver API: :func:`solve`, :func:`solve_batch` and the :class:`Equilibrium` result.
+
+Thin validated wrappers around the numba kernels of :mod:`solver._planar` and
+:mod:`solver._spatial`. What a scene does not need is skipped:
+
+* no gravity acting on mass, no payload, no tip load → closed-form arcs (every model);
+* planar-symmetric pressures and an in-plane scene with ``planar=False`` → the planar
+  kernel, embedded in 3D;
+* ``record=False`` → no backbone samples, just the tip.
+
+Policy for an unconverged solve: :func:`solve` returns an :class:`Equilibrium` with
+``converged=False`` and the residual of the last iterate; its shape is that iterate's
+(always finite for finite inputs). Pass ``strict=True`` to raise :class:`SolverError`
+instead. Bad input raises ``ValueError`` naming the problem before any kernel runs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from solver import _planar, _spatial
+from solver.designs import ArmDesign
+from solver.scene import Scene
+
+__all__ = ["Equilibrium", "SolverError", "solve", "solve_batch", "MODELS", "Settings"]
+
+MODELS = ("full", "unshearable", "constant_curvature")
+
+
+class SolverError(RuntimeError):
+    """Raised by ``solve(..., strict=True)`` when no converged equilibrium was found."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Numerical settings of the shooting solver.
+
+    Attributes:
+        steps_per_section: fixed RK4 steps per section (error ∝ steps⁻⁴).
+        tol: Newton tolerance on the tip-moment residual, relative to EI_max / L.
+        max_iter: Newton iterations per continuation step.
+        dt0, dt_min: first and smallest continuation step (fraction of the ramp).
+        n_scan: grid points of the fold scan over the base moment.
+    """
+
+    steps_per_section: int = 16
+    tol: float = 1e-10
+    max_iter: int = 12
+    dt0: float = 1.0
+    dt_min: float = 1.0 / 256.0
+    n_scan: int = 96
+
+    def __post_init__(self):
+        if int(self.steps_per_section) != self.steps_per_section or self.steps_per_section < 1:
+            raise ValueError(f"steps_per_section must be an integer >= 1; got {self.steps_per_section}")
+        if not (self.tol > 0 and self.max_iter >= 1 and 0 < self.dt_min <= self.dt0 <= 1
+                and self.n_scan >= 4):
+            raise ValueError(f"invalid solver settings: {self}")
+
+
+DEFAULT_SETTINGS = Settings()
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """A static equilibrium of the arm.
+
+    Attributes:
+        tip: tip position, (2,) planar or (3,) spatial (m).
+        converged: Newton met the tolerance at the final load and pressure.
+        stable: the equilibrium passed the conjugate-point (Jacobi) test.
+        snapped: the quasi-static path passed a fold and jumped to another stable branch.
+        iterations: total Newton iterations (continuation included).
+        residual: |m(L) − M_tip| of the returned state (N m, norm in 3D).
+        s: (N,) reference arc length of the samples (m); empty when not recorded.
+        positions: (N, 2|3) backbone samples (m).
+        angles: (N,) planar orientation θ of d3 from +x (rad); spatial: ``orientations``.
+        orientations: (N, 3, 3) directors [d1 d2 d3] as columns (spatial only, else empty).
+        shear_stretch: (N, 2|3) strains v in the body frame (planar: v1, v3).
+        curvature: (N,) planar u2 (rad/m) or (N, 3) spatial u.
+        internal_force: (N, 2|3) n in the world frame (N).
+        internal_moment: (N,) planar m_z or (N, 3) spatial m in the world frame (N m).
+        section_ends: indices of the samples at each section end.
+        pressures: the pressures solved for (Pa), in the order of ``design.input_names``.
+        model, planar: what was solved.
+    """
+
+    tip: np.ndarray
+    converged: bool
+    stable: bool
+    iterations: int
+    residual: float
+    snapped: bool = False
+    s: np.ndarray = field(default_factory=lambda: np.empty(0))
+    positions: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    angles: np.ndarray = field(default_factory=lambda: np.empty(0))
+    orientations: np.ndarray = field(default_factory=lambda: np.empty((0, 3, 3)))
+    shear_stretch: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    curvature: np.ndarray = field(default_factory=lambda: np.empty(0))
+    internal_force: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    internal_moment: np.ndarray = field(default_factory=lambda: np.empty(0))
+    section_ends: tuple = ()
+    pressures: np.ndarray = field(default_factory=lambda: np.empty(0))
+    model: str = "full"
+    planar: bool = True
+    base_moment: np.ndarray = field(default_factory=lambda: np.zeros(1), repr=False)
+    scene: Scene | None = field(default=None, repr=False)
+    channel_pressures: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False)
+
+    @property
+    def tip_angle(self) -> float:
+        """Planar tip orientation θ(L) (rad); NaN if not recorded or spatial."""
+        return float(self.angles[-1]) if self.angles.size else math.nan
+
+
+# ----------------------------------------------------------------------------- packing
+
+
+@dataclass(frozen=True)
+class _Packed:
+    """A design unpacked to the float/int arrays the kernels take."""
+
+    sec_len: np.ndarray
+    sec_steps: np.ndarray
+    c_a: np.ndarray
+    c_g: np.ndarray
+    c_i: np.ndarray
+    c_j: np.ndarray
+    sec_ea: np.ndarray
+    sec_ei: np.ndarray
+    mass_per_length: np.ndarray
+    endplate: np.ndarray
+    tubes_i: np.ndarray
+    tubes_f: np.ndarray
+    moment_scale: float
+    n_rows: int
+
+
+def _pack(arm: ArmDesign, model: str, settings: Settings) -> _Packed:
+    secs = arm.sections
+    ns = len(secs)
+    steps = np.full(ns, int(settings.steps_per_section), dtype=np.int64)
+    tubes_i = np.zeros((len(arm.tubes), 3), dtype=np.int64)
+    tubes_f = np.zeros((len(arm.tubes), 6))
+    for k, t in enumerate(arm.tubes):
+        mat = t.material
+        a, b = t.offset
+        tubes_i[k] = (t.channel, t.first_section, t.last_section)
+        tubes_f[k] = (mat.youngs_modulus * mat.area, mat.youngs_modulus,
+                      (mat.outer_radius**2 - mat.inner_radius**2) / mat.inner_radius**2,
+                      math.cos(math.radians(mat.wind_angle_deg)), a, b)
+    ei = np.array([s.EI for s in secs])
+    return _Packed(
+        sec_len=np.array([s.length for s in secs]),
+        sec_steps=steps,
+        c_a=np.array([1.0 / s.EA for s in secs]),
+        c_g=np.zeros(ns) if model == "unshearable" else np.array([1.0 / s.GA for s in secs]),
+        c_i=1.0 / ei,
+        c_j=np.array([1.0 / s.GJ for s in secs]),
+        sec_ea=np.array([s.EA for s in secs]),
+        sec_ei=ei,
+        mass_per_length=np.array([s.mass_per_length for s in secs]),
+        endplate=np.array([s.endplate_mass for s in secs]),
+        tubes_i=tubes_i,
+        tubes_f=tubes_f,
+        moment_scale=float(ei.max() / arm.length),
+        n_rows=int(steps.sum() + ns),
+    )
+
+
+def _loads(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int):
+    """Section-end internal forces and distributed loads from global equilibrium.
+
+    n(s) = F_tip + ∫_s^L f + Σ (point loads distal to s); n_end[i] is n just proximal of
+    the end of section i, so it includes that section's endplate. Returns
+    (n_end (ns, dim), q (ns, dim), M_tip (scalar planar or (3,) spatial)).
+    """
+    ns = len(arm.sections)
+    g = np.zeros(dim)
+    g[1] = -scene.gravity
+    tip = scene.tip_force_3d()[:dim] + scene.payload_kg * g
+    n_end = np.zeros((ns, dim))
+    q = packed.mass_per_length[:, None] * g[None, :]
+    running = tip.copy()
+    for i in range(ns - 1, -1, -1):
+        running = running + packed.endplate[i] * g
+        n_end[i] = running
+        running = running + q[i] * packed.sec_len[i]
+    moment = scene.tip_moment_3d()
+    return n_end, q, (float(moment[2]) if dim == 2 else moment)
+
+
+def _channel_pressures(arm: ArmDesign, pressures, planar: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Validate input pressures and expand planar inputs to spatial channels (Pa)."""
+    names = arm.input_names(planar)
+    p = np.asarray(pressures, dtype=float) if not isinstance(pressures, str) else None
+    if p is None or p.ndim != 1 or p.shape[0] != len(names):
+        raise ValueError(
+            f"design {arm.name!r} expects {len(names)} pressures in {'planar' if planar else 'spatial'} "
+            f"mode ({', '.join(names) or 'none: a passive rod'}); got {pressures!r}")
+    bad = ~np.isfinite(p)
+    if bad.any():
+        raise ValueError(f"pressure for channel {names[int(np.argmax(bad))]!r} is not finite: "
+                         f"{p[bad][0]}")
+    if (p < 0).any():
+        k = int(np.argmax(p < 0))
+        raise ValueError(f"pressure for channel {names[k]!r} is negative ({p[k]:.6g} Pa); "
+                         "channel pressures are gauge pressures >= 0")
+    if (p > arm.max_pressure * (1 + 1e-12)).any():
+        k = int(np.argmax(p > arm.max_pressure * (1 + 1e-12)))
+        raise ValueError(f"pressure for channel {names[k]!r} ({p[k]:.6g} Pa) exceeds the design's "
+                         f"rated maximum {arm.max_pressure:.6g} Pa")
+    if not planar:
+        return p, p.copy()
+    spatial = np.zeros(arm.n_channels)
+    for value, (_, idx) in zip(p, arm.planar_channels):
+        spatial[list(idx)] = value
+    return p, spatial
+
+
+def _check(arm, scene, model, planar):
+    if not isinstance(arm, ArmDesign):
+        raise ValueError(f"arm must be a solver.designs.ArmDesign; got {type(arm).__name__}")
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene must be a solver.Scene; got {type(scene).__name__}")
+    if model not in MODELS:
+        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    if planar and not scene.is_planar:
+        raise ValueError("scene has out-of-plane loads (tip_force z or tip_moment x/y); "
+                         "use planar=False")
+    if planar and not arm.planar_channels and arm.tubes:
+        raise ValueError(f"design {arm.name!r} defines no planar channels; use planar=False")
+
+
+def rest_strains(arm: ArmDesign, channel_pressures: np.ndarray, packed: _Packed | None = None):
+    """Rest curvatures (u1*, u2*) (rad/m) and stretch v3* of every section (DESIGN §2).
+
+    Args:
+        arm: the design.
+        channel_pressures: (n_channels,) spatial-channel pressures (Pa).
+
+    Returns:
+        (u1, u2, v3), each (n_sections,).
+    """
+    packed = packed or _pack(arm, "full", DEFAULT_SETTINGS)
+    ns = len(arm.sections)
+    u1, u2, v3 = np.empty(ns), np.empty(ns), np.empty(ns)
+    ti, tf = packed.tubes_i, packed.tubes_f
+    _planar._rest_strains(np.ascontiguousarray(channel_pressures, dtype=float), ti[:, 0], ti[:, 1],
+                          ti[:, 2], tf[:, 0], tf[:, 1], tf[:, 2], tf[:, 3], tf[:, 4], tf[:, 5],
+                          packed.sec_ea, packed.sec_ei, u1, u2, v3)
+    return u1, u2, v3
+
+
+def _has_load(arm: ArmDesign, scene: Scene) -> bool:
+    weight = scene.gravity > 0 and (arm.mass > 0 or scene.payload_kg > 0)
+    return bool(weight or np.any(scene.tip_force_3d()) or np.any(scene.tip_moment_3d()))
+
+
+def _section_ends(packed: _Packed) -> tuple[int, ...]:
+    return tuple(int(v) for v in np.cumsum(packed.sec_steps + 1) - 1)
+
+
+# ----------------------------------------------------------------------------- solve
+
+
+def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "full",
+          planar: bool = True, warm_start: Equilibrium | None = None, record: bool = True,
+          settings: Settings = DEFAULT_SETTINGS, strict: bool = False) -> Equilibrium:
+    """Static equilibrium of ``arm`` at channel ``pressures`` in ``scene``.
+
+    Without ``warm_start`` the equilibrium reached quasi-statically is returned: the
+    unactuated arm is loaded (gravity, endplates, payload, tip loads ramped from zero), then
+    all pressures are ramped proportionally from zero, following the stable branch
+    (DESIGN §2 "Which equilibrium"). With ``warm_start`` the path from that equilibrium is
+    followed the same way (the hysteresis is physical).
+
+    Args:
+        arm: the design (:mod:`solver.designs`).
+        pressures: (n_inputs,) channel pressures in Pa, ordered as
+            ``arm.input_names(planar)``; ``[]`` for a passive rod.
+        scene: mounting and loads (default: hanging, gravity, no payload).
+        model: ``"full"``, ``"unshearable"`` (GA → ∞) or ``"constant_curvature"``.
+        planar: solve in the x–y plane (inputs are planar channels) or in 3D.
+        warm_start: a previous equilibrium of the same arm, model and mode.
+        record: return backbone samples (False: tip only, faster).
+        settings: numerical settings.
+        strict: raise :class:`SolverError` instead of returning an unconverged result.
+
+    Returns:
+        The :class:`Equilibrium`.
+    """
+    scene = Scene() if scene is None else scene
+    _check(arm, scene, model, planar)
+    p_inputs, p_channel = _channel_pressures(arm, pressures, planar)
+    if warm_start is not None:
+        if not isinstance(warm_start, Equilibrium):
+            raise ValueError("warm_start must be an Equilibrium returned by solve()")
+        if warm_start.planar != planar or warm_start.model != model or \
+                warm_start.channel_pressures.shape != p_channel.shape:
+            raise ValueError("warm_start comes from a different arm, model or planar mode")
+    packed = _pack(arm, model, settings)
+    if model == "constant_curvature" or not _has_load(arm, scene):
+        eq = _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
+    elif planar:
+        eq = _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
+                           settings)
+    elif scene.is_planar and _in_plane(arm, packed, p_channel):
+        eq = _embed(_solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start,
+                                  record, settings))
+    else:
+        eq = _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
+                            settings)
+    if strict and not eq.converged:
+        raise SolverError(f"no converged equilibrium (residual {eq.residual:.3g} N m after "
+                          f"{eq.iterations} iterations)")
+    return eq
+
+
+def _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
+    """Unloaded arm (or the constant-curvature model): each section a circular arc.
+
+    With no external load the internal force and moment vanish everywhere, so each section
+    takes its rest strains exactly: curvature u*, stretch v*, no shear. Exact for every
+    model; the ``constant_curvature`` model applies it whatever the loads.
+    """
+    u1, u2, v3 = rest_strains(arm, p_channel, packed)
+    rot = _spatial.base_rotation(scene.base_theta)
+    pos, frames, s = _spatial.arc_chain(rot, packed.sec_len, packed.sec_steps, u1, u2, v3,
+                                        record)
+    tip = pos[-1]
+    common = dict(converged=True, stable=True, iterations=0, residual=0.0, model=model,
+                  planar=planar, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
+                  base_moment=np.zeros(1 if planar else 3))
+    if not record:
+        return Equilibrium(tip=tip[:2].copy() if planar else tip.copy(), **common)
+    seg = np.repeat(np.arange(len(arm.sections)), packed.sec_steps + 1)
+    n = len(s)
+    if planar:
+        theta = np.arctan2(frames[:, 1, 2], frames[:, 0, 2])
+        return Equilibrium(
+            tip=tip[:2].copy(), s=s, positions=pos[:, :2].copy(), angles=theta,
+            shear_stretch=np.column_stack([np.zeros(n), v3[seg]]), curvature=u2[seg].copy(),
+            internal_force=np.zeros((n, 2)), internal_moment=np.zeros(n),
+            section_ends=_section_ends(packed), **common)
+    return Equilibrium(
+        tip=tip.copy(), s=s, positions=pos, orientations=frames,
+        shear_stretch=np.column_stack([np.zeros(n), np.zeros(n), v3[seg]]),
+        curvature=np.column_stack([u1[seg], u2[seg], np.zeros(n)]),
+        internal_force=np.zeros((n, 3)), internal_moment=np.zeros((n, 3)),
+        section_ends=_section_ends(packed), **common)
+
+
+def _planar_args(packed: _Packed, settings: Settings, load_scale: float):
+    tol = settings.tol * packed.moment_scale * max(1.0, load_scale)
+    max_step = 2.0 * packed.moment_scale * max(1.0, load_scale)
+    return tol, max_step
+
+
+def _moment_bound(arm, packed, scene, n_end, q, p_channel):
+    """A bound on |m0|: |M_tip| + ∫|r'||n| ds, with |r'| ≤ v*max + |n|/min(EA, GA)."""
+    nmax = float(np.max(np.linalg.norm(n_end, axis=1) + np.linalg.norm(q, axis=1) * packed.sec_len))
+    u1, u2, v3 = rest_strains(arm, p_channel, packed)
+    stretch = float(v3.max()) + nmax * float(max(packed.c_a.max(), packed.c_g.max()))
+    bound = abs(float(np.linalg.norm(scene.tip_moment_3d()))) + nmax * stretch * arm.length
+    return 1.05 * bound + packed.moment_scale * 1e-6
+
+
+def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    n_end, q, m_tip = _loads(arm, packed, scene, 2)
+    load_scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale) if n_end.size else 0
+    tol, max_step = _planar_args(packed, settings, load_scale)
+    bound = _moment_bound(arm, packed, scene, n_end, q, p_channel)
+    nc = max(arm.n_channels, 1)
+    ns = len(arm.sections)
+    work = dict(u1=np.empty(ns), u2=np.empty(ns), v3=np.empty(ns), p_now=np.empty(nc),
+                n_end=np.empty((ns, 2)), q=np.empty((ns, 2)), dummy=np.empty((1, _planar.N_COLUMNS)))
+    p_target = p_channel if arm.n_channels else np.zeros(1)
+    common = (scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g,
+              packed.c_i, packed.sec_ea, packed.sec_ei, packed.tubes_i, packed.tubes_f)
+    numeric = (tol, settings.max_iter, max_step, bound, settings.dt0, settings.dt_min,
+               settings.n_scan)
+    iterations = 0
+    snapped = False
+    if warm_start is not None and warm_start.scene is not None:
+        wa_end, wa_q, wa_mtip = _loads(arm, packed, warm_start.scene, 2)
+        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+        m0 = float(warm_start.base_moment[-1])  # planar m_z, or z of a spatial m0
+        if warm_start.scene.base_angle_deg != scene.base_angle_deg:
+            raise ValueError("warm_start was solved at a different base angle")
+    else:
+        # Stage 1: load the unactuated arm (loads ramp from zero; straight rod, m0 = 0).
+        zeros = np.zeros_like(p_target)
+        m0, ok, its, snap, stab, res = _planar._follow(
+            0.0, 0.0, *common, zeros, zeros, np.zeros_like(n_end), n_end, np.zeros_like(q), q,
+            0.0, m_tip, *numeric, *work.values())
+        iterations += its
+        snapped |= snap
+        wa_end, wa_q, wa_mtip, p_start = n_end, q, m_tip, zeros
+    m0, ok, its, snap, stab, res = _planar._follow(
+        m0, 0.0, *common, p_start, p_target, wa_end, n_end, wa_q, q, wa_mtip, m_tip, *numeric,
+        *work.values())
+    iterations += its
+    snapped |= snap
+    rows = packed.n_rows if record else 1
+    out = np.zeros((rows, _planar.N_COLUMNS))
+    th, m, b, x, y, bmin = _planar._integrate(
+        m0, scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g,
+        packed.c_i, work["u2"], work["v3"], work["n_end"], work["q"], record, out)
+    res = abs(m - m_tip)
+    converged = bool(ok and res <= 10 * tol)
+    common_out = dict(tip=np.array([x, y]), converged=converged, stable=bool(stab and bmin > 0),
+                      iterations=int(iterations), residual=float(res), snapped=bool(snapped),
+                      model=model, planar=True, scene=scene, pressures=p_inputs,
+                      channel_pressures=p_channel, base_moment=np.array([m0]))
+    if not record:
+        return Equilibrium(**common_out)
+    theta = out[:, _planar.THETA]
+    c, sn = np.cos(theta), np.sin(theta)
+    n1, n3 = out[:, _planar.N1], out[:, _planar.N3]
+    return Equilibrium(
+        s=out[:, _planar.S].copy(), positions=out[:, [_planar.X, _planar.Y]].copy(),
+        angles=theta.copy(), shear_stretch=out[:, [_planar.V1, _planar.V3]].copy(),
+        curvature=out[:, _planar.U].copy(),
+        internal_force=np.column_stack([n3 * c - n1 * sn, n3 * sn + n1 * c]),
+        internal_moment=out[:, _planar.M].copy(), section_ends=_section_ends(packed),
+        **common_out)
+
+
+def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "full",
+                planar: bool = True, settings: Settings = DEFAULT_SETTINGS):
+    """Tip positions for many pressure vectors, in parallel over the cores.
+
+    Every row gets the equilibrium :func:`solve` (cold) would return for it, so a sweep's
+    result does not depend on its order.
+
+    Args:
+        arm, scene, model, planar, settings: as in :func:`solve`.
+        pressures: (n, n_inputs) channel pressures (Pa).
+
+    Returns:
+        ``(tips, converged)``: (n, 2|3) tip positions (m) and (n,) bool.
+    """
+    scene = Scene() if scene is None else scene
+    _check(arm, scene, model, planar)
+    p = np.asarray(pressures, dtype=float)
+    if p.ndim != 2 or p.shape[1] != arm.n_inputs(planar):
+        raise ValueError(f"pressures must have shape (n, {arm.n_inputs(planar)}); got {p.shape}")
+    channel = np.empty((p.shape[0], max(arm.n_channels, 1)))
+    for k in range(p.shape[0]):
+        _, c = _channel_pressures(arm, p[k], planar)
+        channel[k, : c.shape[0]] = c if c.size else 0.0
+    packed = _pack(arm, model, settings)
+    if model == "constant_curvature" or not _has_load(arm, scene) or not planar:
+        dim = 2 if planar else 3
+        tips = np.empty((p.shape[0], dim))
+        ok = np.empty(p.shape[0], dtype=bool)
+        for k in range(p.shape[0]):
+            eq = solve(arm, p[k], scene, model, planar, record=False, settings=settings)
+            tips[k] = eq.tip
+            ok[k] = eq.converged
+        return tips, ok
+    loaded = solve(arm, np.zeros(arm.n_inputs(True)), scene, model, True, record=False,
+                   settings=settings)
+    n_end, q, m_tip = _loads(arm, packed, scene, 2)
+    load_scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale)
+    tol, max_step = _planar_args(packed, settings, load_scale)
+    bound = max(_moment_bound(arm, packed, scene, n_end, q, c) for c in
+                (np.zeros(channel.shape[1]), np.full(channel.shape[1], channel.max())))
+    tips = np.empty((p.shape[0], 2))
+    ok = np.empty(p.shape[0], dtype=bool)
+    stable = np.empty(p.shape[0], dtype=bool)
+    _planar._batch(float(loaded.base_moment[0]), scene.base_theta, packed.sec_len,
+                   packed.sec_steps, packed.c_a, packed.c_g, packed.c_i, packed.sec_ea,
+                   packed.sec_ei, packed.tubes_i, packed.tubes_f, channel, n_end, q, m_tip, tol,
+                   settings.max_iter, max_step, bound, settings.dt0, settings.dt_min,
+                   settings.n_scan, tips, ok, stable)
+    return tips, ok
+
+
+def _in_plane(arm, packed, p_channel) -> bool:
+    """True when the pressures bend every section in the x–y plane only (u1* = 0)."""
+    u1, u2, v3 = rest_strains(arm, p_channel, packed)
+    return bool(np.all(np.abs(u1) <= 1e-12 * (1.0 + np.abs(u2))))
+
+
+def _embed(eq: Equilibrium) -> Equilibrium:
+    """A planar equilibrium expressed in 3D (z = 0, d2 = +z)."""
+    n = eq.s.size
+    pad = np.zeros((n, 1))
+    c, s = np.cos(eq.angles), np.sin(eq.angles)
+    frames = np.zeros((n, 3, 3))
+    frames[:, 0, 0], frames[:, 1, 0] = -s, c
+    frames[:, 2, 1] = 1.0
+    frames[:, 0, 2], frames[:, 1, 2] = c, s
+    return replace(
+        eq, tip=np.append(eq.tip, 0.0), planar=False,
+        positions=np.hstack([eq.positions, pad]), angles=np.empty(0), orientations=frames,
+        shear_stretch=np.column_stack([eq.shear_stretch[:, 0], pad[:, 0], eq.shear_stretch[:, 1]])
+        if n else np.empty((0, 3)),
+        curvature=np.column_stack([pad[:, 0], eq.curvature, pad[:, 0]]) if n else np.empty((0, 3)),
+        internal_force=np.hstack([eq.internal_force, pad]) if n else np.empty((0, 3)),
+        internal_moment=np.column_stack([pad[:, 0], pad[:, 0], eq.internal_moment])
+        if n else np.empty((0, 3)),
+        base_moment=np.array([0.0, 0.0, eq.base_moment[-1]]))
+
+
+def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    n_end, q, m_tip = _loads(arm, packed, scene, 3)
+    load_scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale) if n_end.size else 0
+    tol, max_step = _planar_args(packed, settings, load_scale)
+    rot0 = _spatial.base_rotation(scene.base_theta)
+    p_target = p_channel if arm.n_channels else np.zeros(1)
+    common = (rot0, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g, packed.c_i,
+              packed.c_j, packed.sec_ea, packed.sec_ei, packed.tubes_i, packed.tubes_f)
+    numeric = (tol, settings.max_iter, max_step, settings.dt0, settings.dt_min)
+    iterations = 0
+    if warm_start is not None and warm_start.scene is not None:
+        if warm_start.scene.base_angle_deg != scene.base_angle_deg:
+            raise ValueError("warm_start was solved at a different base angle")
+        a_end, a_q, a_mtip = _loads(arm, packed, warm_start.scene, 3)
+        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+        m0 = np.zeros(3)
+        m0[-warm_start.base_moment.size:] = warm_start.base_moment
+    else:
+        zeros = np.zeros_like(p_target)
+        m0, ok, its, stab, res, *_ = _spatial._follow(
+            np.zeros(3), *common, zeros, zeros, np.zeros_like(n_end), n_end, np.zeros_like(q), q,
+            np.zeros(3), m_tip, *numeric)
+        iterations += its
+        a_end, a_q, a_mtip, p_start = n_end, q, m_tip, zeros
+    m0, ok, its, stab, res, u1, u2, v3, n_now, q_now, mt = _spatial._follow(
+        m0, *common, p_start, p_target, a_end, n_end, a_q, q, a_mtip, m_tip, *numeric)
+    iterations += its
+    rows = packed.n_rows if record else 1
+    pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
+    y, dmin = _spatial._integrate(m0, rot0, packed.sec_len, packed.sec_steps, packed.c_a,
+                                  packed.c_g, packed.c_i, packed.c_j, u1, u2, v3, n_now, q_now,
+                                  record, pos, rot, mom)
+    res = float(np.linalg.norm(y[7:10] - m_tip))
+    common_out = dict(tip=y[0:3].copy(), converged=bool(ok and res <= 10 * tol),
+                      stable=bool(stab and dmin > 0), iterations=int(iterations), residual=res,
+                      model=model, planar=False, scene=scene, pressures=p_inputs,
+                      channel_pressures=p_channel, base_moment=m0.copy())
+    if not record:
+        return Equilibrium(**common_out)
+    seg = np.repeat(np.arange(len(arm.sections)), packed.sec_steps + 1)
+    s = np.concatenate([np.linspace(0, L, k + 1) + off for L, k, off in
+                        zip(packed.sec_len, packed.sec_steps,
+                            np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]]))])
+    local = s - np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])[seg]
+    force = n_now[seg] + q_now[seg] * (packed.sec_len[seg] - local)[:, None]
+    nb = np.einsum("nji,nj->ni", rot, force)
+    mb = np.einsum("nji,nj->ni", rot, mom)
+    strain_v = np.column_stack([nb[:, 0] * packed.c_g[seg], nb[:, 1] * packed.c_g[seg],
+                                v3[seg] + nb[:, 2] * packed.c_a[seg]])
+    strain_u = np.column_stack([u1[seg] + mb[:, 0] * packed.c_i[seg],
+                                u2[seg] + mb[:, 1] * packed.c_i[seg], mb[:, 2] * packed.c_j[seg]])
+    return Equilibrium(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
+                       curvature=strain_u, internal_force=force, internal_moment=mom,
+                       section_ends=_section_ends(packed), **common_out)
