@@ -44,6 +44,9 @@ class Settings:
         max_iter: Newton iterations per continuation step.
         dt0, dt_min: first and smallest continuation step (fraction of the ramp).
         n_scan: grid points of the fold scan over the base moment.
+        shortcuts: skip what a scene does not need (closed-form arcs when unloaded, the
+            planar kernel for in-plane spatial solves). False forces the general path; the
+            tests use it to check that each shortcut agrees with it.
     """
 
     steps_per_section: int = 16
@@ -52,6 +55,7 @@ class Settings:
     dt0: float = 1.0
     dt_min: float = 1.0 / 256.0
     n_scan: int = 96
+    shortcuts: bool = True
 
     def __post_init__(self):
         if int(self.steps_per_section) != self.steps_per_section or self.steps_per_section < 1:
@@ -303,12 +307,12 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
                 warm_start.channel_pressures.shape != p_channel.shape:
             raise ValueError("warm_start comes from a different arm, model or planar mode")
     packed = _pack(arm, model, settings)
-    if model == "constant_curvature" or not _has_load(arm, scene):
+    if model == "constant_curvature" or (settings.shortcuts and not _has_load(arm, scene)):
         eq = _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     elif planar:
         eq = _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
                            settings)
-    elif scene.is_planar and _in_plane(arm, packed, p_channel):
+    elif settings.shortcuts and scene.is_planar and _in_plane(arm, packed, p_channel):
         eq = _embed(_solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start,
                                   record, settings))
     else:

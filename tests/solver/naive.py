@@ -1,0 +1,214 @@
+"""Slow, plain references that do not trust the solver's code (as stumpy keeps tests/naive.py).
+
+* The actuator from first principles: p = dU/dV of Eqs. (2.1)–(2.6), differentiated
+  numerically, inverted with ``scipy.optimize.brentq``.
+* Rest strains by plain loops over the tubes.
+* The planar rod as a scipy ``solve_bvp`` multipoint problem in a *different* formulation:
+  state (x, y, θ, n_x, n_y, m) in every section, n integrated from n' = −f instead of being
+  taken from global equilibrium, sections coupled by junction conditions (endplate weight as
+  a force jump), clamped base and loaded free tip as two-point boundary conditions — the
+  layout of the thesis's Appendix A.2 MATLAB code.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.integrate import solve_bvp
+from scipy.optimize import brentq
+
+
+def pressure_energy(lam, E, Ri, Ro, alpha_deg, h=1e-6):
+    """p(λ) = dU/dV from the strain energy and internal volume (Eqs. 2.1–2.6)."""
+    a = math.radians(alpha_deg)
+    c2, s2 = math.cos(a) ** 2, math.sin(a) ** 2
+    at = math.pi * (Ro**2 - Ri**2)
+
+    def energy_volume(l1):
+        l2sq = (1.0 - l1**2 * c2) / s2          # Eq. 2.3 (incompressibility via the braid)
+        l3 = 1.0 / (l1 * math.sqrt(l2sq))       # Eq. 2.4
+        i1 = l1**2 + l2sq + l3**2               # Eq. 2.1
+        u = E / 6.0 * (i1 - 3.0) * at           # Eqs. 2.2, 2.5, 2.6 per unit length
+        v = math.pi * Ri**2 * l1 * l2sq         # Eq. 2.5 per unit length
+        return u, v
+
+    u1, v1 = energy_volume(lam + h)
+    u0, v0 = energy_volume(lam - h)
+    return (u1 - u0) / (v1 - v0)
+
+
+def pressure_eq210_printed(lam, E, Ri, Ro, alpha_deg):
+    """Eq. (2.10) exactly as printed in the thesis (with its sign)."""
+    a = math.radians(alpha_deg)
+    c, c2a = math.cos(a), math.cos(2 * a)
+    num = (lam**8 * c**4 * c2a - 2 * lam**6 * c**2 * c2a + lam**4 * c2a + 2 * lam**2 * c**2 * c2a
+           - c2a - 2 * lam**2 * c**6 + c**4)
+    at = math.pi * (Ro**2 - Ri**2)
+    area = math.pi * Ri**2
+    den = 3 * lam**3 * (1 - 5 * lam**2 * c**2 + 7 * lam**4 * c**4 - 3 * lam**6 * c**6) * area
+    return E * num * at / den
+
+
+def stretch_bisect(p, E, Ri, Ro, alpha_deg):
+    """λ at pressure p by bracketing :func:`pressure_energy` on [1, λmax)."""
+    if p == 0:
+        return 1.0
+    lam_max = 1.0 / (math.sqrt(3.0) * math.cos(math.radians(alpha_deg)))
+    return brentq(lambda lam: pressure_energy(lam, E, Ri, Ro, alpha_deg) - p, 1.0 + 1e-9,
+                  lam_max - 1e-9, xtol=1e-15, rtol=1e-15)
+
+
+def rest_strains(arm, channel_pressures):
+    """(u1*, u2*, v3*) per section by plain loops (DESIGN §2)."""
+    ns = len(arm.sections)
+    force = [0.0] * ns
+    m1 = [0.0] * ns
+    m2 = [0.0] * ns
+    for tube in arm.tubes:
+        mat = tube.material
+        lam = stretch_bisect(channel_pressures[tube.channel], mat.youngs_modulus, mat.inner_radius,
+                             mat.outer_radius, mat.wind_angle_deg)
+        f = mat.youngs_modulus * mat.area * (lam - 1.0)
+        a = math.radians(tube.angle_deg)
+        for i in range(tube.first_section, tube.last_section + 1):
+            force[i] += f
+            m1[i] += f * tube.radius * math.sin(a)
+            m2[i] -= f * tube.radius * math.cos(a)
+    secs = arm.sections
+    return (np.array([m1[i] / secs[i].EI for i in range(ns)]),
+            np.array([m2[i] / secs[i].EI for i in range(ns)]),
+            np.array([1.0 + force[i] / secs[i].EA for i in range(ns)]))
+
+
+def solve_bvp_planar(arm, channel_pressures, scene, unshearable=False, tol=1e-10, nodes=41,
+                     guess=None):
+    """Planar equilibrium by scipy ``solve_bvp``; returns (tip (2,), tip angle, solution).
+
+    Each section i is mapped to τ ∈ [0, 1]; its state is (x, y, θ, n_x, n_y, m) and
+    d/dτ = L_i · d/ds with
+        x' = v3 cos θ − v1 sin θ,  y' = v3 sin θ + v1 cos θ,  θ' = u*_i + m/EI_i,
+        n' = −μ_i g,  m' = −(x' n_y − y' n_x).
+    """
+    u1, u2, v3r = rest_strains(arm, channel_pressures)
+    secs = arm.sections
+    ns = len(secs)
+    g = np.array([0.0, -scene.gravity])
+    theta0 = math.radians(scene.base_angle_deg - 90.0)
+    tip_force = np.array(scene.tip_force[:2]) + scene.payload_kg * g
+    m_tip = float(scene.tip_moment) if isinstance(scene.tip_moment, float) else scene.tip_moment[2]
+
+    def rhs(tau, state):
+        out = np.empty_like(state)
+        for i, sec in enumerate(secs):
+            x, y, th, nx, ny, m = state[6 * i: 6 * i + 6]
+            c, s = np.cos(th), np.sin(th)
+            n1 = -nx * s + ny * c
+            n3 = nx * c + ny * s
+            v1 = 0.0 if unshearable else n1 / sec.GA
+            v3 = v3r[i] + n3 / sec.EA
+            dx = v3 * c - v1 * s
+            dy = v3 * s + v1 * c
+            q = sec.mass_per_length * g
+            out[6 * i: 6 * i + 6] = sec.length * np.array([
+                dx, dy, u2[i] + m / sec.EI, -q[0] + 0 * x, -q[1] + 0 * y, -(dx * ny - dy * nx)])
+        return out
+
+    def bc(ya, yb):
+        res = [ya[0], ya[1], ya[2] - theta0]
+        for i in range(ns - 1):
+            plate = secs[i].endplate_mass * g
+            a, b = yb[6 * i: 6 * i + 6], ya[6 * (i + 1): 6 * (i + 1) + 6]
+            res += [b[0] - a[0], b[1] - a[1], b[2] - a[2],
+                    a[3] - b[3] - plate[0], a[4] - b[4] - plate[1], b[5] - a[5]]
+        last = yb[6 * (ns - 1): 6 * ns]
+        plate = secs[-1].endplate_mass * g
+        res += [last[3] - tip_force[0] - plate[0], last[4] - tip_force[1] - plate[1],
+                last[5] - m_tip]
+        return np.array(res)
+
+    tau = np.linspace(0.0, 1.0, nodes)
+    if guess is None:
+        guess = np.zeros((6 * ns, nodes))
+        start = 0.0
+        for i, sec in enumerate(secs):
+            guess[6 * i + 0] = np.cos(theta0) * (start + sec.length * tau)
+            guess[6 * i + 1] = np.sin(theta0) * (start + sec.length * tau)
+            guess[6 * i + 2] = theta0
+            start += sec.length
+    sol = solve_bvp(rhs, bc, tau, guess, tol=tol, max_nodes=200000)
+    if not sol.success:
+        raise RuntimeError(f"solve_bvp failed: {sol.message}")
+    end = sol.sol(1.0)[6 * (ns - 1): 6 * ns]
+    return end[:2], end[2], sol
+
+
+def rk4_planar(arm, rest, scene, m0, steps=2000):
+    """Plain-Python RK4 of the solver's own planar ODE from base moment m0 (no Newton).
+
+    ``rest`` = (u1*, u2*, v3*) per section, so that the integrator alone is compared.
+    """
+    u1, u2, v3r = rest
+    g = np.array([0.0, -scene.gravity])
+    secs = arm.sections
+    # n just proximal of each section end, from the tip inwards.
+    running = np.array(scene.tip_force[:2]) + scene.payload_kg * g
+    n_end = [None] * len(secs)
+    for i in range(len(secs) - 1, -1, -1):
+        running = running + secs[i].endplate_mass * g
+        n_end[i] = running.copy()
+        running = running + secs[i].mass_per_length * g * secs[i].length
+    state = np.array([0.0, 0.0, math.radians(scene.base_angle_deg - 90.0), m0])
+    for i, sec in enumerate(secs):
+        def f(sig, st, i=i, sec=sec):
+            x, y, th, m = st
+            n = n_end[i] + sec.mass_per_length * g * (sec.length - sig)
+            c, s = math.cos(th), math.sin(th)
+            n1 = -n[0] * s + n[1] * c
+            n3 = n[0] * c + n[1] * s
+            v1, v3 = n1 / sec.GA, v3r[i] + n3 / sec.EA
+            return np.array([v3 * c - v1 * s, v3 * s + v1 * c, u2[i] + m / sec.EI,
+                             v1 * n3 - v3 * n1])
+        h = sec.length / steps
+        for j in range(steps):
+            sig = j * h
+            k1 = f(sig, state)
+            k2 = f(sig + h / 2, state + h / 2 * k1)
+            k3 = f(sig + h / 2, state + h / 2 * k2)
+            k4 = f(sig + h, state + h * k3)
+            state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return state
+
+
+def elastica_cantilever(alpha):
+    """Inextensible cantilever, horizontal clamp, dead vertical tip load, α = P L²/EI.
+
+    From EI φ'' = −P cos φ with φ(0) = 0, φ'(L) = 0 (φ the downward slope):
+    φ' = √(2P/EI)·√(sin ψ − sin φ), so √α = (1/√2)∫₀^ψ dφ/√(sin ψ − sin φ),
+    u/L = 1 − √(2 sin ψ/α) and w/L = (1/√(2α))∫₀^ψ sin φ dφ/√(sin ψ − sin φ).
+    The end singularity is removed by φ = ψ − v². Returns (w/L, u/L, ψ) to ~1e-12.
+    """
+    import warnings
+
+    from scipy.integrate import IntegrationWarning, quad
+
+    def integral(psi, weight):
+        def f(v):
+            phi = psi - v * v
+            # sin ψ − sin φ = 2 cos((ψ+φ)/2) sin(v²/2), written so that it keeps its digits.
+            half = 0.5 * v * v
+            if half == 0.0:
+                return 2.0 * weight(psi) / math.sqrt(math.cos(psi))
+            gap = 2.0 * math.cos(psi - half) * math.sin(half)
+            return 2.0 * v * weight(phi) / math.sqrt(gap)
+        with warnings.catch_warnings():
+            # quad's round-off notice fires near 1e-12; the result matches the printed table
+            # to all its digits and our solver to ~1e-11.
+            warnings.simplefilter("ignore", IntegrationWarning)
+            return quad(f, 0.0, math.sqrt(psi), epsabs=1e-12, epsrel=1e-11, limit=200)[0]
+
+    psi = brentq(lambda p: integral(p, lambda _: 1.0) / math.sqrt(2.0) - math.sqrt(alpha),
+                 1e-6, math.pi / 2 - 1e-9, xtol=1e-15)
+    w = integral(psi, math.sin) / math.sqrt(2.0 * alpha)
+    u = 1.0 - math.sqrt(2.0 * math.sin(psi) / alpha)
+    return w, u, psi
