@@ -1,0 +1,351 @@
+"""Shape estimators: sensor readings (and commanded pressures) → backbone shape (chapter 4).
+
+All estimators return one :class:`ShapeEstimate` and share one interface::
+
+    est = make_estimator("cable_encoder", arm, planar=True, scene=solver.Scene(...))
+    est.reset()                                    # new episode: forget warm starts
+    shape = est.estimate(readings, pressures_pa)   # readings from sensing.synthesize
+
+An estimator knows the *nominal* design it was built with and the mounting (base angle,
+gravity) of ``scene``; it never sees the true payload or external loads of ``scene`` (those
+are what it has to cope with), nor a randomised simulated arm.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+import solver
+from softarm_gym.sensing._kernels import _arc_chain_planar, _hermite_resample
+from softarm_gym.sensing.sensors import SensorReadings, cable_angles, cable_radius
+
+__all__ = ["ShapeEstimate", "Estimator", "make_estimator", "ESTIMATORS", "shape_from_equilibrium"]
+
+ESTIMATORS = ("true", "model", "constant_curvature", "cable_encoder", "inclinometer", "load_cell")
+"""Names accepted by :func:`make_estimator`."""
+
+DEFAULT_SAMPLES = 32
+
+
+@dataclass(frozen=True)
+class ShapeEstimate:
+    """An estimated backbone.
+
+    Attributes:
+        tip: (2,) planar or (3,) spatial tip position (m).
+        section_ends: (n_sections, 3): planar (x, y, θ) of each section end (m, m, rad);
+            spatial (x, y, z) (m).
+        backbone: (K, 2|3) positions at K reference arc lengths evenly spaced from the base
+            (s = 0) to the tip (s = L) (m).
+        section_frames: spatial (n_sections, 3, 3) directors [d1 d2 d3] (columns) at each
+            section end; planar: empty (0, 3, 3).
+    """
+
+    tip: np.ndarray
+    section_ends: np.ndarray
+    backbone: np.ndarray
+    section_frames: np.ndarray = field(default_factory=lambda: np.empty((0, 3, 3)))
+
+    def __post_init__(self):
+        tip = np.asarray(self.tip, dtype=float)
+        ends = np.asarray(self.section_ends, dtype=float)
+        backbone = np.asarray(self.backbone, dtype=float)
+        frames = np.asarray(self.section_frames, dtype=float)
+        if tip.shape not in ((2,), (3,)):
+            raise ValueError(f"ShapeEstimate.tip must have shape (2,) or (3,); got {tip.shape}")
+        dim = tip.shape[0]
+        if ends.ndim != 2 or ends.shape[1] != 3:
+            raise ValueError(f"ShapeEstimate.section_ends must have shape (n_sections, 3); got {ends.shape}")
+        if backbone.ndim != 2 or backbone.shape[1] != dim or backbone.shape[0] < 2:
+            raise ValueError(f"ShapeEstimate.backbone must have shape (K >= 2, {dim}); got {backbone.shape}")
+        if dim == 3 and frames.shape != (ends.shape[0], 3, 3):
+            raise ValueError(f"spatial ShapeEstimate.section_frames must have shape "
+                             f"({ends.shape[0]}, 3, 3); got {frames.shape}")
+        for arr in (tip, ends, backbone, frames):
+            arr.setflags(write=False)
+        object.__setattr__(self, "tip", tip)
+        object.__setattr__(self, "section_ends", ends)
+        object.__setattr__(self, "backbone", backbone)
+        object.__setattr__(self, "section_frames", frames)
+
+    @property
+    def planar(self) -> bool:
+        """True for a planar estimate."""
+        return self.tip.shape[0] == 2
+
+
+def _sample_grid(arm: solver.designs.ArmDesign, n_samples: int) -> np.ndarray:
+    return np.linspace(0.0, arm.length, n_samples)
+
+
+def shape_from_equilibrium(eq: solver.Equilibrium, n_samples: int = DEFAULT_SAMPLES) -> ShapeEstimate:
+    """The :class:`ShapeEstimate` of a recorded equilibrium (cubic Hermite backbone resampling).
+
+    Args:
+        eq: an equilibrium solved with ``record=True``.
+        n_samples: K, number of backbone samples.
+    """
+    if eq.s.size == 0:
+        raise ValueError("the equilibrium was solved with record=False; solve with record=True")
+    ends = np.asarray(eq.section_ends, dtype=np.int64)
+    s_query = np.linspace(0.0, float(eq.s[-1]), n_samples)
+    if eq.planar:
+        th = eq.angles
+        d3 = np.column_stack([np.cos(th), np.sin(th)])
+        d1 = np.column_stack([-np.sin(th), np.cos(th)])
+        tangent = eq.shear_stretch[:, 1:2] * d3 + eq.shear_stretch[:, 0:1] * d1
+        section_ends = np.column_stack([eq.positions[ends], th[ends]])
+        frames = np.empty((0, 3, 3))
+    else:
+        tangent = np.einsum("nij,nj->ni", eq.orientations, eq.shear_stretch)
+        section_ends = eq.positions[ends].copy()
+        frames = eq.orientations[ends].copy()
+    backbone = np.empty((n_samples, eq.positions.shape[1]))
+    _hermite_resample(np.ascontiguousarray(eq.s), np.ascontiguousarray(eq.positions),
+                      np.ascontiguousarray(tangent), s_query, backbone)
+    backbone[-1] = eq.tip
+    return ShapeEstimate(tip=eq.tip.copy(), section_ends=section_ends, backbone=backbone,
+                         section_frames=frames)
+
+
+class Estimator:
+    """Base class: holds the nominal design, mode, mounting scene and sample count.
+
+    Subclasses implement :meth:`_estimate`; :meth:`estimate` validates the inputs first.
+    """
+
+    name = ""
+
+    def __init__(self, arm: solver.designs.ArmDesign, planar: bool, scene: solver.Scene,
+                 n_samples: int):
+        self.arm = arm
+        self.planar = bool(planar)
+        self.scene = scene
+        self.n_samples = n_samples
+        self.s_query = _sample_grid(arm, n_samples)
+        self.sec_len = np.array([s.length for s in arm.sections])
+
+    def reset(self) -> None:
+        """Forget any state carried between estimates (start of a new episode)."""
+
+    def estimate(self, readings: SensorReadings, pressures_pa, truth: solver.Equilibrium | None = None
+                 ) -> ShapeEstimate:
+        """Estimate the shape.
+
+        Args:
+            readings: sensor readings of the current equilibrium (:func:`synthesize`).
+            pressures_pa: (n_inputs,) commanded pressures (Pa), ordered as
+                ``arm.input_names(planar)``.
+            truth: the true equilibrium; used only by the ``true`` estimator.
+
+        Returns:
+            The :class:`ShapeEstimate`.
+        """
+        if not isinstance(readings, SensorReadings):
+            raise ValueError(f"readings must be SensorReadings; got {type(readings).__name__}")
+        if readings.planar != self.planar:
+            raise ValueError(f"{self.name} estimator is {'planar' if self.planar else 'spatial'} but "
+                             f"the readings are {'planar' if readings.planar else 'spatial'}")
+        if readings.encoder_lengths.shape[0] != len(self.arm.sections):
+            raise ValueError(f"readings are for {readings.encoder_lengths.shape[0]} sections; design "
+                             f"{self.arm.name!r} has {len(self.arm.sections)}")
+        p = np.asarray(pressures_pa, dtype=float)
+        if p.shape != (self.arm.n_inputs(self.planar),):
+            raise ValueError(f"pressures_pa must have shape ({self.arm.n_inputs(self.planar)},) "
+                             f"({', '.join(self.arm.input_names(self.planar))}); got {p.shape}")
+        if not np.all(np.isfinite(p)):
+            raise ValueError("pressures_pa contains non-finite values")
+        return self._estimate(readings, p, truth)
+
+    def _estimate(self, readings, pressures, truth) -> ShapeEstimate:
+        raise NotImplementedError
+
+
+class TrueShape(Estimator):
+    """Ground truth: the equilibrium itself (for reference and privileged observations)."""
+
+    name = "true"
+
+    def _estimate(self, readings, pressures, truth):
+        if not isinstance(truth, solver.Equilibrium):
+            raise ValueError("the 'true' estimator needs truth=<the solved Equilibrium>")
+        if truth.planar != self.planar:
+            raise ValueError("truth equilibrium and estimator differ in planar/spatial mode")
+        return shape_from_equilibrium(truth, self.n_samples)
+
+
+class ModelShape(Estimator):
+    """The nominal model at the commanded pressures; payload and external loads unknown (0).
+
+    Follows the quasi-static path from its previous estimate within an episode (warm start);
+    :meth:`reset` forgets it. Readings are ignored.
+
+    Options:
+        model: solver model (``"full"``, ``"unshearable"``, ``"constant_curvature"``).
+        settings: :class:`solver.Settings`.
+    """
+
+    name = "model"
+
+    def __init__(self, arm, planar, scene, n_samples, model: str = "full",
+                 settings: solver.Settings | None = None):
+        super().__init__(arm, planar, scene, n_samples)
+        if model not in solver.MODELS:
+            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(solver.MODELS)}")
+        self.model = model
+        self.settings = solver.Settings() if settings is None else settings
+        self.nominal_scene = replace(scene, payload_kg=0.0, tip_force=(0.0, 0.0), tip_moment=0.0)
+        self._previous: solver.Equilibrium | None = None
+
+    def reset(self) -> None:
+        self._previous = None
+
+    def _estimate(self, readings, pressures, truth):
+        eq = solver.solve(self.arm, pressures, self.nominal_scene, model=self.model,
+                          planar=self.planar, warm_start=self._previous, settings=self.settings)
+        self._previous = eq
+        return shape_from_equilibrium(eq, self.n_samples)
+
+
+class ConstantCurvatureShape(Estimator):
+    """Each section a circular arc, its stretch and curvature from its encoder cables.
+
+    Section cable lengths are differences of the cumulative encoder readings. Planar (cables
+    at ±R·d1): l± = L0·v ∓ R·Δθ, so v = (l+ + l−)/(2L0) and Δθ = (l− − l+)/(2R) (Eqs.
+    4.27–4.30 with a symmetric cable pair). Spatial (φ = 0°, 120°, 240°):
+    l_k = L0·(v + R(u1 sin φ_k − u2 cos φ_k)), solved exactly for (v, u1, u2). The base
+    orientation comes from the base inclinometer (planar) or the known mounting (spatial).
+    Exact when no load acts; gravity bends sections away from arcs (the §4.3 failure mode).
+    """
+
+    name = "constant_curvature"
+
+    def __init__(self, arm, planar, scene, n_samples):
+        super().__init__(arm, planar, scene, n_samples)
+        self.radius = cable_radius(arm)
+
+    def section_strains(self, readings: SensorReadings):
+        """Per-section (stretch v, curvature (n_sections,) planar or (n_sections, 2) (u1, u2))."""
+        lengths = np.diff(np.vstack([np.zeros(readings.encoder_lengths.shape[1]),
+                                     readings.encoder_lengths]), axis=0)
+        if self.planar:
+            stretch = lengths.sum(axis=1) / (2.0 * self.sec_len)
+            curvature = (lengths[:, 1] - lengths[:, 0]) / (2.0 * self.radius * self.sec_len)
+            return stretch, curvature
+        phi = cable_angles(False)
+        stretch = lengths.mean(axis=1) / self.sec_len
+        scale = 1.5 * self.radius * self.sec_len
+        u1 = lengths @ np.sin(phi) / scale
+        u2 = -(lengths @ np.cos(phi)) / scale
+        return stretch, np.column_stack([u1, u2])
+
+    def _estimate(self, readings, pressures, truth):
+        stretch, curvature = self.section_strains(readings)
+        if self.planar:
+            backbone = np.empty((self.n_samples, 2))
+            ends = np.empty((len(self.sec_len), 3))
+            _arc_chain_planar(float(readings.inclinometers[0]), self.sec_len, curvature, stretch,
+                              self.s_query, backbone, ends)
+            backbone[-1] = ends[-1, :2]
+            return ShapeEstimate(tip=ends[-1, :2].copy(), section_ends=ends, backbone=backbone)
+        return _arc_chain_spatial(base_rotation(self.scene.base_theta), self.sec_len, curvature,
+                                  stretch, self.s_query)
+
+
+def base_rotation(theta0: float) -> np.ndarray:
+    """Base directors [d1 d2 d3] (columns): d3 = (cos θ0, sin θ0, 0), d2 = +z (the solver's)."""
+    c, s = math.cos(theta0), math.sin(theta0)
+    return np.array([[-s, 0.0, c], [c, 0.0, s], [0.0, 1.0, 0.0]])
+
+
+def _arc_relative(u1: float, u2: float, stretch: float, sig: float):
+    """Position and rotation after ``sig`` along an arc of body curvature (u1, u2, 0), no shear.
+
+    R(σ) = exp(σ[u]×); r(σ) = v·∫₀^σ R(t) e3 dt, by Rodrigues' formula about k = u/|u|.
+    """
+    kappa = math.hypot(u1, u2)
+    phi = kappa * sig
+    e3 = np.array([0.0, 0.0, 1.0])
+    if phi < 1e-9:
+        return stretch * sig * e3, np.eye(3)
+    k = np.array([u1, u2, 0.0]) / kappa
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    rot = np.eye(3) + math.sin(phi) * kx + (1.0 - math.cos(phi)) * kx @ kx
+    # ∫ R(t) e3 dt = σ e3 + (1 − cos φ)/κ (k × e3) + (σ − sin φ/κ) (k × (k × e3)).
+    ke3 = kx @ e3
+    pos = stretch * (sig * e3 + (1.0 - math.cos(phi)) / kappa * ke3
+                     + (sig - math.sin(phi) / kappa) * (kx @ ke3))
+    return pos, rot
+
+
+def _arc_chain_spatial(rot0, sec_len, curvature, stretch, s_query) -> ShapeEstimate:
+    """Spatial chain of arcs from the base frame ``rot0``; curvature (n_sections, 2)."""
+    r = np.zeros(3)
+    rot = rot0.copy()
+    backbone = np.empty((s_query.size, 3))
+    ends = np.empty((len(sec_len), 3))
+    frames = np.empty((len(sec_len), 3, 3))
+    s0 = 0.0
+    k = 0
+    for i, length in enumerate(sec_len):
+        last = i == len(sec_len) - 1
+        while k < s_query.size and (s_query[k] <= s0 + length or last):
+            rel, _ = _arc_relative(curvature[i, 0], curvature[i, 1], stretch[i], s_query[k] - s0)
+            backbone[k] = r + rot @ rel
+            k += 1
+        rel, rel_rot = _arc_relative(curvature[i, 0], curvature[i, 1], stretch[i], length)
+        r = r + rot @ rel
+        rot = rot @ rel_rot
+        ends[i] = r
+        frames[i] = rot
+        s0 += length
+    backbone[-1] = r
+    return ShapeEstimate(tip=r.copy(), section_ends=ends, backbone=backbone, section_frames=frames)
+
+
+class _NotYet(Estimator):
+    def _estimate(self, readings, pressures, truth):
+        raise ValueError(f"the {self.name!r} estimator is not available yet")
+
+
+_CLASSES = {"true": TrueShape, "model": ModelShape, "constant_curvature": ConstantCurvatureShape}
+
+
+def make_estimator(name: str, arm: solver.designs.ArmDesign, planar: bool = True,
+                   scene: solver.Scene | None = None, n_samples: int = DEFAULT_SAMPLES,
+                   **options) -> Estimator:
+    """Build a shape estimator.
+
+    Args:
+        name: one of :data:`ESTIMATORS`.
+        arm: the nominal design (the estimator's knowledge of the arm).
+        planar: planar or spatial estimation.
+        scene: the known mounting: base angle and gravity are used; payload and tip loads
+            are not known to any estimator (default: hanging, 9.81 m/s²).
+        n_samples: K, number of backbone samples in every :class:`ShapeEstimate` (>= 2).
+        **options: estimator-specific options (see each class).
+
+    Raises:
+        ValueError: unknown name, bad arguments, or unknown options.
+    """
+    if name not in ESTIMATORS:
+        raise ValueError(f"unknown estimator {name!r}; choose one of {', '.join(ESTIMATORS)}")
+    if not isinstance(arm, solver.designs.ArmDesign):
+        raise ValueError(f"arm must be a solver.designs.ArmDesign; got {type(arm).__name__}")
+    scene = solver.Scene() if scene is None else scene
+    if not isinstance(scene, solver.Scene):
+        raise ValueError(f"scene must be a solver.Scene; got {type(scene).__name__}")
+    if isinstance(n_samples, bool) or int(n_samples) != n_samples or n_samples < 2:
+        raise ValueError(f"n_samples must be an integer >= 2; got {n_samples!r}")
+    if planar and not arm.planar_channels and arm.tubes:
+        raise ValueError(f"design {arm.name!r} defines no planar channels; use planar=False")
+    cls = _CLASSES.get(name)
+    if cls is None:
+        cls = type(f"_{name}", (_NotYet,), {"name": name})
+    try:
+        return cls(arm, planar, scene, int(n_samples), **options)
+    except TypeError as exc:
+        raise ValueError(f"bad options for the {name!r} estimator: {exc}") from None
