@@ -172,18 +172,20 @@ def _newton(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end
     """Newton on m(L; m0) = M_tip with the exact shooting derivative ∂m(L)/∂m0.
 
     Steps are clipped to ``max_step`` (N m) so a poor guess cannot fling the iterate onto a
-    distant branch. Returns (m0, converged, iterations, |residual|, stable, bmin).
+    distant branch. Returns (m0, converged, iterations, |residual|, stable, bmin, x, y, θ),
+    the last three at the tip of the returned iterate.
     """
     res = math.inf
     bmin = 1.0
+    th = x = y = math.nan
     for it in range(max_iter + 1):
         th, m, b, x, y, bmin = _integrate(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i,
                                           u_rest, v_rest, n_end, q, False, dummy)
         res = m - m_tip
         if not math.isfinite(res) or not math.isfinite(b):
-            return m0, False, it, math.inf, False, bmin
+            return m0, False, it, math.inf, False, bmin, x, y, th
         if abs(res) <= tol:
-            return m0, True, it, abs(res), bmin > 0.0, bmin
+            return m0, True, it, abs(res), bmin > 0.0, bmin, x, y, th
         if it == max_iter or b == 0.0:
             break
         step = -res / b
@@ -192,7 +194,7 @@ def _newton(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end
         elif step < -max_step:
             step = -max_step
         m0 += step
-    return m0, False, max_iter, abs(res), bmin > 0.0, bmin
+    return m0, False, max_iter, abs(res), bmin > 0.0, bmin, x, y, th
 
 
 @njit
@@ -231,7 +233,7 @@ def _scan(theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q, m
         if k > 0 and math.isfinite(r) and math.isfinite(prev_r) and (r == 0.0 or prev_r * r < 0.0):
             # Secant start inside the bracket, then Newton.
             start = prev_m - prev_r * (mk - prev_m) / (r - prev_r)
-            root, ok, n_it, res, stable, bm = _newton(start, theta0, sec_len, sec_steps, c_a, c_g,
+            root, ok, n_it, res, stable, bm, x, y, th = _newton(start, theta0, sec_len, sec_steps, c_a, c_g,
                                                        c_i, u_rest, v_rest, n_end, q, m_tip, tol,
                                                        max_iter, max_step, dummy)
             its += n_it
@@ -256,7 +258,9 @@ def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_
     few iterations, landed on a stable equilibrium and did not jump far from the prediction;
     otherwise the step is halved. Below ``dt_min`` a fold (or bifurcation) has been passed:
     :func:`_scan` picks the stable equilibrium nearest the prediction and the result is
-    flagged as a snap. Returns (m0, converged, iterations, snapped, stable, |residual|).
+    flagged as a snap. Returns (m0, converged, iterations, snapped, stable, |residual|, and the
+    tip x, y, θ of the returned state); on return ``u1, u2, v3, n_end, q`` hold that state's
+    rest strains and loads.
 
     ``tubes_i`` = (channel, first, last) int columns; ``tubes_f`` = (E·At, E, At/A, cos α,
     a, b) float columns.
@@ -267,7 +271,9 @@ def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_
     total = 0
     snapped = False
     stable = True
+    ok = True
     res = 0.0
+    x = y = th = math.nan
     jump = 0.5 * max_step
     while t < 1.0:
         t_new = min(1.0, t + dt)
@@ -277,9 +283,9 @@ def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_
                       tubes_f[:, 1], tubes_f[:, 2], tubes_f[:, 3], tubes_f[:, 4], tubes_f[:, 5],
                       sec_ea, sec_ei, u1, u2, v3)
         guess = m0 + slope * (t_new - t)
-        root, ok, its, res, stab, bm = _newton(guess, theta0, sec_len, sec_steps, c_a, c_g, c_i,
-                                               u2, v3, n_end, q, m_tip, tol, max_iter, max_step,
-                                               dummy)
+        root, ok, its, res, stab, bm, x, y, th = _newton(guess, theta0, sec_len, sec_steps, c_a,
+                                                         c_g, c_i, u2, v3, n_end, q, m_tip, tol,
+                                                         max_iter, max_step, dummy)
         total += its
         if ok and stab and (abs(root - guess) <= jump or dt <= dt_min):
             slope = (root - m0) / (t_new - t)
@@ -297,21 +303,16 @@ def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_
         total += its
         if not found:
             # No stable equilibrium at this level: report the Newton result as it stands.
-            return root if math.isfinite(root) else m0, ok, total, snapped, False, res
+            return m0, ok, total, snapped, False, res, x, y, th
         snapped = True
         slope = 0.0
-        m0 = root
+        m0, ok, its, res, stable, bm, x, y, th = _newton(root, theta0, sec_len, sec_steps, c_a,
+                                                         c_g, c_i, u2, v3, n_end, q, m_tip, tol,
+                                                         max_iter, max_step, dummy)
+        total += its
         t = t_new
         dt = dt0
-    # Final residual and stability at t = 1.
-    m_tip = _level(1.0, p_a, p_b, load_a_end, load_b_end, load_a_q, load_b_q, mtip_a, mtip_b,
-                   p_now, n_end, q)
-    _rest_strains(p_now, tubes_i[:, 0], tubes_i[:, 1], tubes_i[:, 2], tubes_f[:, 0],
-                  tubes_f[:, 1], tubes_f[:, 2], tubes_f[:, 3], tubes_f[:, 4], tubes_f[:, 5],
-                  sec_ea, sec_ei, u1, u2, v3)
-    root, ok, its, res, stable, bm = _newton(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u2,
-                                             v3, n_end, q, m_tip, tol, max_iter, max_step, dummy)
-    return root, ok, total + its, snapped, stable, res
+    return m0, ok, total, snapped, stable, res, x, y, th
 
 
 @njit(parallel=True)
@@ -335,12 +336,10 @@ def _batch(m0_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, 
         q = np.empty((ns, 2))
         dummy = np.empty((1, N_COLUMNS))
         zero = np.zeros(nc)
-        root, conv, its, snapped, stab, res = _follow(
+        root, conv, its, snapped, stab, res, x, y, th = _follow(
             m0_start, 0.0, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, tubes_i,
             tubes_f, zero, p_targets[k], load_end, load_end, load_q, load_q, mtip, mtip, tol,
             max_iter, max_step, m_bound, dt0, dt_min, n_scan, u1, u2, v3, p_now, n_end, q, dummy)
-        th, m, b, x, y, bmin = _integrate(root, theta0, sec_len, sec_steps, c_a, c_g, c_i, u2, v3,
-                                          n_end, q, False, dummy)
         tips[k, 0] = x
         tips[k, 1] = y
         ok[k] = conv and math.isfinite(x) and math.isfinite(y)

@@ -197,6 +197,9 @@ class ArmDesign:
     max_pressure: float = 0.0
     source: str = ""
     extra: dict = field(default_factory=dict, compare=False, hash=False)
+    # Arrays the solver derives from this (immutable) design, keyed by what they depend on.
+    _solver_cache: dict = field(default_factory=dict, init=False, repr=False, compare=False,
+                                hash=False)
 
     def __post_init__(self):
         object.__setattr__(self, "sections", tuple(
@@ -255,6 +258,7 @@ class ArmDesign:
         """Serialise to JSON (round-trips through :func:`from_json`)."""
         data = asdict(self)
         data.pop("extra")
+        data.pop("_solver_cache")
         return json.dumps(data, indent=2)
 
 

@@ -141,9 +141,20 @@ class _Packed:
     tubes_f: np.ndarray
     moment_scale: float
     n_rows: int
+    spatial_of_planar: np.ndarray
+    section_ends: tuple
 
 
 def _pack(arm: ArmDesign, model: str, settings: Settings) -> _Packed:
+    """Kernel arrays of ``arm`` for ``model`` and ``settings``, cached on the design."""
+    key = ("pack", model, settings)
+    packed = arm._solver_cache.get(key)
+    if packed is None:
+        packed = arm._solver_cache[key] = _build_pack(arm, model, settings)
+    return packed
+
+
+def _build_pack(arm: ArmDesign, model: str, settings: Settings) -> _Packed:
     secs = arm.sections
     ns = len(secs)
     steps = np.full(ns, int(settings.steps_per_section), dtype=np.int64)
@@ -172,6 +183,11 @@ def _pack(arm: ArmDesign, model: str, settings: Settings) -> _Packed:
         tubes_f=tubes_f,
         moment_scale=float(ei.max() / arm.length),
         n_rows=int(steps.sum() + ns),
+        section_ends=tuple(int(v) for v in np.cumsum(steps + 1) - 1),
+        spatial_of_planar=np.array([next(k for k, (_, idx) in enumerate(arm.planar_channels)
+                                         if c in idx) if any(c in idx for _, idx in
+                                                             arm.planar_channels) else -1
+                                    for c in range(arm.n_channels)], dtype=np.int64),
     )
 
 
@@ -197,32 +213,39 @@ def _loads(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int):
     return n_end, q, (float(moment[2]) if dim == 2 else moment)
 
 
-def _channel_pressures(arm: ArmDesign, pressures, planar: bool) -> tuple[np.ndarray, np.ndarray]:
+def _channel_pressures(arm: ArmDesign, pressures, planar: bool,
+                       packed: _Packed) -> tuple[np.ndarray, np.ndarray]:
     """Validate input pressures and expand planar inputs to spatial channels (Pa)."""
-    names = arm.input_names(planar)
-    p = np.asarray(pressures, dtype=float) if not isinstance(pressures, str) else None
-    if p is None or p.ndim != 1 or p.shape[0] != len(names):
+    n = arm.n_inputs(planar)
+    try:
+        p = np.array(pressures, dtype=float)
+    except (TypeError, ValueError):
+        p = None
+    if p is None or p.ndim != 1 or p.shape[0] != n:
+        names = arm.input_names(planar)
         raise ValueError(
-            f"design {arm.name!r} expects {len(names)} pressures in {'planar' if planar else 'spatial'} "
+            f"design {arm.name!r} expects {n} pressures in {'planar' if planar else 'spatial'} "
             f"mode ({', '.join(names) or 'none: a passive rod'}); got {pressures!r}")
+    if not np.all((p >= 0.0) & (p <= arm.max_pressure * (1 + 1e-12))):
+        _explain_bad_pressures(arm, p, planar)
+    if not planar:
+        return p, p
+    return p, p[packed.spatial_of_planar]
+
+
+def _explain_bad_pressures(arm, p, planar):
+    names = arm.input_names(planar)
     bad = ~np.isfinite(p)
     if bad.any():
-        raise ValueError(f"pressure for channel {names[int(np.argmax(bad))]!r} is not finite: "
-                         f"{p[bad][0]}")
+        k = int(np.argmax(bad))
+        raise ValueError(f"pressure for channel {names[k]!r} is not finite: {p[k]}")
     if (p < 0).any():
         k = int(np.argmax(p < 0))
         raise ValueError(f"pressure for channel {names[k]!r} is negative ({p[k]:.6g} Pa); "
                          "channel pressures are gauge pressures >= 0")
-    if (p > arm.max_pressure * (1 + 1e-12)).any():
-        k = int(np.argmax(p > arm.max_pressure * (1 + 1e-12)))
-        raise ValueError(f"pressure for channel {names[k]!r} ({p[k]:.6g} Pa) exceeds the design's "
-                         f"rated maximum {arm.max_pressure:.6g} Pa")
-    if not planar:
-        return p, p.copy()
-    spatial = np.zeros(arm.n_channels)
-    for value, (_, idx) in zip(p, arm.planar_channels):
-        spatial[list(idx)] = value
-    return p, spatial
+    k = int(np.argmax(p > arm.max_pressure))
+    raise ValueError(f"pressure for channel {names[k]!r} ({p[k]:.6g} Pa) exceeds the design's "
+                     f"rated maximum {arm.max_pressure:.6g} Pa")
 
 
 def _check(arm, scene, model, planar):
@@ -265,7 +288,8 @@ def _has_load(arm: ArmDesign, scene: Scene) -> bool:
 
 
 def _section_ends(packed: _Packed) -> tuple[int, ...]:
-    return tuple(int(v) for v in np.cumsum(packed.sec_steps + 1) - 1)
+    """Sample indices of each section's end (recorded shapes repeat junction samples)."""
+    return packed.section_ends
 
 
 # ----------------------------------------------------------------------------- solve
@@ -299,14 +323,10 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
     """
     scene = Scene() if scene is None else scene
     _check(arm, scene, model, planar)
-    p_inputs, p_channel = _channel_pressures(arm, pressures, planar)
-    if warm_start is not None:
-        if not isinstance(warm_start, Equilibrium):
-            raise ValueError("warm_start must be an Equilibrium returned by solve()")
-        if warm_start.planar != planar or warm_start.model != model or \
-                warm_start.channel_pressures.shape != p_channel.shape:
-            raise ValueError("warm_start comes from a different arm, model or planar mode")
     packed = _pack(arm, model, settings)
+    p_inputs, p_channel = _channel_pressures(arm, pressures, planar, packed)
+    if warm_start is not None:
+        _check_warm_start(warm_start, scene, model, planar, p_channel)
     if model == "constant_curvature" or (settings.shortcuts and not _has_load(arm, scene)):
         eq = _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     elif planar:
@@ -322,6 +342,16 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
         raise SolverError(f"no converged equilibrium (residual {eq.residual:.3g} N m after "
                           f"{eq.iterations} iterations)")
     return eq
+
+
+def _check_warm_start(warm_start, scene, model, planar, p_channel):
+    if not isinstance(warm_start, Equilibrium):
+        raise ValueError("warm_start must be an Equilibrium returned by solve()")
+    if warm_start.planar != planar or warm_start.model != model or \
+            warm_start.channel_pressures.shape != p_channel.shape:
+        raise ValueError("warm_start comes from a different arm, model or planar mode")
+    if warm_start.scene is not None and warm_start.scene.base_angle_deg != scene.base_angle_deg:
+        raise ValueError("warm_start was solved at a different base angle")
 
 
 def _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
@@ -358,77 +388,109 @@ def _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
         section_ends=_section_ends(packed), **common)
 
 
-def _planar_args(packed: _Packed, settings: Settings, load_scale: float):
-    tol = settings.tol * packed.moment_scale * max(1.0, load_scale)
-    max_step = 2.0 * packed.moment_scale * max(1.0, load_scale)
-    return tol, max_step
+@dataclass(frozen=True)
+class _SceneContext:
+    """Scene-dependent kernel inputs of one design, model and settings (cached)."""
+
+    n_end: np.ndarray
+    q: np.ndarray
+    m_tip: float | np.ndarray
+    tol: float
+    max_step: float
+    m_bound: float
 
 
-def _moment_bound(arm, packed, scene, n_end, q, p_channel):
-    """A bound on |m0|: |M_tip| + ∫|r'||n| ds, with |r'| ≤ v*max + |n|/min(EA, GA)."""
+def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
+             settings: Settings) -> _SceneContext:
+    key = ("scene", id(packed), scene, dim)
+    ctx = arm._solver_cache.get(key)
+    if ctx is None:
+        n_end, q, m_tip = _loads(arm, packed, scene, dim)
+        scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale) if n_end.size else 0.0
+        grow = max(1.0, scale)
+        ctx = _SceneContext(n_end=n_end, q=q, m_tip=m_tip, tol=settings.tol * packed.moment_scale * grow,
+                            max_step=2.0 * packed.moment_scale * grow,
+                            m_bound=_moment_bound(arm, packed, scene, n_end, q))
+        if len(arm._solver_cache) > 256:  # many scenes (randomised payloads): keep it bounded
+            arm._solver_cache.clear()
+        arm._solver_cache[key] = ctx
+    return ctx
+
+
+def _moment_bound(arm, packed, scene, n_end, q):
+    """A bound on |m0| for the fold scan: |M_tip| + ∫|r'||n| ds over any pressures.
+
+    |r'| ≤ v*max + |n|/min(EA, GA), with v*max the stretch at the rated pressure.
+    """
     nmax = float(np.max(np.linalg.norm(n_end, axis=1) + np.linalg.norm(q, axis=1) * packed.sec_len))
-    u1, u2, v3 = rest_strains(arm, p_channel, packed)
+    full = np.full(max(arm.n_channels, 1), arm.max_pressure) if arm.n_channels else np.zeros(1)
+    v3 = rest_strains(arm, full, packed)[2] if arm.n_channels else np.ones(1)
     stretch = float(v3.max()) + nmax * float(max(packed.c_a.max(), packed.c_g.max()))
-    bound = abs(float(np.linalg.norm(scene.tip_moment_3d()))) + nmax * stretch * arm.length
+    bound = float(np.linalg.norm(scene.tip_moment_3d())) + nmax * stretch * arm.length
     return 1.05 * bound + packed.moment_scale * 1e-6
 
 
-def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
-    n_end, q, m_tip = _loads(arm, packed, scene, 2)
-    load_scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale) if n_end.size else 0
-    tol, max_step = _planar_args(packed, settings, load_scale)
-    bound = _moment_bound(arm, packed, scene, n_end, q, p_channel)
-    nc = max(arm.n_channels, 1)
-    ns = len(arm.sections)
-    work = dict(u1=np.empty(ns), u2=np.empty(ns), v3=np.empty(ns), p_now=np.empty(nc),
-                n_end=np.empty((ns, 2)), q=np.empty((ns, 2)), dummy=np.empty((1, _planar.N_COLUMNS)))
-    p_target = p_channel if arm.n_channels else np.zeros(1)
+def _work(ns: int, nc: int) -> tuple:
+    """Scratch arrays of :func:`solver._planar._follow` (u1, u2, v3, p_now, n_end, q, dummy)."""
+    return (np.empty(ns), np.empty(ns), np.empty(ns), np.empty(nc), np.empty((ns, 2)),
+            np.empty((ns, 2)), np.empty((1, _planar.N_COLUMNS)))
+
+
+def _planar_inputs(arm, packed, scene, ctx, settings):
     common = (scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g,
               packed.c_i, packed.sec_ea, packed.sec_ei, packed.tubes_i, packed.tubes_f)
-    numeric = (tol, settings.max_iter, max_step, bound, settings.dt0, settings.dt_min,
-               settings.n_scan)
+    numeric = (ctx.tol, settings.max_iter, ctx.max_step, ctx.m_bound, settings.dt0,
+               settings.dt_min, settings.n_scan)
+    return common, numeric
+
+
+def _loaded_base_moment(arm, packed, scene, ctx, settings, common, numeric) -> tuple[float, int, bool]:
+    """Stage 1 of a cold solve: the unactuated arm under its loads ramped from zero (cached)."""
+    key = ("loaded", id(ctx), settings)
+    hit = arm._solver_cache.get(key)
+    if hit is None:
+        zeros = np.zeros(max(arm.n_channels, 1))
+        out = _planar._follow(0.0, 0.0, *common, zeros, zeros, np.zeros_like(ctx.n_end), ctx.n_end,
+                              np.zeros_like(ctx.q), ctx.q, 0.0, ctx.m_tip, *numeric,
+                              *_work(len(arm.sections), zeros.shape[0]))
+        hit = arm._solver_cache[key] = (float(out[0]), int(out[2]), bool(out[3]))
+    return hit
+
+
+def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    ctx = _context(arm, packed, scene, 2, settings)
+    common, numeric = _planar_inputs(arm, packed, scene, ctx, settings)
+    p_target = p_channel if arm.n_channels else np.zeros(1)
     iterations = 0
     snapped = False
     if warm_start is not None and warm_start.scene is not None:
-        wa_end, wa_q, wa_mtip = _loads(arm, packed, warm_start.scene, 2)
+        start_ctx = ctx if warm_start.scene == scene else _context(arm, packed, warm_start.scene, 2, settings)
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         m0 = float(warm_start.base_moment[-1])  # planar m_z, or z of a spatial m0
-        if warm_start.scene.base_angle_deg != scene.base_angle_deg:
-            raise ValueError("warm_start was solved at a different base angle")
     else:
-        # Stage 1: load the unactuated arm (loads ramp from zero; straight rod, m0 = 0).
-        zeros = np.zeros_like(p_target)
-        m0, ok, its, snap, stab, res = _planar._follow(
-            0.0, 0.0, *common, zeros, zeros, np.zeros_like(n_end), n_end, np.zeros_like(q), q,
-            0.0, m_tip, *numeric, *work.values())
-        iterations += its
-        snapped |= snap
-        wa_end, wa_q, wa_mtip, p_start = n_end, q, m_tip, zeros
-    m0, ok, its, snap, stab, res = _planar._follow(
-        m0, 0.0, *common, p_start, p_target, wa_end, n_end, wa_q, q, wa_mtip, m_tip, *numeric,
-        *work.values())
-    iterations += its
-    snapped |= snap
-    rows = packed.n_rows if record else 1
-    out = np.zeros((rows, _planar.N_COLUMNS))
-    th, m, b, x, y, bmin = _planar._integrate(
-        m0, scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g,
-        packed.c_i, work["u2"], work["v3"], work["n_end"], work["q"], record, out)
-    res = abs(m - m_tip)
-    converged = bool(ok and res <= 10 * tol)
-    common_out = dict(tip=np.array([x, y]), converged=converged, stable=bool(stab and bmin > 0),
-                      iterations=int(iterations), residual=float(res), snapped=bool(snapped),
-                      model=model, planar=True, scene=scene, pressures=p_inputs,
-                      channel_pressures=p_channel, base_moment=np.array([m0]))
+        m0, iterations, snapped = _loaded_base_moment(arm, packed, scene, ctx, settings, common,
+                                                      numeric)
+        start_ctx, p_start = ctx, np.zeros_like(p_target)
+    work = _work(len(arm.sections), p_target.shape[0])
+    m0, ok, its, snap, stab, res, x, y, th = _planar._follow(
+        m0, 0.0, *common, p_start, p_target, start_ctx.n_end, ctx.n_end, start_ctx.q, ctx.q,
+        start_ctx.m_tip, ctx.m_tip, *numeric, *work)
+    common_out = dict(converged=bool(ok), stable=bool(stab), iterations=int(iterations + its),
+                      residual=float(res), snapped=bool(snapped or snap), model=model,
+                      planar=True, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
+                      base_moment=np.array([m0]))
     if not record:
-        return Equilibrium(**common_out)
+        return Equilibrium(tip=np.array([x, y]), **common_out)
+    out = np.zeros((packed.n_rows, _planar.N_COLUMNS))
+    _planar._integrate(m0, scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a,
+                       packed.c_g, packed.c_i, work[1], work[2], work[4], work[5], True, out)
     theta = out[:, _planar.THETA]
     c, sn = np.cos(theta), np.sin(theta)
     n1, n3 = out[:, _planar.N1], out[:, _planar.N3]
     return Equilibrium(
-        s=out[:, _planar.S].copy(), positions=out[:, [_planar.X, _planar.Y]].copy(),
-        angles=theta.copy(), shear_stretch=out[:, [_planar.V1, _planar.V3]].copy(),
-        curvature=out[:, _planar.U].copy(),
+        tip=out[-1, [_planar.X, _planar.Y]].copy(), s=out[:, _planar.S].copy(),
+        positions=out[:, [_planar.X, _planar.Y]].copy(), angles=theta.copy(),
+        shear_stretch=out[:, [_planar.V1, _planar.V3]].copy(), curvature=out[:, _planar.U].copy(),
         internal_force=np.column_stack([n3 * c - n1 * sn, n3 * sn + n1 * c]),
         internal_moment=out[:, _planar.M].copy(), section_ends=_section_ends(packed),
         **common_out)
@@ -450,15 +512,14 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
     """
     scene = Scene() if scene is None else scene
     _check(arm, scene, model, planar)
+    packed = _pack(arm, model, settings)
     p = np.asarray(pressures, dtype=float)
     if p.ndim != 2 or p.shape[1] != arm.n_inputs(planar):
         raise ValueError(f"pressures must have shape (n, {arm.n_inputs(planar)}); got {p.shape}")
-    channel = np.empty((p.shape[0], max(arm.n_channels, 1)))
-    for k in range(p.shape[0]):
-        _, c = _channel_pressures(arm, p[k], planar)
-        channel[k, : c.shape[0]] = c if c.size else 0.0
-    packed = _pack(arm, model, settings)
-    if model == "constant_curvature" or not _has_load(arm, scene) or not planar:
+    for row in p[~np.all((p >= 0) & (p <= arm.max_pressure * (1 + 1e-12)), axis=1)][:1]:
+        _explain_bad_pressures(arm, row, planar)
+    general = model != "constant_curvature" and (_has_load(arm, scene) or not settings.shortcuts)
+    if not (general and planar):
         dim = 2 if planar else 3
         tips = np.empty((p.shape[0], dim))
         ok = np.empty(p.shape[0], dtype=bool)
@@ -467,21 +528,15 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
             tips[k] = eq.tip
             ok[k] = eq.converged
         return tips, ok
-    loaded = solve(arm, np.zeros(arm.n_inputs(True)), scene, model, True, record=False,
-                   settings=settings)
-    n_end, q, m_tip = _loads(arm, packed, scene, 2)
-    load_scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale)
-    tol, max_step = _planar_args(packed, settings, load_scale)
-    bound = max(_moment_bound(arm, packed, scene, n_end, q, c) for c in
-                (np.zeros(channel.shape[1]), np.full(channel.shape[1], channel.max())))
+    channel = p[:, packed.spatial_of_planar] if arm.n_channels else np.zeros((p.shape[0], 1))
+    ctx = _context(arm, packed, scene, 2, settings)
+    common, numeric = _planar_inputs(arm, packed, scene, ctx, settings)
+    m0, _, _ = _loaded_base_moment(arm, packed, scene, ctx, settings, common, numeric)
     tips = np.empty((p.shape[0], 2))
     ok = np.empty(p.shape[0], dtype=bool)
     stable = np.empty(p.shape[0], dtype=bool)
-    _planar._batch(float(loaded.base_moment[0]), scene.base_theta, packed.sec_len,
-                   packed.sec_steps, packed.c_a, packed.c_g, packed.c_i, packed.sec_ea,
-                   packed.sec_ei, packed.tubes_i, packed.tubes_f, channel, n_end, q, m_tip, tol,
-                   settings.max_iter, max_step, bound, settings.dt0, settings.dt_min,
-                   settings.n_scan, tips, ok, stable)
+    _planar._batch(m0, *common, np.ascontiguousarray(channel), ctx.n_end, ctx.q, ctx.m_tip,
+                   *numeric, tips, ok, stable)
     return tips, ok
 
 
@@ -513,9 +568,8 @@ def _embed(eq: Equilibrium) -> Equilibrium:
 
 
 def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
-    n_end, q, m_tip = _loads(arm, packed, scene, 3)
-    load_scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale) if n_end.size else 0
-    tol, max_step = _planar_args(packed, settings, load_scale)
+    ctx = _context(arm, packed, scene, 3, settings)
+    n_end, q, m_tip, tol, max_step = ctx.n_end, ctx.q, ctx.m_tip, ctx.tol, ctx.max_step
     rot0 = _spatial.base_rotation(scene.base_theta)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     common = (rot0, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g, packed.c_i,
@@ -523,8 +577,6 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
     numeric = (tol, settings.max_iter, max_step, settings.dt0, settings.dt_min)
     iterations = 0
     if warm_start is not None and warm_start.scene is not None:
-        if warm_start.scene.base_angle_deg != scene.base_angle_deg:
-            raise ValueError("warm_start was solved at a different base angle")
         a_end, a_q, a_mtip = _loads(arm, packed, warm_start.scene, 3)
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         m0 = np.zeros(3)

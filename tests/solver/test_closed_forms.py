@@ -108,7 +108,7 @@ def test_conjugate_point_test_flags_straight_column():
         out = _planar._newton(0.0, scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a,
                               packed.c_g, packed.c_i, np.zeros(1), np.ones(1), n_end, q, mtip,
                               1e-12, 5, 10.0, dummy)
-        m0, ok, its, res, is_stable, bmin = out
+        m0, ok, its, res, is_stable, bmin, x, y, theta = out
         assert ok and m0 == 0.0
         assert is_stable == stable
         # b(L) = cos(√P L) for the Euler column.
