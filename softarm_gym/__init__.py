@@ -1,3 +1,24 @@
-"""softarm-gym: Gymnasium environments for multi-section pneumatic soft arms."""
+"""softarm-gym: Gymnasium environments for multi-section pneumatic soft arms.
+
+Importing the package registers the environments (``gym.make("SoftArm/OctArmReach-v0")``);
+the classes live in :mod:`softarm_gym.envs`. Default kwargs below are the only difference
+between the OctArm and CT variants.
+"""
+
+from gymnasium.envs.registration import register
 
 __version__ = "0.1.0"
+
+register(
+    id="SoftArm/OctArmReach-v0",
+    entry_point="softarm_gym.envs:ReachEnv",
+    max_episode_steps=100,
+    kwargs={"design": "octarm_v", "base_angle_deg": 90.0},
+)
+
+register(
+    id="SoftArm/CTReach-v0",
+    entry_point="softarm_gym.envs:ReachEnv",
+    max_episode_steps=100,
+    kwargs={"design": "ct", "base_angle_deg": 90.0},
+)

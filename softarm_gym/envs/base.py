@@ -1,0 +1,372 @@
+"""The shared machinery of the soft-arm environments: arm, stepping, sensing, observations.
+
+:class:`SoftArmEnv` owns everything the tasks share; :class:`~softarm_gym.envs.reach.ReachEnv`
+and :class:`~softarm_gym.envs.wrap.WrapEnv` only add a goal, a reward and a picture. One
+step is one quasi-static equilibrium, warm-started from the previous one (the physical
+path, with its hysteresis), then synthesised sensor readings, then the chosen shape
+estimator, then the observation assembled into preallocated arrays.
+"""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+import solver
+from softarm_gym.envs.randomization import ArmRandomization
+from softarm_gym.render import ArmRenderer, HumanWindow
+from softarm_gym.sensing import ESTIMATORS, SensorNoise, make_estimator, synthesize
+
+__all__ = ["SoftArmEnv", "ACTION_MODES", "OBSERVATION_FORMATS"]
+
+ACTION_MODES = ("absolute", "delta")
+OBSERVATION_FORMATS = ("flat", "dict")
+
+
+def _finite_number(name: str, value, minimum: float | None = None) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number; got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}; got {value!r}")
+    return float(value)
+
+
+def _design(design) -> solver.designs.ArmDesign:
+    if isinstance(design, solver.designs.ArmDesign):
+        arm = design
+    elif isinstance(design, str):
+        arm = solver.designs.get(design)
+    else:
+        raise ValueError(f"design must be a design name ({', '.join(solver.designs.DESIGN_NAMES)}) "
+                         f"or a solver.designs.ArmDesign; got {design!r}")
+    if not arm.tubes:
+        raise ValueError(f"design {arm.name!r} has no channels to actuate")
+    return arm
+
+
+def _sensor_noise(value) -> SensorNoise:
+    if isinstance(value, SensorNoise):
+        return value
+    if value is None or value == "off":
+        return SensorNoise.off()
+    if value == "thesis":
+        return SensorNoise.thesis()
+    if isinstance(value, dict):
+        try:
+            return SensorNoise(**value)
+        except TypeError as exc:
+            raise ValueError(f"sensor_noise has unknown fields: {exc}") from None
+    raise ValueError("sensor_noise must be 'off', 'thesis', a dict of SensorNoise fields or a "
+                     f"SensorNoise; got {value!r}")
+
+
+def _payload_range(value) -> tuple[float, float]:
+    if isinstance(value, (tuple, list)):
+        if len(value) != 2:
+            raise ValueError(f"payload_kg must be a number or a (low, high) pair (kg); got {value!r}")
+        low = _finite_number("payload_kg low", value[0], 0.0)
+        high = _finite_number("payload_kg high", value[1], 0.0)
+        if high < low:
+            raise ValueError(f"payload_kg range ({low}, {high}) has high < low")
+        return low, high
+    v = _finite_number("payload_kg", value, 0.0)
+    return v, v
+
+
+class SoftArmEnv(gym.Env):
+    """Base class of the soft-arm environments (see :class:`ReachEnv` for the env card).
+
+    Subclasses set ``goal_size`` and implement ``_goal_bounds``, ``_reset_task``,
+    ``_fill_goal``, ``_task_reward`` and ``_task_artists``.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+    goal_size = 0
+    goal_names: tuple[str, ...] = ()
+
+    def __init__(self, design="octarm_v", planar: bool = True, observation: str = "true",
+                 sensor_noise="off", base_angle_deg: float = 90.0, payload_kg=0.0,
+                 randomization=None, action_mode: str = "absolute", delta_scale: float = 0.1,
+                 n_backbone: int = 8, observation_format: str = "flat",
+                 initial_pressure_fraction: float = 0.1, solver_failure_penalty: float = 1.0,
+                 max_solver_failures: int = 5, model: str = "full",
+                 render_mode: str | None = None, render_size: int = 400):
+        self.arm = _design(design)
+        if planar is not True:
+            raise ValueError("planar=False is not supported yet: the estimators' shape output "
+                             "and the observation layout are planar (x, y, θ); use planar=True")
+        self.planar = True
+        if observation not in ESTIMATORS:
+            raise ValueError(f"unknown observation {observation!r}; choose one of {', '.join(ESTIMATORS)}")
+        if action_mode not in ACTION_MODES:
+            raise ValueError(f"unknown action_mode {action_mode!r}; choose one of {', '.join(ACTION_MODES)}")
+        if observation_format not in OBSERVATION_FORMATS:
+            raise ValueError(f"unknown observation_format {observation_format!r}; choose one of "
+                             f"{', '.join(OBSERVATION_FORMATS)}")
+        if model not in solver.MODELS:
+            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(solver.MODELS)}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"unknown render_mode {render_mode!r}; choose one of "
+                             f"{', '.join(self.metadata['render_modes'])} or None")
+        if isinstance(n_backbone, bool) or int(n_backbone) != n_backbone or n_backbone < 2:
+            raise ValueError(f"n_backbone must be an integer >= 2; got {n_backbone!r}")
+        if isinstance(max_solver_failures, bool) or int(max_solver_failures) != max_solver_failures \
+                or max_solver_failures < 1:
+            raise ValueError(f"max_solver_failures must be an integer >= 1; got {max_solver_failures!r}")
+        self.observation_name = observation
+        self.sensor_noise = _sensor_noise(sensor_noise)
+        self.base_angle_deg = _finite_number("base_angle_deg", base_angle_deg)
+        self.payload_range = _payload_range(payload_kg)
+        self.randomization = ArmRandomization.coerce(randomization)
+        self.randomization.check(self.arm)
+        self.action_mode = action_mode
+        self.delta_scale = _finite_number("delta_scale", delta_scale, 0.0)
+        if not 0.0 < self.delta_scale <= 1.0:
+            raise ValueError(f"delta_scale must lie in (0, 1] (fraction of p_max per step); "
+                             f"got {delta_scale}")
+        self.initial_pressure_fraction = _finite_number(
+            "initial_pressure_fraction", initial_pressure_fraction, 0.0)
+        if self.initial_pressure_fraction > 1.0:
+            raise ValueError(f"initial_pressure_fraction must lie in [0, 1]; got {initial_pressure_fraction}")
+        self.solver_failure_penalty = _finite_number("solver_failure_penalty", solver_failure_penalty, 0.0)
+        self.max_solver_failures = int(max_solver_failures)
+        self.model = model
+        self.n_backbone = int(n_backbone)
+        self.observation_format = observation_format
+        self.render_mode = render_mode
+        self.render_size = int(render_size)
+
+        self.p_max = float(self.arm.max_pressure)
+        self.input_names = self.arm.input_names(True)
+        self.n_inputs = len(self.input_names)
+        self.n_sections = len(self.arm.sections)
+        self.reach = 2.0 * self.arm.length
+        self.estimator = make_estimator(observation, self.arm, planar=True,
+                                        scene=solver.Scene(base_angle_deg=self.base_angle_deg),
+                                        n_samples=self.n_backbone)
+
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(self.n_inputs,), dtype=np.float32)
+        parts = self._observation_parts()
+        self._slices = {}
+        start = 0
+        for name, (low, _) in parts.items():
+            self._slices[name] = slice(start, start + low.size)
+            start += low.size
+        low = np.concatenate([lo for lo, _ in parts.values()]).astype(np.float32)
+        high = np.concatenate([hi for _, hi in parts.values()]).astype(np.float32)
+        self._low64, self._high64 = low.astype(np.float64), high.astype(np.float64)
+        if observation_format == "flat":
+            self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        else:
+            self.observation_space = spaces.Dict({
+                name: spaces.Box(low[sl], high[sl], dtype=np.float32) for name, sl in self._slices.items()})
+        self._obs = np.zeros(low.size)
+        self._sim_arm = self.arm
+        self._scene = solver.Scene(base_angle_deg=self.base_angle_deg)
+        self._eq = None
+        self._fraction = np.zeros(self.n_inputs)
+        self._failures = 0
+        self._readings = None
+        self._shape = None
+        self._renderer = None
+        self._window = None
+
+    # ------------------------------------------------------------------ layout
+
+    def _observation_parts(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Names and (low, high) bounds of the observation blocks, in flat order."""
+        r = self.reach
+        ends_low = np.tile([-r, -r, -1.0, -1.0], self.n_sections)
+        goal_low, goal_high = self._goal_bounds()
+        return {
+            "tip": (np.full(2, -r), np.full(2, r)),
+            "section_ends": (ends_low, -ends_low),
+            "backbone": (np.full(2 * self.n_backbone, -r), np.full(2 * self.n_backbone, r)),
+            "pressures": (np.full(self.n_inputs, -1.0), np.full(self.n_inputs, 1.0)),
+            "goal": (np.asarray(goal_low, dtype=float), np.asarray(goal_high, dtype=float)),
+        }
+
+    # ------------------------------------------------------------------ task hooks
+
+    def _goal_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _reset_task(self, options: dict | None) -> solver.Scene:
+        raise NotImplementedError
+
+    def _fill_goal(self, out: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _task_reward(self, eq: solver.Equilibrium) -> tuple[dict[str, float], bool, dict]:
+        raise NotImplementedError
+
+    def _task_artists(self) -> dict:
+        raise NotImplementedError
+
+    def _initial_fraction(self) -> np.ndarray:
+        """Pressures (fraction of p_max) the episode starts from."""
+        return self.np_random.uniform(0.0, self.initial_pressure_fraction, self.n_inputs)
+
+    # ------------------------------------------------------------------ gym API
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        rng = self.np_random
+        self._sim_arm = self.randomization.sample(self.arm, rng)
+        payload = float(rng.uniform(*self.payload_range)) if self.payload_range[1] > self.payload_range[0] \
+            else self.payload_range[0]
+        self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, payload_kg=payload)
+        self._scene = self._reset_task(options)
+        fraction = self._initial_fraction()
+        eq = self._solve(fraction, warm_start=None)
+        if not eq.converged:
+            fraction = np.zeros(self.n_inputs)
+            eq = self._solve(fraction, warm_start=None)
+        if not eq.converged:
+            raise RuntimeError(f"the unactuated {self.arm.name} arm has no converged equilibrium in "
+                               f"scene {self._scene}: residual {eq.residual:.3g} N m")
+        self._eq = eq
+        self._fraction = fraction
+        self._failures = 0
+        self.estimator.reset()
+        self._sense()
+        terms, success, task_info = self._task_reward(eq)
+        info = self._info(terms, success, task_info, eq)
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), info
+
+    def step(self, action):
+        if self._eq is None:
+            raise RuntimeError("call reset() before step()")
+        fraction = self._action_to_fraction(action)
+        eq = self._solve(fraction, warm_start=self._eq)
+        ok = bool(eq.converged and np.all(np.isfinite(eq.tip)))
+        if ok:
+            self._eq = eq
+            self._fraction = fraction
+            self._failures = 0
+        else:
+            self._failures += 1
+        self._sense()
+        terms, success, task_info = self._task_reward(self._eq)
+        terms["reward_solver"] = 0.0 if ok else -self.solver_failure_penalty
+        reward = 0.0
+        for value in terms.values():
+            reward += value
+        truncated = self._failures >= self.max_solver_failures
+        info = self._info(terms, success, task_info, eq)
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), reward, self._terminated(success), truncated, info
+
+    def _terminated(self, success: bool) -> bool:
+        return False
+
+    # ------------------------------------------------------------------ internals
+
+    def _solve(self, fraction: np.ndarray, warm_start) -> solver.Equilibrium:
+        return solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
+                            planar=True, warm_start=warm_start, record=True)
+
+    def _action_to_fraction(self, action) -> np.ndarray:
+        """Validate and clip a normalised action; return channel pressures as fractions of p_max."""
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (self.n_inputs,):
+            raise ValueError(f"action must have shape ({self.n_inputs},) for channels "
+                             f"{', '.join(self.input_names)}; got shape {a.shape}")
+        bad = ~np.isfinite(a)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise ValueError(f"action for channel {self.input_names[k]!r} is not finite: {a[k]}")
+        a = np.clip(a, -1.0, 1.0)
+        if self.action_mode == "absolute":
+            return 0.5 * (a + 1.0)
+        return np.clip(self._fraction + self.delta_scale * a, 0.0, 1.0)
+
+    def _sense(self) -> None:
+        """Readings of the current equilibrium and the estimator's shape from them."""
+        eq = self._eq
+        self._readings = synthesize(eq, self._sim_arm, self.sensor_noise, self.np_random)
+        self._shape = self.estimator.estimate(self._readings, eq.pressures, truth=eq)
+
+    def _observation(self):
+        shape = self._shape
+        obs = self._obs
+        obs[self._slices["tip"]] = shape.tip
+        ends = obs[self._slices["section_ends"]].reshape(self.n_sections, 4)
+        ends[:, :2] = shape.section_ends[:, :2]
+        ends[:, 2] = np.cos(shape.section_ends[:, 2])
+        ends[:, 3] = np.sin(shape.section_ends[:, 2])
+        obs[self._slices["backbone"]] = shape.backbone.ravel()
+        obs[self._slices["pressures"]] = 2.0 * self._fraction - 1.0
+        self._fill_goal(obs[self._slices["goal"]])
+        np.clip(obs, self._low64, self._high64, out=obs)
+        flat = obs.astype(np.float32)
+        if self.observation_format == "flat":
+            return flat
+        return {name: flat[sl] for name, sl in self._slices.items()}
+
+    def _info(self, terms: dict, success: bool, task_info: dict, attempted: solver.Equilibrium) -> dict:
+        eq = self._eq
+        info = {
+            "tip_true": eq.tip.copy(),
+            "tip_estimated": np.asarray(self._shape.tip, dtype=float).copy(),
+            "estimation_error": float(np.hypot(*(self._shape.tip - eq.tip))),
+            "sensors": {"encoder_lengths": self._readings.encoder_lengths,
+                        "inclinometers": self._readings.inclinometers,
+                        "base_wrench": self._readings.base_wrench},
+            "converged": bool(attempted.converged),
+            "solver": {"converged": bool(attempted.converged), "iterations": int(attempted.iterations),
+                       "residual": float(attempted.residual), "stable": bool(attempted.stable),
+                       "snapped": bool(attempted.snapped)},
+            "solver_failures": self._failures,
+            "pressures_pa": eq.pressures.copy(),
+            "payload_kg": self._scene.payload_kg,
+            "is_success": bool(success),
+        }
+        info.update(task_info)
+        info.update(terms)
+        return info
+
+    # ------------------------------------------------------------------ render
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or "
+                            "'human' to gym.make")
+            return None
+        if self._eq is None:
+            raise RuntimeError("call reset() before render()")
+        if self._renderer is None:
+            self._renderer = ArmRenderer(extent=1.3 * self.arm.length, size=self.render_size)
+        eq = self._eq
+        frame = self._renderer.frame(
+            eq.positions, eq.positions[list(eq.section_ends)], self._shape.backbone, self._shape.tip,
+            caption=self._caption(), **self._task_artists())
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._window is None:
+            self._window = HumanWindow(self.render_size, self.metadata["render_fps"], type(self).__name__)
+        self._window.show(frame)
+        return None
+
+    def _caption(self) -> str:
+        return (f"{self.arm.name}  obs={self.observation_name}\n"
+                f"est. error {1000 * np.hypot(*(self._shape.tip - self._eq.tip)):.1f} mm")
+
+    def close(self):
+        if self._window is not None:
+            self._window.close()
+            self._window = None
+        self._renderer = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_renderer"] = None
+        state["_window"] = None
+        return state

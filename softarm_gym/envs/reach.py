@@ -1,0 +1,175 @@
+"""Reach: bring the arm's tip to a target point (``SoftArm/OctArmReach-v0``, ``SoftArm/CTReach-v0``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import solver
+from softarm_gym.envs.base import SoftArmEnv, _finite_number
+
+__all__ = ["ReachEnv"]
+
+_TARGET_ATTEMPTS = 20
+
+
+class ReachEnv(SoftArmEnv):
+    """Reach a target with the tip of a multi-section pneumatic soft arm (planar, quasi-static).
+
+    ## Description
+
+    A soft arm (OctArm V, OctArm VI or the continuous-tube "CT" arm of Trivedi 2010) is clamped
+    at the origin at ``base_angle_deg`` from the downward vertical (90 = horizontal along +x)
+    and loaded by its own weight and a tip payload. Each step sets the channel pressures and
+    the arm moves to the quasi-static equilibrium reached from the previous one (a Cosserat
+    rod solved by shooting, warm-started, so snap-through and hysteresis are physical).
+    The agent sees the arm only through a shape estimator fed with synthesised sensors.
+
+    ## Action Space
+
+    ``Box(-1, 1, (n_inputs,), float32)``: one normalised pressure per planar channel, in the
+    order of ``arm.input_names(planar=True)`` — OctArm ``[s1_I, s1_II+III, s2_I, s2_II+III,
+    s3_I, s3_II+III]``, CT ``[inner_I, inner_II+III, outer_I, outer_II+III]``. Channel I bends
+    its section clockwise. ``action_mode="absolute"``: p = (a + 1)/2 · p_max;
+    ``"delta"``: p ← clip(p + a · delta_scale · p_max, 0, p_max). p_max is the design's rated
+    pressure: OctArm V 100 psi (689.5 kPa), OctArm VI 90 psi (620.5 kPa), CT 70 psi (482.6 kPa).
+    Values outside [-1, 1] are clipped; a NaN or infinite value raises ``ValueError`` naming
+    the channel.
+
+    ## Observation Space
+
+    Flat ``Box(float32)`` (``observation_format="flat"``, works with SB3 ``MlpPolicy``) or a
+    ``Dict`` of the same blocks (``"dict"``), in this order:
+
+    | block | size | meaning | unit |
+    |---|---|---|---|
+    | ``tip`` | 2 | estimated tip (x, y) | m |
+    | ``section_ends`` | 4·n_sections | per section end: x, y, cos θ, sin θ (θ of d3 from +x) | m, – |
+    | ``backbone`` | 2·n_backbone | estimated backbone, even in reference arc length, base to tip | m |
+    | ``pressures`` | n_inputs | current channel pressures on the action scale, 2p/p_max − 1 | – |
+    | ``goal`` | 4 | target (x, y), then target − estimated tip | m |
+
+    Positions are bounded by ±2L (L the arm's length) and clipped to it. Estimates come from
+    ``observation``: ``true`` (the equilibrium itself), ``model`` (nominal arm at the
+    commanded pressures, payload assumed 0), ``constant_curvature`` (encoder lengths),
+    ``cable_encoder``, ``inclinometer`` or ``load_cell`` (thesis chapter 4). Estimators use the
+    nominal design even when the simulated arm is randomised.
+
+    ## Rewards
+
+    ``reward = reward_distance + reward_control + reward_success + reward_solver``, each in
+    ``info``: ``reward_distance = −distance_weight · |tip_true − target|`` (m, the true tip);
+    ``reward_control = −control_weight · mean((p/p_max)²)`` (an air-consumption cost, the same
+    in both action modes); ``reward_success = success_bonus`` while the true tip is within
+    ``success_tolerance`` (default 2 cm ≈ L/40 for OctArm V), else 0; ``reward_solver =
+    −solver_failure_penalty`` on a step whose equilibrium did not converge, else 0.
+
+    ## Starting State
+
+    Per episode: the simulated arm (``randomization``), a payload drawn uniformly from
+    ``payload_kg``, a target — the tip of the arm at uniformly random pressures, solved
+    cold, so every target is reachable by this episode's arm and payload (or
+    ``options={"target": (x, y)}``) — and start pressures uniform in
+    [0, ``initial_pressure_fraction``]·p_max.
+
+    ## Episode End
+
+    Truncated at ``max_episode_steps`` (``gym.make`` kwarg; registered default 100) or after
+    ``max_solver_failures`` consecutive unconverged steps (default 5). An unconverged step
+    keeps the last converged equilibrium and its pressures (``info["converged"] = False``,
+    ``reward_solver`` applies). Terminated on success only with ``terminate_on_success=True``.
+
+    ## Arguments
+
+    ``gym.make("SoftArm/OctArmReach-v0", **kwargs)``:
+
+    * ``design`` (``"octarm_v"``; CTReach ``"ct"``): design name or ``solver.designs.ArmDesign``.
+    * ``planar`` (True): the planar model. ``False`` is not supported yet (``ValueError``).
+    * ``observation`` (``"true"``): the shape estimator, one of ``softarm_gym.sensing.ESTIMATORS``.
+    * ``sensor_noise`` (``"off"``): ``"off"``, ``"thesis"`` (Table 4.3 resolutions), a dict of
+      ``SensorNoise`` fields or a ``SensorNoise``.
+    * ``base_angle_deg`` (90): base orientation from the downward vertical (deg).
+    * ``payload_kg`` (0): tip payload (kg), a number or a ``(low, high)`` range drawn per
+      episode; unknown to the ``model`` estimator.
+    * ``randomization`` (None): ``{"wind_angle_deg": 2.0, "youngs_modulus_rel": 0.1}`` draws
+      α ± 2° and E ± 10 % per episode for the simulated arm (``ArmRandomization``).
+    * ``action_mode`` (``"absolute"``) and ``delta_scale`` (0.1 of p_max per step).
+    * ``n_backbone`` (8): backbone samples in the observation.
+    * ``observation_format`` (``"flat"``) or ``"dict"``.
+    * ``distance_weight`` (1), ``control_weight`` (0.01), ``success_bonus`` (1),
+      ``success_tolerance`` (0.02 m), ``solver_failure_penalty`` (1), ``max_solver_failures`` (5),
+      ``terminate_on_success`` (False).
+    * ``initial_pressure_fraction`` (0.1), ``model`` (``"full"``, the simulator's rod model).
+    * ``render_mode`` (None, ``"rgb_array"`` or ``"human"``), ``render_size`` (400 px).
+
+    ## Info
+
+    ``tip_true`` (m), ``tip_estimated`` (m), ``estimation_error`` (m, |estimated − true tip|),
+    ``sensors`` (dict of the raw ``SensorReadings`` arrays: ``encoder_lengths`` (m),
+    ``inclinometers`` (rad), ``base_wrench`` (N, N m)), ``converged``, ``solver`` (converged, iterations,
+    residual, stable, snapped of the attempted solve), ``solver_failures``, ``pressures_pa``,
+    ``payload_kg``, ``target``, ``distance`` (m), ``is_success`` and the ``reward_*`` terms.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    goal_size = 4
+
+    def __init__(self, design="octarm_v", *, distance_weight: float = 1.0, control_weight: float = 0.01,
+                 success_bonus: float = 1.0, success_tolerance: float = 0.02,
+                 terminate_on_success: bool = False, **kwargs):
+        self.distance_weight = _finite_number("distance_weight", distance_weight, 0.0)
+        self.control_weight = _finite_number("control_weight", control_weight, 0.0)
+        self.success_bonus = _finite_number("success_bonus", success_bonus, 0.0)
+        self.success_tolerance = _finite_number("success_tolerance", success_tolerance, 0.0)
+        if self.success_tolerance <= 0:
+            raise ValueError(f"success_tolerance must be > 0 (m); got {success_tolerance}")
+        self.terminate_on_success = bool(terminate_on_success)
+        self._target = np.zeros(2)
+        super().__init__(design, **kwargs)
+
+    def _goal_bounds(self):
+        r = self.reach
+        return np.array([-r, -r, -2 * r, -2 * r]), np.array([r, r, 2 * r, 2 * r])
+
+    def _reset_task(self, options):
+        if options and "target" in options:
+            target = np.asarray(options["target"], dtype=float)
+            if target.shape != (2,) or not np.all(np.isfinite(target)):
+                raise ValueError(f"options['target'] must be a finite (x, y) point (m); "
+                                 f"got {options['target']!r}")
+            self._target = target.copy()
+            return self._scene
+        for _ in range(_TARGET_ATTEMPTS):
+            fraction = self.np_random.uniform(0.0, 1.0, self.n_inputs)
+            eq = solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
+                              planar=True, record=False)
+            if eq.converged:
+                self._target = eq.tip.copy()
+                return self._scene
+        raise RuntimeError(f"no converged target in {_TARGET_ATTEMPTS} random pressure draws for "
+                           f"{self.arm.name} in {self._scene}")
+
+    def _fill_goal(self, out):
+        out[:2] = self._target
+        out[2:] = self._target - self._shape.tip
+
+    def _task_reward(self, eq):
+        distance = float(np.hypot(*(eq.tip - self._target)))
+        success = distance <= self.success_tolerance
+        terms = {
+            "reward_distance": -self.distance_weight * distance,
+            "reward_control": -self.control_weight * float(np.mean(self._fraction ** 2)),
+            "reward_success": self.success_bonus if success else 0.0,
+        }
+        return terms, success, {"target": self._target.copy(), "distance": distance}
+
+    def _terminated(self, success):
+        return self.terminate_on_success and success
+
+    def _task_artists(self):
+        return {"target": self._target}
+
+    def _caption(self):
+        return super()._caption() + f"\ndistance {1000 * np.hypot(*(self._eq.tip - self._target)):.1f} mm"
