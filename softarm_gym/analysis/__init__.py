@@ -1,0 +1,35 @@
+"""Workspace and manipulability analysis of soft arms (thesis §2.4 and chapter 5).
+
+``workspace`` sweeps a pressure grid and returns the tip cloud with its area, density,
+highest point and mean; ``dexterity_map`` adds the Jacobian and the dexterity measures at
+every grid point; ``reproduce`` holds the thesis reproductions behind ``softarm workspace``
+and ``softarm dexterity``.
+"""
+
+from softarm_gym.analysis.manipulability import (
+    DEFAULT_REL_STEP,
+    MEASURES,
+    METHODS,
+    Dexterity,
+    DexterityMap,
+    dexterity,
+    dexterity_map,
+    jacobian,
+    step_study,
+)
+from softarm_gym.analysis.sweep import BACKENDS, PressureGrid, pressure_grid, sweep_tips
+from softarm_gym.analysis.workspace import (
+    DEFAULT_ALPHA_FRACTION,
+    Workspace,
+    alpha_shape_area,
+    alpha_shape_triangles,
+    occupancy_area,
+    workspace,
+)
+
+__all__ = [
+    "DEFAULT_REL_STEP", "MEASURES", "METHODS", "Dexterity", "DexterityMap", "dexterity",
+    "dexterity_map", "jacobian", "step_study", "BACKENDS", "PressureGrid", "pressure_grid",
+    "sweep_tips", "DEFAULT_ALPHA_FRACTION", "Workspace", "alpha_shape_area",
+    "alpha_shape_triangles", "occupancy_area", "workspace",
+]
