@@ -11,7 +11,7 @@ Pure numerics: numpy, scipy and numba only (never gymnasium), usable on its own:
 
 from solver import actuator, designs
 from solver.actuator import PSI, pressure_from_stretch, stretch_from_pressure
-from solver.scene import Scene
+from solver.scene import Disc, Scene
 from solver.solve import (
     MODELS,
     Equilibrium,
@@ -23,6 +23,6 @@ from solver.solve import (
 )
 
 __all__ = [
-    "actuator", "designs", "PSI", "pressure_from_stretch", "stretch_from_pressure", "Scene",
+    "actuator", "designs", "PSI", "pressure_from_stretch", "stretch_from_pressure", "Scene", "Disc",
     "MODELS", "Equilibrium", "Settings", "SolverError", "rest_strains", "solve", "solve_batch",
 ]

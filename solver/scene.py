@@ -7,7 +7,37 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Scene"]
+__all__ = ["Scene", "Disc"]
+
+
+@dataclass(frozen=True)
+class Disc:
+    """A rigid disc (planar obstacle) the arm's backbone is pressed against by penalty contact.
+
+    Attributes:
+        center: (x, y) of the centre (m).
+        radius: contact radius for the backbone curve (m): the object's radius plus the
+            arm's half-thickness if the arm's surface, not its axis, should touch.
+        stiffness: penalty k (N/m²): force per unit reference length per metre of
+            penetration. Larger is stiffer and harder for the solver; 2e4 gives ~1 mm
+            penetration under ~20 N/m of contact load.
+    """
+
+    center: tuple = (0.0, 0.0)
+    radius: float = 0.05
+    stiffness: float = 2.0e4
+
+    def __post_init__(self):
+        c = np.asarray(self.center, dtype=float).ravel()
+        if c.size != 2 or not np.all(np.isfinite(c)):
+            raise ValueError(f"Disc.center must be two finite numbers (m); got {self.center!r}")
+        object.__setattr__(self, "center", (float(c[0]), float(c[1])))
+        for name in ("radius", "stiffness"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"Disc.{name} must be a finite number > 0; got {v!r}")
+            object.__setattr__(self, name, float(v))
 
 
 @dataclass(frozen=True)
@@ -24,6 +54,7 @@ class Scene:
         gravity: magnitude of gravitational acceleration (m/s²); 0 switches gravity off.
         tip_force: extra dead force at the tip, (Fx, Fy) or (Fx, Fy, Fz) in N.
         tip_moment: extra dead moment at the tip, Mz (N m) or (Mx, My, Mz).
+        obstacles: rigid :class:`Disc` s in contact with the arm (planar solves only).
     """
 
     base_angle_deg: float = 0.0
@@ -31,6 +62,7 @@ class Scene:
     gravity: float = 9.81
     tip_force: tuple = (0.0, 0.0)
     tip_moment: float | tuple = 0.0
+    obstacles: tuple = ()
 
     def __post_init__(self):
         for name in ("base_angle_deg", "payload_kg", "gravity"):
@@ -50,6 +82,10 @@ class Scene:
         if moment.size not in (1, 3) or not np.all(np.isfinite(moment)):
             raise ValueError(
                 f"Scene.tip_moment must be 1 (Mz) or 3 finite numbers (N m); got {self.tip_moment!r}")
+        obstacles = tuple(self.obstacles) if isinstance(self.obstacles, (tuple, list)) else None
+        if obstacles is None or not all(isinstance(o, Disc) for o in obstacles):
+            raise ValueError(f"Scene.obstacles must be a tuple of solver.Disc; got {self.obstacles!r}")
+        object.__setattr__(self, "obstacles", obstacles)
         object.__setattr__(self, "tip_force", tuple(float(f) for f in force))
         object.__setattr__(self, "tip_moment",
                            float(moment[0]) if moment.size == 1 else tuple(float(m) for m in moment))
@@ -77,8 +113,7 @@ class Scene:
         m = self.tip_moment_3d()
         return self.tip_force_3d()[2] == 0.0 and m[0] == 0.0 and m[1] == 0.0
 
-    @property
-    def unloaded(self) -> bool:
-        """True when no external load acts (closed-form arcs apply)."""
-        return (self.payload_kg == 0.0 or self.gravity == 0.0) and not np.any(self.tip_force_3d()) \
-            and not np.any(self.tip_moment_3d())
+    def discs_array(self) -> np.ndarray:
+        """Obstacles as an (n, 4) array: centre x, centre y, radius, stiffness."""
+        return np.array([[*d.center, d.radius, d.stiffness] for d in self.obstacles],
+                        dtype=float).reshape(-1, 4)

@@ -21,11 +21,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from solver import _planar, _spatial
+from solver import _contact, _planar, _spatial
 from solver.designs import ArmDesign
-from solver.scene import Scene
+from solver.scene import Disc, Scene
 
-__all__ = ["Equilibrium", "SolverError", "solve", "solve_batch", "MODELS", "Settings"]
+__all__ = ["Equilibrium", "SolverError", "solve", "solve_batch", "MODELS", "Settings", "Disc"]
 
 MODELS = ("full", "unshearable", "constant_curvature")
 
@@ -88,6 +88,10 @@ class Equilibrium:
         internal_force: (N, 2|3) n in the world frame (N).
         internal_moment: (N,) planar m_z or (N, 3) spatial m in the world frame (N m).
         section_ends: indices of the samples at each section end.
+        contact_force: (N, 2) penalty contact force per reference length (N/m, world frame);
+            empty unless the scene has obstacles.
+        penetration: (N,) depth of the backbone inside the nearest obstacle (m, ≥ 0).
+        base_force: internal force n(0) at the base (N, world frame).
         pressures: the pressures solved for (Pa), in the order of ``design.input_names``.
         model, planar: what was solved.
     """
@@ -107,6 +111,9 @@ class Equilibrium:
     internal_force: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
     internal_moment: np.ndarray = field(default_factory=lambda: np.empty(0))
     section_ends: tuple = ()
+    contact_force: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    penetration: np.ndarray = field(default_factory=lambda: np.empty(0))
+    base_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
     pressures: np.ndarray = field(default_factory=lambda: np.empty(0))
     model: str = "full"
     planar: bool = True
@@ -327,7 +334,12 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
     p_inputs, p_channel = _channel_pressures(arm, pressures, planar, packed)
     if warm_start is not None:
         _check_warm_start(warm_start, scene, model, planar, p_channel)
-    if model == "constant_curvature" or (settings.shortcuts and not _has_load(arm, scene)):
+    if scene.obstacles and model != "constant_curvature":
+        if not planar:
+            raise ValueError("obstacles (contact) are supported in planar solves only")
+        eq = _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
+                            settings)
+    elif model == "constant_curvature" or (settings.shortcuts and not _has_load(arm, scene)):
         eq = _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     elif planar:
         eq = _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
@@ -519,7 +531,7 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
     for row in p[~np.all((p >= 0) & (p <= arm.max_pressure * (1 + 1e-12)), axis=1)][:1]:
         _explain_bad_pressures(arm, row, planar)
     general = model != "constant_curvature" and (_has_load(arm, scene) or not settings.shortcuts)
-    if not (general and planar):
+    if not (general and planar) or scene.obstacles:
         dim = 2 if planar else 3
         tips = np.empty((p.shape[0], dim))
         ok = np.empty(p.shape[0], dtype=bool)
@@ -618,3 +630,58 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
     return Equilibrium(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
                        curvature=strain_u, internal_force=force, internal_moment=mom,
                        section_ends=_section_ends(packed), **common_out)
+
+
+def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Planar solve with penalty contact against the scene's discs (:mod:`solver._contact`).
+
+    Only built when a scene has obstacles. The cold path starts from the contact-free loaded
+    state (cached, as for :func:`_solve_planar`) and ramps the pressures with contact active.
+    """
+    free_scene = replace(scene, obstacles=())
+    ctx = _context(arm, packed, free_scene, 2, settings)
+    common, numeric = _planar_inputs(arm, packed, free_scene, ctx, settings)
+    p_target = p_channel if arm.n_channels else np.zeros(1)
+    g = np.array([0.0, -scene.gravity])
+    plate = packed.endplate[:, None] * g[None, :]
+    target = np.append(ctx.n_end[-1], ctx.m_tip)  # n(L⁻) includes the last endplate
+    force_scale = float(np.abs(ctx.n_end).max() + np.abs(ctx.q).max() * arm.length) + 1.0
+    scale = np.array([force_scale, force_scale, packed.moment_scale])
+    iterations = 0
+    if warm_start is not None and warm_start.scene is not None:
+        unknowns = np.append(warm_start.base_force, warm_start.base_moment[-1])
+        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+    else:
+        m0, iterations, _ = _loaded_base_moment(arm, packed, free_scene, ctx, settings, common,
+                                                numeric)
+        n0 = ctx.n_end[0] + ctx.q[0] * packed.sec_len[0]
+        unknowns = np.array([n0[0], n0[1], m0])
+        p_start = np.zeros_like(p_target)
+    ns = len(arm.sections)
+    u1, u2, v3, p_now = np.empty(ns), np.empty(ns), np.empty(ns), np.empty(p_target.shape[0])
+    discs = scene.discs_array()
+    ok, its, res, stable = _contact._follow(
+        unknowns, scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g,
+        packed.c_i, packed.sec_ea, packed.sec_ei, packed.tubes_i, packed.tubes_f, p_start,
+        p_target, ctx.q, plate, target, discs, scale, settings.tol, settings.max_iter, 2.0,
+        settings.dt0, settings.dt_min, u1, u2, v3, p_now)
+    # Contact needs the shape for the wrap measures, so the backbone is always integrated;
+    # ``record`` only decides whether it is returned.
+    out = np.zeros((packed.n_rows, _contact.N_COLUMNS))
+    dmin = _contact._record(unknowns, scene.base_theta, packed.sec_len, packed.sec_steps,
+                            packed.c_a, packed.c_g, packed.c_i, u2, v3, ctx.q, plate, discs, out)
+    C = _contact
+    common_out = dict(
+        tip=out[-1, [C.C_X, C.C_Y]].copy(), converged=bool(ok), stable=bool(stable and dmin > 0),
+        iterations=int(iterations + its), residual=float(res), model=model, planar=True,
+        scene=scene, pressures=p_inputs, channel_pressures=p_channel,
+        base_moment=np.array([unknowns[2]]), base_force=unknowns[:2].copy())
+    if not record:
+        return Equilibrium(**common_out)
+    theta = out[:, C.C_TH]
+    return Equilibrium(
+        s=out[:, C.C_S].copy(), positions=out[:, [C.C_X, C.C_Y]].copy(), angles=theta.copy(),
+        shear_stretch=out[:, [C.C_V1, C.C_V3]].copy(), curvature=out[:, C.C_U].copy(),
+        internal_force=out[:, [C.C_NX, C.C_NY]].copy(), internal_moment=out[:, C.C_M].copy(),
+        contact_force=out[:, [C.C_FX, C.C_FY]].copy(), penetration=out[:, C.C_PEN].copy(),
+        section_ends=_section_ends(packed), **common_out)
