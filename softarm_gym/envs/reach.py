@@ -10,6 +10,9 @@ from softarm_gym.envs.base import SoftArmEnv, _finite_number
 __all__ = ["ReachEnv"]
 
 _TARGET_ATTEMPTS = 20
+_TARGET_SETTINGS = solver.Settings(dt0=1.0 / 16.0)
+"""Cold solves of targets ramp the pressures in steps of at most 1/16: a single full step can
+converge on an equilibrium off the quasi-static branch, which the arm never reaches from rest."""
 
 
 class ReachEnv(SoftArmEnv):
@@ -67,7 +70,8 @@ class ReachEnv(SoftArmEnv):
 
     Per episode: the simulated arm (``randomization``), a payload drawn uniformly from
     ``payload_kg``, a target — the tip of the arm at uniformly random pressures, solved
-    cold, so every target is reachable by this episode's arm and payload (or
+    quasi-statically from rest (pressures ramped in steps of 1/16), so every target is
+    reachable by this episode's arm and payload (or
     ``options={"target": (x, y)}``) — and start pressures uniform in
     [0, ``initial_pressure_fraction``]·p_max.
 
@@ -108,6 +112,8 @@ class ReachEnv(SoftArmEnv):
     ``inclinometers`` (rad), ``base_wrench`` (N, N m)), ``converged``, ``solver`` (converged, iterations,
     residual, stable, snapped of the attempted solve), ``solver_failures``, ``pressures_pa``,
     ``payload_kg``, ``target``, ``distance`` (m), ``is_success`` and the ``reward_*`` terms.
+    ``env.unwrapped.target_pressures_pa`` holds the pressures (Pa) whose cold equilibrium
+    placed the target (None for a target given in ``options``): for analysis, not observed.
 
     ## Version History
 
@@ -127,6 +133,7 @@ class ReachEnv(SoftArmEnv):
             raise ValueError(f"success_tolerance must be > 0 (m); got {success_tolerance}")
         self.terminate_on_success = bool(terminate_on_success)
         self._target = np.zeros(2)
+        self.target_pressures_pa = None
         super().__init__(design, **kwargs)
 
     def _goal_bounds(self):
@@ -140,13 +147,15 @@ class ReachEnv(SoftArmEnv):
                 raise ValueError(f"options['target'] must be a finite (x, y) point (m); "
                                  f"got {options['target']!r}")
             self._target = target.copy()
+            self.target_pressures_pa = None
             return self._scene
         for _ in range(_TARGET_ATTEMPTS):
             fraction = self.np_random.uniform(0.0, 1.0, self.n_inputs)
             eq = solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
-                              planar=True, record=False)
+                              planar=True, record=False, settings=_TARGET_SETTINGS)
             if eq.converged:
                 self._target = eq.tip.copy()
+                self.target_pressures_pa = eq.pressures.copy()
                 return self._scene
         raise RuntimeError(f"no converged target in {_TARGET_ATTEMPTS} random pressure draws for "
                            f"{self.arm.name} in {self._scene}")

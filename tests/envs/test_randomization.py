@@ -1,0 +1,70 @@
+"""Per-episode arm randomisation: ranges, what scales, validation."""
+
+import numpy as np
+import pytest
+
+import solver
+from softarm_gym.envs import ArmRandomization
+
+
+def test_inactive_randomisation_returns_the_nominal_arm():
+    arm = solver.designs.octarm_v()
+    assert ArmRandomization().sample(arm, np.random.default_rng(0)) is arm
+    assert ArmRandomization.coerce(None) == ArmRandomization()
+
+
+@pytest.mark.parametrize("design", ["octarm_v", "octarm_vi", "ct"])
+def test_sampled_arms_stay_in_range_and_scale_consistently(design):
+    arm = solver.designs.get(design)
+    rand = ArmRandomization(wind_angle_deg=2.0, youngs_modulus_rel=0.1)
+    rng = np.random.default_rng(1)
+    factors, angles = [], []
+    for _ in range(50):
+        sim = rand.sample(arm, rng)
+        factor = sim.tubes[0].material.youngs_modulus / arm.tubes[0].material.youngs_modulus
+        d_alpha = sim.tubes[0].material.wind_angle_deg - arm.tubes[0].material.wind_angle_deg
+        for nominal, tube in zip(arm.tubes, sim.tubes):
+            assert tube.material.youngs_modulus == pytest.approx(nominal.material.youngs_modulus * factor)
+            assert tube.material.shear_modulus == pytest.approx(nominal.material.shear_modulus * factor)
+            assert tube.material.wind_angle_deg == pytest.approx(nominal.material.wind_angle_deg + d_alpha)
+            assert (tube.channel, tube.angle_deg, tube.radius) == (nominal.channel, nominal.angle_deg,
+                                                                   nominal.radius)
+        for nominal, sec in zip(arm.sections, sim.sections):
+            for name in ("EA", "GA", "EI", "GJ"):
+                assert getattr(sec, name) == pytest.approx(getattr(nominal, name) * factor)
+            assert sec.mass_per_length == nominal.mass_per_length
+        factors.append(factor)
+        angles.append(d_alpha)
+    assert 0.9 <= min(factors) < 0.95 and 1.05 < max(factors) <= 1.1
+    assert -2.0 <= min(angles) < -1.0 and 1.0 < max(angles) <= 2.0
+
+
+def test_modulus_factor_changes_the_actuated_curvature_the_physical_way():
+    # λ(p) grows as p/E grows, and u* = F·y/EI with F and EI both ∝ E: softer rubber curls more.
+    arm = solver.designs.octarm_v()
+    channels = np.zeros(9)
+    channels[0] = 50.0 * solver.PSI
+    u_nominal = solver.rest_strains(arm, channels)[1][0]
+    for seed in range(4):
+        sim = ArmRandomization(youngs_modulus_rel=0.3).sample(arm, np.random.default_rng(seed))
+        factor = sim.sections[0].EA / arm.sections[0].EA
+        u_sim = solver.rest_strains(sim, channels)[1][0]
+        assert (abs(u_sim) > abs(u_nominal)) == (factor < 1.0)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"wind_angle_deg": -1.0}, "wind_angle_deg"),
+    ({"youngs_modulus_rel": 1.0}, "< 1"),
+    ({"youngs_modulus_rel": float("nan")}, "youngs_modulus_rel"),
+    ({"wind_angle_deg": True}, "wind_angle_deg"),
+])
+def test_invalid_widths(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ArmRandomization(**kwargs)
+
+
+def test_width_that_breaks_the_braid_is_rejected():
+    with pytest.raises(ValueError, match="outside"):
+        ArmRandomization(wind_angle_deg=12.0).check(solver.designs.octarm_v())
+    with pytest.raises(ValueError, match="randomization must be"):
+        ArmRandomization.coerce(0.1)
