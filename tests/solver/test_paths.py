@@ -1,0 +1,95 @@
+"""Quasi-static path following: warm starts follow the branch; folds snap and say so."""
+
+import numpy as np
+import pytest
+
+import solver
+from solver import PSI, designs
+
+
+def _sweep(arm, scene, channel, levels, eq=None):
+    out = []
+    for level in levels:
+        p = np.zeros(arm.n_inputs())
+        p[channel] = level * PSI
+        eq = solver.solve(arm, p, scene, warm_start=eq)
+        out.append(eq)
+    return out
+
+
+def test_snap_through_and_hysteresis():
+    """Horizontal OctArm V lifting section 1: it snaps over the top on the way up and stays
+    there on the way down — two stable equilibria for the same pressures."""
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90)
+    levels = np.linspace(0, 100, 21)
+    up = _sweep(arm, scene, 1, levels)
+    down = _sweep(arm, scene, 1, levels[::-1], eq=up[-1])[::-1]
+    assert all(e.converged and e.stable for e in up + down)
+    assert any(e.snapped for e in up)
+    gaps = [np.linalg.norm(u.tip - d.tip) for u, d in zip(up, down)]
+    assert max(gaps) > 0.5
+    assert gaps[0] < 1e-9  # back at zero pressure both paths meet again
+    # A cold solve ramps pressure from zero, so it lands on the upward branch.
+    for k in (8, 12, 16):
+        cold = solver.solve(arm, up[k].pressures, scene)
+        np.testing.assert_allclose(cold.tip, up[k].tip, atol=1e-9)
+
+
+def test_warm_step_equals_cold_solve_on_a_single_branch():
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=45, payload_kg=0.1)
+    p1 = np.array([20, 0, 0, 30, 10, 0]) * PSI
+    p2 = np.array([25, 5, 0, 35, 15, 0]) * PSI
+    warm = solver.solve(arm, p2, scene, warm_start=solver.solve(arm, p1, scene))
+    cold = solver.solve(arm, p2, scene)
+    assert warm.converged and warm.iterations < cold.iterations
+    np.testing.assert_allclose(warm.tip, cold.tip, atol=1e-10)
+
+
+def test_warm_start_across_payload_change():
+    arm = designs.octarm_v()
+    p = np.array([20, 0, 0, 30, 10, 0]) * PSI
+    light = solver.solve(arm, p, solver.Scene(base_angle_deg=60))
+    heavy_scene = solver.Scene(base_angle_deg=60, payload_kg=0.2)
+    warm = solver.solve(arm, p, heavy_scene, warm_start=light)
+    np.testing.assert_allclose(warm.tip, solver.solve(arm, p, heavy_scene).tip, atol=1e-10)
+
+
+def test_batch_is_the_cold_solve_in_any_order():
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90)
+    rng = np.random.default_rng(3)
+    P = rng.uniform(0, arm.max_pressure, (40, 6))
+    tips, ok = solver.solve_batch(arm, P, scene)
+    order = rng.permutation(40)
+    tips2, ok2 = solver.solve_batch(arm, P[order], scene)
+    np.testing.assert_array_equal(tips2, tips[order])
+    for k in range(0, 40, 7):
+        eq = solver.solve(arm, P[k], scene, record=False)
+        np.testing.assert_array_equal(eq.tip, tips[k])
+        assert eq.converged == ok[k]
+    assert ok.all()
+
+
+def test_spatial_warm_start():
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90)
+    p1 = np.array([20, 10, 0, 30, 0, 5, 10, 0, 0]) * PSI
+    p2 = p1 + 3 * PSI
+    e1 = solver.solve(arm, p1, scene, planar=False)
+    warm = solver.solve(arm, p2, scene, planar=False, warm_start=e1)
+    cold = solver.solve(arm, p2, scene, planar=False)
+    assert warm.converged and warm.stable and abs(warm.tip[2]) > 1e-3
+    np.testing.assert_allclose(warm.tip, cold.tip, atol=1e-9)
+
+
+def test_strict_raises_when_unconverged():
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90, payload_kg=0.2)
+    settings = solver.Settings(max_iter=1, dt_min=0.5)
+    eq = solver.solve(arm, np.full(6, 80 * PSI), scene, settings=settings)
+    assert not eq.converged and eq.residual > 0
+    assert np.all(np.isfinite(eq.positions))
+    with pytest.raises(solver.SolverError, match="no converged equilibrium"):
+        solver.solve(arm, np.full(6, 80 * PSI), scene, settings=settings, strict=True)

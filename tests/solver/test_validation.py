@@ -1,0 +1,82 @@
+"""Bad input gets a clear ValueError naming the problem, never a numba traceback."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import solver
+from solver import PSI, designs
+
+ARM = designs.octarm_v()
+
+
+@pytest.mark.parametrize("pressures, match", [
+    (np.zeros(5), "expects 6 pressures"),
+    (np.zeros((2, 6)), "expects 6 pressures"),
+    ("30,0", "expects 6 pressures"),
+    ([0, 0, np.nan, 0, 0, 0], "s2_I.*not finite"),
+    ([0, 0, 0, np.inf, 0, 0], "s2_II\\+III.*not finite"),
+    ([0, -1.0, 0, 0, 0, 0], "s1_II\\+III.*negative"),
+    ([0, 0, 0, 0, 0, 101 * PSI], "s3_II\\+III.*rated maximum"),
+    ([[1], 2, 3, 4, 5, 6], "expects 6 pressures"),
+])
+def test_bad_pressures(pressures, match):
+    with pytest.raises(ValueError, match=match):
+        solver.solve(ARM, pressures, solver.Scene())
+
+
+def test_spatial_pressure_count():
+    with pytest.raises(ValueError, match="9 pressures in spatial"):
+        solver.solve(ARM, np.zeros(6), solver.Scene(), planar=False)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(base_angle_deg=np.nan), "base_angle_deg"), (dict(payload_kg=-1), "payload_kg"),
+    (dict(gravity=-9.81), "gravity"), (dict(tip_force=(1, 2, 3, 4)), "tip_force"),
+    (dict(tip_moment=(1, 2)), "tip_moment"), (dict(base_angle_deg="90"), "base_angle_deg"),
+])
+def test_bad_scene(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        solver.Scene(**kwargs)
+
+
+def test_bad_model_arm_scene_and_mode():
+    with pytest.raises(ValueError, match="unknown model"):
+        solver.solve(ARM, np.zeros(6), model="pcc")
+    with pytest.raises(ValueError, match="ArmDesign"):
+        solver.solve("octarm_v", np.zeros(6))
+    with pytest.raises(ValueError, match="Scene"):
+        solver.solve(ARM, np.zeros(6), scene={"base_angle_deg": 0})
+    with pytest.raises(ValueError, match="out-of-plane"):
+        solver.solve(ARM, np.zeros(6), solver.Scene(tip_force=(0, 0, 1.0)))
+    with pytest.raises(ValueError, match="steps_per_section"):
+        solver.Settings(steps_per_section=0)
+
+
+def test_bad_warm_start():
+    eq = solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=30))
+    with pytest.raises(ValueError, match="base angle"):
+        solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=60), warm_start=eq)
+    with pytest.raises(ValueError, match="different arm, model or planar"):
+        solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=30), model="unshearable",
+                     warm_start=eq)
+    with pytest.raises(ValueError, match="Equilibrium"):
+        solver.solve(ARM, np.zeros(6), warm_start={"tip": [0, 0]})
+
+
+def test_bad_batch():
+    with pytest.raises(ValueError, match="shape"):
+        solver.solve_batch(ARM, np.zeros(6))
+    with pytest.raises(ValueError, match="negative"):
+        solver.solve_batch(ARM, np.array([[0, 0, 0, 0, 0, 0], [0, -1, 0, 0, 0, 0.0]]))
+
+
+def test_solver_never_imports_gymnasium():
+    """One-way dependencies: solver/ uses numpy, scipy and numba only."""
+    code = ("import sys, solver; solver.solve(solver.designs.octarm_v(), [0]*6); "
+            "bad = [m for m in sys.modules if m.split('.')[0] in "
+            "('gymnasium', 'softarm_gym', 'torch', 'stable_baselines3', 'matplotlib')]; "
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True)
