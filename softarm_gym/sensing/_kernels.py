@@ -132,3 +132,260 @@ def _arc_point(x, y, th, kappa, stretch, sig):
     st = math.sin(th)
     # Chord in the local frame (along d3, along the bending normal), rotated to the world.
     return x + ell * (c * ct - d * st), y + ell * (c * st + d * ct), th + dth
+
+
+@njit
+def _wrench_rhs(sig, th, m, ca, cg, ci, ur, vr, nx0, ny0, qx, qy):
+    """Planar rod statics with the internal force n(σ) = n_start − q·σ (world frame)."""
+    nx = nx0 - qx * sig
+    ny = ny0 - qy * sig
+    c = math.cos(th)
+    sn = math.sin(th)
+    n1 = -nx * sn + ny * c
+    n3 = nx * c + ny * sn
+    v1 = n1 * cg
+    v3 = vr + n3 * ca
+    return ur + m * ci, v1 * n3 - v3 * n1, v3 * c - v1 * sn, v3 * sn + v1 * c
+
+
+@njit
+def _load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
+                      q, point, s_out, pos_out, tan_out, ends_out):
+    """Integrate the planar equilibrium equations base → tip from a measured base wrench (§4.2.1).
+
+    Same rod statics as the solver (DESIGN §2): θ' = u* + m/EI, m' = v1 n3 − v3 n1,
+    v1 = n1/GA, v3 = v* + n3/EA, r' = v3 d3 + v1 d1, with n(s) = n0 − ∫₀ˢ q − Σ point loads
+    passed (the weight of the nominal arm is known; an unknown tip payload is already in n0).
+    Fixed-step RK4 on (θ, m, x, y).
+
+    Args:
+        theta0: base orientation (rad). n0x, n0y, m0: measured base wrench (N, N, N m).
+        sec_len, sec_steps: (ns,) section lengths (m) and RK4 steps per section.
+        c_a, c_g, c_i: (ns,) compliances 1/EA, 1/GA, 1/EI.
+        u_rest, v_rest: (ns,) rest curvature (rad/m) and stretch from the pressures.
+        q: (ns, 2) distributed load per reference length (N/m); point: (ns, 2) point load at
+            each section end (endplate weight) (N).
+        s_out: (Σ(steps + 1),) written: arc length of the samples (junctions repeated).
+        pos_out, tan_out: (Σ(steps + 1), 2) written: positions and dr/ds.
+        ends_out: (ns, 3) written: (x, y, θ) at each section end.
+
+    Returns:
+        The tip moment m(L) (N m): zero for a consistent measurement.
+    """
+    th = theta0
+    m = m0
+    x = 0.0
+    y = 0.0
+    nx = n0x
+    ny = n0y
+    s0 = 0.0
+    row = 0
+    for i in range(sec_len.shape[0]):
+        h = sec_len[i] / sec_steps[i]
+        ca = c_a[i]
+        cg = c_g[i]
+        ci = c_i[i]
+        ur = u_rest[i]
+        vr = v_rest[i]
+        qx = q[i, 0]
+        qy = q[i, 1]
+        for j in range(sec_steps[i] + 1):
+            sig = j * h
+            d = _wrench_rhs(sig, th, m, ca, cg, ci, ur, vr, nx, ny, qx, qy)
+            s_out[row] = s0 + sig
+            pos_out[row, 0] = x
+            pos_out[row, 1] = y
+            tan_out[row, 0] = d[2]
+            tan_out[row, 1] = d[3]
+            row += 1
+            if j == sec_steps[i]:
+                break
+            hh = 0.5 * h
+            k2 = _wrench_rhs(sig + hh, th + hh * d[0], m + hh * d[1], ca, cg, ci, ur, vr, nx, ny,
+                             qx, qy)
+            k3 = _wrench_rhs(sig + hh, th + hh * k2[0], m + hh * k2[1], ca, cg, ci, ur, vr, nx, ny,
+                             qx, qy)
+            k4 = _wrench_rhs(sig + h, th + h * k3[0], m + h * k3[1], ca, cg, ci, ur, vr, nx, ny,
+                             qx, qy)
+            w = h / 6.0
+            th += w * (d[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            m += w * (d[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            x += w * (d[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+            y += w * (d[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
+        ends_out[i, 0] = x
+        ends_out[i, 1] = y
+        ends_out[i, 2] = th
+        nx = nx - qx * sec_len[i] - point[i, 0]
+        ny = ny - qy * sec_len[i] - point[i, 1]
+        s0 += sec_len[i]
+    return m
+
+
+@njit
+def _reduced_rhs(th, m, n1, ci, ur, v, w):
+    """The chapter-4 reduced model: θ' = u* + m/EI, m' = −v·n1, n1' = w·cos θ; r' = v·d3."""
+    c = math.cos(th)
+    return ur + m * ci, -v * n1, w * c, v * c, v * math.sin(th)
+
+
+@njit
+def _reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretch, weight,
+                    record, s_out, pos_out, tan_out, ends_out):
+    """One RK4 pass of the reduced model of §4.2.2–4.2.3 (Eq. 4.17) base → tip.
+
+    In section i the stretch v_i is constant (from pressurisation: measured by the encoders
+    or predicted by the actuator model), the backbone is unshearable, the axial force is
+    neglected, and the shear force n1 starts at the unknown ``n1_start[i]`` (it may jump at
+    a junction, as in the thesis, where each section carries its own shear boundary value);
+    θ and m are continuous. Eliminating m and n1 gives θ''' = −(v/EI)·w·cos θ.
+
+    Args:
+        theta0: base orientation (rad). m0: base moment (N m).
+        n1_start: (ns,) shear force at the start of each section (N).
+        sec_len, sec_steps: (ns,) lengths (m) and RK4 steps. c_i: (ns,) 1/EI.
+        u_rest: (ns,) rest curvature (rad/m). stretch: (ns,) v_i. weight: (ns,) w_i (N/m).
+        record: write the samples (else only ``ends_out``).
+        s_out, pos_out, tan_out: (Σ(steps + 1),), (…, 2), (…, 2) samples, written if record.
+        ends_out: (ns, 3) written: (x, y, θ) at each section end.
+
+    Returns:
+        (m(L), n1(L)) at the tip.
+    """
+    th = theta0
+    m = m0
+    n1 = 0.0
+    x = 0.0
+    y = 0.0
+    s0 = 0.0
+    row = 0
+    for i in range(sec_len.shape[0]):
+        h = sec_len[i] / sec_steps[i]
+        ci = c_i[i]
+        ur = u_rest[i]
+        v = stretch[i]
+        w = weight[i]
+        n1 = n1_start[i]
+        for j in range(sec_steps[i] + 1):
+            d = _reduced_rhs(th, m, n1, ci, ur, v, w)
+            if record:
+                s_out[row] = s0 + j * h
+                pos_out[row, 0] = x
+                pos_out[row, 1] = y
+                tan_out[row, 0] = d[3]
+                tan_out[row, 1] = d[4]
+                row += 1
+            if j == sec_steps[i]:
+                break
+            hh = 0.5 * h
+            k2 = _reduced_rhs(th + hh * d[0], m + hh * d[1], n1 + hh * d[2], ci, ur, v, w)
+            k3 = _reduced_rhs(th + hh * k2[0], m + hh * k2[1], n1 + hh * k2[2], ci, ur, v, w)
+            k4 = _reduced_rhs(th + h * k3[0], m + h * k3[1], n1 + h * k3[2], ci, ur, v, w)
+            hw = h / 6.0
+            th += hw * (d[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            m += hw * (d[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            n1 += hw * (d[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+            x += hw * (d[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
+            y += hw * (d[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4])
+        ends_out[i, 0] = x
+        ends_out[i, 1] = y
+        ends_out[i, 2] = th
+        s0 += sec_len[i]
+    return m, n1
+
+
+@njit
+def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
+                      n_angles, tip_shear_weight, moment_scale, force_scale, ends, res):
+    """Boundary residuals of the reduced model for unknowns z = (m0, n1_start[0..ns−1]).
+
+    Rows: θ(s_i) − θ_target[i] for the first ``n_angles`` section ends; then, if
+    n_angles < ns, the known tip shear n1(L) + W_tip·cos θ(L) (Eq. 4.41, W_tip the known tip
+    weight, N) scaled by ``force_scale``; last, the free-tip moment m(L) (Eq. 4.33/4.40)
+    scaled by ``moment_scale``. Residuals are in rad.
+    """
+    ns = sec_len.shape[0]
+    m_tip, n1_tip = _reduced_planar(theta0, z[0], z[1:], sec_len, sec_steps, c_i, u_rest, stretch,
+                                    weight, False, ends[:, 0], ends, ends, ends)
+    for i in range(n_angles):
+        res[i] = ends[i, 2] - theta_target[i]
+    if n_angles < ns:
+        res[ns - 1] = (n1_tip + tip_shear_weight * math.cos(ends[ns - 1, 2])) * force_scale
+    res[ns] = m_tip * moment_scale
+
+
+@njit
+def _solve_small(a, b, x):
+    """Solve a·x = b in place by Gaussian elimination with partial pivoting (a, b destroyed).
+
+    Returns False if the matrix is singular to working precision.
+    """
+    n = b.shape[0]
+    for k in range(n):
+        p = k
+        for r in range(k + 1, n):
+            if abs(a[r, k]) > abs(a[p, k]):
+                p = r
+        if a[p, k] == 0.0 or not math.isfinite(a[p, k]):
+            return False
+        if p != k:
+            for c in range(n):
+                a[k, c], a[p, c] = a[p, c], a[k, c]
+            b[k], b[p] = b[p], b[k]
+        for r in range(k + 1, n):
+            f = a[r, k] / a[k, k]
+            for c in range(k, n):
+                a[r, c] -= f * a[k, c]
+            b[r] -= f * b[k]
+    for k in range(n - 1, -1, -1):
+        acc = b[k]
+        for c in range(k + 1, n):
+            acc -= a[k, c] * x[c]
+        x[k] = acc / a[k, k]
+    return True
+
+
+@njit
+def _solve_reduced(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
+                   n_angles, tip_shear_weight, moment_scale, force_scale, unknown_scale, tol,
+                   max_iter, ends, res, res_step, jac, step):
+    """Newton on the reduced-model boundary conditions (forward-difference Jacobian).
+
+    ``z`` (ns + 1,) holds the initial guess and receives the solution; the other arrays are
+    work space: ends (ns, 3), res, res_step, step (ns + 1,), jac (ns + 1, ns + 1).
+    ``unknown_scale`` (ns + 1,) sets the difference step of each unknown.
+
+    Returns:
+        (converged, iterations, max |residual| in rad).
+    """
+    n = z.shape[0]
+    err = math.inf
+    for it in range(max_iter + 1):
+        _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight,
+                          theta_target, n_angles, tip_shear_weight, moment_scale, force_scale,
+                          ends, res)
+        err = 0.0
+        for k in range(n):
+            if not math.isfinite(res[k]):
+                return False, it, math.inf
+            err = max(err, abs(res[k]))
+        if err <= tol:
+            return True, it, err
+        if it == max_iter:
+            break
+        for j in range(n):
+            dz = 1e-6 * unknown_scale[j]
+            keep = z[j]
+            z[j] = keep + dz
+            _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight,
+                              theta_target, n_angles, tip_shear_weight, moment_scale, force_scale,
+                              ends, res_step)
+            z[j] = keep
+            for k in range(n):
+                jac[k, j] = (res_step[k] - res[k]) / dz
+        for k in range(n):
+            res[k] = -res[k]
+        if not _solve_small(jac, res, step):
+            return False, it, err
+        for k in range(n):
+            z[k] += step[k]
+    return False, max_iter, err

@@ -19,7 +19,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 import solver
-from softarm_gym.sensing._kernels import _arc_chain_planar, _hermite_resample
+from softarm_gym.sensing._kernels import (
+    _arc_chain_planar,
+    _hermite_resample,
+    _load_cell_planar,
+    _reduced_planar,
+    _solve_reduced,
+)
 from softarm_gym.sensing.sensors import SensorReadings, cable_angles, cable_radius
 
 __all__ = ["ShapeEstimate", "Estimator", "make_estimator", "ESTIMATORS", "shape_from_equilibrium"]
@@ -42,12 +48,15 @@ class ShapeEstimate:
             (s = 0) to the tip (s = L) (m).
         section_frames: spatial (n_sections, 3, 3) directors [d1 d2 d3] (columns) at each
             section end; planar: empty (0, 3, 3).
+        converged: False when an iterative estimator stopped short of its tolerance (the
+            estimate is then its last iterate).
     """
 
     tip: np.ndarray
     section_ends: np.ndarray
     backbone: np.ndarray
     section_frames: np.ndarray = field(default_factory=lambda: np.empty((0, 3, 3)))
+    converged: bool = True
 
     def __post_init__(self):
         tip = np.asarray(self.tip, dtype=float)
@@ -108,7 +117,7 @@ def shape_from_equilibrium(eq: solver.Equilibrium, n_samples: int = DEFAULT_SAMP
                       np.ascontiguousarray(tangent), s_query, backbone)
     backbone[-1] = eq.tip
     return ShapeEstimate(tip=eq.tip.copy(), section_ends=section_ends, backbone=backbone,
-                         section_frames=frames)
+                         section_frames=frames, converged=bool(eq.converged))
 
 
 class Estimator:
@@ -306,12 +315,213 @@ def _arc_chain_spatial(rot0, sec_len, curvature, stretch, s_query) -> ShapeEstim
     return ShapeEstimate(tip=r.copy(), section_ends=ends, backbone=backbone, section_frames=frames)
 
 
-class _NotYet(Estimator):
+def channel_pressures(arm: solver.designs.ArmDesign, pressures: np.ndarray, planar: bool) -> np.ndarray:
+    """Validated spatial-channel pressures (Pa) from the inputs of ``arm`` in the given mode."""
+    names = arm.input_names(planar)
+    if (pressures < 0).any():
+        k = int(np.argmax(pressures < 0))
+        raise ValueError(f"pressure for channel {names[k]!r} is negative ({pressures[k]:.6g} Pa)")
+    if (pressures > arm.max_pressure * (1 + 1e-12)).any():
+        k = int(np.argmax(pressures > arm.max_pressure * (1 + 1e-12)))
+        raise ValueError(f"pressure for channel {names[k]!r} ({pressures[k]:.6g} Pa) exceeds the "
+                         f"design's rated maximum {arm.max_pressure:.6g} Pa")
+    if not planar:
+        return pressures.copy()
+    spatial = np.zeros(arm.n_channels)
+    for value, (_, idx) in zip(pressures, arm.planar_channels):
+        spatial[list(idx)] = value
+    return spatial
+
+
+class _Integrating(Estimator):
+    """An estimator that integrates a planar ODE on RK4 nodes and resamples the backbone.
+
+    Options:
+        steps_per_section: RK4 steps per section (default: the solver's).
+    """
+
+    def __init__(self, arm, planar, scene, n_samples, steps_per_section: int | None = None):
+        super().__init__(arm, planar, scene, n_samples)
+        steps = solver.Settings().steps_per_section if steps_per_section is None else steps_per_section
+        if isinstance(steps, bool) or int(steps) != steps or steps < 1:
+            raise ValueError(f"steps_per_section must be an integer >= 1; got {steps!r}")
+        ns = len(arm.sections)
+        self.sec_steps = np.full(ns, int(steps), dtype=np.int64)
+        rows = int(self.sec_steps.sum()) + ns
+        self._s = np.empty(rows)
+        self._pos = np.empty((rows, 2))
+        self._tan = np.empty((rows, 2))
+        self._ends = np.empty((ns, 3))
+        self.c_i = np.array([1.0 / s.EI for s in arm.sections])
+        self.mass_per_length = np.array([s.mass_per_length for s in arm.sections])
+        self.endplate = np.array([s.endplate_mass for s in arm.sections])
+
+    def _rest(self, pressures):
+        """Rest curvature u* (rad/m) and stretch v* of every section at ``pressures``."""
+        if not self.arm.tubes:
+            ns = len(self.arm.sections)
+            return np.zeros(ns), np.ones(ns)
+        _, u2, v3 = solver.rest_strains(self.arm, channel_pressures(self.arm, pressures, self.planar))
+        return u2, v3
+
+    def _shape(self, converged: bool = True) -> ShapeEstimate:
+        backbone = np.empty((self.n_samples, 2))
+        _hermite_resample(self._s, self._pos, self._tan, self.s_query, backbone)
+        backbone[-1] = self._ends[-1, :2]
+        return ShapeEstimate(tip=self._ends[-1, :2].copy(), section_ends=self._ends.copy(),
+                             backbone=backbone, converged=converged)
+
+
+class LoadCellShape(_Integrating):
+    """Integrate the full planar equilibrium equations from the measured base wrench (§4.2.1).
+
+    Initial conditions (Eqs. 4.1–4.2): base inclinometer θ0 and load-cell (n0, m0); the
+    nominal arm's weight per length and endplates give n(s) = n0 − ∫q (an unknown tip payload
+    is in n0: nothing else about it is needed); rest strains from the commanded pressures.
+    The tip boundary condition is not used, so with exact readings the estimate equals the
+    solver's equilibrium to solver tolerance, and sensor errors propagate as Eq. (4.12) says.
+    """
+
+    name = "load_cell"
+
+    def __init__(self, arm, planar, scene, n_samples, steps_per_section: int | None = None):
+        super().__init__(arm, planar, scene, n_samples, steps_per_section)
+        if not planar:
+            raise ValueError("the spatial load_cell estimator is not available yet")
+        g = np.array([0.0, -scene.gravity])
+        self.q = self.mass_per_length[:, None] * g[None, :]
+        self.point = self.endplate[:, None] * g[None, :]
+        self.c_a = np.array([1.0 / s.EA for s in arm.sections])
+        self.c_g = np.array([1.0 / s.GA for s in arm.sections])
+
     def _estimate(self, readings, pressures, truth):
-        raise ValueError(f"the {self.name!r} estimator is not available yet")
+        u_rest, v_rest = self._rest(pressures)
+        n0x, n0y, m0 = readings.base_wrench
+        _load_cell_planar(float(readings.inclinometers[0]), n0x, n0y, m0, self.sec_len, self.sec_steps,
+                          self.c_a, self.c_g, self.c_i, u_rest, v_rest, self.q, self.point, self._s,
+                          self._pos, self._tan, self._ends)
+        return self._shape()
 
 
-_CLASSES = {"true": TrueShape, "model": ModelShape, "constant_curvature": ConstantCurvatureShape}
+class _ReducedModel(_Integrating):
+    """The reduced θ-model of §4.2.2–4.2.3 (Eq. 4.17), solved as a boundary-value problem.
+
+    Assumptions (the thesis's): each section stretches only by pressurisation, uniformly
+    (stretch v_i); the backbone is unshearable; the axial force is neglected, so the shear
+    force obeys n1' = w·cos θ and the moment m' = −v·n1; θ' = u* + m/EI. Unknowns: the base
+    moment and the shear force at the start of every section (n_sections + 1); θ and m are
+    continuous at junctions (Eqs. 4.35–4.39), the tip is moment-free (Eq. 4.33/4.40). The
+    boundary data (subclasses) close the system. Solved by Newton on the exact RK4 shooting
+    map (the thesis used bvp4c), warm-started from the previous estimate until :meth:`reset`.
+
+    Options:
+        steps_per_section: RK4 steps per section.
+        tol: boundary-residual tolerance (rad). max_iter: Newton iterations.
+    """
+
+    def __init__(self, arm, planar, scene, n_samples, steps_per_section: int | None = None,
+                 tol: float = 1e-10, max_iter: int = 30):
+        super().__init__(arm, planar, scene, n_samples, steps_per_section)
+        if not planar:
+            raise ValueError(f"the spatial {self.name} estimator is not available yet")
+        if not (tol > 0 and int(max_iter) == max_iter and max_iter >= 1):
+            raise ValueError(f"tol must be > 0 and max_iter an integer >= 1; got {tol!r}, {max_iter!r}")
+        self.tol = float(tol)
+        self.max_iter = int(max_iter)
+        ns = len(arm.sections)
+        self.weight = self.mass_per_length * scene.gravity
+        ei_max = 1.0 / self.c_i.min()
+        self.moment_scale = arm.length / ei_max
+        self.force_scale = arm.length**2 / ei_max
+        self.unknown_scale = np.array([ei_max / arm.length] + [ei_max / arm.length**2] * ns)
+        self._z = np.zeros(ns + 1)
+        self._work = (np.empty(ns + 1), np.empty(ns + 1), np.empty((ns + 1, ns + 1)), np.empty(ns + 1))
+        self.tip_weight = 0.0
+
+    def reset(self) -> None:
+        self._z[:] = 0.0
+
+    def _boundary_data(self, readings, v_rest):
+        """(stretch (ns,), θ targets (ns,), number of θ targets used)."""
+        raise NotImplementedError
+
+    def _estimate(self, readings, pressures, truth):
+        u_rest, v_rest = self._rest(pressures)
+        stretch, target, n_angles = self._boundary_data(readings, v_rest)
+        theta0 = float(readings.inclinometers[0])
+        ok = False
+        for attempt in range(2):
+            if attempt:
+                self._z[:] = 0.0  # the warm start led astray: retry from the unloaded guess
+            ok, _, _ = _solve_reduced(self._z, theta0, self.sec_len, self.sec_steps, self.c_i, u_rest,
+                                      stretch, self.weight, target, n_angles, self.tip_weight,
+                                      self.moment_scale, self.force_scale, self.unknown_scale,
+                                      self.tol, self.max_iter, self._ends, *self._work)
+            if ok:
+                break
+        if not np.all(np.isfinite(self._z)):
+            self._z[:] = 0.0
+        _reduced_planar(theta0, self._z[0], self._z[1:], self.sec_len, self.sec_steps, self.c_i, u_rest,
+                        stretch, self.weight, True, self._s, self._pos, self._tan, self._ends)
+        return self._shape(converged=bool(ok))
+
+
+class CableEncoderShape(_ReducedModel):
+    """Cable encoders + base inclinometer (§4.2.2): Eq. 4.17 with boundary data 4.31–4.33.
+
+    Per section, the cable pair gives the stretch v_i = (l+ + l−)/(2L0) (Eq. 4.27) and the
+    rotation Δθ_i = (l− − l+)/(2R) (Eq. 4.30); θ(s_i) = θ0 + Σ Δθ fixes the section-end
+    angles. Independent of an unknown tip payload; exact when no force acts along the arm.
+    """
+
+    name = "cable_encoder"
+
+    def __init__(self, arm, planar, scene, n_samples, **options):
+        super().__init__(arm, planar, scene, n_samples, **options)
+        self.radius = cable_radius(arm)
+
+    def _boundary_data(self, readings, v_rest):
+        lengths = np.diff(readings.encoder_lengths, axis=0, prepend=0.0)
+        stretch = lengths.sum(axis=1) / (2.0 * self.sec_len)
+        dtheta = (lengths[:, 1] - lengths[:, 0]) / (2.0 * self.radius)
+        target = float(readings.inclinometers[0]) + np.cumsum(dtheta)
+        return stretch, target, len(self.sec_len)
+
+
+class InclinometerShape(_ReducedModel):
+    """Inclinometers at the base and every section end (§4.2.3, Eqs. 4.34–4.41).
+
+    Stretch from the actuator model at the commanded pressures. Without ``known_payload_kg``
+    all n_sections + 1 inclinometers are used (the payload may be unknown); with it, the tip
+    inclinometer is not needed: the tip shear n1(L) = −W·cos θ(L) (Eq. 4.41; W the known
+    payload plus tip endplate weight) replaces it.
+
+    Options:
+        known_payload_kg: the tip payload, if known (kg); ``None``: unknown.
+    """
+
+    name = "inclinometer"
+
+    def __init__(self, arm, planar, scene, n_samples, known_payload_kg: float | None = None,
+                 **options):
+        super().__init__(arm, planar, scene, n_samples, **options)
+        if known_payload_kg is not None:
+            bad = isinstance(known_payload_kg, bool) or not isinstance(known_payload_kg, (int, float))
+            if bad or not np.isfinite(known_payload_kg) or known_payload_kg < 0:
+                raise ValueError(f"known_payload_kg must be a finite number >= 0 or None; got "
+                                 f"{known_payload_kg!r}")
+            self.tip_weight = (float(known_payload_kg) + self.endplate[-1]) * scene.gravity
+        self.known_payload_kg = known_payload_kg
+
+    def _boundary_data(self, readings, v_rest):
+        ns = len(self.sec_len)
+        n_angles = ns if self.known_payload_kg is None else ns - 1
+        return v_rest, np.asarray(readings.inclinometers[1:], dtype=float), n_angles
+
+
+_CLASSES = {"true": TrueShape, "model": ModelShape, "constant_curvature": ConstantCurvatureShape,
+            "cable_encoder": CableEncoderShape, "inclinometer": InclinometerShape,
+            "load_cell": LoadCellShape}
 
 
 def make_estimator(name: str, arm: solver.designs.ArmDesign, planar: bool = True,
@@ -342,10 +552,7 @@ def make_estimator(name: str, arm: solver.designs.ArmDesign, planar: bool = True
         raise ValueError(f"n_samples must be an integer >= 2; got {n_samples!r}")
     if planar and not arm.planar_channels and arm.tubes:
         raise ValueError(f"design {arm.name!r} defines no planar channels; use planar=False")
-    cls = _CLASSES.get(name)
-    if cls is None:
-        cls = type(f"_{name}", (_NotYet,), {"name": name})
     try:
-        return cls(arm, planar, scene, int(n_samples), **options)
+        return _CLASSES[name](arm, planar, scene, int(n_samples), **options)
     except TypeError as exc:
         raise ValueError(f"bad options for the {name!r} estimator: {exc}") from None
