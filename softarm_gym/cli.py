@@ -12,7 +12,7 @@ import importlib
 import json
 import sys
 
-COMMANDS = ("solve", "demo", "warmup")
+COMMANDS = ("solve", "demo", "warmup", "design")
 """Command modules under :mod:`softarm_gym.commands`, in help order."""
 
 

@@ -118,32 +118,34 @@ def load_capacity(arm: solver.designs.ArmDesign, test_pressure: float, *, model:
     above = bool(unloaded.tip[1] >= 0.0)
     direction = 1.0 if above else -1.0  # add load, or an upward force, until y crosses 0
 
-    def crossed(trial: solver.Equilibrium, start: solver.Equilibrium) -> bool:
-        return bool(trial.tip[1] >= 0.0) != above or moved(trial, start) > max_move
+    def crossed(eq_: solver.Equilibrium) -> bool:
+        return bool(eq_.tip[1] >= 0.0) != above
 
-    # March the load until the tip crosses y = 0 (or jumps: a fold, or a step too large).
-    lo, eq_lo = 0.0, unloaded
-    step = max(arm.mass * gravity, 1.0) / 8.0
+    # March the load from 0 with adaptive steps until the tip crosses y = 0. A step that
+    # moves the tip too far is halved; one that still jumps at tol_n is a genuine snap.
+    first_step = max(arm.mass * gravity, 1.0) / 8.0
+    lo, eq_lo, step = 0.0, unloaded, first_step
     while True:
         if abs(lo) > max_load_n:
             raise ValueError(f"no tip load up to {max_load_n:.3g} N brings the tip of {arm.name!r} "
                              f"to y = 0 at {test_pressure:.6g} Pa")
-        hi = lo + direction * step
-        eq_hi = solve(hi, 1.0, eq_lo)
-        if crossed(eq_hi, eq_lo):
-            if step <= tol_n or bool(eq_hi.tip[1] >= 0.0) != above and moved(eq_hi, eq_lo) <= max_move:
-                break
+        load = lo + direction * step
+        trial = solve(load, 1.0, eq_lo)
+        if moved(trial, eq_lo) > max_move and step > tol_n:
             step /= 2.0
             continue
-        lo, eq_lo, step = hi, eq_hi, 2.0 * step
+        if crossed(trial):
+            hi, eq_hi = load, trial
+            break
+        lo, eq_lo, step = load, trial, min(2.0 * step, first_step)
     # Bisect the crossing, always continuing from the last equilibrium before it.
     while abs(hi - lo) > tol_n:
         mid = 0.5 * (lo + hi)
-        eq_mid = solve(mid, 1.0, eq_lo)
-        if crossed(eq_mid, eq_lo):
-            hi, eq_hi = mid, eq_mid
+        trial = solve(mid, 1.0, eq_lo)
+        if crossed(trial):
+            hi, eq_hi = mid, trial
         else:
-            lo, eq_lo = mid, eq_mid
+            lo, eq_lo = mid, trial
     return LoadCapacity(load_n=float(0.5 * (lo + hi)), tip_unloaded=np.asarray(unloaded.tip, dtype=float),
                         fold_limited=bool(moved(eq_hi, eq_lo) > FOLD_JUMP * arm.length),
                         converged=bool(all_converged), evaluations=solves)

@@ -1,0 +1,81 @@
+"""Plots of design sweeps in the manner of thesis Figs. 3.4–3.7 and B.1–B.6."""
+
+from __future__ import annotations
+
+from softarm_gym.plotting import figure, save
+
+__all__ = ["plot_sweeps"]
+
+_STYLES = ("-", "--", "-.", ":")
+
+
+def plot_sweeps(sweeps, path) -> None:
+    """Load capacity of the best layout of each sweep, saved to ``path`` (PNG).
+
+    Sweeps over several sizes give load capacity versus length (Figs. 3.4–3.5, B.1–B.6),
+    one curve per sweep, with the best layout written where it changes. Sweeps at a single
+    size give load capacity and tube thickness versus the number of sections (Fig. 3.6)
+    or versus Young's modulus (Fig. 3.7).
+
+    Args:
+        sweeps: :class:`~softarm_gym.design_tools.sweep.Sweep` objects.
+        path: output file.
+    """
+    if not sweeps:
+        raise ValueError("nothing to plot: no sweeps")
+    if any(len(s.sizes) > 1 for s in sweeps):
+        _versus_size(sweeps, path)
+    else:
+        _versus_parameter(sweeps, path)
+
+
+def _versus_size(sweeps, path) -> None:
+    fig, ax = figure(figsize=(7, 4.5))
+    for k, s in enumerate(sweeps):
+        pts = [(c.length_m if s.constraint != "gripping-radius" else size, c)
+               for size, c in zip(s.sizes, s.best_per_size) if c is not None]
+        if not pts:
+            continue
+        x = [p[0] for p in pts]
+        y = [p[1].load_n for p in pts]
+        label = f"{s.n_sections} sections"
+        if len({t.params.youngs_modulus for t in sweeps}) > 1:
+            label += f", E = {s.params.youngs_modulus / 1e6:.3g} MPa"
+        ax.plot(x, y, _STYLES[k % len(_STYLES)], color="k", lw=1.2, label=label)
+        previous = None
+        for xi, (_, c) in zip(x, pts):
+            if c.tubes != previous:
+                ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=6,
+                            textcoords="offset points", xytext=(2, 4))
+                previous = c.tubes
+    ax.axhline(0.0, color="0.6", lw=0.8)
+    first = sweeps[0]
+    ax.set_xlabel("last section length L_N (m)" if first.constraint == "gripping-radius"
+                  else "arm length L (m)")
+    ax.set_ylabel("load capacity W at p_test (N)")
+    ax.set_title(f"{first.fluid}, {first.constraint} (template at p_{first.template_pressure})")
+    ax.legend(fontsize=8)
+    save(fig, path)
+
+
+def _versus_parameter(sweeps, path) -> None:
+    by_modulus = len({s.params.youngs_modulus for s in sweeps}) > 1
+    rows = [(s.params.youngs_modulus / 1e6 if by_modulus else s.n_sections, s.best) for s in sweeps]
+    rows = [r for r in rows if r[1] is not None]
+    if not rows:
+        raise ValueError("nothing to plot: no feasible layout in any sweep")
+    x = [r[0] for r in rows]
+    fig, ax = figure(figsize=(6.5, 4.2))
+    ax.plot(x, [r[1].load_n for r in rows], "k^--", label="load capacity")
+    ax.set_xlabel("Young's modulus E (MPa)" if by_modulus else "number of sections")
+    ax.set_ylabel("load capacity W at p_test (N)")
+    twin = ax.twinx()
+    twin.plot(x, [r[1].thickness_m * 1e3 for r in rows], "ko-", mfc="none", label="tube thickness")
+    twin.set_ylabel("tube thickness t (mm)")
+    for xi, (_, c) in zip(x, rows):
+        ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=6,
+                    textcoords="offset points", xytext=(2, 4))
+    first = sweeps[0]
+    ax.set_title(f"{first.fluid}, {first.constraint}, L = {first.sizes[0]:g} m")
+    fig.legend(loc="upper left", fontsize=8)
+    save(fig, path)
