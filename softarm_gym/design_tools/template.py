@@ -19,6 +19,7 @@ distal section length for the fixed-gripping-radius case.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,13 +124,13 @@ def lifting_pressures(arm: solver.designs.ArmDesign, pressure: float) -> np.ndar
         (n_inputs,) pressures (Pa) in the order of ``arm.input_names(planar=True)``.
 
     Raises:
-        ValueError: the design has no ``*_II+III`` planar channels (not an OctArm layout).
+        ValueError: the design has no ``s<k>_II+III`` planar channels (not an OctArm layout).
     """
     names = arm.input_names(planar=True)
-    lifting = np.array([n.endswith("_II+III") for n in names], dtype=bool)
+    lifting = np.array([re.fullmatch(r"s\d+_II\+III", n) is not None for n in names], dtype=bool)
     if not lifting.any():
-        raise ValueError(f"design {arm.name!r} has no '*_II+III' planar channels to lift with; "
-                         f"its inputs are {names}")
+        raise ValueError(f"design {arm.name!r} has no OctArm 's<k>_II+III' planar channels to lift "
+                         f"with; its inputs are {names}")
     return np.where(lifting, float(pressure), 0.0)
 
 

@@ -1,0 +1,114 @@
+"""Load capacity W (§3, Fig. 3.1) against an independent fine load ramp, and its trends."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import solver
+from softarm_gym import design_tools as dt
+
+P = solver.designs.PNEUMATIC
+H = solver.designs.HYDRAULIC
+
+
+def _arm(params, tubes, length, constraint="tube-ratio"):
+    ro = dt.outer_radius(params, constraint, tubes, length)
+    tpl = dt.template(params, tubes, ro, total_length=length)
+    return dt.build_arm(params, tubes, tpl.section_lengths, tpl.thickness, ro)
+
+
+def _ramp_crossing(arm, pressure, step):
+    """First load at which the tip of the pressurised arm drops below y = 0 (linear interp.)."""
+    p = dt.lifting_pressures(arm, pressure)
+    scene = solver.Scene(base_angle_deg=90.0)
+    eq = solver.solve(arm, np.zeros_like(p), scene, record=False)
+    for fraction in np.linspace(0.05, 1.0, 20):
+        eq = solver.solve(arm, fraction * p, scene, record=False, warm_start=eq)
+    load, y = 0.0, eq.tip[1]
+    while True:
+        nxt = solver.solve(arm, p, solver.Scene(base_angle_deg=90.0, tip_force=(0.0, -(load + step))),
+                           record=False, warm_start=eq)
+        if nxt.tip[1] < 0:
+            return load + step * y / (y - nxt.tip[1])
+        load, y, eq = load + step, nxt.tip[1], nxt
+
+
+def test_lifting_pressures_drive_channels_two_and_three():
+    arm = solver.designs.octarm_v()
+    np.testing.assert_array_equal(dt.lifting_pressures(arm, 5.0), [0, 5, 0, 5, 0, 5])
+    channels = dt.lifting_channels(arm, 5.0)
+    np.testing.assert_array_equal(channels, [0, 5, 5] * 3)
+    # II + III sit below a horizontal arm: they curl it upwards (counter-clockwise, u* > 0).
+    _, u2, _ = solver.rest_strains(arm, channels)
+    assert np.all(u2 > 0)
+
+
+def test_lifting_pressures_need_an_octarm_layout():
+    with pytest.raises(ValueError, match="II\\+III"):
+        dt.lifting_pressures(solver.designs.ct(), 1.0)
+
+
+def test_capacity_matches_a_fine_load_ramp():
+    arm = _arm(P, (12, 6), 0.8)
+    cap = dt.load_capacity(arm, P.test_pressure, tol_n=1e-4)
+    assert cap.converged and not cap.fold_limited and cap.self_supporting
+    reference = _ramp_crossing(arm, P.test_pressure, step=0.25)
+    # Linear interpolation over a 0.25 N step of a smooth curve: well inside 0.05 N.
+    assert cap.load_n == pytest.approx(reference, abs=0.05)
+    at_w = solver.solve(arm, dt.lifting_pressures(arm, P.test_pressure),
+                        solver.Scene(base_angle_deg=90.0, tip_force=(0.0, -cap.load_n)), record=False)
+    assert abs(at_w.tip[1]) < 1e-3 * arm.length
+
+
+def test_payload_equivalent_and_tip_height_sign():
+    """W in newtons is a tip force; the unloaded tip sits above y = 0 when W > 0."""
+    arm = _arm(P, (12, 9), 0.6)
+    cap = dt.load_capacity(arm, P.test_pressure)
+    assert cap.load_n > 0 and cap.tip_unloaded[1] > 0
+
+
+def test_an_arm_too_long_for_its_weight_has_negative_capacity():
+    # Beyond the optimum the self-weight moment (∝ L⁴ at a fixed tube ratio) wins.
+    arm = _arm(P, (12, 9, 3), 3.5)
+    cap = dt.load_capacity(arm, P.test_pressure)
+    assert cap.load_n < 0 and not cap.self_supporting and cap.tip_unloaded[1] < 0
+
+
+def test_capacity_falls_with_length_beyond_the_optimum():
+    loads = [dt.evaluate(P, "tube-ratio", (12, 9, 3), length).load_n for length in (2.0, 2.5, 3.0, 3.5)]
+    assert np.all(np.diff(loads) < 0)
+
+
+def test_without_gravity_a_stronger_test_pressure_lifts_more():
+    arm = _arm(P, (9, 6), 0.6)
+    low = dt.load_capacity(arm, 0.5 * P.test_pressure, gravity=0.0).load_n
+    high = dt.load_capacity(arm, P.test_pressure, gravity=0.0).load_n
+    assert 0 < low < high
+
+
+def test_hydraulic_arm_carries_its_water():
+    tubes, length = (6, 3), 1.0
+    ro = dt.outer_radius(H, "tube-ratio", tubes, length)
+    tpl = dt.template(H, tubes, ro, total_length=length)
+    wet = dt.build_arm(H, tubes, tpl.section_lengths, tpl.thickness, ro)
+    dry = dt.build_arm(replace(H, fluid_density=0.0), tubes, tpl.section_lengths, tpl.thickness, ro)
+    assert wet.mass - dry.mass == pytest.approx(1000.0 * tpl.internal_volume, rel=1e-12)
+
+
+@pytest.mark.parametrize("tol", [0.0, -1.0])
+def test_capacity_rejects_bad_tolerance(tol):
+    with pytest.raises(ValueError, match="tol_n"):
+        dt.load_capacity(solver.designs.octarm_v(), 1.0, tol_n=tol)
+
+
+def test_capacity_rejects_pressure_above_rating():
+    arm = solver.designs.octarm_v()
+    with pytest.raises(ValueError, match="rated maximum"):
+        dt.load_capacity(arm, 2.0 * arm.max_pressure)
+
+
+def test_capacity_is_not_nan_for_octarm_v():
+    cap = dt.load_capacity(solver.designs.octarm_v(), 30 * solver.PSI)
+    assert math.isfinite(cap.load_n) and cap.converged
