@@ -12,7 +12,7 @@ import importlib
 import json
 import sys
 
-COMMANDS = ("solve", "demo", "warmup", "design", "workspace", "dexterity")
+COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators")
 """Command modules under :mod:`softarm_gym.commands`, in help order."""
 
 

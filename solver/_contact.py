@@ -199,15 +199,20 @@ def _newton(unknowns, eps, target, scale, theta0, sec_len, sec_steps, c_a, c_g, 
 
 
 @njit
-def _follow(unknowns, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, tubes_i, tubes_f,
-            p_a, p_b, q, plate, target, discs, scale, tol, max_iter, max_step, dt0, dt_min, u1, u2,
-            v3, p_now):
+def _follow(unknowns, theta0, secf, sec_steps, tubes_i, tubes_f, p_a, p_b, q, plate, target, discs,
+            scale, tol, max_iter, max_step, dt0, dt_min, rest, p_now):
     """Quasi-static pressure ramp p_a → p_b with contact (cf. :func:`solver._planar._follow`).
 
     No fold scan: if the step falls below ``dt_min`` the last accepted state is returned,
     flagged unconverged. Returns (converged, iterations, |residual|, stable); ``unknowns``
-    holds the returned state and ``u1, u2, v3`` its rest strains.
+    holds the returned state and ``rest`` (3, ns) its rest strains.
     """
+    sec_len = secf[0]
+    c_a = secf[1]
+    c_g = secf[2]
+    c_i = secf[3]
+    u2 = rest[1]
+    v3 = rest[2]
     states = np.empty((4, 6))
     k1 = np.empty((4, 6))
     k2 = np.empty((4, 6))
@@ -233,9 +238,7 @@ def _follow(unknowns, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei,
         t_new = min(1.0, t + dt)
         for c in range(p_a.shape[0]):
             p_now[c] = p_a[c] + t_new * (p_b[c] - p_a[c])
-        _rest_strains(p_now, tubes_i[:, 0], tubes_i[:, 1], tubes_i[:, 2], tubes_f[:, 0],
-                      tubes_f[:, 1], tubes_f[:, 2], tubes_f[:, 3], tubes_f[:, 4], tubes_f[:, 5],
-                      sec_ea, sec_ei, u1, u2, v3)
+        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
         for a in range(3):
             guess[a] = accepted[a] + slope[a] * (t_new - t)
             unknowns[a] = guess[a]
@@ -263,9 +266,7 @@ def _follow(unknowns, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei,
             unknowns[a] = accepted[a]
         for c in range(p_a.shape[0]):
             p_now[c] = p_a[c] + t * (p_b[c] - p_a[c])
-        _rest_strains(p_now, tubes_i[:, 0], tubes_i[:, 1], tubes_i[:, 2], tubes_f[:, 0],
-                      tubes_f[:, 1], tubes_f[:, 2], tubes_f[:, 3], tubes_f[:, 4], tubes_f[:, 5],
-                      sec_ea, sec_ei, u1, u2, v3)
+        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
         return False, total, res, stable
     return ok, total, res, stable
 

@@ -35,33 +35,46 @@ from solver.actuator import _stretch
 # Columns of the recorded samples.
 S, X, Y, THETA, M, N1, N3, V1, V3, U = range(10)
 N_COLUMNS = 10
+# Rows of the section array ``secf`` (6, ns): length, 1/EA, 1/GA (0: unshearable), 1/EI, EA, EI.
+LEN, CA, CG, CI, EA, EI = range(6)
+# Columns of the loads array (ns, 4): internal force just proximal of each section end
+# (n_end x, y; N) and distributed load per reference length (q x, y; N/m).
+# Entries of the numeric parameter array ``params``.
+TOL, MAX_STEP, M_BOUND, DT0, DT_MIN, MAX_ITER, N_SCAN = range(7)
+N_PARAMS = 7
 
 
 @njit
-def _rest_strains(p_channel, tube_channel, tube_first, tube_last, tube_eat, tube_e, tube_ratio,
-                  tube_cos, tube_a, tube_b, sec_ea, sec_ei, u1_out, u2_out, v3_out):
+def _rest_strains(p_channel, tubes_i, tubes_f, secf, rest):
     """Rest curvature and stretch of every section from channel pressures (DESIGN §2).
 
     Each tube k carries F_k = E·At·(λ_k − 1) (Eq. 2.11) at offset (a_k, b_k) along (d1, d2)
     in every section it spans, giving v3* = 1 + ΣF/EA, u1* = ΣF·b/EI, u2* = −ΣF·a/EI: the
     geometric form of Eqs. (2.47)–(2.53) and (2.62)–(2.64).
+
+    Args:
+        p_channel: (n_channels,) pressures (Pa).
+        tubes_i: (n_tubes, 3) int: channel, first section, last section.
+        tubes_f: (n_tubes, 6): E·At (N), E (Pa), At/A, cos α, offset a along d1, b along d2 (m).
+        secf: (6, ns) section array (rows LEN, CA, CG, CI, EA, EI).
+        rest: (3, ns) output rows u1* (rad/m), u2* (rad/m), v3*.
     """
-    ns = sec_ea.shape[0]
+    ns = secf.shape[1]
     for i in range(ns):
-        u1_out[i] = 0.0
-        u2_out[i] = 0.0
-        v3_out[i] = 0.0
-    for k in range(tube_channel.shape[0]):
-        lam = _stretch(p_channel[tube_channel[k]], tube_e[k], tube_ratio[k], tube_cos[k])
-        f = tube_eat[k] * (lam - 1.0)
-        for i in range(tube_first[k], tube_last[k] + 1):
-            v3_out[i] += f
-            u1_out[i] += f * tube_b[k]
-            u2_out[i] -= f * tube_a[k]
+        rest[0, i] = 0.0
+        rest[1, i] = 0.0
+        rest[2, i] = 0.0
+    for k in range(tubes_i.shape[0]):
+        lam = _stretch(p_channel[tubes_i[k, 0]], tubes_f[k, 1], tubes_f[k, 2], tubes_f[k, 3])
+        f = tubes_f[k, 0] * (lam - 1.0)
+        for i in range(tubes_i[k, 1], tubes_i[k, 2] + 1):
+            rest[2, i] += f
+            rest[0, i] += f * tubes_f[k, 5]
+            rest[1, i] -= f * tubes_f[k, 4]
     for i in range(ns):
-        v3_out[i] = 1.0 + v3_out[i] / sec_ea[i]
-        u1_out[i] /= sec_ei[i]
-        u2_out[i] /= sec_ei[i]
+        rest[2, i] = 1.0 + rest[2, i] / secf[EA, i]
+        rest[0, i] /= secf[EI, i]
+        rest[1, i] /= secf[EI, i]
 
 
 @njit
@@ -85,17 +98,14 @@ def _rhs(sig, th, m, a, b, length, c_a, c_g, c_i, u_rest, v_rest, nex, ney, qx, 
 
 
 @njit
-def _integrate(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q,
-               record, out):
+def _integrate(m0, theta0, secf, steps, rest, loads, record, out):
     """One RK4 pass base → tip from base moment ``m0``.
 
     Args:
         m0: base moment (N m). theta0: base orientation θ0 (rad).
-        sec_len, sec_steps: (ns,) section lengths (m) and RK4 steps per section.
-        c_a, c_g, c_i: (ns,) compliances 1/EA, 1/GA (0 if unshearable), 1/EI.
-        u_rest, v_rest: (ns,) rest curvature (rad/m) and stretch.
-        n_end: (ns, 2) internal force just proximal of each section end (N).
-        q: (ns, 2) distributed external force per reference length (N/m).
+        secf: (6, ns) section array. steps: (ns,) RK4 steps per section.
+        rest: (3, ns) rest strains (u1*, u2*, v3*); the plane uses u2* and v3*.
+        loads: (ns, 4) section-end internal force and distributed load.
         record: write samples to ``out`` ((Σsteps + ns, N_COLUMNS)) when True.
 
     Returns:
@@ -110,19 +120,19 @@ def _integrate(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_
     s0 = 0.0
     row = 0
     bmin = 1.0
-    for i in range(sec_len.shape[0]):
-        length = sec_len[i]
-        nst = sec_steps[i]
+    for i in range(secf.shape[1]):
+        length = secf[LEN, i]
+        nst = steps[i]
         h = length / nst
-        ca = c_a[i]
-        cg = c_g[i]
-        ci = c_i[i]
-        ur = u_rest[i]
-        vr = v_rest[i]
-        nex = n_end[i, 0]
-        ney = n_end[i, 1]
-        qx = q[i, 0]
-        qy = q[i, 1]
+        ca = secf[CA, i]
+        cg = secf[CG, i]
+        ci = secf[CI, i]
+        ur = rest[1, i]
+        vr = rest[2, i]
+        nex = loads[i, 0]
+        ney = loads[i, 1]
+        qx = loads[i, 2]
+        qy = loads[i, 3]
         for j in range(nst + 1):
             sig = j * h
             if record:
@@ -167,8 +177,7 @@ def _integrate(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_
 
 
 @njit
-def _newton(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q, m_tip,
-            tol, max_iter, max_step, dummy):
+def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out):
     """Newton on m(L; m0) = M_tip with the exact shooting derivative ∂m(L)/∂m0.
 
     Steps are clipped to ``max_step`` (N m) so a poor guess cannot fling the iterate onto a
@@ -179,8 +188,7 @@ def _newton(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end
     bmin = 1.0
     th = x = y = math.nan
     for it in range(max_iter + 1):
-        th, m, b, x, y, bmin = _integrate(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i,
-                                          u_rest, v_rest, n_end, q, False, dummy)
+        th, m, b, x, y, bmin = _integrate(m0, theta0, secf, steps, rest, loads, False, out)
         res = m - m_tip
         if not math.isfinite(res) or not math.isfinite(b):
             return m0, False, it, math.inf, False, bmin, x, y, th
@@ -198,27 +206,29 @@ def _newton(m0, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end
 
 
 @njit
-def _level(t, p_a, p_b, load_a_end, load_b_end, load_a_q, load_b_q, mtip_a, mtip_b, p_out,
-           n_end, q):
-    """Interpolate the homotopy: pressures, section-end forces and distributed loads at ``t``."""
+def _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now):
+    """Interpolate the homotopy at ``t``: pressures, loads; returns the tip moment."""
     for c in range(p_a.shape[0]):
-        p_out[c] = p_a[c] + t * (p_b[c] - p_a[c])
-    for i in range(n_end.shape[0]):
-        for d in range(2):
-            n_end[i, d] = load_a_end[i, d] + t * (load_b_end[i, d] - load_a_end[i, d])
-            q[i, d] = load_a_q[i, d] + t * (load_b_q[i, d] - load_a_q[i, d])
+        p_now[c] = p_a[c] + t * (p_b[c] - p_a[c])
+    for i in range(loads_now.shape[0]):
+        for d in range(4):
+            loads_now[i, d] = loads_a[i, d] + t * (loads_b[i, d] - loads_a[i, d])
     return mtip_a + t * (mtip_b - mtip_a)
 
 
 @njit
-def _scan(theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q, m_tip, tol,
-          max_iter, max_step, m_bound, n_scan, guess, dummy):
-    """Stable root of m(L; m0) = M_tip nearest ``guess``, by a scan over |m0| ≤ m_bound.
+def _scan(theta0, secf, steps, rest, loads, m_tip, params, guess, out):
+    """Stable root of m(L; m0) = M_tip nearest ``guess``, by a scan over |m0| ≤ M_BOUND.
 
     Used where continuation cannot proceed (a fold passed, or a bifurcation such as Euler
     buckling): every sign change on the scan grid is polished by Newton and the stable root
     closest to ``guess`` is taken (ties broken towards positive m0). Returns (m0, found, its).
     """
+    tol = params[TOL]
+    max_iter = int(params[MAX_ITER])
+    max_step = params[MAX_STEP]
+    m_bound = params[M_BOUND]
+    n_scan = int(params[N_SCAN])
     best = math.nan
     best_d = math.inf
     its = 0
@@ -226,16 +236,15 @@ def _scan(theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q, m
     prev_m = 0.0
     for k in range(n_scan + 1):
         mk = -m_bound + 2.0 * m_bound * k / n_scan
-        th, m, b, x, y, bmin = _integrate(mk, theta0, sec_len, sec_steps, c_a, c_g, c_i,
-                                          u_rest, v_rest, n_end, q, False, dummy)
+        th, m, b, x, y, bmin = _integrate(mk, theta0, secf, steps, rest, loads, False, out)
         r = m - m_tip
         its += 1
         if k > 0 and math.isfinite(r) and math.isfinite(prev_r) and (r == 0.0 or prev_r * r < 0.0):
             # Secant start inside the bracket, then Newton.
             start = prev_m - prev_r * (mk - prev_m) / (r - prev_r)
-            root, ok, n_it, res, stable, bm, x, y, th = _newton(start, theta0, sec_len, sec_steps, c_a, c_g,
-                                                       c_i, u_rest, v_rest, n_end, q, m_tip, tol,
-                                                       max_iter, max_step, dummy)
+            root, ok, n_it, res, stable, bm, x, y, th = _newton(start, theta0, secf, steps, rest,
+                                                                loads, m_tip, tol, max_iter,
+                                                                max_step, out)
             its += n_it
             if ok and stable:
                 d = abs(root - guess)
@@ -248,24 +257,29 @@ def _scan(theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, n_end, q, m
 
 
 @njit
-def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, tubes_i,
-            tubes_f, p_a, p_b, load_a_end, load_b_end, load_a_q, load_b_q, mtip_a, mtip_b, tol,
-            max_iter, max_step, m_bound, dt0, dt_min, n_scan, u1, u2, v3, p_now, n_end, q, dummy):
+def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+            mtip_b, params, rest, p_now, loads_now, out):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
 
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
-    predicts m0 by secant, corrects by Newton, and is accepted only if Newton converged in
-    few iterations, landed on a stable equilibrium and did not jump far from the prediction;
-    otherwise the step is halved. Below ``dt_min`` a fold (or bifurcation) has been passed:
-    :func:`_scan` picks the stable equilibrium nearest the prediction and the result is
-    flagged as a snap. Returns (m0, converged, iterations, snapped, stable, |residual|, and the
-    tip x, y, θ of the returned state); on return ``u1, u2, v3, n_end, q`` hold that state's
-    rest strains and loads.
+    predicts m0 by secant, corrects by Newton, and is accepted only if Newton converged,
+    landed on a stable equilibrium and did not jump far from the prediction; otherwise the
+    step is halved. Below ``DT_MIN`` a fold (or bifurcation) has been passed: :func:`_scan`
+    picks the stable equilibrium nearest the prediction and the result is flagged as a snap.
 
-    ``tubes_i`` = (channel, first, last) int columns; ``tubes_f`` = (E·At, E, At/A, cos α,
-    a, b) float columns.
+    Scratch/outputs: ``rest`` (3, ns), ``p_now`` (n_channels,), ``loads_now`` (ns, 4) hold
+    the returned state's rest strains, pressures and loads; ``out`` is a (≥1, N_COLUMNS)
+    scratch for :func:`_integrate`.
+
+    Returns:
+        (m0, converged, iterations, snapped, stable, |residual|, tip x, y, θ).
     """
-    t = t_start
+    tol = params[TOL]
+    max_iter = int(params[MAX_ITER])
+    max_step = params[MAX_STEP]
+    dt0 = params[DT0]
+    dt_min = params[DT_MIN]
+    t = 0.0
     dt = dt0
     slope = 0.0
     total = 0
@@ -277,15 +291,12 @@ def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_
     jump = 0.5 * max_step
     while t < 1.0:
         t_new = min(1.0, t + dt)
-        m_tip = _level(t_new, p_a, p_b, load_a_end, load_b_end, load_a_q, load_b_q, mtip_a,
-                       mtip_b, p_now, n_end, q)
-        _rest_strains(p_now, tubes_i[:, 0], tubes_i[:, 1], tubes_i[:, 2], tubes_f[:, 0],
-                      tubes_f[:, 1], tubes_f[:, 2], tubes_f[:, 3], tubes_f[:, 4], tubes_f[:, 5],
-                      sec_ea, sec_ei, u1, u2, v3)
+        m_tip = _level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
+        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
         guess = m0 + slope * (t_new - t)
-        root, ok, its, res, stab, bm, x, y, th = _newton(guess, theta0, sec_len, sec_steps, c_a,
-                                                         c_g, c_i, u2, v3, n_end, q, m_tip, tol,
-                                                         max_iter, max_step, dummy)
+        root, ok, its, res, stab, bm, x, y, th = _newton(guess, theta0, secf, steps, rest,
+                                                         loads_now, m_tip, tol, max_iter,
+                                                         max_step, out)
         total += its
         if ok and stab and (abs(root - guess) <= jump or dt <= dt_min):
             slope = (root - m0) / (t_new - t)
@@ -298,17 +309,16 @@ def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_
             dt *= 0.5
             continue
         # A fold or bifurcation lies between t and t_new: snap to the nearest stable state.
-        root, found, its = _scan(theta0, sec_len, sec_steps, c_a, c_g, c_i, u2, v3, n_end, q,
-                                 m_tip, tol, max_iter, max_step, m_bound, n_scan, guess, dummy)
+        root, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params, guess, out)
         total += its
         if not found:
             # No stable equilibrium at this level: report the Newton result as it stands.
             return m0, ok, total, snapped, False, res, x, y, th
         snapped = True
         slope = 0.0
-        m0, ok, its, res, stable, bm, x, y, th = _newton(root, theta0, sec_len, sec_steps, c_a,
-                                                         c_g, c_i, u2, v3, n_end, q, m_tip, tol,
-                                                         max_iter, max_step, dummy)
+        m0, ok, its, res, stable, bm, x, y, th = _newton(root, theta0, secf, steps, rest,
+                                                         loads_now, m_tip, tol, max_iter,
+                                                         max_step, out)
         total += its
         t = t_new
         dt = dt0
@@ -316,31 +326,28 @@ def _follow(m0, t_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_
 
 
 @njit(parallel=True)
-def _batch(m0_start, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, tubes_i, tubes_f,
-           p_targets, load_end, load_q, mtip, tol, max_iter, max_step, m_bound, dt0, dt_min,
-           n_scan, tips, ok, stable_out):
-    """Cold solves of many pressure vectors in parallel (one per row of ``p_targets``).
+def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, loads, mtip,
+           params, tips, ok, stable_out, m0_out):
+    """Many quasi-static solves in parallel, one per row of ``p_targets`` (n, n_channels).
 
-    Every point follows the same path :func:`solver.solve` takes from the loaded,
-    unactuated equilibrium ``m0_start``: the result does not depend on sweep order.
+    Row k follows the path from the equilibrium ``m0_start[k]`` at pressures ``p_start[k]``
+    (cold solves: the loaded, unactuated state at zero pressure for every row, as
+    :func:`solver.solve` does, so a sweep's result does not depend on its order). Writes the
+    tips (n, 2), convergence and stability flags and the new base moments.
     """
     n = p_targets.shape[0]
-    ns = sec_len.shape[0]
+    ns = secf.shape[1]
     nc = p_targets.shape[1]
     for k in prange(n):
-        u1 = np.empty(ns)
-        u2 = np.empty(ns)
-        v3 = np.empty(ns)
+        rest = np.empty((3, ns))
         p_now = np.empty(nc)
-        n_end = np.empty((ns, 2))
-        q = np.empty((ns, 2))
-        dummy = np.empty((1, N_COLUMNS))
-        zero = np.zeros(nc)
+        loads_now = np.empty((ns, 4))
+        out = np.empty((1, N_COLUMNS))
         root, conv, its, snapped, stab, res, x, y, th = _follow(
-            m0_start, 0.0, theta0, sec_len, sec_steps, c_a, c_g, c_i, sec_ea, sec_ei, tubes_i,
-            tubes_f, zero, p_targets[k], load_end, load_end, load_q, load_q, mtip, mtip, tol,
-            max_iter, max_step, m_bound, dt0, dt_min, n_scan, u1, u2, v3, p_now, n_end, q, dummy)
+            m0_start[k], theta0, secf, steps, tubes_i, tubes_f, p_start[k], p_targets[k], loads,
+            loads, mtip, mtip, params, rest, p_now, loads_now, out)
         tips[k, 0] = x
         tips[k, 1] = y
         ok[k] = conv and math.isfinite(x) and math.isfinite(y)
         stable_out[k] = stab
+        m0_out[k] = root

@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from solver._jit import njit
-from solver._planar import _rest_strains
+from solver._planar import DT0, DT_MIN, MAX_ITER, MAX_STEP, TOL, _rest_strains
 
 
 def base_rotation(theta0: float) -> np.ndarray:
@@ -87,21 +87,6 @@ def _arc(u, kappa, v3, sig):
 
 
 @njit
-def _quat_to_rot(q, out):
-    """Rotation matrix of the unit quaternion q (columns are d1, d2, d3; Eqs. 2.18–2.20)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    out[0, 0] = w * w + x * x - y * y - z * z
-    out[0, 1] = 2.0 * (x * y - w * z)
-    out[0, 2] = 2.0 * (x * z + w * y)
-    out[1, 0] = 2.0 * (x * y + w * z)
-    out[1, 1] = w * w - x * x + y * y - z * z
-    out[1, 2] = 2.0 * (y * z - w * x)
-    out[2, 0] = 2.0 * (x * z - w * y)
-    out[2, 1] = 2.0 * (y * z + w * x)
-    out[2, 2] = w * w - x * x - y * y + z * z
-
-
-@njit
 def _rot_to_quat(r, out):
     """Unit quaternion of rotation matrix ``r`` (Shepperd's method)."""
     tr = r[0, 0] + r[1, 1] + r[2, 2]
@@ -136,198 +121,277 @@ NSTATE = 28
 
 
 @njit
-def _rhs(sig, y, dy, rot, length, ca, cg, ci, cj, u1r, u2r, v3r, n_end, q):
-    """Derivative of the spatial state (see module docstring) at local coordinate ``sig``."""
-    qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
-    quat = y[3:7] / qn
-    _quat_to_rot(quat, rot)
-    n = np.empty(3)
-    for d in range(3):
-        n[d] = n_end[d] + q[d] * (length - sig)
-    m = y[7:10]
-    # Body-frame components.
-    nb = rot.T @ n
-    mb = rot.T @ m
-    v = np.array([nb[0] * cg, nb[1] * cg, v3r + nb[2] * ca])
-    u = np.array([u1r + mb[0] * ci, u2r + mb[1] * ci, mb[2] * cj])
-    rp = rot @ v
-    dy[0:3] = rp
-    w, x, yy, z = quat[0], quat[1], quat[2], quat[3]
-    dy[3] = 0.5 * (-x * u[0] - yy * u[1] - z * u[2])
-    dy[4] = 0.5 * (w * u[0] - z * u[1] + yy * u[2])
-    dy[5] = 0.5 * (z * u[0] + w * u[1] - x * u[2])
-    dy[6] = 0.5 * (-yy * u[0] + x * u[1] + w * u[2])
-    dy[7:10] = -np.cross(rp, n)
-    d3 = rot[:, 2]
-    for j in range(3):
-        dphi = y[10 + 3 * j: 13 + 3 * j]
-        dm = y[19 + 3 * j: 22 + 3 * j]
-        a = dm + np.cross(m, dphi)
-        ka = ci * a + (cj - ci) * d3 * (d3 @ a)
-        pn = np.cross(dphi, n)
-        ppn = cg * pn + (ca - cg) * d3 * (d3 @ pn)
-        drp = np.cross(dphi, rp) - ppn
-        dy[10 + 3 * j: 13 + 3 * j] = ka
-        dy[19 + 3 * j: 22 + 3 * j] = -np.cross(drp, n)
+def _rhs(sig, y, dy, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i):
+    """Derivative of the spatial state (see module docstring) at local coordinate ``sig``.
 
-
-@njit
-def _integrate(m0, rot0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1, u2, v3, n_end, q, record,
-               out_pos, out_rot, out_m):
-    """One RK4 pass base → tip from base moment ``m0`` (3,).
-
-    Returns (state at the tip (NSTATE,), min over nodes of det ∂m/∂m0). When ``record``,
-    positions, frames and moments are written to ``out_pos`` (N,3), ``out_rot`` (N,3,3),
-    ``out_m`` (N,3).
+    Written out in scalars: this runs 4× per RK4 step and must not allocate.
+    ``loads_i`` (6,) = n_end (x, y, z) and q (x, y, z) of the section.
     """
-    y = np.zeros(NSTATE)
-    quat = np.empty(4)
-    _rot_to_quat(rot0, quat)
-    y[3:7] = quat
-    y[7:10] = m0
+    qn = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5] + y[6] * y[6])
+    w = y[3] / qn
+    x = y[4] / qn
+    yy = y[5] / qn
+    z = y[6] / qn
+    r00 = w * w + x * x - yy * yy - z * z
+    r01 = 2.0 * (x * yy - w * z)
+    r02 = 2.0 * (x * z + w * yy)
+    r10 = 2.0 * (x * yy + w * z)
+    r11 = w * w - x * x + yy * yy - z * z
+    r12 = 2.0 * (yy * z - w * x)
+    r20 = 2.0 * (x * z - w * yy)
+    r21 = 2.0 * (yy * z + w * x)
+    r22 = w * w - x * x - yy * yy + z * z
+    rest = length - sig
+    n0 = loads_i[0] + loads_i[3] * rest
+    n1 = loads_i[1] + loads_i[4] * rest
+    n2 = loads_i[2] + loads_i[5] * rest
+    m0 = y[7]
+    m1 = y[8]
+    m2 = y[9]
+    # Body-frame components (Rᵀ n, Rᵀ m).
+    nb0 = r00 * n0 + r10 * n1 + r20 * n2
+    nb1 = r01 * n0 + r11 * n1 + r21 * n2
+    nb2 = r02 * n0 + r12 * n1 + r22 * n2
+    mb0 = r00 * m0 + r10 * m1 + r20 * m2
+    mb1 = r01 * m0 + r11 * m1 + r21 * m2
+    mb2 = r02 * m0 + r12 * m1 + r22 * m2
+    v0 = nb0 * cg
+    v1 = nb1 * cg
+    v2 = v3r + nb2 * ca
+    u0 = u1r + mb0 * ci
+    u1 = u2r + mb1 * ci
+    u2 = mb2 * cj
+    rp0 = r00 * v0 + r01 * v1 + r02 * v2
+    rp1 = r10 * v0 + r11 * v1 + r12 * v2
+    rp2 = r20 * v0 + r21 * v1 + r22 * v2
+    dy[0] = rp0
+    dy[1] = rp1
+    dy[2] = rp2
+    dy[3] = 0.5 * (-x * u0 - yy * u1 - z * u2)
+    dy[4] = 0.5 * (w * u0 - z * u1 + yy * u2)
+    dy[5] = 0.5 * (z * u0 + w * u1 - x * u2)
+    dy[6] = 0.5 * (-yy * u0 + x * u1 + w * u2)
+    # m' = −r' × n
+    dy[7] = -(rp1 * n2 - rp2 * n1)
+    dy[8] = -(rp2 * n0 - rp0 * n2)
+    dy[9] = -(rp0 * n1 - rp1 * n0)
     for j in range(3):
-        y[19 + 4 * j] = 1.0  # δm(0) = identity columns
-    k1 = np.empty(NSTATE)
-    k2 = np.empty(NSTATE)
-    k3 = np.empty(NSTATE)
-    k4 = np.empty(NSTATE)
-    tmp = np.empty(NSTATE)
-    rot = np.empty((3, 3))
-    dmin = 1.0
-    row = 0
-    for i in range(sec_len.shape[0]):
-        length = sec_len[i]
-        nst = sec_steps[i]
-        h = length / nst
-        for j in range(nst + 1):
-            sig = j * h
-            if record:
-                qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
-                _quat_to_rot(y[3:7] / qn, rot)
-                out_pos[row] = y[0:3]
-                out_rot[row] = rot
-                out_m[row] = y[7:10]
-                row += 1
-            if j == nst:
-                break
-            _rhs(sig, y, k1, rot, length, c_a[i], c_g[i], c_i[i], c_j[i], u1[i], u2[i], v3[i],
-                 n_end[i], q[i])
-            tmp[:] = y + 0.5 * h * k1
-            _rhs(sig + 0.5 * h, tmp, k2, rot, length, c_a[i], c_g[i], c_i[i], c_j[i], u1[i], u2[i],
-                 v3[i], n_end[i], q[i])
-            tmp[:] = y + 0.5 * h * k2
-            _rhs(sig + 0.5 * h, tmp, k3, rot, length, c_a[i], c_g[i], c_i[i], c_j[i], u1[i], u2[i],
-                 v3[i], n_end[i], q[i])
-            tmp[:] = y + h * k3
-            _rhs(sig + h, tmp, k4, rot, length, c_a[i], c_g[i], c_i[i], c_j[i], u1[i], u2[i],
-                 v3[i], n_end[i], q[i])
-            y += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-            y[3:7] /= math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
-            det = _det3(y[19:28])
-            if det < dmin:
-                dmin = det
-    return y, dmin
+        p0 = y[10 + 3 * j]
+        p1 = y[11 + 3 * j]
+        p2 = y[12 + 3 * j]
+        a0 = y[19 + 3 * j] + (m1 * p2 - m2 * p1)
+        a1 = y[20 + 3 * j] + (m2 * p0 - m0 * p2)
+        a2 = y[21 + 3 * j] + (m0 * p1 - m1 * p0)
+        da = (cj - ci) * (r02 * a0 + r12 * a1 + r22 * a2)
+        dy[10 + 3 * j] = ci * a0 + da * r02
+        dy[11 + 3 * j] = ci * a1 + da * r12
+        dy[12 + 3 * j] = ci * a2 + da * r22
+        # δr' = δφ × r' − P (δφ × n)
+        pn0 = p1 * n2 - p2 * n1
+        pn1 = p2 * n0 - p0 * n2
+        pn2 = p0 * n1 - p1 * n0
+        dp = (ca - cg) * (r02 * pn0 + r12 * pn1 + r22 * pn2)
+        d0 = (p1 * rp2 - p2 * rp1) - (cg * pn0 + dp * r02)
+        d1 = (p2 * rp0 - p0 * rp2) - (cg * pn1 + dp * r12)
+        d2 = (p0 * rp1 - p1 * rp0) - (cg * pn2 + dp * r22)
+        dy[19 + 3 * j] = -(d1 * n2 - d2 * n1)
+        dy[20 + 3 * j] = -(d2 * n0 - d0 * n2)
+        dy[21 + 3 * j] = -(d0 * n1 - d1 * n0)
 
 
 @njit
 def _det3(cols):
     """Determinant of the 3×3 matrix stored column-wise in ``cols`` (9,)."""
-    a = cols[0:3]
-    b = cols[3:6]
-    c = cols[6:9]
-    return (a[0] * (b[1] * c[2] - b[2] * c[1]) - b[0] * (a[1] * c[2] - a[2] * c[1])
-            + c[0] * (a[1] * b[2] - a[2] * b[1]))
+    return (cols[0] * (cols[4] * cols[8] - cols[5] * cols[7])
+            - cols[3] * (cols[1] * cols[8] - cols[2] * cols[7])
+            + cols[6] * (cols[1] * cols[5] - cols[2] * cols[4]))
 
 
 @njit
-def _newton(m0, rot0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1, u2, v3, n_end, q, m_tip, tol,
-            max_iter, max_step, dpos, drot, dm):
-    """Newton on m(L; m0) = M_tip (3 unknowns) with the exact shooting Jacobian.
+def _integrate(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos, out_rot, out_m, work):
+    """One RK4 pass base → tip from base moment ``m0`` (3,).
 
-    Returns (m0, converged, iterations, |residual|, stable).
+    Args:
+        quat0: (4,) base orientation quaternion. secf: (6, ns) section array (see
+            :mod:`solver._planar`); c_j: (ns,) 1/GJ. rest: (3, ns) rest strains.
+        loads: (ns, 6) section-end internal force and distributed load (x, y, z each).
+        work: (6, NSTATE) scratch: state, k1..k4, stage state.
+
+    Returns:
+        min over nodes of det ∂m/∂m0; ``work[0]`` holds the tip state. When ``record``,
+        positions, frames and moments are written to ``out_pos`` (N,3), ``out_rot`` (N,3,3),
+        ``out_m`` (N,3).
     """
-    m0 = m0.copy()
+    y = work[0]
+    k1 = work[1]
+    k2 = work[2]
+    k3 = work[3]
+    k4 = work[4]
+    tmp = work[5]
+    for d in range(NSTATE):
+        y[d] = 0.0
+    for d in range(4):
+        y[3 + d] = quat0[d]
+    for d in range(3):
+        y[7 + d] = m0[d]
+        y[19 + 4 * d] = 1.0  # δm(0) = identity columns
+    dmin = 1.0
+    row = 0
+    for i in range(secf.shape[1]):
+        length = secf[0, i]
+        nst = steps[i]
+        h = length / nst
+        ca = secf[1, i]
+        cg = secf[2, i]
+        ci = secf[3, i]
+        for j in range(nst + 1):
+            sig = j * h
+            if record:
+                _record_row(y, out_pos, out_rot, out_m, row)
+                row += 1
+            if j == nst:
+                break
+            _rhs(sig, y, k1, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i], rest[2, i],
+                 loads[i])
+            for d in range(NSTATE):
+                tmp[d] = y[d] + 0.5 * h * k1[d]
+            _rhs(sig + 0.5 * h, tmp, k2, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i],
+                 rest[2, i], loads[i])
+            for d in range(NSTATE):
+                tmp[d] = y[d] + 0.5 * h * k2[d]
+            _rhs(sig + 0.5 * h, tmp, k3, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i],
+                 rest[2, i], loads[i])
+            for d in range(NSTATE):
+                tmp[d] = y[d] + h * k3[d]
+            _rhs(sig + h, tmp, k4, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i], rest[2, i],
+                 loads[i])
+            for d in range(NSTATE):
+                y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+            qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
+            for d in range(3, 7):
+                y[d] /= qn
+            det = _det3(y[19:28])
+            if det < dmin:
+                dmin = det
+    return dmin
+
+
+@njit
+def _record_row(y, out_pos, out_rot, out_m, row):
+    qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
+    w, x, yy, z = y[3] / qn, y[4] / qn, y[5] / qn, y[6] / qn
+    out_rot[row, 0, 0] = w * w + x * x - yy * yy - z * z
+    out_rot[row, 0, 1] = 2.0 * (x * yy - w * z)
+    out_rot[row, 0, 2] = 2.0 * (x * z + w * yy)
+    out_rot[row, 1, 0] = 2.0 * (x * yy + w * z)
+    out_rot[row, 1, 1] = w * w - x * x + yy * yy - z * z
+    out_rot[row, 1, 2] = 2.0 * (yy * z - w * x)
+    out_rot[row, 2, 0] = 2.0 * (x * z - w * yy)
+    out_rot[row, 2, 1] = 2.0 * (yy * z + w * x)
+    out_rot[row, 2, 2] = w * w - x * x - yy * yy + z * z
+    for d in range(3):
+        out_pos[row, d] = y[d]
+        out_m[row, d] = y[7 + d]
+
+
+@njit
+def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step, work, dummy):
+    """Newton on m(L; m0) = M_tip (3 unknowns, updated in place) with the exact Jacobian.
+
+    Returns (converged, iterations, |residual|, stable).
+    """
     res = math.inf
     dmin = 1.0
+    r = np.empty(3)
+    jac = np.empty((3, 3))
     for it in range(max_iter + 1):
-        y, dmin = _integrate(m0, rot0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1, u2, v3,
-                             n_end, q, False, dpos, drot, dm)
-        r = y[7:10] - m_tip
-        res = math.sqrt(r @ r)
+        dmin = _integrate(m0, quat0, secf, steps, c_j, rest, loads, False, dummy[0], dummy[1],
+                          dummy[2], work)
+        y = work[0]
+        for d in range(3):
+            r[d] = y[7 + d] - m_tip[d]
+        res = math.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2)
         if not math.isfinite(res):
-            return m0, False, it, math.inf, False
+            return False, it, math.inf, False
         if res <= tol:
-            return m0, True, it, res, dmin > 0.0
-        if it == max_iter:
+            return True, it, res, dmin > 0.0
+        if it == max_iter or abs(_det3(y[19:28])) < 1e-300:
             break
-        jac = np.empty((3, 3))
         for j in range(3):
-            jac[:, j] = y[19 + 3 * j: 22 + 3 * j]
-        if abs(_det3(y[19:28])) < 1e-300:
-            break
-        step = -np.linalg.solve(jac, r)
-        norm = math.sqrt(step @ step)
-        if norm > max_step:
-            step *= max_step / norm
-        m0 += step
-    return m0, False, max_iter, res, dmin > 0.0
+            for d in range(3):
+                jac[d, j] = y[19 + 3 * j + d]
+        step = np.linalg.solve(jac, r)
+        norm = math.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
+        shrink = max_step / norm if norm > max_step else 1.0
+        for d in range(3):
+            m0[d] -= shrink * step[d]
+    return False, max_iter, res, dmin > 0.0
 
 
 @njit
-def _follow(m0, rot0, sec_len, sec_steps, c_a, c_g, c_i, c_j, sec_ea, sec_ei, tubes_i, tubes_f,
-            p_a, p_b, end_a, end_b, q_a, q_b, mtip_a, mtip_b, tol, max_iter, max_step, dt0,
-            dt_min):
+def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+            mtip_b, params, rest, p_now, loads_now, m_tip):
     """Spatial quasi-static path following (see :func:`solver._planar._follow`).
 
-    In 3D no fold scan is attempted: if the step falls below ``dt_min`` without a stable
-    converged equilibrium, the best iterate is returned unconverged (and reported so).
-    Returns (m0 (3,), converged, iterations, stable, |residual|, u1, u2, v3, n_end, q, m_tip).
+    ``m0`` (3,) is updated in place. In 3D no fold scan is attempted: if the step falls
+    below ``DT_MIN`` without a stable converged equilibrium, the last accepted state is
+    returned unconverged (and reported so). ``rest``, ``p_now``, ``loads_now``, ``m_tip``
+    hold the returned state's rest strains, pressures, loads and tip moment.
+
+    Returns (converged, iterations, stable, |residual|).
     """
-    ns = sec_len.shape[0]
-    u1 = np.empty(ns)
-    u2 = np.empty(ns)
-    v3 = np.empty(ns)
-    p_now = np.empty(p_a.shape[0])
-    n_end = np.empty((ns, 3))
-    q = np.empty((ns, 3))
-    dpos = np.empty((1, 3))
-    drot = np.empty((1, 3, 3))
-    dmm = np.empty((1, 3))
+    tol = params[TOL]
+    max_iter = int(params[MAX_ITER])
+    max_step = params[MAX_STEP]
+    dt_min = params[DT_MIN]
+    work = np.empty((6, NSTATE))
+    dummy = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
     t = 0.0
-    dt = dt0
+    dt = params[DT0]
     slope = np.zeros(3)
+    accepted = m0.copy()
+    guess = np.empty(3)
     total = 0
     ok = True
     stable = True
     res = 0.0
-    m_tip = mtip_a.copy()
-    while True:
+    while t < 1.0:
         t_new = min(1.0, t + dt)
-        for c in range(p_a.shape[0]):
-            p_now[c] = p_a[c] + t_new * (p_b[c] - p_a[c])
-        n_end[:, :] = end_a + t_new * (end_b - end_a)
-        q[:, :] = q_a + t_new * (q_b - q_a)
-        m_tip = mtip_a + t_new * (mtip_b - mtip_a)
-        _rest_strains(p_now, tubes_i[:, 0], tubes_i[:, 1], tubes_i[:, 2], tubes_f[:, 0],
-                      tubes_f[:, 1], tubes_f[:, 2], tubes_f[:, 3], tubes_f[:, 4], tubes_f[:, 5],
-                      sec_ea, sec_ei, u1, u2, v3)
-        guess = m0 + slope * (t_new - t)
-        root, ok, its, res, stable = _newton(guess, rot0, sec_len, sec_steps, c_a, c_g, c_i, c_j,
-                                             u1, u2, v3, n_end, q, m_tip, tol, max_iter, max_step,
-                                             dpos, drot, dmm)
+        _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+        for d in range(3):
+            guess[d] = accepted[d] + slope[d] * (t_new - t)
+            m0[d] = guess[d]
+        ok, its, res, stable = _newton(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip, tol,
+                                       max_iter, max_step, work, dummy)
         total += its
-        d = root - guess
-        if ok and stable and (math.sqrt(d @ d) <= 0.5 * max_step or dt <= dt_min):
-            slope = (root - m0) / (t_new - t)
-            m0 = root
+        jump = math.sqrt((m0[0] - guess[0]) ** 2 + (m0[1] - guess[1]) ** 2 + (m0[2] - guess[2]) ** 2)
+        if ok and stable and (jump <= 0.5 * max_step or dt <= dt_min):
+            for d in range(3):
+                slope[d] = (m0[d] - accepted[d]) / (t_new - t)
+                accepted[d] = m0[d]
             t = t_new
             dt = min(2.0 * dt, 1.0)
-            if t >= 1.0:
-                break
             continue
         if dt > dt_min:
             dt *= 0.5
             continue
-        m0 = root if ok else m0
         break
-    return m0, ok, total, stable, res, u1, u2, v3, n_end, q, m_tip
+    if t < 1.0:
+        for d in range(3):
+            m0[d] = accepted[d]
+        _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+        return False, total, False, res
+    return ok, total, stable, res
+
+
+@njit
+def _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip):
+    for c in range(p_a.shape[0]):
+        p_now[c] = p_a[c] + t * (p_b[c] - p_a[c])
+    for i in range(loads_now.shape[0]):
+        for d in range(6):
+            loads_now[i, d] = loads_a[i, d] + t * (loads_b[i, d] - loads_a[i, d])
+    for d in range(3):
+        m_tip[d] = mtip_a[d] + t * (mtip_b[d] - mtip_a[d])

@@ -89,11 +89,16 @@ class Scene:
         object.__setattr__(self, "tip_force", tuple(float(f) for f in force))
         object.__setattr__(self, "tip_moment",
                            float(moment[0]) if moment.size == 1 else tuple(float(m) for m in moment))
+        # Derived once (not fields: they follow from the fields above).
+        m3 = self.tip_moment_3d()
+        object.__setattr__(self, "_is_planar", bool(self.tip_force_3d()[2] == 0.0 and m3[0] == 0.0
+                                                    and m3[1] == 0.0))
+        object.__setattr__(self, "_base_theta", math.radians(self.base_angle_deg - 90.0))
 
     @property
     def base_theta(self) -> float:
         """Planar orientation θ0 of d3 at the base, from +x counter-clockwise (rad)."""
-        return math.radians(self.base_angle_deg - 90.0)
+        return self._base_theta
 
     def tip_force_3d(self) -> np.ndarray:
         """Tip force as a 3-vector (N)."""
@@ -110,8 +115,7 @@ class Scene:
     @property
     def is_planar(self) -> bool:
         """True when no load leaves the x–y plane."""
-        m = self.tip_moment_3d()
-        return self.tip_force_3d()[2] == 0.0 and m[0] == 0.0 and m[1] == 0.0
+        return self._is_planar
 
     def discs_array(self) -> np.ndarray:
         """Obstacles as an (n, 4) array: centre x, centre y, radius, stiffness."""

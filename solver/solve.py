@@ -68,6 +68,13 @@ class Settings:
 DEFAULT_SETTINGS = Settings()
 
 
+def _empty(*shape):
+    """A shared, read-only empty array: cheap defaults for fields a solve did not record."""
+    arr = np.empty(shape)
+    arr.flags.writeable = False
+    return lambda: arr
+
+
 @dataclass(frozen=True)
 class Equilibrium:
     """A static equilibrium of the arm.
@@ -102,24 +109,24 @@ class Equilibrium:
     iterations: int
     residual: float
     snapped: bool = False
-    s: np.ndarray = field(default_factory=lambda: np.empty(0))
-    positions: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
-    angles: np.ndarray = field(default_factory=lambda: np.empty(0))
-    orientations: np.ndarray = field(default_factory=lambda: np.empty((0, 3, 3)))
-    shear_stretch: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
-    curvature: np.ndarray = field(default_factory=lambda: np.empty(0))
-    internal_force: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
-    internal_moment: np.ndarray = field(default_factory=lambda: np.empty(0))
+    s: np.ndarray = field(default_factory=_empty(0))
+    positions: np.ndarray = field(default_factory=_empty(0, 2))
+    angles: np.ndarray = field(default_factory=_empty(0))
+    orientations: np.ndarray = field(default_factory=_empty(0, 3, 3))
+    shear_stretch: np.ndarray = field(default_factory=_empty(0, 2))
+    curvature: np.ndarray = field(default_factory=_empty(0))
+    internal_force: np.ndarray = field(default_factory=_empty(0, 2))
+    internal_moment: np.ndarray = field(default_factory=_empty(0))
     section_ends: tuple = ()
-    contact_force: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
-    penetration: np.ndarray = field(default_factory=lambda: np.empty(0))
-    base_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    pressures: np.ndarray = field(default_factory=lambda: np.empty(0))
+    contact_force: np.ndarray = field(default_factory=_empty(0, 2))
+    penetration: np.ndarray = field(default_factory=_empty(0))
+    base_force: np.ndarray = field(default_factory=_empty(0))
+    pressures: np.ndarray = field(default_factory=_empty(0))
     model: str = "full"
     planar: bool = True
-    base_moment: np.ndarray = field(default_factory=lambda: np.zeros(1), repr=False)
+    base_moment: np.ndarray = field(default_factory=_empty(0), repr=False)
     scene: Scene | None = field(default=None, repr=False)
-    channel_pressures: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False)
+    channel_pressures: np.ndarray = field(default_factory=_empty(0), repr=False)
 
     @property
     def tip_angle(self) -> float:
@@ -134,6 +141,7 @@ class Equilibrium:
 class _Packed:
     """A design unpacked to the float/int arrays the kernels take."""
 
+    secf: np.ndarray
     sec_len: np.ndarray
     sec_steps: np.ndarray
     c_a: np.ndarray
@@ -175,26 +183,31 @@ def _build_pack(arm: ArmDesign, model: str, settings: Settings) -> _Packed:
                       (mat.outer_radius**2 - mat.inner_radius**2) / mat.inner_radius**2,
                       math.cos(math.radians(mat.wind_angle_deg)), a, b)
     ei = np.array([s.EI for s in secs])
+    ea = np.array([s.EA for s in secs])
+    secf = np.vstack([
+        [s.length for s in secs], 1.0 / ea,
+        np.zeros(ns) if model == "unshearable" else [1.0 / s.GA for s in secs],
+        1.0 / ei, ea, ei])
+    in_plane = [next((k for k, (_, idx) in enumerate(arm.planar_channels) if c in idx), -1)
+                for c in range(arm.n_channels)]
     return _Packed(
-        sec_len=np.array([s.length for s in secs]),
+        secf=secf,
+        sec_len=secf[_planar.LEN],
         sec_steps=steps,
-        c_a=np.array([1.0 / s.EA for s in secs]),
-        c_g=np.zeros(ns) if model == "unshearable" else np.array([1.0 / s.GA for s in secs]),
-        c_i=1.0 / ei,
+        c_a=secf[_planar.CA],
+        c_g=secf[_planar.CG],
+        c_i=secf[_planar.CI],
         c_j=np.array([1.0 / s.GJ for s in secs]),
-        sec_ea=np.array([s.EA for s in secs]),
-        sec_ei=ei,
+        sec_ea=secf[_planar.EA],
+        sec_ei=secf[_planar.EI],
         mass_per_length=np.array([s.mass_per_length for s in secs]),
         endplate=np.array([s.endplate_mass for s in secs]),
         tubes_i=tubes_i,
         tubes_f=tubes_f,
         moment_scale=float(ei.max() / arm.length),
         n_rows=int(steps.sum() + ns),
+        spatial_of_planar=np.array(in_plane, dtype=np.int64),
         section_ends=tuple(int(v) for v in np.cumsum(steps + 1) - 1),
-        spatial_of_planar=np.array([next(k for k, (_, idx) in enumerate(arm.planar_channels)
-                                         if c in idx) if any(c in idx for _, idx in
-                                                             arm.planar_channels) else -1
-                                    for c in range(arm.n_channels)], dtype=np.int64),
     )
 
 
@@ -233,7 +246,8 @@ def _channel_pressures(arm: ArmDesign, pressures, planar: bool,
         raise ValueError(
             f"design {arm.name!r} expects {n} pressures in {'planar' if planar else 'spatial'} "
             f"mode ({', '.join(names) or 'none: a passive rod'}); got {pressures!r}")
-    if not np.all((p >= 0.0) & (p <= arm.max_pressure * (1 + 1e-12))):
+    # min/max are NaN if any entry is: one comparison each catches NaN, negatives and excess.
+    if n and not (p.min() >= 0.0 and p.max() <= arm.max_pressure * (1 + 1e-12)):
         _explain_bad_pressures(arm, p, planar)
     if not planar:
         return p, p
@@ -280,13 +294,18 @@ def rest_strains(arm: ArmDesign, channel_pressures: np.ndarray, packed: _Packed 
         (u1, u2, v3), each (n_sections,).
     """
     packed = packed or _pack(arm, "full", DEFAULT_SETTINGS)
-    ns = len(arm.sections)
-    u1, u2, v3 = np.empty(ns), np.empty(ns), np.empty(ns)
-    ti, tf = packed.tubes_i, packed.tubes_f
-    _planar._rest_strains(np.ascontiguousarray(channel_pressures, dtype=float), ti[:, 0], ti[:, 1],
-                          ti[:, 2], tf[:, 0], tf[:, 1], tf[:, 2], tf[:, 3], tf[:, 4], tf[:, 5],
-                          packed.sec_ea, packed.sec_ei, u1, u2, v3)
-    return u1, u2, v3
+    rest = np.empty((3, len(arm.sections)))
+    _planar._rest_strains(np.ascontiguousarray(channel_pressures, dtype=float), packed.tubes_i,
+                          packed.tubes_f, packed.secf, rest)
+    return rest[0], rest[1], rest[2]
+
+
+def _has_load_cached(arm: ArmDesign, scene: Scene) -> bool:
+    key = ("has_load", scene)
+    hit = arm._solver_cache.get(key)
+    if hit is None:
+        hit = arm._solver_cache[key] = _has_load(arm, scene)
+    return hit
 
 
 def _has_load(arm: ArmDesign, scene: Scene) -> bool:
@@ -380,7 +399,7 @@ def _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     tip = pos[-1]
     common = dict(converged=True, stable=True, iterations=0, residual=0.0, model=model,
                   planar=planar, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
-                  base_moment=np.zeros(1 if planar else 3))
+                  base_moment=np.zeros(1 if planar else 3), base_force=np.zeros(2 if planar else 3))
     if not record:
         return Equilibrium(tip=tip[:2].copy() if planar else tip.copy(), **common)
     seg = np.repeat(np.arange(len(arm.sections)), packed.sec_steps + 1)
@@ -402,14 +421,20 @@ def _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
 
 @dataclass(frozen=True)
 class _SceneContext:
-    """Scene-dependent kernel inputs of one design, model and settings (cached)."""
+    """Scene-dependent kernel inputs of one design, model and settings (cached).
+
+    ``loads`` (ns, 4) packs ``n_end`` and ``q``; ``params`` is the numeric parameter array of
+    :mod:`solver._planar` (tolerance, step limit, fold-scan bound, continuation steps).
+    """
 
     n_end: np.ndarray
     q: np.ndarray
+    loads: np.ndarray
     m_tip: float | np.ndarray
     tol: float
     max_step: float
-    m_bound: float
+    params: np.ndarray
+    has_load: bool
 
 
 def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
@@ -420,9 +445,16 @@ def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
         n_end, q, m_tip = _loads(arm, packed, scene, dim)
         scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale) if n_end.size else 0.0
         grow = max(1.0, scale)
-        ctx = _SceneContext(n_end=n_end, q=q, m_tip=m_tip, tol=settings.tol * packed.moment_scale * grow,
-                            max_step=2.0 * packed.moment_scale * grow,
-                            m_bound=_moment_bound(arm, packed, scene, n_end, q))
+        tol = settings.tol * packed.moment_scale * grow
+        max_step = 2.0 * packed.moment_scale * grow
+        params = np.empty(_planar.N_PARAMS)
+        params[[_planar.TOL, _planar.MAX_STEP, _planar.M_BOUND, _planar.DT0, _planar.DT_MIN,
+                _planar.MAX_ITER, _planar.N_SCAN]] = (
+            tol, max_step, _moment_bound(arm, packed, scene, n_end, q), settings.dt0,
+            settings.dt_min, settings.max_iter, settings.n_scan)
+        ctx = _SceneContext(n_end=n_end, q=q, loads=np.ascontiguousarray(np.hstack([n_end, q])),
+                            m_tip=m_tip, tol=tol,
+                            max_step=max_step, params=params, has_load=_has_load(arm, scene))
         if len(arm._solver_cache) > 256:  # many scenes (randomised payloads): keep it bounded
             arm._solver_cache.clear()
         arm._solver_cache[key] = ctx
@@ -442,60 +474,59 @@ def _moment_bound(arm, packed, scene, n_end, q):
     return 1.05 * bound + packed.moment_scale * 1e-6
 
 
-def _work(ns: int, nc: int) -> tuple:
-    """Scratch arrays of :func:`solver._planar._follow` (u1, u2, v3, p_now, n_end, q, dummy)."""
-    return (np.empty(ns), np.empty(ns), np.empty(ns), np.empty(nc), np.empty((ns, 2)),
-            np.empty((ns, 2)), np.empty((1, _planar.N_COLUMNS)))
+def _follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None):
+    """Run :func:`solver._planar._follow`; returns its tuple plus the scratch (rest, loads_now)."""
+    ns = packed.secf.shape[1]
+    rest, p_now, loads_now = np.empty((3, ns)), np.empty(p_target.shape[0]), np.empty((ns, 4))
+    result = _planar._follow(m0, scene.base_theta, packed.secf, packed.sec_steps, packed.tubes_i,
+                             packed.tubes_f, p_start, p_target, start_ctx.loads, ctx.loads,
+                             start_ctx.m_tip, ctx.m_tip, ctx.params, rest, p_now, loads_now,
+                             _DUMMY if out is None else out)
+    return result, rest, loads_now
 
 
-def _planar_inputs(arm, packed, scene, ctx, settings):
-    common = (scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g,
-              packed.c_i, packed.sec_ea, packed.sec_ei, packed.tubes_i, packed.tubes_f)
-    numeric = (ctx.tol, settings.max_iter, ctx.max_step, ctx.m_bound, settings.dt0,
-               settings.dt_min, settings.n_scan)
-    return common, numeric
+_DUMMY = np.empty((1, _planar.N_COLUMNS))
 
 
-def _loaded_base_moment(arm, packed, scene, ctx, settings, common, numeric) -> tuple[float, int, bool]:
+def _loaded_base_moment(arm, packed, scene, ctx, settings) -> tuple[float, int, bool]:
     """Stage 1 of a cold solve: the unactuated arm under its loads ramped from zero (cached)."""
     key = ("loaded", id(ctx), settings)
     hit = arm._solver_cache.get(key)
     if hit is None:
         zeros = np.zeros(max(arm.n_channels, 1))
-        out = _planar._follow(0.0, 0.0, *common, zeros, zeros, np.zeros_like(ctx.n_end), ctx.n_end,
-                              np.zeros_like(ctx.q), ctx.q, 0.0, ctx.m_tip, *numeric,
-                              *_work(len(arm.sections), zeros.shape[0]))
+        unloaded = _SceneContext(n_end=ctx.n_end * 0, q=ctx.q * 0, loads=ctx.loads * 0,
+                                 m_tip=0.0, tol=ctx.tol, max_step=ctx.max_step,
+                                 params=ctx.params, has_load=False)
+        out, _, _ = _follow(packed, scene, zeros, zeros, unloaded, ctx, 0.0)
         hit = arm._solver_cache[key] = (float(out[0]), int(out[2]), bool(out[3]))
     return hit
 
 
 def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
     ctx = _context(arm, packed, scene, 2, settings)
-    common, numeric = _planar_inputs(arm, packed, scene, ctx, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     iterations = 0
     snapped = False
     if warm_start is not None and warm_start.scene is not None:
-        start_ctx = ctx if warm_start.scene == scene else _context(arm, packed, warm_start.scene, 2, settings)
+        start_ctx = ctx if warm_start.scene == scene else \
+            _context(arm, packed, warm_start.scene, 2, settings)
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         m0 = float(warm_start.base_moment[-1])  # planar m_z, or z of a spatial m0
     else:
-        m0, iterations, snapped = _loaded_base_moment(arm, packed, scene, ctx, settings, common,
-                                                      numeric)
+        m0, iterations, snapped = _loaded_base_moment(arm, packed, scene, ctx, settings)
         start_ctx, p_start = ctx, np.zeros_like(p_target)
-    work = _work(len(arm.sections), p_target.shape[0])
-    m0, ok, its, snap, stab, res, x, y, th = _planar._follow(
-        m0, 0.0, *common, p_start, p_target, start_ctx.n_end, ctx.n_end, start_ctx.q, ctx.q,
-        start_ctx.m_tip, ctx.m_tip, *numeric, *work)
+    (m0, ok, its, snap, stab, res, x, y, th), rest, loads_now = _follow(
+        packed, scene, p_start, p_target, start_ctx, ctx, m0)
     common_out = dict(converged=bool(ok), stable=bool(stab), iterations=int(iterations + its),
                       residual=float(res), snapped=bool(snapped or snap), model=model,
                       planar=True, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
-                      base_moment=np.array([m0]))
+                      base_moment=np.array([m0]),
+                      base_force=ctx.n_end[0] + ctx.q[0] * packed.sec_len[0])
     if not record:
         return Equilibrium(tip=np.array([x, y]), **common_out)
-    out = np.zeros((packed.n_rows, _planar.N_COLUMNS))
-    _planar._integrate(m0, scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a,
-                       packed.c_g, packed.c_i, work[1], work[2], work[4], work[5], True, out)
+    out = np.empty((packed.n_rows, _planar.N_COLUMNS))
+    _planar._integrate(m0, scene.base_theta, packed.secf, packed.sec_steps, rest, loads_now, True,
+                       out)
     theta = out[:, _planar.THETA]
     c, sn = np.cos(theta), np.sin(theta)
     n1, n3 = out[:, _planar.N1], out[:, _planar.N3]
@@ -506,6 +537,20 @@ def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
         internal_force=np.column_stack([n3 * c - n1 * sn, n3 * sn + n1 * c]),
         internal_moment=out[:, _planar.M].copy(), section_ends=_section_ends(packed),
         **common_out)
+
+
+def _batch_inputs(arm, pressures, scene, model, planar, settings):
+    """Validated (packed, planar pressures (n, n_inputs), channel pressures) for batch calls."""
+    scene = Scene() if scene is None else scene
+    _check(arm, scene, model, planar)
+    packed = _pack(arm, model, settings)
+    p = np.asarray(pressures, dtype=float)
+    if p.ndim != 2 or p.shape[1] != arm.n_inputs(planar):
+        raise ValueError(f"pressures must have shape (n, {arm.n_inputs(planar)}); got {p.shape}")
+    for row in p[~np.all((p >= 0) & (p <= arm.max_pressure * (1 + 1e-12)), axis=1)][:1]:
+        _explain_bad_pressures(arm, row, planar)
+    channel = p[:, packed.spatial_of_planar] if arm.n_channels else np.zeros((p.shape[0], 1))
+    return scene, packed, p, np.ascontiguousarray(channel)
 
 
 def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "full",
@@ -522,14 +567,7 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
     Returns:
         ``(tips, converged)``: (n, 2|3) tip positions (m) and (n,) bool.
     """
-    scene = Scene() if scene is None else scene
-    _check(arm, scene, model, planar)
-    packed = _pack(arm, model, settings)
-    p = np.asarray(pressures, dtype=float)
-    if p.ndim != 2 or p.shape[1] != arm.n_inputs(planar):
-        raise ValueError(f"pressures must have shape (n, {arm.n_inputs(planar)}); got {p.shape}")
-    for row in p[~np.all((p >= 0) & (p <= arm.max_pressure * (1 + 1e-12)), axis=1)][:1]:
-        _explain_bad_pressures(arm, row, planar)
+    scene, packed, p, channel = _batch_inputs(arm, pressures, scene, model, planar, settings)
     general = model != "constant_curvature" and (_has_load(arm, scene) or not settings.shortcuts)
     if not (general and planar) or scene.obstacles:
         dim = 2 if planar else 3
@@ -540,15 +578,13 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
             tips[k] = eq.tip
             ok[k] = eq.converged
         return tips, ok
-    channel = p[:, packed.spatial_of_planar] if arm.n_channels else np.zeros((p.shape[0], 1))
     ctx = _context(arm, packed, scene, 2, settings)
-    common, numeric = _planar_inputs(arm, packed, scene, ctx, settings)
-    m0, _, _ = _loaded_base_moment(arm, packed, scene, ctx, settings, common, numeric)
-    tips = np.empty((p.shape[0], 2))
-    ok = np.empty(p.shape[0], dtype=bool)
-    stable = np.empty(p.shape[0], dtype=bool)
-    _planar._batch(m0, *common, np.ascontiguousarray(channel), ctx.n_end, ctx.q, ctx.m_tip,
-                   *numeric, tips, ok, stable)
+    m0, _, _ = _loaded_base_moment(arm, packed, scene, ctx, settings)
+    n = p.shape[0]
+    tips, ok = np.empty((n, 2)), np.empty(n, dtype=bool)
+    _planar._batch(np.full(n, m0), np.zeros_like(channel), scene.base_theta, packed.secf,
+                   packed.sec_steps, packed.tubes_i, packed.tubes_f, channel, ctx.loads, ctx.m_tip,
+                   ctx.params, tips, ok, np.empty(n, dtype=bool), np.empty(n))
     return tips, ok
 
 
@@ -581,48 +617,58 @@ def _embed(eq: Equilibrium) -> Equilibrium:
 
 def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
     ctx = _context(arm, packed, scene, 3, settings)
-    n_end, q, m_tip, tol, max_step = ctx.n_end, ctx.q, ctx.m_tip, ctx.tol, ctx.max_step
     rot0 = _spatial.base_rotation(scene.base_theta)
+    quat0 = np.empty(4)
+    _spatial._rot_to_quat(rot0, quat0)
     p_target = p_channel if arm.n_channels else np.zeros(1)
-    common = (rot0, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g, packed.c_i,
-              packed.c_j, packed.sec_ea, packed.sec_ei, packed.tubes_i, packed.tubes_f)
-    numeric = (tol, settings.max_iter, max_step, settings.dt0, settings.dt_min)
+    ns = len(arm.sections)
+    rest, p_now, loads_now, m_tip = (np.empty((3, ns)), np.empty(p_target.shape[0]),
+                                     np.empty((ns, 6)), np.empty(3))
+
     iterations = 0
+    m0 = np.zeros(3)
     if warm_start is not None and warm_start.scene is not None:
-        a_end, a_q, a_mtip = _loads(arm, packed, warm_start.scene, 3)
+        start = _context(arm, packed, warm_start.scene, 3, settings)
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
-        m0 = np.zeros(3)
         m0[-warm_start.base_moment.size:] = warm_start.base_moment
+        start_loads, start_mtip = start.loads, start.m_tip
     else:
-        zeros = np.zeros_like(p_target)
-        m0, ok, its, stab, res, *_ = _spatial._follow(
-            np.zeros(3), *common, zeros, zeros, np.zeros_like(n_end), n_end, np.zeros_like(q), q,
-            np.zeros(3), m_tip, *numeric)
+        # Stage 1: load the unactuated arm (loads ramped from zero, straight rod, m0 = 0).
+        p_start = np.zeros_like(p_target)
+        ok, its, stab, res = _spatial._follow(
+            m0, quat0, packed.secf, packed.sec_steps, packed.c_j, packed.tubes_i, packed.tubes_f,
+            p_start, p_start, np.zeros_like(ctx.loads), ctx.loads, np.zeros(3), ctx.m_tip,
+            ctx.params, rest, p_now, loads_now, m_tip)
         iterations += its
-        a_end, a_q, a_mtip, p_start = n_end, q, m_tip, zeros
-    m0, ok, its, stab, res, u1, u2, v3, n_now, q_now, mt = _spatial._follow(
-        m0, *common, p_start, p_target, a_end, n_end, a_q, q, a_mtip, m_tip, *numeric)
+        start_loads, start_mtip = ctx.loads, ctx.m_tip
+    ok, its, stab, res = _spatial._follow(
+        m0, quat0, packed.secf, packed.sec_steps, packed.c_j, packed.tubes_i, packed.tubes_f,
+        p_start, p_target, start_loads, ctx.loads, start_mtip, ctx.m_tip, ctx.params, rest, p_now,
+        loads_now, m_tip)
     iterations += its
     rows = packed.n_rows if record else 1
     pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
-    y, dmin = _spatial._integrate(m0, rot0, packed.sec_len, packed.sec_steps, packed.c_a,
-                                  packed.c_g, packed.c_i, packed.c_j, u1, u2, v3, n_now, q_now,
-                                  record, pos, rot, mom)
+    work = np.empty((6, _spatial.NSTATE))
+    dmin = _spatial._integrate(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest,
+                               loads_now, record, pos, rot, mom, work)
+    y = work[0]
     res = float(np.linalg.norm(y[7:10] - m_tip))
-    common_out = dict(tip=y[0:3].copy(), converged=bool(ok and res <= 10 * tol),
+    common_out = dict(tip=y[0:3].copy(), converged=bool(ok and res <= 10 * ctx.tol),
                       stable=bool(stab and dmin > 0), iterations=int(iterations), residual=res,
                       model=model, planar=False, scene=scene, pressures=p_inputs,
-                      channel_pressures=p_channel, base_moment=m0.copy())
+                      channel_pressures=p_channel, base_moment=m0.copy(),
+                      base_force=ctx.n_end[0] + ctx.q[0] * packed.sec_len[0])
     if not record:
         return Equilibrium(**common_out)
-    seg = np.repeat(np.arange(len(arm.sections)), packed.sec_steps + 1)
+    seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
+    starts = np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])
     s = np.concatenate([np.linspace(0, L, k + 1) + off for L, k, off in
-                        zip(packed.sec_len, packed.sec_steps,
-                            np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]]))])
-    local = s - np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])[seg]
-    force = n_now[seg] + q_now[seg] * (packed.sec_len[seg] - local)[:, None]
+                        zip(packed.sec_len, packed.sec_steps, starts)])
+    local = s - starts[seg]
+    force = ctx.n_end[seg] + ctx.q[seg] * (packed.sec_len[seg] - local)[:, None]
     nb = np.einsum("nji,nj->ni", rot, force)
     mb = np.einsum("nji,nj->ni", rot, mom)
+    u1, u2, v3 = rest
     strain_v = np.column_stack([nb[:, 0] * packed.c_g[seg], nb[:, 1] * packed.c_g[seg],
                                 v3[seg] + nb[:, 2] * packed.c_a[seg]])
     strain_u = np.column_stack([u1[seg] + mb[:, 0] * packed.c_i[seg],
@@ -640,7 +686,6 @@ def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
     """
     free_scene = replace(scene, obstacles=())
     ctx = _context(arm, packed, free_scene, 2, settings)
-    common, numeric = _planar_inputs(arm, packed, free_scene, ctx, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     g = np.array([0.0, -scene.gravity])
     plate = packed.endplate[:, None] * g[None, :]
@@ -652,24 +697,22 @@ def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
         unknowns = np.append(warm_start.base_force, warm_start.base_moment[-1])
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
     else:
-        m0, iterations, _ = _loaded_base_moment(arm, packed, free_scene, ctx, settings, common,
-                                                numeric)
+        m0, iterations, _ = _loaded_base_moment(arm, packed, free_scene, ctx, settings)
         n0 = ctx.n_end[0] + ctx.q[0] * packed.sec_len[0]
         unknowns = np.array([n0[0], n0[1], m0])
         p_start = np.zeros_like(p_target)
-    ns = len(arm.sections)
-    u1, u2, v3, p_now = np.empty(ns), np.empty(ns), np.empty(ns), np.empty(p_target.shape[0])
+    rest, p_now = np.empty((3, len(arm.sections))), np.empty(p_target.shape[0])
     discs = scene.discs_array()
     ok, its, res, stable = _contact._follow(
-        unknowns, scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a, packed.c_g,
-        packed.c_i, packed.sec_ea, packed.sec_ei, packed.tubes_i, packed.tubes_f, p_start,
-        p_target, ctx.q, plate, target, discs, scale, settings.tol, settings.max_iter, 2.0,
-        settings.dt0, settings.dt_min, u1, u2, v3, p_now)
+        unknowns, scene.base_theta, packed.secf, packed.sec_steps, packed.tubes_i, packed.tubes_f,
+        p_start, p_target, ctx.q, plate, target, discs, scale, settings.tol, settings.max_iter,
+        2.0, settings.dt0, settings.dt_min, rest, p_now)
     # Contact needs the shape for the wrap measures, so the backbone is always integrated;
     # ``record`` only decides whether it is returned.
     out = np.zeros((packed.n_rows, _contact.N_COLUMNS))
     dmin = _contact._record(unknowns, scene.base_theta, packed.sec_len, packed.sec_steps,
-                            packed.c_a, packed.c_g, packed.c_i, u2, v3, ctx.q, plate, discs, out)
+                            packed.c_a, packed.c_g, packed.c_i, rest[1], rest[2], ctx.q, plate,
+                            discs, out)
     C = _contact
     common_out = dict(
         tip=out[-1, [C.C_X, C.C_Y]].copy(), converged=bool(ok), stable=bool(stable and dmin > 0),

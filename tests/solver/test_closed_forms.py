@@ -102,12 +102,12 @@ def test_conjugate_point_test_flags_straight_column():
     rod = designs.rod(length=1.0, EI=1.0, EA=1e10, GA=1e10)
     packed = S._pack(rod, "full", solver.Settings(steps_per_section=100))
     dummy = np.zeros((1, _planar.N_COLUMNS))
+    rest = np.array([[0.0], [0.0], [1.0]])  # no rest curvature, unit stretch
     for load, stable in ((2.3, True), (2.6, False)):  # π²/4 = 2.467
         scene = solver.Scene(base_angle_deg=180, tip_force=(0, -load), gravity=0)
-        n_end, q, mtip = S._loads(rod, packed, scene, 2)
-        out = _planar._newton(0.0, scene.base_theta, packed.sec_len, packed.sec_steps, packed.c_a,
-                              packed.c_g, packed.c_i, np.zeros(1), np.ones(1), n_end, q, mtip,
-                              1e-12, 5, 10.0, dummy)
+        ctx = S._context(rod, packed, scene, 2, solver.Settings(steps_per_section=100))
+        out = _planar._newton(0.0, scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads,
+                              ctx.m_tip, 1e-12, 5, 10.0, dummy)
         m0, ok, its, res, is_stable, bmin, x, y, theta = out
         assert ok and m0 == 0.0
         assert is_stable == stable

@@ -1,0 +1,40 @@
+"""``softarm bench``: speed against accuracy, measured side by side in one run.
+
+Default: the solver (RK4 resolution sweep, warm and cold solves, scipy solve_bvp reference,
+spatial, batch). ``--peer pyelastica`` settles the same OctArm V scenes with PyElastica.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from softarm_gym.cli import UsageError, emit
+
+NAME = "bench"
+HELP = "benchmark solver speed against accuracy (and peers)"
+
+
+def add_arguments(p):
+    p.add_argument("--quick", action="store_true", help="fewer scenes and repeats (smoke run)")
+    p.add_argument("--peer", choices=("pyelastica",), help="also settle the scenes with a peer simulator")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def run(args) -> int:
+    from softarm_gym.benchmarks import solver_bench
+
+    def progress(message):
+        print(f"[bench] {message}", file=sys.stderr, flush=True)
+
+    result = solver_bench.run(quick=args.quick, progress=progress)
+    text = solver_bench.format_table(result)
+    if args.peer == "pyelastica":
+        try:
+            from softarm_gym.benchmarks import pyelastica_peer
+        except ImportError as exc:
+            raise UsageError("--peer pyelastica needs PyElastica "
+                             f"(pip install 'softarm-gym[bench]'): {exc}") from None
+        result["pyelastica"] = pyelastica_peer.compare(progress=progress, quick=args.quick)
+        text += "\n\n" + pyelastica_peer.format_table(result["pyelastica"])
+    emit(result, args.json, text)
+    return 0
