@@ -1,0 +1,1 @@
+"""Benchmarks behind ``softarm bench`` (solver, peers, environments)."""
