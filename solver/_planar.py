@@ -308,6 +308,8 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
         if dt > dt_min:
             dt *= 0.5
             continue
+        if params[N_SCAN] == 0:
+            return m0, False, total, snapped, False, res, x, y, th
         # A fold or bifurcation lies between t and t_new: snap to the nearest stable state.
         root, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params, guess, out)
         total += its

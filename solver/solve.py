@@ -43,7 +43,7 @@ class Settings:
         tol: Newton tolerance on the tip-moment residual, relative to EI_max / L.
         max_iter: Newton iterations per continuation step.
         dt0, dt_min: first and smallest continuation step (fraction of the ramp).
-        n_scan: grid points of the fold scan over the base moment.
+        n_scan: grid points of the fold scan over the base moment (0: no scan).
         shortcuts: skip what a scene does not need (closed-form arcs when unloaded, the
             planar kernel for in-plane spatial solves). False forces the general path; the
             tests use it to check that each shortcut agrees with it.
@@ -61,8 +61,16 @@ class Settings:
         if int(self.steps_per_section) != self.steps_per_section or self.steps_per_section < 1:
             raise ValueError(f"steps_per_section must be an integer >= 1; got {self.steps_per_section}")
         if not (self.tol > 0 and self.max_iter >= 1 and 0 < self.dt_min <= self.dt0 <= 1
-                and self.n_scan >= 4):
+                and (self.n_scan == 0 or self.n_scan >= 4)):
             raise ValueError(f"invalid solver settings: {self}")
+
+    @classmethod
+    def without_fallback(cls, **kwargs) -> Settings:
+        """Plain Newton from the start state: no continuation, no step halving, no fold scan.
+
+        The stress test compares this against the default to show what the fallbacks buy.
+        """
+        return cls(dt0=1.0, dt_min=1.0, n_scan=0, **kwargs)
 
 
 DEFAULT_SETTINGS = Settings()
