@@ -1,6 +1,7 @@
 """Gymnasium environments of multi-section pneumatic soft arms (registered by ``import softarm_gym``).
 
 * :class:`ReachEnv` — ``SoftArm/OctArmReach-v0``, ``SoftArm/CTReach-v0``.
+* :class:`WrapEnv` — ``SoftArm/OctArmWrap-v0``, ``SoftArm/CTWrap-v0``.
 
 All share :class:`SoftArmEnv` (arm, warm-started quasi-static stepping, sensing, estimator,
 observation assembly, rendering); see ``docs/environments.md``.
@@ -9,5 +10,7 @@ observation assembly, rendering); see ``docs/environments.md``.
 from softarm_gym.envs.base import ACTION_MODES, OBSERVATION_FORMATS, SoftArmEnv
 from softarm_gym.envs.randomization import ArmRandomization
 from softarm_gym.envs.reach import ReachEnv
+from softarm_gym.envs.wrap import WrapEnv, arm_half_thickness, wrap_angle
 
-__all__ = ["SoftArmEnv", "ReachEnv", "ArmRandomization", "ACTION_MODES", "OBSERVATION_FORMATS"]
+__all__ = ["SoftArmEnv", "ReachEnv", "WrapEnv", "ArmRandomization", "wrap_angle", "arm_half_thickness",
+           "ACTION_MODES", "OBSERVATION_FORMATS"]

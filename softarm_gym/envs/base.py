@@ -64,16 +64,17 @@ def _sensor_noise(value) -> SensorNoise:
                      f"SensorNoise; got {value!r}")
 
 
-def _payload_range(value) -> tuple[float, float]:
+def _range(name: str, value) -> tuple[float, float]:
+    """A number or a (low, high) pair of finite numbers >= 0, as (low, high)."""
     if isinstance(value, (tuple, list)):
         if len(value) != 2:
-            raise ValueError(f"payload_kg must be a number or a (low, high) pair (kg); got {value!r}")
-        low = _finite_number("payload_kg low", value[0], 0.0)
-        high = _finite_number("payload_kg high", value[1], 0.0)
+            raise ValueError(f"{name} must be a number or a (low, high) pair; got {value!r}")
+        low = _finite_number(f"{name} low", value[0], 0.0)
+        high = _finite_number(f"{name} high", value[1], 0.0)
         if high < low:
-            raise ValueError(f"payload_kg range ({low}, {high}) has high < low")
+            raise ValueError(f"{name} range ({low}, {high}) has high < low")
         return low, high
-    v = _finite_number("payload_kg", value, 0.0)
+    v = _finite_number(name, value, 0.0)
     return v, v
 
 
@@ -120,7 +121,7 @@ class SoftArmEnv(gym.Env):
         self.observation_name = observation
         self.sensor_noise = _sensor_noise(sensor_noise)
         self.base_angle_deg = _finite_number("base_angle_deg", base_angle_deg)
-        self.payload_range = _payload_range(payload_kg)
+        self.payload_range = _range("payload_kg", payload_kg)
         self.randomization = ArmRandomization.coerce(randomization)
         self.randomization.check(self.arm)
         self.action_mode = action_mode
@@ -195,7 +196,13 @@ class SoftArmEnv(gym.Env):
     def _goal_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
-    def _reset_task(self, options: dict | None) -> solver.Scene:
+    def _reset_task(self, options: dict | None, start: solver.Equilibrium
+                    ) -> tuple[solver.Scene, solver.Equilibrium]:
+        """Draw the episode's task given the start state ``start`` in the task-free scene.
+
+        Returns the episode's scene (``self._scene`` or one with obstacles) and the start
+        state in it (converged).
+        """
         raise NotImplementedError
 
     def _fill_goal(self, out: np.ndarray) -> None:
@@ -220,7 +227,6 @@ class SoftArmEnv(gym.Env):
         payload = float(rng.uniform(*self.payload_range)) if self.payload_range[1] > self.payload_range[0] \
             else self.payload_range[0]
         self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, payload_kg=payload)
-        self._scene = self._reset_task(options)
         fraction = self._initial_fraction()
         eq = self._solve(fraction, warm_start=None)
         if not eq.converged:
@@ -229,8 +235,9 @@ class SoftArmEnv(gym.Env):
         if not eq.converged:
             raise RuntimeError(f"the unactuated {self.arm.name} arm has no converged equilibrium in "
                                f"scene {self._scene}: residual {eq.residual:.3g} N m")
-        self._eq = eq
         self._fraction = fraction
+        self._scene, eq = self._reset_task(options, eq)
+        self._eq = eq
         self._failures = 0
         self.estimator.reset()
         self._sense()

@@ -140,7 +140,7 @@ class ReachEnv(SoftArmEnv):
         r = self.reach
         return np.array([-r, -r, -2 * r, -2 * r]), np.array([r, r, 2 * r, 2 * r])
 
-    def _reset_task(self, options):
+    def _reset_task(self, options, start):
         if options and "target" in options:
             target = np.asarray(options["target"], dtype=float)
             if target.shape != (2,) or not np.all(np.isfinite(target)):
@@ -148,7 +148,7 @@ class ReachEnv(SoftArmEnv):
                                  f"got {options['target']!r}")
             self._target = target.copy()
             self.target_pressures_pa = None
-            return self._scene
+            return self._scene, start
         for _ in range(_TARGET_ATTEMPTS):
             fraction = self.np_random.uniform(0.0, 1.0, self.n_inputs)
             eq = solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
@@ -156,7 +156,7 @@ class ReachEnv(SoftArmEnv):
             if eq.converged:
                 self._target = eq.tip.copy()
                 self.target_pressures_pa = eq.pressures.copy()
-                return self._scene
+                return self._scene, start
         raise RuntimeError(f"no converged target in {_TARGET_ATTEMPTS} random pressure draws for "
                            f"{self.arm.name} in {self._scene}")
 

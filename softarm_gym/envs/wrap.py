@@ -1,0 +1,249 @@
+"""Wrap: curl the arm around a rigid disc (``SoftArm/OctArmWrap-v0``, ``SoftArm/CTWrap-v0``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+import solver
+from softarm_gym.envs.base import SoftArmEnv, _finite_number, _range
+
+__all__ = ["WrapEnv", "wrap_angle", "arm_half_thickness"]
+
+_PLACEMENT_ATTEMPTS = 20
+
+
+def arm_half_thickness(arm: solver.designs.ArmDesign) -> float:
+    """Distance from the backbone to the outer surface of the distal section (m).
+
+    The largest ``tube.radius + Ro`` over the tubes that span the last section: the disc the
+    backbone is pressed against is the object grown by this much.
+    """
+    last = len(arm.sections) - 1
+    return max(t.radius + t.material.outer_radius for t in arm.tubes if t.last_section >= last)
+
+
+def wrap_angle(positions: np.ndarray, center, contact_radius: float, margin: float) -> float:
+    """Angular extent of the arm's contact around a disc centre (rad).
+
+    The backbone samples within ``contact_radius + margin`` of the centre are in contact;
+    their polar angles about the centre, taken in arc-length order and unwrapped, span the
+    wrap angle (max − min). A spiral that passes a point twice counts beyond 2π.
+
+    Args:
+        positions: (N, 2) backbone samples, base to tip (m).
+        center: (2,) disc centre (m).
+        contact_radius: disc radius for the backbone curve (m).
+        margin: gap still counted as contact (m).
+
+    Returns:
+        The wrap angle (rad), 0 with fewer than two contact samples.
+    """
+    rel = positions - np.asarray(center, dtype=float)
+    near = np.hypot(rel[:, 0], rel[:, 1]) <= contact_radius + margin
+    if np.count_nonzero(near) < 2:
+        return 0.0
+    phi = np.unwrap(np.arctan2(rel[near, 1], rel[near, 0]))
+    return float(phi.max() - phi.min())
+
+
+class WrapEnv(SoftArmEnv):
+    """Wrap a multi-section pneumatic soft arm around a rigid disc (planar, quasi-static, contact).
+
+    ## Description
+
+    The arm of :class:`~softarm_gym.envs.reach.ReachEnv` (same designs, mounting, sensing,
+    estimators, action and stepping) with a rigid disc — the cross-section of an object to
+    grasp — in the plane. Contact is the solver's penalty contact (``solver.Disc``): the
+    backbone is pushed out of a disc of radius ``object_radius + h`` (h the distal section's
+    half-thickness, :func:`arm_half_thickness`) with ``contact_stiffness`` N/m² per metre of
+    penetration. The task is the thesis's grasp by wrapping (§3.1, Fig. 3.2).
+
+    ## Action Space
+
+    As ReachEnv: ``Box(-1, 1, (n_inputs,), float32)`` normalised channel pressures,
+    p = (a + 1)/2 · p_max (``absolute``) or increments of ``delta_scale`` · p_max (``delta``);
+    p_max OctArm V 100 psi, OctArm VI 90 psi, CT 70 psi. Out-of-range values are clipped; NaN or
+    inf raises ``ValueError`` naming the channel.
+
+    ## Observation Space
+
+    The ReachEnv blocks ``tip`` (2, m), ``section_ends`` (4·n_sections: x, y, cos θ, sin θ),
+    ``backbone`` (2·n_backbone, m), ``pressures`` (n_inputs, 2p/p_max − 1), then ``goal`` (3):
+    the disc centre (x, y) and its contact radius object_radius + h (m). Flat ``Box`` or
+    ``Dict`` (``observation_format``).
+
+    ## Rewards
+
+    ``reward = reward_wrap + reward_approach + reward_penetration + reward_control +
+    reward_success + reward_solver`` (each in ``info``), from the true equilibrium:
+    ``reward_wrap = wrap_weight · min(wrap, 2π)/2π`` with ``wrap`` the wrap angle — the angular
+    extent, about the disc centre, of the backbone within ``contact_margin`` of the contact
+    circle (:func:`wrap_angle`); ``reward_approach = −approach_weight · gap``, gap the
+    smallest distance from the backbone to the contact circle (m, 0 when touching);
+    ``reward_penetration = −penetration_weight · max penetration / penetration_tolerance``;
+    ``reward_control = −control_weight · mean((p/p_max)²)``; ``reward_success =
+    success_bonus`` on success; ``reward_solver = −solver_failure_penalty`` on an unconverged step.
+    Success: wrap ≥ ``success_wrap_deg`` (default 270°) with the deepest penetration below
+    ``penetration_tolerance`` (default 5 mm).
+
+    ## Starting State
+
+    Per episode: the simulated arm, payload and start pressures as ReachEnv; an object radius
+    uniform in ``object_radius``; a side (clockwise or counter-clockwise curl) at random; the
+    disc is then placed within reach — tangent to the start backbone, ``placement_gap`` away
+    from it on the chosen side, where the remaining reference length is
+    ``placement_wrap_deg``/360 · 2π(object_radius + h) (clamped to the arm), so the distal
+    part of the arm can curl around it. Placements overlapping the start backbone are redrawn.
+    ``options={"object": (x, y, object_radius)}`` fixes the object.
+
+    ## Episode End
+
+    Truncated at ``max_episode_steps`` (registered default 200) or after
+    ``max_solver_failures`` consecutive unconverged steps (the last converged state is kept,
+    ``info["converged"] = False``). Terminated on success only with ``terminate_on_success=True``.
+
+    ## Arguments
+
+    All ReachEnv arguments except the reach-reward ones (``design``, ``planar``,
+    ``observation``, ``sensor_noise``, ``base_angle_deg``, ``payload_kg``, ``randomization``,
+    ``action_mode``, ``delta_scale``, ``n_backbone``, ``observation_format``,
+    ``initial_pressure_fraction``, ``solver_failure_penalty``, ``max_solver_failures``,
+    ``model``, ``render_mode``, ``render_size``), plus: ``object_radius`` (a number or
+    ``(low, high)`` range, m; default (0.10, 0.14)), ``contact_stiffness`` (2e4 N/m²),
+    ``contact_margin`` (5 mm), ``placement_gap`` (1 cm), ``placement_wrap_deg`` (300),
+    ``wrap_weight`` (1), ``approach_weight`` (1), ``penetration_weight`` (0.1),
+    ``penetration_tolerance`` (5 mm), ``control_weight`` (0.01), ``success_bonus`` (1),
+    ``success_wrap_deg`` (270; ``SoftArm/CTWrap-v0`` registers 150, see the docs),
+    ``terminate_on_success`` (False).
+
+    ## Info
+
+    ReachEnv's solver/sensor keys (``tip_true``, ``tip_estimated``, ``estimation_error``,
+    ``sensors``, ``converged``, ``solver``, ``solver_failures``, ``pressures_pa``,
+    ``payload_kg``, ``is_success``), plus ``wrap_angle_deg``, ``penetration`` (m, deepest),
+    ``gap`` (m), ``object_center``, ``object_radius``, ``contact_radius`` and the ``reward_*`` terms.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    goal_size = 3
+
+    def __init__(self, design="octarm_v", *, object_radius=(0.09, 0.11),
+                 contact_stiffness: float = 1.0e5, contact_margin: float = 0.005, placement_gap: float = 0.01,
+                 placement_wrap_deg: float = 300.0, wrap_weight: float = 1.0,
+                 approach_weight: float = 1.0, penetration_weight: float = 0.1,
+                 penetration_tolerance: float = 0.005, control_weight: float = 0.01,
+                 success_bonus: float = 1.0, success_wrap_deg: float = 270.0,
+                 terminate_on_success: bool = False, **kwargs):
+        self.object_radius_range = _range("object_radius", object_radius)
+        if self.object_radius_range[0] <= 0:
+            raise ValueError(f"object_radius must be > 0 (m); got {object_radius!r}")
+        self.contact_stiffness = _finite_number("contact_stiffness", contact_stiffness, 0.0)
+        if self.contact_stiffness <= 0:
+            raise ValueError(f"contact_stiffness must be > 0 (N/m²); got {contact_stiffness}")
+        self.contact_margin = _finite_number("contact_margin", contact_margin, 0.0)
+        self.placement_gap = _finite_number("placement_gap", placement_gap, 0.0)
+        self.placement_wrap_deg = _finite_number("placement_wrap_deg", placement_wrap_deg, 0.0)
+        self.wrap_weight = _finite_number("wrap_weight", wrap_weight, 0.0)
+        self.approach_weight = _finite_number("approach_weight", approach_weight, 0.0)
+        self.penetration_weight = _finite_number("penetration_weight", penetration_weight, 0.0)
+        self.penetration_tolerance = _finite_number("penetration_tolerance", penetration_tolerance, 0.0)
+        if self.penetration_tolerance <= 0:
+            raise ValueError(f"penetration_tolerance must be > 0 (m); got {penetration_tolerance}")
+        self.control_weight = _finite_number("control_weight", control_weight, 0.0)
+        self.success_bonus = _finite_number("success_bonus", success_bonus, 0.0)
+        self.success_wrap_deg = _finite_number("success_wrap_deg", success_wrap_deg, 0.0)
+        self.terminate_on_success = bool(terminate_on_success)
+        self._center = np.zeros(2)
+        self._object_radius = self.object_radius_range[0]
+        self._contact_radius = self.object_radius_range[0]
+        self.touch_arc_length = None
+        kwargs.setdefault("base_angle_deg", 0.0)
+        super().__init__(design, **kwargs)
+        self.half_thickness = arm_half_thickness(self.arm)
+
+    def _goal_bounds(self):
+        r = self.reach
+        return np.array([-r, -r, 0.0]), np.array([r, r, r])
+
+    def _reset_task(self, options, start):
+        if options and "object" in options:
+            obj = np.asarray(options["object"], dtype=float)
+            if obj.shape != (3,) or not np.all(np.isfinite(obj)) or obj[2] <= 0:
+                raise ValueError("options['object'] must be (x, y, object_radius) in m with radius > 0; "
+                                 f"got {options['object']!r}")
+            self.touch_arc_length = None
+            placed = self._place(obj[:2], float(obj[2]), start)
+            if placed is None:
+                raise RuntimeError(f"the start state has no converged equilibrium with the object "
+                                   f"{tuple(obj)} of options['object']")
+            return placed
+        rng = self.np_random
+        positions, angles, s = start.positions, start.angles, start.s
+        for _ in range(_PLACEMENT_ATTEMPTS):
+            radius = float(rng.uniform(*self.object_radius_range))
+            contact = radius + self.half_thickness
+            side = 1.0 if rng.uniform() < 0.5 else -1.0
+            k = int(np.searchsorted(s, max(s[-1] - math.radians(self.placement_wrap_deg) * contact, 0.0)))
+            normal = side * np.array([-math.sin(angles[k]), math.cos(angles[k])])
+            center = positions[k] + (contact + self.placement_gap) * normal
+            clearance = np.hypot(*(positions - center).T).min() - contact
+            if clearance >= 0.5 * self.placement_gap and np.all(np.abs(center) <= self.reach):
+                placed = self._place(center, radius, start)
+                if placed is not None:
+                    self.touch_arc_length = float(s[k])
+                    return placed
+        raise RuntimeError(f"no disc placement for {self.arm.name} clear of the start backbone in "
+                           f"{_PLACEMENT_ATTEMPTS} draws (object_radius {self.object_radius_range} m)")
+
+    def _place(self, center, radius: float, start: solver.Equilibrium):
+        """The scene with the disc and the start state in it, or None if that does not converge."""
+        contact = radius + self.half_thickness
+        disc = solver.Disc(center=(float(center[0]), float(center[1])), radius=contact,
+                           stiffness=self.contact_stiffness)
+        scene = solver.Scene(base_angle_deg=self._scene.base_angle_deg, payload_kg=self._scene.payload_kg,
+                             obstacles=(disc,))
+        eq = solver.solve(self._sim_arm, start.pressures, scene, model=self.model, planar=True)
+        if not eq.converged:
+            return None
+        self._center = np.array(disc.center)
+        self._object_radius = radius
+        self._contact_radius = contact
+        return scene, eq
+
+    def _fill_goal(self, out):
+        out[:2] = self._center
+        out[2] = self._contact_radius
+
+    def _task_reward(self, eq):
+        wrap = wrap_angle(eq.positions, self._center, self._contact_radius, self.contact_margin)
+        penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
+        rel = eq.positions - self._center
+        gap = max(float(np.hypot(rel[:, 0], rel[:, 1]).min()) - self._contact_radius, 0.0)
+        wrap_deg = math.degrees(wrap)
+        success = wrap_deg >= self.success_wrap_deg and penetration <= self.penetration_tolerance
+        terms = {
+            "reward_wrap": self.wrap_weight * min(wrap, 2.0 * math.pi) / (2.0 * math.pi),
+            "reward_approach": -self.approach_weight * gap,
+            "reward_penetration": -self.penetration_weight * penetration / self.penetration_tolerance,
+            "reward_control": -self.control_weight * float(np.mean(self._fraction ** 2)),
+            "reward_success": self.success_bonus if success else 0.0,
+        }
+        info = {"wrap_angle_deg": wrap_deg, "penetration": penetration, "gap": gap,
+                "object_center": self._center.copy(), "object_radius": self._object_radius,
+                "contact_radius": self._contact_radius}
+        return terms, success, info
+
+    def _terminated(self, success):
+        return self.terminate_on_success and success
+
+    def _task_artists(self):
+        return {"disc": (self._center, self._object_radius)}
+
+    def _caption(self):
+        wrap = wrap_angle(self._eq.positions, self._center, self._contact_radius, self.contact_margin)
+        return super()._caption() + f"\nwrap {math.degrees(wrap):.0f} deg"
