@@ -71,6 +71,7 @@ class Candidate:
         mass_kg: arm mass including fluid (kg).
         internal_volume_l: fluid volume of all tubes (litres).
         load_n: load capacity W (N); negative: cannot lift itself to horizontal.
+        tip_x_m: horizontal tip position under W (m); < 0: the tip ends behind the base.
         fold_limited, converged: see :class:`~.capacity.LoadCapacity`.
         reason: why the layout is infeasible ("" if feasible).
     """
@@ -85,6 +86,7 @@ class Candidate:
     mass_kg: float = math.nan
     internal_volume_l: float = math.nan
     load_n: float = math.nan
+    tip_x_m: float = math.nan
     fold_limited: bool = False
     converged: bool = False
     reason: str = ""
@@ -226,7 +228,8 @@ def evaluate(params: FluidDesign, constraint: str, tubes, size: float, *,
         tubes=tubes, size=float(size), feasible=True, length_m=tpl.length,
         section_lengths_m=tuple(float(v) for v in tpl.section_lengths), thickness_m=tpl.thickness,
         outer_radius_m=ro, mass_kg=arm.mass, internal_volume_l=tpl.internal_volume * 1e3,
-        load_n=cap.load_n, fold_limited=cap.fold_limited, converged=cap.converged)
+        load_n=cap.load_n, tip_x_m=float(cap.tip_at_capacity[0]), fold_limited=cap.fold_limited,
+        converged=cap.converged)
 
 
 def sweep(fluid: str, constraint: str, n_sections: int, sizes=None, *, tapered: bool = False,

@@ -19,20 +19,22 @@ def _arm(params, tubes, length, constraint="tube-ratio"):
     return dt.build_arm(params, tubes, tpl.section_lengths, tpl.thickness, ro)
 
 
-def _ramp_crossing(arm, pressure, step):
-    """First load at which the tip of the pressurised arm drops below y = 0 (linear interp.)."""
+def _tip_after_pressurising(arm, pressure, load, steps=200):
+    """Tip of the loaded arm after a fixed fine ramp of the lifting pressures from 0."""
     p = dt.lifting_pressures(arm, pressure)
-    scene = solver.Scene(base_angle_deg=90.0)
+    scene = solver.Scene(base_angle_deg=90.0, tip_force=(0.0, -load))
     eq = solver.solve(arm, np.zeros_like(p), scene, record=False)
-    for fraction in np.linspace(0.05, 1.0, 20):
+    for fraction in np.linspace(1.0 / steps, 1.0, steps):
         eq = solver.solve(arm, fraction * p, scene, record=False, warm_start=eq)
-    load, y = 0.0, eq.tip[1]
-    while True:
-        nxt = solver.solve(arm, p, solver.Scene(base_angle_deg=90.0, tip_force=(0.0, -(load + step))),
-                           record=False, warm_start=eq)
-        if nxt.tip[1] < 0:
-            return load + step * y / (y - nxt.tip[1])
-        load, y, eq = load + step, nxt.tip[1], nxt
+    return eq.tip
+
+
+def _scan_crossing(arm, pressure, loads):
+    """Linear interpolation of the first sign change of tip y over a load grid."""
+    heights = [_tip_after_pressurising(arm, pressure, w)[1] for w in loads]
+    k = next(i for i in range(1, len(loads)) if heights[i] < 0 <= heights[i - 1])
+    w0, w1, y0, y1 = loads[k - 1], loads[k], heights[k - 1], heights[k]
+    return w0 + (w1 - w0) * y0 / (y0 - y1)
 
 
 def test_lifting_pressures_drive_channels_two_and_three():
@@ -50,16 +52,35 @@ def test_lifting_pressures_need_an_octarm_layout():
         dt.lifting_pressures(solver.designs.ct(), 1.0)
 
 
-def test_capacity_matches_a_fine_load_ramp():
+def test_capacity_matches_a_fixed_step_scan():
     arm = _arm(P, (12, 6), 0.8)
     cap = dt.load_capacity(arm, P.test_pressure, tol_n=1e-4)
     assert cap.converged and not cap.fold_limited and cap.self_supporting
-    reference = _ramp_crossing(arm, P.test_pressure, step=0.25)
-    # Linear interpolation over a 0.25 N step of a smooth curve: well inside 0.05 N.
-    assert cap.load_n == pytest.approx(reference, abs=0.05)
-    at_w = solver.solve(arm, dt.lifting_pressures(arm, P.test_pressure),
-                        solver.Scene(base_angle_deg=90.0, tip_force=(0.0, -cap.load_n)), record=False)
-    assert abs(at_w.tip[1]) < 1e-3 * arm.length
+    assert cap.tip_at_capacity[1] == pytest.approx(0.0, abs=1e-4 * arm.length)
+    assert cap.tip_at_capacity[0] > 0  # held in front of the base, as in Fig. 3.1
+    coarse = _scan_crossing(arm, P.test_pressure, np.arange(0.0, 60.0, 2.0))
+    start = np.floor(coarse) - 1.0
+    fine = _scan_crossing(arm, P.test_pressure, np.arange(start, start + 3.0, 0.25))
+    # Linear interpolation over a 0.25 N step of a smooth curve: well inside 0.02 N.
+    assert cap.load_n == pytest.approx(fine, abs=0.02)
+
+
+def test_loading_a_curled_arm_after_pressurising_rolls_it_up():
+    """Why W loads first and pressurises after: the other order rolls a curled arm up.
+
+    Pressurised first, this arm's tip points backwards (tip angle > 90°); a load hung on
+    it then curls it further and the tip ends behind the base. Loaded first and then
+    pressurised, the same load is held in front of the base.
+    """
+    arm = _arm(P, (12, 6, 3), 0.8)
+    cap = dt.load_capacity(arm, P.test_pressure)
+    p = dt.lifting_pressures(arm, P.test_pressure)
+    eq = solver.solve(arm, p, solver.Scene(base_angle_deg=90.0))
+    assert eq.tip_angle > math.pi / 2
+    for load in np.linspace(0.5, cap.load_n, 200):
+        eq = solver.solve(arm, p, solver.Scene(base_angle_deg=90.0, tip_force=(0.0, -load)),
+                          warm_start=eq)
+    assert eq.tip[0] < 0 < cap.tip_at_capacity[0]
 
 
 def test_payload_equivalent_and_tip_height_sign():
