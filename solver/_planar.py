@@ -40,8 +40,8 @@ LEN, CA, CG, CI, EA, EI = range(6)
 # Columns of the loads array (ns, 4): internal force just proximal of each section end
 # (n_end x, y; N) and distributed load per reference length (q x, y; N/m).
 # Entries of the numeric parameter array ``params``.
-TOL, MAX_STEP, M_BOUND, DT0, DT_MIN, MAX_ITER, N_SCAN = range(7)
-N_PARAMS = 7
+TOL, MAX_STEP, M_BOUND, DT0, DT_MIN, MAX_ITER, N_SCAN, JUMP = range(8)
+N_PARAMS = 8
 
 
 @njit
@@ -257,6 +257,20 @@ def _scan(theta0, secf, steps, rest, loads, m_tip, params, guess, out):
 
 
 @njit
+def _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+             mtip_b, rest, p_now, loads_now, out):
+    """dm0/dt = −(∂r/∂t)/(∂r/∂m0) at t = 0, ∂r/∂t by a forward difference of size ``eps``."""
+    mt0 = _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    th0, m_a, b_a, x0, y0, bm0 = _integrate(m0, theta0, secf, steps, rest, loads_now, False, out)
+    mt1 = _level(eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    th1, m_b, b_b, x1, y1, bm1 = _integrate(m0, theta0, secf, steps, rest, loads_now, False, out)
+    slope = -((m_b - mt1) - (m_a - mt0)) / eps / b_a if b_a != 0.0 else 0.0
+    return slope if math.isfinite(slope) else 0.0
+
+
+@njit
 def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
             mtip_b, params, rest, p_now, loads_now, out):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
@@ -281,24 +295,52 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
     dt_min = params[DT_MIN]
     t = 0.0
     dt = dt0
-    slope = 0.0
     total = 0
     snapped = False
     stable = True
     ok = True
     res = 0.0
     x = y = th = math.nan
-    jump = 0.5 * max_step
+    # Tangent predictor for the first step (the later steps use the secant through accepted
+    # points).
+    # Small warm steps (env steps) are accepted from the previous state directly, so the two
+    # extra passes are spent only on large changes (cold ramps, big jumps, new loads).
+    big = mtip_a != mtip_b
+    scale = 0.0
+    for c in range(p_a.shape[0]):
+        scale = max(scale, abs(p_a[c]), abs(p_b[c]))
+    for c in range(p_a.shape[0]):
+        big = big or abs(p_b[c] - p_a[c]) > 0.05 * scale
+    for i in range(loads_a.shape[0]):
+        for d in range(4):
+            big = big or loads_a[i, d] != loads_b[i, d]
+    slope = 0.0
+    eps = 1e-6
+    if big:
+        slope = _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
+                         loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out)
+        total += 2
     while t < 1.0:
         t_new = min(1.0, t + dt)
         m_tip = _level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
         _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
         guess = m0 + slope * (t_new - t)
-        root, ok, its, res, stab, bm, x, y, th = _newton(guess, theta0, secf, steps, rest,
-                                                         loads_now, m_tip, tol, max_iter,
-                                                         max_step, out)
+        # Intermediate points only seed the next prediction: a looser tolerance and a short
+        # iteration budget (a step that needs more is rejected anyway) keep ramps cheap.
+        final = t_new >= 1.0
+        root, ok, its, res, stab, bm, x, y, th = _newton(
+            guess, theta0, secf, steps, rest, loads_now, m_tip, tol if final else 1e3 * tol,
+            max_iter if final else min(max_iter, 6), max_step, out)
         total += its
+        # A continuous branch: the corrector moves the iterate little compared with the step
+        # just predicted (``JUMP`` is an absolute floor, a fraction of EI/L). A larger jump
+        # means Newton left the branch: retry with a smaller step.
+        jump = params[JUMP] + 0.5 * abs(guess - m0)
         if ok and stab and (abs(root - guess) <= jump or dt <= dt_min):
+            if abs(root - guess) > jump:
+                # Converged far from the prediction at the smallest step: the branch ended
+                # (a fold) and Newton fell onto another stable one — a snap.
+                snapped = True
             slope = (root - m0) / (t_new - t)
             m0 = root
             t = t_new

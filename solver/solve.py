@@ -457,9 +457,9 @@ def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
         max_step = 2.0 * packed.moment_scale * grow
         params = np.empty(_planar.N_PARAMS)
         params[[_planar.TOL, _planar.MAX_STEP, _planar.M_BOUND, _planar.DT0, _planar.DT_MIN,
-                _planar.MAX_ITER, _planar.N_SCAN]] = (
+                _planar.MAX_ITER, _planar.N_SCAN, _planar.JUMP]] = (
             tol, max_step, _moment_bound(arm, packed, scene, n_end, q), settings.dt0,
-            settings.dt_min, settings.max_iter, settings.n_scan)
+            settings.dt_min, settings.max_iter, settings.n_scan, 0.25 * packed.moment_scale)
         ctx = _SceneContext(n_end=n_end, q=q, loads=np.ascontiguousarray(np.hstack([n_end, q])),
                             m_tip=m_tip, tol=tol,
                             max_step=max_step, params=params, has_load=_has_load(arm, scene))
