@@ -1,0 +1,109 @@
+"""Environment benchmark: steps per second per registered ID and observation mode.
+
+Each case is timed as a user runs it: ``gym.make(env_id, observation=...)`` with random
+(seeded) actions, resets included whenever an episode ends, after a warm-up that loads
+the numba kernels. ``single`` is one env in this process; ``vector`` an
+``AsyncVectorEnv`` with one worker per core (steps counted over all workers).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import softarm_gym  # noqa: F401  (registers the IDs)
+from softarm_gym.sensing import ESTIMATORS
+
+TARGETS = {"reach_true": 5000.0, "estimator": 1000.0, "wrap": 500.0}
+"""Issue targets (steps/s): OctArmReach with ``true`` observations, any estimator, wrap."""
+
+QUICK_OBSERVATIONS = ("true", "constant_curvature")
+
+
+def env_ids() -> tuple[str, ...]:
+    """Registered soft-arm environment IDs."""
+    return tuple(env_id for env_id in gym.registry if env_id.startswith("SoftArm/"))
+
+
+def target_for(env_id: str, observation: str) -> float:
+    """The issue's steps/s target for a case."""
+    if "Wrap" in env_id:
+        return TARGETS["wrap"]
+    return TARGETS["reach_true"] if observation == "true" and "OctArm" in env_id else TARGETS["estimator"]
+
+
+def _time_steps(env, n_steps: int, seed: int) -> float:
+    """Steps per second of ``env`` (single or vector) over ``n_steps`` random steps."""
+    rng = np.random.default_rng(seed)
+    space = env.single_action_space if hasattr(env, "single_action_space") else env.action_space
+    n_envs = getattr(env, "num_envs", 1)
+    shape = (n_envs, *space.shape) if n_envs > 1 else space.shape
+    actions = rng.uniform(-1.0, 1.0, (n_steps, *shape)).astype(np.float32)
+    env.reset(seed=seed)
+    start = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if n_envs == 1 and (terminated or truncated):
+            env.reset()
+    return n_steps * n_envs / (time.perf_counter() - start)
+
+
+def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = None,
+        observations=None, ids=None, progress=None) -> dict:
+    """Time every (ID, observation) case, single and vectorised.
+
+    Args:
+        quick: fewer steps and only the ``true`` and ``constant_curvature`` observations.
+        n_steps: timed steps per case (default 300, quick 60).
+        n_envs: workers of the vectorised case (default: the CPU count, at least 2).
+        observations: observation modes to time (default all, or the quick set).
+        ids: environment IDs to time (default all registered).
+        progress: optional callable taking a status string.
+
+    Returns:
+        ``{"cases": [{"env_id", "observation", "single_steps_per_s", "vector_steps_per_s",
+        "n_envs", "target_steps_per_s"}], "n_steps": ..., "n_envs": ...}``.
+    """
+    n_steps = n_steps or (60 if quick else 300)
+    if n_steps < 1:
+        raise ValueError(f"n_steps must be >= 1; got {n_steps}")
+    n_envs = n_envs or max(2, os.cpu_count() or 2)
+    observations = tuple(observations or (QUICK_OBSERVATIONS if quick else ESTIMATORS))
+    ids = tuple(ids or env_ids())
+    for obs in observations:
+        if obs not in ESTIMATORS:
+            raise ValueError(f"unknown observation {obs!r}; choose from {', '.join(ESTIMATORS)}")
+    cases = []
+    for env_id in ids:
+        for obs in observations:
+            if progress:
+                progress(f"{env_id} observation={obs}")
+            env = gym.make(env_id, observation=obs)
+            _time_steps(env, min(20, n_steps), seed=1)  # warm-up: load kernels, first resets
+            single = _time_steps(env, n_steps, seed=0)
+            env.close()
+            vec = gym.vector.AsyncVectorEnv([lambda i=env_id, o=obs: gym.make(i, observation=o)] * n_envs)
+            try:
+                _time_steps(vec, min(10, n_steps), seed=1)
+                vector = _time_steps(vec, max(1, n_steps // n_envs), seed=0)
+            finally:
+                vec.close()
+            cases.append({"env_id": env_id, "observation": obs, "single_steps_per_s": single,
+                          "vector_steps_per_s": vector, "n_envs": n_envs,
+                          "target_steps_per_s": target_for(env_id, obs)})
+    return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs}
+
+
+def format_table(result: dict) -> str:
+    """The benchmark as a text table."""
+    lines = [f"{'environment':24s} {'observation':20s} {'single/s':>9s} "
+             f"{'vector/s':>9s} {'target/s':>9s}  (vector: {result['n_envs']} async workers, "
+             f"{result['n_steps']} steps per case)"]
+    for c in result["cases"]:
+        met = "ok" if c["single_steps_per_s"] >= c["target_steps_per_s"] else "below"
+        lines.append(f"{c['env_id']:24s} {c['observation']:20s} {c['single_steps_per_s']:9.0f} "
+                     f"{c['vector_steps_per_s']:9.0f} {c['target_steps_per_s']:9.0f}  {met}")
+    return "\n".join(lines)
