@@ -90,7 +90,7 @@ class SoftArmEnv(gym.Env):
     goal_names: tuple[str, ...] = ()
 
     def __init__(self, design="octarm_v", planar: bool = True, observation: str = "true",
-                 sensor_noise="off", base_angle_deg: float = 90.0, payload_kg=0.0,
+                 sensor_noise="off", base_angle_deg: float = 90.0, payload_kg=0.0, gravity: float = 9.81,
                  randomization=None, action_mode: str = "absolute", delta_scale: float = 0.1,
                  n_backbone: int = 8, observation_format: str = "flat",
                  initial_pressure_fraction: float = 0.1, solver_failure_penalty: float = 1.0,
@@ -122,6 +122,7 @@ class SoftArmEnv(gym.Env):
         self.sensor_noise = _sensor_noise(sensor_noise)
         self.base_angle_deg = _finite_number("base_angle_deg", base_angle_deg)
         self.payload_range = _range("payload_kg", payload_kg)
+        self.gravity = _finite_number("gravity", gravity, 0.0)
         self.randomization = ArmRandomization.coerce(randomization)
         self.randomization.check(self.arm)
         self.action_mode = action_mode
@@ -147,7 +148,8 @@ class SoftArmEnv(gym.Env):
         self.n_sections = len(self.arm.sections)
         self.reach = 2.0 * self.arm.length
         self.estimator = make_estimator(observation, self.arm, planar=True,
-                                        scene=solver.Scene(base_angle_deg=self.base_angle_deg),
+                                        scene=solver.Scene(base_angle_deg=self.base_angle_deg,
+                                                           gravity=self.gravity),
                                         n_samples=self.n_backbone)
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(self.n_inputs,), dtype=np.float32)
@@ -167,7 +169,7 @@ class SoftArmEnv(gym.Env):
                 name: spaces.Box(low[sl], high[sl], dtype=np.float32) for name, sl in self._slices.items()})
         self._obs = np.zeros(low.size)
         self._sim_arm = self.arm
-        self._scene = solver.Scene(base_angle_deg=self.base_angle_deg)
+        self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, gravity=self.gravity)
         self._eq = None
         self._fraction = np.zeros(self.n_inputs)
         self._failures = 0
@@ -226,7 +228,8 @@ class SoftArmEnv(gym.Env):
         self._sim_arm = self.randomization.sample(self.arm, rng)
         payload = float(rng.uniform(*self.payload_range)) if self.payload_range[1] > self.payload_range[0] \
             else self.payload_range[0]
-        self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, payload_kg=payload)
+        self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, payload_kg=payload,
+                                   gravity=self.gravity)
         fraction = self._initial_fraction()
         eq = self._solve(fraction, warm_start=None)
         if not eq.converged:

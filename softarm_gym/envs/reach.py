@@ -92,6 +92,7 @@ class ReachEnv(SoftArmEnv):
     * ``sensor_noise`` (``"off"``): ``"off"``, ``"thesis"`` (Table 4.3 resolutions), a dict of
       ``SensorNoise`` fields or a ``SensorNoise``.
     * ``base_angle_deg`` (90): base orientation from the downward vertical (deg).
+    * ``gravity`` (9.81 m/s²; 0 switches self-weight and payload weight off).
     * ``payload_kg`` (0): tip payload (kg), a number or a ``(low, high)`` range drawn per
       episode; unknown to the ``model`` estimator.
     * ``randomization`` (None): ``{"wind_angle_deg": 2.0, "youngs_modulus_rel": 0.1}`` draws

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -107,15 +108,16 @@ class WrapEnv(SoftArmEnv):
     ## Arguments
 
     All ReachEnv arguments except the reach-reward ones (``design``, ``planar``,
-    ``observation``, ``sensor_noise``, ``base_angle_deg``, ``payload_kg``, ``randomization``,
+    ``observation``, ``sensor_noise``, ``base_angle_deg`` (default 0 here: hanging), ``payload_kg``,
+    ``gravity``, ``randomization``,
     ``action_mode``, ``delta_scale``, ``n_backbone``, ``observation_format``,
     ``initial_pressure_fraction``, ``solver_failure_penalty``, ``max_solver_failures``,
     ``model``, ``render_mode``, ``render_size``), plus: ``object_radius`` (a number or
-    ``(low, high)`` range, m; default (0.10, 0.14)), ``contact_stiffness`` (2e4 N/m²),
+    ``(low, high)`` range, m; default (0.09, 0.11)), ``contact_stiffness`` (1e5 N/m²),
     ``contact_margin`` (5 mm), ``placement_gap`` (1 cm), ``placement_wrap_deg`` (300),
     ``wrap_weight`` (1), ``approach_weight`` (1), ``penetration_weight`` (0.1),
     ``penetration_tolerance`` (5 mm), ``control_weight`` (0.01), ``success_bonus`` (1),
-    ``success_wrap_deg`` (270; ``SoftArm/CTWrap-v0`` registers 150, see the docs),
+    ``success_wrap_deg`` (270; ``SoftArm/CTWrap-v0`` registers 90, see the docs),
     ``terminate_on_success`` (False).
 
     ## Info
@@ -205,8 +207,7 @@ class WrapEnv(SoftArmEnv):
         contact = radius + self.half_thickness
         disc = solver.Disc(center=(float(center[0]), float(center[1])), radius=contact,
                            stiffness=self.contact_stiffness)
-        scene = solver.Scene(base_angle_deg=self._scene.base_angle_deg, payload_kg=self._scene.payload_kg,
-                             obstacles=(disc,))
+        scene = replace(self._scene, obstacles=(disc,))
         eq = solver.solve(self._sim_arm, start.pressures, scene, model=self.model, planar=True)
         if not eq.converged:
             return None

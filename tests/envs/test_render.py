@@ -5,11 +5,7 @@ import pytest
 
 from softarm_gym.envs import ReachEnv
 from softarm_gym.render import ESTIMATE_COLOUR, TARGET_COLOUR, TRUE_COLOUR, ArmRenderer
-
-
-def _has_colour(frame, hex_colour, tol=30):
-    rgb = np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)])
-    return bool(np.any(np.all(np.abs(frame.astype(int) - rgb) < tol, axis=2)))
+from tests.envs.frames import has_colour
 
 
 def test_rgb_array_frame_shows_truth_estimate_and_target():
@@ -19,8 +15,8 @@ def test_rgb_array_frame_shows_truth_estimate_and_target():
     env.step(np.array([0.5, -1, 0.5, -1, 0.5, -1]))
     frame = env.render()
     assert frame.shape == (200, 200, 3) and frame.dtype == np.uint8
-    assert _has_colour(frame, TRUE_COLOUR) and _has_colour(frame, ESTIMATE_COLOUR)
-    assert _has_colour(frame, TARGET_COLOUR)
+    assert has_colour(frame, TRUE_COLOUR) and has_colour(frame, ESTIMATE_COLOUR)
+    assert has_colour(frame, TARGET_COLOUR)
     second = env.render()
     np.testing.assert_array_equal(frame, second)
     env.step(np.ones(6))

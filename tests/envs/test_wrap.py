@@ -1,0 +1,116 @@
+"""Wrap task: the wrap-angle measure, disc placement, contact, rewards."""
+
+import math
+
+import numpy as np
+import pytest
+
+import solver
+from softarm_gym.envs import WrapEnv, arm_half_thickness, wrap_angle
+from softarm_gym.render import OBJECT_COLOUR
+from tests.envs.frames import has_colour
+
+
+def _arc(center, radius, start, stop, n=200):
+    phi = np.linspace(start, stop, n)
+    return np.column_stack([center[0] + radius * np.cos(phi), center[1] + radius * np.sin(phi)])
+
+
+@pytest.mark.parametrize("extent_deg", [30.0, 180.0, 270.0, 359.0, 420.0])
+def test_wrap_angle_of_an_arc_is_its_extent(extent_deg):
+    pts = _arc((0.3, -0.2), 0.1, 2.0, 2.0 - math.radians(extent_deg))
+    assert wrap_angle(pts, (0.3, -0.2), 0.1, 1e-3) == pytest.approx(math.radians(extent_deg), rel=1e-9)
+
+
+def test_wrap_angle_counts_only_samples_within_the_margin():
+    on = _arc((0.0, 0.0), 0.1, 0.0, math.pi / 2, 50)
+    off = _arc((0.0, 0.0), 0.12, math.pi / 2, math.pi, 50)
+    pts = np.vstack([on, off])
+    assert wrap_angle(pts, (0, 0), 0.1, 0.005) == pytest.approx(math.pi / 2)
+    assert wrap_angle(pts, (0, 0), 0.1, 0.03) == pytest.approx(math.pi)
+    assert wrap_angle(off, (0, 0), 0.1, 0.005) == 0.0
+
+
+def test_half_thickness_is_the_distal_tube_ring_plus_tube_radius():
+    arm = solver.designs.octarm_v()
+    ro = arm.tubes[0].material.outer_radius
+    assert arm_half_thickness(arm) == pytest.approx(ro / math.sin(math.pi / 3) + ro)
+
+
+@pytest.mark.parametrize("design, kwargs", [("octarm_v", {}),
+                                            ("ct", {"object_radius": (0.15, 0.2), "placement_wrap_deg": 180.0,
+                                                    "base_angle_deg": 90.0})])
+def test_disc_is_placed_within_reach_and_clear_of_the_start(design, kwargs):
+    env = WrapEnv(design, **kwargs)
+    for seed in range(4):
+        obs, info = env.reset(seed=seed)
+        center, contact = info["object_center"], info["contact_radius"]
+        assert contact == pytest.approx(info["object_radius"] + env.half_thickness)
+        lo, hi = env.object_radius_range
+        assert lo <= info["object_radius"] <= hi
+        clearance = np.hypot(*(env._eq.positions - center).T).min() - contact
+        assert clearance >= 0.5 * env.placement_gap
+        assert info["penetration"] == 0.0 and info["wrap_angle_deg"] == 0.0
+        assert info["gap"] == pytest.approx(clearance)
+        assert np.hypot(*center) < env.arm.length * 1.2
+        np.testing.assert_allclose(obs[env._slices["goal"]], [*center, contact], atol=1e-6)
+
+
+def test_curling_towards_the_disc_wraps_it():
+    # Hanging OctArm V, seed 0: the disc sits on the clockwise side (channel I curls that way).
+    env = WrapEnv("octarm_v")
+    _, info = env.reset(seed=0)
+    start_gap = info["gap"]
+    theta = env._eq.angles[np.argmin(np.hypot(*(env._eq.positions - info["object_center"]).T))]
+    normal = np.array([-math.sin(theta), math.cos(theta)])
+    side = np.sign(np.dot(info["object_center"] - env._eq.tip, normal))
+    assert side < 0
+    curl = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+    wraps = []
+    for frac in np.linspace(0.1, 1.0, 10):
+        _, reward, _, _, info = env.step(-1.0 + frac * (curl + 1.0))
+        assert info["converged"]
+        wraps.append(info["wrap_angle_deg"])
+    assert wraps[-1] > 180.0 and wraps[-1] == max(wraps)
+    assert 0.0 < info["penetration"] < env.penetration_tolerance
+    assert info["gap"] == 0.0 < start_gap
+    assert info["reward_wrap"] == pytest.approx(math.radians(wraps[-1]) / (2 * math.pi))
+    assert info["is_success"] == (wraps[-1] >= 270.0)
+
+
+def test_reward_terms_sum_and_success_rule():
+    env = WrapEnv("octarm_v", success_wrap_deg=10.0, penetration_tolerance=0.02)
+    env.reset(seed=0)
+    for frac in np.linspace(0.2, 1.0, 5):
+        _, reward, _, _, info = env.step(-1.0 + frac * np.array([2.0, 0, 2.0, 0, 2.0, 0]))
+        terms = [v for k, v in info.items() if k.startswith("reward_")]
+        assert len(terms) == 6
+        total = 0.0
+        for t in terms:
+            total += t
+        assert total == reward
+        assert info["is_success"] == (info["wrap_angle_deg"] >= 10.0 and info["penetration"] <= 0.02)
+        assert info["reward_penetration"] == pytest.approx(-0.1 * info["penetration"] / 0.02)
+    assert info["is_success"]
+
+
+def test_object_option_and_validation():
+    env = WrapEnv("octarm_v")
+    _, info = env.reset(seed=0, options={"object": (0.2, -0.4, 0.05)})
+    np.testing.assert_array_equal(info["object_center"], [0.2, -0.4])
+    assert info["object_radius"] == 0.05 and env.touch_arc_length is None
+    with pytest.raises(ValueError, match="object"):
+        env.reset(seed=0, options={"object": (0.2, -0.4, -1.0)})
+    for kwargs, match in (({"object_radius": 0.0}, "object_radius"),
+                          ({"contact_stiffness": 0.0}, "stiffness"),
+                          ({"penetration_tolerance": 0.0}, "penetration_tolerance"),
+                          ({"object_radius": (0.2, 0.1)}, "high < low")):
+        with pytest.raises(ValueError, match=match):
+            WrapEnv("octarm_v", **kwargs)
+
+
+def test_rgb_frame_shows_the_object():
+    env = WrapEnv("ct", object_radius=(0.15, 0.2), placement_wrap_deg=180.0, base_angle_deg=90.0,
+                  render_mode="rgb_array", render_size=160)
+    env.reset(seed=0)
+    assert has_colour(env.render(), OBJECT_COLOUR, tol=60)
