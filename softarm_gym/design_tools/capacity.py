@@ -8,14 +8,12 @@ the configuration §3.3 means). The tip height y(W) at the end of that pressuris
 what the thesis's definition tests: W is the load "brought to horizontal by
 pressurization", y(W) = 0.
 
-Each y(W) follows the quasi-static path itself: a cold :func:`solver.solve` of the loaded,
-unpressurised arm, then warm-started pressure steps of adaptive size, a step whose tip
-moves more than ``MAX_TIP_STEP``·L being halved (so the path cannot jump to a distant
-equilibrium branch; a jump that survives the smallest step is a genuine snap). The root
-of y(W) is bracketed by doubling from the arm's own weight and found by Brent's method.
-A negative W (an upward tip force is needed) means the arm cannot lift even itself to
-horizontal. Where y(W) jumps across 0 (a snap on the pressurisation path) W is the load
-at the jump and the result says ``fold_limited``.
+That path is exactly what a cold :func:`solver.solve` follows (load the unactuated arm,
+then ramp the pressures along the stable branch, DESIGN §2), so each y(W) is one cold
+solve. The root of y(W) is bracketed by doubling from an eighth of the arm's weight and
+found by Brent's method. A negative W (an upward tip force is needed) means the arm cannot
+lift even itself to horizontal. Where y(W) jumps across 0 (a snap during pressurisation)
+W is the load at the jump and the result says ``fold_limited``.
 
 Loading after pressurising is *not* equivalent for curled arms: a load hung on an arm
 whose tip already points backwards rolls it up further, and the tip ends behind the base.
@@ -31,19 +29,10 @@ from scipy.optimize import brentq
 import solver
 from softarm_gym.design_tools.template import lifting_pressures
 
-__all__ = ["LoadCapacity", "load_capacity", "pressurise"]
+__all__ = ["LoadCapacity", "load_capacity"]
 
 BASE_ANGLE_DEG = 90.0
 """The load-capacity test mounts the arm horizontally (§3)."""
-
-MAX_TIP_STEP = 0.1
-"""Largest tip move per pressure step, as a fraction of the arm length."""
-
-MAX_PRESSURE_STEP = 0.25
-"""Largest pressure step, as a fraction of the target pressures."""
-
-MIN_PRESSURE_STEP = 1.0 / 1024.0
-"""Smallest pressure step before a jump is accepted as a snap."""
 
 FOLD_JUMP = 0.01
 """Tip-height jump (fraction of the arm length) across ±tol_n of W that marks a fold."""
@@ -62,7 +51,7 @@ class LoadCapacity:
         fold_limited: y(W) jumps across 0 at ``load_n`` (a snap during pressurisation), so
             W is the load at the jump rather than a smooth crossing.
         converged: every solve in the search converged.
-        evaluations: number of y(W) evaluations (each a pressurisation path).
+        evaluations: number of solves.
     """
 
     load_n: float
@@ -76,36 +65,6 @@ class LoadCapacity:
     def self_supporting(self) -> bool:
         """True when the arm lifts a non-negative load to horizontal."""
         return self.load_n >= 0.0
-
-
-def pressurise(arm: solver.designs.ArmDesign, pressures, scene: solver.Scene, *, model: str = "full"):
-    """Equilibrium after ramping ``pressures`` from 0 on the loaded arm, step by step.
-
-    Args:
-        arm: the design.
-        pressures: (n_inputs,) planar target pressures (Pa).
-        scene: mounting and loads (applied before any pressure).
-        model: solver model.
-
-    Returns:
-        ``(eq, converged)``: the final :class:`solver.Equilibrium` (tip only) and whether
-        every step converged.
-    """
-    target = np.asarray(pressures, dtype=float)
-    eq = solver.solve(arm, np.zeros_like(target), scene, model=model, record=False)
-    converged = eq.converged
-    max_move = MAX_TIP_STEP * arm.length
-    fraction, step = 0.0, MAX_PRESSURE_STEP
-    while fraction < 1.0:
-        trial_fraction = min(1.0, fraction + step)
-        trial = solver.solve(arm, trial_fraction * target, scene, model=model, record=False,
-                             warm_start=eq)
-        if float(np.hypot(*(trial.tip - eq.tip))) > max_move and step > MIN_PRESSURE_STEP:
-            step /= 2.0
-            continue
-        converged &= trial.converged
-        fraction, eq, step = trial_fraction, trial, min(2.0 * step, MAX_PRESSURE_STEP)
-    return eq, bool(converged)
 
 
 def load_capacity(arm: solver.designs.ArmDesign, test_pressure: float, *, model: str = "full",
@@ -136,9 +95,9 @@ def load_capacity(arm: solver.designs.ArmDesign, test_pressure: float, *, model:
     def tip(load: float) -> np.ndarray:
         nonlocal evaluations, all_converged
         scene = solver.Scene(base_angle_deg=BASE_ANGLE_DEG, gravity=gravity, tip_force=(0.0, -load))
-        eq, ok = pressurise(arm, pressures, scene, model=model)
+        eq = solver.solve(arm, pressures, scene, model=model, record=False)
         evaluations += 1
-        all_converged &= ok
+        all_converged &= eq.converged
         return eq.tip
 
     unloaded = tip(0.0)
