@@ -347,27 +347,25 @@ def _solve_small(a, b, x):
 @njit
 def _solve_reduced(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
                    n_angles, tip_shear_weight, moment_scale, force_scale, unknown_scale, tol,
-                   max_iter, ends, res, res_step, jac, step):
-    """Newton on the reduced-model boundary conditions (forward-difference Jacobian).
+                   max_iter, ends, res, res_step, jac, step, z_old):
+    """Damped Newton on the reduced-model boundary conditions (forward-difference Jacobian).
 
     ``z`` (ns + 1,) holds the initial guess and receives the solution; the other arrays are
-    work space: ends (ns, 3), res, res_step, step (ns + 1,), jac (ns + 1, ns + 1).
-    ``unknown_scale`` (ns + 1,) sets the difference step of each unknown.
+    work space: ends (ns, 3), res, res_step, step, z_old (ns + 1,), jac (ns + 1, ns + 1).
+    ``unknown_scale`` (ns + 1,) sets the difference step of each unknown. A Newton step is
+    halved (up to 20 times) until it reduces the largest residual: strongly curled arms make
+    θ(L), hence the tip-shear condition, very nonlinear in the unknowns.
 
     Returns:
         (converged, iterations, max |residual| in rad).
     """
     n = z.shape[0]
-    err = math.inf
+    _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
+                      n_angles, tip_shear_weight, moment_scale, force_scale, ends, res)
+    err = _max_abs(res)
     for it in range(max_iter + 1):
-        _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight,
-                          theta_target, n_angles, tip_shear_weight, moment_scale, force_scale,
-                          ends, res)
-        err = 0.0
-        for k in range(n):
-            if not math.isfinite(res[k]):
-                return False, it, math.inf
-            err = max(err, abs(res[k]))
+        if not math.isfinite(err):
+            return False, it, math.inf
         if err <= tol:
             return True, it, err
         if it == max_iter:
@@ -383,9 +381,33 @@ def _solve_reduced(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, 
             for k in range(n):
                 jac[k, j] = (res_step[k] - res[k]) / dz
         for k in range(n):
-            res[k] = -res[k]
-        if not _solve_small(jac, res, step):
+            z_old[k] = z[k]
+            res_step[k] = -res[k]
+        if not _solve_small(jac, res_step, step):
             return False, it, err
+        scale = 1.0
+        for _ in range(21):
+            for k in range(n):
+                z[k] = z_old[k] + scale * step[k]
+            _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight,
+                              theta_target, n_angles, tip_shear_weight, moment_scale, force_scale,
+                              ends, res_step)
+            trial = _max_abs(res_step)
+            if trial < err:
+                break
+            scale *= 0.5
         for k in range(n):
-            z[k] += step[k]
+            res[k] = res_step[k]
+        err = trial
     return False, max_iter, err
+
+
+@njit
+def _max_abs(values):
+    """max |values| (inf if any is not finite)."""
+    out = 0.0
+    for v in values:
+        if not math.isfinite(v):
+            return math.inf
+        out = max(out, abs(v))
+    return out

@@ -435,7 +435,8 @@ class _ReducedModel(_Integrating):
         self.force_scale = arm.length**2 / ei_max
         self.unknown_scale = np.array([ei_max / arm.length] + [ei_max / arm.length**2] * ns)
         self._z = np.zeros(ns + 1)
-        self._work = (np.empty(ns + 1), np.empty(ns + 1), np.empty((ns + 1, ns + 1)), np.empty(ns + 1))
+        self._work = (np.empty(ns + 1), np.empty(ns + 1), np.empty((ns + 1, ns + 1)), np.empty(ns + 1),
+                      np.empty(ns + 1))
         self.tip_weight = 0.0
 
     def reset(self) -> None:
