@@ -14,15 +14,18 @@ from solver.actuator import PSI, pressure_from_stretch, stretch_from_pressure
 from solver.scene import Disc, Scene
 from solver.solve import (
     MODELS,
+    BatchState,
     Equilibrium,
     Settings,
     SolverError,
     rest_strains,
     solve,
     solve_batch,
+    step_batch,
 )
 
 __all__ = [
     "actuator", "designs", "PSI", "pressure_from_stretch", "stretch_from_pressure", "Scene", "Disc",
     "MODELS", "Equilibrium", "Settings", "SolverError", "rest_strains", "solve", "solve_batch",
+    "step_batch", "BatchState",
 ]

@@ -371,13 +371,15 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
 
 @njit(parallel=True)
 def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, loads, mtip,
-           params, tips, ok, stable_out, m0_out):
+           params, record, tips, ok, stable_out, m0_out, shapes):
     """Many quasi-static solves in parallel, one per row of ``p_targets`` (n, n_channels).
 
     Row k follows the path from the equilibrium ``m0_start[k]`` at pressures ``p_start[k]``
     (cold solves: the loaded, unactuated state at zero pressure for every row, as
     :func:`solver.solve` does, so a sweep's result does not depend on its order). Writes the
-    tips (n, 2), convergence and stability flags and the new base moments.
+    tips (n, 2), convergence and stability flags and the new base moments. A row that does
+    not converge keeps its start state (``m0_out[k] = m0_start[k]``, its tip and shape).
+    With ``record`` each row's backbone is written to ``shapes[k]`` ((rows, N_COLUMNS)).
     """
     n = p_targets.shape[0]
     ns = secf.shape[1]
@@ -390,8 +392,17 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
         root, conv, its, snapped, stab, res, x, y, th = _follow(
             m0_start[k], theta0, secf, steps, tubes_i, tubes_f, p_start[k], p_targets[k], loads,
             loads, mtip, mtip, params, rest, p_now, loads_now, out)
+        conv = conv and math.isfinite(x) and math.isfinite(y)
+        if not conv:
+            # Keep the last good state: its rest strains, shape and tip.
+            root = m0_start[k]
+            _rest_strains(p_start[k], tubes_i, tubes_f, secf, rest)
+            th, m, b, x, y, bmin = _integrate(root, theta0, secf, steps, rest, loads, False, out)
+        if record:
+            _integrate(root, theta0, secf, steps, rest, loads if not conv else loads_now, True,
+                       shapes[k])
         tips[k, 0] = x
         tips[k, 1] = y
-        ok[k] = conv and math.isfinite(x) and math.isfinite(y)
+        ok[k] = conv
         stable_out[k] = stab
         m0_out[k] = root

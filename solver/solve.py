@@ -25,7 +25,8 @@ from solver import _contact, _planar, _spatial
 from solver.designs import ArmDesign
 from solver.scene import Disc, Scene
 
-__all__ = ["Equilibrium", "SolverError", "solve", "solve_batch", "MODELS", "Settings", "Disc"]
+__all__ = ["Equilibrium", "SolverError", "solve", "solve_batch", "step_batch", "BatchState",
+           "MODELS", "Settings", "Disc"]
 
 MODELS = ("full", "unshearable", "constant_curvature")
 
@@ -592,8 +593,74 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
     tips, ok = np.empty((n, 2)), np.empty(n, dtype=bool)
     _planar._batch(np.full(n, m0), np.zeros_like(channel), scene.base_theta, packed.secf,
                    packed.sec_steps, packed.tubes_i, packed.tubes_f, channel, ctx.loads, ctx.m_tip,
-                   ctx.params, tips, ok, np.empty(n, dtype=bool), np.empty(n))
+                   ctx.params, False, tips, ok, np.empty(n, dtype=bool), np.empty(n),
+                   np.empty((n, 1, _planar.N_COLUMNS)))
     return tips, ok
+
+
+@dataclass
+class BatchState:
+    """Equilibria of n copies of one arm in one scene, stepped together by :func:`step_batch`.
+
+    Attributes:
+        pressures: (n, n_inputs) planar channel pressures of each copy (Pa).
+        tips: (n, 2) tip positions (m).
+        converged: (n,) whether the last step of each copy converged (a copy that did not
+            kept its previous state).
+        shapes: (n, N, 10) recorded backbones when stepped with ``record=True``: columns s, x,
+            y, θ, m, n1, n3, v1, v3, u (see :mod:`solver._planar`); else (n, 1, 10) scratch.
+        section_ends: sample indices of the section ends in ``shapes``.
+    """
+
+    pressures: np.ndarray
+    tips: np.ndarray
+    converged: np.ndarray
+    shapes: np.ndarray
+    section_ends: tuple
+    base_moment: np.ndarray = field(repr=False, default=None)
+    channel_pressures: np.ndarray = field(repr=False, default=None)
+
+
+def step_batch(arm: ArmDesign, pressures, scene: Scene | None = None,
+               state: BatchState | None = None, model: str = "full", record: bool = False,
+               settings: Settings = DEFAULT_SETTINGS) -> BatchState:
+    """Move n copies of an arm quasi-statically to new pressures, in parallel (planar).
+
+    Each copy follows the path from its equilibrium in ``state`` (or, without a state, from
+    the loaded unactuated arm — a cold solve, as :func:`solve` does). A copy whose step does
+    not converge keeps its previous equilibrium and is flagged in ``converged``. This is the
+    engine of the batched vector environment.
+
+    Args:
+        arm, scene, model, settings: as in :func:`solve` (no obstacles).
+        pressures: (n, n_inputs) planar channel pressures (Pa).
+        state: the copies' current equilibria (from a previous call), or None.
+        record: also return every copy's backbone in ``shapes``.
+
+    Returns:
+        The new :class:`BatchState`.
+    """
+    scene, packed, p, channel = _batch_inputs(arm, pressures, scene, model, True, settings)
+    if scene.obstacles:
+        raise ValueError("step_batch does not model contact; use solve() for scenes with obstacles")
+    ctx = _context(arm, packed, scene, 2, settings)
+    n = p.shape[0]
+    if state is None:
+        m0, _, _ = _loaded_base_moment(arm, packed, scene, ctx, settings)
+        m_start, p_start, p_prev = np.full(n, m0), np.zeros_like(channel), np.zeros_like(p)
+    else:
+        if state.base_moment.shape != (n,):
+            raise ValueError(f"state holds {state.base_moment.shape[0]} arms; pressures has {n} rows")
+        m_start, p_start, p_prev = state.base_moment, state.channel_pressures, state.pressures
+    tips, ok, m0_out = np.empty((n, 2)), np.empty(n, dtype=bool), np.empty(n)
+    shapes = np.empty((n, packed.n_rows if record else 1, _planar.N_COLUMNS))
+    _planar._batch(m_start, p_start, scene.base_theta, packed.secf, packed.sec_steps,
+                   packed.tubes_i, packed.tubes_f, channel, ctx.loads, ctx.m_tip, ctx.params,
+                   record, tips, ok, np.empty(n, dtype=bool), m0_out, shapes)
+    keep = ~ok[:, None]
+    return BatchState(pressures=np.where(keep, p_prev, p), tips=tips, converged=ok, shapes=shapes,
+                      section_ends=packed.section_ends, base_moment=m0_out,
+                      channel_pressures=np.where(keep, p_start, channel))
 
 
 def _in_plane(arm, packed, p_channel) -> bool:

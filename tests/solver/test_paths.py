@@ -93,3 +93,36 @@ def test_strict_raises_when_unconverged():
     assert np.all(np.isfinite(eq.positions))
     with pytest.raises(solver.SolverError, match="no converged equilibrium"):
         solver.solve(arm, np.full(6, 80 * PSI), scene, settings=settings, strict=True)
+
+
+def test_step_batch_equals_solve_cold_and_warm():
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90)
+    rng = np.random.default_rng(5)
+    P = rng.uniform(0, arm.max_pressure, (6, 6))
+    state = solver.step_batch(arm, P, scene, record=True)
+    P2 = np.clip(P + rng.normal(0, 0.02 * arm.max_pressure, P.shape), 0, arm.max_pressure)
+    state2 = solver.step_batch(arm, P2, scene, state=state, record=True)
+    for k in range(6):
+        cold = solver.solve(arm, P[k], scene)
+        np.testing.assert_array_equal(state.tips[k], cold.tip)
+        warm = solver.solve(arm, P2[k], scene, warm_start=cold)
+        np.testing.assert_array_equal(state2.tips[k], warm.tip)
+        np.testing.assert_array_equal(state2.shapes[k][:, 1:3], warm.positions)
+    assert state2.converged.all()
+    np.testing.assert_array_equal(state2.pressures, P2)
+
+
+def test_step_batch_failed_rows_keep_their_state():
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90)
+    start = solver.step_batch(arm, np.full((3, 6), 0.2 * arm.max_pressure), scene)
+    # One plain Newton attempt cannot follow a jump across the snap-through fold.
+    far = np.array([[0, 1, 0, 0, 0, 0], [0.2] * 6, [0, 1, 0, 0, 0, 0]]) * arm.max_pressure
+    step = solver.step_batch(arm, far, scene, state=start,
+                             settings=solver.Settings.without_fallback())
+    failed = ~step.converged
+    assert failed[0] and failed[2] and not failed[1]
+    np.testing.assert_array_equal(step.tips[failed], start.tips[failed])
+    np.testing.assert_array_equal(step.pressures[failed], start.pressures[failed])
+    np.testing.assert_array_equal(step.base_moment[failed], start.base_moment[failed])
