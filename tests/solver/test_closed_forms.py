@@ -113,3 +113,40 @@ def test_conjugate_point_test_flags_straight_column():
         assert is_stable == stable
         # b(L) = cos(√P L) for the Euler column.
         assert bmin == pytest.approx(min(1.0, math.cos(math.sqrt(load))), abs=1e-6)
+
+
+@pytest.mark.parametrize("alpha", [1, 5])
+def test_spatial_elastica_out_of_plane(alpha):
+    """A horizontal rod loaded along −z bends in the x–z plane: the 3D kernel against the
+    elliptic-integral cantilever (no planar shortcut can apply to this load)."""
+    rod = designs.rod(length=1.0, EI=1.0, EA=1e12, GA=1e12, GJ=0.7)
+    scene = solver.Scene(base_angle_deg=90, tip_force=(0.0, 0.0, -alpha), gravity=0.0)
+    eq = solver.solve(rod, [], scene, planar=False, settings=solver.Settings(steps_per_section=200))
+    assert eq.converged and eq.stable
+    w, u, psi = naive.elastica_cantilever(alpha)
+    np.testing.assert_allclose(eq.tip, [1 - u, 0.0, -w], rtol=1e-8, atol=1e-10)
+    d3 = eq.orientations[-1][:, 2]
+    assert math.atan2(-d3[2], d3[0]) == pytest.approx(psi, rel=1e-8)
+
+
+def test_spatial_pure_torsion():
+    """A tip moment about the axis twists a straight rod uniformly: φ = M·L/GJ."""
+    rod = designs.rod(length=0.8, EI=1.0, EA=1e9, GA=1e9, GJ=0.5)
+    scene = solver.Scene(base_angle_deg=90, tip_moment=(0.3, 0.0, 0.0), gravity=0.0)
+    eq = solver.solve(rod, [], scene, planar=False, settings=solver.Settings(steps_per_section=32))
+    assert eq.converged
+    np.testing.assert_allclose(eq.tip, [0.8, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(eq.curvature[:, 2], 0.3 / 0.5, rtol=1e-10)
+    d1 = eq.orientations[-1][:, 0]  # starts along +y; twisted about +x by φ
+    phi = 0.3 * 0.8 / 0.5
+    np.testing.assert_allclose(d1, [0.0, math.cos(phi), math.sin(phi)], atol=1e-10)
+
+
+def test_tip_only_solve_equals_recorded_tip():
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=45, payload_kg=0.1)
+    p = np.array([30, 0, 10, 50, 0, 20]) * solver.PSI
+    quick = solver.solve(arm, p, scene, record=False)
+    full = solver.solve(arm, p, scene)
+    assert quick.s.size == 0 and full.s.size > 0
+    np.testing.assert_array_equal(quick.tip, full.tip)
