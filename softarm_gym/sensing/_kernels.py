@@ -411,3 +411,109 @@ def _max_abs(values):
             return math.inf
         out = max(out, abs(v))
     return out
+
+
+# Spatial load-cell state: r 0:3, R 3:12 (row-major), m 12:15.
+SPATIAL_STATE = 15
+
+
+@njit
+def _wrench_rhs_spatial(sig, y, dy, ca, cg, ci, cj, u1r, u2r, v3r, n_start, q):
+    """Spatial rod statics with n(σ) = n_start − q·σ: r' = R v, R' = R[u]×, m' = −r' × n.
+
+    v = (n_b1/GA, n_b2/GA, v* + n_b3/EA), u = (u1* + m_b1/EI, u2* + m_b2/EI, m_b3/GJ), with
+    n_b = Rᵀn, m_b = Rᵀm. Writes dy (15,); no allocation.
+    """
+    n0 = n_start[0] - q[0] * sig
+    n1 = n_start[1] - q[1] * sig
+    n2 = n_start[2] - q[2] * sig
+    m0 = y[12]
+    m1 = y[13]
+    m2 = y[14]
+    nb = (y[3] * n0 + y[6] * n1 + y[9] * n2, y[4] * n0 + y[7] * n1 + y[10] * n2,
+          y[5] * n0 + y[8] * n1 + y[11] * n2)
+    mb = (y[3] * m0 + y[6] * m1 + y[9] * m2, y[4] * m0 + y[7] * m1 + y[10] * m2,
+          y[5] * m0 + y[8] * m1 + y[11] * m2)
+    v0 = nb[0] * cg
+    v1 = nb[1] * cg
+    v2 = v3r + nb[2] * ca
+    u0 = u1r + mb[0] * ci
+    u1 = u2r + mb[1] * ci
+    u2 = mb[2] * cj
+    for r in range(3):
+        a = y[3 + 3 * r]
+        b = y[4 + 3 * r]
+        c = y[5 + 3 * r]
+        dy[r] = a * v0 + b * v1 + c * v2
+        # Row r of R[u]×: [a b c]·[[0, −u2, u1], [u2, 0, −u0], [−u1, u0, 0]].
+        dy[3 + 3 * r] = b * u2 - c * u1
+        dy[4 + 3 * r] = c * u0 - a * u2
+        dy[5 + 3 * r] = a * u1 - b * u0
+    dy[12] = -(dy[1] * n2 - dy[2] * n1)
+    dy[13] = -(dy[2] * n0 - dy[0] * n2)
+    dy[14] = -(dy[0] * n1 - dy[1] * n0)
+
+
+@njit
+def _load_cell_spatial(rot0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
+                       v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
+    """Integrate the spatial equilibrium equations base → tip from a measured 6-axis wrench.
+
+    Args:
+        rot0: (3, 3) base directors. n0, m0: (3,) base force and moment, world frame.
+        sec_len, sec_steps, c_a, c_g, c_i, c_j: (ns,) lengths, RK4 steps, 1/EA, 1/GA, 1/EI, 1/GJ.
+        u1_rest, u2_rest, v_rest: (ns,) rest strains from the pressures.
+        q: (ns, 3) distributed load (N/m); point: (ns, 3) point load at each section end (N).
+        work: (7, 15) scratch. s_out (N,), pos_out, tan_out (N, 3): samples, written.
+        ends_out: (ns, 3) and frames_out: (ns, 3, 3): section-end positions and directors.
+
+    Returns:
+        |m(L)|, the tip moment (N m): zero for a consistent measurement.
+    """
+    y = work[0]
+    k1 = work[1]
+    k2 = work[2]
+    k3 = work[3]
+    k4 = work[4]
+    tmp = work[5]
+    n_start = work[6, 0:3]
+    for d in range(SPATIAL_STATE):
+        y[d] = 0.0
+    for r in range(3):
+        for c in range(3):
+            y[3 + 3 * r + c] = rot0[r, c]
+        y[12 + r] = m0[r]
+        n_start[r] = n0[r]
+    row = 0
+    s0 = 0.0
+    for i in range(sec_len.shape[0]):
+        h = sec_len[i] / sec_steps[i]
+        args = (c_a[i], c_g[i], c_i[i], c_j[i], u1_rest[i], u2_rest[i], v_rest[i])
+        for j in range(sec_steps[i] + 1):
+            sig = j * h
+            _wrench_rhs_spatial(sig, y, k1, *args, n_start, q[i])
+            s_out[row] = s0 + sig
+            for d in range(3):
+                pos_out[row, d] = y[d]
+                tan_out[row, d] = k1[d]
+            row += 1
+            if j == sec_steps[i]:
+                break
+            for d in range(SPATIAL_STATE):
+                tmp[d] = y[d] + 0.5 * h * k1[d]
+            _wrench_rhs_spatial(sig + 0.5 * h, tmp, k2, *args, n_start, q[i])
+            for d in range(SPATIAL_STATE):
+                tmp[d] = y[d] + 0.5 * h * k2[d]
+            _wrench_rhs_spatial(sig + 0.5 * h, tmp, k3, *args, n_start, q[i])
+            for d in range(SPATIAL_STATE):
+                tmp[d] = y[d] + h * k3[d]
+            _wrench_rhs_spatial(sig + h, tmp, k4, *args, n_start, q[i])
+            for d in range(SPATIAL_STATE):
+                y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+        for r in range(3):
+            ends_out[i, r] = y[r]
+            for c in range(3):
+                frames_out[i, r, c] = y[3 + 3 * r + c]
+            n_start[r] = n_start[r] - q[i, r] * sec_len[i] - point[i, r]
+        s0 += sec_len[i]
+    return math.sqrt(y[12] ** 2 + y[13] ** 2 + y[14] ** 2)
