@@ -1,0 +1,70 @@
+"""``softarm stress``: the numerical-stability stress study (random and adversarial scenes, env steps)."""
+
+from __future__ import annotations
+
+import sys
+
+from softarm_gym.cli import UsageError, emit
+
+NAME = "stress"
+HELP = "stress-test the solver and environments (random and adversarial scenes, random actions)"
+
+
+def add_arguments(p):
+    p.add_argument("--seed", type=int, default=0, help="seed of every random draw (default 0)")
+    p.add_argument("--n-random", type=int, default=5000,
+                   help="solves in the random set (default %(default)s)")
+    p.add_argument("--n-per-class", type=int, default=200,
+                   help="trials per adversarial class (default %(default)s; a wrap_press trial is an "
+                        "8-step ramp)")
+    p.add_argument("--classes", default=None,
+                   help="comma-separated adversarial classes (default: all)")
+    p.add_argument("--env-steps", type=int, default=100_000,
+                   help="random-action environment steps over all IDs and observation modes "
+                        "(default %(default)s; 0 skips them)")
+    p.add_argument("--diagnose", type=int, default=20,
+                   help="failed solves per class retried with stronger settings (default %(default)s)")
+    p.add_argument("--quick", action="store_true",
+                   help="smoke run: 200 random solves, 10 per class, 480 env steps")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def _progress_factory(enabled: bool):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    def start(label, total):
+        bar = tqdm(total=total, desc=f"stress {label}", file=sys.stderr, leave=False)
+
+        def tick():
+            bar.update()
+            if bar.n >= total:
+                bar.close()
+        return tick
+    return start
+
+
+def run(args) -> int:
+    from softarm_gym.benchmarks import stress
+
+    n_random, n_per_class, env_steps = args.n_random, args.n_per_class, args.env_steps
+    if args.quick:
+        n_random, n_per_class, env_steps = 200, 10, 480
+    for flag, value in (("--n-random", n_random), ("--n-per-class", n_per_class),
+                        ("--env-steps", env_steps), ("--diagnose", args.diagnose)):
+        if value < 0:
+            raise UsageError(f"{flag} must be >= 0; got {value}")
+    classes = None
+    if args.classes is not None:
+        classes = tuple(c.strip() for c in args.classes.split(",") if c.strip())
+        unknown = [c for c in classes if c not in stress.CLASSES]
+        if unknown or not classes:
+            raise UsageError(f"unknown stress class {', '.join(unknown) or repr(args.classes)}; "
+                             f"choose from {', '.join(stress.CLASSES)}")
+    result = stress.run(seed=args.seed, n_random=n_random, n_per_class=n_per_class,
+                        env_steps=env_steps, classes=classes, n_diagnose=args.diagnose,
+                        progress=_progress_factory(not args.no_progress))
+    emit(result, args.json, stress.format_report(result))
+    return 0 if result["targets"]["zero_nan"] else 1
