@@ -12,7 +12,7 @@ import importlib
 import json
 import sys
 
-COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators")
+COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators", "stress")
 """Command modules under :mod:`softarm_gym.commands`, in help order."""
 
 
