@@ -247,6 +247,7 @@ def _channel_pressures(arm: ArmDesign, pressures, planar: bool,
     """Validate input pressures and expand planar inputs to spatial channels (Pa)."""
     n = arm.n_inputs(planar)
     try:
+        # A copy: the result keeps these pressures, so later edits by the caller cannot leak in.
         p = np.array(pressures, dtype=float)
     except (TypeError, ValueError):
         p = None
@@ -444,6 +445,7 @@ class _SceneContext:
     max_step: float
     params: np.ndarray
     has_load: bool
+    base_force: np.ndarray
 
 
 def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
@@ -463,7 +465,9 @@ def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
             settings.dt_min, settings.max_iter, settings.n_scan, 0.25 * packed.moment_scale)
         ctx = _SceneContext(n_end=n_end, q=q, loads=np.ascontiguousarray(np.hstack([n_end, q])),
                             m_tip=m_tip, tol=tol,
-                            max_step=max_step, params=params, has_load=_has_load(arm, scene))
+                            max_step=max_step, params=params, has_load=_has_load(arm, scene),
+                            base_force=n_end[0] + q[0] * packed.sec_len[0])
+        ctx.base_force.flags.writeable = False  # shared by every Equilibrium of this scene
         if len(arm._solver_cache) > 256:  # many scenes (randomised payloads): keep it bounded
             arm._solver_cache.clear()
         arm._solver_cache[key] = ctx
@@ -505,7 +509,7 @@ def _loaded_base_moment(arm, packed, scene, ctx, settings) -> tuple[float, int, 
         zeros = np.zeros(max(arm.n_channels, 1))
         unloaded = _SceneContext(n_end=ctx.n_end * 0, q=ctx.q * 0, loads=ctx.loads * 0,
                                  m_tip=0.0, tol=ctx.tol, max_step=ctx.max_step,
-                                 params=ctx.params, has_load=False)
+                                 params=ctx.params, has_load=False, base_force=ctx.base_force * 0)
         out, _, _ = _follow(packed, scene, zeros, zeros, unloaded, ctx, 0.0)
         hit = arm._solver_cache[key] = (float(out[0]), int(out[2]), bool(out[3]))
     return hit
@@ -529,8 +533,7 @@ def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
     common_out = dict(converged=bool(ok), stable=bool(stab), iterations=int(iterations + its),
                       residual=float(res), snapped=bool(snapped or snap), model=model,
                       planar=True, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
-                      base_moment=np.array([m0]),
-                      base_force=ctx.n_end[0] + ctx.q[0] * packed.sec_len[0])
+                      base_moment=np.array([m0]), base_force=ctx.base_force)
     if not record:
         return Equilibrium(tip=np.array([x, y]), **common_out)
     out = np.empty((packed.n_rows, _planar.N_COLUMNS))
@@ -732,7 +735,7 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
                       stable=bool(stab and dmin > 0), iterations=int(iterations), residual=res,
                       model=model, planar=False, scene=scene, pressures=p_inputs,
                       channel_pressures=p_channel, base_moment=m0.copy(),
-                      base_force=ctx.n_end[0] + ctx.q[0] * packed.sec_len[0])
+                      base_force=ctx.base_force)
     if not record:
         return Equilibrium(**common_out)
     seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
