@@ -255,7 +255,7 @@ class SoftArmEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         fraction = self._action_to_fraction(action)
         eq = self._solve(fraction, warm_start=self._eq)
-        ok = bool(eq.converged and np.all(np.isfinite(eq.tip)))
+        ok = bool(eq.converged and math.isfinite(eq.tip[0] + eq.tip[1]))
         if ok:
             self._eq = eq
             self._fraction = fraction
@@ -289,9 +289,8 @@ class SoftArmEnv(gym.Env):
         if a.shape != (self.n_inputs,):
             raise ValueError(f"action must have shape ({self.n_inputs},) for channels "
                              f"{', '.join(self.input_names)}; got shape {a.shape}")
-        bad = ~np.isfinite(a)
-        if bad.any():
-            k = int(np.argmax(bad))
+        if not math.isfinite(a.sum()):
+            k = int(np.argmax(~np.isfinite(a)))
             raise ValueError(f"action for channel {self.input_names[k]!r} is not finite: {a[k]}")
         a = np.clip(a, -1.0, 1.0)
         if self.action_mode == "absolute":
@@ -326,7 +325,7 @@ class SoftArmEnv(gym.Env):
         info = {
             "tip_true": eq.tip.copy(),
             "tip_estimated": np.asarray(self._shape.tip, dtype=float).copy(),
-            "estimation_error": float(np.hypot(*(self._shape.tip - eq.tip))),
+            "estimation_error": math.hypot(self._shape.tip[0] - eq.tip[0], self._shape.tip[1] - eq.tip[1]),
             "sensors": {"encoder_lengths": self._readings.encoder_lengths,
                         "inclinometers": self._readings.inclinometers,
                         "base_wrench": self._readings.base_wrench},

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 import solver
@@ -166,11 +168,11 @@ class ReachEnv(SoftArmEnv):
         out[2:] = self._target - self._shape.tip
 
     def _task_reward(self, eq):
-        distance = float(np.hypot(*(eq.tip - self._target)))
+        distance = math.hypot(eq.tip[0] - self._target[0], eq.tip[1] - self._target[1])
         success = distance <= self.success_tolerance
         terms = {
             "reward_distance": -self.distance_weight * distance,
-            "reward_control": -self.control_weight * float(np.mean(self._fraction ** 2)),
+            "reward_control": -self.control_weight * float(self._fraction @ self._fraction) / self.n_inputs,
             "reward_success": self.success_bonus if success else 0.0,
         }
         return terms, success, {"target": self._target.copy(), "distance": distance}

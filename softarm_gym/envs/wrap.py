@@ -231,7 +231,7 @@ class WrapEnv(SoftArmEnv):
             "reward_wrap": self.wrap_weight * min(wrap, 2.0 * math.pi) / (2.0 * math.pi),
             "reward_approach": -self.approach_weight * gap,
             "reward_penetration": -self.penetration_weight * penetration / self.penetration_tolerance,
-            "reward_control": -self.control_weight * float(np.mean(self._fraction ** 2)),
+            "reward_control": -self.control_weight * float(self._fraction @ self._fraction) / self.n_inputs,
             "reward_success": self.success_bonus if success else 0.0,
         }
         info = {"wrap_angle_deg": wrap_deg, "penetration": penetration, "gap": gap,
