@@ -325,6 +325,7 @@ class _Records:
     exceptions: list
     failures: list
     diagnoses: list
+    planar: list
 
 
 def _finite(eq: solver.Equilibrium) -> bool:
@@ -350,7 +351,7 @@ def run_trials(trials, settings: solver.Settings, progress=None, n_diagnose: int
 
     The first ``n_diagnose`` failures are retried with :data:`STRONGER` settings (:func:`diagnose`).
     """
-    rec = _Records(*([] for _ in range(10)))
+    rec = _Records(*([] for _ in range(11)))
     for trial in trials:
         previous = None
         for step, p in enumerate(trial.pressures):
@@ -365,6 +366,7 @@ def run_trials(trials, settings: solver.Settings, progress=None, n_diagnose: int
                     rec.diagnoses.append(diagnose(trial, p, previous, None))
                 continue
             rec.seconds.append(time.perf_counter() - start)
+            rec.planar.append(trial.planar)
             finite = _finite(eq)
             rec.converged.append(bool(eq.converged and finite))
             rec.finite.append(finite)
@@ -388,12 +390,15 @@ def summarize(rec: _Records) -> dict:
     n = len(rec.converged) + len(rec.exceptions)
     conv = np.array(rec.converged, dtype=bool)
     res = np.array(rec.residual)
+    planar = np.array(rec.planar, dtype=bool)
     t = np.array(rec.seconds) * 1e3
     pct = (lambda q: float(np.percentile(t, q))) if t.size else (lambda q: math.nan)
     return {
         "n": n,
         "converged_fraction": float(conv.sum() / n) if n else math.nan,
         "flagged_unconverged_fraction": float((~conv).sum() / n) if n else math.nan,
+        "converged_fraction_planar": float(conv[planar].mean()) if planar.any() else math.nan,
+        "converged_fraction_spatial": float(conv[~planar].mean()) if (~planar).any() else math.nan,
         "nan_count": int(len(rec.finite) - np.count_nonzero(rec.finite)),
         "exceptions": len(rec.exceptions),
         "worst_residual": float(res.max()) if res.size else math.nan,
@@ -556,7 +561,7 @@ def run(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: 
         result["random"] = _study(random_trials(n_random, np.random.default_rng(seeds[0])), progress,
                                   "random", n_diagnose)
     result["classes"] = {}
-    for name in classes:
+    for name in classes if n_per_class else ():
         rng = np.random.default_rng(seeds[2 + CLASSES.index(name)])
         result["classes"][name] = _study(class_trials(name, n_per_class, rng), progress, name,
                                          n_diagnose)
