@@ -313,106 +313,6 @@ def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weigh
     res[ns] = m_tip * moment_scale
 
 
-@njit
-def _solve_small(a, b, x):
-    """Solve a·x = b in place by Gaussian elimination with partial pivoting (a, b destroyed).
-
-    Returns False if the matrix is singular to working precision.
-    """
-    n = b.shape[0]
-    for k in range(n):
-        p = k
-        for r in range(k + 1, n):
-            if abs(a[r, k]) > abs(a[p, k]):
-                p = r
-        if a[p, k] == 0.0 or not math.isfinite(a[p, k]):
-            return False
-        if p != k:
-            for c in range(n):
-                a[k, c], a[p, c] = a[p, c], a[k, c]
-            b[k], b[p] = b[p], b[k]
-        for r in range(k + 1, n):
-            f = a[r, k] / a[k, k]
-            for c in range(k, n):
-                a[r, c] -= f * a[k, c]
-            b[r] -= f * b[k]
-    for k in range(n - 1, -1, -1):
-        acc = b[k]
-        for c in range(k + 1, n):
-            acc -= a[k, c] * x[c]
-        x[k] = acc / a[k, k]
-    return True
-
-
-@njit
-def _solve_reduced(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
-                   n_angles, tip_shear_weight, moment_scale, force_scale, unknown_scale, tol,
-                   max_iter, ends, res, res_step, jac, step, z_old):
-    """Damped Newton on the reduced-model boundary conditions (forward-difference Jacobian).
-
-    ``z`` (ns + 1,) holds the initial guess and receives the solution; the other arrays are
-    work space: ends (ns, 3), res, res_step, step, z_old (ns + 1,), jac (ns + 1, ns + 1).
-    ``unknown_scale`` (ns + 1,) sets the difference step of each unknown. A Newton step is
-    halved (up to 20 times) until it reduces the largest residual: strongly curled arms make
-    θ(L), hence the tip-shear condition, very nonlinear in the unknowns.
-
-    Returns:
-        (converged, iterations, max |residual| in rad).
-    """
-    n = z.shape[0]
-    _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
-                      n_angles, tip_shear_weight, moment_scale, force_scale, ends, res)
-    err = _max_abs(res)
-    for it in range(max_iter + 1):
-        if not math.isfinite(err):
-            return False, it, math.inf
-        if err <= tol:
-            return True, it, err
-        if it == max_iter:
-            break
-        for j in range(n):
-            dz = 1e-6 * unknown_scale[j]
-            keep = z[j]
-            z[j] = keep + dz
-            _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight,
-                              theta_target, n_angles, tip_shear_weight, moment_scale, force_scale,
-                              ends, res_step)
-            z[j] = keep
-            for k in range(n):
-                jac[k, j] = (res_step[k] - res[k]) / dz
-        for k in range(n):
-            z_old[k] = z[k]
-            res_step[k] = -res[k]
-        if not _solve_small(jac, res_step, step):
-            return False, it, err
-        scale = 1.0
-        for _ in range(21):
-            for k in range(n):
-                z[k] = z_old[k] + scale * step[k]
-            _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight,
-                              theta_target, n_angles, tip_shear_weight, moment_scale, force_scale,
-                              ends, res_step)
-            trial = _max_abs(res_step)
-            if trial < err:
-                break
-            scale *= 0.5
-        for k in range(n):
-            res[k] = res_step[k]
-        err = trial
-    return False, max_iter, err
-
-
-@njit
-def _max_abs(values):
-    """max |values| (inf if any is not finite)."""
-    out = 0.0
-    for v in values:
-        if not math.isfinite(v):
-            return math.inf
-        out = max(out, abs(v))
-    return out
-
-
 # Spatial load-cell state: r 0:3, R 3:12 (row-major), m 12:15.
 SPATIAL_STATE = 15
 
@@ -517,3 +417,109 @@ def _load_cell_spatial(rot0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_
             n_start[r] = n_start[r] - q[i, r] * sec_len[i] - point[i, r]
         s0 += sec_len[i]
     return math.sqrt(y[12] ** 2 + y[13] ** 2 + y[14] ** 2)
+
+
+# Spatial reduced-model state: r 0:3, R 3:12 (row-major), m 12:15, body shear (n1, n2) 15:17,
+# ∫u1, ∫u2 over the current section 17:19.
+REDUCED_STATE = 19
+
+
+@njit
+def _reduced_rhs_spatial(y, dy, ci, cj, u1r, u2r, v, q):
+    """Spatial reduced model: r' = v·d3, R' = R[u]×, u = u* + C⁻¹Rᵀm, m' = −r' × R(n1, n2, 0),
+    (n1, n2)' = −(Rᵀq)₁,₂ ± u3·(n2, n1) (axial force neglected), and ∫u1, ∫u2. Writes dy."""
+    nb1 = y[15]
+    nb2 = y[16]
+    # World shear force n = n1·d1 + n2·d2 (columns 0 and 1 of R).
+    nx = y[3] * nb1 + y[4] * nb2
+    ny = y[6] * nb1 + y[7] * nb2
+    nz = y[9] * nb1 + y[10] * nb2
+    mb0 = y[3] * y[12] + y[6] * y[13] + y[9] * y[14]
+    mb1 = y[4] * y[12] + y[7] * y[13] + y[10] * y[14]
+    mb2 = y[5] * y[12] + y[8] * y[13] + y[11] * y[14]
+    u0 = u1r + mb0 * ci
+    u1 = u2r + mb1 * ci
+    u2 = mb2 * cj
+    for r in range(3):
+        a = y[3 + 3 * r]
+        b = y[4 + 3 * r]
+        c = y[5 + 3 * r]
+        dy[r] = v * c
+        dy[3 + 3 * r] = b * u2 - c * u1
+        dy[4 + 3 * r] = c * u0 - a * u2
+        dy[5 + 3 * r] = a * u1 - b * u0
+    dy[12] = -(dy[1] * nz - dy[2] * ny)
+    dy[13] = -(dy[2] * nx - dy[0] * nz)
+    dy[14] = -(dy[0] * ny - dy[1] * nx)
+    qb0 = y[3] * q[0] + y[6] * q[1] + y[9] * q[2]
+    qb1 = y[4] * q[0] + y[7] * q[1] + y[10] * q[2]
+    dy[15] = -qb0 + u2 * nb2
+    dy[16] = -qb1 - u2 * nb1
+    dy[17] = u0
+    dy[18] = u1
+
+
+@njit
+def _reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch,
+                     q, record, work, s_out, pos_out, tan_out, ends_out, frames_out, curv_out):
+    """One RK4 pass of the spatial reduced model base → tip (see :func:`_reduced_rhs_spatial`).
+
+    Args:
+        rot0: (3, 3) base directors. m0: (3,) base moment (N m, world).
+        shear_start: (ns, 2) body shear (n1, n2) at the start of every section (N).
+        sec_len, sec_steps, c_i, c_j: (ns,) lengths, steps, 1/EI, 1/GJ.
+        u1_rest, u2_rest, stretch: (ns,) rest curvatures and the section stretch.
+        q: (ns, 3) distributed load (N/m). record: write the samples.
+        work: (6, 19) scratch; ``work[0, 12:15]`` holds m(L) on return.
+        s_out, pos_out, tan_out: samples (written if record). ends_out (ns, 3), frames_out
+        (ns, 3, 3): section-end poses. curv_out: (ns, 2) ∫u1, ∫u2 over each section (rad).
+    """
+    y = work[0]
+    k1 = work[1]
+    k2 = work[2]
+    k3 = work[3]
+    k4 = work[4]
+    tmp = work[5]
+    for d in range(REDUCED_STATE):
+        y[d] = 0.0
+    for r in range(3):
+        for c in range(3):
+            y[3 + 3 * r + c] = rot0[r, c]
+        y[12 + r] = m0[r]
+    row = 0
+    s0 = 0.0
+    for i in range(sec_len.shape[0]):
+        h = sec_len[i] / sec_steps[i]
+        y[15] = shear_start[i, 0]
+        y[16] = shear_start[i, 1]
+        y[17] = 0.0
+        y[18] = 0.0
+        args = (c_i[i], c_j[i], u1_rest[i], u2_rest[i], stretch[i])
+        for j in range(sec_steps[i] + 1):
+            _reduced_rhs_spatial(y, k1, *args, q[i])
+            if record:
+                s_out[row] = s0 + j * h
+                for d in range(3):
+                    pos_out[row, d] = y[d]
+                    tan_out[row, d] = k1[d]
+                row += 1
+            if j == sec_steps[i]:
+                break
+            for d in range(REDUCED_STATE):
+                tmp[d] = y[d] + 0.5 * h * k1[d]
+            _reduced_rhs_spatial(tmp, k2, *args, q[i])
+            for d in range(REDUCED_STATE):
+                tmp[d] = y[d] + 0.5 * h * k2[d]
+            _reduced_rhs_spatial(tmp, k3, *args, q[i])
+            for d in range(REDUCED_STATE):
+                tmp[d] = y[d] + h * k3[d]
+            _reduced_rhs_spatial(tmp, k4, *args, q[i])
+            for d in range(REDUCED_STATE):
+                y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+        for r in range(3):
+            ends_out[i, r] = y[r]
+            for c in range(3):
+                frames_out[i, r, c] = y[3 + 3 * r + c]
+        curv_out[i, 0] = y[17]
+        curv_out[i, 1] = y[18]
+        s0 += sec_len[i]

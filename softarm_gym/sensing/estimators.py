@@ -20,13 +20,15 @@ import numpy as np
 
 import solver
 from softarm_gym.sensing._kernels import (
+    REDUCED_STATE,
     SPATIAL_STATE,
     _arc_chain_planar,
     _hermite_resample,
     _load_cell_planar,
     _load_cell_spatial,
     _reduced_planar,
-    _solve_reduced,
+    _reduced_residual,
+    _reduced_spatial,
 )
 from softarm_gym.sensing.sensors import SensorReadings, cable_angles, cable_radius
 
@@ -224,11 +226,8 @@ class ModelShape(Estimator):
 class ConstantCurvatureShape(Estimator):
     """Each section a circular arc, its stretch and curvature from its encoder cables.
 
-    Section cable lengths are differences of the cumulative encoder readings. Planar (cables
-    at ±R·d1): l± = L0·v ∓ R·Δθ, so v = (l+ + l−)/(2L0) and Δθ = (l− − l+)/(2R) (Eqs.
-    4.27–4.30 with a symmetric cable pair). Spatial (φ = 0°, 120°, 240°):
-    l_k = L0·(v + R(u1 sin φ_k − u2 cos φ_k)), solved exactly for (v, u1, u2). The base
-    orientation comes from the base inclinometer (planar) or the known mounting (spatial).
+    Stretch and turning per section from :func:`cable_section_strains`; the base orientation
+    from the base inclinometer (spatial: its tilt, with the mounting's heading d2 = +z).
     Exact when no load acts; gravity bends sections away from arcs (the §4.3 failure mode).
     """
 
@@ -238,23 +237,9 @@ class ConstantCurvatureShape(Estimator):
         super().__init__(arm, planar, scene, n_samples)
         self.radius = cable_radius(arm)
 
-    def section_strains(self, readings: SensorReadings):
-        """Per-section (stretch v, curvature (n_sections,) planar or (n_sections, 2) (u1, u2))."""
-        lengths = np.diff(np.vstack([np.zeros(readings.encoder_lengths.shape[1]),
-                                     readings.encoder_lengths]), axis=0)
-        if self.planar:
-            stretch = lengths.sum(axis=1) / (2.0 * self.sec_len)
-            curvature = (lengths[:, 1] - lengths[:, 0]) / (2.0 * self.radius * self.sec_len)
-            return stretch, curvature
-        phi = cable_angles(False)
-        stretch = lengths.mean(axis=1) / self.sec_len
-        scale = 1.5 * self.radius * self.sec_len
-        u1 = lengths @ np.sin(phi) / scale
-        u2 = -(lengths @ np.cos(phi)) / scale
-        return stretch, np.column_stack([u1, u2])
-
     def _estimate(self, readings, pressures, truth):
-        stretch, curvature = self.section_strains(readings)
+        stretch, turning = cable_section_strains(readings, self.sec_len, self.radius)
+        curvature = turning / (self.sec_len if self.planar else self.sec_len[:, None])
         if self.planar:
             backbone = np.empty((self.n_samples, 2))
             ends = np.empty((len(self.sec_len), 3))
@@ -262,8 +247,82 @@ class ConstantCurvatureShape(Estimator):
                               self.s_query, backbone, ends)
             backbone[-1] = ends[-1, :2]
             return ShapeEstimate(tip=ends[-1, :2].copy(), section_ends=ends, backbone=backbone)
-        return _arc_chain_spatial(base_rotation(self.scene.base_theta), self.sec_len, curvature,
-                                  stretch, self.s_query)
+        return _arc_chain_spatial(base_rotation(float(readings.inclinometers[0, 0])), self.sec_len,
+                                  curvature, stretch, self.s_query)
+
+
+def cable_section_strains(readings: SensorReadings, sec_len: np.ndarray, radius: float):
+    """Per-section stretch and turning angle from the cable encoders (no shear, uniform stretch).
+
+    Section cable lengths are differences of the cumulative readings. Planar (cables at ±R·d1):
+    l± = L0·v ∓ R·Δθ, so v = (l+ + l−)/(2L0), Δθ = (l− − l+)/(2R) (Eqs. 4.27–4.30 with a
+    symmetric pair). Spatial (φ = 0°, 120°, 240°): l_k = L0·v + R(U1 sin φ_k − U2 cos φ_k)
+    with U = ∫u ds over the section, solved exactly for (v, U1, U2).
+
+    Returns:
+        (stretch (ns,), turning: planar Δθ (ns,) or spatial (U1, U2) (ns, 2), rad).
+    """
+    lengths = np.diff(readings.encoder_lengths, axis=0, prepend=0.0)
+    if readings.planar:
+        return lengths.sum(axis=1) / (2.0 * sec_len), (lengths[:, 1] - lengths[:, 0]) / (2.0 * radius)
+    phi = cable_angles(False)
+    return lengths.mean(axis=1) / sec_len, np.column_stack(
+        [lengths @ np.sin(phi), -(lengths @ np.cos(phi))]) / (1.5 * radius)
+
+
+def damped_newton(residual, z: np.ndarray, unknown_scale: np.ndarray, tol: float, max_iter: int,
+                  max_step: float = 20.0):
+    """Newton with a forward-difference Jacobian and step halving, in place on ``z``.
+
+    Steps are first clipped to ``max_step`` units of ``unknown_scale`` (as the solver clips
+    its Newton steps, so that a poor guess cannot fling the iterate to a distant root: with a
+    known payload, strongly curled arms admit other roots with large, opposing section
+    shears), then halved (up to 20 times) until they reduce the residual's 2-norm (for which
+    the Newton direction is a descent direction). Converged when max |residual| <= tol.
+
+    Args:
+        residual: z (n,) -> residuals (n,) in rad.
+        z: initial guess, overwritten with the solution.
+        unknown_scale: (n,) typical size of each unknown (sets its difference step).
+        tol, max_iter: tolerance on max |residual| (rad) and iteration cap.
+        max_step: largest step, in units of ``unknown_scale``.
+
+    Returns:
+        (converged, max |residual|).
+    """
+    res = residual(z)
+    merit = float(res @ res)
+    jac = np.empty((z.size, z.size))
+    for it in range(max_iter + 1):
+        err = float(np.max(np.abs(res)))
+        if not np.isfinite(err):
+            return False, math.inf
+        if err <= tol:
+            return True, err
+        if it == max_iter:
+            break
+        for j in range(z.size):
+            step = 1e-6 * unknown_scale[j]
+            keep = z[j]
+            z[j] = keep + step
+            jac[:, j] = (residual(z) - res) / step
+            z[j] = keep
+        try:
+            step = np.linalg.solve(jac, -res)
+        except np.linalg.LinAlgError:
+            return False, err
+        step *= min(1.0, max_step / float(np.max(np.abs(step) / unknown_scale)))
+        start = z.copy()
+        scale = 1.0
+        for _ in range(21):
+            z[:] = start + scale * step
+            trial = residual(z)
+            trial_merit = float(trial @ trial)
+            if trial_merit < merit:
+                break
+            scale *= 0.5
+        res, merit = trial, trial_merit
+    return False, float(np.max(np.abs(res)))
 
 
 def base_rotation(theta0: float) -> np.ndarray:
@@ -425,75 +484,107 @@ class LoadCellShape(_Integrating):
 
 
 class _ReducedModel(_Integrating):
-    """The reduced θ-model of §4.2.2–4.2.3 (Eq. 4.17), solved as a boundary-value problem.
+    """The reduced model of §4.2.2–4.2.3 (Eq. 4.17), solved as a boundary-value problem.
 
     Assumptions (the thesis's): each section stretches only by pressurisation, uniformly
-    (stretch v_i); the backbone is unshearable; the axial force is neglected, so the shear
-    force obeys n1' = w·cos θ and the moment m' = −v·n1; θ' = u* + m/EI. Unknowns: the base
-    moment and the shear force at the start of every section (n_sections + 1); θ and m are
-    continuous at junctions (Eqs. 4.35–4.39), the tip is moment-free (Eq. 4.33/4.40). The
-    boundary data (subclasses) close the system. Solved by Newton on the exact RK4 shooting
-    map (the thesis used bvp4c), warm-started from the previous estimate until :meth:`reset`.
+    (stretch v_i); the backbone is unshearable (r' = v·d3); the axial force is neglected, so
+    the shear force only carries the weight: planar n1' = w·cos θ (i.e. −q·d1), m' = −v·n1,
+    θ' = u* + m/EI, which eliminates to θ''' = −(v/EI)·w·cos θ. Unknowns: the base moment and
+    the shear force at the start of every section (it may jump at a junction, as each
+    section's third boundary condition in the thesis leaves it free); θ and m are continuous
+    (Eqs. 4.35–4.39) and the tip is moment-free (Eq. 4.33/4.40). The boundary data of the
+    subclass close the system. Solved by damped Newton on the RK4 shooting map (the thesis
+    used bvp4c), warm-started from the previous estimate until :meth:`reset`.
+
+    Spatial (cable encoders only): body shear (n1, n2) per section with
+    (n1, n2)' = −(Rᵀq)₁,₂ ± u3·(n2, n1), m' = −v·d3 × n, u = u* + C⁻¹Rᵀm (torsion kept);
+    unknowns m0 (3) and (n1, n2) per section; data ∫u1, ∫u2 per section and m(L) = 0.
 
     Options:
-        steps_per_section: RK4 steps per section.
+        steps_per_section: RK4 steps per section (default: the solver's 16).
         tol: boundary-residual tolerance (rad). max_iter: Newton iterations.
     """
 
     def __init__(self, arm, planar, scene, n_samples, steps_per_section: int | None = None,
-                 tol: float = 1e-10, max_iter: int = 30):
+                 tol: float = 1e-10, max_iter: int = 60):
         super().__init__(arm, planar, scene, n_samples, steps_per_section)
-        if not planar:
-            raise ValueError(f"the spatial {self.name} estimator is not available yet")
         if not (tol > 0 and int(max_iter) == max_iter and max_iter >= 1):
             raise ValueError(f"tol must be > 0 and max_iter an integer >= 1; got {tol!r}, {max_iter!r}")
         self.tol = float(tol)
         self.max_iter = int(max_iter)
         ns = len(arm.sections)
         self.weight = self.mass_per_length * scene.gravity
+        self.q = self.mass_per_length[:, None] * np.array([0.0, -scene.gravity, 0.0])[None, :]
+        self.c_j = np.array([1.0 / s.GJ for s in arm.sections])
         ei_max = 1.0 / self.c_i.min()
         self.moment_scale = arm.length / ei_max
         self.force_scale = arm.length**2 / ei_max
-        self.unknown_scale = np.array([ei_max / arm.length] + [ei_max / arm.length**2] * ns)
-        self._z = np.zeros(ns + 1)
-        self._work = (np.empty(ns + 1), np.empty(ns + 1), np.empty((ns + 1, ns + 1)), np.empty(ns + 1),
-                      np.empty(ns + 1))
+        n_moment, n_shear = (1, 1) if planar else (3, 2)
+        self.unknown_scale = np.array([ei_max / arm.length] * n_moment
+                                      + [ei_max / arm.length**2] * (n_shear * ns))
+        self._z = np.zeros(self.unknown_scale.size)
+        self._res = np.empty(self._z.size)
+        self._curv = np.empty((ns, 2))
+        self._kernel_work = np.zeros((6, REDUCED_STATE))
         self.tip_weight = 0.0
 
     def reset(self) -> None:
         self._z[:] = 0.0
 
     def _boundary_data(self, readings, v_rest):
-        """(stretch (ns,), θ targets (ns,), number of θ targets used)."""
+        """(stretch (ns,), targets: planar section-end θ (ns,), spatial (∫u1, ∫u2) (ns, 2),
+        number of planar θ targets used)."""
         raise NotImplementedError
 
     def _estimate(self, readings, pressures, truth):
-        _, u_rest, v_rest = self._rest(pressures)
+        u1_rest, u2_rest, v_rest = self._rest(pressures)
         stretch, target, n_angles = self._boundary_data(readings, v_rest)
-        theta0 = float(readings.inclinometers[0])
+        if self.planar:
+            theta0 = float(readings.inclinometers[0])
+            fixed = (theta0, self.sec_len, self.sec_steps, self.c_i, u2_rest, stretch, self.weight, target,
+                     n_angles, self.tip_weight, self.moment_scale, self.force_scale, self._ends)
+
+            def residual(z):
+                _reduced_residual(z, *fixed, self._res)
+                return self._res.copy()
+        else:
+            rot0 = base_rotation(float(readings.inclinometers[0, 0]))
+            ns = len(self.sec_len)
+
+            def run(z, record):
+                _reduced_spatial(rot0, z[:3], z[3:].reshape(ns, 2), self.sec_len, self.sec_steps,
+                                 self.c_i, self.c_j, u1_rest, u2_rest, stretch, self.q, record,
+                                 self._kernel_work, self._s, self._pos, self._tan, self._ends,
+                                 self._frames, self._curv)
+
+            def residual(z):
+                run(z, False)
+                return np.concatenate([(self._curv - target).ravel(),
+                                       self._kernel_work[0, 12:15] * self.moment_scale])
         ok = False
         for attempt in range(2):
             if attempt:
                 self._z[:] = 0.0  # the warm start led astray: retry from the unloaded guess
-            ok, _, _ = _solve_reduced(self._z, theta0, self.sec_len, self.sec_steps, self.c_i, u_rest,
-                                      stretch, self.weight, target, n_angles, self.tip_weight,
-                                      self.moment_scale, self.force_scale, self.unknown_scale,
-                                      self.tol, self.max_iter, self._ends, *self._work)
+            ok, _ = damped_newton(residual, self._z, self.unknown_scale, self.tol, self.max_iter)
             if ok:
                 break
         if not np.all(np.isfinite(self._z)):
             self._z[:] = 0.0
-        _reduced_planar(theta0, self._z[0], self._z[1:], self.sec_len, self.sec_steps, self.c_i, u_rest,
-                        stretch, self.weight, True, self._s, self._pos, self._tan, self._ends)
+        if self.planar:
+            _reduced_planar(theta0, self._z[0], self._z[1:], self.sec_len, self.sec_steps, self.c_i,
+                            u2_rest, stretch, self.weight, True, self._s, self._pos, self._tan, self._ends)
+        else:
+            run(self._z, True)
         return self._shape(converged=bool(ok))
 
 
 class CableEncoderShape(_ReducedModel):
     """Cable encoders + base inclinometer (§4.2.2): Eq. 4.17 with boundary data 4.31–4.33.
 
-    Per section, the cable pair gives the stretch v_i = (l+ + l−)/(2L0) (Eq. 4.27) and the
-    rotation Δθ_i = (l− − l+)/(2R) (Eq. 4.30); θ(s_i) = θ0 + Σ Δθ fixes the section-end
-    angles. Independent of an unknown tip payload; exact when no force acts along the arm.
+    Per section the cables give the stretch v_i (Eq. 4.27) and the turning Δθ_i (Eq. 4.30;
+    spatially ∫u1, ∫u2): see :func:`cable_section_strains`. Planar: θ(s_i) = θ0 + Σ Δθ fixes
+    the section-end angles. Independent of an unknown tip payload, up to the neglected axial
+    force; exact when no force acts along the arm.
     """
 
     name = "cable_encoder"
@@ -503,15 +594,14 @@ class CableEncoderShape(_ReducedModel):
         self.radius = cable_radius(arm)
 
     def _boundary_data(self, readings, v_rest):
-        lengths = np.diff(readings.encoder_lengths, axis=0, prepend=0.0)
-        stretch = lengths.sum(axis=1) / (2.0 * self.sec_len)
-        dtheta = (lengths[:, 1] - lengths[:, 0]) / (2.0 * self.radius)
-        target = float(readings.inclinometers[0]) + np.cumsum(dtheta)
-        return stretch, target, len(self.sec_len)
+        stretch, turning = cable_section_strains(readings, self.sec_len, self.radius)
+        if not self.planar:
+            return stretch, turning, 0
+        return stretch, float(readings.inclinometers[0]) + np.cumsum(turning), len(self.sec_len)
 
 
 class InclinometerShape(_ReducedModel):
-    """Inclinometers at the base and every section end (§4.2.3, Eqs. 4.34–4.41).
+    """Inclinometers at the base and every section end (§4.2.3, Eqs. 4.34–4.41); planar.
 
     Stretch from the actuator model at the commanded pressures. Without ``known_payload_kg``
     all n_sections + 1 inclinometers are used (the payload may be unknown); with it, the tip
@@ -526,6 +616,9 @@ class InclinometerShape(_ReducedModel):
 
     def __init__(self, arm, planar, scene, n_samples, known_payload_kg: float | None = None,
                  **options):
+        if not planar:
+            raise ValueError("the inclinometer estimator is planar only (a spatial tilt sensor does "
+                             "not measure heading)")
         super().__init__(arm, planar, scene, n_samples, **options)
         if known_payload_kg is not None:
             bad = isinstance(known_payload_kg, bool) or not isinstance(known_payload_kg, (int, float))
