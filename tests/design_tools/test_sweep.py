@@ -89,3 +89,11 @@ def test_sweep_rejects_bad_input(kwargs, match):
             "progress": False, **kwargs}
     with pytest.raises(ValueError, match=match):
         dt.sweep(**args)
+
+
+def test_capacity_rises_then_falls_with_length_at_a_fixed_tube_ratio():
+    """§3.4.2: actuation grows like L³ and the load's lever like L, self-weight like L⁴."""
+    loads = [dt.evaluate(P, "tube-ratio", (12, 12, 6), length).load_n
+             for length in (0.25, 0.5, 0.75, 1.0, 1.5, 2.0)]
+    assert np.all(np.diff(loads[:4]) > 0)
+    assert loads[5] < loads[4] < loads[3]
