@@ -81,13 +81,11 @@ def _range(name: str, value) -> tuple[float, float]:
 class SoftArmEnv(gym.Env):
     """Base class of the soft-arm environments (see :class:`ReachEnv` for the env card).
 
-    Subclasses set ``goal_size`` and implement ``_goal_bounds``, ``_reset_task``,
+    Subclasses implement ``_goal_bounds``, ``_reset_task``,
     ``_fill_goal``, ``_task_reward`` and ``_task_artists``.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
-    goal_size = 0
-    goal_names: tuple[str, ...] = ()
 
     def __init__(self, design="octarm_v", planar: bool = True, observation: str = "true",
                  sensor_noise="off", base_angle_deg: float = 90.0, payload_kg=0.0, gravity: float = 9.81,
@@ -97,10 +95,10 @@ class SoftArmEnv(gym.Env):
                  max_solver_failures: int = 5, model: str = "full",
                  render_mode: str | None = None, render_size: int = 400):
         self.arm = _design(design)
-        if planar is not True:
-            raise ValueError("planar=False is not supported yet: the estimators' shape output "
-                             "and the observation layout are planar (x, y, θ); use planar=True")
-        self.planar = True
+        if not isinstance(planar, (bool, np.bool_)):
+            raise ValueError(f"planar must be True or False; got {planar!r}")
+        self.planar = bool(planar)
+        self.dim = 2 if self.planar else 3
         if observation not in ESTIMATORS:
             raise ValueError(f"unknown observation {observation!r}; choose one of {', '.join(ESTIMATORS)}")
         if action_mode not in ACTION_MODES:
@@ -143,11 +141,11 @@ class SoftArmEnv(gym.Env):
         self.render_size = int(render_size)
 
         self.p_max = float(self.arm.max_pressure)
-        self.input_names = self.arm.input_names(True)
+        self.input_names = self.arm.input_names(self.planar)
         self.n_inputs = len(self.input_names)
         self.n_sections = len(self.arm.sections)
         self.reach = 2.0 * self.arm.length
-        self.estimator = make_estimator(observation, self.arm, planar=True,
+        self.estimator = make_estimator(observation, self.arm, planar=self.planar,
                                         scene=solver.Scene(base_angle_deg=self.base_angle_deg,
                                                            gravity=self.gravity),
                                         n_samples=self.n_backbone)
@@ -183,12 +181,12 @@ class SoftArmEnv(gym.Env):
     def _observation_parts(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Names and (low, high) bounds of the observation blocks, in flat order."""
         r = self.reach
-        ends_low = np.tile([-r, -r, -1.0, -1.0], self.n_sections)
+        ends_low = np.tile([-r] * self.dim + [-1.0] * self.dim, self.n_sections)
         goal_low, goal_high = self._goal_bounds()
         return {
-            "tip": (np.full(2, -r), np.full(2, r)),
+            "tip": (np.full(self.dim, -r), np.full(self.dim, r)),
             "section_ends": (ends_low, -ends_low),
-            "backbone": (np.full(2 * self.n_backbone, -r), np.full(2 * self.n_backbone, r)),
+            "backbone": (np.full(self.dim * self.n_backbone, -r), np.full(self.dim * self.n_backbone, r)),
             "pressures": (np.full(self.n_inputs, -1.0), np.full(self.n_inputs, 1.0)),
             "goal": (np.asarray(goal_low, dtype=float), np.asarray(goal_high, dtype=float)),
         }
@@ -255,7 +253,7 @@ class SoftArmEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         fraction = self._action_to_fraction(action)
         eq = self._solve(fraction, warm_start=self._eq)
-        ok = bool(eq.converged and math.isfinite(eq.tip[0] + eq.tip[1]))
+        ok = bool(eq.converged and math.isfinite(eq.tip.sum()))
         if ok:
             self._eq = eq
             self._fraction = fraction
@@ -281,7 +279,7 @@ class SoftArmEnv(gym.Env):
 
     def _solve(self, fraction: np.ndarray, warm_start) -> solver.Equilibrium:
         return solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
-                            planar=True, warm_start=warm_start, record=True)
+                            planar=self.planar, warm_start=warm_start, record=True)
 
     def _action_to_fraction(self, action) -> np.ndarray:
         """Validate and clip a normalised action; return channel pressures as fractions of p_max."""
@@ -307,10 +305,14 @@ class SoftArmEnv(gym.Env):
         shape = self._shape
         obs = self._obs
         obs[self._slices["tip"]] = shape.tip
-        ends = obs[self._slices["section_ends"]].reshape(self.n_sections, 4)
-        ends[:, :2] = shape.section_ends[:, :2]
-        ends[:, 2] = np.cos(shape.section_ends[:, 2])
-        ends[:, 3] = np.sin(shape.section_ends[:, 2])
+        ends = obs[self._slices["section_ends"]].reshape(self.n_sections, 2 * self.dim)
+        if self.planar:
+            ends[:, :2] = shape.section_ends[:, :2]
+            ends[:, 2] = np.cos(shape.section_ends[:, 2])
+            ends[:, 3] = np.sin(shape.section_ends[:, 2])
+        else:
+            ends[:, :3] = shape.section_ends
+            ends[:, 3:] = shape.section_frames[:, :, 2]
         obs[self._slices["backbone"]] = shape.backbone.ravel()
         obs[self._slices["pressures"]] = 2.0 * self._fraction - 1.0
         self._fill_goal(obs[self._slices["goal"]])
@@ -325,7 +327,7 @@ class SoftArmEnv(gym.Env):
         info = {
             "tip_true": eq.tip.copy(),
             "tip_estimated": np.asarray(self._shape.tip, dtype=float).copy(),
-            "estimation_error": math.hypot(self._shape.tip[0] - eq.tip[0], self._shape.tip[1] - eq.tip[1]),
+            "estimation_error": math.dist(self._shape.tip, eq.tip),
             "sensors": {"encoder_lengths": self._readings.encoder_lengths,
                         "inclinometers": self._readings.inclinometers,
                         "base_wrench": self._readings.base_wrench},
@@ -354,9 +356,10 @@ class SoftArmEnv(gym.Env):
         if self._renderer is None:
             self._renderer = ArmRenderer(extent=1.3 * self.arm.length, size=self.render_size)
         eq = self._eq
+        # Spatial arms are drawn as their projection on the x–y plane.
         frame = self._renderer.frame(
-            eq.positions, eq.positions[list(eq.section_ends)], self._shape.backbone, self._shape.tip,
-            caption=self._caption(), **self._task_artists())
+            eq.positions[:, :2], eq.positions[list(eq.section_ends), :2], self._shape.backbone[:, :2],
+            self._shape.tip[:2], caption=self._caption(), **self._task_artists())
         if self.render_mode == "rgb_array":
             return frame
         if self._window is None:
@@ -366,7 +369,7 @@ class SoftArmEnv(gym.Env):
 
     def _caption(self) -> str:
         return (f"{self.arm.name}  obs={self.observation_name}\n"
-                f"est. error {1000 * np.hypot(*(self._shape.tip - self._eq.tip)):.1f} mm")
+                f"est. error {1000 * math.dist(self._shape.tip, self._eq.tip):.1f} mm")
 
     def close(self):
         if self._window is not None:

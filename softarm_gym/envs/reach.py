@@ -53,7 +53,9 @@ class ReachEnv(SoftArmEnv):
     | ``pressures`` | n_inputs | current channel pressures on the action scale, 2p/p_max − 1 | – |
     | ``goal`` | 4 | target (x, y), then target − estimated tip | m |
 
-    Positions are bounded by ±2L (L the arm's length) and clipped to it. Estimates come from
+    With ``planar=False`` positions are (x, y, z), section ends (x, y, z, d3x, d3y, d3z) and the
+    goal (target, target − tip) 6 values. Positions are bounded by ±2L (L the arm's length)
+    and clipped to it. Estimates come from
     ``observation``: ``true`` (the equilibrium itself), ``model`` (nominal arm at the
     commanded pressures, payload assumed 0), ``constant_curvature`` (encoder lengths),
     ``cable_encoder``, ``inclinometer`` or ``load_cell`` (thesis chapter 4). Estimators use the
@@ -89,7 +91,10 @@ class ReachEnv(SoftArmEnv):
     ``gym.make("SoftArm/OctArmReach-v0", **kwargs)``:
 
     * ``design`` (``"octarm_v"``; CTReach ``"ct"``): design name or ``solver.designs.ArmDesign``.
-    * ``planar`` (True): the planar model. ``False`` is not supported yet (``ValueError``).
+    * ``planar`` (True): the planar model. ``False``: the spatial arm — one pressure per
+      spatial channel (OctArm ``s1_I, s1_II, s1_III, ...``, CT ``inner_I, ..., outer_III``),
+      3-D positions, section ends as (x, y, z, d3) and a 3-D target; the ``inclinometer``
+      estimator is planar only (``ValueError``); rendering shows the x–y projection.
     * ``observation`` (``"true"``): the shape estimator, one of ``softarm_gym.sensing.ESTIMATORS``.
     * ``sensor_noise`` (``"off"``): ``"off"``, ``"thesis"`` (Table 4.3 resolutions), a dict of
       ``SensorNoise`` fields or a ``SensorNoise``.
@@ -123,8 +128,6 @@ class ReachEnv(SoftArmEnv):
     * v0: initial version.
     """
 
-    goal_size = 4
-
     def __init__(self, design="octarm_v", *, distance_weight: float = 1.0, control_weight: float = 0.01,
                  success_bonus: float = 1.0, success_tolerance: float = 0.02,
                  terminate_on_success: bool = False, **kwargs):
@@ -135,19 +138,20 @@ class ReachEnv(SoftArmEnv):
         if self.success_tolerance <= 0:
             raise ValueError(f"success_tolerance must be > 0 (m); got {success_tolerance}")
         self.terminate_on_success = bool(terminate_on_success)
-        self._target = np.zeros(2)
         self.target_pressures_pa = None
         super().__init__(design, **kwargs)
+        self._target = np.zeros(self.dim)
 
     def _goal_bounds(self):
         r = self.reach
-        return np.array([-r, -r, -2 * r, -2 * r]), np.array([r, r, 2 * r, 2 * r])
+        high = np.concatenate([np.full(self.dim, r), np.full(self.dim, 2 * r)])
+        return -high, high
 
     def _reset_task(self, options, start):
         if options and "target" in options:
             target = np.asarray(options["target"], dtype=float)
-            if target.shape != (2,) or not np.all(np.isfinite(target)):
-                raise ValueError(f"options['target'] must be a finite (x, y) point (m); "
+            if target.shape != (self.dim,) or not np.all(np.isfinite(target)):
+                raise ValueError(f"options['target'] must be a finite {self.dim}-D point (m); "
                                  f"got {options['target']!r}")
             self._target = target.copy()
             self.target_pressures_pa = None
@@ -155,7 +159,7 @@ class ReachEnv(SoftArmEnv):
         for _ in range(_TARGET_ATTEMPTS):
             fraction = self.np_random.uniform(0.0, 1.0, self.n_inputs)
             eq = solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
-                              planar=True, record=False, settings=_TARGET_SETTINGS)
+                              planar=self.planar, record=False, settings=_TARGET_SETTINGS)
             if eq.converged:
                 self._target = eq.tip.copy()
                 self.target_pressures_pa = eq.pressures.copy()
@@ -164,11 +168,11 @@ class ReachEnv(SoftArmEnv):
                            f"{self.arm.name} in {self._scene}")
 
     def _fill_goal(self, out):
-        out[:2] = self._target
-        out[2:] = self._target - self._shape.tip
+        out[:self.dim] = self._target
+        out[self.dim:] = self._target - self._shape.tip
 
     def _task_reward(self, eq):
-        distance = math.hypot(eq.tip[0] - self._target[0], eq.tip[1] - self._target[1])
+        distance = math.dist(eq.tip, self._target)
         success = distance <= self.success_tolerance
         terms = {
             "reward_distance": -self.distance_weight * distance,
@@ -181,7 +185,7 @@ class ReachEnv(SoftArmEnv):
         return self.terminate_on_success and success
 
     def _task_artists(self):
-        return {"target": self._target}
+        return {"target": self._target[:2]}
 
     def _caption(self):
-        return super()._caption() + f"\ndistance {1000 * np.hypot(*(self._eq.tip - self._target)):.1f} mm"
+        return super()._caption() + f"\ndistance {1000 * math.dist(self._eq.tip, self._target):.1f} mm"

@@ -107,7 +107,8 @@ class WrapEnv(SoftArmEnv):
 
     ## Arguments
 
-    All ReachEnv arguments except the reach-reward ones (``design``, ``planar``,
+    All ReachEnv arguments except the reach-reward ones (``design``, ``planar`` (True only:
+    contact is planar),
     ``observation``, ``sensor_noise``, ``base_angle_deg`` (default 0 here: hanging), ``payload_kg``,
     ``gravity``, ``randomization``,
     ``action_mode``, ``delta_scale``, ``n_backbone``, ``observation_format``,
@@ -131,8 +132,6 @@ class WrapEnv(SoftArmEnv):
 
     * v0: initial version.
     """
-
-    goal_size = 3
 
     def __init__(self, design="octarm_v", *, object_radius=(0.09, 0.11),
                  contact_stiffness: float = 1.0e5, contact_margin: float = 0.005, placement_gap: float = 0.01,
@@ -164,6 +163,8 @@ class WrapEnv(SoftArmEnv):
         self._object_radius = self.object_radius_range[0]
         self._contact_radius = self.object_radius_range[0]
         self.touch_arc_length = None
+        if kwargs.get("planar", True) is not True:
+            raise ValueError("WrapEnv is planar only (the solver's disc contact is planar); use planar=True")
         kwargs.setdefault("base_angle_deg", 0.0)
         super().__init__(design, **kwargs)
         self.half_thickness = arm_half_thickness(self.arm)

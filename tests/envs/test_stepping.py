@@ -172,7 +172,6 @@ def test_payload_range_is_drawn_per_episode():
     ({"max_solver_failures": 0}, "max_solver_failures"),
     ({"success_tolerance": 0.0}, "success_tolerance"),
     ({"render_mode": "ascii"}, "render_mode"),
-    ({"planar": False}, "planar=False"),
     ({"model": "euler"}, "unknown model"),
 ])
 def test_bad_kwargs_raise_clear_value_errors(kwargs, match):
