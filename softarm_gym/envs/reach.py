@@ -12,9 +12,6 @@ from softarm_gym.envs.base import SoftArmEnv, _finite_number
 __all__ = ["ReachEnv"]
 
 _TARGET_ATTEMPTS = 20
-_TARGET_SETTINGS = solver.Settings(dt0=1.0 / 16.0)
-"""Cold solves of targets ramp the pressures in steps of at most 1/16: a single full step can
-converge on an equilibrium off the quasi-static branch, which the arm never reaches from rest."""
 
 
 class ReachEnv(SoftArmEnv):
@@ -74,7 +71,7 @@ class ReachEnv(SoftArmEnv):
 
     Per episode: the simulated arm (``randomization``), a payload drawn uniformly from
     ``payload_kg``, a target — the tip of the arm at uniformly random pressures, solved
-    quasi-statically from rest (pressures ramped in steps of 1/16), so every target is
+    cold (the solver follows the quasi-static path from rest), so every target is
     reachable by this episode's arm and payload (or
     ``options={"target": (x, y)}``) — and start pressures uniform in
     [0, ``initial_pressure_fraction``]·p_max.
@@ -159,7 +156,7 @@ class ReachEnv(SoftArmEnv):
         for _ in range(_TARGET_ATTEMPTS):
             fraction = self.np_random.uniform(0.0, 1.0, self.n_inputs)
             eq = solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
-                              planar=self.planar, record=False, settings=_TARGET_SETTINGS)
+                              planar=self.planar, record=False)
             if eq.converged:
                 self._target = eq.tip.copy()
                 self.target_pressures_pa = eq.pressures.copy()
