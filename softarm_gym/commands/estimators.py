@@ -76,6 +76,14 @@ def format_table(result: dict) -> str:
     for label, data in result["orientations"].items():
         for key, title in SENSING.items():
             block(f"{label} base ({data['base_angle_deg']:.0f} deg), {title}", data[key])
+        groups = [k.split(":", 1)[1] for k in data if k.startswith("bound:")]
+        lines.append("")
+        lines.append(f"{label} base, linearised bound by sensor: peak over pressure of the RMS / L")
+        lines.append("estimator".ljust(20) + "".join(f"{g[:16]:>17}" for g in groups))
+        for name in data["bound"]:
+            if name != "model":
+                lines.append(name.ljust(20) + "".join(
+                    f"{np.nanmax(data['bound:' + g][name]['rms_over_L']):17.4f}" for g in groups))
         if data["excluded_truths"]:
             lines.append(f"  ({len(data['excluded_truths'])} truths left out: no stable converged solve)")
     for label, data in result["payload"].items():

@@ -53,10 +53,14 @@ def configurations(n_inputs: int = 6) -> list[str]:
     return ["".join(bits) for bits in itertools.product("01", repeat=n_inputs)]
 
 
+SENSOR_GROUPS = ("encoders", "base_inclinometer", "inclinometers", "load_cell_shear",
+                 "load_cell_axial", "load_cell_moment")
+
+
 def _perturbations(readings, noise: SensorNoise):
     """One reading change of one resolution step per sensor axis, as SensorReadings deltas.
 
-    Yields (encoder delta (ns, 2), inclinometer delta (ns + 1,), wrench delta (3,)).
+    Yields (sensor group, encoder delta (ns, 2), inclinometer delta (ns + 1,), wrench delta (3,)).
     """
     ns = readings.encoder_lengths.shape[0]
     zero_enc, zero_inc, zero_w = np.zeros((ns, 2)), np.zeros(ns + 1), np.zeros(3)
@@ -64,23 +68,27 @@ def _perturbations(readings, noise: SensorNoise):
         for c in range(2):
             d = zero_enc.copy()
             d[i, c] = noise.encoder_resolution
-            yield d, zero_inc, zero_w
+            yield "encoders", d, zero_inc, zero_w
     for i in range(ns + 1):
         d = zero_inc.copy()
         d[i] = math.radians(noise.base_inclinometer_deg if i == 0 else noise.inclinometer_resolution_deg)
-        yield zero_enc, d, zero_w
+        yield ("base_inclinometer" if i == 0 else "inclinometers"), zero_enc, d, zero_w
     th = float(readings.inclinometers[0])
     d1 = np.array([-math.sin(th), math.cos(th), 0.0])
     d3 = np.array([math.cos(th), math.sin(th), 0.0])
-    yield zero_enc, zero_inc, noise.force_resolution * d1
-    yield zero_enc, zero_inc, noise.axial_force_resolution * d3
-    yield zero_enc, zero_inc, np.array([0.0, 0.0, noise.moment_resolution])
+    yield "load_cell_shear", zero_enc, zero_inc, noise.force_resolution * d1
+    yield "load_cell_axial", zero_enc, zero_inc, noise.axial_force_resolution * d3
+    yield "load_cell_moment", zero_enc, zero_inc, np.array([0.0, 0.0, noise.moment_resolution])
 
 
-def sensitivity_bound(est, readings, pressures, noise: SensorNoise) -> float:
-    """Linearised tip error √(Σ (Δ_i ∂tip/∂r_i)²) of an estimator (m), thesis Eq. 4.12 style."""
-    total = 0.0
-    for d_enc, d_inc, d_w in _perturbations(readings, noise):
+def sensitivity_bound(est, readings, pressures, noise: SensorNoise) -> dict:
+    """Linearised tip error √(Σ (Δ_i ∂tip/∂r_i)²) of an estimator (m), thesis Eq. 4.12 style.
+
+    Returns:
+        ``{"total": E, <sensor group>: E restricted to that group, ...}`` (m).
+    """
+    squares = dict.fromkeys(SENSOR_GROUPS, 0.0)
+    for group, d_enc, d_inc, d_w in _perturbations(readings, noise):
         tips = []
         for sign in (1.0, -1.0):
             h = sign * BOUND_STEP
@@ -88,8 +96,10 @@ def sensitivity_bound(est, readings, pressures, noise: SensorNoise) -> float:
                             inclinometers=readings.inclinometers + h * d_inc,
                             base_wrench=readings.base_wrench + h * d_w)
             tips.append(est.estimate(moved, pressures).tip)
-        total += float(np.sum(((tips[0] - tips[1]) / (2.0 * BOUND_STEP)) ** 2))
-    return math.sqrt(total)
+        squares[group] += float(np.sum(((tips[0] - tips[1]) / (2.0 * BOUND_STEP)) ** 2))
+    out = {g: math.sqrt(v) for g, v in squares.items()}
+    out["total"] = math.sqrt(sum(squares.values()))
+    return out
 
 
 def _sweep(arm, scene, pressures_psi, estimators, noises, payload_kg, progress, bound=True):
@@ -105,7 +115,7 @@ def _sweep(arm, scene, pressures_psi, estimators, noises, payload_kg, progress, 
     options = {"model": {"settings": TRUTH_SETTINGS}}  # the nominal model on the truth's grid
     ests = {name: make_estimator(name, arm, planar=True, scene=scene, **options.get(name, {}))
             for name in estimators}
-    keys = list(noises) + (["bound"] if bound else [])
+    keys = list(noises) + (["bound", *(f"bound:{g}" for g in SENSOR_GROUPS)] if bound else [])
     errors = {nk: {name: np.full((len(pressures_psi), len(codes)), np.nan) for name in estimators}
               for nk in keys}
     unconverged = {name: 0 for name in estimators}
@@ -129,8 +139,11 @@ def _sweep(arm, scene, pressures_psi, estimators, noises, payload_kg, progress, 
                     unconverged[name] += not shape.converged
                     errors[nk][name][i, k] = float(np.linalg.norm(shape.tip - eq.tip))
                     if bound and nk == "perfect":
-                        errors["bound"][name][i, k] = (
-                            0.0 if name == "model" else sensitivity_bound(est, readings, p, thesis))
+                        parts = (dict.fromkeys(("total", *SENSOR_GROUPS), 0.0) if name == "model"
+                                 else sensitivity_bound(est, readings, p, thesis))
+                        errors["bound"][name][i, k] = parts["total"]
+                        for g in SENSOR_GROUPS:
+                            errors[f"bound:{g}"][name][i, k] = parts[g]
     return codes, errors, unconverged, excluded
 
 
