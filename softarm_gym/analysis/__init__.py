@@ -21,8 +21,8 @@ from softarm_gym.analysis.sweep import BACKENDS, PressureGrid, pressure_grid, sw
 from softarm_gym.analysis.workspace import (
     DEFAULT_ALPHA_FRACTION,
     Workspace,
+    alpha_complex,
     alpha_shape_area,
-    alpha_shape_triangles,
     occupancy_area,
     workspace,
 )
@@ -30,6 +30,6 @@ from softarm_gym.analysis.workspace import (
 __all__ = [
     "DEFAULT_REL_STEP", "MEASURES", "METHODS", "Dexterity", "DexterityMap", "dexterity",
     "dexterity_map", "jacobian", "step_study", "BACKENDS", "PressureGrid", "pressure_grid",
-    "sweep_tips", "DEFAULT_ALPHA_FRACTION", "Workspace", "alpha_shape_area",
-    "alpha_shape_triangles", "occupancy_area", "workspace",
+    "sweep_tips", "DEFAULT_ALPHA_FRACTION", "Workspace", "alpha_complex",
+    "alpha_shape_area", "occupancy_area", "workspace",
 ]

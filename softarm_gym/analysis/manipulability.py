@@ -18,7 +18,7 @@ truncation error of a second-order difference is ~h²·|f‴|/6 and the round-of
 tolerance, :data:`FD_SETTINGS`, so ε ~ 1e-13 m). The tip varies on the scale of p_max, so
 the relative error is ~c·r² + ε/(r·p_max·|J|). Measured on OctArm V (``docs/analysis.md``,
 :func:`step_study`): 2.2e-3 at r = 1e-1, 2.2e-7 at 1e-3, 2.2e-9 at 1e-4 (truncation, falling
-as r²), a minimum 1.8e-10 near 1e-5, then round-off: 2.5e-9 at 1e-6, 2.3e-7 at 1e-8.
+as r²), a minimum ~2e-10 near 1e-5, then round-off: ~2e-9 at 1e-6, ~1e-7 at 1e-8.
 r = 1e-4 sits a decade on the truncation side of the optimum: its error is ~1e-9, and the
 round-off term stays negligible where |J| is ten times smaller than at the test point
 (directions of small σ_min) or near a fold, where the step must stay small.
@@ -43,7 +43,7 @@ from tqdm import tqdm
 
 import solver
 from softarm_gym.analysis.sweep import PressureGrid, pressure_grid
-from softarm_gym.analysis.workspace import DEFAULT_ALPHA_FRACTION, alpha_shape_area
+from softarm_gym.analysis.workspace import DEFAULT_ALPHA_FRACTION, alpha_complex
 
 __all__ = ["jacobian", "dexterity", "Dexterity", "dexterity_map", "DexterityMap", "step_study",
            "MEASURES", "METHODS", "DEFAULT_REL_STEP"]
@@ -220,11 +220,14 @@ class DexterityMap:
         return self._measures[name]
 
     def dexterous_area(self, thresholds) -> np.ndarray:
-        """Area (m²) of the workspace reachable with σ_min at or above each threshold.
+        """Area (m²) of the workspace that the arm reaches with σ_min at or above each threshold.
 
-        The alpha shape (radius ``alpha``) of the valid tips whose σ_min ≥ t: the thesis's
-        Fig. 5.6 quantity before normalisation. Divide by ``dexterous_area([0])`` for the
-        fraction of the workspace, or by πL² for the thesis's area unit.
+        The alpha shape of the valid tips (radius ``alpha``, the workspace area at t = 0),
+        keeping at threshold t the triangles whose three corners are reached with σ_min ≥ t
+        (a corner reached by several pressure vectors counts with its best σ_min). The area
+        therefore never grows with t. This is the thesis's Fig. 5.6 quantity before
+        normalisation: divide by ``dexterous_area([0])`` for the fraction of the workspace,
+        or by πL² for the thesis's area unit.
 
         Args:
             thresholds: (m,) σ_min thresholds (m/Pa).
@@ -235,9 +238,11 @@ class DexterityMap:
         t = np.asarray(thresholds, dtype=float).ravel()
         if not np.all(np.isfinite(t)):
             raise ValueError("thresholds must be finite")
-        smin = self.measure("sigma_min")
-        pts = self.tips[:, :2]
-        return np.array([alpha_shape_area(pts[self.valid & (smin >= v)], self.alpha) for v in t])
+        unique, inverse, triangles, areas = alpha_complex(self.tips[self.valid, :2], self.alpha)
+        best = np.full(unique.shape[0], -np.inf)
+        np.maximum.at(best, inverse, self.measure("sigma_min")[self.valid])
+        corner_min = best[triangles].min(axis=1) if triangles.size else np.empty(0)
+        return np.array([areas[corner_min >= v].sum() for v in t])
 
     def summary(self) -> dict:
         """The JSON payload of ``softarm dexterity`` (medians over the valid points)."""

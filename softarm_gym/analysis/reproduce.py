@@ -103,13 +103,15 @@ def ct_vs_octarm(levels: int = 7, max_psi: float = 70.0, endplate_masses=(0.0, E
     return out
 
 
-def dexterity_comparison(levels: int = 7, max_psi: float = 70.0, endplate_mass: float = ENDPLATE_MASS,
-                         progress: bool = False) -> dict[str, DexterityMap]:
-    """§5.3.2: hanging dexterity maps of the two-section OctArm and the CT arm (Fig. 5.5)."""
+def dexterity_comparison(levels: int = 7, max_psi: float = 70.0,
+                         endplate_masses=(0.0, ENDPLATE_MASS), progress: bool = False,
+                         ) -> dict[str, DexterityMap]:
+    """§5.3.2: hanging dexterity maps of the two-section OctArm (per endplate mass) and the CT
+    arm (Fig. 5.5), labelled as in :func:`ct_vs_octarm`."""
     scene = solver.Scene(base_angle_deg=0.0)
-    arms = {f"octarm_2s (endplates {endplate_mass:g} kg)":
-            solver.designs.octarm_two_section(endplate_mass=float(endplate_mass)),
-            "ct": solver.designs.ct()}
+    arms = {f"octarm_2s (endplates {mass:g} kg)":
+            solver.designs.octarm_two_section(endplate_mass=float(mass)) for mass in endplate_masses}
+    arms["ct"] = solver.designs.ct()
     return {label: dexterity_map(arm, scene, levels=levels, max_pressure=max_psi * solver.PSI,
                                  progress=progress) for label, arm in arms.items()}
 

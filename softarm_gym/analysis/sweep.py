@@ -154,7 +154,10 @@ def _ray_sweep(arm, grid, scene, model, planar, bounds, address, tips, converged
     except ImportError:
         raise ValueError("backend 'ray' needs Ray: pip install 'softarm-gym[ray]'") from None
     if not ray.is_initialized():
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        if address is None:  # a private local instance, quiet
+            ray.init(include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=address)
     task = ray.remote(_solve_chunk)
     shared = [ray.put(v) for v in (arm, grid, scene)]
     pending = {task.remote(shared[0], shared[1], a, b, shared[2], model, planar): (a, b)

@@ -33,23 +33,24 @@ from scipy.spatial import ConvexHull, Delaunay, QhullError
 import solver
 from softarm_gym.analysis.sweep import DEFAULT_CHUNK, PressureGrid, pressure_grid, sweep_tips
 
-__all__ = ["Workspace", "workspace", "alpha_shape_area", "alpha_shape_triangles",
+__all__ = ["Workspace", "workspace", "alpha_shape_area", "alpha_complex",
            "occupancy_area", "DEFAULT_ALPHA_FRACTION"]
 
 DEFAULT_ALPHA_FRACTION = 0.1
 """Default alpha-shape radius as a fraction of the arm length (5.3 cm for a 53 cm arm)."""
 
 
-def alpha_shape_triangles(points: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
-    """Triangles of the 2-D alpha shape of ``points``.
+def alpha_complex(points: np.ndarray, alpha: float):
+    """The triangles of the 2-D alpha shape of ``points``, by index.
 
     Args:
-        points: (n, 2) points (m); duplicates are allowed.
+        points: (n, 2) points (m); duplicates (to 1e-9 m) are merged.
         alpha: largest circumradius of a kept Delaunay triangle (m), > 0.
 
     Returns:
-        ``(vertices, areas)``: (k, 3, 2) kept triangles and their (k,) areas (m²); empty when
-        the points span no area.
+        ``(unique, inverse, triangles, areas)``: (u, 2) distinct points, (n,) index of each
+        input point in ``unique``, (k, 3) kept triangles as indices into ``unique`` and their
+        (k,) areas (m²). No triangles when the points span no area.
     """
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 2:
@@ -58,29 +59,30 @@ def alpha_shape_triangles(points: np.ndarray, alpha: float) -> tuple[np.ndarray,
         raise ValueError("points must be finite (drop unconverged tips first)")
     if not (isinstance(alpha, (int, float)) and math.isfinite(alpha) and alpha > 0):
         raise ValueError(f"alpha must be a finite length > 0 m; got {alpha!r}")
-    empty = np.empty((0, 3, 2)), np.empty(0)
-    unique = np.unique(np.round(pts, 9), axis=0)
+    unique, inverse = np.unique(np.round(pts, 9), axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    none = np.empty((0, 3), dtype=np.int64), np.empty(0)
     if unique.shape[0] < 3:
-        return empty
+        return unique, inverse, *none
     try:
         simplices = Delaunay(unique).simplices
     except QhullError:  # all points on a line: no area
-        return empty
+        return unique, inverse, *none
     tri = unique[simplices]
     a = np.linalg.norm(tri[:, 1] - tri[:, 2], axis=1)
     b = np.linalg.norm(tri[:, 0] - tri[:, 2], axis=1)
     c = np.linalg.norm(tri[:, 0] - tri[:, 1], axis=1)
     e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    with np.errstate(divide="ignore"):
-        radius = np.where(area > 0, a * b * c / (4.0 * np.where(area > 0, area, 1.0)), np.inf)
+    radius = np.full(area.shape, np.inf)
+    np.divide(a * b * c, 4.0 * area, out=radius, where=area > 0)
     keep = radius <= alpha
-    return tri[keep], area[keep]
+    return unique, inverse, simplices[keep], area[keep]
 
 
 def alpha_shape_area(points: np.ndarray, alpha: float) -> float:
-    """Area (m²) of the 2-D alpha shape of ``points`` (see :func:`alpha_shape_triangles`)."""
-    return float(alpha_shape_triangles(points, alpha)[1].sum())
+    """Area (m²) of the 2-D alpha shape of ``points`` (see :func:`alpha_complex`)."""
+    return float(alpha_complex(points, alpha)[3].sum())
 
 
 def occupancy_area(points: np.ndarray, cell: float) -> float:
