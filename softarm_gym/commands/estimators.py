@@ -26,6 +26,9 @@ def add_arguments(p):
                    help="pressure levels in psi (default %(default)s)")
     p.add_argument("--payload", type=float, default=10.0,
                    help="weight of the unknown tip payload of the Fig. 4.6 study (N, default 10)")
+    p.add_argument("--base-inclinometer-deg", type=float, default=None,
+                   help="base inclinometer resolution (deg) of the noisy sensors (default: the "
+                        "0.05 deg USD-T2 of §4.3; Table 4.3's 2.5 deg applies to the others)")
     p.add_argument("--json-out", metavar="PATH", help="write the full result table as JSON")
     p.add_argument("--plot", metavar="PATH", help="Figs. 4.4-4.5 style plot (PNG)")
     p.add_argument("--payload-plot", metavar="PATH", help="Fig. 4.6 style payload plot (PNG)")
@@ -34,15 +37,22 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    from softarm_gym.sensing.sensors import SensorNoise
     from softarm_gym.sensing.study import run_study, total_steps
 
     levels = parse_floats(args.pressures_psi, "--pressures-psi")
     if levels.size == 0:
         raise UsageError("--pressures-psi needs at least one level")
+    overrides = {} if args.base_inclinometer_deg is None else {
+        "base_inclinometer_resolution_deg": args.base_inclinometer_deg}
+    try:
+        noise = SensorNoise.thesis(**overrides)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     bar = tqdm(total=total_steps(levels.size), file=sys.stderr, disable=args.no_progress,
                desc="estimators")
     try:
-        result = run_study(pressures_psi=levels, payload_n=args.payload, progress=bar)
+        result = run_study(pressures_psi=levels, payload_n=args.payload, noise=noise, progress=bar)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     finally:

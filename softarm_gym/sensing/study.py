@@ -29,14 +29,11 @@ import solver
 from softarm_gym.sensing.estimators import ESTIMATORS, make_estimator
 from softarm_gym.sensing.sensors import SensorNoise, synthesize
 
-__all__ = ["configurations", "run_study", "ORIENTATIONS", "NOISE_LEVELS"]
+__all__ = ["configurations", "run_study", "sensitivity_bound", "ORIENTATIONS"]
 
 ORIENTATIONS = {"horizontal": 90.0, "vertical": 0.0}
 """Base angle (deg) of each orientation: a hanging arm is the vertical case (an upright
 OctArm VI would buckle under its own weight: q·L³/EI ≈ 65 > 7.84)."""
-
-NOISE_LEVELS = {"perfect": SensorNoise.off(), "table4.3": SensorNoise.thesis()}
-"""Simulated sensors of the study; the linearised ``bound`` uses Table 4.3 resolutions."""
 
 BOUND_STEP = 1e-3
 """Central-difference step of the sensitivity bound, as a fraction of each resolution."""
@@ -121,7 +118,6 @@ def _sweep(arm, scene, pressures_psi, estimators, noises, payload_kg, progress, 
     unconverged = {name: 0 for name in estimators}
     excluded = []
     rng = np.random.default_rng(0)
-    thesis = SensorNoise.thesis()
     for i, p_psi in enumerate(pressures_psi):
         for k in range(len(codes)):
             p = mask[k] * p_psi * solver.PSI
@@ -140,7 +136,7 @@ def _sweep(arm, scene, pressures_psi, estimators, noises, payload_kg, progress, 
                     errors[nk][name][i, k] = float(np.linalg.norm(shape.tip - eq.tip))
                     if bound and nk == "perfect":
                         parts = (dict.fromkeys(("total", *SENSOR_GROUPS), 0.0) if name == "model"
-                                 else sensitivity_bound(est, readings, p, thesis))
+                                 else sensitivity_bound(est, readings, p, noises["table4.3"]))
                         errors["bound"][name][i, k] = parts["total"]
                         for g in SENSOR_GROUPS:
                             errors[f"bound:{g}"][name][i, k] = parts[g]
@@ -162,13 +158,15 @@ def _summarise(codes, errors, length):
 
 
 def run_study(arm: solver.designs.ArmDesign | None = None, pressures_psi=None, payload_n: float = 10.0,
-              progress=None) -> dict:
+              noise: SensorNoise | None = None, progress=None) -> dict:
     """Run the §4.3 study and the Fig. 4.6 payload study.
 
     Args:
         arm: the design (default OctArm VI).
         pressures_psi: pressure levels (default 0, 10, …, 90 psi).
         payload_n: weight of the unknown tip payload of the payload study (N).
+        noise: the noisy sensors (default :meth:`SensorNoise.thesis`); also the resolutions
+            of the linearised bound.
         progress: a tqdm-like object with ``update(n)`` and ``total`` (or None).
 
     Returns:
@@ -184,6 +182,10 @@ def run_study(arm: solver.designs.ArmDesign | None = None, pressures_psi=None, p
                          f"{arm.max_pressure / solver.PSI:.4g}] psi; got {levels.tolist()}")
     if not (math.isfinite(payload_n) and payload_n >= 0):
         raise ValueError(f"payload must be a finite weight >= 0 N; got {payload_n!r}")
+    noise = SensorNoise.thesis() if noise is None else noise
+    if not isinstance(noise, SensorNoise):
+        raise ValueError(f"noise must be a SensorNoise; got {type(noise).__name__}")
+    noises = {"perfect": SensorNoise.off(), "table4.3": noise}
 
     class _Null:
         def update(self, n):
@@ -192,16 +194,16 @@ def run_study(arm: solver.designs.ArmDesign | None = None, pressures_psi=None, p
     progress = _Null() if progress is None else progress
     t0 = time.perf_counter()
     result = {"design": arm.name, "length_m": arm.length, "pressures_psi": levels.tolist(),
+              "noise": {k: v for k, v in noise.__dict__.items()},
               "orientations": {}, "payload": {}, "unconverged": {}}
     for label, angle in ORIENTATIONS.items():
         scene = solver.Scene(base_angle_deg=angle)
-        codes, errors, bad, skipped = _sweep(arm, scene, levels, STUDY_ESTIMATORS, NOISE_LEVELS, 0.0,
-                                             progress)
+        codes, errors, bad, skipped = _sweep(arm, scene, levels, STUDY_ESTIMATORS, noises, 0.0, progress)
         result["orientations"][label] = {"base_angle_deg": angle, "excluded_truths": skipped,
                                          **_summarise(codes, errors, arm.length)}
         result["unconverged"][label] = bad
         payload_est = ("model", "cable_encoder", "inclinometer", "load_cell")
-        codes, errors, bad, skipped = _sweep(arm, scene, levels, payload_est, NOISE_LEVELS,
+        codes, errors, bad, skipped = _sweep(arm, scene, levels, payload_est, noises,
                                              payload_n / scene.gravity, progress, bound=False)
         result["payload"][label] = {"payload_n": payload_n, "excluded_truths": skipped,
                                     **_summarise(codes, errors, arm.length)}

@@ -52,6 +52,7 @@ def test_cli_writes_table_and_plots(cli_result, capsys):
     (["--pressures-psi", "30,x"], "comma-separated"),
     (["--pressures-psi", "200"], "pressure levels"),
     (["--pressures-psi", "30", "--payload", "-1"], "payload"),
+    (["--pressures-psi", "30", "--base-inclinometer-deg", "-1"], "SensorNoise"),
 ])
 def test_cli_bad_input_exits_2(argv, message, capsys):
     assert main(["estimators", "--no-progress", *argv]) == 2
