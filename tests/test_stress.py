@@ -86,6 +86,21 @@ def test_failed_solves_are_described_and_diagnosed():
     assert summary["diagnosis"]["fixed_by_finer_continuation"] == 1  # the fallbacks find it
 
 
+def test_moment_balance_check_is_independent_of_the_solver():
+    """A converged result balances to quadrature accuracy; a shifted base moment does not."""
+    from dataclasses import replace
+
+    arm = solver.designs.octarm_v(endplate_mass=0.05)
+    scene = solver.Scene(base_angle_deg=90.0, payload_kg=0.2)
+    eq = solver.solve(arm, np.array([30, 0, 0, 40, 10, 0]) * solver.PSI, scene)
+    assert eq.converged and stress.moment_balance_error(arm, scene, eq) < 1e-6
+    load_moment = (arm.mass + 0.2) * 9.81 * arm.length
+    shifted = replace(eq, internal_moment=eq.internal_moment + 0.01 * load_moment)
+    assert stress.moment_balance_error(arm, scene, shifted) == pytest.approx(0.01, rel=1e-3)
+    arcs = solver.solve(arm, eq.pressures, scene, model="constant_curvature")
+    assert math.isnan(stress.moment_balance_error(arm, scene, arcs))  # that model ignores loads
+
+
 @pytest.mark.parametrize("kwargs, match", [
     (dict(classes=("bogus",)), "unknown stress class"), (dict(n_random=-1), "n_random"),
     (dict(n_per_class=1.5), "n_per_class"),

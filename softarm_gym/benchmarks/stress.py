@@ -326,11 +326,55 @@ class _Records:
     failures: list
     diagnoses: list
     planar: list
+    balance: list
+    unbalanced: list
 
 
 def _finite(eq: solver.Equilibrium) -> bool:
     return bool(np.all(np.isfinite(eq.tip)) and math.isfinite(eq.residual)
                 and np.all(np.isfinite(eq.positions)) and np.all(np.isfinite(eq.internal_moment)))
+
+
+BALANCE_LIMIT = 1e-3
+"""Relative global moment-balance error above which a converged result counts as unbalanced."""
+
+
+def moment_balance_error(arm: ArmDesign, scene: solver.Scene, eq: solver.Equilibrium) -> float:
+    """Independent check of a converged result: global moment balance about the base.
+
+    The base moment the solver returns must equal the moment of every external load about
+    the base: tip moment, r(L) × (tip force + payload weight), endplate weights at the section
+    ends and ∫ r × q ds of the self-weight, the integral by Simpson's rule over each section's
+    recorded samples. Only the recorded shape and the loads enter, not the shooting method,
+    so a wrong result flagged as converged shows up here. The error of the check itself is the
+    quadrature's (≤ 3e-7 of the load moment over 1000 random scenes at the default grid).
+
+    Returns:
+        |m(0) − Σ moments| / (Σ|loads|·L + |M_tip|); NaN where it does not apply (the
+        constant-curvature model ignores loads; contact forces are too concentrated for the
+        quadrature).
+    """
+    from scipy.integrate import simpson
+
+    if eq.model == "constant_curvature" or scene.obstacles or eq.s.size == 0:
+        return math.nan
+    pos = eq.positions if eq.positions.shape[1] == 3 else np.column_stack([eq.positions, np.zeros(eq.s.size)])
+    g = np.array([0.0, -scene.gravity, 0.0])
+    tip_force = scene.tip_force_3d() + scene.payload_kg * g
+    total = scene.tip_moment_3d() + np.cross(pos[-1], tip_force)
+    scale = float(np.linalg.norm(scene.tip_moment_3d()) + np.linalg.norm(tip_force) * arm.length)
+    start = 0
+    for section, end in zip(arm.sections, eq.section_ends):
+        samples = slice(start, end + 1)
+        weight = section.mass_per_length * g
+        total = total + simpson(np.cross(pos[samples], weight), x=eq.s[samples], axis=0)
+        total = total + np.cross(pos[end], section.endplate_mass * g)
+        mass = section.mass_per_length * section.length + section.endplate_mass
+        scale += mass * scene.gravity * arm.length
+        start = end + 1
+    base = eq.internal_moment[0]
+    base = np.array([0.0, 0.0, base]) if np.ndim(base) == 0 else base
+    return float(np.linalg.norm(base - total) / scale) if scale > 0 else 0.0
 
 
 def _describe(trial: Trial, step: int, eq) -> dict:
@@ -351,7 +395,7 @@ def run_trials(trials, settings: solver.Settings, progress=None, n_diagnose: int
 
     The first ``n_diagnose`` failures are retried with :data:`STRONGER` settings (:func:`diagnose`).
     """
-    rec = _Records(*([] for _ in range(11)))
+    rec = _Records(*([] for _ in range(13)))
     for trial in trials:
         previous = None
         for step, p in enumerate(trial.pressures):
@@ -376,6 +420,10 @@ def run_trials(trials, settings: solver.Settings, progress=None, n_diagnose: int
             rec.snapped.append(bool(eq.snapped))
             if eq.converged and finite:
                 previous = eq
+                rec.balance.append(moment_balance_error(trial.arm, trial.scene, eq))
+                if rec.balance[-1] > BALANCE_LIMIT:
+                    rec.unbalanced.append({**_describe(trial, step, eq), "stable": eq.stable,
+                                           "balance_error": rec.balance[-1]})
             else:
                 rec.failures.append(_describe(trial, step, eq))
                 if len(rec.diagnoses) < n_diagnose:
@@ -391,12 +439,15 @@ def summarize(rec: _Records) -> dict:
     conv = np.array(rec.converged, dtype=bool)
     res = np.array(rec.residual)
     planar = np.array(rec.planar, dtype=bool)
+    stable = np.array(rec.stable, dtype=bool)
+    balance = np.array([b for b in rec.balance if not math.isnan(b)])
     t = np.array(rec.seconds) * 1e3
     pct = (lambda q: float(np.percentile(t, q))) if t.size else (lambda q: math.nan)
     return {
         "n": n,
         "converged_fraction": float(conv.sum() / n) if n else math.nan,
         "flagged_unconverged_fraction": float((~conv).sum() / n) if n else math.nan,
+        "converged_stable_fraction": float((conv & stable).sum() / n) if n else math.nan,
         "converged_fraction_planar": float(conv[planar].mean()) if planar.any() else math.nan,
         "converged_fraction_spatial": float(conv[~planar].mean()) if (~planar).any() else math.nan,
         "nan_count": int(len(rec.finite) - np.count_nonzero(rec.finite)),
@@ -404,7 +455,10 @@ def summarize(rec: _Records) -> dict:
         "worst_residual": float(res.max()) if res.size else math.nan,
         "worst_residual_converged": float(res[conv].max()) if conv.any() else math.nan,
         "worst_iterations": int(max(rec.iterations)) if rec.iterations else 0,
-        "unstable_count": int(len(rec.stable) - np.count_nonzero(rec.stable)),
+        "worst_balance_error": float(np.max(balance)) if balance.size else math.nan,
+        "unbalanced_count": int(np.count_nonzero(balance > BALANCE_LIMIT)),
+        "unbalanced": rec.unbalanced[:_FAILURE_EXAMPLES],
+        "unstable_count": int(np.count_nonzero(~stable)),
         "snapped_count": int(np.count_nonzero(rec.snapped)),
         "time_ms": {"p50": pct(50), "p90": pct(90), "p99": pct(99),
                     "max": float(t.max()) if t.size else math.nan},
@@ -598,17 +652,21 @@ def _targets(result: dict) -> dict:
 
 def format_report(result: dict) -> str:
     """The study as text tables."""
-    head = (f"{'class':16s} {'n':>6s} {'conv%':>8s} {'plain%':>8s} {'flag%':>7s} {'nan':>4s} "
-            f"{'exc':>4s} {'worst res':>10s} {'iters':>6s} {'p50 ms':>7s} {'p99 ms':>7s} {'max ms':>7s}")
+    head = (f"{'class':16s} {'n':>6s} {'conv%':>8s} {'stable%':>8s} {'plain%':>8s} {'flag%':>7s} {'nan':>4s} "
+            f"{'exc':>4s} {'worst res':>10s} {'balance':>8s} {'iters':>6s} {'p50 ms':>7s} {'p99 ms':>7s} "
+            f"{'max ms':>7s}")
     lines = [f"softarm stress (seed {result['seed']}): conv% with the solver's fallbacks, "
-             "plain% plain Newton (Settings.without_fallback())", head]
+             "stable% converged and stable, plain% plain Newton (Settings.without_fallback()); balance: "
+             "worst global moment-balance error of a converged result (relative)", head]
     for name, e in _entries(result):
         t = e["time_ms"]
         lines.append(
             f"{name:16s} {e['n']:6d} {100 * e['converged_fraction']:8.3f} "
+            f"{100 * e['converged_stable_fraction']:8.3f} "
             f"{100 * e['without_fallback']['converged_fraction']:8.3f} "
             f"{100 * e['flagged_unconverged_fraction']:7.3f} {e['nan_count']:4d} {e['exceptions']:4d} "
-            f"{e['worst_residual']:10.2e} {e['worst_iterations']:6d} {t['p50']:7.2f} {t['p99']:7.2f} "
+            f"{e['worst_residual']:10.2e} {e['worst_balance_error']:8.1e} {e['worst_iterations']:6d} "
+            f"{t['p50']:7.2f} {t['p99']:7.2f} "
             f"{t['max']:7.1f}")
     env = result.get("env")
     if env:
