@@ -415,7 +415,8 @@ def _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     seg = np.repeat(np.arange(len(arm.sections)), packed.sec_steps + 1)
     n = len(s)
     if planar:
-        theta = np.arctan2(frames[:, 1, 2], frames[:, 0, 2])
+        # Continuous θ, as the shooting kernels integrate it (an arc can turn past ±π).
+        theta = np.unwrap(np.arctan2(frames[:, 1, 2], frames[:, 0, 2]))
         return Equilibrium(
             tip=tip[:2].copy(), s=s, positions=pos[:, :2].copy(), angles=theta,
             shear_stretch=np.column_stack([np.zeros(n), v3[seg]]), curvature=u2[seg].copy(),

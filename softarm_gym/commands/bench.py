@@ -2,6 +2,8 @@
 
 Default: the solver (RK4 resolution sweep, warm and cold solves, scipy solve_bvp reference,
 spatial, batch). ``--peer pyelastica`` settles the same OctArm V scenes with PyElastica.
+``--env`` times the environments instead: every registered ID and observation mode, single
+and vectorised, and the batched vector env.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ HELP = "benchmark solver speed against accuracy (and peers)"
 def add_arguments(p):
     p.add_argument("--quick", action="store_true", help="fewer scenes and repeats (smoke run)")
     p.add_argument("--peer", choices=("pyelastica",), help="also settle the scenes with a peer simulator")
+    p.add_argument("--env", action="store_true",
+                   help="benchmark the environments (steps/s) instead of the solver")
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -26,6 +30,15 @@ def run(args) -> int:
     def progress(message):
         print(f"[bench] {message}", file=sys.stderr, flush=True)
 
+    if args.env:
+        from softarm_gym.benchmarks import envs, vector_bench
+
+        result = envs.run(quick=args.quick, progress=progress)
+        sizes = (256,) if args.quick else (256, 1024, 4096)
+        result["batched_vector"] = vector_bench.run(sizes, progress=progress)
+        emit(result, args.json, envs.format_table(result) + "\n\n"
+             + vector_bench.format_table(result["batched_vector"]))
+        return 0
     result = solver_bench.run(quick=args.quick, progress=progress)
     text = solver_bench.format_table(result)
     if args.peer == "pyelastica":

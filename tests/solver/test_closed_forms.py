@@ -150,3 +150,14 @@ def test_tip_only_solve_equals_recorded_tip():
     full = solver.solve(arm, p, scene)
     assert quick.s.size == 0 and full.s.size > 0
     np.testing.assert_array_equal(quick.tip, full.tip)
+
+
+def test_closed_form_angles_are_continuous_like_the_shooting_kernel():
+    """An unloaded OctArm V with channel I on everywhere turns ~419°: θ must not wrap."""
+    arm = designs.octarm_v()
+    p = np.array([100, 0, 100, 0, 100, 0]) * solver.PSI
+    scene = solver.Scene(base_angle_deg=90, gravity=0.0)
+    quick = solver.solve(arm, p, scene)
+    general = solver.solve(arm, p, scene, settings=solver.Settings(shortcuts=False))
+    assert quick.tip_angle < -2 * math.pi
+    np.testing.assert_allclose(quick.angles, general.angles, atol=1e-9)
