@@ -1,0 +1,237 @@
+"""Evaluate a trained policy or the Jacobian controller, optionally with an estimator in the loop.
+
+    python -m baselines.evaluate --model baselines/trained/sac_OctArmReach-v0.zip --episodes 100 --json
+    python -m baselines.evaluate --model FILE.zip --observation cable_encoder --sensor-noise thesis \\
+        --payload-kg 0,0.5 --json
+    python -m baselines.evaluate --controller jacobian --env SoftArm/OctArmReach-v0 --json
+
+The policy is rolled out deterministically for whole episodes (``max_episode_steps``);
+episode ``i`` is reset with seed ``seed + i``, so every policy and estimator sees the same
+targets. Only the observation changes with ``--observation``: the success, the final error
+and the reward always use the true tip. Reported (JSON keys):
+
+* ``success_rate`` — fraction of episodes whose *final* true tip is within the env's
+  ``success_tolerance`` of the target;
+* ``median_final_error_m``, ``p95_final_error_m``, ``mean_final_error_m`` — final |tip − target|;
+* ``reached_rate`` — fraction that were within tolerance at any step;
+  ``median_steps_to_success``, ``p95_steps_to_success`` — first step within tolerance, over
+  those episodes (null if none);
+* ``mean_estimation_error_m`` — mean |estimated − true tip| over all steps;
+* ``mean_return``, ``solver_failures`` (unconverged steps in total), ``wall_time_s``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from baselines.config import load_policy, make_env
+from baselines.controllers import JacobianController
+from softarm_gym.sensing import ESTIMATORS
+
+__all__ = ["evaluate", "rollouts", "summarize", "main", "CONTROLLERS"]
+
+CONTROLLERS = ("jacobian",)
+
+
+def rollouts(env, act, reset, episodes: int, seed: int = 0, progress: bool = False) -> dict[str, np.ndarray]:
+    """Run ``episodes`` whole episodes and record per-episode outcomes.
+
+    Args:
+        env: a reach environment (``gym.make``, with its time limit).
+        act: observation → action.
+        reset: called with no arguments before each episode (forget controller state).
+        episodes: number of episodes (>= 1).
+        seed: episode ``i`` is reset with ``seed + i``.
+        progress: tqdm bar on stderr.
+
+    Returns:
+        Arrays of length ``episodes``: ``final_error`` (m), ``success`` (bool), ``steps_to_success``
+        (first step within tolerance, −1 if never), ``estimation_error`` (m, mean over steps),
+        ``episode_return``, ``solver_failures`` (unconverged steps).
+    """
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1; got {episodes}")
+    final_error = np.empty(episodes)
+    success = np.zeros(episodes, dtype=bool)
+    steps_to_success = np.full(episodes, -1)
+    estimation_error = np.empty(episodes)
+    episode_return = np.empty(episodes)
+    failures = np.zeros(episodes, dtype=int)
+    for i in tqdm(range(episodes), disable=not progress, file=sys.stderr, unit="episode"):
+        obs, info = env.reset(seed=seed + i)
+        reset()
+        total, est, steps = 0.0, 0.0, 0
+        done = False
+        while not done:
+            obs, reward, terminated, truncated, info = env.step(act(obs))
+            steps += 1
+            total += float(reward)
+            est += info["estimation_error"]
+            failures[i] += not info["converged"]
+            if info["is_success"] and steps_to_success[i] < 0:
+                steps_to_success[i] = steps
+            done = terminated or truncated
+        final_error[i] = info["distance"]
+        success[i] = info["is_success"]
+        estimation_error[i] = est / steps
+        episode_return[i] = total
+    return {"final_error": final_error, "success": success, "steps_to_success": steps_to_success,
+            "estimation_error": estimation_error, "episode_return": episode_return,
+            "solver_failures": failures}
+
+
+def summarize(record: dict[str, np.ndarray]) -> dict:
+    """The scalar metrics of :func:`rollouts` output (module docstring)."""
+    reached = record["steps_to_success"][record["steps_to_success"] >= 0]
+    err = record["final_error"]
+    return {
+        "episodes": int(err.size),
+        "success_rate": float(np.mean(record["success"])),
+        "median_final_error_m": float(np.median(err)),
+        "p95_final_error_m": float(np.percentile(err, 95)),
+        "mean_final_error_m": float(np.mean(err)),
+        "reached_rate": float(reached.size / err.size),
+        "median_steps_to_success": float(np.median(reached)) if reached.size else None,
+        "p95_steps_to_success": float(np.percentile(reached, 95)) if reached.size else None,
+        "mean_estimation_error_m": float(np.mean(record["estimation_error"])),
+        "mean_return": float(np.mean(record["episode_return"])),
+        "solver_failures": int(np.sum(record["solver_failures"])),
+    }
+
+
+def _payload(text: str | None):
+    if text is None:
+        return None
+    parts = [p for p in text.split(",") if p.strip()]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise ValueError(f"--payload-kg must be a number or LOW,HIGH (kg); got {text!r}") from None
+    if len(values) == 1:
+        return values[0]
+    if len(values) == 2:
+        return tuple(values)
+    raise ValueError(f"--payload-kg must be a number or LOW,HIGH (kg); got {text!r}")
+
+
+def evaluate(*, model: str | Path | None = None, controller: str | None = None, env_id: str | None = None,
+             observation: str = "true", sensor_noise: str = "off", payload_kg=None,
+             env_kwargs: dict | None = None, episodes: int = 100, seed: int = 0,
+             progress: bool = False) -> dict:
+    """Evaluate a saved model or a controller; returns the :func:`summarize` metrics plus the setup.
+
+    Args:
+        model: a ``.zip`` written by :mod:`baselines.train` (with its ``.json`` sidecar).
+        controller: instead of ``model``, one of :data:`CONTROLLERS`.
+        env_id: environment id; default the model's training env (required for a controller).
+        observation: shape estimator of the observations, one of ``ESTIMATORS``.
+        sensor_noise: ``"off"`` or ``"thesis"``.
+        payload_kg: tip payload (kg) or (low, high) drawn per episode; default the env's.
+        env_kwargs: extra ``gym.make`` kwargs, applied over the model's training kwargs.
+        episodes: episodes to run.
+        seed: episode ``i`` uses seed ``seed + i``.
+        progress: tqdm bar on stderr.
+
+    Raises:
+        ValueError: bad or conflicting arguments, or an unreadable model.
+    """
+    if (model is None) == (controller is None):
+        raise ValueError("give exactly one of --model and --controller")
+    if observation not in ESTIMATORS:
+        raise ValueError(f"unknown observation {observation!r}; choose one of {', '.join(ESTIMATORS)}")
+    if sensor_noise not in ("off", "thesis"):
+        raise ValueError(f"sensor_noise must be 'off' or 'thesis'; got {sensor_noise!r}")
+    kwargs = {}
+    if model is not None:
+        policy, meta, vecnorm = load_policy(model)
+        env_id = env_id or meta["env_id"]
+        kwargs.update(meta.get("env_kwargs", {}))
+        agent = f"{meta['algo']}:{Path(model).name}"
+    else:
+        if controller not in CONTROLLERS:
+            raise ValueError(f"unknown controller {controller!r}; choose one of {', '.join(CONTROLLERS)}")
+        if env_id is None:
+            raise ValueError("--env is required with --controller")
+        agent = controller
+    kwargs.update(env_kwargs or {})
+    kwargs.update(observation=observation, sensor_noise=sensor_noise)
+    if payload_kg is not None:
+        kwargs["payload_kg"] = payload_kg
+    env = make_env(env_id, kwargs)
+    if model is not None:
+        def act(obs):
+            if vecnorm is not None:
+                obs = vecnorm.normalize_obs(obs)
+            return policy.predict(obs, deterministic=True)[0]
+
+        def reset():
+            return None
+    else:
+        ctrl = JacobianController(env)
+        act, reset = ctrl.act, ctrl.reset
+    start = time.perf_counter()
+    record = rollouts(env, act, reset, episodes, seed, progress)
+    wall = time.perf_counter() - start
+    env.close()
+    payload = env.unwrapped.payload_range
+    return {"agent": agent, "env_id": env_id, "observation": observation, "sensor_noise": sensor_noise,
+            "payload_kg": list(payload), "seed": seed,
+            "success_tolerance_m": float(env.unwrapped.success_tolerance),
+            **summarize(record), "wall_time_s": wall}
+
+
+def _text(result: dict) -> str:
+    steps = result["median_steps_to_success"]
+    return (f"{result['agent']} on {result['env_id']} (obs={result['observation']}, noise="
+            f"{result['sensor_noise']}, payload={result['payload_kg']} kg), {result['episodes']} episodes:\n"
+            f"  success rate {100 * result['success_rate']:.1f} % (tolerance "
+            f"{1000 * result['success_tolerance_m']:.0f} mm)\n"
+            f"  final error median {1000 * result['median_final_error_m']:.1f} mm, 95th percentile "
+            f"{1000 * result['p95_final_error_m']:.1f} mm\n"
+            f"  steps to success median {steps if steps is not None else '-'}\n"
+            f"  mean estimation error {1000 * result['mean_estimation_error_m']:.1f} mm")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m baselines.evaluate", description=__doc__.splitlines()[0])
+    who = parser.add_mutually_exclusive_group(required=True)
+    who.add_argument("--model", help="a .zip saved by baselines.train")
+    who.add_argument("--controller", choices=CONTROLLERS, help="a model-based controller instead")
+    parser.add_argument("--env", default=None, help="environment id (default: the model's)")
+    parser.add_argument("--observation", default="true", choices=ESTIMATORS)
+    parser.add_argument("--sensor-noise", default="off", choices=("off", "thesis"))
+    parser.add_argument("--payload-kg", default=None, help="payload (kg) or LOW,HIGH drawn per episode")
+    parser.add_argument("--env-kwargs", default=None, help="extra gym.make kwargs as a JSON object")
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true", help="print the result as JSON")
+    parser.add_argument("--out", default=None, help="also write the JSON result to this file")
+    parser.add_argument("--no-progress", action="store_true")
+    args = parser.parse_args(argv)
+    try:
+        env_kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
+        if env_kwargs is not None and not isinstance(env_kwargs, dict):
+            raise ValueError("--env-kwargs must be a JSON object")
+        result = evaluate(model=args.model, controller=args.controller, env_id=args.env,
+                          observation=args.observation, sensor_noise=args.sensor_noise,
+                          payload_kg=_payload(args.payload_kg), env_kwargs=env_kwargs,
+                          episodes=args.episodes, seed=args.seed, progress=not args.no_progress)
+    except (ValueError, json.JSONDecodeError) as exc:
+        print(f"baselines.evaluate: error: {exc}", file=sys.stderr)
+        return 2
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps(result, indent=2) + "\n")
+    print(json.dumps(result, indent=2) if args.json else _text(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

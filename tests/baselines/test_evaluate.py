@@ -1,0 +1,58 @@
+"""The evaluation script on a tiny saved model, and its bad-input handling."""
+
+import json
+
+import numpy as np
+import pytest
+
+from baselines.evaluate import evaluate, main, summarize
+
+KEYS = {"success_rate", "median_final_error_m", "p95_final_error_m", "reached_rate",
+        "median_steps_to_success", "mean_estimation_error_m", "episodes", "solver_failures"}
+
+
+def test_evaluate_saved_model_with_estimator_in_the_loop(tiny_sac_run):
+    model = tiny_sac_run / "final_model.zip"
+    truth = evaluate(model=model, episodes=2, seed=5)
+    assert KEYS <= set(truth)
+    assert truth["env_id"] == "SoftArm/OctArmReach-v0" and truth["episodes"] == 2
+    assert 0.0 <= truth["success_rate"] <= 1.0
+    assert truth["mean_estimation_error_m"] == 0.0  # "true" observations are the equilibrium
+    noisy = evaluate(model=model, episodes=2, seed=5, observation="constant_curvature",
+                     sensor_noise="thesis", payload_kg=(0.1, 0.3))
+    assert noisy["mean_estimation_error_m"] > 0.0
+    assert noisy["payload_kg"] == [0.1, 0.3]
+    assert evaluate(model=model, episodes=2, seed=5) == {**truth, "wall_time_s": pytest.approx(0, abs=1e9)}
+
+
+def test_cli_json_and_out_file(tiny_sac_run, tmp_path, capsys):
+    out = tmp_path / "eval.json"
+    code = main(["--model", str(tiny_sac_run / "best_model.zip"), "--env", "SoftArm/OctArmReach-v0",
+                 "--episodes", "1", "--json", "--no-progress", "--out", str(out)])
+    assert code == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert KEYS <= set(printed) and json.loads(out.read_text()) == printed
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--model", "missing.zip"], "existing .zip"),
+    (["--controller", "jacobian"], "--env is required"),
+    (["--controller", "jacobian", "--env", "SoftArm/CTReach-v0", "--payload-kg", "a"], "--payload-kg"),
+    (["--controller", "jacobian", "--env", "SoftArm/CTReach-v0", "--env-kwargs", "[1]"], "JSON object"),
+    (["--controller", "jacobian", "--env", "SoftArm/CTReach-v0", "--episodes", "0"], "episodes must be"),
+])
+def test_cli_bad_input(argv, message, capsys):
+    assert main([*argv, "--no-progress"]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_summarize_counts_steps_only_over_reached_episodes():
+    record = {"final_error": np.array([0.01, 0.05, 0.03, 0.0]),
+              "success": np.array([True, False, False, True]),
+              "steps_to_success": np.array([4, -1, 10, 2]), "estimation_error": np.zeros(4),
+              "episode_return": np.zeros(4), "solver_failures": np.array([0, 1, 0, 0])}
+    s = summarize(record)
+    assert s["success_rate"] == 0.5 and s["reached_rate"] == 0.75
+    assert s["median_steps_to_success"] == 4.0
+    assert s["median_final_error_m"] == pytest.approx(0.02)
+    assert s["solver_failures"] == 1

@@ -1,0 +1,75 @@
+"""Smoke training runs of every algorithm and the hyperparameter files."""
+
+import json
+
+import pandas as pd
+import pytest
+
+from baselines.config import ALGOS, HYPERPARAMS_DIR, load_hyperparams, sidecar_paths, split_hyperparams
+from baselines.train import main, train
+from tests.baselines.conftest import TINY
+
+ENV_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
+
+
+def test_tiny_sac_run_writes_logs_checkpoints_and_sidecars(tiny_sac_run):
+    run = tiny_sac_run
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["timesteps_done"] >= 200
+    assert summary["wall_time_s"] > 0
+    assert summary["env_kwargs"] == {"action_mode": "delta"}
+    monitor = pd.read_csv(run / "monitor.csv", skiprows=1)
+    assert {"r", "l", "t", "is_success", "distance"} <= set(monitor.columns)
+    assert (monitor["l"] == 100).all()  # registered max_episode_steps
+    assert "time/total_timesteps" in pd.read_csv(run / "progress.csv").columns
+    assert list(run.glob("events.out.tfevents.*")), "no TensorBoard event file"
+    assert sorted(p.name for p in (run / "checkpoints").glob("*.zip")) == \
+        ["model_100_steps.zip", "model_200_steps.zip"]
+    assert len(list((run / "checkpoints").glob("*vecnormalize*.pkl"))) == 2
+    for name in ("final_model.zip", "best_model.zip"):
+        meta_path, norm_path = sidecar_paths(run / name)
+        assert (run / name).is_file() and norm_path.is_file()
+        assert json.loads(meta_path.read_text())["algo"] == "sac"
+    assert (run / "evaluations.npz").is_file()
+
+
+@pytest.mark.parametrize("algo", ["td3", "ppo"])
+def test_smoke_training(algo, tmp_path):
+    run = train("SoftArm/CTReach-v0", algo, seed=1, log_dir=tmp_path, hyperparams=TINY[algo],
+                eval_freq=0, checkpoint_freq=0, progress=False, tensorboard=False)
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["timesteps_done"] >= TINY[algo]["n_timesteps"]
+    assert (run / "final_model.zip").is_file()
+    assert sidecar_paths(run / "final_model.zip")[1].is_file() == ("normalize" in TINY[algo])
+    if algo == "ppo":  # two envs: one monitor file each
+        assert (run / "monitor.csv").is_file() and (run / "1.monitor.csv").is_file()
+
+
+@pytest.mark.parametrize("algo", sorted(ALGOS))
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_algorithm_has_hyperparameters_for_both_reach_envs(algo, env_id):
+    params = load_hyperparams(algo, env_id)
+    special, algo_kwargs = split_hyperparams(params)
+    assert special["n_timesteps"] > 0 and special["policy"] == "MlpPolicy"
+    assert "n_timesteps" not in algo_kwargs and "env_kwargs" not in algo_kwargs
+    ALGOS[algo]("MlpPolicy", "Pendulum-v1", device="cpu", **algo_kwargs)  # keys the constructor accepts
+
+
+def test_bad_hyperparameters_are_named(tmp_path):
+    with pytest.raises(ValueError, match="unknown algo 'dqn'"):
+        load_hyperparams("dqn", ENV_IDS[0])
+    with pytest.raises(ValueError, match="no entry for 'SoftArm/Nope-v0'"):
+        load_hyperparams("sac", "SoftArm/Nope-v0")
+    (tmp_path / "sac.yml").write_text("SoftArm/OctArmReach-v0: {policy: MlpPolicy}\n")
+    with pytest.raises(ValueError, match="'policy' and 'n_timesteps'"):
+        load_hyperparams("sac", ENV_IDS[0], tmp_path)
+    with pytest.raises(ValueError, match="no hyperparameter file"):
+        load_hyperparams("td3", ENV_IDS[0], tmp_path)
+    with pytest.raises(ValueError, match="time_limit_min"):
+        train(ENV_IDS[0], "sac", log_dir=tmp_path, hyperparams=TINY["sac"], time_limit_min=0)
+    assert HYPERPARAMS_DIR.is_dir()
+
+
+def test_cli_reports_bad_input_with_exit_status_2(tmp_path, capsys):
+    assert main(["--env", "SoftArm/Nope-v0", "--algo", "sac", "--log-dir", str(tmp_path)]) == 2
+    assert "no entry for 'SoftArm/Nope-v0'" in capsys.readouterr().err
