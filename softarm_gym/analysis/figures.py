@@ -60,9 +60,11 @@ def plot_workspaces(workspaces, path, labels=None) -> None:
     save(fig, path)
 
 
-def plot_dexterity(maps, path) -> None:
-    """The five measures of Fig. 5.5, one column per :class:`DexterityMap`, saved to ``path``."""
+def plot_dexterity(maps, path, labels=None) -> None:
+    """The five measures of Fig. 5.5, one column per :class:`DexterityMap`, saved to ``path``
+    (``labels`` name the columns; default the design names)."""
     maps = list(maps)
+    labels = list(labels) if labels else [dm.design for dm in maps]
     fig, axes = figure(len(MEASURES), len(maps), figsize=(4.6 * len(maps), 3.4 * len(MEASURES)),
                        squeeze=False)
     for col, dm in enumerate(maps):
@@ -81,7 +83,7 @@ def plot_dexterity(maps, path) -> None:
                             rasterized=True)
             fig.colorbar(sc, ax=ax, shrink=0.8, label=unit)
             ax.set_aspect("equal")
-            ax.set_title(f"{dm.design}: {label}", fontsize=8)
+            ax.set_title(f"{labels[col]}: {label}", fontsize=8)
             ax.grid(alpha=0.3)
     save(fig, path)
 

@@ -75,7 +75,7 @@ def run(args) -> int:
     if args.plot:
         from softarm_gym.analysis.figures import plot_dexterity
 
-        plot_dexterity(maps.values(), args.plot)
+        plot_dexterity(maps.values(), args.plot, labels=list(maps))
         payload["plot"] = args.plot
     if args.area_plot:
         from softarm_gym.analysis.figures import plot_dexterous_area
