@@ -96,6 +96,8 @@ def jacobian(arm: solver.designs.ArmDesign, eq: solver.Equilibrium, *,
         ValueError: bad arguments, or ``eq`` is not a converged equilibrium of ``arm``.
         solver.SolverError: a perturbed solve snapped or failed (``eq`` sits on a fold).
     """
+    if not isinstance(arm, solver.designs.ArmDesign):
+        raise ValueError(f"arm must be a solver.designs.ArmDesign; got {type(arm).__name__}")
     if not isinstance(eq, solver.Equilibrium) or eq.scene is None:
         raise ValueError("eq must be an Equilibrium returned by solver.solve()")
     if not eq.converged:

@@ -83,6 +83,7 @@ def pressure_grid(arm: solver.designs.ArmDesign, levels: int = 7, max_pressure: 
     Returns:
         The :class:`PressureGrid` (``levels ** n_inputs`` rows).
     """
+    _check_arm(arm)
     if isinstance(levels, bool) or int(levels) != levels or levels < 2:
         raise ValueError(f"levels must be an integer >= 2; got {levels!r}")
     top = arm.max_pressure if max_pressure is None else float(max_pressure)
@@ -96,6 +97,11 @@ def pressure_grid(arm: solver.designs.ArmDesign, levels: int = 7, max_pressure: 
         raise ValueError(f"design {arm.name!r} has no pressure inputs to sweep")
     grid_levels = np.linspace(0.0, min(top, arm.max_pressure), int(levels))
     return PressureGrid(grid_levels, n_inputs)
+
+
+def _check_arm(arm) -> None:
+    if not isinstance(arm, solver.designs.ArmDesign):
+        raise ValueError(f"arm must be a solver.designs.ArmDesign; got {type(arm).__name__}")
 
 
 def _solve_chunk(arm, grid, start, stop, scene, model, planar):
@@ -122,6 +128,9 @@ def sweep_tips(arm: solver.designs.ArmDesign, grid: PressureGrid, scene: solver.
     Returns:
         ``(tips, converged)``: (grid.size, 2|3) tips (m) and (grid.size,) bool.
     """
+    _check_arm(arm)
+    if not isinstance(grid, PressureGrid):
+        raise ValueError(f"grid must be a PressureGrid (see pressure_grid); got {type(grid).__name__}")
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     if isinstance(chunk_size, bool) or int(chunk_size) != chunk_size or chunk_size < 1:

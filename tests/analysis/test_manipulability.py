@@ -117,6 +117,8 @@ def test_bad_jacobian_requests_are_rejected():
         jacobian(solver.designs.ct(), eq)
     with pytest.raises(ValueError, match="Equilibrium"):
         jacobian(arm, eq.tip)
+    with pytest.raises(ValueError, match="ArmDesign"):
+        jacobian("octarm_v", eq)
     with pytest.raises(ValueError, match="finite"):
         dexterity(np.array([[np.nan, 1.0]]))
 

@@ -65,6 +65,10 @@ def test_sweep_rejects_bad_options():
         sweep_tips(ARM, grid, SCENE, address="auto")
     with pytest.raises(ValueError, match="unknown model"):
         sweep_tips(ARM, grid, SCENE, model="rigid")
+    with pytest.raises(ValueError, match="PressureGrid"):
+        sweep_tips(ARM, grid.rows(), SCENE)
+    with pytest.raises(ValueError, match="ArmDesign"):
+        pressure_grid("octarm_v")
 
 
 def test_ray_backend_returns_the_local_tips():
