@@ -1,19 +1,24 @@
-"""Planar kernels for an arm pressed against rigid discs (penalty contact).
+"""Planar kernels for an arm pressed against rigid discs (penalty contact), multiple shooting.
 
-With contact the internal force is no longer known from global equilibrium, so the base
-force n0 joins the base moment as an unknown (3 in the plane). Section i carries, with
-n integrated from n' + f = 0 (Eq. 2.28, static):
+With contact the internal force is no longer known from global equilibrium, so the whole
+state (x, y, θ, n_x, n_y, m) is integrated. Section i carries, from n' + f = 0 (Eq. 2.28):
 
     x' = v3 cos θ − v1 sin θ,   y' = v3 sin θ + v1 cos θ,   θ' = u*_i + m/EI_i
     n' = −μ_i g − Σ_discs f_c,  m' = v1 n3 − v3 n1
     f_c = k · max(0, R − |r − c|) · (r − c)/|r − c|      (force per reference length, N/m)
 
-Endplate weights jump n at the junctions; the free tip requires n(L) = F_tip + W_plate and
-m(L) = M_tip. Newton uses a forward-difference Jacobian of those three residuals; the same
-four trajectories, integrated in lockstep, give det ∂(n, m)(s)/∂(n0, m0) along the arm. For
-the contact-free rod ∂n(s)/∂n0 = I, so this determinant is exactly the conjugate-point
-quantity ∂m(s)/∂m0 of :mod:`solver._planar`; with contact we use its positivity on (0, L]
-as the stability test (documented as the natural extension, not a theorem).
+A stiff penalty makes this stiff: in contact, deflections decay and grow over the length
+ℓ = (EI/k)^¼ (3 cm for OctArm-like sections at k = 1e5 N/m²), so single shooting across a
+deep wrap amplifies errors by e^(contact length/ℓ) and fails. We use multiple shooting: the
+arm is cut into segments of a few RK4 steps (each RK4 step h ≤ ℓ/2, chosen by the wrapper),
+the state at every segment start is an unknown, and Newton solves continuity between
+segments plus the free-tip conditions n(L) = F_tip + W_plate, m(L) = M_tip. Endplate weights
+jump n at the junctions. The segment maps' Jacobians come from forward differences.
+
+Stability: chaining the segment Jacobians gives ∂(state)(s)/∂(n0, m0) at every segment end;
+det of its (n, m) rows staying positive on (0, L] is the conjugate-point test of
+:mod:`solver._planar` (for a contact-free rod it is exactly ∂m(s)/∂m0 > 0), which we use as
+the stability test with contact (the natural extension, not a theorem).
 """
 
 from __future__ import annotations
@@ -28,6 +33,9 @@ from solver._planar import _rest_strains
 # Columns of recorded samples: s, x, y, θ, n_x, n_y, m, f_x, f_y, penetration, v1, v3, u
 C_S, C_X, C_Y, C_TH, C_NX, C_NY, C_M, C_FX, C_FY, C_PEN, C_V1, C_V3, C_U = range(13)
 N_COLUMNS = 13
+# Columns of the segment table (M, 5): section, first local step, steps, ends the section,
+# first recorded row of the section.
+SEG_SECTION, SEG_FIRST, SEG_STEPS, SEG_END, SEG_ROW0 = range(5)
 
 
 @njit
@@ -55,7 +63,7 @@ def _contact_force(x, y, discs):
 
 @njit
 def _rhs(st, out, ca, cg, ci, ur, vr, qx, qy, discs):
-    """Derivative of one trajectory's state (x, y, θ, n_x, n_y, m) into ``out``."""
+    """Derivative of the state (x, y, θ, n_x, n_y, m) into ``out``."""
     th = st[2]
     nx = st[3]
     ny = st[4]
@@ -75,161 +83,228 @@ def _rhs(st, out, ca, cg, ci, ur, vr, qx, qy, discs):
 
 
 @njit
-def _det3(a):
-    return (a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
-            - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
-            + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]))
+def _write_row(st, s, out, row, ca, cg, ci, ur, vr, discs):
+    fx, fy, pen = _contact_force(st[0], st[1], discs)
+    c = math.cos(st[2])
+    sn = math.sin(st[2])
+    n1 = -st[3] * sn + st[4] * c
+    n3 = st[3] * c + st[4] * sn
+    out[row, C_S] = s
+    for d in range(6):
+        out[row, C_X + d] = st[d]
+    out[row, C_FX] = fx
+    out[row, C_FY] = fy
+    out[row, C_PEN] = pen
+    out[row, C_V1] = n1 * cg
+    out[row, C_V3] = vr + n3 * ca
+    out[row, C_U] = ur + st[5] * ci
 
 
 @njit
-def _shoot(unknowns, eps, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, q, plate,
-           discs, record, out, states, k1, k2, k3, k4, tmp, jac):
-    """Integrate the base state and three perturbed copies base → tip in lockstep.
+def _segment(z, seg, segs, secf, steps, sec_start, rest, q, plate, discs, out_state, work,
+             record, out):
+    """Integrate segment ``seg`` from state ``z`` (6,) into ``out_state`` (6,).
 
-    Args:
-        unknowns: (3,) base force (n_x, n_y) [N] and moment m [N m].
-        eps: (3,) forward-difference steps for the three unknowns.
-        q: (ns, 2) weight per length (N/m, world); plate: (ns, 2) endplate weights (N).
-        discs: (n, 4) obstacles. states, k1..k4, tmp: (4, 6) scratch; jac: (3, 3) scratch.
-        record: write the unperturbed trajectory into ``out`` (rows, N_COLUMNS).
-
-    Returns:
-        min over nodes of det ∂(n, m)(s)/∂(n0, m0); ``states`` holds the four tip states.
+    Applies the endplate jump n(s⁺) = n(s⁻) − W at a section end (not at the tip: that is
+    the boundary condition). ``work`` is (5, 6) scratch. With ``record``, writes the
+    segment's nodes (and the section's last node) into ``out``.
     """
-    for k in range(4):
-        states[k, 0] = 0.0
-        states[k, 1] = 0.0
-        states[k, 2] = theta0
-        for j in range(3):
-            states[k, 3 + j] = unknowns[j] + (eps[j] if k == j + 1 else 0.0)
+    i = segs[seg, SEG_SECTION]
+    first = segs[seg, SEG_FIRST]
+    nst = segs[seg, SEG_STEPS]
+    h = secf[0, i] / steps[i]
+    ca = secf[1, i]
+    cg = secf[2, i]
+    ci = secf[3, i]
+    ur = rest[1, i]
+    vr = rest[2, i]
+    qx = q[i, 0]
+    qy = q[i, 1]
+    st = out_state
+    for d in range(6):
+        st[d] = z[d]
+    k1 = work[0]
+    k2 = work[1]
+    k3 = work[2]
+    k4 = work[3]
+    tmp = work[4]
+    for j in range(first, first + nst):
+        if record:
+            _write_row(st, sec_start[i] + j * h, out, segs[seg, SEG_ROW0] + j, ca, cg, ci, ur, vr,
+                       discs)
+        _rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
+        for d in range(6):
+            tmp[d] = st[d] + 0.5 * h * k1[d]
+        _rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
+        for d in range(6):
+            tmp[d] = st[d] + 0.5 * h * k2[d]
+        _rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
+        for d in range(6):
+            tmp[d] = st[d] + h * k3[d]
+        _rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
+        for d in range(6):
+            st[d] += h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+    if segs[seg, SEG_END] == 1:
+        if record:
+            _write_row(st, sec_start[i] + secf[0, i], out, segs[seg, SEG_ROW0] + steps[i], ca, cg,
+                       ci, ur, vr, discs)
+        if i < secf.shape[1] - 1:
+            st[3] -= plate[i, 0]
+            st[4] -= plate[i, 1]
+
+
+@njit
+def _start_state(Z, seg, theta0, z):
+    """State at the start of segment ``seg``: the base (x = y = 0, θ0; n0, m0 unknown) or Z."""
+    if seg == 0:
+        z[0] = 0.0
+        z[1] = 0.0
+        z[2] = theta0
+        for d in range(3):
+            z[3 + d] = Z[d]
+    else:
+        base = 3 + 6 * (seg - 1)
+        for d in range(6):
+            z[d] = Z[base + d]
+
+
+@njit
+def _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F, J,
+            want_jac, chain):
+    """Residuals F (N,) of the multiple-shooting system and, if ``want_jac``, its Jacobian J.
+
+    Unknowns Z: (n0x, n0y, m0), then the 6-state at the start of segments 1..M−1. Rows: the
+    6 continuity conditions of segments 0..M−2, then n(L), m(L) against ``target`` (3,).
+    ``eps`` (6,) are forward-difference steps per state component. With ``want_jac``,
+    returns min over segment ends of det ∂(n, m)/∂(n0, m0) (``chain`` (6, 3) scratch).
+    """
+    n_seg = segs.shape[0]
+    z = np.empty(6)
+    zp = np.empty(6)
+    end = np.empty(6)
+    endp = np.empty(6)
+    work = np.empty((5, 6))
+    block = np.empty((6, 6))
+    dummy = np.empty((1, N_COLUMNS))
     dmin = 1.0
-    row = 0
-    s0 = 0.0
-    for i in range(sec_len.shape[0]):
-        h = sec_len[i] / sec_steps[i]
-        for j in range(sec_steps[i] + 1):
-            if record:
-                fx, fy, pen = _contact_force(states[0, 0], states[0, 1], discs)
-                th = states[0, 2]
-                c = math.cos(th)
-                sn = math.sin(th)
-                n1 = -states[0, 3] * sn + states[0, 4] * c
-                n3 = states[0, 3] * c + states[0, 4] * sn
-                out[row, C_S] = s0 + j * h
+    if want_jac:
+        J[:, :] = 0.0
+        chain[:, :] = 0.0
+        for d in range(3):
+            chain[3 + d, d] = 1.0
+    for seg in range(n_seg):
+        _start_state(Z, seg, theta0, z)
+        _segment(z, seg, segs, secf, steps, sec_start, rest, q, plate, discs, end, work, False,
+                 dummy)
+        row = 6 * seg
+        last = seg == n_seg - 1
+        if not last:
+            nxt = 3 + 6 * seg
+            for d in range(6):
+                F[row + d] = end[d] - Z[nxt + d]
+        else:
+            for d in range(3):
+                F[row + d] = end[3 + d] - target[d]
+        if not want_jac:
+            continue
+        if not last:
+            for d in range(6):
+                J[row + d, 3 + 6 * seg + d] = -1.0
+        first_comp = 3 if seg == 0 else 0
+        col0 = 0 if seg == 0 else 3 + 6 * (seg - 1)
+        for c in range(first_comp, 6):
+            for d in range(6):
+                zp[d] = z[d]
+            zp[c] += eps[c]
+            _segment(zp, seg, segs, secf, steps, sec_start, rest, q, plate, discs, endp, work,
+                     False, dummy)
+            for d in range(6):
+                block[d, c] = (endp[d] - end[d]) / eps[c]
+            col = col0 + c - first_comp
+            if not last:
                 for d in range(6):
-                    out[row, C_X + d] = states[0, d]
-                out[row, C_FX] = fx
-                out[row, C_FY] = fy
-                out[row, C_PEN] = pen
-                out[row, C_V1] = n1 * c_g[i]
-                out[row, C_V3] = v_rest[i] + n3 * c_a[i]
-                out[row, C_U] = u_rest[i] + states[0, 5] * c_i[i]
-                row += 1
-            if j == sec_steps[i]:
-                break
-            for k in range(4):
-                _rhs(states[k], k1[k], c_a[i], c_g[i], c_i[i], u_rest[i], v_rest[i], q[i, 0],
-                     q[i, 1], discs)
-                for d in range(6):
-                    tmp[k, d] = states[k, d] + 0.5 * h * k1[k, d]
-                _rhs(tmp[k], k2[k], c_a[i], c_g[i], c_i[i], u_rest[i], v_rest[i], q[i, 0],
-                     q[i, 1], discs)
-                for d in range(6):
-                    tmp[k, d] = states[k, d] + 0.5 * h * k2[k, d]
-                _rhs(tmp[k], k3[k], c_a[i], c_g[i], c_i[i], u_rest[i], v_rest[i], q[i, 0],
-                     q[i, 1], discs)
-                for d in range(6):
-                    tmp[k, d] = states[k, d] + h * k3[k, d]
-                _rhs(tmp[k], k4[k], c_a[i], c_g[i], c_i[i], u_rest[i], v_rest[i], q[i, 0],
-                     q[i, 1], discs)
-                for d in range(6):
-                    states[k, d] += h / 6.0 * (k1[k, d] + 2.0 * k2[k, d] + 2.0 * k3[k, d]
-                                               + k4[k, d])
-            for a in range(3):
-                for b in range(3):
-                    jac[a, b] = (states[b + 1, 3 + a] - states[0, 3 + a]) / eps[b]
-            det = _det3(jac)
-            if det < dmin:
-                dmin = det
-        # Endplate weight: n(s⁺) = n(s⁻) − W (not after the last section: that is the tip BC).
-        if i < sec_len.shape[0] - 1:
-            for k in range(4):
-                states[k, 3] -= plate[i, 0]
-                states[k, 4] -= plate[i, 1]
-        s0 += sec_len[i]
+                    J[row + d, col] = block[d, c]
+            else:
+                for d in range(3):
+                    J[row + d, col] = block[3 + d, c]
+        # Chain ∂state/∂(n0, m0) through this segment: segment 0's block columns 3..5 are it.
+        new = np.zeros((6, 3))
+        for a in range(6):
+            for b in range(3):
+                if seg == 0:
+                    new[a, b] = block[a, 3 + b]
+                else:
+                    acc = 0.0
+                    for c in range(6):
+                        acc += block[a, c] * chain[c, b]
+                    new[a, b] = acc
+        chain[:, :] = new
+        det = (chain[3, 0] * (chain[4, 1] * chain[5, 2] - chain[4, 2] * chain[5, 1])
+               - chain[3, 1] * (chain[4, 0] * chain[5, 2] - chain[4, 2] * chain[5, 0])
+               + chain[3, 2] * (chain[4, 0] * chain[5, 1] - chain[4, 1] * chain[5, 0]))
+        if det < dmin:
+            dmin = det
     return dmin
 
 
 @njit
-def _newton(unknowns, eps, target, scale, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest,
-            v_rest, q, plate, discs, tol, max_iter, max_step, dummy, states, k1, k2, k3, k4, tmp,
-            jac, res_out):
-    """Newton on the tip residuals (n(L) − target[0:2], m(L) − target[2]).
+def _weighted_norm(v, weights):
+    acc = 0.0
+    for k in range(v.shape[0]):
+        acc += (v[k] / weights[k]) ** 2
+    return math.sqrt(acc / v.shape[0])
 
-    ``scale`` (3,) weights force against moment residuals (N vs N m → a length). Returns
-    (converged, iterations, |weighted residual|, stable); ``unknowns`` is updated in place.
+
+@njit
+def _newton(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, weights,
+            res_weights, tol, max_iter, max_step):
+    """Newton on the multiple-shooting system; ``Z`` is updated in place.
+
+    Residuals and steps are measured in weighted RMS norms (weights: metres for positions,
+    radians, the force and moment scales). Returns (converged, iterations, |F|, stable).
     """
-    res = math.inf
+    n = Z.shape[0]
+    F = np.empty(n)
+    J = np.empty((n, n))
+    chain = np.empty((6, 3))
     stable = False
+    res = math.inf
     for it in range(max_iter + 1):
-        dmin = _shoot(unknowns, eps, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
-                      q, plate, discs, False, dummy, states, k1, k2, k3, k4, tmp, jac)
+        dmin = _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps,
+                       F, J, True, chain)
         stable = dmin > 0.0
-        total = 0.0
-        for a in range(3):
-            res_out[a] = states[0, 3 + a] - target[a]
-            total += (res_out[a] / scale[a]) ** 2
-        res = math.sqrt(total)
+        res = _weighted_norm(F, res_weights)
         if not math.isfinite(res):
             return False, it, math.inf, False
         if res <= tol:
             return True, it, res, stable
         if it == max_iter:
             break
-        # jac now holds ∂(n, m)(L)/∂(n0, m0).
-        step = np.linalg.solve(jac, res_out)
-        norm = 0.0
-        for a in range(3):
-            norm += (step[a] / scale[a]) ** 2
-        norm = math.sqrt(norm)
+        step = np.linalg.solve(J, F)
+        norm = _weighted_norm(step, weights)
         shrink = max_step / norm if norm > max_step else 1.0
-        for a in range(3):
-            unknowns[a] -= shrink * step[a]
+        for k in range(n):
+            Z[k] -= shrink * step[k]
     return False, max_iter, res, stable
 
 
 @njit
-def _follow(unknowns, theta0, secf, sec_steps, tubes_i, tubes_f, p_a, p_b, q, plate, target, discs,
-            scale, tol, max_iter, max_step, dt0, dt_min, rest, p_now):
+def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b, q, plate, target,
+            discs, eps, weights, res_weights, tol, max_iter, max_step, dt0, dt_min, rest, p_now):
     """Quasi-static pressure ramp p_a → p_b with contact (cf. :func:`solver._planar._follow`).
 
-    No fold scan: if the step falls below ``dt_min`` the last accepted state is returned,
-    flagged unconverged. Returns (converged, iterations, |residual|, stable); ``unknowns``
-    holds the returned state and ``rest`` (3, ns) its rest strains.
+    A step is accepted if Newton converged on a stable state whose correction is small
+    against the step predicted (secant predictor on all node states). No fold scan: if the
+    step falls below ``dt_min`` the last accepted state is returned, flagged unconverged.
+    Returns (converged, iterations, |residual|, stable); ``Z`` holds the returned state and
+    ``rest`` (3, ns) its rest strains.
     """
-    sec_len = secf[0]
-    c_a = secf[1]
-    c_g = secf[2]
-    c_i = secf[3]
-    u2 = rest[1]
-    v3 = rest[2]
-    states = np.empty((4, 6))
-    k1 = np.empty((4, 6))
-    k2 = np.empty((4, 6))
-    k3 = np.empty((4, 6))
-    k4 = np.empty((4, 6))
-    tmp = np.empty((4, 6))
-    jac = np.empty((3, 3))
-    res_out = np.empty(3)
-    dummy = np.empty((1, N_COLUMNS))
-    eps = np.empty(3)
-    for a in range(3):
-        eps[a] = 1e-7 * scale[a] * max(1.0, max_step)
+    n = Z.shape[0]
     t = 0.0
     dt = dt0
-    slope = np.zeros(3)
-    accepted = unknowns.copy()
-    guess = np.empty(3)
+    slope = np.zeros(n)
+    accepted = Z.copy()
+    guess = np.empty(n)
     total = 0
     ok = False
     res = math.inf
@@ -239,20 +314,26 @@ def _follow(unknowns, theta0, secf, sec_steps, tubes_i, tubes_f, p_a, p_b, q, pl
         for c in range(p_a.shape[0]):
             p_now[c] = p_a[c] + t_new * (p_b[c] - p_a[c])
         _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-        for a in range(3):
-            guess[a] = accepted[a] + slope[a] * (t_new - t)
-            unknowns[a] = guess[a]
-        ok, its, res, stable = _newton(unknowns, eps, target, scale, theta0, sec_len, sec_steps, c_a,
-                                       c_g, c_i, u2, v3, q, plate, discs, tol, max_iter, max_step,
-                                       dummy, states, k1, k2, k3, k4, tmp, jac, res_out)
+        for k in range(n):
+            guess[k] = accepted[k] + slope[k] * (t_new - t)
+            Z[k] = guess[k]
+        final = t_new >= 1.0
+        ok, its, res, stable = _newton(Z, theta0, segs, secf, steps, sec_start, rest, q, plate,
+                                       discs, target, eps, weights, res_weights,
+                                       tol if final else 1e3 * tol, max_iter if final else 8,
+                                       max_step)
         total += its
-        jump = 0.0
-        for a in range(3):
-            jump += ((unknowns[a] - guess[a]) / scale[a]) ** 2
-        if ok and stable and (math.sqrt(jump) <= 0.5 * max_step or dt <= dt_min):
-            for a in range(3):
-                slope[a] = (unknowns[a] - accepted[a]) / (t_new - t)
-                accepted[a] = unknowns[a]
+        corr = 0.0
+        pred = 0.0
+        for k in range(n):
+            corr += ((Z[k] - guess[k]) / weights[k]) ** 2
+            pred += ((guess[k] - accepted[k]) / weights[k]) ** 2
+        corr = math.sqrt(corr / n)
+        pred = math.sqrt(pred / n)
+        if ok and stable and (corr <= 0.05 + 0.5 * pred or dt <= dt_min):
+            for k in range(n):
+                slope[k] = (Z[k] - accepted[k]) / (t_new - t)
+                accepted[k] = Z[k]
             t = t_new
             dt = min(2.0 * dt, 1.0)
             continue
@@ -261,9 +342,8 @@ def _follow(unknowns, theta0, secf, sec_steps, tubes_i, tubes_f, p_a, p_b, q, pl
             continue
         break
     if t < 1.0:
-        # Give back the last accepted state, with its own rest strains.
-        for a in range(3):
-            unknowns[a] = accepted[a]
+        for k in range(n):
+            Z[k] = accepted[k]
         for c in range(p_a.shape[0]):
             p_now[c] = p_a[c] + t * (p_b[c] - p_a[c])
         _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
@@ -272,11 +352,11 @@ def _follow(unknowns, theta0, secf, sec_steps, tubes_i, tubes_f, p_a, p_b, q, pl
 
 
 @njit
-def _record(unknowns, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, q, plate, discs,
-            out):
-    """Record the backbone of the state ``unknowns`` into ``out``; returns min det (stability)."""
-    states = np.empty((4, 6))
-    eps = np.full(3, 1e-7)
-    return _shoot(unknowns, eps, theta0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest, q,
-                  plate, discs, True, out, states, np.empty((4, 6)), np.empty((4, 6)),
-                  np.empty((4, 6)), np.empty((4, 6)), np.empty((4, 6)), np.empty((3, 3)))
+def _record(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, out):
+    """Write the backbone of the state ``Z`` into ``out`` (rows Σ(steps + 1), N_COLUMNS)."""
+    z = np.empty(6)
+    end = np.empty(6)
+    work = np.empty((5, 6))
+    for seg in range(segs.shape[0]):
+        _start_state(Z, seg, theta0, z)
+        _segment(z, seg, segs, secf, steps, sec_start, rest, q, plate, discs, end, work, True, out)

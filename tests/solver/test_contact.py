@@ -101,3 +101,23 @@ def test_bad_disc(kwargs, match):
 def test_bad_obstacles():
     with pytest.raises(ValueError, match="obstacles"):
         solver.Scene(obstacles=((0, 0, 1),))
+
+
+def test_deep_wrap_converges_with_a_stiff_penalty():
+    """A long distal section curling around a disc with k = 1e5 N/m² (contact length ~0.3 m,
+    decay length (EI/k)^¼ ≈ 3 cm): multiple shooting follows it to full pressure."""
+    from softarm_gym.design_tools.sweep import fluid_params
+    from softarm_gym.design_tools.template import build_arm, template
+
+    tpl = template(fluid_params("pneumatic"), (6, 6, 3), 0.015, total_length=1.0)
+    arm = build_arm(fluid_params("pneumatic"), tpl.tubes, tpl.section_lengths, tpl.thickness,
+                    tpl.outer_radius)
+    disc = solver.Disc(center=(-0.153, -0.1429), radius=0.151, stiffness=1e5)
+    scene = solver.Scene(base_angle_deg=0, gravity=0.0, obstacles=(disc,))
+    final = np.zeros(6)
+    final[[2, 4]] = arm.max_pressure
+    eq = _ramp(arm, scene, final, n=21)
+    assert eq.stable and 0 < eq.penetration.max() < 0.01
+    ds = np.diff(eq.s)
+    contact_length = float(np.sum(ds[(eq.penetration[:-1] > 0) & (eq.penetration[1:] > 0)]))
+    assert contact_length > 0.2
