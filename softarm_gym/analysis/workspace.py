@@ -13,8 +13,9 @@ sweep):
   concavity filled in. Not a reachable area (it includes the unreachable region around the
   base), but it is the measure the thesis's §5.3.1 areas (0.5πL², 0.6πL²) match.
 * **occupancy grid** (``occupancy_area(cell)``): the number of ``cell``×``cell`` squares that
-  hold at least one tip, times the cell area. A lower bound that converges to the true area
-  only as the grid of pressures is refined; reported beside the alpha shape for comparison.
+  hold at least one tip, times the cell area. It depends on the cell size (cells finer than
+  the gaps between tips undercount, coarse cells overcount the boundary); reported beside
+  the alpha shape for comparison.
 
 Density (``density(cell)``) is tips per cm² on the same square cells, as the contours of the
 thesis's Figs. 2.7 and 5.4.
