@@ -11,7 +11,8 @@ writes into ``<log-dir>/<algo>_<env>_s<seed>/``:
 * ``evaluations.npz`` — periodic deterministic evaluations (``--eval-freq``);
 * ``best_model.zip`` (by evaluation return) and ``final_model.zip``, each with its ``.json``
   metadata and ``_vecnormalize.pkl`` statistics (see :mod:`baselines.config`);
-* ``summary.json`` — timesteps, training wall time and the hyperparameters used.
+* ``summary.json`` — timesteps, training wall time, the process's CPU time (the machine may
+  be shared: CPU time says how much compute the run actually got) and the hyperparameters.
 
 A tqdm progress bar goes to stderr. Torch is limited to ``--threads`` (default 1) threads: the
 networks are small and the machine's cores are better spent on the environment.
@@ -197,16 +198,17 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
             eval_venv, n_eval_episodes=eval_episodes, eval_freq=max(eval_freq // n_envs, 1),
             log_path=str(run_dir), best_model_save_path=str(run_dir), deterministic=True, verbose=0,
             callback_on_new_best=_SaveNormalization(sidecar_paths(best)[1]) if normalize else None))
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     model.learn(total_timesteps=total, callback=CallbackList(callbacks))
-    wall = time.perf_counter() - start
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
 
     final = run_dir / "final_model.zip"
     model.save(final)
     if normalize:
         venv.save(str(sidecar_paths(final)[1]))
     done = int(model.num_timesteps)
-    summary = {**meta, "timesteps_done": done, "wall_time_s": wall, "steps_per_s": done / wall,
+    summary = {**meta, "timesteps_done": done, "wall_time_s": wall, "cpu_time_s": cpu,
+               "steps_per_s": done / wall,
                "threads": threads, "time_limit_min": time_limit_min}
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     _write_metadata(final, summary)

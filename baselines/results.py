@@ -1,0 +1,303 @@
+"""Collect training runs, run the evaluation grid, and regenerate ``baselines/RESULTS.md``.
+
+    python -m baselines.results collect  --runs runs            # runs/* → baselines/results/training
+    python -m baselines.results evaluate --runs runs --workers 2  # → baselines/results/eval/*.json
+    python -m baselines.results ship     --runs runs            # best policy per env → baselines/trained
+    python -m baselines.results report                          # RESULTS.md + plots from saved files
+
+``report`` reads only the small files under ``baselines/results/`` (summaries, learning-curve
+CSVs, evaluation JSONs), so the document and its plots can be regenerated without the
+(gitignored) run folders. The evaluation grid, for every trained policy (its
+``best_model.zip``) and the Jacobian controller on each reach environment:
+
+* ``main`` — true observations, no sensor noise, no payload, :data:`MAIN_EPISODES` episodes;
+* estimator-in-the-loop — every estimator × :data:`CONDITIONS` (``clean``: no noise, no
+  payload; ``noisy``: the thesis's Table 4.3 sensor resolutions; ``noisy+payload``: the same
+  plus a tip payload drawn per episode from :data:`PAYLOAD_RANGE_KG`, unknown to the agent and
+  to the ``model`` estimator), :data:`GRID_EPISODES` episodes each.
+
+Episode ``i`` of every cell is reset with seed ``i``, so all agents face the same targets.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from baselines.config import sidecar_paths
+from baselines.evaluate import evaluate
+from softarm_gym.sensing import ESTIMATORS
+
+__all__ = ["collect", "evaluation_jobs", "run_evaluations", "ship", "report", "main"]
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+RESULTS_DIR = PACKAGE_DIR / "results"
+TRAINED_DIR = PACKAGE_DIR / "trained"
+ENV_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
+MAIN_EPISODES = 100
+GRID_EPISODES = 20
+PAYLOAD_RANGE_KG = (0.0, 0.25)
+CONDITIONS = {"clean": ("off", None), "noisy": ("thesis", None),
+              "noisy+payload": ("thesis", PAYLOAD_RANGE_KG)}
+"""Condition name → (sensor noise, payload range or None for the env's default of 0)."""
+
+
+def _runs(runs_dir: Path) -> list[Path]:
+    return sorted(p.parent for p in Path(runs_dir).glob("*/summary.json"))
+
+
+def collect(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list[str]:
+    """Copy each finished run's summary and learning curves into ``results_dir/training/<run>/``.
+
+    Writes ``summary.json``, ``monitor.csv`` (training episodes of all env copies, sorted by
+    wall time, with a ``timesteps`` column) and ``evaluations.csv`` (periodic evaluations:
+    timesteps, success rate, mean return). Returns the run names.
+    """
+    names = []
+    for run in _runs(Path(runs_dir)):
+        out = Path(results_dir) / "training" / run.name
+        out.mkdir(parents=True, exist_ok=True)
+        shutil.copy(run / "summary.json", out / "summary.json")
+        frames = [pd.read_csv(f, skiprows=1) for f in sorted(run.glob("*monitor.csv"))]
+        if frames:
+            episodes = pd.concat(frames).sort_values("t").reset_index(drop=True)
+            episodes["timesteps"] = episodes["l"].cumsum()
+            episodes.to_csv(out / "monitor.csv", index=False, float_format="%.6g")
+        if (run / "evaluations.npz").is_file():
+            data = np.load(run / "evaluations.npz")
+            table = pd.DataFrame({"timesteps": data["timesteps"],
+                                  "success_rate": data["successes"].mean(axis=1),
+                                  "mean_return": data["results"].mean(axis=1)})
+            table.to_csv(out / "evaluations.csv", index=False, float_format="%.6g")
+        names.append(run.name)
+    return names
+
+
+def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list[tuple[Path, dict]]:
+    """(output JSON path, :func:`baselines.evaluate.evaluate` kwargs) of every grid cell not yet done."""
+    agents = [(run.name, {"model": run / "best_model.zip"}) for run in _runs(Path(runs_dir))
+              if (run / "best_model.zip").is_file()]
+    agents += [(f"jacobian_{env_id.split('/')[-1]}", {"controller": "jacobian", "env_id": env_id})
+               for env_id in ENV_IDS]
+    jobs = []
+    out_dir = Path(results_dir) / "eval"
+    for name, who in agents:
+        cells = [("main", {"episodes": MAIN_EPISODES})]
+        for observation in ESTIMATORS:
+            for condition, (noise, payload) in CONDITIONS.items():
+                cells.append((f"{observation}__{condition}",
+                              {"episodes": GRID_EPISODES, "observation": observation, "sensor_noise": noise,
+                               "payload_kg": payload}))
+        for cell, kwargs in cells:
+            path = out_dir / f"{name}__{cell}.json"
+            if not path.is_file():
+                jobs.append((path, {**who, **kwargs, "seed": 0}))
+    return jobs
+
+
+def _run_job(job: tuple[Path, dict]) -> str:
+    import torch
+
+    torch.set_num_threads(1)
+    path, kwargs = job
+    result = evaluate(**kwargs)
+    result["cell"] = path.stem.split("__", 1)[1]
+    result["agent_name"] = path.stem.split("__", 1)[0]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result, indent=2) + "\n")
+    return path.name
+
+
+def run_evaluations(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, workers: int = 1,
+                    only: str | None = None) -> int:
+    """Run the missing grid cells (optionally only agents whose name contains ``only``)."""
+    from tqdm import tqdm
+
+    jobs = [j for j in evaluation_jobs(runs_dir, results_dir) if only is None or only in j[0].name]
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for _ in tqdm(pool.map(_run_job, jobs), total=len(jobs), file=sys.stderr, unit="cell"):
+            pass
+    return len(jobs)
+
+
+def _load_evaluations(results_dir: Path) -> pd.DataFrame:
+    rows = [json.loads(p.read_text()) for p in sorted((results_dir / "eval").glob("*.json"))]
+    return pd.DataFrame(rows)
+
+
+def ship(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
+         trained_dir: Path | str = TRAINED_DIR) -> list[Path]:
+    """Copy the best trained policy per environment (highest main success rate, then lowest
+    median error) with its sidecars into ``trained_dir`` as ``<algo>_<env>.zip``."""
+    table = _load_evaluations(Path(results_dir))
+    main_rows = table[(table["cell"] == "main") & ~table["agent_name"].str.startswith("jacobian")]
+    shipped = []
+    for env_id, rows in main_rows.groupby("env_id"):
+        best = rows.sort_values(["success_rate", "median_final_error_m"], ascending=[False, True]).iloc[0]
+        src = Path(runs_dir) / best["agent_name"] / "best_model.zip"
+        algo = best["agent"].split(":")[0]
+        dst = Path(trained_dir) / f"{algo}_{env_id.split('/')[-1]}.zip"
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(src, dst)
+        for a, b in zip(sidecar_paths(src), sidecar_paths(dst)):
+            if a.is_file():
+                shutil.copy(a, b)
+        meta_path = sidecar_paths(dst)[0]
+        meta = json.loads(meta_path.read_text())
+        meta["selected_from"] = best["agent_name"]
+        meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+        shipped.append(dst)
+    return shipped
+
+
+def _mm(x) -> str:
+    return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{1000 * x:.1f}"
+
+
+def _steps(x) -> str:
+    return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{x:.0f}"
+
+
+def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
+    from softarm_gym.plotting import figure, save
+
+    fig, axes = figure(1, len(ENV_IDS), figsize=(5.5 * len(ENV_IDS), 3.8), squeeze=False)
+    for ax, env_id in zip(axes[0], ENV_IDS):
+        for summary in runs:
+            if summary["env_id"] != env_id:
+                continue
+            folder = results_dir / "training" / summary["run"]
+            label = f"{summary['algo']} seed {summary['seed']}"
+            if (folder / "monitor.csv").is_file():
+                episodes = pd.read_csv(folder / "monitor.csv")
+                window = max(1, min(50, len(episodes) // 5))
+                rolling = episodes["is_success"].astype(float).rolling(window, min_periods=1).mean()
+                line, = ax.plot(episodes["timesteps"], 100 * rolling, lw=1, alpha=0.8,
+                                label=f"{label} (training episodes, {window}-ep. mean)")
+                color = line.get_color()
+            else:
+                color = None
+            if (folder / "evaluations.csv").is_file():
+                evals = pd.read_csv(folder / "evaluations.csv")
+                ax.plot(evals["timesteps"], 100 * evals["success_rate"], "o--", ms=3, color=color,
+                        label=f"{label} (deterministic eval)")
+        ax.set_title(env_id)
+        ax.set_xlabel("environment steps")
+        ax.set_ylabel("final-step success rate (%)")
+        ax.set_ylim(-2, 102)
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=6)
+    save(fig, path)
+
+
+def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR / "RESULTS.md") -> str:
+    """Write ``RESULTS.md`` (and ``results/learning_curves.png``) from the saved results; return the text."""
+    results_dir = Path(results_dir)
+    runs = []
+    for f in sorted((results_dir / "training").glob("*/summary.json")):
+        summary = json.loads(f.read_text())
+        summary["run"] = f.parent.name
+        runs.append(summary)
+    table = _load_evaluations(results_dir)
+    if runs:
+        _learning_curves(results_dir, runs, results_dir / "learning_curves.png")
+    lines = ["# Baseline results", "",
+             "Regenerated by `python -m baselines.results report` from the files under "
+             "`baselines/results/`; every number below was measured on the project's 2-core machine, "
+             "shared with other jobs while the runs trained (so the CPU time of each run is given "
+             "next to its wall time). Success = final true tip within the env's tolerance "
+             "(2 cm) after the 100-step episode; errors are final |true tip − target|; steps to "
+             "success = first step within tolerance, over the episodes that got there. "
+             "Policies are each run's `best_model.zip` (best periodic evaluation return during "
+             "training), acting deterministically; episode i of every evaluation uses seed i.", ""]
+    main = table[table["cell"] == "main"] if len(table) else table
+    lines += ["## Reach with true observations", "",
+              f"{MAIN_EPISODES} episodes each, no sensor noise, no payload.", "",
+              "| env | agent | train steps | train wall (min) | train CPU (min) | success | median err (mm) "
+              "| p95 err (mm) | median steps to success |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    by_run = {r["run"]: r for r in runs}
+    for env_id in ENV_IDS:
+        rows = main[main["env_id"] == env_id] if len(main) else main
+        for _, row in rows.sort_values("agent_name").iterrows():
+            run = by_run.get(row["agent_name"])
+            steps = f"{run['timesteps_done']:,}" if run else "–"
+            wall = f"{run['wall_time_s'] / 60:.1f}" if run else "–"
+            cpu = f"{run['cpu_time_s'] / 60:.1f}" if run and "cpu_time_s" in run else "–"
+            lines.append(f"| {env_id} | {row['agent_name']} | {steps} | {wall} | {cpu} | "
+                         f"{100 * row['success_rate']:.0f} % | {_mm(row['median_final_error_m'])} | "
+                         f"{_mm(row['p95_final_error_m'])} | {_steps(row['median_steps_to_success'])} |")
+        learned = rows[~rows["agent_name"].str.startswith("jacobian")] if len(rows) else rows
+        if len(learned) > 1:
+            rates = 100 * learned["success_rate"]
+            lines.append(f"| {env_id} | **RL mean ± std over {len(learned)} seeds** | | | | "
+                         f"**{rates.mean():.0f} ± {rates.std():.0f} %** | "
+                         f"{_mm(learned['median_final_error_m'].mean())} | "
+                         f"{_mm(learned['p95_final_error_m'].mean())} | |")
+    lines += ["", "Learning curves (final-step success of training episodes, rolling mean; dots: the "
+              "periodic deterministic evaluations, 20 episodes):", "",
+              "![learning curves](results/learning_curves.png)", ""]
+    lines += ["## Estimator in the loop", "",
+              f"{GRID_EPISODES} episodes per cell; cells give success rate / median final error (mm). "
+              "`clean`: perfect sensors, no payload; `noisy`: Table 4.3 sensor resolutions "
+              "(encoder 3 cm, inclinometer 2.5°, load cell); `noisy+payload`: the same plus a tip "
+              f"payload drawn per episode uniformly in {PAYLOAD_RANGE_KG[0]}–{PAYLOAD_RANGE_KG[1]} kg, "
+              "unknown to the agents and to the estimators. The last column is the mean estimation "
+              "error of the tip (mm) for that estimator and condition, averaged over agents.", ""]
+    grid = table[table["cell"] != "main"] if len(table) else table
+    for env_id in ENV_IDS:
+        rows = grid[grid["env_id"] == env_id] if len(grid) else grid
+        if not len(rows):
+            continue
+        agents = sorted(rows["agent_name"].unique())
+        lines += [f"### {env_id}", "", "| estimator | condition | " + " | ".join(agents) +
+                  " | tip est. err (mm) |", "|---|---|" + "---|" * (len(agents) + 1)]
+        for observation in ESTIMATORS:
+            for condition in CONDITIONS:
+                cell = rows[rows["cell"] == f"{observation}__{condition}"]
+                if not len(cell):
+                    continue
+                values = []
+                for agent in agents:
+                    hit = cell[cell["agent_name"] == agent]
+                    values.append("–" if not len(hit) else
+                                  f"{100 * hit['success_rate'].iloc[0]:.0f} % / "
+                                  f"{_mm(hit['median_final_error_m'].iloc[0])}")
+                lines.append(f"| {observation} | {condition} | " + " | ".join(values) +
+                             f" | {_mm(cell['mean_estimation_error_m'].mean())} |")
+        lines.append("")
+    text = "\n".join(lines) + "\n"
+    Path(out).write_text(text)
+    return text
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m baselines.results", description=__doc__.splitlines()[0])
+    parser.add_argument("step", choices=("collect", "evaluate", "ship", "report"))
+    parser.add_argument("--runs", default="runs", help="folder of the training runs (default %(default)s)")
+    parser.add_argument("--results", default=str(RESULTS_DIR))
+    parser.add_argument("--workers", type=int, default=1, help="parallel evaluation processes")
+    parser.add_argument("--only", default=None, help="evaluate only agents whose name contains this")
+    args = parser.parse_args(argv)
+    if args.step == "collect":
+        print("\n".join(collect(args.runs, args.results)))
+    elif args.step == "evaluate":
+        print(f"{run_evaluations(args.runs, args.results, args.workers, args.only)} cells evaluated")
+    elif args.step == "ship":
+        print("\n".join(str(p) for p in ship(args.runs, args.results)))
+    else:
+        report(args.results)
+        print(PACKAGE_DIR / "RESULTS.md")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

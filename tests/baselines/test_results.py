@@ -1,0 +1,40 @@
+"""Collecting runs, shipping the best policy and regenerating RESULTS.md from saved files."""
+
+import json
+
+import pandas as pd
+
+from baselines import results
+from baselines.evaluate import evaluate, main
+
+
+def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
+    runs_dir = tiny_sac_run.parent
+    out = tmp_path / "results"
+    assert results.collect(runs_dir, out) == [tiny_sac_run.name]
+    training = out / "training" / tiny_sac_run.name
+    monitor = pd.read_csv(training / "monitor.csv")
+    assert monitor["timesteps"].iloc[-1] == monitor["l"].sum()
+    assert list(pd.read_csv(training / "evaluations.csv").columns) == ["timesteps", "success_rate",
+                                                                       "mean_return"]
+    jobs = results.evaluation_jobs(runs_dir, out)
+    n_cells = 1 + len(results.CONDITIONS) * 6
+    assert len(jobs) == 3 * n_cells  # the run and the controller on both envs
+    # Two cells, evaluated briefly, stand in for the grid.
+    for cell, kwargs in (("main", {}), ("cable_encoder__noisy", {"observation": "cable_encoder",
+                                                                 "sensor_noise": "thesis"})):
+        result = evaluate(model=tiny_sac_run / "best_model.zip", episodes=1, **kwargs)
+        result.update(cell=cell, agent_name=tiny_sac_run.name)
+        (out / "eval").mkdir(exist_ok=True)
+        (out / "eval" / f"{tiny_sac_run.name}__{cell}.json").write_text(json.dumps(result))
+    assert len(results.evaluation_jobs(runs_dir, out)) == 3 * n_cells - 2  # done cells are skipped
+    shipped = results.ship(runs_dir, out, tmp_path / "trained")
+    assert [p.name for p in shipped] == ["sac_OctArmReach-v0.zip"]
+    meta = json.loads(shipped[0].with_suffix(".json").read_text())
+    assert meta["selected_from"] == tiny_sac_run.name
+    assert main(["--model", str(shipped[0]), "--episodes", "1", "--json", "--no-progress"]) == 0
+    assert "success_rate" in json.loads(capsys.readouterr().out)
+    text = results.report(out, tmp_path / "RESULTS.md")
+    assert (out / "learning_curves.png").is_file()
+    assert f"| SoftArm/OctArmReach-v0 | {tiny_sac_run.name} | " in text
+    assert "| cable_encoder | noisy |" in text
