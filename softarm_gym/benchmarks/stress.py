@@ -457,6 +457,7 @@ def summarize(rec: _Records) -> dict:
         "worst_iterations": int(max(rec.iterations)) if rec.iterations else 0,
         "worst_balance_error": float(np.max(balance)) if balance.size else math.nan,
         "unbalanced_count": int(np.count_nonzero(balance > BALANCE_LIMIT)),
+        "unbalanced_stable_count": sum(u["stable"] for u in rec.unbalanced),
         "unbalanced": rec.unbalanced[:_FAILURE_EXAMPLES],
         "unstable_count": int(np.count_nonzero(~stable)),
         "snapped_count": int(np.count_nonzero(rec.snapped)),
