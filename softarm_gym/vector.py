@@ -35,7 +35,7 @@ def _fill_observations(shapes, section_ends, s_query, fraction, target, low, hig
                        backbone):
     """Flat ReachEnv observations of every copy from its recorded backbone.
 
-    ``shapes`` (n, N, 10) are :mod:`solver._planar` records (s, x, y, θ, m, n1, n3, v1, v3, u).
+    ``shapes`` (n, N, 10) are :mod:`solver._planar` records (s, x, y, θ, m, n_x, n_y, v1, v3, u).
     The backbone is resampled by the same cubic Hermite rule as the ``true`` estimator.
     """
     n = shapes.shape[0]

@@ -32,8 +32,9 @@ import numpy as np
 from solver._jit import njit, prange
 from solver.actuator import _stretch
 
-# Columns of the recorded samples.
-S, X, Y, THETA, M, N1, N3, V1, V3, U = range(10)
+# Columns of the recorded samples: s, x, y, θ, m, internal force n (world x, y), strains v1,
+# v3 and curvature u. Adjacent pairs are the result's (N, 2) fields as slices.
+S, X, Y, THETA, M, NX, NY, V1, V3, U = range(10)
 N_COLUMNS = 10
 # Rows of the section array ``secf`` (6, ns): length, 1/EA, 1/GA (0: unshearable), 1/EI, EA, EI.
 LEN, CA, CG, CI, EA, EI = range(6)
@@ -147,8 +148,8 @@ def _integrate(m0, theta0, secf, steps, rest, loads, record, out):
                 out[row, Y] = y
                 out[row, THETA] = th
                 out[row, M] = m
-                out[row, N1] = n1
-                out[row, N3] = n3
+                out[row, NX] = nx
+                out[row, NY] = ny
                 out[row, V1] = n1 * cg
                 out[row, V3] = vr + n3 * ca
                 out[row, U] = ur + m * ci

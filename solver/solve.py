@@ -541,16 +541,12 @@ def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
     out = np.empty((packed.n_rows, _planar.N_COLUMNS))
     _planar._integrate(m0, scene.base_theta, packed.secf, packed.sec_steps, rest, loads_now, True,
                        out)
-    theta = out[:, _planar.THETA]
-    c, sn = np.cos(theta), np.sin(theta)
-    n1, n3 = out[:, _planar.N1], out[:, _planar.N3]
+    P = _planar  # the result's arrays are views into this one record
     return Equilibrium(
-        tip=out[-1, [_planar.X, _planar.Y]].copy(), s=out[:, _planar.S].copy(),
-        positions=out[:, [_planar.X, _planar.Y]].copy(), angles=theta.copy(),
-        shear_stretch=out[:, [_planar.V1, _planar.V3]].copy(), curvature=out[:, _planar.U].copy(),
-        internal_force=np.column_stack([n3 * c - n1 * sn, n3 * sn + n1 * c]),
-        internal_moment=out[:, _planar.M].copy(), section_ends=_section_ends(packed),
-        **common_out)
+        tip=out[-1, P.X:P.Y + 1].copy(), s=out[:, P.S], positions=out[:, P.X:P.Y + 1],
+        angles=out[:, P.THETA], shear_stretch=out[:, P.V1:P.V3 + 1], curvature=out[:, P.U],
+        internal_force=out[:, P.NX:P.NY + 1], internal_moment=out[:, P.M],
+        section_ends=_section_ends(packed), **common_out)
 
 
 def _batch_inputs(arm, pressures, scene, model, planar, settings):
@@ -613,7 +609,7 @@ class BatchState:
         converged: (n,) whether the last step of each copy converged (a copy that did not
             kept its previous state).
         shapes: (n, N, 10) recorded backbones when stepped with ``record=True``: columns s, x,
-            y, θ, m, n1, n3, v1, v3, u (see :mod:`solver._planar`); else (n, 1, 10) scratch.
+            y, θ, m, n_x, n_y, v1, v3, u (see :mod:`solver._planar`); else (n, 1, 10) scratch.
         section_ends: sample indices of the section ends in ``shapes``.
     """
 
@@ -833,12 +829,8 @@ def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
         free = np.empty((layout.n_rows, _planar.N_COLUMNS))
         _planar._integrate(m0, scene.base_theta, layout.secf, layout.sec_steps, np.vstack(rest),
                            ctx.loads, True, free)
-        th = free[:, _planar.THETA]
-        n1, n3 = free[:, _planar.N1], free[:, _planar.N3]
-        free_state = np.column_stack([free[:, _planar.X], free[:, _planar.Y], th,
-                                      n3 * np.cos(th) - n1 * np.sin(th),
-                                      n3 * np.sin(th) + n1 * np.cos(th), free[:, _planar.M]])
-        nodes = _nodes_from_record(free_state, segs, range(6))
+        nodes = _nodes_from_record(free, segs, (_planar.X, _planar.Y, _planar.THETA, _planar.NX,
+                                                _planar.NY, _planar.M))
     rest, p_now = np.empty((3, len(arm.sections))), np.empty(p_target.shape[0])
     discs = scene.discs_array()
     eps = 1e-7 * state_w
