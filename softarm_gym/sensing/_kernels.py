@@ -523,3 +523,85 @@ def _reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_res
         curv_out[i, 0] = y[17]
         curv_out[i, 1] = y[18]
         s0 += sec_len[i]
+
+
+@njit
+def _arc_relative(k0, k1, kappa, stretch, sig, rel_pos, rel_rot):
+    """Pose after ``sig`` along an arc of body curvature κ·(k0, k1, 0), no shear or torsion.
+
+    Rodrigues: R = I + sin φ·K + (1 − cos φ)·K², K = [k]×, φ = κσ; and
+    r = v·∫₀^σ R e3 = v·σ·((1 − cos φ)/φ·(k1, −k0, 0) + (sin φ/φ)·e3). Writes rel_pos (3,),
+    rel_rot (3, 3).
+    """
+    phi = kappa * sig
+    if abs(phi) < 1e-9:
+        a = 1.0 - phi * phi / 6.0
+        b = phi / 2.0
+    else:
+        a = math.sin(phi) / phi
+        b = (1.0 - math.cos(phi)) / phi
+    ell = stretch * sig
+    rel_pos[0] = ell * b * k1
+    rel_pos[1] = -ell * b * k0
+    rel_pos[2] = ell * a
+    s = math.sin(phi)
+    c = 1.0 - math.cos(phi)
+    rel_rot[0, 0] = 1.0 - c * k1 * k1
+    rel_rot[0, 1] = c * k0 * k1
+    rel_rot[0, 2] = s * k1
+    rel_rot[1, 0] = c * k0 * k1
+    rel_rot[1, 1] = 1.0 - c * k0 * k0
+    rel_rot[1, 2] = -s * k0
+    rel_rot[2, 0] = -s * k1
+    rel_rot[2, 1] = s * k0
+    rel_rot[2, 2] = 1.0 - c * (k0 * k0 + k1 * k1)
+
+
+@njit
+def _arc_chain_spatial(rot0, sec_len, curvature, stretch, s_query, work, backbone, ends, frames):
+    """Spatial chain of arcs (constant body curvature (u1, u2, 0) and stretch per section).
+
+    Args:
+        rot0: (3, 3) base directors. sec_len, stretch: (ns,). curvature: (ns, 2) (u1, u2) (rad/m).
+        s_query: (K,) increasing reference arc lengths in [0, L] (m).
+        work: (4, 3, 3) scratch (frame, relative rotation, product, relative position in row 0).
+        backbone: (K, 3) written. ends: (ns, 3) and frames: (ns, 3, 3) written.
+    """
+    rot = work[0]
+    rel_rot = work[1]
+    prod = work[2]
+    rel_pos = work[3, 0]
+    for r in range(3):
+        for c in range(3):
+            rot[r, c] = rot0[r, c]
+    x0 = 0.0
+    x1 = 0.0
+    x2 = 0.0
+    s0 = 0.0
+    k = 0
+    ns = sec_len.shape[0]
+    for i in range(ns):
+        kappa = math.hypot(curvature[i, 0], curvature[i, 1])
+        k0 = curvature[i, 0] / kappa if kappa > 0.0 else 0.0
+        k1 = curvature[i, 1] / kappa if kappa > 0.0 else 0.0
+        while k < s_query.shape[0] and (s_query[k] <= s0 + sec_len[i] or i == ns - 1):
+            _arc_relative(k0, k1, kappa, stretch[i], s_query[k] - s0, rel_pos, rel_rot)
+            backbone[k, 0] = x0 + rot[0, 0] * rel_pos[0] + rot[0, 1] * rel_pos[1] + rot[0, 2] * rel_pos[2]
+            backbone[k, 1] = x1 + rot[1, 0] * rel_pos[0] + rot[1, 1] * rel_pos[1] + rot[1, 2] * rel_pos[2]
+            backbone[k, 2] = x2 + rot[2, 0] * rel_pos[0] + rot[2, 1] * rel_pos[1] + rot[2, 2] * rel_pos[2]
+            k += 1
+        _arc_relative(k0, k1, kappa, stretch[i], sec_len[i], rel_pos, rel_rot)
+        x0 += rot[0, 0] * rel_pos[0] + rot[0, 1] * rel_pos[1] + rot[0, 2] * rel_pos[2]
+        x1 += rot[1, 0] * rel_pos[0] + rot[1, 1] * rel_pos[1] + rot[1, 2] * rel_pos[2]
+        x2 += rot[2, 0] * rel_pos[0] + rot[2, 1] * rel_pos[1] + rot[2, 2] * rel_pos[2]
+        for r in range(3):
+            for c in range(3):
+                prod[r, c] = rot[r, 0] * rel_rot[0, c] + rot[r, 1] * rel_rot[1, c] + rot[r, 2] * rel_rot[2, c]
+        for r in range(3):
+            for c in range(3):
+                rot[r, c] = prod[r, c]
+                frames[i, r, c] = prod[r, c]
+        ends[i, 0] = x0
+        ends[i, 1] = x1
+        ends[i, 2] = x2
+        s0 += sec_len[i]

@@ -23,6 +23,7 @@ from softarm_gym.sensing._kernels import (
     REDUCED_STATE,
     SPATIAL_STATE,
     _arc_chain_planar,
+    _arc_chain_spatial,
     _hermite_resample,
     _load_cell_planar,
     _load_cell_spatial,
@@ -247,8 +248,13 @@ class ConstantCurvatureShape(Estimator):
                               self.s_query, backbone, ends)
             backbone[-1] = ends[-1, :2]
             return ShapeEstimate(tip=ends[-1, :2].copy(), section_ends=ends, backbone=backbone)
-        return _arc_chain_spatial(base_rotation(float(readings.inclinometers[0, 0])), self.sec_len,
-                                  curvature, stretch, self.s_query)
+        ns = len(self.sec_len)
+        backbone, ends, frames = np.empty((self.n_samples, 3)), np.empty((ns, 3)), np.empty((ns, 3, 3))
+        _arc_chain_spatial(base_rotation(float(readings.inclinometers[0, 0])), self.sec_len,
+                           np.ascontiguousarray(curvature), stretch, self.s_query, np.empty((4, 3, 3)),
+                           backbone, ends, frames)
+        backbone[-1] = ends[-1]
+        return ShapeEstimate(tip=ends[-1].copy(), section_ends=ends, backbone=backbone, section_frames=frames)
 
 
 def cable_section_strains(readings: SensorReadings, sec_len: np.ndarray, radius: float):
@@ -329,51 +335,6 @@ def base_rotation(theta0: float) -> np.ndarray:
     """Base directors [d1 d2 d3] (columns): d3 = (cos θ0, sin θ0, 0), d2 = +z (the solver's)."""
     c, s = math.cos(theta0), math.sin(theta0)
     return np.array([[-s, 0.0, c], [c, 0.0, s], [0.0, 1.0, 0.0]])
-
-
-def _arc_relative(u1: float, u2: float, stretch: float, sig: float):
-    """Position and rotation after ``sig`` along an arc of body curvature (u1, u2, 0), no shear.
-
-    R(σ) = exp(σ[u]×); r(σ) = v·∫₀^σ R(t) e3 dt, by Rodrigues' formula about k = u/|u|.
-    """
-    kappa = math.hypot(u1, u2)
-    phi = kappa * sig
-    e3 = np.array([0.0, 0.0, 1.0])
-    if phi < 1e-9:
-        return stretch * sig * e3, np.eye(3)
-    k = np.array([u1, u2, 0.0]) / kappa
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    rot = np.eye(3) + math.sin(phi) * kx + (1.0 - math.cos(phi)) * kx @ kx
-    # ∫ R(t) e3 dt = σ e3 + (1 − cos φ)/κ (k × e3) + (σ − sin φ/κ) (k × (k × e3)).
-    ke3 = kx @ e3
-    pos = stretch * (sig * e3 + (1.0 - math.cos(phi)) / kappa * ke3
-                     + (sig - math.sin(phi) / kappa) * (kx @ ke3))
-    return pos, rot
-
-
-def _arc_chain_spatial(rot0, sec_len, curvature, stretch, s_query) -> ShapeEstimate:
-    """Spatial chain of arcs from the base frame ``rot0``; curvature (n_sections, 2)."""
-    r = np.zeros(3)
-    rot = rot0.copy()
-    backbone = np.empty((s_query.size, 3))
-    ends = np.empty((len(sec_len), 3))
-    frames = np.empty((len(sec_len), 3, 3))
-    s0 = 0.0
-    k = 0
-    for i, length in enumerate(sec_len):
-        last = i == len(sec_len) - 1
-        while k < s_query.size and (s_query[k] <= s0 + length or last):
-            rel, _ = _arc_relative(curvature[i, 0], curvature[i, 1], stretch[i], s_query[k] - s0)
-            backbone[k] = r + rot @ rel
-            k += 1
-        rel, rel_rot = _arc_relative(curvature[i, 0], curvature[i, 1], stretch[i], length)
-        r = r + rot @ rel
-        rot = rot @ rel_rot
-        ends[i] = r
-        frames[i] = rot
-        s0 += length
-    backbone[-1] = r
-    return ShapeEstimate(tip=r.copy(), section_ends=ends, backbone=backbone, section_frames=frames)
 
 
 def channel_pressures(arm: solver.designs.ArmDesign, pressures: np.ndarray, planar: bool) -> np.ndarray:
