@@ -11,8 +11,10 @@ Constraint cases, all read with β = 0.09 as a *diameter* ratio (the thesis writ
 the internal volumes of §3.4.3 confirm the diameter reading, see ``docs/design_tools.md``):
 
 * ``tube-ratio`` (§3.4.2, Figs. 3.4–3.5): tube diameter 2Ro = β·L; sweep L.
-* ``base-ratio`` (§3.4.3, Figs. B.5–B.6): base-section diameter 2(δ_1 + Ro) = β·L, with
-  δ = Ro/sin(π/N_t) the tube ring radius; sweep L.
+* ``base-ratio`` (§3.4.3, Figs. B.5–B.6): overall diameter max 2(δ_i + Ro) = β·L, with
+  δ = Ro/sin(π/N_t) the tube ring radius — the base section's for a tapered arm (Fig. B.5's
+  caption says "overall diameter/length"; reading it as the base section alone would let a
+  middle section bulge wider than the base); sweep L.
 * ``diameter`` (Appendix B.1, Fig. B.3): the widest section's diameter max 2(δ_i + Ro) fixed
   at β × the Table 3.1 length (0.09 m); sweep L.
 * ``gripping-radius`` (Appendix B.3, Figs. B.1–B.2): Ro from Table 3.1 (15 mm), the distal
@@ -188,7 +190,7 @@ def outer_radius(params: FluidDesign, constraint: str, tubes, size: float) -> fl
     if constraint == "tube-ratio":
         return params.beta * size / 2.0
     if constraint == "base-ratio":
-        return params.beta * size / _ring_diameter_factor(tubes[0])
+        return params.beta * size / _ring_diameter_factor(max(tubes))
     if constraint == "diameter":
         return params.beta * params.length / _ring_diameter_factor(max(tubes))
     if constraint == "gripping-radius":

@@ -27,7 +27,9 @@ def _diameter(tubes, ro):
 def test_outer_radius_of_each_constraint_case():
     assert dt.outer_radius(P, "tube-ratio", (12, 3), 2.0) == pytest.approx(0.09)  # 2Ro = βL
     ro = dt.outer_radius(P, "base-ratio", (6, 3), 0.8)
-    assert _diameter(6, ro) == pytest.approx(0.09 * 0.8)
+    assert _diameter(6, ro) == pytest.approx(0.09 * 0.8)  # the base section of a tapered arm
+    ro = dt.outer_radius(P, "base-ratio", (3, 12, 3), 0.8)
+    assert _diameter(12, ro) == pytest.approx(0.09 * 0.8)  # never a bulge wider than that
     ro = dt.outer_radius(P, "diameter", (3, 9, 3), 2.5)
     assert _diameter(9, ro) == pytest.approx(0.09)  # widest section, whatever the length
     assert dt.outer_radius(P, "gripping-radius", (3, 3), 0.3) == P.outer_radius
