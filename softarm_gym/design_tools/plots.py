@@ -31,6 +31,7 @@ def plot_sweeps(sweeps, path) -> None:
 
 def _versus_size(sweeps, path) -> None:
     fig, ax = figure(figsize=(7, 4.5))
+    top = 0.0
     for k, s in enumerate(sweeps):
         pts = [(c.length_m if s.constraint != "gripping-radius" else size, c)
                for size, c in zip(s.sizes, s.best_per_size) if c is not None]
@@ -38,6 +39,7 @@ def _versus_size(sweeps, path) -> None:
             continue
         x = [p[0] for p in pts]
         y = [p[1].load_n for p in pts]
+        top = max(top, max(y))
         label = f"{s.n_sections} sections"
         if len({t.params.youngs_modulus for t in sweeps}) > 1:
             label += f", E = {s.params.youngs_modulus / 1e6:.3g} MPa"
@@ -49,6 +51,8 @@ def _versus_size(sweeps, path) -> None:
                             textcoords="offset points", xytext=(2, 4))
                 previous = c.tubes
     ax.axhline(0.0, color="0.6", lw=0.8)
+    if top > 0:  # like Figs. 3.4-3.5: show where W > 0, and only the start of the fall below
+        ax.set_ylim(-0.25 * top, 1.1 * top)
     first = sweeps[0]
     ax.set_xlabel("last section length L_N (m)" if first.constraint == "gripping-radius"
                   else "arm length L (m)")
