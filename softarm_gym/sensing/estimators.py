@@ -64,10 +64,10 @@ class ShapeEstimate:
     converged: bool = True
 
     def __post_init__(self):
-        tip = np.asarray(self.tip, dtype=float)
-        ends = np.asarray(self.section_ends, dtype=float)
-        backbone = np.asarray(self.backbone, dtype=float)
-        frames = np.asarray(self.section_frames, dtype=float)
+        tip = np.array(self.tip, dtype=float)
+        ends = np.array(self.section_ends, dtype=float)
+        backbone = np.array(self.backbone, dtype=float)
+        frames = np.array(self.section_frames, dtype=float)
         if tip.shape not in ((2,), (3,)):
             raise ValueError(f"ShapeEstimate.tip must have shape (2,) or (3,); got {tip.shape}")
         dim = tip.shape[0]
@@ -91,10 +91,6 @@ class ShapeEstimate:
         return self.tip.shape[0] == 2
 
 
-def _sample_grid(arm: solver.designs.ArmDesign, n_samples: int) -> np.ndarray:
-    return np.linspace(0.0, arm.length, n_samples)
-
-
 def shape_from_equilibrium(eq: solver.Equilibrium, n_samples: int = DEFAULT_SAMPLES) -> ShapeEstimate:
     """The :class:`ShapeEstimate` of a recorded equilibrium (cubic Hermite backbone resampling).
 
@@ -115,13 +111,13 @@ def shape_from_equilibrium(eq: solver.Equilibrium, n_samples: int = DEFAULT_SAMP
         frames = np.empty((0, 3, 3))
     else:
         tangent = np.einsum("nij,nj->ni", eq.orientations, eq.shear_stretch)
-        section_ends = eq.positions[ends].copy()
-        frames = eq.orientations[ends].copy()
+        section_ends = eq.positions[ends]
+        frames = eq.orientations[ends]
     backbone = np.empty((n_samples, eq.positions.shape[1]))
     _hermite_resample(np.ascontiguousarray(eq.s), np.ascontiguousarray(eq.positions),
                       np.ascontiguousarray(tangent), s_query, backbone)
     backbone[-1] = eq.tip
-    return ShapeEstimate(tip=eq.tip.copy(), section_ends=section_ends, backbone=backbone,
+    return ShapeEstimate(tip=eq.tip, section_ends=section_ends, backbone=backbone,
                          section_frames=frames, converged=bool(eq.converged))
 
 
@@ -139,7 +135,7 @@ class Estimator:
         self.planar = bool(planar)
         self.scene = scene
         self.n_samples = n_samples
-        self.s_query = _sample_grid(arm, n_samples)
+        self.s_query = np.linspace(0.0, arm.length, n_samples)
         self.sec_len = np.array([s.length for s in arm.sections])
 
     def reset(self) -> None:
@@ -247,14 +243,14 @@ class ConstantCurvatureShape(Estimator):
             _arc_chain_planar(float(readings.inclinometers[0]), self.sec_len, curvature, stretch,
                               self.s_query, backbone, ends)
             backbone[-1] = ends[-1, :2]
-            return ShapeEstimate(tip=ends[-1, :2].copy(), section_ends=ends, backbone=backbone)
+            return ShapeEstimate(tip=ends[-1, :2], section_ends=ends, backbone=backbone)
         ns = len(self.sec_len)
         backbone, ends, frames = np.empty((self.n_samples, 3)), np.empty((ns, 3)), np.empty((ns, 3, 3))
         _arc_chain_spatial(base_rotation(float(readings.inclinometers[0, 0])), self.sec_len,
                            np.ascontiguousarray(curvature), stretch, self.s_query, np.empty((4, 3, 3)),
                            backbone, ends, frames)
         backbone[-1] = ends[-1]
-        return ShapeEstimate(tip=ends[-1].copy(), section_ends=ends, backbone=backbone, section_frames=frames)
+        return ShapeEstimate(tip=ends[-1], section_ends=ends, backbone=backbone, section_frames=frames)
 
 
 def cable_section_strains(readings: SensorReadings, sec_len: np.ndarray, radius: float):
@@ -392,8 +388,8 @@ class _Integrating(Estimator):
         backbone = np.empty((self.n_samples, dim))
         _hermite_resample(self._s, self._pos, self._tan, self.s_query, backbone)
         backbone[-1] = self._ends[-1, :dim]
-        return ShapeEstimate(tip=self._ends[-1, :dim].copy(), section_ends=self._ends.copy(),
-                             backbone=backbone, section_frames=self._frames.copy(), converged=converged)
+        return ShapeEstimate(tip=self._ends[-1, :dim], section_ends=self._ends, backbone=backbone,
+                             section_frames=self._frames, converged=converged)
 
 
 class LoadCellShape(_Integrating):

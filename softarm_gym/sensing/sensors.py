@@ -151,9 +151,9 @@ class SensorReadings:
     planar: bool = True
 
     def __post_init__(self):
-        enc = np.asarray(self.encoder_lengths, dtype=float)
-        inc = np.asarray(self.inclinometers, dtype=float)
-        wrench = np.asarray(self.base_wrench, dtype=float)
+        enc = np.array(self.encoder_lengths, dtype=float)
+        inc = np.array(self.inclinometers, dtype=float)
+        wrench = np.array(self.base_wrench, dtype=float)
         n_cables, n_wrench = (2, 3) if self.planar else (3, 6)
         if enc.ndim != 2 or enc.shape[1] != n_cables:
             raise ValueError(f"encoder_lengths must have shape (n_sections, {n_cables}); got {enc.shape}")
