@@ -2,10 +2,13 @@
 
 import json
 
+import numpy as np
 import pytest
 
+import solver
 from softarm_gym.cli import main
-from softarm_gym.sensing.study import configurations, run_study
+from softarm_gym.sensing import SensorNoise, make_estimator, synthesize
+from softarm_gym.sensing.study import SENSOR_GROUPS, configurations, run_study, sensitivity_bound
 
 
 def test_configurations_cover_every_on_off_code():
@@ -62,3 +65,25 @@ def test_cli_bad_input_exits_2(argv, message, capsys):
 def test_run_study_rejects_empty_levels():
     with pytest.raises(ValueError, match="pressure levels"):
         run_study(pressures_psi=[])
+
+
+@pytest.mark.parametrize("name", ["load_cell", "inclinometer", "cable_encoder"])
+def test_sensitivity_bound_matches_monte_carlo(name):
+    """Independent small Gaussian errors of σ·resolution on every reading give an RMS tip
+    error of σ·bound (linear error propagation): the bound's sensitivities are right."""
+    arm = solver.designs.octarm_vi()
+    scene = solver.Scene(base_angle_deg=90)
+    p = np.array([40, 0, 0, 60, 20, 0]) * solver.PSI
+    eq = solver.solve(arm, p, scene)
+    est = make_estimator(name, arm, scene=scene)
+    thesis = SensorNoise.thesis()
+    readings = synthesize(eq, arm)
+    bound = sensitivity_bound(est, readings, p, thesis)
+    assert bound["total"] == pytest.approx(np.sqrt(sum(bound[g] ** 2 for g in SENSOR_GROUPS)))
+    sigma = 0.01
+    noise = SensorNoise(**{**thesis.__dict__, "gaussian_std": sigma, "quantize": False})
+    rng = np.random.default_rng(3)
+    clean = est.estimate(readings, p).tip
+    errors = [est.estimate(synthesize(eq, arm, noise, rng), p).tip - clean for _ in range(600)]
+    rms = np.sqrt(np.mean(np.sum(np.square(errors), axis=1)))
+    assert rms == pytest.approx(sigma * bound["total"], rel=0.1)  # 600 samples: ~3 % statistical
