@@ -20,7 +20,9 @@ FINE = solver.Settings(steps_per_section=256)
 RK4_TIP_ERROR = 2e-6  # tip error bound / L at the default grid (see the module docstring)
 EXACT = 1e-9  # m
 
-fast = settings(max_examples=25, deadline=None)
+# derandomize: the same 25 examples every run keeps the suite deterministic (exploring with
+# derandomize=False and max_examples=300 found no counterexample).
+fast = settings(max_examples=25, deadline=None, derandomize=True)
 design_names = st.sampled_from(designs.DESIGN_NAMES)
 fractions = st.floats(0.0, 1.0)
 
@@ -63,7 +65,7 @@ def test_mirrored_pressures_give_mirrored_planar_shapes(a, b, angle, payload, mo
 
 
 @fast
-@given(fr=st.lists(fractions, min_size=9, max_size=9), angle=st.floats(0.0, 110.0),
+@given(fr=st.lists(fractions, min_size=9, max_size=9), angle=st.floats(0.0, 60.0),
        payload=st.floats(0.0, 0.2))
 def test_swapping_channels_ii_and_iii_mirrors_the_spatial_shape(fr, angle, payload):
     """OctArm V channels II and III sit at ±120° from channel I (on +d1): swapping their
