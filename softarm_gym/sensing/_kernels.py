@@ -12,7 +12,7 @@ from solver._jit import njit
 
 
 @njit
-def _section_integrals(s, integrand, starts, ends, out):
+def _section_integrals(s, integrand, ends, out):
     """Cumulative integrals of sampled functions over consecutive sections.
 
     Composite Simpson's rule on the uniform samples of each section (Simpson 3/8 on the last
@@ -21,14 +21,14 @@ def _section_integrals(s, integrand, starts, ends, out):
     Args:
         s: (N,) reference arc length of the samples (m), uniform within a section.
         integrand: (N, C) sampled functions, one column per cable.
-        starts, ends: (n_sections,) int sample indices of each section's first and last sample.
+        ends: (n_sections,) int index of each section's last sample; section i starts at
+            ends[i − 1] + 1 (junction samples are repeated), section 0 at 0.
         out: (n_sections, C) written: integral from the base to the end of each section.
     """
-    n_cols = integrand.shape[1]
-    for c in range(n_cols):
+    for c in range(integrand.shape[1]):
         total = 0.0
-        for i in range(starts.shape[0]):
-            a = starts[i]
+        for i in range(ends.shape[0]):
+            a = 0 if i == 0 else ends[i - 1] + 1
             n_int = ends[i] - a
             if n_int > 0:
                 h = (s[ends[i]] - s[a]) / n_int
@@ -47,6 +47,17 @@ def _section_integrals(s, integrand, starts, ends, out):
                                       + integrand[k + 2, c])
                 total += acc
             out[i, c] = total
+
+
+@njit
+def _planar_cable_integrand(shear_stretch, curvature, radius, out):
+    """Planar cable integrands √((v3 ∓ R·u)² + v1²) for the +R·d1 and −R·d1 cables, (N, 2)."""
+    for k in range(curvature.shape[0]):
+        v1 = shear_stretch[k, 0]
+        v3 = shear_stretch[k, 1]
+        ru = radius * curvature[k]
+        out[k, 0] = math.sqrt((v3 - ru) ** 2 + v1 * v1)
+        out[k, 1] = math.sqrt((v3 + ru) ** 2 + v1 * v1)
 
 
 @njit

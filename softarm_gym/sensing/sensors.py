@@ -37,7 +37,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 import solver
-from softarm_gym.sensing._kernels import _section_integrals
+from softarm_gym.sensing._kernels import _planar_cable_integrand, _section_integrals
 
 __all__ = ["SensorNoise", "SensorReadings", "synthesize", "cable_angles", "cable_radius"]
 
@@ -116,18 +116,18 @@ class SensorNoise:
             return self.inclinometer_resolution_deg
         return self.base_inclinometer_resolution_deg
 
-    def apply(self, values: np.ndarray, resolution: np.ndarray, rng) -> np.ndarray:
+    def apply(self, values: np.ndarray, resolution, rng) -> np.ndarray:
         """Noisy, quantised copy of ``values`` given per-element ``resolution`` (same units)."""
+        res = np.broadcast_to(np.asarray(resolution, dtype=float), np.shape(values))
         out = np.array(values, dtype=float)
-        res = np.broadcast_to(np.asarray(resolution, dtype=float), out.shape)
         if self.gaussian_std > 0 and np.any(res > 0):
             if rng is None:
                 raise ValueError("SensorNoise with gaussian_std > 0 needs an rng "
                                  "(numpy.random.Generator)")
-            out = out + rng.normal(0.0, 1.0, out.shape) * self.gaussian_std * res
+            out += rng.normal(0.0, 1.0, out.shape) * self.gaussian_std * res
         if self.quantize:
-            q = res > 0
-            out[q] = np.round(out[q] / res[q]) * res[q]
+            counted = res > 0
+            out = np.where(counted, np.round(out / np.where(counted, res, 1.0)) * res, out)
         return out
 
 
@@ -186,23 +186,20 @@ def cable_angles(planar: bool) -> np.ndarray:
     return np.array([0.0, math.pi]) if planar else np.radians([0.0, 120.0, 240.0])
 
 
-def _section_bounds(eq: solver.Equilibrium) -> tuple[np.ndarray, np.ndarray]:
+def _cable_lengths(eq: solver.Equilibrium, radius: float) -> np.ndarray:
+    """Cumulative cable lengths (n_sections, n_cables): ∫|v + u × ρ| ds by sections."""
     ends = np.asarray(eq.section_ends, dtype=np.int64)
-    starts = np.concatenate([[0], ends[:-1] + 1]).astype(np.int64)
-    return starts, ends
-
-
-def _cable_integrand(eq: solver.Equilibrium, radius: float) -> np.ndarray:
-    """|v + u × ρ| at every sample for every cable, (N, n_cables)."""
     if eq.planar:
-        v1, v3 = eq.shear_stretch[:, 0], eq.shear_stretch[:, 1]
-        u = eq.curvature
-        return np.column_stack([np.hypot(v3 - radius * u, v1), np.hypot(v3 + radius * u, v1)])
-    phi = cable_angles(False)
-    rho = radius * np.column_stack([np.cos(phi), np.sin(phi), np.zeros(3)])  # (3 cables, 3)
-    v, u = eq.shear_stretch, eq.curvature
-    cross = np.cross(u[:, None, :], rho[None, :, :])  # (N, cables, 3)
-    return np.linalg.norm(v[:, None, :] + cross, axis=2)
+        integrand = np.empty((eq.s.size, 2))
+        _planar_cable_integrand(eq.shear_stretch, eq.curvature, radius, integrand)
+    else:
+        phi = cable_angles(False)
+        rho = radius * np.column_stack([np.cos(phi), np.sin(phi), np.zeros(3)])  # (3 cables, 3)
+        cross = np.cross(eq.curvature[:, None, :], rho[None, :, :])  # (N, cables, 3)
+        integrand = np.linalg.norm(eq.shear_stretch[:, None, :] + cross, axis=2)
+    lengths = np.empty((ends.size, integrand.shape[1]))
+    _section_integrals(eq.s, integrand, ends, lengths)
+    return lengths
 
 
 def exact_readings(eq: solver.Equilibrium, arm: solver.designs.ArmDesign):
@@ -215,19 +212,19 @@ def exact_readings(eq: solver.Equilibrium, arm: solver.designs.ArmDesign):
     if len(eq.section_ends) != len(arm.sections):
         raise ValueError(f"the equilibrium has {len(eq.section_ends)} sections but design "
                          f"{arm.name!r} has {len(arm.sections)}")
-    starts, ends = _section_bounds(eq)
-    integrand = np.ascontiguousarray(_cable_integrand(eq, cable_radius(arm)))
-    lengths = np.empty((ends.size, integrand.shape[1]))
-    _section_integrals(np.ascontiguousarray(eq.s), integrand, starts, ends, lengths)
-    idx = np.concatenate([[0], ends])
+    lengths = _cable_lengths(eq, cable_radius(arm))
+    idx = [0, *eq.section_ends]
     if eq.planar:
-        incl = eq.angles[idx].copy()
+        incl = eq.angles[idx]
         wrench = np.array([eq.internal_force[0, 0], eq.internal_force[0, 1], eq.internal_moment[0]])
     else:
         frames = eq.orientations[idx]
         incl = np.arcsin(np.clip(np.column_stack([frames[:, 1, 2], frames[:, 1, 0]]), -1.0, 1.0))
         wrench = np.concatenate([eq.internal_force[0], eq.internal_moment[0]])
     return lengths, incl, wrench
+
+
+_PERFECT = SensorNoise()
 
 
 def synthesize(eq: solver.Equilibrium, arm: solver.designs.ArmDesign,
@@ -244,7 +241,7 @@ def synthesize(eq: solver.Equilibrium, arm: solver.designs.ArmDesign,
     Returns:
         The :class:`SensorReadings`.
     """
-    noise = SensorNoise.off() if noise is None else noise
+    noise = _PERFECT if noise is None else noise
     if not isinstance(noise, SensorNoise):
         raise ValueError(f"noise must be a SensorNoise; got {type(noise).__name__}")
     if rng is not None and not isinstance(rng, np.random.Generator):
@@ -252,27 +249,25 @@ def synthesize(eq: solver.Equilibrium, arm: solver.designs.ArmDesign,
     lengths, incl, wrench = exact_readings(eq, arm)
     if noise.is_off:
         return SensorReadings(lengths, incl, wrench, planar=eq.planar)
-    lengths = noise.apply(lengths, noise.encoder_resolution, rng)
-    inc_res = np.full(incl.shape, math.radians(noise.inclinometer_resolution_deg))
-    inc_res[0] = math.radians(noise.base_inclinometer_deg)
-    incl = noise.apply(incl, inc_res, rng)
-    wrench = _noisy_wrench(eq, wrench, noise, rng)
-    return SensorReadings(lengths, incl, wrench, planar=eq.planar)
-
-
-def _noisy_wrench(eq, wrench, noise, rng):
-    """Noise applied in the load cell's own frame (the base directors), reported in world."""
+    # The load cell reads in its own frame (the base directors): shear along d1 (d2), axial d3.
     if eq.planar:
         th = eq.angles[0]
-        d1 = np.array([-math.sin(th), math.cos(th)])
-        d3 = np.array([math.cos(th), math.sin(th)])
-        body = np.array([wrench[:2] @ d1, wrench[:2] @ d3, wrench[2]])
-        body = noise.apply(body, [noise.force_resolution, noise.axial_force_resolution,
-                                  noise.moment_resolution], rng)
-        return np.concatenate([body[0] * d1 + body[1] * d3, body[2:]])
-    rot = eq.orientations[0]
-    body = np.concatenate([rot.T @ wrench[:3], rot.T @ wrench[3:]])
-    res = [noise.force_resolution, noise.force_resolution, noise.axial_force_resolution] \
-        + [noise.moment_resolution] * 3
-    body = noise.apply(body, res, rng)
-    return np.concatenate([rot @ body[:3], rot @ body[3:]])
+        frame = np.array([[-math.sin(th), math.cos(th)], [math.cos(th), math.sin(th)]]).T  # [d1 d3]
+        body = np.append(frame.T @ wrench[:2], wrench[2])
+        wrench_res = [noise.force_resolution, noise.axial_force_resolution, noise.moment_resolution]
+    else:
+        frame = eq.orientations[0]
+        body = np.concatenate([frame.T @ wrench[:3], frame.T @ wrench[3:]])
+        wrench_res = [noise.force_resolution, noise.force_resolution, noise.axial_force_resolution] \
+            + [noise.moment_resolution] * 3
+    inc_res = np.full(incl.shape, math.radians(noise.inclinometer_resolution_deg))
+    inc_res[0] = math.radians(noise.base_inclinometer_deg)
+    flat = noise.apply(np.concatenate([lengths.ravel(), incl.ravel(), body]),
+                       np.concatenate([np.full(lengths.size, noise.encoder_resolution), inc_res.ravel(),
+                                       wrench_res]), rng)
+    n_len, n_inc = lengths.size, incl.size
+    body = flat[n_len + n_inc:]
+    dim = frame.shape[0]
+    wrench = np.concatenate([frame @ body[:dim], body[dim:] if eq.planar else frame @ body[dim:]])
+    return SensorReadings(flat[:n_len].reshape(lengths.shape), flat[n_len:n_len + n_inc].reshape(incl.shape),
+                          wrench, planar=eq.planar)
