@@ -352,7 +352,7 @@ def channel_pressures(arm: solver.designs.ArmDesign, pressures: np.ndarray, plan
 
 
 class _Integrating(Estimator):
-    """An estimator that integrates a planar ODE on RK4 nodes and resamples the backbone.
+    """An estimator that integrates the rod equations on RK4 nodes and resamples the backbone.
 
     Options:
         steps_per_section: RK4 steps per section (default: the solver's).
