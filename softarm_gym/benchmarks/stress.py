@@ -91,7 +91,7 @@ def scaled(arm: ArmDesign, length: float = 1.0, stiffness: float = 1.0, name: st
                                               shear_modulus=t.material.shear_modulus * stiffness))
                   for t in arm.tubes)
     return replace(arm, name=name or arm.name, sections=sections, tubes=tubes,
-                   max_pressure=arm.max_pressure * stiffness, extra={})
+                   max_pressure=arm.max_pressure * stiffness)
 
 
 def near_lockup(arm: ArmDesign, fraction: float = LOCKUP_FRACTION) -> ArmDesign:
@@ -99,7 +99,7 @@ def near_lockup(arm: ArmDesign, fraction: float = LOCKUP_FRACTION) -> ArmDesign:
     m = arm.tubes[0].material
     p = float(solver.pressure_from_stretch(fraction * m.max_stretch, m.youngs_modulus, m.inner_radius,
                                            m.outer_radius, m.wind_angle_deg))
-    return replace(arm, name=f"{arm.name}_lockup", max_pressure=p, extra={})
+    return replace(arm, name=f"{arm.name}_lockup", max_pressure=p)
 
 
 def _named(rng) -> ArmDesign:
