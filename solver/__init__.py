@@ -18,6 +18,7 @@ from solver.solve import (
     Equilibrium,
     Settings,
     SolverError,
+    channel_pressures,
     rest_strains,
     solve,
     solve_batch,
@@ -27,5 +28,5 @@ from solver.solve import (
 __all__ = [
     "actuator", "designs", "PSI", "pressure_from_stretch", "stretch_from_pressure", "Scene", "Disc",
     "MODELS", "Equilibrium", "Settings", "SolverError", "rest_strains", "solve", "solve_batch",
-    "step_batch", "BatchState",
+    "step_batch", "BatchState", "channel_pressures",
 ]

@@ -26,6 +26,7 @@ from solver.designs import ArmDesign
 from solver.scene import Disc, Scene
 
 __all__ = ["Equilibrium", "SolverError", "solve", "solve_batch", "step_batch", "BatchState",
+           "channel_pressures",
            "MODELS", "Settings", "Disc"]
 
 MODELS = ("full", "unshearable", "constant_curvature")
@@ -263,6 +264,23 @@ def _channel_pressures(arm: ArmDesign, pressures, planar: bool,
     if not planar:
         return p, p
     return p, p[packed.spatial_of_planar]
+
+
+def channel_pressures(arm: ArmDesign, pressures, planar: bool = True) -> np.ndarray:
+    """Validated spatial-channel pressures (Pa) from the inputs of ``arm`` in the given mode.
+
+    Args:
+        arm: the design.
+        pressures: (n_inputs,) pressures (Pa), ordered as ``arm.input_names(planar)``.
+        planar: whether ``pressures`` are planar inputs (expanded to their channels).
+
+    Returns:
+        (n_channels,) pressures, one per spatial channel.
+
+    Raises:
+        ValueError: wrong count, non-finite, negative or over-rated pressures.
+    """
+    return _channel_pressures(arm, pressures, planar, _pack(arm, "full", DEFAULT_SETTINGS))[1].copy()
 
 
 def _explain_bad_pressures(arm, p, planar):

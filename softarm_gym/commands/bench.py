@@ -21,6 +21,8 @@ def add_arguments(p):
     p.add_argument("--peer", choices=("pyelastica",), help="also settle the scenes with a peer simulator")
     p.add_argument("--env", action="store_true",
                    help="benchmark the environments (steps/s) instead of the solver")
+    p.add_argument("--estimators", action="store_true",
+                   help="benchmark sensor synthesis and every shape estimator instead")
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -30,6 +32,19 @@ def run(args) -> int:
     def progress(message):
         print(f"[bench] {message}", file=sys.stderr, flush=True)
 
+    if args.estimators:
+        from softarm_gym.sensing.bench import bench_estimators
+
+        rows = {"planar": bench_estimators(steps=50 if args.quick else 200),
+                "spatial": bench_estimators(steps=20 if args.quick else 100, planar=False)}
+        lines = ["| call | planar (µs, median) | spatial (µs, median) |", "|---|---|---|"]
+        for name in rows["planar"]:
+            if isinstance(rows["planar"][name], float):
+                spatial = rows["spatial"].get(name)
+                lines.append(f"| {name} | {1e6 * rows['planar'][name]:.0f} | "
+                             f"{'—' if not isinstance(spatial, float) else f'{1e6 * spatial:.0f}'} |")
+        emit(rows, args.json, "\n".join(lines))
+        return 0
     if args.env:
         from softarm_gym.benchmarks import envs, vector_bench
 

@@ -333,24 +333,6 @@ def base_rotation(theta0: float) -> np.ndarray:
     return np.array([[-s, 0.0, c], [c, 0.0, s], [0.0, 1.0, 0.0]])
 
 
-def channel_pressures(arm: solver.designs.ArmDesign, pressures: np.ndarray, planar: bool) -> np.ndarray:
-    """Validated spatial-channel pressures (Pa) from the inputs of ``arm`` in the given mode."""
-    names = arm.input_names(planar)
-    if (pressures < 0).any():
-        k = int(np.argmax(pressures < 0))
-        raise ValueError(f"pressure for channel {names[k]!r} is negative ({pressures[k]:.6g} Pa)")
-    if (pressures > arm.max_pressure * (1 + 1e-12)).any():
-        k = int(np.argmax(pressures > arm.max_pressure * (1 + 1e-12)))
-        raise ValueError(f"pressure for channel {names[k]!r} ({pressures[k]:.6g} Pa) exceeds the "
-                         f"design's rated maximum {arm.max_pressure:.6g} Pa")
-    if not planar:
-        return pressures.copy()
-    spatial = np.zeros(arm.n_channels)
-    for value, (_, idx) in zip(pressures, arm.planar_channels):
-        spatial[list(idx)] = value
-    return spatial
-
-
 class _Integrating(Estimator):
     """An estimator that integrates the rod equations on RK4 nodes and resamples the backbone.
 
@@ -381,7 +363,7 @@ class _Integrating(Estimator):
         if not self.arm.tubes:
             ns = len(self.arm.sections)
             return np.zeros(ns), np.zeros(ns), np.ones(ns)
-        return solver.rest_strains(self.arm, channel_pressures(self.arm, pressures, self.planar))
+        return solver.rest_strains(self.arm, solver.channel_pressures(self.arm, pressures, self.planar))
 
     def _shape(self, converged: bool = True) -> ShapeEstimate:
         dim = self._pos.shape[1]
