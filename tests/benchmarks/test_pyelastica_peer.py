@@ -4,7 +4,8 @@ PyElastica is first order in its element count; its leading error for a clamped 
 clamp convention (the first element keeps the base orientation, so the whole rod lags the
 continuum by half an element's rotation, u(0)·dx/2). The arc test checks that this, and
 nothing else, is what separates it from the closed form; the gravity test that the tip lands
-near our converged solution. Two short settles, ~10 s with PyElastica's kernels cached.
+near our converged solution. Two short settles: ~8 s with PyElastica's numba kernels cached
+(they are cached in site-packages after the first run; a cold cache adds ~30-60 s of compiling).
 """
 
 from __future__ import annotations
