@@ -92,7 +92,7 @@ class SoftArmEnv(gym.Env):
                  randomization=None, action_mode: str = "absolute", delta_scale: float = 0.1,
                  n_backbone: int = 8, observation_format: str = "flat",
                  initial_pressure_fraction: float = 0.1, solver_failure_penalty: float = 1.0,
-                 max_solver_failures: int = 5, model: str = "full",
+                 max_solver_failures: int = 5, model: str = "full", synthesize_sensors=None,
                  render_mode: str | None = None, render_size: int = 400):
         self.arm = _design(design)
         if not isinstance(planar, (bool, np.bool_)):
@@ -149,6 +149,11 @@ class SoftArmEnv(gym.Env):
                                         scene=solver.Scene(base_angle_deg=self.base_angle_deg,
                                                            gravity=self.gravity),
                                         n_samples=self.n_backbone)
+        # Skip what a scene doesn't need: the ``true`` and ``model`` estimators read no sensors.
+        if synthesize_sensors is False and self.estimator.reads_sensors:
+            raise ValueError(f"observation {observation!r} estimates from sensor readings; "
+                             "synthesize_sensors cannot be False")
+        self.synthesize_sensors = bool(self.estimator.reads_sensors or synthesize_sensors)
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(self.n_inputs,), dtype=np.float32)
         parts = self._observation_parts()
@@ -298,7 +303,8 @@ class SoftArmEnv(gym.Env):
     def _sense(self) -> None:
         """Readings of the current equilibrium and the estimator's shape from them."""
         eq = self._eq
-        self._readings = synthesize(eq, self._sim_arm, self.sensor_noise, self.np_random)
+        self._readings = synthesize(eq, self._sim_arm, self.sensor_noise, self.np_random) \
+            if self.synthesize_sensors else None
         self._shape = self.estimator.estimate(self._readings, eq.pressures, truth=eq)
 
     def _observation(self):
@@ -328,9 +334,10 @@ class SoftArmEnv(gym.Env):
             "tip_true": eq.tip.copy(),
             "tip_estimated": np.asarray(self._shape.tip, dtype=float).copy(),
             "estimation_error": math.dist(self._shape.tip, eq.tip),
-            "sensors": {"encoder_lengths": self._readings.encoder_lengths,
-                        "inclinometers": self._readings.inclinometers,
-                        "base_wrench": self._readings.base_wrench},
+            "sensors": {} if self._readings is None else {
+                "encoder_lengths": self._readings.encoder_lengths,
+                "inclinometers": self._readings.inclinometers,
+                "base_wrench": self._readings.base_wrench},
             "converged": bool(attempted.converged),
             "solver": {"converged": bool(attempted.converged), "iterations": int(attempted.iterations),
                        "residual": float(attempted.residual), "stable": bool(attempted.stable),

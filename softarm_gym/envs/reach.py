@@ -108,12 +108,17 @@ class ReachEnv(SoftArmEnv):
       ``success_tolerance`` (0.02 m), ``solver_failure_penalty`` (1), ``max_solver_failures`` (5),
       ``terminate_on_success`` (False).
     * ``initial_pressure_fraction`` (0.1), ``model`` (``"full"``, the simulator's rod model).
+    * ``synthesize_sensors`` (None): synthesise sensor readings every step. By default only
+      when the observation's estimator reads them (not for ``true`` and ``model``, which
+      need none — skipping them is most of a ``true`` step's saving); True forces them into
+      ``info["sensors"]``.
     * ``render_mode`` (None, ``"rgb_array"`` or ``"human"``), ``render_size`` (400 px).
 
     ## Info
 
     ``tip_true`` (m), ``tip_estimated`` (m), ``estimation_error`` (m, |estimated − true tip|),
-    ``sensors`` (dict of the raw ``SensorReadings`` arrays: ``encoder_lengths`` (m),
+    ``sensors`` (dict of the raw ``SensorReadings`` arrays, empty when none are synthesised
+    — see ``synthesize_sensors``: ``encoder_lengths`` (m),
     ``inclinometers`` (rad), ``base_wrench`` (N, N m)), ``converged``, ``solver`` (converged, iterations,
     residual, stable, snapped of the attempted solve), ``solver_failures``, ``pressures_pa``,
     ``payload_kg``, ``target``, ``distance`` (m), ``is_success`` and the ``reward_*`` terms.

@@ -616,3 +616,26 @@ def _arc_chain_spatial(rot0, sec_len, curvature, stretch, s_query, work, backbon
         ends[i, 1] = x1
         ends[i, 2] = x2
         s0 += sec_len[i]
+
+
+@njit
+def _planar_shape(s, pos, theta, strain, ends, s_query, backbone, section_ends, tangent):
+    """The ``true`` shape of a recorded planar equilibrium in one pass.
+
+    Tangent dr/ds = v3 d3 + v1 d1 at every sample (``strain`` columns v1, v3), section-end
+    poses (x, y, θ) into ``section_ends``, the backbone resampled at ``s_query`` by cubic
+    Hermite into ``backbone``; ``tangent`` is (N, 2) scratch.
+    """
+    for r in range(s.shape[0]):
+        c = math.cos(theta[r])
+        sn = math.sin(theta[r])
+        tangent[r, 0] = strain[r, 1] * c - strain[r, 0] * sn
+        tangent[r, 1] = strain[r, 1] * sn + strain[r, 0] * c
+    for i in range(ends.shape[0]):
+        section_ends[i, 0] = pos[ends[i], 0]
+        section_ends[i, 1] = pos[ends[i], 1]
+        section_ends[i, 2] = theta[ends[i]]
+    _hermite_resample(s, pos, tangent, s_query, backbone)
+    last = s.shape[0] - 1
+    backbone[backbone.shape[0] - 1, 0] = pos[last, 0]
+    backbone[backbone.shape[0] - 1, 1] = pos[last, 1]

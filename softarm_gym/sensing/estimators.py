@@ -27,6 +27,7 @@ from softarm_gym.sensing._kernels import (
     _hermite_resample,
     _load_cell_planar,
     _load_cell_spatial,
+    _planar_shape,
     _reduced_planar,
     _reduced_residual,
     _reduced_spatial,
@@ -103,16 +104,15 @@ def shape_from_equilibrium(eq: solver.Equilibrium, n_samples: int = DEFAULT_SAMP
     ends = np.asarray(eq.section_ends, dtype=np.int64)
     s_query = np.linspace(0.0, float(eq.s[-1]), n_samples)
     if eq.planar:
-        th = eq.angles
-        d3 = np.column_stack([np.cos(th), np.sin(th)])
-        d1 = np.column_stack([-np.sin(th), np.cos(th)])
-        tangent = eq.shear_stretch[:, 1:2] * d3 + eq.shear_stretch[:, 0:1] * d1
-        section_ends = np.column_stack([eq.positions[ends], th[ends]])
-        frames = np.empty((0, 3, 3))
-    else:
-        tangent = np.einsum("nij,nj->ni", eq.orientations, eq.shear_stretch)
-        section_ends = eq.positions[ends]
-        frames = eq.orientations[ends]
+        backbone = np.empty((n_samples, 2))
+        section_ends = np.empty((ends.shape[0], 3))
+        _planar_shape(eq.s, eq.positions, eq.angles, eq.shear_stretch, ends, s_query, backbone,
+                      section_ends, np.empty((eq.s.shape[0], 2)))
+        return ShapeEstimate(tip=eq.tip, section_ends=section_ends, backbone=backbone,
+                             converged=bool(eq.converged))
+    tangent = np.einsum("nij,nj->ni", eq.orientations, eq.shear_stretch)
+    section_ends = eq.positions[ends]
+    frames = eq.orientations[ends]
     backbone = np.empty((n_samples, eq.positions.shape[1]))
     _hermite_resample(np.ascontiguousarray(eq.s), np.ascontiguousarray(eq.positions),
                       np.ascontiguousarray(tangent), s_query, backbone)
@@ -128,6 +128,9 @@ class Estimator:
     """
 
     name = ""
+    reads_sensors = True
+    """False for estimators that ignore the readings (``true``, ``model``): callers may then
+    pass ``readings=None`` and skip synthesising them."""
 
     def __init__(self, arm: solver.designs.ArmDesign, planar: bool, scene: solver.Scene,
                  n_samples: int):
@@ -146,7 +149,8 @@ class Estimator:
         """Estimate the shape.
 
         Args:
-            readings: sensor readings of the current equilibrium (:func:`synthesize`).
+            readings: sensor readings of the current equilibrium (:func:`synthesize`); may be
+                None for an estimator that does not read them (``reads_sensors`` False).
             pressures_pa: (n_inputs,) commanded pressures (Pa), ordered as
                 ``arm.input_names(planar)``.
             truth: the true equilibrium; used only by the ``true`` estimator.
@@ -154,12 +158,14 @@ class Estimator:
         Returns:
             The :class:`ShapeEstimate`.
         """
-        if not isinstance(readings, SensorReadings):
+        if readings is None and not self.reads_sensors:
+            pass
+        elif not isinstance(readings, SensorReadings):
             raise ValueError(f"readings must be SensorReadings; got {type(readings).__name__}")
-        if readings.planar != self.planar:
+        elif readings.planar != self.planar:
             raise ValueError(f"{self.name} estimator is {'planar' if self.planar else 'spatial'} but "
                              f"the readings are {'planar' if readings.planar else 'spatial'}")
-        if readings.encoder_lengths.shape[0] != len(self.arm.sections):
+        elif readings.encoder_lengths.shape[0] != len(self.arm.sections):
             raise ValueError(f"readings are for {readings.encoder_lengths.shape[0]} sections; design "
                              f"{self.arm.name!r} has {len(self.arm.sections)}")
         p = np.asarray(pressures_pa, dtype=float)
@@ -178,6 +184,7 @@ class TrueShape(Estimator):
     """Ground truth: the equilibrium itself (for reference and privileged observations)."""
 
     name = "true"
+    reads_sensors = False
 
     def _estimate(self, readings, pressures, truth):
         if not isinstance(truth, solver.Equilibrium):
@@ -199,6 +206,7 @@ class ModelShape(Estimator):
     """
 
     name = "model"
+    reads_sensors = False
 
     def __init__(self, arm, planar, scene, n_samples, model: str = "full",
                  settings: solver.Settings | None = None):
