@@ -134,25 +134,6 @@ class _Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping
     """PyElastica system collection with the modules the peer uses."""
 
 
-def _spatial_pressures(arm, pressures_pa) -> np.ndarray:
-    """Validate planar input pressures (Pa) and expand them to the spatial channels."""
-    n = arm.n_inputs(planar=True)
-    try:
-        p = np.array(pressures_pa, dtype=float)
-    except (TypeError, ValueError):
-        p = None
-    if p is None or p.shape != (n,):
-        raise ValueError(f"design {arm.name!r} expects {n} planar pressures "
-                         f"({', '.join(arm.input_names(True)) or 'none'}); got {pressures_pa!r}")
-    if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(p > arm.max_pressure * (1 + 1e-12)):
-        raise ValueError(f"pressures must be finite and within [0, {arm.max_pressure:.6g}] Pa "
-                         f"(the design's rated maximum); got {p.tolist()}")
-    spatial = np.zeros(arm.n_channels)
-    for value, (_, idx) in zip(p, arm.planar_channels):
-        spatial[list(idx)] = value
-    return spatial
-
-
 def _elements_per_section(arm, n_elem: int) -> np.ndarray:
     """Element counts per section, proportional to length, at least 2 each, summing to n_elem."""
     lengths = np.array([s.length for s in arm.sections])
@@ -337,7 +318,7 @@ def settle(arm, pressures_pa, scene: solver.Scene | None = None, n_elem: int = 6
             raise ValueError(f"{name} must be a finite number > 0; got {value!r}")
     if not (math.isfinite(ramp_time) and ramp_time >= 0):
         raise ValueError(f"ramp_time must be a finite number >= 0; got {ramp_time!r}")
-    target = _spatial_pressures(arm, pressures_pa)
+    target = solver.channel_pressures(arm, pressures_pa)
     dt = stable_time_step(arm, n_elem) if dt is None else float(dt)
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite number > 0; got {dt!r}")
@@ -407,7 +388,7 @@ def arc_tip(arm, pressures_pa, base_angle_deg: float) -> np.ndarray:
     With no loads the internal force and the moment beyond the rest curvature vanish, so every
     section is exactly a circular arc (DESIGN §7) — independent of the rod discretisation.
     """
-    _, u2, v3 = solver.rest_strains(arm, _spatial_pressures(arm, pressures_pa))
+    _, u2, v3 = solver.rest_strains(arm, solver.channel_pressures(arm, pressures_pa))
     theta = math.radians(base_angle_deg - 90.0)
     tip = np.zeros(2)
     for sec, u, v in zip(arm.sections, u2, v3):

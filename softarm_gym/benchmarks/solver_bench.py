@@ -120,9 +120,7 @@ def _scipy_rows(cases, refs, quick, tick):
     for tol in (1e-4, 1e-6, 1e-8):
         times, errors = [], []
         for (arm, p, scene, _), ref in subset:
-            channel = np.zeros(arm.n_channels)
-            for value, (_, idx) in zip(p, arm.planar_channels):
-                channel[list(idx)] = value
+            channel = solver.channel_pressures(arm, p)
             start = time.perf_counter()
             try:
                 tip, _, _ = naive.solve_bvp_planar(arm, channel, scene, tol=tol)

@@ -61,10 +61,10 @@ def test_max_time_reached_reports_not_settled():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({"pressures_pa": np.zeros(5)}, "expects 6 planar pressures"),
-    ({"pressures_pa": [-1.0, 0, 0, 0, 0, 0]}, "within"),
-    ({"pressures_pa": [np.nan, 0, 0, 0, 0, 0]}, "within"),
-    ({"pressures_pa": [1e7, 0, 0, 0, 0, 0]}, "within"),
+    ({"pressures_pa": np.zeros(5)}, "expects 6 pressures in planar mode"),
+    ({"pressures_pa": [-1.0, 0, 0, 0, 0, 0]}, "s1_I.*negative"),
+    ({"pressures_pa": [np.nan, 0, 0, 0, 0, 0]}, "s1_I.*not finite"),
+    ({"pressures_pa": [1e7, 0, 0, 0, 0, 0]}, "s1_I.*rated maximum"),
     ({"scene": solver.Scene(tip_moment=0.1)}, "tip moment"),
     ({"scene": "horizontal"}, "solver.Scene"),
     ({"n_elem": 5}, "n_elem must be an integer >= 6"),
