@@ -31,7 +31,7 @@ def test_unloaded_arc_differs_from_closed_form_only_by_the_clamp_offset():
     label, arm, p, scene, exact = peer.validation_cases()[0]
     result = peer.settle(arm, p, scene, n_elem=20, tol=1e-5)
     assert result.settled
-    u_base = solver.rest_strains(arm, peer._spatial_pressures(arm, p))[1][0]
+    u_base = solver.rest_strains(arm, solver.channel_pressures(arm, p))[1][0]
     dx_base = arm.sections[0].length / peer._elements_per_section(arm, 20)[0]
     clamp_offset = _rotation(-u_base * dx_base / 2.0) @ exact
     error = np.linalg.norm(result.tip - exact)
