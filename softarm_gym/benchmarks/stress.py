@@ -520,8 +520,8 @@ def _finite_obs(obs) -> bool:
 def run_env_steps(n_steps: int, seed: int = 0, ids=None, observations=None, progress=None) -> dict:
     """Random-action steps on every (environment ID, observation mode) case.
 
-    ``n_steps`` is split evenly over the cases (at least one step each); cases alternate the
-    flat and dict observation formats. Episodes reset when they end.
+    ``n_steps`` is split evenly over the cases, rounded up (at least ``n_steps`` in all);
+    cases alternate the flat and dict observation formats. Episodes reset when they end.
 
     Returns:
         ``{"steps", "cases", "exceptions", "nan_observations", "nan_rewards",
@@ -541,7 +541,7 @@ def run_env_steps(n_steps: int, seed: int = 0, ids=None, observations=None, prog
         if obs not in ESTIMATORS:
             raise ValueError(f"unknown observation {obs!r}; choose from {', '.join(ESTIMATORS)}")
     cases = [(i, o) for i in ids for o in observations]
-    per_case = max(1, int(n_steps) // len(cases)) if n_steps else 0
+    per_case = -(-int(n_steps) // len(cases))  # ceil: at least n_steps in all
     totals = dict(steps=0, exceptions=0, nan_observations=0, nan_rewards=0, solver_failures=0,
                   failure_truncations=0, resets=0)
     rows, messages = [], []
