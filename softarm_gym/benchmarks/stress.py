@@ -102,11 +102,11 @@ def near_lockup(arm: ArmDesign, fraction: float = LOCKUP_FRACTION) -> ArmDesign:
     return replace(arm, name=f"{arm.name}_lockup", max_pressure=p)
 
 
+_NAMED_ARMS = tuple(designs.get(n) for n in designs.DESIGN_NAMES)
+
+
 def _named(rng) -> ArmDesign:
     return _NAMED_ARMS[int(rng.integers(len(_NAMED_ARMS)))]
-
-
-_NAMED_ARMS = tuple(designs.get(n) for n in designs.DESIGN_NAMES)
 
 
 # ----------------------------------------------------------------------------- trials
