@@ -180,7 +180,7 @@ def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
             if (folder / "monitor.csv").is_file():
                 episodes = pd.read_csv(folder / "monitor.csv")
                 window = max(1, min(50, len(episodes) // 5))
-                rolling = episodes["is_success"].astype(float).rolling(window, min_periods=1).mean()
+                rolling = episodes["is_success"].astype(float).rolling(window, min_periods=window).mean()
                 line, = ax.plot(episodes["timesteps"], 100 * rolling, lw=1, alpha=0.8,
                                 label=f"{label} (training episodes, {window}-ep. mean)")
                 color = line.get_color()
