@@ -46,7 +46,7 @@ def _versus_size(sweeps, path) -> None:
         ax.plot(x, y, _STYLES[k % len(_STYLES)], color="k", lw=1.2, label=label)
         previous = None
         for xi, (_, c) in zip(x, pts):
-            if c.tubes != previous:
+            if c.tubes != previous and c.load_n >= 0:  # label layouts where the arm lifts
                 ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=6,
                             textcoords="offset points", xytext=(2, 4))
                 previous = c.tubes
