@@ -45,6 +45,10 @@ def test_lifting_pressures_drive_channels_two_and_three():
     # II + III sit below a horizontal arm: they curl it upwards (counter-clockwise, u* > 0).
     _, u2, _ = solver.rest_strains(arm, channels)
     assert np.all(u2 > 0)
+    # Both planar inputs at the same pressure only stretch the arm: nothing to lift with.
+    _, u2_all, v3_all = solver.rest_strains(arm, np.full(arm.n_channels, 5e4))
+    np.testing.assert_allclose(u2_all, 0.0, atol=1e-12)
+    assert np.all(v3_all > 1)
 
 
 def test_lifting_pressures_need_an_octarm_layout():
