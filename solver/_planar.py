@@ -407,3 +407,33 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
         ok[k] = conv
         stable_out[k] = stab
         m0_out[k] = root
+
+
+@njit(parallel=True)
+def _arc_tips(theta0, secf, tubes_i, tubes_f, p_channels, tips):
+    """Tips of many unloaded (or constant-curvature) arms, in parallel: each section a
+    circular arc of its rest curvature u2* and stretch v3* (exact without loads).
+
+    Args:
+        p_channels: (n, n_channels) pressures (Pa). tips: (n, 2) output (m).
+    """
+    ns = secf.shape[1]
+    for k in prange(p_channels.shape[0]):
+        rest = np.empty((3, ns))
+        _rest_strains(p_channels[k], tubes_i, tubes_f, secf, rest)
+        th = theta0
+        x = 0.0
+        y = 0.0
+        for i in range(ns):
+            length = secf[LEN, i] * rest[2, i]  # arc length of the stretched section
+            kappa = rest[1, i] / rest[2, i]       # curvature per unit of that arc length
+            turn = kappa * length
+            if abs(turn) < 1e-8:
+                x += length * math.cos(th)
+                y += length * math.sin(th)
+            else:
+                x += (math.sin(th + turn) - math.sin(th)) / kappa
+                y += (math.cos(th) - math.cos(th + turn)) / kappa
+            th += turn
+        tips[k, 0] = x
+        tips[k, 1] = y

@@ -597,6 +597,11 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
     """
     scene, packed, p, channel = _batch_inputs(arm, pressures, scene, model, planar, settings)
     general = model != "constant_curvature" and (_has_load(arm, scene) or not settings.shortcuts)
+    if planar and not general and not scene.obstacles:
+        tips = np.empty((p.shape[0], 2))
+        _planar._arc_tips(scene.base_theta, packed.secf, packed.tubes_i, packed.tubes_f, channel,
+                          tips)
+        return tips, np.ones(p.shape[0], dtype=bool)
     if not (general and planar) or scene.obstacles:
         dim = 2 if planar else 3
         tips = np.empty((p.shape[0], dim))

@@ -126,3 +126,15 @@ def test_step_batch_failed_rows_keep_their_state():
     np.testing.assert_array_equal(step.tips[failed], start.tips[failed])
     np.testing.assert_array_equal(step.pressures[failed], start.pressures[failed])
     np.testing.assert_array_equal(step.base_moment[failed], start.base_moment[failed])
+
+
+@pytest.mark.parametrize("model, gravity", [("constant_curvature", 9.81), ("full", 0.0)])
+def test_batch_closed_form_equals_solve(model, gravity):
+    arm = designs.ct()
+    scene = solver.Scene(base_angle_deg=30, gravity=gravity)
+    P = np.random.default_rng(2).uniform(0, arm.max_pressure, (25, 4))
+    tips, ok = solver.solve_batch(arm, P, scene, model=model)
+    assert ok.all()
+    for k in range(0, 25, 6):
+        np.testing.assert_allclose(tips[k], solver.solve(arm, P[k], scene, model=model).tip,
+                                   atol=1e-12)
