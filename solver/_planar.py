@@ -352,12 +352,18 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
             dt *= 0.5
             continue
         if params[N_SCAN] == 0:
-            return m0, False, total, snapped, False, res, x, y, th
+            if ok:
+                m0 = root  # converged but unstable or far: report that state, flagged
+            return m0, ok, total, snapped, bool(ok and stab), res, x, y, th
         # A fold or bifurcation lies between t and t_new: snap to the nearest stable state.
         root, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params, guess, out)
         total += its
         if not found:
-            # No stable equilibrium at this level: report the Newton result as it stands.
+            # No stable equilibrium at this level. Report the Newton result as it stands, with
+            # its own state: a converged but unstable root (e.g. a column past its buckling
+            # load whose buckled states the scan missed) is returned as such, stable=False.
+            if ok:
+                m0 = root
             return m0, ok, total, snapped, False, res, x, y, th
         snapped = True
         slope = 0.0

@@ -315,7 +315,8 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
             return False, it, math.inf, False
         if res <= tol:
             return True, it, res, dmin > 0.0
-        if it == max_iter or abs(_det3(y[19:28])) < 1e-300:
+        det = _det3(y[19:28])
+        if it == max_iter or not math.isfinite(det) or abs(det) < 1e-300:
             break
         for j in range(3):
             for d in range(3):

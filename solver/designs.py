@@ -165,7 +165,15 @@ class Tube:
                 f"tube spans sections {self.first_section}..{self.last_section}: need "
                 "0 <= first_section <= last_section")
         if isinstance(self.material, dict):
-            object.__setattr__(self, "material", TubeMaterial(**self.material))
+            try:
+                object.__setattr__(self, "material", TubeMaterial(**self.material))
+            except TypeError as exc:
+                raise ValueError(f"tube material has missing or unknown fields: {exc}") from None
+        if not isinstance(self.material, TubeMaterial):
+            raise ValueError(f"Tube.material must be a TubeMaterial (or its fields as a dict); "
+                             f"got {self.material!r}")
+        if int(self.channel) != self.channel:
+            raise ValueError(f"Tube.channel must be an integer; got {self.channel!r}")
 
     @property
     def offset(self) -> tuple[float, float]:
@@ -228,8 +236,9 @@ class ArmDesign:
         for name, idx in self.planar_channels:
             if not idx or any(not (0 <= i < n_ch) for i in idx):
                 raise ValueError(f"design {self.name!r}: planar channel {name!r} maps to {idx}")
-        if self.tubes and not self.max_pressure > 0:
-            raise ValueError(f"design {self.name!r}: max_pressure must be > 0 Pa")
+        if self.tubes and not (math.isfinite(self.max_pressure) and self.max_pressure > 0):
+            raise ValueError(f"design {self.name!r}: max_pressure must be a finite number > 0 Pa; "
+                             f"got {self.max_pressure!r}")
 
     @property
     def length(self) -> float:
@@ -256,9 +265,10 @@ class ArmDesign:
 
     def to_json(self) -> str:
         """Serialise to JSON (round-trips through :func:`from_json`)."""
-        data = asdict(self)
-        data.pop("extra")
-        data.pop("_solver_cache")
+        data = {"name": self.name, "sections": [asdict(s) for s in self.sections],
+                "tubes": [asdict(t) for t in self.tubes], "channels": list(self.channels),
+                "planar_channels": [[n, list(idx)] for n, idx in self.planar_channels],
+                "max_pressure": self.max_pressure, "source": self.source}
         return json.dumps(data, indent=2)
 
 

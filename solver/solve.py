@@ -257,7 +257,8 @@ def _channel_pressures(arm: ArmDesign, pressures, planar: bool,
         names = arm.input_names(planar)
         raise ValueError(
             f"design {arm.name!r} expects {n} pressures in {'planar' if planar else 'spatial'} "
-            f"mode ({', '.join(names) or 'none: a passive rod'}); got {pressures!r}")
+            f"mode ({', '.join(names) or 'none: a passive rod'}); got "
+            f"{np.array2string(np.asarray(pressures, dtype=object), max_line_width=10**6)}")
     # min/max are NaN if any entry is: one comparison each catches NaN, negatives and excess.
     if n and not (p.min() >= 0.0 and p.max() <= arm.max_pressure * (1 + 1e-12)):
         _explain_bad_pressures(arm, p, planar)

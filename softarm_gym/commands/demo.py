@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 import solver
+from softarm_gym.cli import UsageError
 from softarm_gym.plotting import draw_backbone, figure, save
 
 NAME = "demo"
@@ -32,6 +33,8 @@ def run(args) -> int:
     from softarm_gym.envs.demo import run_demo_episode
 
     out_dir = Path(args.out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UsageError(f"--out-dir {str(out_dir)!r} exists and is not a folder")
     out_dir.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     episode = run_demo_episode(out_dir / "reach_demo.gif", observation=args.observation,

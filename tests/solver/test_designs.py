@@ -142,3 +142,23 @@ def test_builders_table_3_1():
     water = 1000 * 12 * mat.bore_area
     assert sec.mass_per_length == pytest.approx(1500 * 12 * mat.area + water)
     assert arm.max_pressure == 7e6
+
+
+def test_json_after_a_solve_and_bad_design_files():
+    """The solver caches arrays on the design; serialising must not see them."""
+    arm = designs.octarm_v()
+    solver.solve(arm, np.zeros(6), solver.Scene(base_angle_deg=90))
+    assert designs.from_json(arm.to_json()) == arm
+    data = arm.to_json().replace('"wind_angle_deg": 78.0', '"wind_angel_deg": 78.0', 1)
+    with pytest.raises(ValueError, match="tube material has missing or unknown fields"):
+        designs.from_json(data)
+    import json
+
+    raw = json.loads(arm.to_json())
+    raw["tubes"][0]["material"] = 5
+    with pytest.raises(ValueError, match="Tube.material must be a TubeMaterial"):
+        designs.from_json(json.dumps(raw))
+    raw = json.loads(arm.to_json())
+    raw["max_pressure"] = float("inf")
+    with pytest.raises(ValueError, match="max_pressure must be a finite number"):
+        designs.from_json(json.dumps(raw))
