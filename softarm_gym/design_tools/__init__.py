@@ -11,7 +11,7 @@ See ``docs/design_tools.md`` for the choices made where the thesis is ambiguous,
 reproduction of Figs. 3.4–3.7.
 """
 
-from softarm_gym.design_tools.capacity import LoadCapacity, load_capacity
+from softarm_gym.design_tools.capacity import CapacityError, LoadCapacity, load_capacity
 from softarm_gym.design_tools.sweep import (
     CONSTRAINTS,
     DEFAULT_SIZES,
@@ -39,7 +39,7 @@ from softarm_gym.design_tools.template import (
 )
 
 __all__ = [
-    "LoadCapacity", "load_capacity", "CONSTRAINTS", "DEFAULT_SIZES", "FLUIDS",
+    "CapacityError", "LoadCapacity", "load_capacity", "CONSTRAINTS", "DEFAULT_SIZES", "FLUIDS",
     "TEMPLATE_PRESSURES", "Candidate", "Sweep", "configurations", "evaluate", "fluid_params",
     "outer_radius", "sweep", "TUBE_COUNTS", "InfeasibleDesign", "Template", "build_arm",
     "lifting_channels", "lifting_pressures", "section_curvatures", "section_lengths", "template",

@@ -29,13 +29,17 @@ from scipy.optimize import brentq
 import solver
 from softarm_gym.design_tools.template import lifting_pressures
 
-__all__ = ["LoadCapacity", "load_capacity"]
+__all__ = ["CapacityError", "LoadCapacity", "load_capacity"]
 
 BASE_ANGLE_DEG = 90.0
 """The load-capacity test mounts the arm horizontally (§3)."""
 
 FOLD_JUMP = 0.01
 """Tip-height jump (fraction of the arm length) across ±tol_n of W that marks a fold."""
+
+
+class CapacityError(ValueError):
+    """The search found no load capacity: the solver failed, or no load reaches y = 0."""
 
 
 @dataclass(frozen=True)
@@ -83,8 +87,9 @@ def load_capacity(arm: solver.designs.ArmDesign, test_pressure: float, *, model:
         The :class:`LoadCapacity`.
 
     Raises:
-        ValueError: bad pressure, design or tolerance, or no load up to ``max_load_n``
-            brings the tip to y = 0.
+        ValueError: bad pressure, design or tolerance.
+        CapacityError: no load up to ``max_load_n`` brings the tip to y = 0, or the solver
+            returned a non-finite tip on the way.
     """
     if not (isinstance(tol_n, (int, float)) and tol_n > 0):
         raise ValueError(f"tol_n must be > 0 N; got {tol_n!r}")
@@ -98,6 +103,9 @@ def load_capacity(arm: solver.designs.ArmDesign, test_pressure: float, *, model:
         eq = solver.solve(arm, pressures, scene, model=model, record=False)
         evaluations += 1
         all_converged &= eq.converged
+        if not np.all(np.isfinite(eq.tip)):
+            raise CapacityError(f"the solver returned a non-finite tip for {arm.name!r} at a tip load "
+                                f"of {load:.6g} N and {test_pressure:.6g} Pa")
         return eq.tip
 
     unloaded = tip(0.0)
@@ -106,7 +114,7 @@ def load_capacity(arm: solver.designs.ArmDesign, test_pressure: float, *, model:
     inner, outer = 0.0, direction * max(arm.mass * gravity, 1.0) / 8.0
     while bool(tip(outer)[1] >= 0.0) == above:
         if abs(outer) > max_load_n:
-            raise ValueError(f"no tip load up to {max_load_n:.3g} N brings the tip of {arm.name!r} "
+            raise CapacityError(f"no tip load up to {max_load_n:.3g} N brings the tip of {arm.name!r} "
                              f"to y = 0 at {test_pressure:.6g} Pa")
         inner, outer = outer, 2.0 * outer
     root = brentq(lambda w: float(tip(w)[1]), min(inner, outer), max(inner, outer), xtol=tol_n,

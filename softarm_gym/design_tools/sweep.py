@@ -31,7 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 import solver
-from softarm_gym.design_tools.capacity import load_capacity
+from softarm_gym.design_tools.capacity import CapacityError, load_capacity
 from softarm_gym.design_tools.template import (
     TUBE_COUNTS,
     InfeasibleDesign,
@@ -75,7 +75,8 @@ class Candidate:
         load_n: load capacity W (N); negative: cannot lift itself to horizontal.
         tip_x_m: horizontal tip position under W (m); < 0: the tip ends behind the base.
         fold_limited, converged: see :class:`~.capacity.LoadCapacity`.
-        reason: why the layout is infeasible ("" if feasible).
+        reason: why the layout is infeasible, or why its load capacity could not be found
+            ("" otherwise).
     """
 
     tubes: tuple[int, ...]
@@ -225,12 +226,16 @@ def evaluate(params: FluidDesign, constraint: str, tubes, size: float, *,
         return Candidate(tubes=tubes, size=float(size), feasible=False, outer_radius_m=ro,
                          reason=str(exc))
     arm = build_arm(params, tubes, tpl.section_lengths, tpl.thickness, ro)
-    cap = load_capacity(arm, params.test_pressure, model=model)
+    geometry = dict(tubes=tubes, size=float(size), feasible=True, length_m=tpl.length,
+                    section_lengths_m=tuple(float(v) for v in tpl.section_lengths),
+                    thickness_m=tpl.thickness, outer_radius_m=ro, mass_kg=arm.mass,
+                    internal_volume_l=tpl.internal_volume * 1e3)
+    try:
+        cap = load_capacity(arm, params.test_pressure, model=model)
+    except CapacityError as exc:  # reported like an unconverged solve: excluded from the optimum
+        return Candidate(**geometry, converged=False, reason=str(exc))
     return Candidate(
-        tubes=tubes, size=float(size), feasible=True, length_m=tpl.length,
-        section_lengths_m=tuple(float(v) for v in tpl.section_lengths), thickness_m=tpl.thickness,
-        outer_radius_m=ro, mass_kg=arm.mass, internal_volume_l=tpl.internal_volume * 1e3,
-        load_n=cap.load_n, tip_x_m=float(cap.tip_at_capacity[0]), fold_limited=cap.fold_limited,
+        **geometry, load_n=cap.load_n, tip_x_m=float(cap.tip_at_capacity[0]), fold_limited=cap.fold_limited,
         converged=cap.converged)
 
 

@@ -137,3 +137,9 @@ def test_capacity_rejects_pressure_above_rating():
 def test_capacity_is_not_nan_for_octarm_v():
     cap = dt.load_capacity(solver.designs.octarm_v(), 30 * solver.PSI)
     assert math.isfinite(cap.load_n) and cap.converged
+
+
+def test_no_crossing_within_the_load_limit_is_a_capacity_error():
+    arm = _arm(P, (12, 6), 0.8)
+    with pytest.raises(dt.CapacityError, match="no tip load up to"):
+        dt.load_capacity(arm, P.test_pressure, max_load_n=1.0)
