@@ -82,8 +82,6 @@ def test_malformed_design_file(capsys, tmp_path, command, case):
     assert len(lines) == 1
 
 
-@pytest.mark.xfail(strict=True, raises=AttributeError,
-                   reason="solver.designs.Tube does not validate `material` (reported to the lead)")
 def test_design_file_with_a_non_object_material(capsys, tmp_path):
     path = tmp_path / "design.json"
     path.write_text('{"name": "x", "sections": [{"length": 0.3, "EA": 1000, "GA": 300, "EI": 0.5, '
@@ -129,8 +127,6 @@ def test_solve_bad_scene_and_spatial_count(capsys, option, value, match):
     _fails_cleanly(capsys, ["solve", "--spatial", f"{option}={value}"], match)
 
 
-@pytest.mark.xfail(strict=True, reason="solver's pressure-count message embeds repr(array), which "
-                   "numpy wraps over several lines for long inputs (reported to the lead)")
 def test_long_wrong_pressure_list_is_still_one_line(capsys):
     lines = _fails_cleanly(capsys, ["solve", "--spatial", "--pressures-psi=1,2,3,4,5,6,7,8"], "9 pressures")
     assert len(lines) == 1
@@ -153,8 +149,6 @@ def test_command_specific_bad_values(capsys, argv, match):
     _fails_cleanly(capsys, argv, match)
 
 
-@pytest.mark.xfail(strict=True, raises=FileExistsError,
-                   reason="softarm demo lets OSError from --out-dir escape (reported to the lead)")
 def test_demo_out_dir_that_is_a_file(capsys, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")

@@ -75,15 +75,18 @@ def test_wrap_press_ramps_into_the_disc():
 
 
 def test_failed_solves_are_described_and_diagnosed():
-    """An upright rod under ten times its Euler load with plain Newton: flagged, then explained."""
-    rod = solver.designs.rod(length=1.0, EI=1.0)
-    load = 10 * math.pi**2 / 4 / 9.81
-    trial = stress.Trial(rod, np.zeros((1, 0)), solver.Scene(base_angle_deg=179.0, payload_kg=load))
-    rec = stress.run_trials([trial], solver.Settings.without_fallback(), n_diagnose=1)
+    """One plain Newton iteration cannot curl a horizontal OctArm V at full pressure: the solve
+    is flagged, described for reproduction, and the retries with the fallbacks on fix it."""
+    arm = solver.designs.octarm_v()
+    pressures = np.array([[100, 0, 100, 0, 100, 0]]) * solver.PSI
+    trial = stress.Trial(arm, pressures, solver.Scene(base_angle_deg=90.0, payload_kg=0.2))
+    rec = stress.run_trials([trial], solver.Settings.without_fallback(max_iter=1), n_diagnose=1)
     summary = stress.summarize(rec)
-    assert summary["converged_fraction"] == 0.0 and summary["failures"][0]["payload_kg"] == load
-    assert summary["diagnosis"]["retried"] == 1
-    assert summary["diagnosis"]["fixed_by_finer_continuation"] == 1  # the fallbacks find it
+    assert summary["converged_fraction"] == 0.0 and summary["flagged_unconverged_fraction"] == 1.0
+    failure = summary["failures"][0]
+    assert failure["pressures_psi"] == [100, 0, 100, 0, 100, 0] and failure["base_angle_deg"] == 90.0
+    assert summary["diagnosis"]["retried"] == 1 and summary["diagnosis"]["fixed_by_none"] == 0
+    assert summary["diagnosis"]["fixed_by_finer_continuation"] == 1
 
 
 def test_moment_balance_check_is_independent_of_the_solver():
