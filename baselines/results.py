@@ -228,7 +228,11 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "box-constrained damped least squares on the nominal model's finite-difference "
              "Jacobian, fed the same observation vector (estimated tip, commanded pressures, goal); "
              "it assumes no payload and never sees the true tip. PPO and TD3 are configured and "
-             "smoke-tested but were not trained for this table (machine time).", ""]
+             "smoke-tested but were not trained for this table (machine time).", "",
+             "Produced with: `python -m baselines.train --env ID --algo sac --seed S --time-limit-min M` "
+             "per run (runs in `runs/`, two at a time), then `python -m baselines.results collect`, "
+             "`python -m baselines.results evaluate --workers W`, `python -m baselines.results ship` "
+             "(best policy per env → `baselines/trained/`) and `python -m baselines.results report`.", ""]
     main = table[table["cell"] == "main"] if len(table) else table
     lines += ["## Reach with true observations", "",
               f"{MAIN_EPISODES} episodes each, no sensor noise, no payload.", "",
