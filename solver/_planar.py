@@ -353,27 +353,46 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
             continue
         if params[N_SCAN] == 0:
             if ok:
-                m0 = root  # converged but unstable or far: report that state, flagged
-            return m0, ok, total, snapped, bool(ok and stab), res, x, y, th
+                return root, final, total, snapped, bool(stab), res, x, y, th
+            return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
+                              loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out, total,
+                              snapped, res)
         # A fold or bifurcation lies between t and t_new: snap to the nearest stable state.
-        root, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params, guess, out)
+        snap_to, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params, guess,
+                                    out)
         total += its
         if not found:
             # No stable equilibrium at this level. Report the Newton result as it stands, with
             # its own state: a converged but unstable root (e.g. a column past its buckling
             # load whose buckled states the scan missed) is returned as such, stable=False.
             if ok:
-                m0 = root
-            return m0, ok, total, snapped, False, res, x, y, th
+                # Converged but unstable: report it as such — and converged only if it is at
+                # the requested pressures and loads, not an intermediate level of the ramp.
+                return root, final, total, snapped, False, res, x, y, th
+            return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
+                              loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out, total,
+                              snapped, res)
         snapped = True
         slope = 0.0
-        m0, ok, its, res, stable, bm, x, y, th = _newton(root, theta0, secf, steps, rest,
+        m0, ok, its, res, stable, bm, x, y, th = _newton(snap_to, theta0, secf, steps, rest,
                                                          loads_now, m_tip, tol, max_iter,
                                                          max_step, out)
         total += its
         t = t_new
         dt = dt0
     return m0, ok, total, snapped, stable, res, x, y, th
+
+
+@njit
+def _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+               mtip_b, rest, p_now, loads_now, out, total, snapped, res):
+    """The unconverged return of :func:`_follow`: the last accepted state ``m0`` at its level
+    ``t``, re-integrated so that the reported tip and scratch arrays belong to it (finite,
+    flagged ``converged=False``) rather than to the failed attempt."""
+    _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    th, m, b, x, y, bmin = _integrate(m0, theta0, secf, steps, rest, loads_now, False, out)
+    return m0, False, total + 1, snapped, bmin > 0.0, res, x, y, th
 
 
 @njit(parallel=True)

@@ -318,10 +318,18 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
         det = _det3(y[19:28])
         if it == max_iter or not math.isfinite(det) or abs(det) < 1e-300:
             break
+        # Cramer's rule on the 3×3 shooting Jacobian (columns ∂m(L)/∂m0_j): no LAPACK call,
+        # so a nearly singular matrix ends the iteration above instead of raising.
+        step = np.empty(3)
         for j in range(3):
             for d in range(3):
                 jac[d, j] = y[19 + 3 * j + d]
-        step = np.linalg.solve(jac, r)
+        for k in range(3):
+            cols = jac.copy()
+            cols[:, k] = r
+            step[k] = (cols[0, 0] * (cols[1, 1] * cols[2, 2] - cols[1, 2] * cols[2, 1])
+                       - cols[0, 1] * (cols[1, 0] * cols[2, 2] - cols[1, 2] * cols[2, 0])
+                       + cols[0, 2] * (cols[1, 0] * cols[2, 1] - cols[1, 1] * cols[2, 0])) / det
         norm = math.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
         shrink = max_step / norm if norm > max_step else 1.0
         for d in range(3):

@@ -80,3 +80,25 @@ def test_solver_never_imports_gymnasium():
             "('gymnasium', 'softarm_gym', 'torch', 'stable_baselines3', 'matplotlib')]; "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_unconverged_solves_stay_finite_and_consistent():
+    """Regressions found by softarm stress: an upright heavy payload past buckling and a long
+    weak arm pushed up by a tip force. Unconverged results are flagged, finite, and the
+    recorded shape is the same state as the tip-only result."""
+    cases = [
+        (designs.octarm_vi(), np.array([4.525037, 7.937383, 6.787301, 8.219912, 3.025237,
+                                        3.838539]) * PSI,
+         solver.Scene(base_angle_deg=180, payload_kg=0.8398565455056872), "unshearable"),
+        (designs.pneumatic((12, 6), (0.4754809471605518, 1.7745190528341515), 0.01198887518679231,
+                           outer_radius=0.02081747048440628),
+         np.array([0, 0.14e6, 0, 0.14e6]), solver.Scene(base_angle_deg=90, tip_force=(0, 100.178)),
+         "full"),
+    ]
+    for arm, p, scene, model in cases:
+        eq = solver.solve(arm, p, scene, model=model)
+        tip = solver.solve(arm, p, scene, model=model, record=False).tip
+        assert np.all(np.isfinite(eq.positions)) and np.all(np.isfinite(tip))
+        np.testing.assert_allclose(eq.tip, tip, atol=1e-12)
+        if not eq.converged:
+            assert eq.residual > 0
