@@ -241,12 +241,33 @@ def _scan(theta0, secf, steps, rest, loads, m_tip, params, guess, out):
         r = m - m_tip
         its += 1
         if k > 0 and math.isfinite(r) and math.isfinite(prev_r) and (r == 0.0 or prev_r * r < 0.0):
-            # Secant start inside the bracket, then Newton.
+            # Secant start inside the bracket, then Newton; where the residual is too steep for
+            # Newton (heavily loaded arms), bisect the bracket first.
             start = prev_m - prev_r * (mk - prev_m) / (r - prev_r)
             root, ok, n_it, res, stable, bm, x, y, th = _newton(start, theta0, secf, steps, rest,
                                                                 loads, m_tip, tol, max_iter,
                                                                 max_step, out)
             its += n_it
+            if not (ok and prev_m <= root <= mk):
+                lo, hi, r_lo = prev_m, mk, prev_r
+                for _ in range(60):
+                    mid = 0.5 * (lo + hi)
+                    th, m, b, x, y, bmin = _integrate(mid, theta0, secf, steps, rest, loads, False,
+                                                      out)
+                    its += 1
+                    r_mid = m - m_tip
+                    if not math.isfinite(r_mid):
+                        break
+                    if (r_mid < 0.0) == (r_lo < 0.0):
+                        lo, r_lo = mid, r_mid
+                    else:
+                        hi = mid
+                    if hi - lo <= 1e-12 * m_bound:
+                        break
+                root, ok, n_it, res, stable, bm, x, y, th = _newton(
+                    0.5 * (lo + hi), theta0, secf, steps, rest, loads, m_tip, tol, max_iter,
+                    max_step, out)
+                its += n_it
             if ok and stable:
                 d = abs(root - guess)
                 if d < best_d - 1e-12 * m_bound or (abs(d - best_d) <= 1e-12 * m_bound and root > best):
