@@ -87,7 +87,7 @@ def test_spatial_warm_start():
 def test_strict_raises_when_unconverged():
     arm = designs.octarm_v()
     scene = solver.Scene(base_angle_deg=90, payload_kg=0.2)
-    settings = solver.Settings(max_iter=1, dt_min=0.5)
+    settings = solver.Settings.without_fallback(max_iter=1)
     eq = solver.solve(arm, np.full(6, 80 * PSI), scene, settings=settings)
     assert not eq.converged and eq.residual > 0
     assert np.all(np.isfinite(eq.positions))
