@@ -167,6 +167,11 @@ class WrapEnv(SoftArmEnv):
             raise ValueError("WrapEnv is planar only (the solver's disc contact is planar); use planar=True")
         kwargs.setdefault("base_angle_deg", 0.0)
         super().__init__(design, **kwargs)
+        if self.object_radius_range[1] >= self.arm.length:
+            # Placement puts the disc tangent to the arm and within reach; a disc as large as
+            # the arm is long cannot be wrapped (and cannot be placed clear of the start).
+            raise ValueError(f"object_radius {self.object_radius_range[1]} m must be smaller than "
+                             f"the arm's length {self.arm.length:.3f} m")
         self.half_thickness = arm_half_thickness(self.arm)
 
     def _goal_bounds(self):

@@ -24,3 +24,8 @@ def test_forced_synthesis_and_invalid_request():
     assert info["sensors"]["base_wrench"].shape == (3,)
     with pytest.raises(ValueError, match="synthesize_sensors cannot be False"):
         gym.make("SoftArm/OctArmReach-v0", observation="inclinometer", synthesize_sensors=False)
+
+
+def test_wrap_object_too_large_is_a_constructor_error():
+    with pytest.raises(ValueError, match="object_radius 5.0 m must be smaller"):
+        gym.make("SoftArm/OctArmWrap-v0", object_radius=5.0)
