@@ -43,7 +43,7 @@ from tqdm import tqdm
 
 import solver
 from softarm_gym.analysis.sweep import PressureGrid, pressure_grid
-from softarm_gym.analysis.workspace import DEFAULT_ALPHA_FRACTION, alpha_complex
+from softarm_gym.analysis.workspace import alpha_complex, sweep_inputs
 
 __all__ = ["jacobian", "dexterity", "Dexterity", "dexterity_map", "DexterityMap", "step_study",
            "MEASURES", "METHODS", "DEFAULT_REL_STEP"]
@@ -280,12 +280,7 @@ def dexterity_map(arm: solver.designs.ArmDesign, scene: solver.Scene | None = No
     Returns:
         The :class:`DexterityMap`.
     """
-    scene = solver.Scene() if scene is None else scene
-    if not isinstance(arm, solver.designs.ArmDesign):
-        raise ValueError(f"arm must be a solver.designs.ArmDesign; got {type(arm).__name__}")
-    alpha = DEFAULT_ALPHA_FRACTION * arm.length if alpha is None else alpha
-    if not (isinstance(alpha, (int, float)) and math.isfinite(alpha) and alpha > 0):
-        raise ValueError(f"alpha must be a finite length > 0 m; got {alpha!r}")
+    scene, alpha = sweep_inputs(arm, scene, alpha)
     grid = pressure_grid(arm, levels, max_pressure, planar)
     rows = grid.rows()
     dim = 2 if planar else 3

@@ -233,12 +233,7 @@ def workspace(arm: solver.designs.ArmDesign, scene: solver.Scene | None = None, 
     Returns:
         The :class:`Workspace`.
     """
-    scene = solver.Scene() if scene is None else scene
-    if not isinstance(arm, solver.designs.ArmDesign):
-        raise ValueError(f"arm must be a solver.designs.ArmDesign; got {type(arm).__name__}")
-    alpha = DEFAULT_ALPHA_FRACTION * arm.length if alpha is None else alpha
-    if not (isinstance(alpha, (int, float)) and math.isfinite(alpha) and alpha > 0):
-        raise ValueError(f"alpha must be a finite length > 0 m; got {alpha!r}")
+    scene, alpha = sweep_inputs(arm, scene, alpha)
     grid = pressure_grid(arm, levels, max_pressure, planar)
     start = time.perf_counter()
     tips, converged = sweep_tips(arm, grid, scene, model, planar, backend, chunk_size, address,
@@ -249,3 +244,14 @@ def workspace(arm: solver.designs.ArmDesign, scene: solver.Scene | None = None, 
     return Workspace(design=arm.name, grid=grid, tips=tips, converged=converged, scene=scene,
                      model=model, planar=planar, length=arm.length, alpha=float(alpha),
                      seconds=seconds)
+
+
+def sweep_inputs(arm, scene, alpha):
+    """Validated (scene, alpha) of a sweep: default scene, alpha-shape radius default 0.1·L."""
+    scene = solver.Scene() if scene is None else scene
+    if not isinstance(arm, solver.designs.ArmDesign):
+        raise ValueError(f"arm must be a solver.designs.ArmDesign; got {type(arm).__name__}")
+    alpha = DEFAULT_ALPHA_FRACTION * arm.length if alpha is None else alpha
+    if not (isinstance(alpha, (int, float)) and math.isfinite(alpha) and alpha > 0):
+        raise ValueError(f"alpha must be a finite length > 0 m; got {alpha!r}")
+    return scene, alpha
