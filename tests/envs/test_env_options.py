@@ -1,4 +1,4 @@
-"""Sensors are synthesised only when the observation's estimator reads them (or on request)."""
+"""Env options: sensor synthesis only when the estimator reads sensors; construction-time checks."""
 
 import gymnasium as gym
 import numpy as np
