@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from baselines.config import sidecar_paths
+from baselines.config import ALGOS, sidecar_paths
 from baselines.evaluate import evaluate
 from softarm_gym.sensing import ESTIMATORS
 
@@ -220,15 +220,17 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "success = first step within tolerance, over the episodes that got there. "
              "Policies are each run's `best_model.zip` (best periodic evaluation return during "
              "training), acting deterministically; episode i of every evaluation uses seed i.", "",
-             "Agents: SAC with the settings of `baselines/hyperparams/sac.yml` (delta pressure actions of "
-             "at most 10 % of p_max per step, VecNormalize on observations, 128×128 MLPs, one torch "
-             "thread), trained with a wall-clock budget (`--time-limit-min`, the budget column), "
+             "Agents: SAC (and TD3/PPO where listed) with the settings of `baselines/hyperparams/<algo>.yml` "
+             "(delta pressure actions of at most 10 % of p_max per step, VecNormalize on observations, "
+             "128×128 MLPs, one torch thread), trained with a wall-clock budget "
+             "(`--time-limit-min`, the budget column), "
              "so the steps a run got depend on how busy the machine was. `jacobian_*` is "
              "`baselines.controllers.JacobianController` on the registered env (absolute actions): "
              "box-constrained damped least squares on the nominal model's finite-difference "
              "Jacobian, fed the same observation vector (estimated tip, commanded pressures, goal); "
-             "it assumes no payload and never sees the true tip. PPO and TD3 are configured and "
-             "smoke-tested but were not trained for this table (machine time).", "",
+             "it assumes no payload and never sees the true tip. Algorithms without a row here are "
+             "configured in `baselines/hyperparams/` and smoke-tested, but were not trained (machine "
+             "time).", "",
              "Produced with: `python -m baselines.train --env ID --algo sac --seed S --time-limit-min M` "
              "per run (runs in `runs/`, two at a time), then `python -m baselines.results collect`, "
              "`python -m baselines.results evaluate --workers W`, `python -m baselines.results ship` "
@@ -251,13 +253,14 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
             lines.append(f"| {env_id} | {row['agent_name']} | {budget} | {steps} | {wall} | {cpu} | "
                          f"{100 * row['success_rate']:.0f} % | {_mm(row['median_final_error_m'])} | "
                          f"{_mm(row['p95_final_error_m'])} | {_steps(row['median_steps_to_success'])} |")
-        learned = rows[~rows["agent_name"].str.startswith("jacobian")] if len(rows) else rows
-        if len(learned) > 1:
-            rates = 100 * learned["success_rate"]
-            lines.append(f"| {env_id} | **RL mean ± std over {len(learned)} seeds** | | | | | "
-                         f"**{rates.mean():.0f} ± {rates.std():.0f} %** | "
-                         f"{_mm(learned['median_final_error_m'].mean())} | "
-                         f"{_mm(learned['p95_final_error_m'].mean())} | |")
+        for algo in ALGOS:
+            learned = rows[rows["agent_name"].str.startswith(f"{algo}_")] if len(rows) else rows
+            if len(learned) > 1:
+                rates = 100 * learned["success_rate"]
+                lines.append(f"| {env_id} | **{algo} mean ± std over {len(learned)} seeds** | | | | | "
+                             f"**{rates.mean():.0f} ± {rates.std():.0f} %** | "
+                             f"{_mm(learned['median_final_error_m'].mean())} | "
+                             f"{_mm(learned['p95_final_error_m'].mean())} | |")
     lines += ["", "Targets of the issue, as measured:", ""]
     for env_id, agent, goal in TARGETS:
         rows = main[(main["env_id"] == env_id) & main["agent_name"].str.startswith(agent)] \
