@@ -191,7 +191,8 @@ def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
                 ax.plot(evals["timesteps"], 100 * evals["success_rate"], "o--", ms=3, color=color,
                         label=f"{label} (deterministic eval)")
         ax.set_title(env_id)
-        ax.set_xlabel("environment steps")
+        ax.set_xscale("log")
+        ax.set_xlabel("environment steps (log scale)")
         ax.set_ylabel("final-step success rate (%)")
         ax.set_ylim(-2, 102)
         ax.grid(alpha=0.3)
