@@ -2,7 +2,7 @@
 
 * :mod:`baselines.train` — ``python -m baselines.train --env ID --algo sac --seed S``;
 * :mod:`baselines.evaluate` — ``python -m baselines.evaluate --model FILE.zip --observation ...``;
-* :mod:`baselines.controllers` — the damped-least-squares Jacobian controller;
+* the damped-least-squares Jacobian controller lives in :mod:`softarm_gym.controllers`;
 * :mod:`baselines.results` — regenerates ``baselines/RESULTS.md`` and its plots;
 * ``baselines/hyperparams/<algo>.yml`` — hyperparameters per environment (zoo layout).
 """

@@ -32,7 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from baselines.config import load_policy, make_env
-from baselines.controllers import JacobianController
+from softarm_gym.controllers import JacobianController
 from softarm_gym.sensing import ESTIMATORS
 
 __all__ = ["evaluate", "rollouts", "summarize", "main", "CONTROLLERS"]

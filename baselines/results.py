@@ -226,7 +226,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "128×128 MLPs, one torch thread), trained with a wall-clock budget "
              "(`--time-limit-min`, the budget column), "
              "so the steps a run got depend on how busy the machine was. `jacobian_*` is "
-             "`baselines.controllers.JacobianController` on the registered env (absolute actions): "
+             "`softarm_gym.controllers.JacobianController` on the registered env (absolute actions): "
              "box-constrained damped least squares on the nominal model's finite-difference "
              "Jacobian, fed the same observation vector (estimated tip, commanded pressures, goal); "
              "it assumes no payload and never sees the true tip. Algorithms without a row here are "

@@ -9,10 +9,10 @@ observation assembly, rendering); see ``docs/environments.md``.
 """
 
 from softarm_gym.envs.base import ACTION_MODES, OBSERVATION_FORMATS, SoftArmEnv
-from softarm_gym.envs.demo import JacobianReachController, run_demo_episode
+from softarm_gym.envs.demo import run_demo_episode
 from softarm_gym.envs.randomization import ArmRandomization
 from softarm_gym.envs.reach import ReachEnv
 from softarm_gym.envs.wrap import WrapEnv, arm_half_thickness, wrap_angle
 
 __all__ = ["SoftArmEnv", "ReachEnv", "WrapEnv", "ArmRandomization", "wrap_angle", "arm_half_thickness",
-           "JacobianReachController", "run_demo_episode", "ACTION_MODES", "OBSERVATION_FORMATS"]
+           "run_demo_episode", "ACTION_MODES", "OBSERVATION_FORMATS"]

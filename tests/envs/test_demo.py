@@ -15,7 +15,9 @@ def test_demo_episode_reaches_and_writes_frames(tmp_path, suffix):
     with Image.open(out) as img:
         assert img.size[1] == 96
         if suffix == ".gif":
-            assert img.n_frames == 13
+            # PIL merges identical consecutive frames (the arm at rest on the target).
+            assert 2 <= img.n_frames <= 13
+    assert result["frames"] == 13
     d = np.array(result["distances"])
     assert d[0] > 0.3 and result["final_distance"] < 0.02 and result["success"]
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import softarm_gym  # noqa: F401
-from baselines.controllers import JacobianController, observation_slices
 from baselines.evaluate import evaluate
+from softarm_gym.controllers import JacobianController, observation_slices
 
 
 def test_observation_slices_match_the_dict_layout():
