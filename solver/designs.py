@@ -38,7 +38,8 @@ from solver.actuator import PSI, max_stretch
 
 __all__ = [
     "TubeMaterial", "Section", "Tube", "ArmDesign", "octarm_v", "octarm_vi", "ct",
-    "octarm_two_section", "rod", "pneumatic", "hydraulic", "from_json", "load", "get",
+    "octarm_two_section", "rod", "pneumatic", "hydraulic", "fluid_arm", "FluidDesign",
+    "from_json", "load", "get",
     "DESIGN_NAMES",
 ]
 
@@ -494,8 +495,16 @@ PNEUMATIC = FluidDesign(1.2e6, 1500.0, 78.0, 15e-3, 1.0, 0.14e6, 0.7e6, 0.09, 0.
 HYDRAULIC = FluidDesign(12e6, 1500.0, 78.0, 15e-3, 1.0, 1.4e6, 7.0e6, 0.09, 1000.0)
 
 
-def _fluid_arm(name, params: FluidDesign, tube_counts, lengths, thickness, outer_radius=None,
-               ei="eq2.32") -> ArmDesign:
+def fluid_arm(name, params: FluidDesign, tube_counts, lengths, thickness, outer_radius=None,
+              ei="eq2.32") -> ArmDesign:
+    """An OctArm-layout arm from any :class:`FluidDesign` record (Table 3.1 or a variant of it).
+
+    Args:
+        name: design name. params: material, wind angle, rating and fluid.
+        tube_counts: tubes per section (multiples of 3). lengths: section lengths (m).
+        thickness: tube wall thickness (m). outer_radius: Ro (m), default ``params``'.
+        ei: bending-stiffness formula.
+    """
     ro = params.outer_radius if outer_radius is None else outer_radius
     if not 0 < thickness < ro:
         raise ValueError(f"tube thickness {thickness} m must lie in (0, Ro={ro} m)")
@@ -511,12 +520,12 @@ def _fluid_arm(name, params: FluidDesign, tube_counts, lengths, thickness, outer
 
 def pneumatic(tube_counts, lengths, thickness, outer_radius=None, ei="eq2.32") -> ArmDesign:
     """A Table 3.1 pneumatic arm (E 1.2 MPa, α 78°, 0.7 MPa rating) with the given layout."""
-    return _fluid_arm("pneumatic", PNEUMATIC, tube_counts, lengths, thickness, outer_radius, ei)
+    return fluid_arm("pneumatic", PNEUMATIC, tube_counts, lengths, thickness, outer_radius, ei)
 
 
 def hydraulic(tube_counts, lengths, thickness, outer_radius=None, ei="eq2.32") -> ArmDesign:
     """A Table 3.1 hydraulic arm (E 12 MPa, 7 MPa rating; tubes filled with water)."""
-    return _fluid_arm("hydraulic", HYDRAULIC, tube_counts, lengths, thickness, outer_radius, ei)
+    return fluid_arm("hydraulic", HYDRAULIC, tube_counts, lengths, thickness, outer_radius, ei)
 
 
 _NAMED = {"octarm_v": octarm_v, "octarm_vi": octarm_vi, "ct": ct,

@@ -110,7 +110,7 @@ def build_arm(params: FluidDesign, tubes, section_lengths, thickness: float,
         outer_radius: tube outer radius Ro (m).
     """
     name = "hydraulic" if params.fluid_density > 0 else "pneumatic"
-    return solver.designs._fluid_arm(name, params, _check_tubes(tubes), tuple(section_lengths),
+    return solver.designs.fluid_arm(name, params, _check_tubes(tubes), tuple(section_lengths),
                                      thickness, outer_radius)
 
 
