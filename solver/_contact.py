@@ -185,6 +185,7 @@ def _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, targ
     endp = np.empty(6)
     work = np.empty((5, 6))
     block = np.empty((6, 6))
+    new = np.empty((6, 3))
     dummy = np.empty((1, N_COLUMNS))
     dmin = 1.0
     if want_jac:
@@ -228,7 +229,6 @@ def _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, targ
                 for d in range(3):
                     J[row + d, col] = block[3 + d, c]
         # Chain ∂state/∂(n0, m0) through this segment: segment 0's block columns 3..5 are it.
-        new = np.zeros((6, 3))
         for a in range(6):
             for b in range(3):
                 if seg == 0:

@@ -304,6 +304,7 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
     dmin = 1.0
     r = np.empty(3)
     jac = np.empty((3, 3))
+    step = np.empty(3)
     for it in range(max_iter + 1):
         dmin = _integrate(m0, quat0, secf, steps, c_j, rest, loads, False, dummy[0], dummy[1],
                           dummy[2], work)
@@ -320,16 +321,14 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
             break
         # Cramer's rule on the 3×3 shooting Jacobian (columns ∂m(L)/∂m0_j): no LAPACK call,
         # so a nearly singular matrix ends the iteration above instead of raising.
-        step = np.empty(3)
-        for j in range(3):
-            for d in range(3):
-                jac[d, j] = y[19 + 3 * j + d]
         for k in range(3):
-            cols = jac.copy()
-            cols[:, k] = r
-            step[k] = (cols[0, 0] * (cols[1, 1] * cols[2, 2] - cols[1, 2] * cols[2, 1])
-                       - cols[0, 1] * (cols[1, 0] * cols[2, 2] - cols[1, 2] * cols[2, 0])
-                       + cols[0, 2] * (cols[1, 0] * cols[2, 1] - cols[1, 1] * cols[2, 0])) / det
+            # Column k of the Jacobian replaced by the residual, stored column-wise like y.
+            for j in range(3):
+                for d in range(3):
+                    jac[d, j] = r[d] if j == k else y[19 + 3 * j + d]
+            step[k] = (jac[0, 0] * (jac[1, 1] * jac[2, 2] - jac[1, 2] * jac[2, 1])
+                       - jac[0, 1] * (jac[1, 0] * jac[2, 2] - jac[1, 2] * jac[2, 0])
+                       + jac[0, 2] * (jac[1, 0] * jac[2, 1] - jac[1, 1] * jac[2, 0])) / det
         norm = math.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
         shrink = max_step / norm if norm > max_step else 1.0
         for d in range(3):
