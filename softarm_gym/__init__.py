@@ -12,6 +12,7 @@ __version__ = "0.1.0"
 register(
     id="SoftArm/OctArmReach-v0",
     entry_point="softarm_gym.envs:ReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
     max_episode_steps=100,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0},
 )
@@ -19,6 +20,7 @@ register(
 register(
     id="SoftArm/CTReach-v0",
     entry_point="softarm_gym.envs:ReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
     max_episode_steps=100,
     kwargs={"design": "ct", "base_angle_deg": 90.0},
 )

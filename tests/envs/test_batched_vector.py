@@ -72,3 +72,17 @@ def test_bad_input():
         env.step(np.array([[0, 0, 0, 0, 0, 0], [0, np.nan, 0, 0, 0, 0]]))
     with pytest.raises(ValueError, match="shape"):
         env.step(np.zeros((3, 6)))
+
+
+@pytest.mark.parametrize("env_id", ["SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0"])
+def test_make_vec_vector_entry_point(env_id):
+    """The reach IDs register the batched env as their ``vector_entry_point``."""
+    import gymnasium as gym
+
+    envs = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    assert isinstance(envs, BatchedReachVectorEnv)
+    assert envs.num_envs == 3 and envs.max_episode_steps == gym.spec(env_id).max_episode_steps
+    assert envs.arm.name == gym.spec(env_id).kwargs["design"]
+    obs, _ = envs.reset(seed=0)
+    assert obs.shape == (3, *envs.single_observation_space.shape)
+    envs.close()
