@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from solver._jit import njit
-from solver._planar import DT0, DT_MIN, MAX_ITER, MAX_STEP, TOL, _rest_strains
+from solver._planar import DT0, DT_MIN, JUMP, MAX_ITER, MAX_STEP, TOL, _rest_strains
 
 
 def base_rotation(theta0: float) -> np.ndarray:
@@ -218,7 +218,7 @@ def _integrate(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos, out_ro
         work: (6, NSTATE) scratch: state, k1..k4, stage state.
 
     Returns:
-        min over nodes of det ∂m/∂m0; ``work[0]`` holds the tip state. When ``record``,
+        det ∂m(L)/∂m0, whose sign changes at folds; ``work[0]`` holds the tip state. When ``record``,
         positions, frames and moments are written to ``out_pos`` (N,3), ``out_rot`` (N,3,3),
         ``out_m`` (N,3).
     """
@@ -235,7 +235,6 @@ def _integrate(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos, out_ro
     for d in range(3):
         y[7 + d] = m0[d]
         y[19 + 4 * d] = 1.0  # δm(0) = identity columns
-    dmin = 1.0
     row = 0
     for i in range(secf.shape[1]):
         length = secf[0, i]
@@ -270,10 +269,7 @@ def _integrate(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos, out_ro
             qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
             for d in range(3, 7):
                 y[d] /= qn
-            det = _det3(y[19:28])
-            if det < dmin:
-                dmin = det
-    return dmin
+    return _det3(y[19:28])
 
 
 @njit
@@ -298,42 +294,45 @@ def _record_row(y, out_pos, out_rot, out_m, row):
 def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step, work, dummy):
     """Newton on m(L; m0) = M_tip (3 unknowns, updated in place) with the exact Jacobian.
 
-    Returns (converged, iterations, |residual|, stable).
+    Returns (converged, iterations, |residual|, stable), stability by :func:`_stability`.
     """
     res = math.inf
-    dmin = 1.0
     r = np.empty(3)
-    jac = np.empty((3, 3))
     step = np.empty(3)
+    base = np.empty(3)
+    res_base = math.inf
     for it in range(max_iter + 1):
-        dmin = _integrate(m0, quat0, secf, steps, c_j, rest, loads, False, dummy[0], dummy[1],
-                          dummy[2], work)
+        det = _integrate(m0, quat0, secf, steps, c_j, rest, loads, False, dummy[0], dummy[1],
+                         dummy[2], work)
         y = work[0]
         for d in range(3):
             r[d] = y[7 + d] - m_tip[d]
         res = math.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2)
+        if res <= tol:
+            return True, it, res, _stability(secf, steps, c_j, rest, loads, work)
+        if 0 < it < max_iter and not res < res_base and math.sqrt(
+                (m0[0] - base[0]) ** 2 + (m0[1] - base[1]) ** 2 + (m0[2] - base[2]) ** 2) > tol:
+            # Backtracking: the full step did not reduce the residual. Arms in tension
+            # amplify base-moment errors exponentially along the length, so the residual is
+            # far from linear over a full Newton step; halve it towards the last iterate.
+            for d in range(3):
+                m0[d] = 0.5 * (m0[d] + base[d])
+            continue
         if not math.isfinite(res):
             return False, it, math.inf, False
-        if res <= tol:
-            return True, it, res, dmin > 0.0
-        det = _det3(y[19:28])
+        res_base = res
+        for d in range(3):
+            base[d] = m0[d]
         if it == max_iter or not math.isfinite(det) or abs(det) < 1e-300:
             break
-        # Cramer's rule on the 3×3 shooting Jacobian (columns ∂m(L)/∂m0_j): no LAPACK call,
-        # so a nearly singular matrix ends the iteration above instead of raising.
-        for k in range(3):
-            # Column k of the Jacobian replaced by the residual, stored column-wise like y.
-            for j in range(3):
-                for d in range(3):
-                    jac[d, j] = r[d] if j == k else y[19 + 3 * j + d]
-            step[k] = (jac[0, 0] * (jac[1, 1] * jac[2, 2] - jac[1, 2] * jac[2, 1])
-                       - jac[0, 1] * (jac[1, 0] * jac[2, 2] - jac[1, 2] * jac[2, 0])
-                       + jac[0, 2] * (jac[1, 0] * jac[2, 1] - jac[1, 1] * jac[2, 0])) / det
+        # Cramer's rule on the 3×3 shooting Jacobian (columns ∂m(L)/∂m0_j): a nearly
+        # singular matrix ends the iteration above instead of raising.
+        _cramer3(y[19:28], r, step)
         norm = math.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
         shrink = max_step / norm if norm > max_step else 1.0
         for d in range(3):
             m0[d] -= shrink * step[d]
-    return False, max_iter, res, dmin > 0.0
+    return False, max_iter, res, False
 
 
 @njit
@@ -341,12 +340,14 @@ def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, lo
             mtip_b, params, rest, p_now, loads_now, m_tip):
     """Spatial quasi-static path following (see :func:`solver._planar._follow`).
 
-    ``m0`` (3,) is updated in place. In 3D no fold scan is attempted: if the step falls
-    below ``DT_MIN`` without a stable converged equilibrium, the last accepted state is
-    returned unconverged (and reported so). ``rest``, ``p_now``, ``loads_now``, ``m_tip``
+    ``m0`` (3,) is updated in place. Where the step falls below ``DT_MIN`` without a stable
+    converged equilibrium, stability is lost between the last two levels (a bifurcation or
+    a fold): :func:`_switch_branch` looks for the stable state along the critical mode and
+    the ramp resumes from there (flagged as a snap). If that fails too, the last accepted
+    state is returned unconverged (and reported so). ``rest``, ``p_now``, ``loads_now``, ``m_tip``
     hold the returned state's rest strains, pressures, loads and tip moment.
 
-    Returns (converged, iterations, stable, |residual|).
+    Returns (converged, iterations, stable, |residual|, snapped).
     """
     tol = params[TOL]
     max_iter = int(params[MAX_ITER])
@@ -360,9 +361,17 @@ def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, lo
     accepted = m0.copy()
     guess = np.empty(3)
     total = 0
+    snaps = 0
     ok = True
     stable = True
     res = 0.0
+    # Tangent predictor for the first step (later steps use the secant through accepted
+    # points). Heavy hanging arms are in tension, where single shooting amplifies a change
+    # of the base moment by e^(L·√(T/EI)): from the previous state alone, Newton overshoots
+    # even for tiny pressure steps.
+    _tangent(accepted, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
+             mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, dummy, slope)
+    total += 2
     while t < 1.0:
         t_new = min(1.0, t + dt)
         _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
@@ -373,8 +382,12 @@ def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, lo
         ok, its, res, stable = _newton(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip, tol,
                                        max_iter, max_step, work, dummy)
         total += its
+        # As in the planar kernel: the corrector may move the iterate little compared with
+        # the step just predicted, or Newton has left the branch.
         jump = math.sqrt((m0[0] - guess[0]) ** 2 + (m0[1] - guess[1]) ** 2 + (m0[2] - guess[2]) ** 2)
-        if ok and stable and (jump <= 0.5 * max_step or dt <= dt_min):
+        pred = math.sqrt((guess[0] - accepted[0]) ** 2 + (guess[1] - accepted[1]) ** 2
+                         + (guess[2] - accepted[2]) ** 2)
+        if ok and stable and (jump <= params[JUMP] + 0.5 * pred or dt <= dt_min):
             for d in range(3):
                 slope[d] = (m0[d] - accepted[d]) / (t_new - t)
                 accepted[d] = m0[d]
@@ -384,14 +397,35 @@ def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, lo
         if dt > dt_min:
             dt *= 0.5
             continue
+        if snaps >= 8:
+            break
+        # Stability is lost between t and t_new. At a bifurcation (an arm curled in a
+        # vertical plane buckling sideways) the new stable branch leaves along the critical
+        # mode; at a fold the arm snaps, and the state it lands on is searched the same way.
+        # (Pseudo-arclength continuation round folds was tried and found nothing this
+        # does not on `softarm stress`.)
+        found, its = _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i,
+                                    tubes_f, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, params,
+                                    rest, p_now, loads_now, m_tip, work, dummy)
+        total += its
+        if found:
+            snaps += 1
+            for d in range(3):
+                accepted[d] = m0[d]
+            t = t_new
+            _tangent(accepted, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a,
+                     loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, dummy, slope)
+            total += 2
+            dt = params[DT0]
+            continue
         break
     if t < 1.0:
         for d in range(3):
             m0[d] = accepted[d]
         _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-        return False, total, False, res
-    return ok, total, stable, res
+        return False, total, False, res, snaps > 0
+    return ok, total, stable, res, snaps > 0
 
 
 @njit
@@ -403,3 +437,204 @@ def _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, 
             loads_now[i, d] = loads_a[i, d] + t * (loads_b[i, d] - loads_a[i, d])
     for d in range(3):
         m_tip[d] = mtip_a[d] + t * (mtip_b[d] - mtip_a[d])
+
+
+@njit
+def _negative_eigenvalues(d):
+    """Number of real negative eigenvalues of the 3×3 matrix stored column-wise in ``d``
+    (9,), from the roots of its characteristic cubic (closed form, no allocation)."""
+    tr = d[0] + d[4] + d[8]
+    minors = (d[0] * d[4] - d[1] * d[3]) + (d[0] * d[8] - d[2] * d[6]) + (d[4] * d[8] - d[5] * d[7])
+    det = _det3(d)
+    # λ³ + a λ² + b λ + c with a = −tr, b = Σ principal 2×2 minors, c = −det; λ = x − a/3.
+    a = -tr
+    b = minors
+    c = -det
+    p = b - a * a / 3.0
+    q = 2.0 * a * a * a / 27.0 - a * b / 3.0 + c
+    disc = 0.25 * q * q + p * p * p / 27.0
+    if disc > 0.0:
+        r = math.sqrt(disc)
+        u = -0.5 * q + r
+        v = -0.5 * q - r
+        x = math.copysign(abs(u) ** (1.0 / 3.0), u) + math.copysign(abs(v) ** (1.0 / 3.0), v)
+        return 1 if x - a / 3.0 < 0.0 else 0
+    rho = math.sqrt(max(-p / 3.0, 0.0))
+    arg = -0.5 * q / (rho * rho * rho) if rho > 0.0 else 0.0
+    phi = math.acos(min(1.0, max(-1.0, arg)))
+    count = 0
+    for k in range(3):
+        if 2.0 * rho * math.cos((phi - 2.0 * math.pi * k) / 3.0) - a / 3.0 < 0.0:
+            count += 1
+    return count
+
+
+@njit
+def _stability(secf, steps, c_j, rest, loads, work):
+    """Conjugate-point test of the equilibrium whose tip state is ``work[0]`` (after
+    :func:`_integrate`): stable iff True.
+
+    The planar solver's forward test (∂m(s)/∂m0 > 0) asks about the sub-rod [0, s] under
+    the dead internal moment m(s) at its end; a dead moment is not conservative in 3D, so
+    in 3D that sub-problem has no energy and no Morse index, and the test is unreliable
+    (it passed arms that had already lost stability). The sub-rod [s, L], clamped at s and
+    carrying its own dead loads, is conservative: the equilibrium is stable iff no
+    s ∈ [0, L) admits a Jacobi field with the free-end conditions δm(L) = 0 (δn ≡ 0 under
+    dead loads) and δφ(s) = 0. So the Jacobi fields δφ(L) = I, δm(L) = 0 are integrated
+    from the tip to the base along the equilibrium (RK4 with negative steps), and the 3×3
+    matrix δφ(s) (δφ(L) = I) must not become singular: no real eigenvalue may cross zero.
+    Its determinant alone is not enough — for arms of round section the in-plane and
+    out-of-plane conjugate points come in near-coincident pairs whose signs cancel in the
+    determinant — so the real eigenvalues are tracked node by node (a real eigenvalue
+    that is negative at a node has crossed zero since s = L). A complex pair reaching the
+    negative real axis without crossing zero (a strongly twisted rod) would be a false
+    alarm; it is conservative.
+
+    Args:
+        secf, steps, c_j, rest, loads: as for :func:`_integrate`.
+        work: (6, NSTATE) scratch whose row 0 holds the tip state; overwritten.
+    """
+    y = work[0]
+    k1 = work[1]
+    k2 = work[2]
+    k3 = work[3]
+    k4 = work[4]
+    tmp = work[5]
+    for d in range(10, NSTATE):
+        y[d] = 0.0
+    for d in range(3):
+        y[10 + 4 * d] = 1.0  # δφ(L) = identity columns, δm(L) = 0
+    for i in range(secf.shape[1] - 1, -1, -1):
+        length = secf[0, i]
+        nst = steps[i]
+        h = -length / nst
+        ca = secf[1, i]
+        cg = secf[2, i]
+        ci = secf[3, i]
+        for j in range(nst):
+            sig = length + j * h
+            _rhs(sig, y, k1, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i], rest[2, i],
+                 loads[i])
+            for d in range(NSTATE):
+                tmp[d] = y[d] + 0.5 * h * k1[d]
+            _rhs(sig + 0.5 * h, tmp, k2, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i],
+                 rest[2, i], loads[i])
+            for d in range(NSTATE):
+                tmp[d] = y[d] + 0.5 * h * k2[d]
+            _rhs(sig + 0.5 * h, tmp, k3, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i],
+                 rest[2, i], loads[i])
+            for d in range(NSTATE):
+                tmp[d] = y[d] + h * k3[d]
+            _rhs(sig + h, tmp, k4, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i], rest[2, i],
+                 loads[i])
+            for d in range(NSTATE):
+                y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+            qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
+            for d in range(3, 7):
+                y[d] /= qn
+            if not math.isfinite(_det3(y[10:19])) or _negative_eigenvalues(y[10:19]) > 0:
+                return False
+    return True
+
+
+@njit
+def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b,
+                   loads_a, loads_b, mtip_a, mtip_b, params, rest, p_now, loads_now, m_tip, work,
+                   dummy):
+    """Branch switching where stability is lost between levels ``t`` and ``t_new``.
+
+    The critical mode is the right singular vector of ∂m(L)/∂m0 for its smallest singular
+    value at the last stable state ``accepted`` (at level t). Newton at level t_new starts
+    from ``accepted`` displaced along ± that mode by growing amounts (0.03 … 3 × EI/L) and
+    the first stable equilibrium found is taken — the buckled branch of a pitchfork, or
+    the state the arm snaps to. The + direction is the one whose largest component is
+    positive, so the choice between mirror images is deterministic.
+
+    Returns (found, iterations); ``m0`` (3,) holds the state found.
+    """
+    scale = 4.0 * params[JUMP]
+    _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    _integrate(accepted, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1],
+               dummy[2], work)
+    a = np.empty((3, 3))
+    for j in range(3):
+        for d in range(3):
+            a[d, j] = work[0, 19 + 3 * j + d]
+    total = 1
+    for d in range(9):
+        if not math.isfinite(work[0, 19 + d]):
+            return False, total
+    vt = np.linalg.svd(a)[2]
+    mode = vt[2].copy()
+    big = 0
+    for d in range(3):
+        if abs(mode[d]) > abs(mode[big]):
+            big = d
+    if mode[big] < 0.0:
+        for d in range(3):
+            mode[d] = -mode[d]
+    _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    amp = 0.03
+    while amp < 4.0:
+        for sign in (1.0, -1.0):
+            for d in range(3):
+                m0[d] = accepted[d] + sign * amp * scale * mode[d]
+            ok, its, res, stable = _newton(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip,
+                                           params[TOL], int(params[MAX_ITER]), params[MAX_STEP],
+                                           work, dummy)
+            total += its
+            if ok and stable:
+                return True, total
+        amp *= 3.0
+    return False, total
+
+
+@njit
+def _tangent(m0, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
+             mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, dummy, slope):
+    """dm0/dt = −(∂m(L)/∂m0)⁻¹ ∂r/∂t of the path at (m0, t), ∂r/∂t by a forward difference;
+    written to ``slope`` (3,), zero where ∂m(L)/∂m0 is singular."""
+    eps = 1e-7
+    r = np.empty(3)
+    for d in range(3):
+        slope[d] = 0.0
+    _set_level(t + eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    _integrate(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1], dummy[2],
+               work)
+    for d in range(3):
+        r[d] = work[0, 7 + d] - m_tip[d]
+    _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    _integrate(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1], dummy[2],
+               work)
+    for d in range(3):
+        r[d] = -((r[d] - (work[0, 7 + d] - m_tip[d])) / eps)
+    _cramer3(work[0, 19:28], r, slope)
+    for d in range(3):
+        if not math.isfinite(slope[d]):
+            for k in range(3):
+                slope[k] = 0.0
+            return
+
+
+
+@njit
+def _cramer3(cols, rhs, x):
+    """Solve the 3×3 system with columns ``cols`` (9,) for ``rhs`` into ``x`` by Cramer's
+    rule, in scalars: no allocation and no LAPACK call, so a singular matrix gives
+    non-finite ``x`` (checked by callers) rather than an exception. Returns the determinant."""
+    a0, a1, a2 = cols[0], cols[1], cols[2]
+    b0, b1, b2 = cols[3], cols[4], cols[5]
+    c0, c1, c2 = cols[6], cols[7], cols[8]
+    r0, r1, r2 = rhs[0], rhs[1], rhs[2]
+    det = a0 * (b1 * c2 - b2 * c1) - b0 * (a1 * c2 - a2 * c1) + c0 * (a1 * b2 - a2 * b1)
+    if det == 0.0:
+        x[0] = x[1] = x[2] = math.inf
+        return det
+    x[0] = (r0 * (b1 * c2 - b2 * c1) - b0 * (r1 * c2 - r2 * c1) + c0 * (r1 * b2 - r2 * b1)) / det
+    x[1] = (a0 * (r1 * c2 - r2 * c1) - r0 * (a1 * c2 - a2 * c1) + c0 * (a1 * r2 - a2 * r1)) / det
+    x[2] = (a0 * (b1 * r2 - b2 * r1) - b0 * (a1 * r2 - a2 * r1) + r0 * (a1 * b2 - a2 * b1)) / det
+    return det

@@ -726,6 +726,7 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
                                      np.empty((ns, 6)), np.empty(3))
 
     iterations = 0
+    snap_load = False
     m0 = np.zeros(3)
     if warm_start is not None and warm_start.scene is not None:
         start = _context(arm, packed, warm_start.scene, 3, settings)
@@ -735,13 +736,13 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
     else:
         # Stage 1: load the unactuated arm (loads ramped from zero, straight rod, m0 = 0).
         p_start = np.zeros_like(p_target)
-        ok, its, stab, res = _spatial._follow(
+        ok, its, stab, res, snap_load = _spatial._follow(
             m0, quat0, packed.secf, packed.sec_steps, packed.c_j, packed.tubes_i, packed.tubes_f,
             p_start, p_start, np.zeros_like(ctx.loads), ctx.loads, np.zeros(3), ctx.m_tip,
             ctx.params, rest, p_now, loads_now, m_tip)
         iterations += its
         start_loads, start_mtip = ctx.loads, ctx.m_tip
-    ok, its, stab, res = _spatial._follow(
+    ok, its, stab, res, snapped = _spatial._follow(
         m0, quat0, packed.secf, packed.sec_steps, packed.c_j, packed.tubes_i, packed.tubes_f,
         p_start, p_target, start_loads, ctx.loads, start_mtip, ctx.m_tip, ctx.params, rest, p_now,
         loads_now, m_tip)
@@ -749,14 +750,17 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
     rows = packed.n_rows if record else 1
     pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
     work = np.empty((6, _spatial.NSTATE))
-    dmin = _spatial._integrate(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest,
-                               loads_now, record, pos, rot, mom, work)
+    _spatial._integrate(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, loads_now,
+                        record, pos, rot, mom, work)
     y = work[0]
     res = float(np.linalg.norm(y[7:10] - m_tip))
-    common_out = dict(tip=y[0:3].copy(), converged=bool(ok and res <= 10 * ctx.tol),
-                      stable=bool(stab and dmin > 0), iterations=int(iterations), residual=res,
-                      model=model, planar=False, scene=scene, pressures=p_inputs,
-                      channel_pressures=p_channel, base_moment=m0.copy(),
+    tip = y[0:3].copy()
+    stable = _spatial._stability(packed.secf, packed.sec_steps, packed.c_j, rest, loads_now,
+                                 work)
+    common_out = dict(tip=tip, converged=bool(ok and res <= 10 * ctx.tol),
+                      stable=bool(stab and stable), iterations=int(iterations), residual=res,
+                      snapped=bool(snapped or snap_load), model=model, planar=False,
+                      scene=scene, pressures=p_inputs, channel_pressures=p_channel, base_moment=m0.copy(),
                       base_force=ctx.base_force)
     if not record:
         return Equilibrium(**common_out)

@@ -1,0 +1,136 @@
+"""The spatial conjugate-point test (:func:`solver._spatial._stability`) and fold passing.
+
+Oracles: Euler's critical load (with its double conjugate point in 3D, which a determinant
+test cannot see) and the planar solver's own conjugate-point test on planar equilibria,
+which is valid in the plane and independent of the 3D kernels.
+"""
+
+import importlib
+import math
+
+import numpy as np
+import pytest
+
+import solver
+from solver import _planar, _spatial, designs
+
+S = importlib.import_module("solver.solve")
+
+
+def _kernel_inputs(arm, scene, settings):
+    packed = S._pack(arm, "full", settings)
+    ctx = S._context(arm, packed, scene, 3, settings)
+    quat0 = np.empty(4)
+    _spatial._rot_to_quat(_spatial.base_rotation(scene.base_theta), quat0)
+    work = np.empty((6, _spatial.NSTATE))
+    dummy = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
+    return packed, ctx, quat0, work, dummy
+
+
+@pytest.mark.parametrize("load, stable", [(2.3, True), (2.6, False)])  # π²/4 = 2.467
+def test_straight_column_in_3d_loses_stability_at_euler_load(load, stable):
+    """Upright column, dead tip load: both bending planes reach their conjugate point
+    together, so det δφ only touches zero; counting real negative eigenvalues flags it."""
+    rod = designs.rod(length=1.0, EI=1.0, EA=1e10, GA=1e10, GJ=0.7)
+    settings = solver.Settings(steps_per_section=100)
+    scene = solver.Scene(base_angle_deg=180, tip_force=(0, -load, 0), gravity=0)
+    packed, ctx, quat0, work, dummy = _kernel_inputs(rod, scene, settings)
+    rest = np.array([[0.0], [0.0], [1.0]])
+    m0 = np.zeros(3)
+    ok, its, res, is_stable = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
+                                               packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-12, 5,
+                                               10.0, work, dummy)
+    assert ok and np.all(m0 == 0.0)
+    assert is_stable == stable
+
+
+def test_negative_eigenvalue_count():
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        d = rng.normal(size=(3, 3))
+        ev = np.linalg.eigvals(d)
+        expected = int(np.sum((np.abs(ev.imag) < 1e-9) & (ev.real < 0)))
+        assert _spatial._negative_eigenvalues(d.T.ravel().copy()) == expected
+
+
+@pytest.mark.parametrize("guess, stable", [(-0.039, False), (3.098, False), (6.557, True)])
+def test_3d_test_agrees_with_planar_test_on_planar_equilibria(guess, stable):
+    """A soft arm with a heavy payload, base near horizontal: three planar equilibria at the
+    same load (two looped, one hanging). Solved by the planar kernel, judged by the planar
+    test (b = ∂m/∂m0 > 0) and by the 3D test on the same state."""
+    arm = designs.get("octarm_vi")
+    settings = solver.Settings(shortcuts=False)
+    scene = solver.Scene(base_angle_deg=184.2557848920924, payload_kg=1.425695544488903)
+    packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
+    ctx2 = S._context(arm, packed, scene, 2, settings)
+    rest = np.empty((3, len(arm.sections)))
+    _planar._rest_strains(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf,
+                          rest)
+    out = _planar._newton(guess, scene.base_theta, packed.secf, packed.sec_steps, rest,
+                          ctx2.loads, ctx2.m_tip, 1e-9, 30, 5.0, np.empty((1, _planar.N_COLUMNS)))
+    assert out[1] and out[4] == stable
+    m0 = np.array([0.0, 0.0, out[0]])
+    ok, its, res, is_stable = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
+                                               packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8, 30,
+                                               5.0, work, dummy)
+    assert ok and m0[2] == pytest.approx(out[0], abs=1e-4)
+    assert is_stable == stable
+
+
+def test_spatial_solve_of_planar_scenes_matches_planar_solver_or_buckles_sideways():
+    """Random planar scenes solved by the 3D kernels: where the planar solver's equilibrium
+    is stable in 3D too, the 3D solve lands on it (before the eigenvalue test, the loading
+    stage settled on looped unstable states); where it is not — a curled arm buckling out
+    of its plane — the 3D solve leaves the plane for a stable buckled state."""
+    arm = designs.get("octarm_vi")
+    settings = solver.Settings(shortcuts=False)
+    rng = np.random.default_rng(1)
+    n_in = len(arm.input_names(True))
+    buckled = 0
+    for _ in range(12):
+        scene = solver.Scene(base_angle_deg=rng.uniform(0, 360), payload_kg=rng.uniform(0, 0.5))
+        p = rng.uniform(0, 1, n_in) * arm.max_pressure
+        planar = solver.solve(arm, p, scene, settings=settings)
+        p_channel = solver.channel_pressures(arm, p, True)
+        spatial = solver.solve(arm, p_channel, scene, planar=False, settings=settings)
+        assert planar.converged and planar.stable
+        assert spatial.converged and spatial.stable
+        packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
+        rest = np.empty((3, len(arm.sections)))
+        _planar._rest_strains(p_channel, packed.tubes_i, packed.tubes_f, packed.secf, rest)
+        m0 = np.array([0.0, 0.0, planar.base_moment[-1]])
+        ok, _, _, stable_in_3d = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
+                                                  packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8,
+                                                  30, 5.0, work, dummy)
+        assert ok and abs(m0[2] - planar.base_moment[-1]) < 1e-4
+        if stable_in_3d:
+            np.testing.assert_allclose(spatial.tip, [*planar.tip, 0.0], atol=1e-5)
+        else:
+            buckled += 1
+            assert abs(spatial.tip[2]) > 1e-3 and spatial.snapped
+    assert buckled == 1  # seed 1 holds one sideways buckle (the 11th scene)
+
+
+def test_stress_repro_crosses_to_the_stable_branch():
+    """The case that failed the stress random set: the 3D loading stage used to settle on
+    an unstable branch that a determinant test passed; now the solve converges to a state
+    the 3D test finds stable, in moment balance."""
+    arm = designs.get("octarm_vi")
+    psi = [89.693998, 76.330564, 49.804883, 81.027896, 69.855109, 83.200145, 72.544408,
+           56.948692, 75.015311]
+    scene = solver.Scene(base_angle_deg=142.623867, payload_kg=0.350943)
+    eq = solver.solve(arm, np.array(psi) * solver.PSI, scene, planar=False)
+    assert eq.converged and eq.stable
+    assert math.isfinite(eq.residual) and eq.residual < 1e-8
+
+
+def test_cramer_solve_matches_lapack_and_flags_singular():
+    rng = np.random.default_rng(0)
+    x = np.empty(3)
+    for _ in range(50):
+        a, b = rng.normal(size=(3, 3)), rng.normal(size=3)
+        _spatial._cramer3(a.T.ravel().copy(), b, x)
+        np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-9, atol=1e-12)
+    singular = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]])
+    assert _spatial._cramer3(singular.T.ravel().copy(), np.ones(3), x) == 0.0
+    assert not np.isfinite(x).any()
