@@ -182,19 +182,29 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
     """Newton on m(L; m0) = M_tip with the exact shooting derivative ∂m(L)/∂m0.
 
     Steps are clipped to ``max_step`` (N m) so a poor guess cannot fling the iterate onto a
-    distant branch. Returns (m0, converged, iterations, |residual|, stable, bmin, x, y, θ),
-    the last three at the tip of the returned iterate.
+    distant branch, and halved while they do not reduce the residual. Returns (m0,
+    converged, iterations, |residual|, stable, bmin, x, y, θ), the last three at the tip of
+    the returned iterate.
     """
     res = math.inf
     bmin = 1.0
     th = x = y = math.nan
+    base = m0
+    res_base = math.inf
     for it in range(max_iter + 1):
         th, m, b, x, y, bmin = _integrate(m0, theta0, secf, steps, rest, loads, False, out)
         res = m - m_tip
-        if not math.isfinite(res) or not math.isfinite(b):
-            return m0, False, it, math.inf, False, bmin, x, y, th
         if abs(res) <= tol:
             return m0, True, it, abs(res), bmin > 0.0, bmin, x, y, th
+        if 0 < it < max_iter and not abs(res) < res_base and abs(m0 - base) > tol:
+            # Backtracking: the full step did not reduce the residual (soft or long arms,
+            # where m(L; m0) is far from linear over a Newton step); halve it.
+            m0 = 0.5 * (m0 + base)
+            continue
+        if not math.isfinite(res) or not math.isfinite(b):
+            return m0, False, it, math.inf, False, bmin, x, y, th
+        res_base = abs(res)
+        base = m0
         if it == max_iter or b == 0.0:
             break
         step = -res / b
