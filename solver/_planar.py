@@ -178,13 +178,15 @@ def _integrate(m0, theta0, secf, steps, rest, loads, record, out):
 
 
 @njit
-def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out):
+def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out,
+            record=False):
     """Newton on m(L; m0) = M_tip with the exact shooting derivative ∂m(L)/∂m0.
 
     Steps are clipped to ``max_step`` (N m) so a poor guess cannot fling the iterate onto a
     distant branch, and halved while they do not reduce the residual. Returns (m0,
     converged, iterations, |residual|, stable, bmin, x, y, θ), the last three at the tip of
-    the returned iterate.
+    the returned iterate. With ``record`` every pass writes its samples to ``out``, so that
+    on return ``out`` holds the returned iterate's backbone (no separate recording pass).
     """
     res = math.inf
     bmin = 1.0
@@ -192,7 +194,7 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
     base = m0
     res_base = math.inf
     for it in range(max_iter + 1):
-        th, m, b, x, y, bmin = _integrate(m0, theta0, secf, steps, rest, loads, False, out)
+        th, m, b, x, y, bmin = _integrate(m0, theta0, secf, steps, rest, loads, record, out)
         res = m - m_tip
         if abs(res) <= tol:
             return m0, True, it, abs(res), bmin > 0.0, bmin, x, y, th
@@ -291,20 +293,22 @@ def _scan(theta0, secf, steps, rest, loads, m_tip, params, guess, out):
 @njit
 def _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
              mtip_b, rest, p_now, loads_now, out):
-    """dm0/dt = −(∂r/∂t)/(∂r/∂m0) at t = 0, ∂r/∂t by a forward difference of size ``eps``."""
-    mt0 = _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    th0, m_a, b_a, x0, y0, bm0 = _integrate(m0, theta0, secf, steps, rest, loads_now, False, out)
+    """dm0/dt = −(∂r/∂t)/(∂r/∂m0) at t = 0, by a forward difference of size ``eps``.
+
+    ``m0`` is an equilibrium at t = 0 (r = 0 there, to the solver's tolerance), so one pass
+    at t = eps gives both ∂r/∂t ≈ r(eps)/eps and ∂r/∂m0; the residual left at t = 0
+    (≤ TOL) perturbs the slope by at most TOL/(eps·∂r/∂m0), which Newton absorbs.
+    """
     mt1 = _level(eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
     _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
     th1, m_b, b_b, x1, y1, bm1 = _integrate(m0, theta0, secf, steps, rest, loads_now, False, out)
-    slope = -((m_b - mt1) - (m_a - mt0)) / eps / b_a if b_a != 0.0 else 0.0
+    slope = -(m_b - mt1) / eps / b_b if b_b != 0.0 else 0.0
     return slope if math.isfinite(slope) else 0.0
 
 
 @njit
 def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-            mtip_b, params, rest, p_now, loads_now, out):
+            mtip_b, params, rest, p_now, loads_now, out, record=False):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
 
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
@@ -315,7 +319,9 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
 
     Scratch/outputs: ``rest`` (3, ns), ``p_now`` (n_channels,), ``loads_now`` (ns, 4) hold
     the returned state's rest strains, pressures and loads; ``out`` is a (≥1, N_COLUMNS)
-    scratch for :func:`_integrate`.
+    scratch for :func:`_integrate`. With ``record`` (``out`` then has room for every sample)
+    the Newton passes at t = 1 record into ``out``: a converged return leaves the returned
+    state's backbone there, with no extra pass.
 
     Returns:
         (m0, converged, iterations, snapped, stable, |residual|, tip x, y, θ).
@@ -347,11 +353,11 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
         for d in range(4):
             big = big or loads_a[i, d] != loads_b[i, d]
     slope = 0.0
-    eps = 1e-6
+    eps = 1e-4
     if big:
         slope = _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
                          loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out)
-        total += 2
+        total += 1
     while t < 1.0:
         t_new = min(1.0, t + dt)
         m_tip = _level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
@@ -362,7 +368,7 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
         final = t_new >= 1.0
         root, ok, its, res, stab, bm, x, y, th = _newton(
             guess, theta0, secf, steps, rest, loads_now, m_tip, tol if final else 1e3 * tol,
-            max_iter if final else min(max_iter, 6), max_step, out)
+            max_iter if final else min(max_iter, 6), max_step, out, record and final)
         total += its
         # A continuous branch: the corrector moves the iterate little compared with the step
         # just predicted (``JUMP`` is an absolute floor, a fraction of EI/L). A larger jump
@@ -407,7 +413,7 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
         slope = 0.0
         m0, ok, its, res, stable, bm, x, y, th = _newton(snap_to, theta0, secf, steps, rest,
                                                          loads_now, m_tip, tol, max_iter,
-                                                         max_step, out)
+                                                         max_step, out, record and final)
         total += its
         t = t_new
         dt = dt0
@@ -436,7 +442,8 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
     :func:`solver.solve` does, so a sweep's result does not depend on its order). Writes the
     tips (n, 2), convergence and stability flags and the new base moments. A row that does
     not converge keeps its start state (``m0_out[k] = m0_start[k]``, its tip and shape).
-    With ``record`` each row's backbone is written to ``shapes[k]`` ((rows, N_COLUMNS)).
+    With ``record`` each row's backbone is written to ``shapes[k]`` ((rows, N_COLUMNS));
+    otherwise ``shapes`` is an (n, 1, N_COLUMNS) scratch.
     """
     n = p_targets.shape[0]
     ns = secf.shape[1]
@@ -445,19 +452,17 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
         rest = np.empty((3, ns))
         p_now = np.empty(nc)
         loads_now = np.empty((ns, 4))
-        out = np.empty((1, N_COLUMNS))
+        # A converged row's backbone is recorded by its final Newton pass.
         root, conv, its, snapped, stab, res, x, y, th = _follow(
             m0_start[k], theta0, secf, steps, tubes_i, tubes_f, p_start[k], p_targets[k], loads,
-            loads, mtip, mtip, params, rest, p_now, loads_now, out)
+            loads, mtip, mtip, params, rest, p_now, loads_now, shapes[k], record)
         conv = conv and math.isfinite(x) and math.isfinite(y)
         if not conv:
             # Keep the last good state: its rest strains, shape and tip.
             root = m0_start[k]
             _rest_strains(p_start[k], tubes_i, tubes_f, secf, rest)
-            th, m, b, x, y, bmin = _integrate(root, theta0, secf, steps, rest, loads, False, out)
-        if record:
-            _integrate(root, theta0, secf, steps, rest, loads if not conv else loads_now, True,
-                       shapes[k])
+            th, m, b, x, y, bmin = _integrate(root, theta0, secf, steps, rest, loads, record,
+                                              shapes[k])
         tips[k, 0] = x
         tips[k, 1] = y
         ok[k] = conv

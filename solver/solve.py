@@ -509,13 +509,16 @@ def _moment_bound(arm, packed, scene, n_end, q):
 
 
 def _follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None):
-    """Run :func:`solver._planar._follow`; returns its tuple plus the scratch (rest, loads_now)."""
+    """Run :func:`solver._planar._follow`; returns its tuple plus the scratch (rest, loads_now).
+
+    With ``out`` ((n_rows, N_COLUMNS)) a converged result's backbone is recorded into it.
+    """
     ns = packed.secf.shape[1]
     rest, p_now, loads_now = np.empty((3, ns)), np.empty(p_target.shape[0]), np.empty((ns, 4))
     result = _planar._follow(m0, scene.base_theta, packed.secf, packed.sec_steps, packed.tubes_i,
                              packed.tubes_f, p_start, p_target, start_ctx.loads, ctx.loads,
                              start_ctx.m_tip, ctx.m_tip, ctx.params, rest, p_now, loads_now,
-                             _DUMMY if out is None else out)
+                             _DUMMY if out is None else out, out is not None)
     return result, rest, loads_now
 
 
@@ -549,17 +552,18 @@ def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
     else:
         m0, iterations, snapped = _loaded_base_moment(arm, packed, scene, ctx, settings)
         start_ctx, p_start = ctx, np.zeros_like(p_target)
+    out = np.empty((packed.n_rows, _planar.N_COLUMNS)) if record else None
     (m0, ok, its, snap, stab, res, x, y, th), rest, loads_now = _follow(
-        packed, scene, p_start, p_target, start_ctx, ctx, m0)
+        packed, scene, p_start, p_target, start_ctx, ctx, m0, out)
     common_out = dict(converged=bool(ok), stable=bool(stab), iterations=int(iterations + its),
                       residual=float(res), snapped=bool(snapped or snap), model=model,
                       planar=True, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
                       base_moment=np.array([m0]), base_force=ctx.base_force)
     if not record:
         return Equilibrium(tip=np.array([x, y]), **common_out)
-    out = np.empty((packed.n_rows, _planar.N_COLUMNS))
-    _planar._integrate(m0, scene.base_theta, packed.secf, packed.sec_steps, rest, loads_now, True,
-                       out)
+    if not ok:  # the returned (last good) state was not recorded by a final Newton pass
+        _planar._integrate(m0, scene.base_theta, packed.secf, packed.sec_steps, rest, loads_now,
+                           True, out)
     P = _planar  # the result's arrays are views into this one record
     return Equilibrium(
         tip=out[-1, P.X:P.Y + 1].copy(), s=out[:, P.S], positions=out[:, P.X:P.Y + 1],
