@@ -35,34 +35,44 @@ def _pressure(lam, youngs_modulus, area_ratio, cos_alpha):
 
     ``area_ratio`` is At/A = (Ro² − Ri²)/Ri².
     """
+    return _pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha)[0]
+
+
+@njit
+def _pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha):
+    """(p, dp/dλ) at ``lam``: the pressure of :func:`_pressure` and its exact derivative."""
     c2 = cos_alpha * cos_alpha
     c4 = c2 * c2
     c6 = c4 * c2
+    # Q(λ) = a0 + a1 λ² + a2 λ⁴ + a3 λ⁶ + a4 λ⁸ (Appendix A.1)
+    a0 = 1.0 - 2.0 * c2 + c4
+    a1 = -2.0 * c6 + 4.0 * c4 - 2.0 * c2
+    a2 = 2.0 * c2 - 1.0
+    a3 = 2.0 * c2 - 4.0 * c4
+    a4 = 2.0 * c6 - c4
     l2 = lam * lam
     l4 = l2 * l2
     l6 = l4 * l2
     l8 = l4 * l4
-    q = (
-        1.0
-        - 2.0 * c2
-        + c4
-        + l2 * (-2.0 * c6 + 4.0 * c4 - 2.0 * c2)
-        + l4 * (2.0 * c2 - 1.0)
-        + l6 * (2.0 * c2 - 4.0 * c4)
-        + l8 * (2.0 * c6 - c4)
-    )
+    q = a0 + a1 * l2 + a2 * l4 + a3 * l6 + a4 * l8
+    dq = lam * (2.0 * a1 + 4.0 * a2 * l2 + 6.0 * a3 * l4 + 8.0 * a4 * l6)
     x = l2 * c2
     d = (x - 1.0) * (x - 1.0) * (3.0 * x - 1.0)
-    return youngs_modulus * area_ratio / 3.0 * q / (l2 * lam * d)
+    dd = (2.0 * (x - 1.0) * (3.0 * x - 1.0) + 3.0 * (x - 1.0) * (x - 1.0)) * 2.0 * lam * c2
+    k = youngs_modulus * area_ratio / 3.0
+    den = l2 * lam * d
+    dden = 3.0 * l2 * d + l2 * lam * dd
+    return k * q / den, k * (dq * den - q * dden) / (den * den)
 
 
 @njit
 def _stretch(pressure, youngs_modulus, area_ratio, cos_alpha):
     """Axial stretch λ ∈ [1, λmax) at ``pressure`` (Pa ≥ 0): inverse of :func:`_pressure`.
 
-    Safeguarded Newton on the bracket [1, λmax): a Newton step that leaves the current
-    bracket is replaced by bisection, so the iteration cannot escape the physical branch.
-    Returns NaN for a negative or non-finite pressure (the wrapper turns that into an error).
+    Safeguarded Newton on the bracket [1, λmax) with the exact slope: a Newton step that
+    leaves the current bracket is replaced by bisection, so the iteration cannot escape the
+    physical branch. Returns NaN for a negative or non-finite pressure (the wrapper turns
+    that into an error).
     """
     if not (pressure >= 0.0) or not math.isfinite(pressure):
         return math.nan
@@ -70,20 +80,27 @@ def _stretch(pressure, youngs_modulus, area_ratio, cos_alpha):
         return 1.0
     lo = 1.0
     hi = 1.0 / (math.sqrt(3.0) * cos_alpha)
-    lam = 0.5 * (lo + hi)
+    # Start from the linearisation at λ = 1 (p(1) = 0): two or three Newton steps from there
+    # instead of five or six from the middle of the bracket.
+    lam = 1.0 + pressure / _pressure_and_slope(1.0, youngs_modulus, area_ratio, cos_alpha)[1]
+    if not (lo < lam < hi):
+        lam = 0.5 * (lo + hi)
     for _ in range(200):
-        f = _pressure(lam, youngs_modulus, area_ratio, cos_alpha) - pressure
+        p, df = _pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha)
+        f = p - pressure
         if f > 0.0:
             hi = lam
         else:
             lo = lam
-        h = 1e-7 * lam
-        df = (_pressure(lam + h, youngs_modulus, area_ratio, cos_alpha)
-              - _pressure(lam - h, youngs_modulus, area_ratio, cos_alpha)) / (2.0 * h)
         step = lam - f / df if df > 0.0 else 0.5 * (lo + hi)
+        # Converged when the Newton correction itself is at round-off — tested before the
+        # bracket check, because a converged step lands on the bracket end just set and
+        # would otherwise be replaced by bisection, away from the root, again and again.
+        if abs(step - lam) <= 1e-15 * lam:
+            return step
         if not (lo < step < hi):
             step = 0.5 * (lo + hi)
-        if abs(step - lam) <= 1e-15 * lam or hi - lo <= 4e-16 * hi:
+        if hi - lo <= 4e-16 * hi:
             return step
         lam = step
     return lam

@@ -82,3 +82,18 @@ def test_bad_stretch_and_geometry():
         stretch_from_pressure(1.0, 2e6, 0.02, 0.01, 78.0)
     with pytest.raises(ValueError, match="wind angle"):
         stretch_from_pressure(1.0, 2e6, 0.01, 0.02, 50.0)
+
+
+@pytest.mark.parametrize("alpha", [60.0, 70.0, 80.0])
+def test_pressure_slope_is_the_derivative(alpha):
+    """The exact dp/dλ that drives the inversion agrees with a central difference."""
+    from solver.actuator import _pressure, _pressure_and_slope
+
+    c = math.cos(math.radians(alpha))
+    lam_max = 1.0 / (math.sqrt(3.0) * c)
+    for lam in np.linspace(1.0, lam_max, 12)[:-1]:
+        p, slope = _pressure_and_slope(lam, 1.2e6, 2.5, c)
+        h = 1e-6 * lam
+        fd = (_pressure(lam + h, 1.2e6, 2.5, c) - _pressure(lam - h, 1.2e6, 2.5, c)) / (2 * h)
+        assert p == _pressure(lam, 1.2e6, 2.5, c)
+        assert slope == pytest.approx(fd, rel=1e-6)
