@@ -121,3 +121,44 @@ def test_deep_wrap_converges_with_a_stiff_penalty():
     ds = np.diff(eq.s)
     contact_length = float(np.sum(ds[(eq.penetration[:-1] > 0) & (eq.penetration[1:] > 0)]))
     assert contact_length > 0.2
+
+
+def test_contact_free_shortcut_is_the_contact_solution():
+    """A ramp that first clears the disc, then presses on it, then leaves it again: with the
+    contact-free shortcut and without it (multiple shooting throughout) the results agree,
+    and the shortcut is taken exactly where nothing touches."""
+    arm = designs.octarm_v()
+    disc = solver.Disc(center=(0.07, -0.70), radius=0.05, stiffness=2e4)
+    scene = solver.Scene(base_angle_deg=0, obstacles=(disc,))
+    levels = np.r_[np.linspace(0, 1, 9), np.linspace(1, 0, 9)[1:]]
+    final = np.array([0, 0, 0, 0, 0, 100]) * PSI
+    fast = slow = None
+    touched = []
+    for frac in levels:
+        fast = solver.solve(arm, frac * final, scene, warm_start=fast)
+        slow = solver.solve(arm, frac * final, scene, warm_start=slow,
+                            settings=solver.Settings(shortcuts=False))
+        assert fast.converged and slow.converged and fast.in_contact == slow.in_contact
+        np.testing.assert_allclose(fast.positions, slow.positions, atol=1e-8)
+        np.testing.assert_allclose(fast.base_force, slow.base_force, atol=1e-7)
+        assert fast.in_contact == bool(fast.penetration.max() > 0)
+        touched.append(fast.in_contact)
+    assert touched[0] is False and any(touched) and touched[-1] is False
+
+
+def test_shortcut_not_taken_within_half_a_step_of_a_disc():
+    """A disc whose surface passes just outside the free backbone (closer than half an RK4
+    step) gets the full contact solve, with the same result."""
+    arm = designs.octarm_v()
+    p = np.array([30, 0, 0, 40, 60, 0]) * PSI
+    free = solver.solve(arm, p, solver.Scene(base_angle_deg=45))
+    mid = free.positions[len(free.positions) // 2]
+    normal = np.array([-np.sin(free.angles[len(free.angles) // 2]),
+                       np.cos(free.angles[len(free.angles) // 2])])
+    radius, gap = 0.05, 2e-3  # clear of the samples, but closer than h/2 ≈ 9 mm
+    scene = solver.Scene(base_angle_deg=45, obstacles=(
+        solver.Disc(center=tuple(mid + (radius + gap) * normal), radius=radius),))
+    fast = solver.solve(arm, p, scene)
+    slow = solver.solve(arm, p, scene, settings=solver.Settings(shortcuts=False))
+    assert fast.iterations == slow.iterations  # the multiple-shooting path, both times
+    np.testing.assert_allclose(fast.positions, slow.positions, atol=1e-12)
