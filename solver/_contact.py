@@ -294,7 +294,8 @@ def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b,
     """Quasi-static pressure ramp p_a → p_b with contact (cf. :func:`solver._planar._follow`).
 
     A step is accepted if Newton converged on a stable state whose correction is small
-    against the step predicted (secant predictor on all node states). No fold scan: if the
+    against the step predicted (tangent predictor for the first step, then secant, on all
+    node states). No fold scan: if the
     step falls below ``dt_min`` the last accepted state is returned, flagged unconverged.
     Returns (converged, iterations, |residual|, stable); ``Z`` holds the returned state and
     ``rest`` (3, ns) its rest strains.
@@ -309,6 +310,30 @@ def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b,
     ok = False
     res = math.inf
     stable = False
+    # Tangent predictor for the first step, dZ/dt = −J⁻¹ ∂F/∂t at the start state (an
+    # equilibrium), ∂F/∂t by a forward difference. Without it the first step's correction
+    # is judged against a zero prediction, and a large pressure change is halved until its
+    # correction is small in absolute terms — five or six converged steps thrown away.
+    eps_t = 1e-4
+    F0 = np.empty(n)
+    F1 = np.empty(n)
+    J = np.empty((n, n))
+    chain = np.empty((6, 3))
+    for c in range(p_a.shape[0]):
+        p_now[c] = p_a[c] + eps_t * (p_b[c] - p_a[c])
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F1, J,
+            False, chain)
+    _rest_strains(p_a, tubes_i, tubes_f, secf, rest)
+    _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F0, J,
+            True, chain)
+    total += 1
+    for k in range(n):
+        F1[k] = -(F1[k] - F0[k]) / eps_t
+    if np.all(np.isfinite(J)) and np.all(np.isfinite(F1)):
+        slope[:] = np.linalg.solve(J, F1)
+        if not np.all(np.isfinite(slope)):
+            slope[:] = 0.0
     while t < 1.0:
         t_new = min(1.0, t + dt)
         for c in range(p_a.shape[0]):
