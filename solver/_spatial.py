@@ -24,7 +24,16 @@ import math
 import numpy as np
 
 from solver._jit import njit
-from solver._planar import DT0, DT_MIN, JUMP, MAX_ITER, MAX_STEP, TOL, _rest_strains
+from solver._planar import (
+    DT0,
+    DT_MIN,
+    JUMP,
+    MAX_ITER,
+    MAX_STEP,
+    TOL,
+    _big_change,
+    _rest_strains,
+)
 
 
 def base_rotation(theta0: float) -> np.ndarray:
@@ -365,13 +374,16 @@ def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, lo
     ok = True
     stable = True
     res = 0.0
-    # Tangent predictor for the first step (later steps use the secant through accepted
-    # points). Heavy hanging arms are in tension, where single shooting amplifies a change
-    # of the base moment by e^(L·√(T/EI)): from the previous state alone, Newton overshoots
-    # even for tiny pressure steps.
-    _tangent(accepted, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
-             mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, dummy, slope)
-    total += 2
+    # Tangent predictor for the first step of a large change (later steps use the secant
+    # through accepted points), as in the planar kernel. Heavy hanging arms are in tension,
+    # where single shooting amplifies a change of the base moment by e^(L·√(T/EI)): from
+    # the previous state alone, Newton overshoots.
+    if _big_change(p_a, p_b, loads_a, loads_b) or (mtip_a[0] != mtip_b[0]
+                                                    or mtip_a[1] != mtip_b[1]
+                                                    or mtip_a[2] != mtip_b[2]):
+        _tangent(accepted, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a,
+                 loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, dummy, slope)
+        total += 2
     while t < 1.0:
         t_new = min(1.0, t + dt)
         _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
@@ -638,3 +650,4 @@ def _cramer3(cols, rhs, x):
     x[1] = (a0 * (r1 * c2 - r2 * c1) - r0 * (a1 * c2 - a2 * c1) + c0 * (a1 * r2 - a2 * r1)) / det
     x[2] = (a0 * (b1 * r2 - b2 * r1) - b0 * (a1 * r2 - a2 * r1) + r0 * (a1 * b2 - a2 * b1)) / det
     return det
+
