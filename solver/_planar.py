@@ -230,8 +230,9 @@ def _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now):
 
 
 @njit
-def _scan(theta0, secf, steps, rest, loads, m_tip, params, guess, out):
-    """Stable root of m(L; m0) = M_tip nearest ``guess``, by a scan over |m0| ≤ M_BOUND.
+def _scan(theta0, secf, steps, rest, loads, m_tip, params, n_scan, guess, out):
+    """Stable root of m(L; m0) = M_tip nearest ``guess``, by a scan of ``n_scan`` intervals
+    over |m0| ≤ M_BOUND.
 
     Used where continuation cannot proceed (a fold passed, or a bifurcation such as Euler
     buckling): every sign change on the scan grid is polished by Newton and the stable root
@@ -241,7 +242,6 @@ def _scan(theta0, secf, steps, rest, loads, m_tip, params, guess, out):
     max_iter = int(params[MAX_ITER])
     max_step = params[MAX_STEP]
     m_bound = params[M_BOUND]
-    n_scan = int(params[N_SCAN])
     best = math.nan
     best_d = math.inf
     its = 0
@@ -406,9 +406,15 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
                               loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out, total,
                               snapped, res)
         # A fold or bifurcation lies between t and t_new: snap to the nearest stable state.
-        snap_to, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params, guess,
-                                    out)
+        snap_to, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params,
+                                    int(params[N_SCAN]), guess, out)
         total += its
+        if not found:
+            # Heavily loaded arms (a column far past its buckling load) have stable roots in
+            # narrow windows of m0 that the default grid steps over: look once more, 8× finer.
+            snap_to, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params,
+                                        8 * int(params[N_SCAN]), guess, out)
+            total += its
         if not found:
             # No stable equilibrium at this level. Report the Newton result as it stands, with
             # its own state: a converged but unstable root (e.g. a column past its buckling
