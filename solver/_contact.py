@@ -289,16 +289,33 @@ def _newton(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, targ
 
 
 @njit
-def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b, q, plate, target,
-            discs, eps, weights, res_weights, tol, max_iter, max_step, dt0, dt_min, rest, p_now):
-    """Quasi-static pressure ramp p_a → p_b with contact (cf. :func:`solver._planar._follow`).
+def _set_level(t, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q_now,
+               plate_now, target_now):
+    """Interpolate pressures and loads of the homotopy at level ``t``."""
+    for c in range(p_a.shape[0]):
+        p_now[c] = p_a[c] + t * (p_b[c] - p_a[c])
+    for i in range(q_a.shape[0]):
+        for d in range(2):
+            q_now[i, d] = q_a[i, d] + t * (q_b[i, d] - q_a[i, d])
+            plate_now[i, d] = plate_a[i, d] + t * (plate_b[i, d] - plate_a[i, d])
+    for d in range(3):
+        target_now[d] = target_a[d] + t * (target_b[d] - target_a[d])
+
+
+@njit
+def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b, q_a, q_b,
+            plate_a, plate_b, target_a, target_b, discs, eps, weights, res_weights, tol, max_iter,
+            max_step, dt0, dt_min, rest, p_now, predict_cap=math.inf):
+    """Quasi-static ramp from state A to state B (cf. :func:`solver._planar._follow`):
+    pressures p_a → p_b, distributed loads q_a → q_b (ns, 2), endplate weights
+    plate_a → plate_b (ns, 2) and tip targets target_a → target_b (3,), all linearly in t.
 
     A step is accepted if Newton converged on a stable state whose correction is small
     against the step predicted (tangent predictor for the first step, then secant, on all
-    node states). No fold scan: if the
-    step falls below ``dt_min`` the last accepted state is returned, flagged unconverged.
-    Returns (converged, iterations, |residual|, stable); ``Z`` holds the returned state and
-    ``rest`` (3, ns) its rest strains.
+    node states; a predicted move longer than ``predict_cap`` in the weighted RMS norm is
+    shortened to it). No fold scan: if the step falls below ``dt_min`` the last accepted state
+    is returned, flagged unconverged. Returns (converged, iterations, |residual|, stable);
+    ``Z`` holds the returned state and ``rest`` (3, ns) its rest strains.
     """
     n = Z.shape[0]
     t = 0.0
@@ -310,37 +327,28 @@ def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b,
     ok = False
     res = math.inf
     stable = False
-    # Tangent predictor for the first step, dZ/dt = −J⁻¹ ∂F/∂t at the start state (an
-    # equilibrium), ∂F/∂t by a forward difference. Without it the first step's correction
-    # is judged against a zero prediction, and a large pressure change is halved until its
+    q = np.empty_like(q_a)
+    plate = np.empty_like(plate_a)
+    target = np.empty(3)
+    # Tangent predictor for the first step. Without it the first step's correction is
+    # judged against a zero prediction, and a large pressure change is halved until its
     # correction is small in absolute terms — five or six converged steps thrown away.
-    eps_t = 1e-4
-    F0 = np.empty(n)
-    F1 = np.empty(n)
-    J = np.empty((n, n))
-    chain = np.empty((6, 3))
-    for c in range(p_a.shape[0]):
-        p_now[c] = p_a[c] + eps_t * (p_b[c] - p_a[c])
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F1, J,
-            False, chain)
-    _rest_strains(p_a, tubes_i, tubes_f, secf, rest)
-    _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F0, J,
-            True, chain)
+    _initial_tangent(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b, q_a,
+                     q_b, plate_a, plate_b, target_a, target_b, discs, eps, rest, p_now, q, plate,
+                     target, slope)
     total += 1
-    for k in range(n):
-        F1[k] = -(F1[k] - F0[k]) / eps_t
-    if np.all(np.isfinite(J)) and np.all(np.isfinite(F1)):
-        slope[:] = np.linalg.solve(J, F1)
-        if not np.all(np.isfinite(slope)):
-            slope[:] = 0.0
     while t < 1.0:
         t_new = min(1.0, t + dt)
-        for c in range(p_a.shape[0]):
-            p_now[c] = p_a[c] + t_new * (p_b[c] - p_a[c])
+        _set_level(t_new, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q,
+                   plate, target)
         _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+        move = 0.0
         for k in range(n):
-            guess[k] = accepted[k] + slope[k] * (t_new - t)
+            move += (slope[k] * (t_new - t) / weights[k]) ** 2
+        move = math.sqrt(move / n)
+        cap = predict_cap / move if move > predict_cap else 1.0
+        for k in range(n):
+            guess[k] = accepted[k] + cap * slope[k] * (t_new - t)
             Z[k] = guess[k]
         final = t_new >= 1.0
         ok, its, res, stable = _newton(Z, theta0, segs, secf, steps, sec_start, rest, q, plate,
@@ -369,8 +377,8 @@ def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b,
     if t < 1.0:
         for k in range(n):
             Z[k] = accepted[k]
-        for c in range(p_a.shape[0]):
-            p_now[c] = p_a[c] + t * (p_b[c] - p_a[c])
+        _set_level(t, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q, plate,
+                   target)
         _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
         return False, total, res, stable
     return ok, total, res, stable
@@ -385,3 +393,32 @@ def _record(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, out)
     for seg in range(segs.shape[0]):
         _start_state(Z, seg, theta0, z)
         _segment(z, seg, segs, secf, steps, sec_start, rest, q, plate, discs, end, work, True, out)
+
+@njit
+def _initial_tangent(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b, q_a,
+                     q_b, plate_a, plate_b, target_a, target_b, discs, eps, rest, p_now, q, plate,
+                     target, slope):
+    """dZ/dt = −J⁻¹ ∂F/∂t at the start state (an equilibrium), ∂F/∂t by a forward
+    difference, into ``slope``; zero where J or the result is not finite."""
+    n = Z.shape[0]
+    eps_t = 1e-4
+    F0 = np.empty(n)
+    F1 = np.empty(n)
+    J = np.empty((n, n))
+    chain = np.empty((6, 3))
+    _set_level(eps_t, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q, plate,
+               target)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F1, J,
+            False, chain)
+    _set_level(0.0, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q, plate,
+               target)
+    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F0, J,
+            True, chain)
+    for k in range(n):
+        F1[k] = -(F1[k] - F0[k]) / eps_t
+    if np.all(np.isfinite(J)) and np.all(np.isfinite(F1)):
+        slope[:] = np.linalg.solve(J, F1)
+        if not np.all(np.isfinite(slope)):
+            slope[:] = 0.0

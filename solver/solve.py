@@ -542,6 +542,26 @@ def _loaded_base_moment(arm, packed, scene, ctx, settings) -> tuple[float, int, 
 
 
 def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Planar dead-load solve: single shooting, or multiple shooting where that is
+    ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``)."""
+    fallbacks = settings.n_scan > 0 and model != "constant_curvature"
+    ctx = _context(arm, packed, scene, 2, settings)
+    methods = (_solve_single, _solve_multiple)
+    if fallbacks and _shooting_index(arm, ctx) > MULTIPLE_SHOOTING_INDEX:
+        methods = methods[::-1]
+    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings)
+    eq = methods[0](*args)
+    if fallbacks and not (eq.converged and eq.stable):
+        # Each method covers the other's failures: multiple shooting the ill-conditioned
+        # arms, single shooting (which has the fold scan) the buckled columns.
+        other = methods[1](*args)
+        if other.converged and other.stable:
+            return replace(other, iterations=other.iterations + eq.iterations)
+    return eq
+
+
+def _solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Planar dead-load solve by single shooting on m0 (:func:`solver._planar._follow`)."""
     ctx = _context(arm, packed, scene, 2, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     iterations = 0
@@ -802,17 +822,23 @@ def _contact_layout(arm, packed, scene):
         ell = (packed.sec_ei / stiffness) ** 0.25
         steps = np.minimum(np.maximum(packed.sec_steps, np.ceil(packed.sec_len / (0.5 * ell))),
                            1024).astype(np.int64)
-        row0 = np.concatenate([[0], np.cumsum(steps + 1)[:-1]])
-        segs = []
-        for i, n in enumerate(steps):
-            for first in range(0, n, 4):
-                count = min(4, n - first)
-                segs.append((i, first, count, int(first + count == n), row0[i]))
         layout = replace(packed, sec_steps=steps, n_rows=int((steps + 1).sum()),
                          section_ends=tuple(int(v) for v in np.cumsum(steps + 1) - 1))
-        sec_start = np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])
-        hit = arm._solver_cache[key] = (layout, np.array(segs, dtype=np.int64), sec_start)
+        hit = arm._solver_cache[key] = _segments(layout)
     return hit
+
+
+def _segments(layout):
+    """(layout, segment table, section start arc lengths): 4 RK4 steps per segment."""
+    steps = layout.sec_steps
+    row0 = np.concatenate([[0], np.cumsum(steps + 1)[:-1]])
+    segs = []
+    for i, n in enumerate(steps):
+        for first in range(0, n, 4):
+            count = min(4, n - first)
+            segs.append((i, first, count, int(first + count == n), row0[i]))
+    sec_start = np.concatenate([[0.0], np.cumsum(layout.sec_len)[:-1]])
+    return layout, np.array(segs, dtype=np.int64), sec_start
 
 
 def _free_of_contact(arm, layout, segs, p_inputs, p_channel, scene, free_scene, model, warm_start,
@@ -851,6 +877,111 @@ def _free_of_contact(arm, layout, segs, p_inputs, p_channel, scene, free_scene, 
                    section_ends=layout.section_ends)
 
 
+def _ms_terms(arm, layout, segs, scene, ctx, load_moments=False):
+    """Loads and norms of the multiple-shooting system: endplate weights (ns, 2), tip
+    target (n(L⁻), M_tip), state scales and the unknowns' and residuals' weights.
+
+    Moments are scaled by EI/L, or with ``load_moments`` by the larger of that and the load's
+    moment force·L: for long, heavy arms the loads' moments dwarf EI/L, and Newton steps
+    measured in EI/L are clipped to a crawl.
+    """
+    g = np.array([0.0, -scene.gravity])
+    plate = layout.endplate[:, None] * g[None, :]
+    target = np.append(ctx.n_end[-1], ctx.m_tip)  # n(L⁻) includes the last endplate
+    force = float(np.abs(ctx.n_end).max() + np.abs(ctx.q).max() * arm.length) + 1.0
+    moment = max(layout.moment_scale, force * arm.length) if load_moments else layout.moment_scale
+    state_w = np.array([arm.length, arm.length, 1.0, force, force, moment])
+    weights = np.concatenate([state_w[3:], np.tile(state_w, segs.shape[0] - 1)])
+    res_weights = np.concatenate([np.tile(state_w, segs.shape[0] - 1), state_w[3:]])
+    return plate, target, state_w, weights, res_weights
+
+
+def _shooting_index(arm, ctx) -> float:
+    """L·√(N/EI_min), N the largest internal force: single shooting amplifies an error in
+    the base moment by up to e^index along a rod in tension."""
+    n_max = float(np.max(np.hypot(ctx.n_end[:, 0], ctx.n_end[:, 1])
+                         + np.hypot(ctx.q[:, 0], ctx.q[:, 1]) * arm.length))
+    return arm.length * math.sqrt(n_max / min(s.EI for s in arm.sections))
+
+
+# Above this index single shooting fails on most arms (``softarm stress``, huge_arm and soft
+# classes: 95 % of solves converge below 20, 5 % above 30), so dead-load solves go straight
+# to multiple shooting.
+MULTIPLE_SHOOTING_INDEX = 20.0
+
+
+def _solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Planar dead-load solve by multiple shooting (the contact kernels, with no discs).
+
+    For arms whose single shooting is ill-conditioned (:func:`_shooting_index`), and as the
+    fallback of a failed single-shooting solve. Cold: from the straight, unloaded rod the
+    loads are ramped in at zero pressure, then the pressures; a warm start from a
+    multiple-shooting result in the same scene continues from its nodes.
+    """
+    layout, segs, sec_start = _ms_layout(arm, packed)
+    ctx = _context(arm, layout, scene, 2, settings)
+    p_target = p_channel if arm.n_channels else np.zeros(1)
+    plate, target, state_w, weights, res_weights = _ms_terms(arm, layout, segs, scene, ctx, True)
+    rest, p_now = np.empty((3, len(arm.sections))), np.empty(p_target.shape[0])
+    discs = np.empty((0, 4))
+    eps = 1e-7 * state_w
+    common = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, layout.tubes_i,
+              layout.tubes_f)
+    tail = (discs, eps, weights, res_weights, settings.tol, settings.max_iter, 0.5, settings.dt0,
+            settings.dt_min, rest, p_now)
+    iterations = 0
+    ok = True
+    if (warm_start is not None and warm_start.scene == scene
+            and warm_start.shooting_nodes.shape == weights.shape):
+        nodes = warm_start.shooting_nodes.copy()
+        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+    else:
+        p_start = np.zeros_like(p_target)
+        nodes = np.zeros(weights.shape)
+        rows = segs[1:, _contact.SEG_ROW0] + segs[1:, _contact.SEG_FIRST]
+        s_nodes = np.concatenate([np.linspace(0, n, n + 1) * h + s0 for n, h, s0 in zip(
+            layout.sec_steps, layout.sec_len / layout.sec_steps, sec_start)])[rows]
+        straight = nodes[3:].reshape(-1, 6)
+        straight[:, 0] = s_nodes * math.cos(scene.base_theta)
+        straight[:, 1] = s_nodes * math.sin(scene.base_theta)
+        straight[:, 2] = scene.base_theta
+        zero_q, zero_plate = np.zeros_like(ctx.q), np.zeros_like(plate)
+        # Loading a long arm from straight is far from linear (its linear response to its
+        # own weight is metres): predicted moves are capped at one Newton step limit.
+        ok, iterations, res, stable = _contact._follow(
+            nodes, *common, p_start, p_start, zero_q, ctx.q, zero_plate, plate, np.zeros(3),
+            target, *tail, 0.5)
+    if ok:
+        ok, its, res, stable = _contact._follow(nodes, *common, p_start, p_target, ctx.q, ctx.q,
+                                                plate, plate, target, target, *tail)
+        iterations += its
+    out = np.zeros((layout.n_rows, _contact.N_COLUMNS))
+    _contact._record(nodes, scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, rest,
+                     ctx.q, plate, discs, out)
+    C = _contact
+    common_out = dict(
+        tip=out[-1, [C.C_X, C.C_Y]].copy(), converged=bool(ok), stable=bool(stable),
+        iterations=int(iterations), residual=float(res), model=model, planar=True, scene=scene,
+        pressures=p_inputs, channel_pressures=p_channel, base_moment=np.array([nodes[2]]),
+        base_force=nodes[:2].copy(), shooting_nodes=nodes)
+    if not record:
+        return Equilibrium(**common_out)
+    return Equilibrium(
+        s=out[:, C.C_S].copy(), positions=out[:, [C.C_X, C.C_Y]].copy(),
+        angles=out[:, C.C_TH].copy(), shear_stretch=out[:, [C.C_V1, C.C_V3]].copy(),
+        curvature=out[:, C.C_U].copy(), internal_force=out[:, [C.C_NX, C.C_NY]].copy(),
+        internal_moment=out[:, C.C_M].copy(), section_ends=layout.section_ends, **common_out)
+
+
+def _ms_layout(arm, packed):
+    """Multiple-shooting segments at the settings' resolution (cached per design)."""
+    key = ("multiple", id(packed))
+    hit = arm._solver_cache.get(key)
+    if hit is None:
+        hit = arm._solver_cache[key] = _segments(packed)
+    return hit
+
+
 def _nodes_from_record(out, segs, columns):
     """Multiple-shooting unknowns from a recorded backbone: (n0, m0), then node states."""
     x, y, th, nx, ny, m = columns
@@ -883,13 +1014,7 @@ def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
             return free
     ctx = _context(arm, layout, free_scene, 2, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
-    g = np.array([0.0, -scene.gravity])
-    plate = layout.endplate[:, None] * g[None, :]
-    target = np.append(ctx.n_end[-1], ctx.m_tip)  # n(L⁻) includes the last endplate
-    force = float(np.abs(ctx.n_end).max() + np.abs(ctx.q).max() * arm.length) + 1.0
-    state_w = np.array([arm.length, arm.length, 1.0, force, force, layout.moment_scale])
-    weights = np.concatenate([state_w[3:], np.tile(state_w, segs.shape[0] - 1)])
-    res_weights = np.concatenate([np.tile(state_w, segs.shape[0] - 1), state_w[3:]])
+    plate, target, state_w, weights, res_weights = _ms_terms(arm, layout, segs, scene, ctx)
     iterations = 0
     if warm_start is not None and warm_start.shooting_nodes.shape == weights.shape:
         nodes = warm_start.shooting_nodes.copy()
@@ -917,8 +1042,9 @@ def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
     eps = 1e-7 * state_w
     ok, its, res, stable = _contact._follow(
         nodes, scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, layout.tubes_i,
-        layout.tubes_f, p_start, p_target, ctx.q, plate, target, discs, eps, weights, res_weights,
-        settings.tol, settings.max_iter, 0.5, settings.dt0, settings.dt_min, rest, p_now)
+        layout.tubes_f, p_start, p_target, ctx.q, ctx.q, plate, plate, target, target, discs, eps,
+        weights, res_weights, settings.tol, settings.max_iter, 0.5, settings.dt0, settings.dt_min,
+        rest, p_now)
     # Contact needs the shape for the wrap measures, so the backbone is always integrated;
     # ``record`` only decides whether it is returned.
     out = np.zeros((layout.n_rows, _contact.N_COLUMNS))
