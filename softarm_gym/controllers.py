@@ -52,7 +52,7 @@ def observation_slices(env) -> dict[str, slice]:
     Args:
         env: a (possibly wrapped) soft-arm environment.
     """
-    return dict(env.unwrapped._slices)
+    return env.unwrapped.observation_slices
 
 
 class JacobianController:

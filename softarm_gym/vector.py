@@ -130,7 +130,13 @@ class BatchedReachVectorEnv(VectorEnv):
         self._failures = np.zeros(n, dtype=np.int64)
         self._state = None
         self._s_query = np.linspace(0.0, self.arm.length, t.n_backbone)
-        self._slices = {name: np.array([sl.start], dtype=np.int64) for name, sl in t._slices.items()}
+        self._slices = {name: np.array([sl.start], dtype=np.int64)
+                        for name, sl in t.observation_slices.items()}
+
+    @property
+    def observation_slices(self) -> dict[str, slice]:
+        """Where each block sits in one copy's flat observation (as the single env's)."""
+        return self._template.observation_slices
 
     # ------------------------------------------------------------------ helpers
 

@@ -378,6 +378,12 @@ class SoftArmEnv(gym.Env):
         return (f"{self.arm.name}  obs={self.observation_name}\n"
                 f"est. error {1000 * math.dist(self._shape.tip, self._eq.tip):.1f} mm")
 
+    @property
+    def observation_slices(self) -> dict[str, slice]:
+        """Where each block sits in a flat observation: name → slice, in flat order
+        (``tip``, ``section_ends``, ``backbone``, ``pressures``, ``goal``)."""
+        return dict(self._slices)
+
     def close(self):
         if self._window is not None:
             self._window.close()

@@ -85,4 +85,8 @@ def test_make_vec_vector_entry_point(env_id):
     assert envs.arm.name == gym.spec(env_id).kwargs["design"]
     obs, _ = envs.reset(seed=0)
     assert obs.shape == (3, *envs.single_observation_space.shape)
+    single = gym.make(env_id)
+    assert envs.observation_slices == single.unwrapped.observation_slices
+    np.testing.assert_allclose(obs[:, envs.observation_slices["goal"]][:, :2],
+                               envs.reset(seed=0)[1]["target"], rtol=1e-6)  # float32 obs
     envs.close()

@@ -15,6 +15,7 @@ def test_observation_slices_match_the_dict_layout():
     obs, _ = flat.reset(seed=2)
     blocks, _ = as_dict.reset(seed=2)
     slices = observation_slices(flat)
+    assert slices == flat.unwrapped.observation_slices
     assert list(slices) == list(blocks)
     for name, block in blocks.items():
         np.testing.assert_array_equal(obs[slices[name]], block)
