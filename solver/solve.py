@@ -469,6 +469,7 @@ class _SceneContext:
     params: np.ndarray
     has_load: bool
     base_force: np.ndarray
+    shooting_index: float
 
 
 def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
@@ -489,7 +490,8 @@ def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
         ctx = _SceneContext(n_end=n_end, q=q, loads=np.ascontiguousarray(np.hstack([n_end, q])),
                             m_tip=m_tip, tol=tol,
                             max_step=max_step, params=params, has_load=_has_load(arm, scene),
-                            base_force=n_end[0] + q[0] * packed.sec_len[0])
+                            base_force=n_end[0] + q[0] * packed.sec_len[0],
+                            shooting_index=_shooting_index(arm, n_end, q))
         ctx.base_force.flags.writeable = False  # shared by every Equilibrium of this scene
         if len(arm._solver_cache) > 256:  # many scenes (randomised payloads): keep it bounded
             arm._solver_cache.clear()
@@ -535,7 +537,8 @@ def _loaded_base_moment(arm, packed, scene, ctx, settings) -> tuple[float, int, 
         zeros = np.zeros(max(arm.n_channels, 1))
         unloaded = _SceneContext(n_end=ctx.n_end * 0, q=ctx.q * 0, loads=ctx.loads * 0,
                                  m_tip=0.0, tol=ctx.tol, max_step=ctx.max_step,
-                                 params=ctx.params, has_load=False, base_force=ctx.base_force * 0)
+                                 params=ctx.params, has_load=False, base_force=ctx.base_force * 0,
+                                 shooting_index=0.0)
         out, _, _ = _follow(packed, scene, zeros, zeros, unloaded, ctx, 0.0)
         hit = arm._solver_cache[key] = (float(out[0]), int(out[2]), bool(out[3]))
     return hit
@@ -547,7 +550,7 @@ def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
     fallbacks = settings.n_scan > 0 and model != "constant_curvature"
     ctx = _context(arm, packed, scene, 2, settings)
     methods = (_solve_single, _solve_multiple)
-    if fallbacks and _shooting_index(arm, ctx) > MULTIPLE_SHOOTING_INDEX:
+    if fallbacks and ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
         methods = methods[::-1]
     args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings)
     eq = methods[0](*args)
@@ -896,11 +899,11 @@ def _ms_terms(arm, layout, segs, scene, ctx, load_moments=False):
     return plate, target, state_w, weights, res_weights
 
 
-def _shooting_index(arm, ctx) -> float:
-    """L·√(N/EI_min), N the largest internal force: single shooting amplifies an error in
-    the base moment by up to e^index along a rod in tension."""
-    n_max = float(np.max(np.hypot(ctx.n_end[:, 0], ctx.n_end[:, 1])
-                         + np.hypot(ctx.q[:, 0], ctx.q[:, 1]) * arm.length))
+def _shooting_index(arm, n_end, q) -> float:
+    """L·√(N/EI_min), N the largest internal force (section-end forces ``n_end`` and
+    distributed loads ``q``, (ns, 2|3)): single shooting amplifies an error in the base
+    moment by up to e^index along a rod in tension."""
+    n_max = float(np.max(np.linalg.norm(n_end, axis=1) + np.linalg.norm(q, axis=1) * arm.length))
     return arm.length * math.sqrt(n_max / min(s.EI for s in arm.sections))
 
 

@@ -51,7 +51,7 @@ def test_long_heavy_arm_agrees_with_solve_bvp(factor, payload):
     psi = [20, 0, 0, 30, 10, 0]
     scene = solver.Scene(base_angle_deg=120, payload_kg=payload)
     packed = S._pack(arm, "full", solver.Settings())
-    assert S._shooting_index(arm, S._context(arm, packed, scene, 2, solver.Settings())) > 100
+    assert S._context(arm, packed, scene, 2, solver.Settings()).shooting_index > 100
     errors = []
     for steps in (32, 64):
         eq = solver.solve(arm, np.array(psi) * PSI, scene,
