@@ -30,6 +30,7 @@ from solver._planar import (
     JUMP,
     MAX_ITER,
     MAX_STEP,
+    N_SCAN,
     TOL,
     _big_change,
     _rest_strains,
@@ -409,7 +410,7 @@ def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, lo
         if dt > dt_min:
             dt *= 0.5
             continue
-        if snaps >= 8:
+        if snaps >= 8 or params[N_SCAN] == 0:  # no snapping without the fallbacks
             break
         # Stability is lost between t and t_new. At a bifurcation (an arm curled in a
         # vertical plane buckling sideways) the new stable branch leaves along the critical
