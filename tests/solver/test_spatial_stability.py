@@ -134,3 +134,36 @@ def test_cramer_solve_matches_lapack_and_flags_singular():
     singular = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]])
     assert _spatial._cramer3(singular.T.ravel().copy(), np.ones(3), x) == 0.0
     assert not np.isfinite(x).any()
+
+
+def test_octarm_lifting_its_base_section_buckles_sideways_before_it_snaps_over():
+    """Horizontal OctArm V, pressure on one side of the proximal section: the planar solver
+    snaps over the top at ~90 psi (test_paths.py); in 3D the curled arm loses stability
+    sideways first and leaves its plane, stable, and comes back to it on the way down."""
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90)
+    settings = solver.Settings(shortcuts=False)
+    levels = np.linspace(0, 100, 21)
+    up, eq = [], None
+    for level in levels:
+        p = np.zeros(arm.n_inputs())
+        p[1] = level * solver.PSI
+        eq = solver.solve(arm, solver.channel_pressures(arm, p, True), scene, planar=False,
+                          warm_start=eq, settings=settings)
+        assert eq.converged and eq.stable
+        up.append(eq)
+    out_of_plane = [abs(e.tip[2]) > 0.05 for e in up]
+    first = out_of_plane.index(True)
+    assert 30 <= levels[first] <= 60 and up[first].snapped
+    assert not any(out_of_plane[:first])
+    planar = [solver.solve(arm, np.eye(arm.n_inputs())[1] * lv * solver.PSI, scene)
+              for lv in levels[:first]]
+    for e2, e3 in zip(planar, up[:first]):  # in the plane, the two solvers agree
+        np.testing.assert_allclose(e3.tip, [*e2.tip, 0.0], atol=1e-6)
+    for level in levels[::-1]:
+        p = np.zeros(arm.n_inputs())
+        p[1] = level * solver.PSI
+        eq = solver.solve(arm, solver.channel_pressures(arm, p, True), scene, planar=False,
+                          warm_start=eq, settings=settings)
+        assert eq.converged and eq.stable
+    np.testing.assert_allclose(eq.tip, up[0].tip, atol=1e-6)  # back in the plane at rest
