@@ -517,6 +517,8 @@ def _stability(secf, steps, c_j, rest, loads, work):
         y[d] = 0.0
     for d in range(3):
         y[10 + 4 * d] = 1.0  # δφ(L) = identity columns, δm(L) = 0
+    # The RK4 step is written out as in _integrate: a shared step function (even with
+    # numba's inline="always") made warm spatial solves 11 % slower.
     for i in range(secf.shape[1] - 1, -1, -1):
         length = secf[0, i]
         nst = steps[i]

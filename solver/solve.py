@@ -958,22 +958,35 @@ def _solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, 
         ok, its, res, stable = _contact._follow(nodes, *common, p_start, p_target, ctx.q, ctx.q,
                                                 plate, plate, target, target, *tail)
         iterations += its
-    out = np.zeros((layout.n_rows, _contact.N_COLUMNS))
-    _contact._record(nodes, scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, rest,
-                     ctx.q, plate, discs, out)
+    return _shooting_result(nodes, scene, segs, layout, sec_start, rest, ctx.q, plate, discs,
+                            record, False, converged=bool(ok), stable=bool(stable),
+                            iterations=int(iterations), residual=float(res), model=model,
+                            pressures=p_inputs, channel_pressures=p_channel)
+
+
+def _shooting_result(nodes, scene, segs, layout, sec_start, rest, q, plate, discs, record,
+                     contact, **fields):
+    """The Equilibrium of a multiple-shooting state ``nodes``: the backbone is integrated
+    from the nodes (contact needs it for the wrap measures even when ``record`` is False;
+    ``record`` decides whether it is returned), with the contact fields if ``contact``."""
     C = _contact
-    common_out = dict(
-        tip=out[-1, [C.C_X, C.C_Y]].copy(), converged=bool(ok), stable=bool(stable),
-        iterations=int(iterations), residual=float(res), model=model, planar=True, scene=scene,
-        pressures=p_inputs, channel_pressures=p_channel, base_moment=np.array([nodes[2]]),
-        base_force=nodes[:2].copy(), shooting_nodes=nodes)
+    out = np.zeros((layout.n_rows, C.N_COLUMNS))
+    C._record(nodes, scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, rest, q,
+              plate, discs, out)
+    common = dict(tip=out[-1, [C.C_X, C.C_Y]].copy(), planar=True, scene=scene,
+                  base_moment=np.array([nodes[2]]), base_force=nodes[:2].copy(),
+                  shooting_nodes=nodes, in_contact=bool(contact and out[:, C.C_PEN].max() > 0.0),
+                  **fields)
     if not record:
-        return Equilibrium(**common_out)
+        return Equilibrium(**common)
+    extra = dict(contact_force=out[:, [C.C_FX, C.C_FY]].copy(),
+                 penetration=out[:, C.C_PEN].copy()) if contact else {}
     return Equilibrium(
         s=out[:, C.C_S].copy(), positions=out[:, [C.C_X, C.C_Y]].copy(),
         angles=out[:, C.C_TH].copy(), shear_stretch=out[:, [C.C_V1, C.C_V3]].copy(),
         curvature=out[:, C.C_U].copy(), internal_force=out[:, [C.C_NX, C.C_NY]].copy(),
-        internal_moment=out[:, C.C_M].copy(), section_ends=layout.section_ends, **common_out)
+        internal_moment=out[:, C.C_M].copy(), section_ends=layout.section_ends, **extra,
+        **common)
 
 
 def _ms_layout(arm, packed):
@@ -1048,24 +1061,7 @@ def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
         layout.tubes_f, p_start, p_target, ctx.q, ctx.q, plate, plate, target, target, discs, eps,
         weights, res_weights, settings.tol, settings.max_iter, 0.5, settings.dt0, settings.dt_min,
         rest, p_now)
-    # Contact needs the shape for the wrap measures, so the backbone is always integrated;
-    # ``record`` only decides whether it is returned.
-    out = np.zeros((layout.n_rows, _contact.N_COLUMNS))
-    _contact._record(nodes, scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, rest,
-                     ctx.q, plate, discs, out)
-    C = _contact
-    common_out = dict(
-        tip=out[-1, [C.C_X, C.C_Y]].copy(), converged=bool(ok), stable=bool(stable),
-        iterations=int(iterations + its), residual=float(res), model=model, planar=True,
-        in_contact=bool(out[:, C.C_PEN].max() > 0.0),
-        scene=scene, pressures=p_inputs, channel_pressures=p_channel,
-        base_moment=np.array([nodes[2]]), base_force=nodes[:2].copy(), shooting_nodes=nodes)
-    if not record:
-        return Equilibrium(**common_out)
-    theta = out[:, C.C_TH]
-    return Equilibrium(
-        s=out[:, C.C_S].copy(), positions=out[:, [C.C_X, C.C_Y]].copy(), angles=theta.copy(),
-        shear_stretch=out[:, [C.C_V1, C.C_V3]].copy(), curvature=out[:, C.C_U].copy(),
-        internal_force=out[:, [C.C_NX, C.C_NY]].copy(), internal_moment=out[:, C.C_M].copy(),
-        contact_force=out[:, [C.C_FX, C.C_FY]].copy(), penetration=out[:, C.C_PEN].copy(),
-        section_ends=layout.section_ends, **common_out)
+    return _shooting_result(nodes, scene, segs, layout, sec_start, rest, ctx.q, plate, discs,
+                            record, True, converged=bool(ok), stable=bool(stable),
+                            iterations=int(iterations + its), residual=float(res), model=model,
+                            pressures=p_inputs, channel_pressures=p_channel)
