@@ -501,7 +501,9 @@ def _stability(secf, steps, c_j, rest, loads, work):
     determinant — so the real eigenvalues are tracked node by node (a real eigenvalue
     that is negative at a node has crossed zero since s = L). A complex pair reaching the
     negative real axis without crossing zero (a strongly twisted rod) would be a false
-    alarm; it is conservative.
+    alarm; it is conservative. With a dead tip *moment* in 3D (``Scene.tip_moment``) the
+    sub-rods are not conservative either, and the test is the natural extension rather
+    than a theorem (as for contact in :mod:`solver._contact`).
 
     Args:
         secf, steps, c_j, rest, loads: as for :func:`_integrate`.
