@@ -783,11 +783,9 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
                         record, pos, rot, mom, work)
     y = work[0]
     res = float(np.linalg.norm(y[7:10] - m_tip))
-    tip = y[0:3].copy()
-    stable = _spatial._stability(packed.secf, packed.sec_steps, packed.c_j, rest, loads_now,
-                                 work)
-    common_out = dict(tip=tip, converged=bool(ok and res <= 10 * ctx.tol),
-                      stable=bool(stab and stable), iterations=int(iterations), residual=res,
+    # ``stab`` is _stability of the returned state, from the Newton pass that converged on it.
+    common_out = dict(tip=y[0:3].copy(), converged=bool(ok and res <= 10 * ctx.tol),
+                      stable=bool(stab), iterations=int(iterations), residual=res,
                       snapped=bool(snapped or snap_load), model=model, planar=False,
                       scene=scene, pressures=p_inputs, channel_pressures=p_channel, base_moment=m0.copy(),
                       base_force=ctx.base_force)
@@ -862,12 +860,8 @@ def _free_of_contact(arm, layout, segs, p_inputs, p_channel, scene, free_scene, 
     half_step = 0.5 * np.repeat(layout.sec_len / layout.sec_steps, layout.sec_steps + 1)
     if not np.all(gap.min(axis=1) > half_step):
         return None
-    P = _planar
-    out = np.empty((eq.positions.shape[0], P.N_COLUMNS))
-    out[:, P.X:P.Y + 1] = eq.positions
-    out[:, P.THETA], out[:, P.M] = eq.angles, eq.internal_moment
-    out[:, P.NX:P.NY + 1] = eq.internal_force
-    nodes = _nodes_from_record(out, segs, (P.X, P.Y, P.THETA, P.NX, P.NY, P.M))
+    nodes = _nodes_from_states(np.column_stack([eq.positions, eq.angles, eq.internal_force,
+                                                eq.internal_moment]), segs)
     if not record:
         return Equilibrium(tip=eq.tip, converged=True, stable=True, iterations=eq.iterations,
                            residual=eq.residual, snapped=eq.snapped, model=model, planar=True,
@@ -998,14 +992,11 @@ def _ms_layout(arm, packed):
     return hit
 
 
-def _nodes_from_record(out, segs, columns):
-    """Multiple-shooting unknowns from a recorded backbone: (n0, m0), then node states."""
-    x, y, th, nx, ny, m = columns
+def _nodes_from_states(states, segs):
+    """Multiple-shooting unknowns from backbone samples ``states`` (N, 6) = (x, y, θ, n_x,
+    n_y, m) per sample: (n0, m0), then the state at every segment start."""
     rows = segs[:, _contact.SEG_ROW0] + segs[:, _contact.SEG_FIRST]
-    first = out[rows[0]]
-    head = [first[nx], first[ny], first[m]]
-    states = out[rows[1:]][:, [x, y, th, nx, ny, m]]
-    return np.concatenate([head, states.ravel()])
+    return np.concatenate([states[rows[0], [3, 4, 5]], states[rows[1:]].ravel()])
 
 
 def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
@@ -1051,8 +1042,8 @@ def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
         free = np.empty((layout.n_rows, _planar.N_COLUMNS))
         _planar._integrate(m0, scene.base_theta, layout.secf, layout.sec_steps, np.vstack(rest),
                            ctx.loads, True, free)
-        nodes = _nodes_from_record(free, segs, (_planar.X, _planar.Y, _planar.THETA, _planar.NX,
-                                                _planar.NY, _planar.M))
+        P = _planar
+        nodes = _nodes_from_states(free[:, [P.X, P.Y, P.THETA, P.NX, P.NY, P.M]], segs)
     rest, p_now = np.empty((3, len(arm.sections))), np.empty(p_target.shape[0])
     discs = scene.discs_array()
     eps = 1e-7 * state_w
