@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from solver._jit import njit
-from solver._planar import _rest_strains
+from solver._rod import _rest_strains
 
 # Columns of recorded samples: s, x, y, θ, n_x, n_y, m, f_x, f_y, penetration, v1, v3, u
 C_S, C_X, C_Y, C_TH, C_NX, C_NY, C_M, C_FX, C_FY, C_PEN, C_V1, C_V3, C_U = range(13)

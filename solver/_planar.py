@@ -30,52 +30,33 @@ import math
 import numpy as np
 
 from solver._jit import njit, prange
-from solver.actuator import _stretch
+from solver._rod import (
+    CA,
+    CG,
+    CI,
+    DT0,
+    DT_MIN,
+    EA,
+    EI,
+    JUMP,
+    LEN,
+    M_BOUND,
+    MAX_ITER,
+    MAX_STEP,
+    N_PARAMS,
+    N_SCAN,
+    TOL,
+    _big_change,
+    _rest_strains,
+)
+from solver._spatial import _planar_state_stable
 
 # Columns of the recorded samples: s, x, y, θ, m, internal force n (world x, y), strains v1,
 # v3 and curvature u. Adjacent pairs are the result's (N, 2) fields as slices.
 S, X, Y, THETA, M, NX, NY, V1, V3, U = range(10)
 N_COLUMNS = 10
-# Rows of the section array ``secf`` (6, ns): length, 1/EA, 1/GA (0: unshearable), 1/EI, EA, EI.
-LEN, CA, CG, CI, EA, EI = range(6)
 # Columns of the loads array (ns, 4): internal force just proximal of each section end
 # (n_end x, y; N) and distributed load per reference length (q x, y; N/m).
-# Entries of the numeric parameter array ``params``.
-TOL, MAX_STEP, M_BOUND, DT0, DT_MIN, MAX_ITER, N_SCAN, JUMP = range(8)
-N_PARAMS = 8
-
-
-@njit
-def _rest_strains(p_channel, tubes_i, tubes_f, secf, rest):
-    """Rest curvature and stretch of every section from channel pressures (DESIGN §2).
-
-    Each tube k carries F_k = E·At·(λ_k − 1) (Eq. 2.11) at offset (a_k, b_k) along (d1, d2)
-    in every section it spans, giving v3* = 1 + ΣF/EA, u1* = ΣF·b/EI, u2* = −ΣF·a/EI: the
-    geometric form of Eqs. (2.47)–(2.53) and (2.62)–(2.64).
-
-    Args:
-        p_channel: (n_channels,) pressures (Pa).
-        tubes_i: (n_tubes, 3) int: channel, first section, last section.
-        tubes_f: (n_tubes, 6): E·At (N), E (Pa), At/A, cos α, offset a along d1, b along d2 (m).
-        secf: (6, ns) section array (rows LEN, CA, CG, CI, EA, EI).
-        rest: (3, ns) output rows u1* (rad/m), u2* (rad/m), v3*.
-    """
-    ns = secf.shape[1]
-    for i in range(ns):
-        rest[0, i] = 0.0
-        rest[1, i] = 0.0
-        rest[2, i] = 0.0
-    for k in range(tubes_i.shape[0]):
-        lam = _stretch(p_channel[tubes_i[k, 0]], tubes_f[k, 1], tubes_f[k, 2], tubes_f[k, 3])
-        f = tubes_f[k, 0] * (lam - 1.0)
-        for i in range(tubes_i[k, 1], tubes_i[k, 2] + 1):
-            rest[2, i] += f
-            rest[0, i] += f * tubes_f[k, 5]
-            rest[1, i] -= f * tubes_f[k, 4]
-    for i in range(ns):
-        rest[2, i] = 1.0 + rest[2, i] / secf[EA, i]
-        rest[0, i] /= secf[EI, i]
-        rest[1, i] /= secf[EI, i]
 
 
 @njit
@@ -227,6 +208,7 @@ def _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now):
         for d in range(4):
             loads_now[i, d] = loads_a[i, d] + t * (loads_b[i, d] - loads_a[i, d])
     return mtip_a + t * (mtip_b - mtip_a)
+from solver._spatial import _planar_state_stable
 
 
 @njit
@@ -310,25 +292,8 @@ def _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
 
 
 @njit
-def _big_change(p_a, p_b, loads_a, loads_b):
-    """A ramp worth a tangent predictor: new loads, or a pressure moving by > 5 % of the
-    largest. Small warm steps (env steps) are predicted well enough by the start state."""
-    scale = 0.0
-    for c in range(p_a.shape[0]):
-        scale = max(scale, abs(p_a[c]), abs(p_b[c]))
-    for c in range(p_a.shape[0]):
-        if abs(p_b[c] - p_a[c]) > 0.05 * scale:
-            return True
-    for i in range(loads_a.shape[0]):
-        for d in range(loads_a.shape[1]):
-            if loads_a[i, d] != loads_b[i, d]:
-                return True
-    return False
-
-
-@njit
 def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-            mtip_b, params, rest, p_now, loads_now, out, record=False):
+            mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
 
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
@@ -342,6 +307,13 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
     scratch for :func:`_integrate`. With ``record`` (``out`` then has room for every sample)
     the Newton passes at t = 1 record into ``out``: a converged return leaves the returned
     state's backbone there, with no extra pass.
+
+    ``c_j_3d`` (ns,) 1/GJ, or empty: when given, the path is followed for a spatial solve
+    of an in-plane scene, and every accepted state must also pass the 3D stability test
+    (:func:`solver._spatial._planar_state_stable`). The first that does not — and any fold
+    or snap, where the 3D path may leave the plane — ends the path unconverged, so that the
+    caller hands the solve to the spatial kernels: the planar shortcut never changes the
+    answer.
 
     Returns:
         (m0, converged, iterations, snapped, stable, |residual|, tip x, y, θ).
@@ -359,6 +331,7 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
     ok = True
     res = 0.0
     x = y = th = math.nan
+    guard = c_j_3d.shape[0] > 0
     # Tangent predictor for the first step (the later steps use the secant through accepted
     # points). Small warm steps (env steps) start from the previous state directly, so the
     # two extra passes are spent only on large changes (cold ramps, big jumps, new loads).
@@ -385,6 +358,9 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
         # just predicted (``JUMP`` is an absolute floor, a fraction of EI/L). A larger jump
         # means Newton left the branch: retry with a smaller step.
         jump = params[JUMP] + 0.5 * abs(guess - m0)
+        if guard and ok and stab and abs(root - guess) <= jump and not _planar_state_stable(
+                x, y, th, m_tip, secf, steps, c_j_3d, rest, loads_now):
+            return root, False, total, snapped, False, res, x, y, th
         if ok and stab and (abs(root - guess) <= jump or dt <= dt_min):
             if abs(root - guess) > jump:
                 # Converged far from the prediction at the smallest step: the branch ended
@@ -399,6 +375,8 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
         if dt > dt_min:
             dt *= 0.5
             continue
+        if guard:  # a fold or bifurcation: the 3D path may leave the plane here
+            return root, False, total, snapped, False, res, x, y, th
         if params[N_SCAN] == 0:
             if ok:
                 return root, final, total, snapped, bool(stab), res, x, y, th
@@ -449,6 +427,9 @@ def _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
     return m0, False, total + 1, snapped, bmin > 0.0, res, x, y, th
 
 
+_NO_GUARD = np.empty(0)
+
+
 @njit(parallel=True)
 def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, loads, mtip,
            params, record, tips, ok, stable_out, m0_out, shapes):
@@ -472,7 +453,7 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
         # A converged row's backbone is recorded by its final Newton pass.
         root, conv, its, snapped, stab, res, x, y, th = _follow(
             m0_start[k], theta0, secf, steps, tubes_i, tubes_f, p_start[k], p_targets[k], loads,
-            loads, mtip, mtip, params, rest, p_now, loads_now, shapes[k], record)
+            loads, mtip, mtip, params, rest, p_now, loads_now, shapes[k], record, _NO_GUARD)
         conv = conv and math.isfinite(x) and math.isfinite(y)
         if not conv:
             # Keep the last good state: its rest strains, shape and tip.

@@ -24,17 +24,7 @@ import math
 import numpy as np
 
 from solver._jit import njit
-from solver._planar import (
-    DT0,
-    DT_MIN,
-    JUMP,
-    MAX_ITER,
-    MAX_STEP,
-    N_SCAN,
-    TOL,
-    _big_change,
-    _rest_strains,
-)
+from solver._rod import DT0, DT_MIN, JUMP, MAX_ITER, MAX_STEP, N_SCAN, TOL, _big_change, _rest_strains
 
 
 def base_rotation(theta0: float) -> np.ndarray:
@@ -555,6 +545,41 @@ def _stability(secf, steps, c_j, rest, loads, work):
 
 
 @njit
+def _planar_state_stable(x, y, theta, m_z, secf, steps, c_j, rest, loads_planar):
+    """The 3D test (:func:`_stability`) of a planar equilibrium, from its tip state.
+
+    A planar equilibrium can pass the planar conjugate-point test and still buckle out of
+    its plane (an arm curled in a vertical plane twisting sideways). The tip state (x, y,
+    θ, m_z) is embedded in 3D (z = 0, d2 = +z, m along z) and integrated back to the base
+    with the out-of-plane Jacobi fields.
+
+    Args:
+        x, y, theta, m_z: tip position (m), tip orientation θ(L) (rad), tip moment (N m).
+        secf, steps, c_j, rest: as for :func:`_integrate`.
+        loads_planar: (ns, 4) planar loads (n_end x, y; q x, y) of :mod:`solver._planar`.
+    """
+    work = np.empty((6, NSTATE))
+    loads = np.zeros((loads_planar.shape[0], 6))
+    for i in range(loads_planar.shape[0]):
+        loads[i, 0] = loads_planar[i, 0]
+        loads[i, 1] = loads_planar[i, 1]
+        loads[i, 3] = loads_planar[i, 2]
+        loads[i, 4] = loads_planar[i, 3]
+    c = math.cos(theta)
+    sn = math.sin(theta)
+    rot = np.array([[-sn, 0.0, c], [c, 0.0, sn], [0.0, 1.0, 0.0]])
+    tip = work[0]
+    tip[0] = x
+    tip[1] = y
+    tip[2] = 0.0
+    _rot_to_quat(rot, tip[3:7])
+    tip[7] = 0.0
+    tip[8] = 0.0
+    tip[9] = m_z
+    return _stability(secf, steps, c_j, rest, loads, work)
+
+
+@njit
 def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b,
                    loads_a, loads_b, mtip_a, mtip_b, params, rest, p_now, loads_now, m_tip, work,
                    dummy):
@@ -565,7 +590,10 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
     from ``accepted`` displaced along ± that mode by growing amounts (0.03 … 3 × EI/L) and
     the first stable equilibrium found is taken — the buckled branch of a pitchfork, or
     the state the arm snaps to. The + direction is the one whose largest component is
-    positive, so the choice between mirror images is deterministic.
+    positive, so the search is deterministic. Where the x–y plane is a mirror plane of the
+    problem and the last stable state lies in it (a planar arm buckling sideways), the two
+    buckled branches are mirror images and the +z one is returned (documented in
+    ``docs/design.md``, "Which equilibrium").
 
     Returns (found, iterations); ``m0`` (3,) holds the state found.
     """
@@ -603,9 +631,31 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
                                            work, dummy)
             total += its
             if ok and stable:
+                if _mirror_symmetric(accepted, rest, loads_now, m_tip, scale):
+                    # A pitchfork out of the x–y plane: both mirror images are equilibria
+                    # (reflection z → −z maps m to (−m_x, −m_y, m_z)). Take the +z one.
+                    _integrate(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0],
+                               dummy[1], dummy[2], work)
+                    total += 1
+                    if work[0, 2] < 0.0:
+                        m0[0] = -m0[0]
+                        m0[1] = -m0[1]
                 return True, total
         amp *= 3.0
     return False, total
+
+
+@njit
+def _mirror_symmetric(m0, rest, loads, m_tip, scale):
+    """True when the x–y plane is a mirror plane of the problem and of the state ``m0``:
+    in-plane base moment, rest curvatures and loads (u1* = 0, no z loads, tip moment along z)."""
+    tiny = 1e-9 * scale
+    if abs(m0[0]) > tiny or abs(m0[1]) > tiny or abs(m_tip[0]) > tiny or abs(m_tip[1]) > tiny:
+        return False
+    for i in range(rest.shape[1]):
+        if rest[0, i] != 0.0 or loads[i, 2] != 0.0 or loads[i, 5] != 0.0:
+            return False
+    return True
 
 
 @njit

@@ -395,12 +395,15 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
     elif planar:
         eq = _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
                            settings)
-    elif settings.shortcuts and scene.is_planar and _in_plane(arm, packed, p_channel):
-        eq = _embed(_solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start,
-                                  record, settings))
     else:
-        eq = _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                            settings)
+        eq = None
+        if settings.shortcuts and scene.is_planar and _in_plane(arm, packed, p_channel) and (
+                warm_start is None or _in_plane_state(warm_start)):
+            eq = _in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start,
+                                    record, settings)
+        if eq is None:
+            eq = _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start,
+                                record, settings)
     if strict and not eq.converged:
         raise SolverError(f"no converged equilibrium (residual {eq.residual:.3g} N m after "
                           f"{eq.iterations} iterations)")
@@ -512,26 +515,35 @@ def _moment_bound(arm, packed, scene, n_end, q):
     return 1.05 * bound + packed.moment_scale * 1e-6
 
 
-def _follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None):
+def _follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None, guard_3d=False):
     """Run :func:`solver._planar._follow`; returns its tuple plus the scratch (rest, loads_now).
 
-    With ``out`` ((n_rows, N_COLUMNS)) a converged result's backbone is recorded into it.
+    With ``out`` ((n_rows, N_COLUMNS)) a converged result's backbone is recorded into it;
+    with ``guard_3d`` every accepted state must be stable in 3D too (the in-plane shortcut
+    of a spatial solve).
     """
     ns = packed.secf.shape[1]
     rest, p_now, loads_now = np.empty((3, ns)), np.empty(p_target.shape[0]), np.empty((ns, 4))
     result = _planar._follow(m0, scene.base_theta, packed.secf, packed.sec_steps, packed.tubes_i,
                              packed.tubes_f, p_start, p_target, start_ctx.loads, ctx.loads,
                              start_ctx.m_tip, ctx.m_tip, ctx.params, rest, p_now, loads_now,
-                             _DUMMY if out is None else out, out is not None)
+                             _DUMMY if out is None else out, out is not None,
+                             packed.c_j if guard_3d else _NO_GUARD)
     return result, rest, loads_now
 
 
 _DUMMY = np.empty((1, _planar.N_COLUMNS))
+_NO_GUARD = np.empty(0)
 
 
-def _loaded_base_moment(arm, packed, scene, ctx, settings) -> tuple[float, int, bool]:
-    """Stage 1 of a cold solve: the unactuated arm under its loads ramped from zero (cached)."""
-    key = ("loaded", id(ctx), settings)
+def _loaded_base_moment(arm, packed, scene, ctx, settings, guard_3d=False
+                        ) -> tuple[float, int, bool, bool]:
+    """Stage 1 of a cold solve: the unactuated arm under its loads ramped from zero (cached).
+
+    Returns (m0, iterations, snapped, converged); with ``guard_3d`` converged means also
+    stable in 3D all along (see :func:`_follow`).
+    """
+    key = ("loaded", id(ctx), settings, guard_3d)
     hit = arm._solver_cache.get(key)
     if hit is None:
         zeros = np.zeros(max(arm.n_channels, 1))
@@ -539,8 +551,8 @@ def _loaded_base_moment(arm, packed, scene, ctx, settings) -> tuple[float, int, 
                                  m_tip=0.0, tol=ctx.tol, max_step=ctx.max_step,
                                  params=ctx.params, has_load=False, base_force=ctx.base_force * 0,
                                  shooting_index=0.0)
-        out, _, _ = _follow(packed, scene, zeros, zeros, unloaded, ctx, 0.0)
-        hit = arm._solver_cache[key] = (float(out[0]), int(out[2]), bool(out[3]))
+        out, _, _ = _follow(packed, scene, zeros, zeros, unloaded, ctx, 0.0, guard_3d=guard_3d)
+        hit = arm._solver_cache[key] = (float(out[0]), int(out[2]), bool(out[3]), bool(out[1]))
     return hit
 
 
@@ -563,8 +575,13 @@ def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
     return eq
 
 
-def _solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
-    """Planar dead-load solve by single shooting on m0 (:func:`solver._planar._follow`)."""
+def _solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings,
+                  guard_3d=False):
+    """Planar dead-load solve by single shooting on m0 (:func:`solver._planar._follow`).
+
+    With ``guard_3d`` (the in-plane shortcut of a spatial solve) the result is unconverged
+    as soon as the path leaves the states that are stable in 3D, loading stage included.
+    """
     ctx = _context(arm, packed, scene, 2, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     iterations = 0
@@ -575,11 +592,15 @@ def _solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         m0 = float(warm_start.base_moment[-1])  # planar m_z, or z of a spatial m0
     else:
-        m0, iterations, snapped = _loaded_base_moment(arm, packed, scene, ctx, settings)
+        m0, iterations, snapped, loaded = _loaded_base_moment(arm, packed, scene, ctx, settings,
+                                                              guard_3d)
+        if guard_3d and not loaded:
+            return Equilibrium(tip=np.full(2, np.nan), converged=False, stable=False,
+                               iterations=iterations, residual=math.inf)
         start_ctx, p_start = ctx, np.zeros_like(p_target)
     out = np.empty((packed.n_rows, _planar.N_COLUMNS)) if record else None
     (m0, ok, its, snap, stab, res, x, y, th), rest, loads_now = _follow(
-        packed, scene, p_start, p_target, start_ctx, ctx, m0, out)
+        packed, scene, p_start, p_target, start_ctx, ctx, m0, out, guard_3d)
     common_out = dict(converged=bool(ok), stable=bool(stab), iterations=int(iterations + its),
                       residual=float(res), snapped=bool(snapped or snap), model=model,
                       planar=True, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
@@ -642,7 +663,7 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
             ok[k] = eq.converged
         return tips, ok
     ctx = _context(arm, packed, scene, 2, settings)
-    m0, _, _ = _loaded_base_moment(arm, packed, scene, ctx, settings)
+    m0 = _loaded_base_moment(arm, packed, scene, ctx, settings)[0]
     n = p.shape[0]
     tips, ok = np.empty((n, 2)), np.empty(n, dtype=bool)
     _planar._batch(np.full(n, m0), np.zeros_like(channel), scene.base_theta, packed.secf,
@@ -700,7 +721,7 @@ def step_batch(arm: ArmDesign, pressures, scene: Scene | None = None,
     ctx = _context(arm, packed, scene, 2, settings)
     n = p.shape[0]
     if state is None:
-        m0, _, _ = _loaded_base_moment(arm, packed, scene, ctx, settings)
+        m0 = _loaded_base_moment(arm, packed, scene, ctx, settings)[0]
         m_start, p_start, p_prev = np.full(n, m0), np.zeros_like(channel), np.zeros_like(p)
     else:
         if state.base_moment.shape != (n,):
@@ -715,6 +736,26 @@ def step_batch(arm: ArmDesign, pressures, scene: Scene | None = None,
     return BatchState(pressures=np.where(keep, p_prev, p), tips=tips, converged=ok, shapes=shapes,
                       section_ends=packed.section_ends, base_moment=m0_out,
                       channel_pressures=np.where(keep, p_start, channel))
+
+
+def _in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
+                       settings):
+    """A spatial solve of an in-plane scene by the planar kernel, or None where that could
+    differ from the spatial path: the planar path must stay stable in 3D at every accepted
+    state (an arm curled in a vertical plane may buckle sideways), pass no fold, and single
+    shooting must suit the arm; otherwise the spatial kernels solve it (None)."""
+    ctx = _context(arm, packed, scene, 2, settings)
+    if ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
+        return None
+    eq = _solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
+                       settings, guard_3d=True)
+    return _embed(eq) if eq.converged and eq.stable else None
+
+
+def _in_plane_state(eq: Equilibrium) -> bool:
+    """True when a spatial equilibrium lies in the x–y plane (base moment along z only)."""
+    return bool(eq.base_moment.size == 3 and eq.base_moment[0] == 0.0
+                and eq.base_moment[1] == 0.0)
 
 
 def _in_plane(arm, packed, p_channel) -> bool:
@@ -1035,7 +1076,7 @@ def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
             start_eq = None
             p_start = np.zeros_like(p_target)
         if start_eq is None:
-            m0, iterations, _ = _loaded_base_moment(arm, layout, free_scene, ctx, settings)
+            m0, iterations = _loaded_base_moment(arm, layout, free_scene, ctx, settings)[:2]
         else:
             m0 = float(start_eq.base_moment[-1])
         rest = rest_strains(arm, p_start, layout)

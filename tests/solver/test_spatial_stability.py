@@ -167,3 +167,77 @@ def test_octarm_lifting_its_base_section_buckles_sideways_before_it_snaps_over()
                           warm_start=eq, settings=settings)
         assert eq.converged and eq.stable
     np.testing.assert_allclose(eq.tip, up[0].tip, atol=1e-6)  # back in the plane at rest
+
+
+def test_in_plane_shortcut_returns_the_sideways_buckle():
+    """Horizontal OctArm V, channels II and III of section 1 at 60 psi, solved in 3D: the
+    planar state (0.729, −0.310, 0) passes the planar test but is unstable out of its
+    plane; the shortcut must not return it. An independent 3D reference found the buckled
+    state (0.313, −0.440, ±0.470)."""
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90)
+    p = np.array([0, 60, 60, 0, 0, 0, 0, 0, 0]) * solver.PSI
+    fast = solver.solve(arm, p, scene, planar=False)
+    general = solver.solve(arm, p, scene, planar=False, settings=solver.Settings(shortcuts=False))
+    for eq in (fast, general):
+        assert eq.converged and eq.stable and eq.snapped
+        np.testing.assert_allclose(eq.tip, [0.313, -0.440, 0.470], atol=1e-3)
+    np.testing.assert_array_equal(fast.tip, general.tip)
+
+
+def _in_plane_scene(arm, rng):
+    base = float(rng.choice([0.0, 45.0, 90.0, 135.0, 180.0]))
+    payload = float(rng.uniform(0, 0.3)) if rng.uniform() < 0.5 else 0.0
+    active = rng.uniform(size=arm.n_inputs(True)) < 0.6
+    p_in = rng.uniform(0, 1, arm.n_inputs(True)) * arm.max_pressure * active
+    return solver.Scene(base_angle_deg=base, payload_kg=payload), solver.channel_pressures(arm, p_in)
+
+
+@pytest.mark.parametrize("design", ["octarm_v", "octarm_vi", "ct"])
+def test_in_plane_shortcut_never_changes_the_answer(design):
+    """Random in-plane scenes (channels II = III) solved in 3D, cold and along warm paths:
+    the shortcut and the general path give the same tip (1e-6·L) and the same flags. The
+    sample holds sideways buckles (a third of the OctArm V scenes leave the plane)."""
+    arm = designs.get(design)
+    rng = np.random.default_rng(7)
+    general = solver.Settings(shortcuts=False)
+    left_plane = 0
+    for _ in range(15):
+        scene, p = _in_plane_scene(arm, rng)
+        a = solver.solve(arm, p, scene, planar=False)
+        b = solver.solve(arm, p, scene, planar=False, settings=general)
+        assert np.linalg.norm(a.tip - b.tip) <= 1e-6 * arm.length
+        assert (a.converged, a.stable, a.snapped) == (b.converged, b.stable, b.snapped)
+        left_plane += abs(b.tip[2]) > 1e-6
+    scene = solver.Scene(base_angle_deg=90.0)
+    a = b = None
+    for _ in range(10):
+        p = solver.channel_pressures(arm, rng.uniform(0, 1, arm.n_inputs(True)) * arm.max_pressure)
+        a = solver.solve(arm, p, scene, planar=False, warm_start=a)
+        b = solver.solve(arm, p, scene, planar=False, warm_start=b, settings=general)
+        assert np.linalg.norm(a.tip - b.tip) <= 1e-6 * arm.length
+        assert (a.converged, a.stable, a.snapped) == (b.converged, b.stable, b.snapped)
+        left_plane += abs(b.tip[2]) > 1e-6
+    if design == "octarm_v":
+        assert left_plane >= 3
+
+
+def test_sideways_buckle_takes_the_plus_z_mirror_image():
+    """Both mirror images of a sideways buckle are stable equilibria (reflection z → −z maps
+    the base moment to (−m_x, −m_y, m_z)); the solver documents and returns the +z one."""
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90)
+    p = np.array([0, 60, 60, 0, 0, 0, 0, 0, 0]) * solver.PSI
+    eq = solver.solve(arm, p, scene, planar=False)
+    assert eq.tip[2] > 0.1
+    settings = solver.Settings()
+    packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
+    rest = np.empty((3, len(arm.sections)))
+    _planar._rest_strains(p, packed.tubes_i, packed.tubes_f, packed.secf, rest)
+    mirror = eq.base_moment * np.array([-1.0, -1.0, 1.0])
+    ok, _, res, stable = _spatial._newton(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j,
+                                          rest, ctx.loads, ctx.m_tip, 1e-9, 2, 1.0, work, dummy)
+    assert ok and stable
+    _spatial._integrate(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, ctx.loads,
+                        False, *dummy, work)
+    np.testing.assert_allclose(work[0, :3], eq.tip * np.array([1, 1, -1]), atol=1e-9)
