@@ -10,15 +10,22 @@ state (x, y, θ, n_x, n_y, m) is integrated. Section i carries, from n' + f = 0 
 A stiff penalty makes this stiff: in contact, deflections decay and grow over the length
 ℓ = (EI/k)^¼ (3 cm for OctArm-like sections at k = 1e5 N/m²), so single shooting across a
 deep wrap amplifies errors by e^(contact length/ℓ) and fails. We use multiple shooting: the
-arm is cut into segments of a few RK4 steps (each RK4 step h ≤ ℓ/2, chosen by the wrapper),
+arm is cut into segments of a few RK4 steps (chosen by the wrapper, see below),
 the state at every segment start is an unknown, and Newton solves continuity between
 segments plus the free-tip conditions n(L) = F_tip + W_plate, m(L) = M_tip. Endplate weights
-jump n at the junctions. The segment maps' Jacobians come from forward differences.
+jump n at the junctions. The segment maps' Jacobians come from forward differences, and the
+banded Newton system is solved in O(N) (:func:`_band_solve`).
 
-Stability: chaining the segment Jacobians gives ∂(state)(s)/∂(n0, m0) at every segment end;
-det of its (n, m) rows staying positive on (0, L] is the conjugate-point test of
-:mod:`solver._planar` (for a contact-free rod it is exactly ∂m(s)/∂m0 > 0), which we use as
-the stability test with contact (the natural extension, not a theorem).
+Resolution: the penalty's kink where the backbone meets a disc costs RK4 its order, and a
+contact patch shorter than a step is seen by one or two stages only; so in contact the
+wrapper refines the steps to h ≤ ℓ/10 (tip error ≤ 3e-5·L against a 512-step solve on the
+tests' scenes). Splitting each step exactly at the crossings was tried: it is more accurate
+per step, but the split points move with the state, the map gets kinks where one crosses a
+step boundary, and Newton stalls on them along deep wraps.
+
+Stability: the Jacobi fields of the free tip are carried back to the base through the
+segment maps' Jacobians (:func:`_stability`): the conjugate-point test of the spatial
+kernels, in the plane. It is exact for conservative loads, penalty contact included.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ import math
 import numpy as np
 
 from solver._jit import njit
+from solver._obstacles import _contact_force, _tunnels
 from solver._rod import _rest_strains
 
 # Columns of recorded samples: s, x, y, θ, n_x, n_y, m, f_x, f_y, penetration, v1, v3, u
@@ -36,29 +44,14 @@ N_COLUMNS = 13
 # Columns of the segment table (M, 5): section, first local step, steps, ends the section,
 # first recorded row of the section.
 SEG_SECTION, SEG_FIRST, SEG_STEPS, SEG_END, SEG_ROW0 = range(5)
-
-
-@njit
-def _contact_force(x, y, discs):
-    """Penalty force per length (fx, fy) and deepest penetration at backbone point (x, y).
-
-    ``discs`` is (n, 4): centre x, centre y, radius, stiffness (N/m²).
-    """
-    fx = 0.0
-    fy = 0.0
-    deepest = 0.0
-    for d in range(discs.shape[0]):
-        dx = x - discs[d, 0]
-        dy = y - discs[d, 1]
-        dist = math.sqrt(dx * dx + dy * dy)
-        pen = discs[d, 2] - dist
-        if pen > 0.0 and dist > 0.0:
-            scale = discs[d, 3] * pen / dist
-            fx += scale * dx
-            fy += scale * dy
-            if pen > deepest:
-                deepest = pen
-    return fx, fy, deepest
+# Bandwidth of the shooting Jacobian (sub- and super-diagonals: a row of segment k's
+# continuity couples its 6-state start to the next segment's), and its band storage: the
+# rows of LAPACK's dgbtrf layout, with room for the fill-in of partial pivoting.
+BAND = 2 * 8
+BAND_ROWS = 3 * 8 + 1
+# A sample may sink this much deeper (in m) between two accepted states than at either: the
+# chord of a slide round the disc's surface (sagitta c²/8R) without counting as a tunnel.
+TUNNEL_SLACK = 2e-3
 
 
 @njit
@@ -101,14 +94,43 @@ def _write_row(st, s, out, row, ca, cg, ci, ur, vr, discs):
 
 
 @njit
-def _segment(z, seg, segs, secf, steps, sec_start, rest, q, plate, discs, out_state, work,
-             record, out):
+def _rk4(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs):
+    """One RK4 step of length ``h`` of the state ``st`` (6,), in place; ``work`` (≥5, 6)."""
+    k1 = work[0]
+    k2 = work[1]
+    k3 = work[2]
+    k4 = work[3]
+    tmp = work[4]
+    _rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
+    for d in range(6):
+        tmp[d] = st[d] + 0.5 * h * k1[d]
+    _rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
+    for d in range(6):
+        tmp[d] = st[d] + 0.5 * h * k2[d]
+    _rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
+    for d in range(6):
+        tmp[d] = st[d] + h * k3[d]
+    _rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
+    for d in range(6):
+        st[d] += h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+
+
+@njit
+def _segment(z, seg, grid, rest, level, out_state, work, record, out):
     """Integrate segment ``seg`` from state ``z`` (6,) into ``out_state`` (6,).
 
-    Applies the endplate jump n(s⁺) = n(s⁻) − W at a section end (not at the tip: that is
-    the boundary condition). ``work`` is (5, 6) scratch. With ``record``, writes the
-    segment's nodes (and the section's last node) into ``out``.
+    ``grid`` = (θ0, segs, secf, steps, sec_start) and ``level`` (a level tuple, see
+    ``L_P``…) give the layout and loads. Applies the endplate jump n(s⁺) = n(s⁻) − W at a
+    section end (not at the tip: that is the boundary condition). ``work`` is (5, 6)
+    scratch. With ``record``, writes the segment's nodes (and the section's last node) into
+    ``out``.
     """
+    segs = grid[G_SEGS]
+    secf = grid[G_SECF]
+    steps = grid[G_STEPS]
+    sec_start = grid[G_START]
+    q = level[L_Q]
+    discs = level[L_DISCS]
     i = segs[seg, SEG_SECTION]
     first = segs[seg, SEG_FIRST]
     nst = segs[seg, SEG_STEPS]
@@ -123,34 +145,18 @@ def _segment(z, seg, segs, secf, steps, sec_start, rest, q, plate, discs, out_st
     st = out_state
     for d in range(6):
         st[d] = z[d]
-    k1 = work[0]
-    k2 = work[1]
-    k3 = work[2]
-    k4 = work[3]
-    tmp = work[4]
     for j in range(first, first + nst):
         if record:
             _write_row(st, sec_start[i] + j * h, out, segs[seg, SEG_ROW0] + j, ca, cg, ci, ur, vr,
                        discs)
-        _rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
-        for d in range(6):
-            tmp[d] = st[d] + 0.5 * h * k1[d]
-        _rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
-        for d in range(6):
-            tmp[d] = st[d] + 0.5 * h * k2[d]
-        _rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
-        for d in range(6):
-            tmp[d] = st[d] + h * k3[d]
-        _rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
-        for d in range(6):
-            st[d] += h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+        _rk4(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
     if segs[seg, SEG_END] == 1:
         if record:
             _write_row(st, sec_start[i] + secf[0, i], out, segs[seg, SEG_ROW0] + steps[i], ca, cg,
                        ci, ur, vr, discs)
         if i < secf.shape[1] - 1:
-            st[3] -= plate[i, 0]
-            st[4] -= plate[i, 1]
+            st[3] -= level[L_PLATE][i, 0]
+            st[4] -= level[L_PLATE][i, 1]
 
 
 @njit
@@ -169,34 +175,31 @@ def _start_state(Z, seg, theta0, z):
 
 
 @njit
-def _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F, J,
-            want_jac, chain):
+def _system(Z, grid, rest, level, eps, F, J, want_jac, blocks):
     """Residuals F (N,) of the multiple-shooting system and, if ``want_jac``, its Jacobian J.
 
     Unknowns Z: (n0x, n0y, m0), then the 6-state at the start of segments 1..M−1. Rows: the
-    6 continuity conditions of segments 0..M−2, then n(L), m(L) against ``target`` (3,).
-    ``eps`` (6,) are forward-difference steps per state component. With ``want_jac``,
-    returns min over segment ends of det ∂(n, m)/∂(n0, m0) (``chain`` (6, 3) scratch).
+    6 continuity conditions of segments 0..M−2, then n(L), m(L) against the level's tip
+    target. J is banded (each row couples one segment's start to the next's) and is stored
+    in the band form of :func:`_band_solve`, ``(BAND_ROWS, N)``. The segment maps'
+    derivatives are forward differences with steps ``eps`` (6,) per state component, kept in
+    ``blocks`` (M, 6, 6). With ``want_jac``, returns the stability measure of
+    :func:`_stability` (positive: stable).
     """
+    segs = grid[G_SEGS]
+    target = level[L_TARGET]
     n_seg = segs.shape[0]
     z = np.empty(6)
     zp = np.empty(6)
     end = np.empty(6)
     endp = np.empty(6)
     work = np.empty((5, 6))
-    block = np.empty((6, 6))
-    new = np.empty((6, 3))
     dummy = np.empty((1, N_COLUMNS))
-    dmin = 1.0
     if want_jac:
-        J[:, :] = 0.0
-        chain[:, :] = 0.0
-        for d in range(3):
-            chain[3 + d, d] = 1.0
+        J[:, :] = 0.0  # band storage: A[i, j] at J[BAND + i − j, j]
     for seg in range(n_seg):
-        _start_state(Z, seg, theta0, z)
-        _segment(z, seg, segs, secf, steps, sec_start, rest, q, plate, discs, end, work, False,
-                 dummy)
+        _start_state(Z, seg, grid[G_THETA0], z)
+        _segment(z, seg, grid, rest, level, end, work, False, dummy)
         row = 6 * seg
         last = seg == n_seg - 1
         if not last:
@@ -210,41 +213,130 @@ def _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, targ
             continue
         if not last:
             for d in range(6):
-                J[row + d, 3 + 6 * seg + d] = -1.0
+                J[BAND - 3, 3 + 6 * seg + d] = -1.0  # A[row + d, row + d + 3]
+        block = blocks[seg]
+        for c in range(6):
+            for d in range(6):
+                zp[d] = z[d]
+            zp[c] = z[c] + eps[c]
+            _segment(zp, seg, grid, rest, level, endp, work, False, dummy)
+            for d in range(6):
+                block[d, c] = (endp[d] - end[d]) / eps[c]
+        # Segment 0 starts at the clamped base: only n0, m0 (its columns 3..5) are unknowns.
         first_comp = 3 if seg == 0 else 0
         col0 = 0 if seg == 0 else 3 + 6 * (seg - 1)
         for c in range(first_comp, 6):
-            for d in range(6):
-                zp[d] = z[d]
-            zp[c] += eps[c]
-            _segment(zp, seg, segs, secf, steps, sec_start, rest, q, plate, discs, endp, work,
-                     False, dummy)
-            for d in range(6):
-                block[d, c] = (endp[d] - end[d]) / eps[c]
             col = col0 + c - first_comp
             if not last:
                 for d in range(6):
-                    J[row + d, col] = block[d, c]
+                    J[BAND + row + d - col, col] = block[d, c]
             else:
                 for d in range(3):
-                    J[row + d, col] = block[3 + d, c]
-        # Chain ∂state/∂(n0, m0) through this segment: segment 0's block columns 3..5 are it.
-        for a in range(6):
-            for b in range(3):
-                if seg == 0:
-                    new[a, b] = block[a, 3 + b]
-                else:
-                    acc = 0.0
-                    for c in range(6):
-                        acc += block[a, c] * chain[c, b]
-                    new[a, b] = acc
-        chain[:, :] = new
-        det = (chain[3, 0] * (chain[4, 1] * chain[5, 2] - chain[4, 2] * chain[5, 1])
-               - chain[3, 1] * (chain[4, 0] * chain[5, 2] - chain[4, 2] * chain[5, 0])
-               + chain[3, 2] * (chain[4, 0] * chain[5, 1] - chain[4, 1] * chain[5, 0]))
-        if det < dmin:
-            dmin = det
-    return dmin
+                    J[BAND + row + d - col, col] = block[3 + d, c]
+    if not want_jac:
+        return 1.0
+    return _stability(blocks)
+
+
+@njit
+def _stability(blocks):
+    """The conjugate-point test of the equilibrium whose segment maps have the Jacobians
+    ``blocks`` (M, 6, 6): positive if stable, ≤ 0 if not.
+
+    As the spatial test (:func:`solver._spatial._stability`) does, the Jacobi fields of the
+    free tip — δn(L) = δm(L) = 0, δ(x, y, θ)(L) = I — are carried from the tip to the base
+    (through the inverse segment maps), and the 3×3 matrix δ(x, y, θ)(s) must not become
+    singular on [0, L): the sub-rod [s, L], clamped at s and carrying its own loads, has no
+    buckling mode. That sub-problem is conservative with penalty contact too (the discs push
+    on the sub-rod alone); the forward test (∂(n, m)(s)/∂(n0, m0) from the base), exact for
+    dead loads, is not: it takes the reaction of the part beyond s as dead, and called stable
+    contact states unstable. Returns the smallest det δ(x, y, θ)(s) over segment starts.
+    """
+    fields = np.zeros((6, 3))
+    for d in range(3):
+        fields[d, d] = 1.0
+    smallest = 1.0
+    for seg in range(blocks.shape[0] - 1, -1, -1):
+        if not np.all(np.isfinite(blocks[seg])):
+            return -1.0
+        fields = np.linalg.solve(blocks[seg], fields)
+        det = (fields[0, 0] * (fields[1, 1] * fields[2, 2] - fields[1, 2] * fields[2, 1])
+               - fields[0, 1] * (fields[1, 0] * fields[2, 2] - fields[1, 2] * fields[2, 0])
+               + fields[0, 2] * (fields[1, 0] * fields[2, 1] - fields[1, 1] * fields[2, 0]))
+        if not det > 0.0:
+            return det
+        smallest = min(smallest, det)
+    return smallest
+
+
+@njit
+def _band_factor(ab, piv):
+    """LU-factor in place the banded shooting Jacobian A stored in ``ab`` ((BAND_ROWS, n):
+    A[i, j] at ab[BAND + i − j, j], 8 sub- and 8 super-diagonals, rows above for the fill-in
+    of partial pivoting), the row interchanges into ``piv`` (n,). Gaussian elimination with
+    partial pivoting within the band, O(n): LAPACK's dgbtrf, written out so that it runs in
+    a kernel. Returns False for a singular or non-finite A."""
+    n = ab.shape[1]
+    kl = 8
+    kv = BAND
+    ju = 0
+    for j in range(n):
+        km = min(kl, n - 1 - j)
+        p = j
+        best = abs(ab[kv, j])
+        for i in range(1, km + 1):
+            v = abs(ab[kv + i, j])
+            if v > best:
+                best = v
+                p = j + i
+        if not (best > 0.0) or not math.isfinite(best):
+            return False
+        piv[j] = p
+        ju = max(ju, min(p + kv - kl, n - 1))
+        if p != j:
+            for c in range(j, ju + 1):
+                tmp = ab[kv + p - c, c]
+                ab[kv + p - c, c] = ab[kv + j - c, c]
+                ab[kv + j - c, c] = tmp
+        pivot = ab[kv, j]
+        for i in range(j + 1, j + km + 1):
+            factor = ab[kv + i - j, j] / pivot
+            ab[kv + i - j, j] = factor
+            if factor != 0.0:
+                for c in range(j + 1, ju + 1):
+                    ab[kv + i - c, c] -= factor * ab[kv + j - c, c]
+    return True
+
+
+@njit
+def _band_lu_solve(ab, piv, b):
+    """Solve A x = b in place (``b`` becomes x) with the factors of :func:`_band_factor`."""
+    n = ab.shape[1]
+    kl = 8
+    kv = BAND
+    for j in range(n):
+        p = piv[j]
+        if p != j:
+            tmp = b[p]
+            b[p] = b[j]
+            b[j] = tmp
+        for i in range(j + 1, min(n, j + kl + 1)):
+            b[i] -= ab[kv + i - j, j] * b[j]
+    for j in range(n - 1, -1, -1):
+        acc = b[j]
+        for c in range(j + 1, min(n, j + kv + 1)):
+            acc -= ab[kv + j - c, c] * b[c]
+        b[j] = acc / ab[kv, j]
+
+
+@njit
+def _band_solve(ab, b):
+    """Solve A x = b in place for the banded A in ``ab`` (overwritten by its factors)."""
+    piv = np.empty(ab.shape[1], dtype=np.int64)
+    if not _band_factor(ab, piv):
+        return False
+    _band_lu_solve(ab, piv, b)
+    return True
 
 
 @njit
@@ -256,22 +348,33 @@ def _weighted_norm(v, weights):
 
 
 @njit
-def _newton(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, weights,
-            res_weights, tol, max_iter, max_step):
-    """Newton on the multiple-shooting system; ``Z`` is updated in place.
+def _weighted_norm(v, weights):
+    acc = 0.0
+    for k in range(v.shape[0]):
+        acc += (v[k] / weights[k]) ** 2
+    return math.sqrt(acc / v.shape[0])
+
+
+@njit
+def _newton(Z, grid, rest, level, eps, weights, res_weights, tol, max_iter, max_step):
+    """Damped Newton on the multiple-shooting system at ``level``; ``Z`` is updated in place.
 
     Residuals and steps are measured in weighted RMS norms (weights: metres for positions,
-    radians, the force and moment scales). Returns (converged, iterations, |F|, stable).
+    radians, the force and moment scales); a step is clipped to ``max_step`` and then halved
+    until the residual decreases (a long wrap against a stiff penalty is far from linear
+    over a full Newton step). Returns (converged, iterations, |F|, stable).
     """
     n = Z.shape[0]
     F = np.empty(n)
-    J = np.empty((n, n))
-    chain = np.empty((6, 3))
+    F_try = np.empty(n)
+    J = np.empty((BAND_ROWS, n))
+    blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
+    base = np.empty(n)
+    step = np.empty(n)
     stable = False
     res = math.inf
     for it in range(max_iter + 1):
-        dmin = _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps,
-                       F, J, True, chain)
+        dmin = _system(Z, grid, rest, level, eps, F, J, True, blocks)
         stable = dmin > 0.0
         res = _weighted_norm(F, res_weights)
         if not math.isfinite(res):
@@ -280,68 +383,123 @@ def _newton(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, targ
             return True, it, res, stable
         if it == max_iter:
             break
-        step = np.linalg.solve(J, F)
-        norm = _weighted_norm(step, weights)
-        shrink = max_step / norm if norm > max_step else 1.0
         for k in range(n):
-            Z[k] -= shrink * step[k]
+            step[k] = F[k]
+        if not _band_solve(J, step):
+            return False, it, res, stable
+        norm = _weighted_norm(step, weights)
+        alpha = max_step / norm if norm > max_step else 1.0
+        for k in range(n):
+            base[k] = Z[k]
+        for _ in range(8):
+            for k in range(n):
+                Z[k] = base[k] - alpha * step[k]
+            _system(Z, grid, rest, level, eps, F_try, J, False, blocks)
+            if _weighted_norm(F_try, res_weights) < res:
+                break
+            alpha *= 0.5
     return False, max_iter, res, stable
 
 
+# A homotopy end (a "level") is a tuple (p, q, plate, target, discs): channel pressures
+# (n_channels,), distributed loads (ns, 2), endplate weights (ns, 2), tip target n(L⁻), M_tip
+# (3,) and obstacles (k, 4). Ramps interpolate every entry linearly between two ends.
+L_P, L_Q, L_PLATE, L_TARGET, L_DISCS = range(5)
+# The layout tuple ``grid``: base angle θ0, segment table, section array (6, ns), RK4 steps
+# per section (ns,) and section start arc lengths (ns,).
+G_THETA0, G_SEGS, G_SECF, G_STEPS, G_START = range(5)
+
+
 @njit
-def _set_level(t, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q_now,
-               plate_now, target_now):
-    """Interpolate pressures and loads of the homotopy at level ``t``."""
-    for c in range(p_a.shape[0]):
-        p_now[c] = p_a[c] + t * (p_b[c] - p_a[c])
-    for i in range(q_a.shape[0]):
+def _set_level(t, a, b, now):
+    """Interpolate the homotopy between level tuples ``a`` and ``b`` at ``t`` into ``now``."""
+    for k in range(a[L_P].shape[0]):
+        now[L_P][k] = a[L_P][k] + t * (b[L_P][k] - a[L_P][k])
+    for i in range(a[L_Q].shape[0]):
         for d in range(2):
-            q_now[i, d] = q_a[i, d] + t * (q_b[i, d] - q_a[i, d])
-            plate_now[i, d] = plate_a[i, d] + t * (plate_b[i, d] - plate_a[i, d])
+            now[L_Q][i, d] = a[L_Q][i, d] + t * (b[L_Q][i, d] - a[L_Q][i, d])
+            now[L_PLATE][i, d] = a[L_PLATE][i, d] + t * (b[L_PLATE][i, d] - a[L_PLATE][i, d])
     for d in range(3):
-        target_now[d] = target_a[d] + t * (target_b[d] - target_a[d])
+        now[L_TARGET][d] = a[L_TARGET][d] + t * (b[L_TARGET][d] - a[L_TARGET][d])
+    for i in range(a[L_DISCS].shape[0]):
+        for d in range(4):
+            now[L_DISCS][i, d] = a[L_DISCS][i, d] + t * (b[L_DISCS][i, d] - a[L_DISCS][i, d])
 
 
 @njit
-def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b, q_a, q_b,
-            plate_a, plate_b, target_a, target_b, discs, eps, weights, res_weights, tol, max_iter,
-            max_step, dt0, dt_min, rest, p_now, predict_cap=math.inf):
-    """Quasi-static ramp from state A to state B (cf. :func:`solver._planar._follow`):
-    pressures p_a → p_b, distributed loads q_a → q_b (ns, 2), endplate weights
-    plate_a → plate_b (ns, 2) and tip targets target_a → target_b (3,), all linearly in t.
+def _new_level(a):
+    """Scratch arrays shaped like the level tuple ``a``."""
+    return (np.empty_like(a[L_P]), np.empty_like(a[L_Q]), np.empty_like(a[L_PLATE]),
+            np.empty_like(a[L_TARGET]), np.empty_like(a[L_DISCS]))
 
-    A step is accepted if Newton converged on a stable state whose correction is small
-    against the step predicted (tangent predictor for the first step, then secant, on all
-    node states; a predicted move longer than ``predict_cap`` in the weighted RMS norm is
-    shortened to it). No fold scan: if the step falls below ``dt_min`` the last accepted state
-    is returned, flagged unconverged. Returns (converged, iterations, |residual|, stable);
-    ``Z`` holds the returned state and ``rest`` (3, ns) its rest strains.
+
+@njit
+def _at_level(t, a, b, now, tubes_i, tubes_f, secf, rest):
+    """:func:`_set_level`, then the rest strains of its pressures into ``rest``."""
+    _set_level(t, a, b, now)
+    _rest_strains(now[L_P], tubes_i, tubes_f, secf, rest)
+
+
+@njit
+def _follow(Z, grid, tubes_i, tubes_f, a, b, eps, weights, res_weights, tol, max_iter, max_step,
+            dt0, dt_min, rest, now, predict_cap):
+    """Quasi-static ramp from level ``a`` to level ``b`` (tuples, see ``L_P``…``L_DISCS``;
+    cf. :func:`solver._planar._follow`): pressures, distributed loads, endplate weights, tip
+    targets and obstacles all linear in t.
+
+    The start ``Z`` is first corrected by Newton at t = 0 (it need not be an equilibrium of
+    ``a``: a state from another resolution, or with other discs). A step is accepted if
+    Newton converged on a stable state whose correction is small against the step predicted
+    (tangent predictor for the first step, then secant, on all node states; a predicted
+    move longer than ``predict_cap`` in the weighted RMS norm is shortened to it) and no
+    backbone sample tunnelled through a disc on the way (:func:`solver._obstacles._tunnels`:
+    a penalty disc stops pushing once the backbone has crossed it, so a long step could
+    land beyond an obstacle that the quasi-static path runs into). No fold scan: if the step
+    falls below ``dt_min`` the last accepted state is returned, flagged unconverged.
+
+    Returns (converged, iterations, |residual|, stable, t, dt): t the level reached (1 when
+    converged) and dt the step that failed beyond it (0 if the start itself could not be
+    corrected); ``Z`` holds the returned state, ``now`` (a level tuple) its level and
+    ``rest`` (3, ns) its rest strains.
     """
+    secf = grid[G_SECF]
+    steps = grid[G_STEPS]
     n = Z.shape[0]
     t = 0.0
     dt = dt0
     slope = np.zeros(n)
-    accepted = Z.copy()
     guess = np.empty(n)
     total = 0
-    ok = False
-    res = math.inf
-    stable = False
-    q = np.empty_like(q_a)
-    plate = np.empty_like(plate_a)
-    target = np.empty(3)
+    rows = 0
+    for i in range(steps.shape[0]):
+        rows += steps[i] + 1
+    rec_prev = np.empty((rows, N_COLUMNS))
+    rec_new = np.empty((rows, N_COLUMNS))
+    has_discs = a[L_DISCS].shape[0] > 0
+    _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
+    F = np.empty(n)
+    _system(Z, grid, rest, now, eps, F, rec_new, False, np.empty((0, 6, 6)))
+    res = _weighted_norm(F, res_weights)
+    total += 1
+    if not res <= tol:  # not an equilibrium of ``a`` (or NaN): correct it first
+        ok, its, res, stable = _newton(Z, grid, rest, now, eps, weights, res_weights, tol,
+                                       max_iter, max_step)
+        total += its
+        if not (ok and stable):
+            return False, total, res, stable, 0.0, 0.0
+    ok = True
+    stable = True
+    accepted = Z.copy()
+    if has_discs:
+        _record(Z, grid, rest, now, rec_prev)
     # Tangent predictor for the first step. Without it the first step's correction is
     # judged against a zero prediction, and a large pressure change is halved until its
     # correction is small in absolute terms — five or six converged steps thrown away.
-    _initial_tangent(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b, q_a,
-                     q_b, plate_a, plate_b, target_a, target_b, discs, eps, rest, p_now, q, plate,
-                     target, slope)
+    _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, eps, rest, now, slope)
     total += 1
     while t < 1.0:
         t_new = min(1.0, t + dt)
-        _set_level(t_new, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q,
-                   plate, target)
-        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+        _at_level(t_new, a, b, now, tubes_i, tubes_f, secf, rest)
         move = 0.0
         for k in range(n):
             move += (slope[k] * (t_new - t) / weights[k]) ** 2
@@ -351,8 +509,7 @@ def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b,
             guess[k] = accepted[k] + cap * slope[k] * (t_new - t)
             Z[k] = guess[k]
         final = t_new >= 1.0
-        ok, its, res, stable = _newton(Z, theta0, segs, secf, steps, sec_start, rest, q, plate,
-                                       discs, target, eps, weights, res_weights,
+        ok, its, res, stable = _newton(Z, grid, rest, now, eps, weights, res_weights,
                                        tol if final else 1e3 * tol, max_iter if final else 8,
                                        max_step)
         total += its
@@ -364,12 +521,19 @@ def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b,
         corr = math.sqrt(corr / n)
         pred = math.sqrt(pred / n)
         if ok and stable and (corr <= 0.05 + 0.5 * pred or dt <= dt_min):
-            for k in range(n):
-                slope[k] = (Z[k] - accepted[k]) / (t_new - t)
-                accepted[k] = Z[k]
-            t = t_new
-            dt = min(2.0 * dt, 1.0)
-            continue
+            through = False
+            if has_discs:
+                _record(Z, grid, rest, now, rec_new)
+                through = _tunnels(rec_prev[:, C_X:C_Y + 1], rec_new[:, C_X:C_Y + 1],
+                                   now[L_DISCS], TUNNEL_SLACK)
+            if not through:
+                for k in range(n):
+                    slope[k] = (Z[k] - accepted[k]) / (t_new - t)
+                    accepted[k] = Z[k]
+                rec_prev, rec_new = rec_new, rec_prev
+                t = t_new
+                dt = min(2.0 * dt, 1.0)
+                continue
         if dt > dt_min:
             dt *= 0.5
             continue
@@ -377,48 +541,39 @@ def _follow(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b,
     if t < 1.0:
         for k in range(n):
             Z[k] = accepted[k]
-        _set_level(t, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q, plate,
-                   target)
-        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-        return False, total, res, stable
-    return ok, total, res, stable
+        _at_level(t, a, b, now, tubes_i, tubes_f, secf, rest)
+        return False, total, res, stable, t, dt
+    return ok, total, res, stable, 1.0, 0.0
 
 
 @njit
-def _record(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, out):
+def _record(Z, grid, rest, level, out):
     """Write the backbone of the state ``Z`` into ``out`` (rows Σ(steps + 1), N_COLUMNS)."""
     z = np.empty(6)
     end = np.empty(6)
     work = np.empty((5, 6))
-    for seg in range(segs.shape[0]):
-        _start_state(Z, seg, theta0, z)
-        _segment(z, seg, segs, secf, steps, sec_start, rest, q, plate, discs, end, work, True, out)
+    for seg in range(grid[G_SEGS].shape[0]):
+        _start_state(Z, seg, grid[G_THETA0], z)
+        _segment(z, seg, grid, rest, level, end, work, True, out)
+
 
 @njit
-def _initial_tangent(Z, theta0, segs, secf, steps, sec_start, tubes_i, tubes_f, p_a, p_b, q_a,
-                     q_b, plate_a, plate_b, target_a, target_b, discs, eps, rest, p_now, q, plate,
-                     target, slope):
-    """dZ/dt = −J⁻¹ ∂F/∂t at the start state (an equilibrium), ∂F/∂t by a forward
-    difference, into ``slope``; zero where J or the result is not finite."""
+def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, eps, rest, now, slope):
+    """dZ/dt = −J⁻¹ ∂F/∂t at the start state (an equilibrium of level ``a``), ∂F/∂t by a
+    forward difference, into ``slope``; zero where J or the result is not finite."""
+    secf = grid[G_SECF]
     n = Z.shape[0]
     eps_t = 1e-4
     F0 = np.empty(n)
     F1 = np.empty(n)
-    J = np.empty((n, n))
-    chain = np.empty((6, 3))
-    _set_level(eps_t, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q, plate,
-               target)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F1, J,
-            False, chain)
-    _set_level(0.0, p_a, p_b, q_a, q_b, plate_a, plate_b, target_a, target_b, p_now, q, plate,
-               target)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    _system(Z, theta0, segs, secf, steps, sec_start, rest, q, plate, discs, target, eps, F0, J,
-            True, chain)
+    J = np.empty((BAND_ROWS, n))
+    blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
+    _at_level(eps_t, a, b, now, tubes_i, tubes_f, secf, rest)
+    _system(Z, grid, rest, now, eps, F1, J, False, blocks)
+    _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
+    _system(Z, grid, rest, now, eps, F0, J, True, blocks)
     for k in range(n):
         F1[k] = -(F1[k] - F0[k]) / eps_t
-    if np.all(np.isfinite(J)) and np.all(np.isfinite(F1)):
-        slope[:] = np.linalg.solve(J, F1)
-        if not np.all(np.isfinite(slope)):
-            slope[:] = 0.0
+    slope[:] = F1
+    if not (np.all(np.isfinite(F1)) and _band_solve(J, slope) and np.all(np.isfinite(slope))):
+        slope[:] = 0.0

@@ -30,20 +30,18 @@ import math
 import numpy as np
 
 from solver._jit import njit, prange
+from solver._obstacles import _clearance, _tunnels
 from solver._rod import (
     CA,
     CG,
     CI,
     DT0,
     DT_MIN,
-    EA,
-    EI,
     JUMP,
     LEN,
     M_BOUND,
     MAX_ITER,
     MAX_STEP,
-    N_PARAMS,
     N_SCAN,
     TOL,
     _big_change,
@@ -208,7 +206,6 @@ def _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now):
         for d in range(4):
             loads_now[i, d] = loads_a[i, d] + t * (loads_b[i, d] - loads_a[i, d])
     return mtip_a + t * (mtip_b - mtip_a)
-from solver._spatial import _planar_state_stable
 
 
 @njit
@@ -293,7 +290,7 @@ def _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
 
 @njit
 def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-            mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d):
+            mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
 
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
@@ -313,7 +310,10 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
     (:func:`solver._spatial._planar_state_stable`). The first that does not — and any fold
     or snap, where the 3D path may leave the plane — ends the path unconverged, so that the
     caller hands the solve to the spatial kernels: the planar shortcut never changes the
-    answer.
+    answer. ``discs`` ((k, 4) obstacles, or empty) guards a contact-free solve of a scene
+    with obstacles the same way: the backbone must stay clear of every disc by half an RK4
+    step at every accepted state, and no sample may pass through a disc between accepted
+    states (:func:`solver._obstacles._tunnels`; a step that fails only that is halved).
 
     Returns:
         (m0, converged, iterations, snapped, stable, |residual|, tip x, y, θ).
@@ -331,7 +331,22 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
     ok = True
     res = 0.0
     x = y = th = math.nan
-    guard = c_j_3d.shape[0] > 0
+    guard = c_j_3d.shape[0] > 0 or discs.shape[0] > 0
+    rows = 1
+    half_h = 0.0
+    if discs.shape[0] > 0:
+        rows = 0
+        for i in range(steps.shape[0]):
+            rows += steps[i] + 1
+            half_h = max(half_h, 0.5 * secf[LEN, i] / steps[i])
+    rec_prev = np.empty((rows, N_COLUMNS))
+    rec_new = np.empty((rows, N_COLUMNS))
+    if discs.shape[0] > 0:
+        _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
+        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+        _integrate(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
+        if not _clear_of(rec_prev, discs, half_h):
+            return m0, False, 1, snapped, False, math.inf, x, y, th
     # Tangent predictor for the first step (the later steps use the secant through accepted
     # points). Small warm steps (env steps) start from the previous state directly, so the
     # two extra passes are spent only on large changes (cold ramps, big jumps, new loads).
@@ -358,10 +373,22 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
         # just predicted (``JUMP`` is an absolute floor, a fraction of EI/L). A larger jump
         # means Newton left the branch: retry with a smaller step.
         jump = params[JUMP] + 0.5 * abs(guess - m0)
-        if guard and ok and stab and abs(root - guess) <= jump and not _planar_state_stable(
-                x, y, th, m_tip, secf, steps, c_j_3d, rest, loads_now):
-            return root, False, total, snapped, False, res, x, y, th
-        if ok and stab and (abs(root - guess) <= jump or dt <= dt_min):
+        if guard and ok and stab and abs(root - guess) <= jump:
+            if c_j_3d.shape[0] > 0 and not _planar_state_stable(x, y, th, m_tip, secf, steps,
+                                                                  c_j_3d, rest, loads_now):
+                return root, False, total, snapped, False, res, x, y, th
+            if discs.shape[0] > 0:
+                _integrate(root, theta0, secf, steps, rest, loads_now, True, rec_new)
+                total += 1
+                if not _clear_of(rec_new, discs, half_h):
+                    return root, False, total, snapped, False, res, x, y, th
+                if _tunnels(rec_prev[:, X:Y + 1], rec_new[:, X:Y + 1], discs, -half_h):
+                    if dt > dt_min:
+                        dt *= 0.5
+                        continue
+                    return root, False, total, snapped, False, res, x, y, th
+                rec_prev, rec_new = rec_new, rec_prev
+        if ok and stab and (abs(root - guess) <= jump or (dt <= dt_min and not guard)):
             if abs(root - guess) > jump:
                 # Converged far from the prediction at the smallest step: the branch ended
                 # (a fold) and Newton fell onto another stable one — a snap.
@@ -375,7 +402,7 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
         if dt > dt_min:
             dt *= 0.5
             continue
-        if guard:  # a fold or bifurcation: the 3D path may leave the plane here
+        if guard:  # a fold or bifurcation: the guarded path may leave its assumptions here
             return root, False, total, snapped, False, res, x, y, th
         if params[N_SCAN] == 0:
             if ok:
@@ -428,6 +455,16 @@ def _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
 
 
 _NO_GUARD = np.empty(0)
+_NO_DISCS = np.empty((0, 4))
+
+
+@njit
+def _clear_of(rec, discs, gap):
+    """True when every recorded sample of ``rec`` clears every disc by more than ``gap`` (m)."""
+    for r in range(rec.shape[0]):
+        if not _clearance(rec[r, X], rec[r, Y], discs) > gap:
+            return False
+    return True
 
 
 @njit(parallel=True)
@@ -453,7 +490,8 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
         # A converged row's backbone is recorded by its final Newton pass.
         root, conv, its, snapped, stab, res, x, y, th = _follow(
             m0_start[k], theta0, secf, steps, tubes_i, tubes_f, p_start[k], p_targets[k], loads,
-            loads, mtip, mtip, params, rest, p_now, loads_now, shapes[k], record, _NO_GUARD)
+            loads, mtip, mtip, params, rest, p_now, loads_now, shapes[k], record, _NO_GUARD,
+            _NO_DISCS)
         conv = conv and math.isfinite(x) and math.isfinite(y)
         if not conv:
             # Keep the last good state: its rest strains, shape and tip.

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from solver import _contact, _planar, _spatial
+from solver import _contact, _planar, _relax, _rod, _spatial
 from solver.designs import ArmDesign
 from solver.scene import Disc, Scene
 
@@ -45,6 +45,9 @@ class Settings:
         tol: Newton tolerance on the tip-moment residual, relative to EI_max / L.
         max_iter: Newton iterations per continuation step.
         dt0, dt_min: first and smallest continuation step (fraction of the ramp).
+        contact_dt_min: smallest continuation step of solves with obstacles: a stiff
+            penalty makes contact paths turn sharply, and the step that may not tunnel
+            through a disc is short where the backbone sweeps past one.
         n_scan: grid points of the fold scan over the base moment (0: no scan).
         shortcuts: skip what a scene does not need (closed-form arcs when unloaded, the
             planar kernel for in-plane spatial solves). False forces the general path; the
@@ -56,6 +59,7 @@ class Settings:
     max_iter: int = 12
     dt0: float = 1.0
     dt_min: float = 1.0 / 256.0
+    contact_dt_min: float = 1.0 / 16384.0
     n_scan: int = 96
     shortcuts: bool = True
 
@@ -63,6 +67,7 @@ class Settings:
         if int(self.steps_per_section) != self.steps_per_section or self.steps_per_section < 1:
             raise ValueError(f"steps_per_section must be an integer >= 1; got {self.steps_per_section}")
         if not (self.tol > 0 and self.max_iter >= 1 and 0 < self.dt_min <= self.dt0 <= 1
+                and 0 < self.contact_dt_min <= self.dt0
                 and (self.n_scan == 0 or self.n_scan >= 4)):
             raise ValueError(f"invalid solver settings: {self}")
 
@@ -72,7 +77,7 @@ class Settings:
 
         The stress test compares this against the default to show what the fallbacks buy.
         """
-        return cls(dt0=1.0, dt_min=1.0, n_scan=0, **kwargs)
+        return cls(dt0=1.0, dt_min=1.0, contact_dt_min=1.0, n_scan=0, **kwargs)
 
 
 DEFAULT_SETTINGS = Settings()
@@ -205,14 +210,14 @@ def _build_pack(arm: ArmDesign, model: str, settings: Settings) -> _Packed:
                 for c in range(arm.n_channels)]
     return _Packed(
         secf=secf,
-        sec_len=secf[_planar.LEN],
+        sec_len=secf[_rod.LEN],
         sec_steps=steps,
-        c_a=secf[_planar.CA],
-        c_g=secf[_planar.CG],
-        c_i=secf[_planar.CI],
+        c_a=secf[_rod.CA],
+        c_g=secf[_rod.CG],
+        c_i=secf[_rod.CI],
         c_j=np.array([1.0 / s.GJ for s in secs]),
-        sec_ea=secf[_planar.EA],
-        sec_ei=secf[_planar.EI],
+        sec_ea=secf[_rod.EA],
+        sec_ei=secf[_rod.EI],
         mass_per_length=np.array([s.mass_per_length for s in secs]),
         endplate=np.array([s.endplate_mass for s in secs]),
         tubes_i=tubes_i,
@@ -327,7 +332,7 @@ def rest_strains(arm: ArmDesign, channel_pressures: np.ndarray, packed: _Packed 
     """
     packed = packed or _pack(arm, "full", DEFAULT_SETTINGS)
     rest = np.empty((3, len(arm.sections)))
-    _planar._rest_strains(np.ascontiguousarray(channel_pressures, dtype=float), packed.tubes_i,
+    _rod._rest_strains(np.ascontiguousarray(channel_pressures, dtype=float), packed.tubes_i,
                           packed.tubes_f, packed.secf, rest)
     return rest[0], rest[1], rest[2]
 
@@ -485,9 +490,9 @@ def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
         grow = max(1.0, scale)
         tol = settings.tol * packed.moment_scale * grow
         max_step = 2.0 * packed.moment_scale * grow
-        params = np.empty(_planar.N_PARAMS)
-        params[[_planar.TOL, _planar.MAX_STEP, _planar.M_BOUND, _planar.DT0, _planar.DT_MIN,
-                _planar.MAX_ITER, _planar.N_SCAN, _planar.JUMP]] = (
+        params = np.empty(_rod.N_PARAMS)
+        params[[_rod.TOL, _rod.MAX_STEP, _rod.M_BOUND, _rod.DT0, _rod.DT_MIN,
+                _rod.MAX_ITER, _rod.N_SCAN, _rod.JUMP]] = (
             tol, max_step, _moment_bound(arm, packed, scene, n_end, q), settings.dt0,
             settings.dt_min, settings.max_iter, settings.n_scan, 0.25 * packed.moment_scale)
         ctx = _SceneContext(n_end=n_end, q=q, loads=np.ascontiguousarray(np.hstack([n_end, q])),
@@ -503,24 +508,36 @@ def _context(arm: ArmDesign, packed: _Packed, scene: Scene, dim: int,
 
 
 def _moment_bound(arm, packed, scene, n_end, q):
-    """A bound on |m0| for the fold scan: |M_tip| + ∫|r'||n| ds over any pressures.
-
-    |r'| ≤ v*max + |n|/min(EA, GA), with v*max the stretch at the rated pressure.
-    """
-    nmax = float(np.max(np.linalg.norm(n_end, axis=1) + np.linalg.norm(q, axis=1) * packed.sec_len))
-    full = np.full(max(arm.n_channels, 1), arm.max_pressure) if arm.n_channels else np.zeros(1)
-    v3 = rest_strains(arm, full, packed)[2] if arm.n_channels else np.ones(1)
-    stretch = float(v3.max()) + nmax * float(max(packed.c_a.max(), packed.c_g.max()))
-    bound = float(np.linalg.norm(scene.tip_moment_3d())) + nmax * stretch * arm.length
+    """A bound on |m0| for the fold scan: |M_tip| + ∫|r'||n| ds over any pressures."""
+    nmax = _force_bound(packed, n_end, q)
+    bound = float(np.linalg.norm(scene.tip_moment_3d())) + nmax * _stretch_bound(
+        arm, packed, n_end, q) * arm.length
     return 1.05 * bound + packed.moment_scale * 1e-6
 
 
-def _follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None, guard_3d=False):
+def _force_bound(packed, n_end, q) -> float:
+    """The largest internal force |n| (N) of dead loads ``n_end``, ``q`` (ns, 2|3)."""
+    return float(np.max(np.linalg.norm(n_end, axis=1)
+                        + np.linalg.norm(q, axis=1) * packed.sec_len))
+
+
+def _stretch_bound(arm, packed, n_end, q) -> float:
+    """A bound on |r'| over any pressures: v*max + |n|max/min(EA, GA), v*max the stretch at
+    the rated pressure."""
+    full = np.full(max(arm.n_channels, 1), arm.max_pressure) if arm.n_channels else np.zeros(1)
+    v3 = rest_strains(arm, full, packed)[2] if arm.n_channels else np.ones(1)
+    return float(v3.max()) + _force_bound(packed, n_end, q) * float(
+        max(packed.c_a.max(), packed.c_g.max()))
+
+
+def _follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None, guard_3d=False,
+            guard_discs=_planar._NO_DISCS):
     """Run :func:`solver._planar._follow`; returns its tuple plus the scratch (rest, loads_now).
 
     With ``out`` ((n_rows, N_COLUMNS)) a converged result's backbone is recorded into it;
     with ``guard_3d`` every accepted state must be stable in 3D too (the in-plane shortcut
-    of a spatial solve).
+    of a spatial solve); with ``guard_discs`` ((k, 4)) the path must stay clear of them
+    (the contact-free shortcut of a scene with obstacles).
     """
     ns = packed.secf.shape[1]
     rest, p_now, loads_now = np.empty((3, ns)), np.empty(p_target.shape[0]), np.empty((ns, 4))
@@ -528,22 +545,21 @@ def _follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None, guar
                              packed.tubes_f, p_start, p_target, start_ctx.loads, ctx.loads,
                              start_ctx.m_tip, ctx.m_tip, ctx.params, rest, p_now, loads_now,
                              _DUMMY if out is None else out, out is not None,
-                             packed.c_j if guard_3d else _NO_GUARD)
+                             packed.c_j if guard_3d else _planar._NO_GUARD, guard_discs)
     return result, rest, loads_now
 
 
 _DUMMY = np.empty((1, _planar.N_COLUMNS))
-_NO_GUARD = np.empty(0)
 
 
-def _loaded_base_moment(arm, packed, scene, ctx, settings, guard_3d=False
-                        ) -> tuple[float, int, bool, bool]:
+def _loaded_base_moment(arm, packed, scene, ctx, settings, guard_3d=False,
+                        guard_discs=_planar._NO_DISCS) -> tuple[float, int, bool, bool]:
     """Stage 1 of a cold solve: the unactuated arm under its loads ramped from zero (cached).
 
-    Returns (m0, iterations, snapped, converged); with ``guard_3d`` converged means also
-    stable in 3D all along (see :func:`_follow`).
+    Returns (m0, iterations, snapped, converged); with a guard (see :func:`_follow`)
+    converged means also that the guard held all along.
     """
-    key = ("loaded", id(ctx), settings, guard_3d)
+    key = ("loaded", id(ctx), settings, guard_3d, guard_discs.tobytes())
     hit = arm._solver_cache.get(key)
     if hit is None:
         zeros = np.zeros(max(arm.n_channels, 1))
@@ -551,7 +567,8 @@ def _loaded_base_moment(arm, packed, scene, ctx, settings, guard_3d=False
                                  m_tip=0.0, tol=ctx.tol, max_step=ctx.max_step,
                                  params=ctx.params, has_load=False, base_force=ctx.base_force * 0,
                                  shooting_index=0.0)
-        out, _, _ = _follow(packed, scene, zeros, zeros, unloaded, ctx, 0.0, guard_3d=guard_3d)
+        out, _, _ = _follow(packed, scene, zeros, zeros, unloaded, ctx, 0.0, guard_3d=guard_3d,
+                            guard_discs=guard_discs)
         hit = arm._solver_cache[key] = (float(out[0]), int(out[2]), bool(out[3]), bool(out[1]))
     return hit
 
@@ -576,11 +593,13 @@ def _solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
 
 
 def _solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings,
-                  guard_3d=False):
+                  guard_3d=False, guard_discs=_planar._NO_DISCS):
     """Planar dead-load solve by single shooting on m0 (:func:`solver._planar._follow`).
 
     With ``guard_3d`` (the in-plane shortcut of a spatial solve) the result is unconverged
-    as soon as the path leaves the states that are stable in 3D, loading stage included.
+    as soon as the path leaves the states that are stable in 3D, loading stage included;
+    with ``guard_discs`` (the contact-free shortcut) as soon as it comes within half an RK4
+    step of a disc.
     """
     ctx = _context(arm, packed, scene, 2, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
@@ -593,14 +612,14 @@ def _solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
         m0 = float(warm_start.base_moment[-1])  # planar m_z, or z of a spatial m0
     else:
         m0, iterations, snapped, loaded = _loaded_base_moment(arm, packed, scene, ctx, settings,
-                                                              guard_3d)
-        if guard_3d and not loaded:
+                                                              guard_3d, guard_discs)
+        if (guard_3d or guard_discs.size) and not loaded:
             return Equilibrium(tip=np.full(2, np.nan), converged=False, stable=False,
                                iterations=iterations, residual=math.inf)
         start_ctx, p_start = ctx, np.zeros_like(p_target)
     out = np.empty((packed.n_rows, _planar.N_COLUMNS)) if record else None
     (m0, ok, its, snap, stab, res, x, y, th), rest, loads_now = _follow(
-        packed, scene, p_start, p_target, start_ctx, ctx, m0, out, guard_3d)
+        packed, scene, p_start, p_target, start_ctx, ctx, m0, out, guard_3d, guard_discs)
     common_out = dict(converged=bool(ok), stable=bool(stab), iterations=int(iterations + its),
                       residual=float(res), snapped=bool(snapped or snap), model=model,
                       planar=True, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
@@ -850,19 +869,27 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
                        section_ends=_section_ends(packed), **common_out)
 
 
+# RK4 step in contact, as a fraction of the decay length ℓ = (EI/k)^¼ (see _contact_layout):
+# ℓ/2 left tip errors of 5e-4·L where a short contact patch falls between stages; ℓ/10 keeps
+# them under 3e-5·L.
+CONTACT_STEP = 0.1
+
+
 def _contact_layout(arm, packed, scene):
     """Resolution and segments for contact solves (cached per design, settings, stiffness).
 
-    In contact, deflections vary over ℓ_i = (EI_i/k)^¼; RK4 steps are refined to h ≤ ℓ_i/2
-    (at least the setting's count, at most 1024 per section) and multiple-shooting segments
-    span 4 steps, so no segment amplifies errors by more than ~e^1.4.
+    In contact, deflections vary over ℓ_i = (EI_i/k)^¼; RK4 steps are refined to
+    h ≤ CONTACT_STEP·ℓ_i (at least the setting's count, at most 1024 per section; the
+    penalty's kink at the disc surface, not ℓ, sets this: see :mod:`solver._contact`) and
+    multiple-shooting segments span 4 steps.
     """
     stiffness = max(d.stiffness for d in scene.obstacles)
     key = ("contact", id(packed), stiffness)
     hit = arm._solver_cache.get(key)
     if hit is None:
         ell = (packed.sec_ei / stiffness) ** 0.25
-        steps = np.minimum(np.maximum(packed.sec_steps, np.ceil(packed.sec_len / (0.5 * ell))),
+        steps = np.minimum(np.maximum(packed.sec_steps,
+                                      np.ceil(packed.sec_len / (CONTACT_STEP * ell))),
                            1024).astype(np.int64)
         layout = replace(packed, sec_steps=steps, n_rows=int((steps + 1).sum()),
                          section_ends=tuple(int(v) for v in np.cumsum(steps + 1) - 1))
@@ -883,39 +910,7 @@ def _segments(layout):
     return layout, np.array(segs, dtype=np.int64), sec_start
 
 
-def _free_of_contact(arm, layout, segs, p_inputs, p_channel, scene, free_scene, model, warm_start,
-                     record, settings):
-    """The contact-free equilibrium as a contact result, if it clears every disc (else None).
-
-    Samples are h apart along the backbone and distance to a disc changes by at most the arc
-    length travelled, so a clearance of h/2 at every sample keeps the whole backbone (and
-    the RK4 stages, which lie within h/2 of a sample) outside every disc.
-    """
-    eq = _solve_planar(arm, layout, p_inputs, p_channel, free_scene, model, warm_start, True,
-                       settings)
-    if not (eq.converged and eq.stable):
-        return None
-    discs = scene.discs_array()
-    gap = np.hypot(eq.positions[:, None, 0] - discs[None, :, 0],
-                   eq.positions[:, None, 1] - discs[None, :, 1]) - discs[None, :, 2]
-    half_step = 0.5 * np.repeat(layout.sec_len / layout.sec_steps, layout.sec_steps + 1)
-    if not np.all(gap.min(axis=1) > half_step):
-        return None
-    nodes = _nodes_from_states(np.column_stack([eq.positions, eq.angles, eq.internal_force,
-                                                eq.internal_moment]), segs)
-    if not record:
-        return Equilibrium(tip=eq.tip, converged=True, stable=True, iterations=eq.iterations,
-                           residual=eq.residual, snapped=eq.snapped, model=model, planar=True,
-                           scene=scene, pressures=p_inputs, channel_pressures=p_channel,
-                           base_moment=eq.base_moment, base_force=nodes[:2].copy(),
-                           shooting_nodes=nodes)
-    n = eq.positions.shape[0]
-    return replace(eq, scene=scene, shooting_nodes=nodes, base_force=nodes[:2].copy(),
-                   contact_force=np.zeros((n, 2)), penetration=np.zeros(n),
-                   section_ends=layout.section_ends)
-
-
-def _ms_terms(arm, layout, segs, scene, ctx, load_moments=False):
+def _ms_terms(arm, layout, segs, scene, ctx, load_moments):
     """Loads and norms of the multiple-shooting system: endplate weights (ns, 2), tip
     target (n(L⁻), M_tip), state scales and the unknowns' and residuals' weights.
 
@@ -952,62 +947,304 @@ def _solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, 
     """Planar dead-load solve by multiple shooting (the contact kernels, with no discs).
 
     For arms whose single shooting is ill-conditioned (:func:`_shooting_index`), and as the
-    fallback of a failed single-shooting solve. Cold: from the straight, unloaded rod the
-    loads are ramped in at zero pressure, then the pressures; a warm start from a
-    multiple-shooting result in the same scene continues from its nodes.
+    fallback of a failed single-shooting solve; see :func:`_solve_shooting`.
     """
     layout, segs, sec_start = _ms_layout(arm, packed)
-    ctx = _context(arm, layout, scene, 2, settings)
+    return _solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
+                           warm_start, record, settings, load_moments=True)
+
+
+def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Planar solve with penalty contact against the scene's discs (:mod:`solver._contact`).
+
+    Multiple shooting at the contact resolution (:func:`_contact_layout`), obstacles present
+    all along the quasi-static path (:func:`_solve_shooting`).
+
+    Shortcuts (``settings.shortcuts``), each exact:
+
+    * no disc within the arm's reach (:func:`_reach`): the contact-free solve;
+    * a cold solve, or a warm step from a state that touched nothing: single shooting
+      without contact, guarded — if the backbone stays clear of every disc by half an RK4
+      step at every accepted state (loading stage included) and no sample passes through a
+      disc between them (:func:`solver._planar._follow`), the contact-free path *is* the
+      path with obstacles (every penalty force is zero along it), obtained in tens of
+      microseconds instead of milliseconds. Otherwise the contact kernels follow the path.
+      The shortcut solves at the settings' resolution, the contact kernels at the finer
+      contact resolution; the two agree to the coarser one's discretisation error.
+    """
+    free_scene = replace(scene, obstacles=())
+    if settings.shortcuts:
+        discs = scene.discs_array()
+        if np.all(np.hypot(discs[:, 0], discs[:, 1]) - discs[:, 2] > _reach(arm, packed, scene)):
+            free = _solve_planar(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
+                                 record, settings)
+            return _free_contact_result(free, scene)
+        if warm_start is None or not warm_start.in_contact:
+            free = _solve_single(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
+                                 True, settings, guard_discs=discs)
+            if free.converged and free.stable:
+                return _free_contact_result(free, scene)
+    layout, segs, sec_start = _contact_layout(arm, packed, scene)
+    return _solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
+                           warm_start, record, settings, load_moments=False)
+
+
+def _free_contact_result(eq, scene):
+    """A contact-free equilibrium as the result of a solve in ``scene`` (zero contact)."""
+    n = eq.positions.shape[0]
+    return replace(eq, scene=scene, contact_force=np.zeros((n, 2)), penetration=np.zeros(n))
+
+
+def _reach(arm, packed, scene) -> float:
+    """A bound (m) on the distance of any backbone point from the base, over all pressures:
+    ∫|r'| ds with |r'| ≤ the stretch bound of :func:`_stretch_bound`."""
+    ctx = _context(arm, packed, replace(scene, obstacles=()), 2, DEFAULT_SETTINGS)
+    return _stretch_bound(arm, packed, ctx.n_end, ctx.q) * arm.length
+
+
+def _solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model, warm_start,
+                    record, settings, load_moments):
+    """Planar multiple-shooting solve along the quasi-static path, the scene's obstacles (if
+    any) present all along it.
+
+    Start state: a multiple-shooting ``warm_start`` at this resolution continues from its
+    nodes; any other warm start from its own base moment, re-integrated at this resolution
+    (corrected by Newton at the start of the ramp); a cold solve from the arm loaded with
+    the obstacles in place (:func:`_loaded_nodes`). Then pressures and loads are ramped from
+    the start's to the target's (:func:`solver._contact._follow`, which never lets the
+    backbone tunnel through a disc).
+    """
+    free_scene = replace(scene, obstacles=())
+    ctx = _context(arm, layout, free_scene, 2, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
-    plate, target, state_w, weights, res_weights = _ms_terms(arm, layout, segs, scene, ctx, True)
-    rest, p_now = np.empty((3, len(arm.sections))), np.empty(p_target.shape[0])
-    discs = np.empty((0, 4))
-    eps = 1e-7 * state_w
-    common = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, layout.tubes_i,
-              layout.tubes_f)
-    tail = (discs, eps, weights, res_weights, settings.tol, settings.max_iter, 0.5, settings.dt0,
-            settings.dt_min, rest, p_now)
+    plate, target, state_w, weights, res_weights = _ms_terms(arm, layout, segs, scene, ctx,
+                                                             load_moments)
+    goal = (p_target, ctx.q, plate, target, scene.discs_array())
     iterations = 0
-    ok = True
-    if (warm_start is not None and warm_start.scene == scene
-            and warm_start.shooting_nodes.shape == weights.shape):
-        nodes = warm_start.shooting_nodes.copy()
+    if warm_start is not None and warm_start.scene is not None:
+        start_scene = replace(warm_start.scene, obstacles=())
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+        start_ctx = ctx if start_scene == free_scene else \
+            _context(arm, layout, start_scene, 2, settings)
+        if warm_start.shooting_nodes.shape == weights.shape:
+            nodes = warm_start.shooting_nodes.copy()
+        else:
+            free = np.empty((layout.n_rows, _planar.N_COLUMNS))
+            _planar._integrate(float(warm_start.base_moment[-1]), scene.base_theta, layout.secf,
+                               layout.sec_steps, np.vstack(rest_strains(arm, p_start, layout)),
+                               start_ctx.loads, True, free)
+            P = _planar
+            nodes = _nodes_from_states(free[:, [P.X, P.Y, P.THETA, P.NX, P.NY, P.M]], segs)
+        start_plate, start_target = _ms_terms(arm, layout, segs, start_scene, start_ctx,
+                                              load_moments)[:2]
+        start = (p_start, start_ctx.q, start_plate, start_target, goal[_contact.L_DISCS])
     else:
-        p_start = np.zeros_like(p_target)
+        nodes, iterations, loaded = _loaded_nodes(arm, layout, segs, sec_start, scene, ctx,
+                                                  settings, load_moments)
+        start = (np.zeros_like(p_target), *goal[1:])
+        if not loaded:
+            grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+            return _shooting_result(nodes, scene, grid, layout, start, record,
+                                    converged=False, stable=False, iterations=iterations,
+                                    residual=math.inf, model=model, pressures=p_inputs,
+                                    channel_pressures=p_channel)
+    now = _contact._new_level(goal)
+    rest = np.empty((3, len(arm.sections)))
+    eps = 1e-7 * state_w
+    grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+    snapped = False
+    for _ in range(MAX_SNAPS + 1):
+        ok, its, res, stable, t, dt = _contact._follow(
+            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, eps, weights, res_weights,
+            settings.tol, settings.max_iter, 0.5, settings.dt0, _shooting_dt_min(scene, settings),
+            rest, now, math.inf)
+        iterations += its
+        if ok or settings.n_scan == 0 or t >= 1.0:
+            break
+        # The path cannot go on past level t (a fold): the arm snaps. Find the stable
+        # equilibrium it lands on a little further on and continue from there.
+        landed, level = _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, eps,
+                                    weights, res_weights, settings, ctx.params)
+        if landed is None:
+            break
+        nodes[:] = landed
+        start = level
+        snapped = True
+    return _shooting_result(nodes, scene, grid, layout, now, record,
+                            converged=bool(ok), stable=bool(stable), snapped=snapped,
+                            iterations=int(iterations), residual=float(res), model=model,
+                            pressures=p_inputs, channel_pressures=p_channel)
+
+
+# Snaps per multiple-shooting solve before it gives up (each costs an energy minimisation).
+MAX_SNAPS = 8
+# How far past a fold a snap looks, tried in turn: fractions of the rated pressure (or of
+# the loads being ramped in).
+SNAP_AHEAD = (0.0025, 0.01, 0.04, 0.16)
+
+
+def _level_span(start, goal, p_max):
+    """How much a homotopy between level tuples changes, relative to its scale: the largest
+    pressure change over the rated pressure, or load change over the load."""
+    C = _contact
+    span = float(np.max(np.abs(goal[C.L_P] - start[C.L_P]))) / p_max if p_max > 0 else 0.0
+    for k in (C.L_Q, C.L_PLATE, C.L_TARGET):
+        size = float(np.max(np.abs(goal[k]), initial=0.0))
+        if size > 0.0:
+            span = max(span, float(np.max(np.abs(goal[k] - start[k]))) / size)
+    return max(span, 1e-12)
+
+
+def _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, eps, weights, res_weights,
+                settings, params):
+    """The snap of a multiple-shooting path that ends at a fold at level t (step dt failed
+    beyond it): (landed nodes, their level) or (None, None).
+
+    The arm is sought on its new branch at SNAP_AHEAD past the fold, in turn. The offsets
+    are physical (a fraction of the rated pressure, or of the loads), so that a cold ramp
+    and a fine warm ramp look at the same levels past the same fold. Close to the fold the
+    discrete energy's minimum may still sit by the vanishing branch (its fold lies O(h²)
+    away from the shooting system's); where the ramp ends before an offset, the loads are
+    carried on past its end (pressures kept within the rating) to pass the fold, and the
+    arm relaxed back to the end from there.
+    """
+    span = _level_span(start, goal, arm.max_pressure)
+    for ahead in SNAP_AHEAD:
+        t_over = t + max(ahead / span, dt)
+        level = _interpolate_level(start, goal, min(1.0, t_over), arm.max_pressure)
+        over = _interpolate_level(start, goal, t_over, arm.max_pressure) if t_over > 1.0 \
+            else None
+        landed = _snap(nodes, grid, layout, now, level, over, eps, weights, res_weights,
+                       settings, params)
+        if landed is not None:
+            return landed, level
+    return None, None
+
+
+def _interpolate_level(start, goal, t, p_max):
+    """The level tuple at ``t`` of the ramp from ``start`` to ``goal`` (t may exceed 1: the
+    ramp carried on), pressures kept within [0, p_max]."""
+    level = tuple(a + t * (b - a) for a, b in zip(start, goal))
+    return (np.clip(level[0], 0.0, p_max), *level[1:])
+
+
+def _snap(nodes, grid, layout, now, level, over, eps, weights, res_weights, settings, params):
+    """Where a multiple-shooting path ends at a fold: the stable equilibrium at ``level``
+    that the arm, at ``nodes`` (level ``now``), snaps to; None if none is found.
+
+    Clear of every obstacle, the arm snaps as the single-shooting path does: to the stable
+    root of the level nearest its base moment (:func:`solver._planar._scan`, ``params`` its
+    parameters), if that is clear of the obstacles too. Otherwise, a local minimum of the
+    discrete rod's energy reached from the last state (:func:`solver._relax.relax`) — from
+    the scan's root if it lands in an obstacle; with ``over`` (a level past the ramp's end)
+    it relaxes there first and then back at ``level``. Either is polished by Newton on the
+    shooting system and must be stable.
+    """
+    C = _contact
+    theta0, segs = grid[C.G_THETA0], grid[C.G_SEGS]
+    target = level[C.L_TARGET]
+    rest = _level_rest(layout, level)
+    record = np.zeros((layout.n_rows, C.N_COLUMNS))
+    C._record(nodes, grid, _level_rest(layout, now), now, record)
+    landed = None
+    if not record[:, C.C_PEN].any() and params[_rod.N_SCAN] > 0:
+        loads = _planar_loads(layout, level)
+        m0, found, _ = _planar._scan(theta0, layout.secf, layout.sec_steps, rest, loads,
+                                     float(target[2]), params, int(params[_rod.N_SCAN]),
+                                     float(nodes[2]), _DUMMY)
+        if found:
+            free = np.empty((layout.n_rows, _planar.N_COLUMNS))
+            _planar._integrate(m0, theta0, layout.secf, layout.sec_steps, rest, loads, True, free)
+            P = _planar
+            landed = _nodes_from_states(free[:, [P.X, P.Y, P.THETA, P.NX, P.NY, P.M]], segs)
+            if not _planar._clear_of(free, level[C.L_DISCS], 0.0):
+                record[:, [C.C_X, C.C_Y, C.C_TH, C.C_V1, C.C_V3]] = free[:, [P.X, P.Y, P.THETA,
+                                                                           P.V1, P.V3]]
+                landed = None
+    if landed is None:
+        state = _relax.strains_of_record(record, layout.sec_steps)
+        for lvl in (over, level) if over is not None else (level,):
+            relaxed = _relax.relax(state, theta0, layout.secf, layout.sec_steps,
+                                   _level_rest(layout, lvl), lvl[C.L_Q], lvl[C.L_PLATE],
+                                   lvl[C.L_TARGET][:2] - lvl[C.L_PLATE][-1], lvl[C.L_TARGET][2],
+                                   lvl[C.L_DISCS])
+            if relaxed is None:
+                return None
+            states, state = relaxed
+        landed = _nodes_from_states(states, segs)
+    ok, _, _, stable = C._newton(landed, grid, rest, level, eps, weights, res_weights,
+                                 settings.tol, 4 * settings.max_iter, 0.5)
+    return landed if ok and stable else None
+
+
+def _planar_loads(layout, level):
+    """The (ns, 4) loads array of :mod:`solver._planar` (n_end, q) of a level tuple."""
+    C = _contact
+    q, plate = level[C.L_Q], level[C.L_PLATE]
+    loads = np.empty((q.shape[0], 4))
+    running = level[C.L_TARGET][:2].copy()  # n(L⁻): tip load and the last endplate
+    for i in range(q.shape[0] - 1, -1, -1):
+        loads[i, :2] = running
+        loads[i, 2:] = q[i]
+        if i > 0:
+            running = running + q[i] * layout.sec_len[i] + plate[i - 1]
+    return loads
+
+
+def _shooting_dt_min(scene, settings):
+    return settings.contact_dt_min if scene.obstacles else settings.dt_min
+
+
+def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_moments):
+    """Stage 1 of a cold multiple-shooting solve (cached per scene): from the straight,
+    unloaded, unactuated arm the loads are ramped in with the obstacles in place. Returns a
+    copy of the nodes, the iterations and whether it converged.
+
+    An obstacle that overlaps the straight arm grows in during the ramp, from the radius at
+    which it just touches the arm's axis to its own. Loading a long arm from straight is far
+    from linear (its linear response to its own weight is metres): predicted moves are
+    capped at one Newton step limit.
+    """
+    key = ("loaded-nodes", id(layout), scene, settings, load_moments)
+    hit = arm._solver_cache.get(key)
+    if hit is None:
+        plate, target, state_w, weights, res_weights = _ms_terms(arm, layout, segs, scene, ctx,
+                                                                 load_moments)
         nodes = np.zeros(weights.shape)
         rows = segs[1:, _contact.SEG_ROW0] + segs[1:, _contact.SEG_FIRST]
         s_nodes = np.concatenate([np.linspace(0, n, n + 1) * h + s0 for n, h, s0 in zip(
             layout.sec_steps, layout.sec_len / layout.sec_steps, sec_start)])[rows]
         straight = nodes[3:].reshape(-1, 6)
-        straight[:, 0] = s_nodes * math.cos(scene.base_theta)
-        straight[:, 1] = s_nodes * math.sin(scene.base_theta)
+        axis = np.array([math.cos(scene.base_theta), math.sin(scene.base_theta)])
+        straight[:, :2] = s_nodes[:, None] * axis
         straight[:, 2] = scene.base_theta
-        zero_q, zero_plate = np.zeros_like(ctx.q), np.zeros_like(plate)
-        # Loading a long arm from straight is far from linear (its linear response to its
-        # own weight is metres): predicted moves are capped at one Newton step limit.
-        ok, iterations, res, stable = _contact._follow(
-            nodes, *common, p_start, p_start, zero_q, ctx.q, zero_plate, plate, np.zeros(3),
-            target, *tail, 0.5)
-    if ok:
-        ok, its, res, stable = _contact._follow(nodes, *common, p_start, p_target, ctx.q, ctx.q,
-                                                plate, plate, target, target, *tail)
-        iterations += its
-    return _shooting_result(nodes, scene, segs, layout, sec_start, rest, ctx.q, plate, discs,
-                            record, False, converged=bool(ok), stable=bool(stable),
-                            iterations=int(iterations), residual=float(res), model=model,
-                            pressures=p_inputs, channel_pressures=p_channel)
+        discs = scene.discs_array()
+        grown = discs.copy()
+        along = np.clip(discs[:, :2] @ axis, 0.0, arm.length)
+        grown[:, 2] = np.minimum(discs[:, 2], np.hypot(*(discs[:, :2] - along[:, None] * axis).T))
+        p0 = np.zeros(max(arm.n_channels, 1))
+        start = (p0, np.zeros_like(ctx.q), np.zeros_like(plate), np.zeros(3), grown)
+        goal = (p0, ctx.q, plate, target, discs)
+        grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+        ok, its, res, stable, _, _ = _contact._follow(
+            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, 1e-7 * state_w, weights,
+            res_weights, settings.tol, settings.max_iter, 0.5, settings.dt0,
+            _shooting_dt_min(scene, settings), np.empty((3, len(arm.sections))),
+            _contact._new_level(goal), 0.5)
+        hit = arm._solver_cache[key] = (nodes, int(its), bool(ok and stable))
+    nodes, its, ok = hit
+    return nodes.copy(), its, ok
 
 
-def _shooting_result(nodes, scene, segs, layout, sec_start, rest, q, plate, discs, record,
-                     contact, **fields):
-    """The Equilibrium of a multiple-shooting state ``nodes``: the backbone is integrated
-    from the nodes (contact needs it for the wrap measures even when ``record`` is False;
-    ``record`` decides whether it is returned), with the contact fields if ``contact``."""
+def _shooting_result(nodes, scene, grid, layout, level, record, **fields):
+    """The Equilibrium of a multiple-shooting state ``nodes`` at ``level`` (a level tuple of
+    :mod:`solver._contact`; ``grid`` its layout tuple): the backbone is integrated from the
+    nodes (contact needs it for the wrap measures even when ``record`` is False; ``record``
+    decides whether it is returned), with the contact fields if the scene has obstacles."""
     C = _contact
+    contact = bool(scene.obstacles)
     out = np.zeros((layout.n_rows, C.N_COLUMNS))
-    C._record(nodes, scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, rest, q,
-              plate, discs, out)
+    C._record(nodes, grid, _level_rest(layout, level), level, out)
     common = dict(tip=out[-1, [C.C_X, C.C_Y]].copy(), planar=True, scene=scene,
                   base_moment=np.array([nodes[2]]), base_force=nodes[:2].copy(),
                   shooting_nodes=nodes, in_contact=bool(contact and out[:, C.C_PEN].max() > 0.0),
@@ -1024,6 +1261,13 @@ def _shooting_result(nodes, scene, segs, layout, sec_start, rest, q, plate, disc
         **common)
 
 
+def _level_rest(layout, level):
+    """Rest strains (3, ns) at the pressures of a level tuple."""
+    rest = np.empty((3, layout.secf.shape[1]))
+    _rod._rest_strains(level[_contact.L_P], layout.tubes_i, layout.tubes_f, layout.secf, rest)
+    return rest
+
+
 def _ms_layout(arm, packed):
     """Multiple-shooting segments at the settings' resolution (cached per design)."""
     key = ("multiple", id(packed))
@@ -1038,62 +1282,3 @@ def _nodes_from_states(states, segs):
     n_y, m) per sample: (n0, m0), then the state at every segment start."""
     rows = segs[:, _contact.SEG_ROW0] + segs[:, _contact.SEG_FIRST]
     return np.concatenate([states[rows[0], [3, 4, 5]], states[rows[1:]].ravel()])
-
-
-def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
-    """Planar solve with penalty contact against the scene's discs (:mod:`solver._contact`).
-
-    Only built when a scene has obstacles. The cold path starts from the contact-free loaded
-    state and ramps the pressures with contact active; a warm start continues from the
-    previous state's shooting nodes.
-
-    Shortcut (``settings.shortcuts``): when the previous state touched nothing, the
-    contact-free solve comes first, at the contact layout's resolution; if its backbone
-    clears every disc by half an RK4 step at every sample — so that no point in between, and
-    no RK4 stage, can reach a disc — it is the contact solution (every penalty force is
-    zero), obtained by single shooting in tens of microseconds instead of milliseconds.
-    """
-    layout, segs, sec_start = _contact_layout(arm, packed, scene)
-    free_scene = replace(scene, obstacles=())
-    if settings.shortcuts and (warm_start is None or not warm_start.in_contact):
-        free = _free_of_contact(arm, layout, segs, p_inputs, p_channel, scene, free_scene, model,
-                                warm_start, record, settings)
-        if free is not None:
-            return free
-    ctx = _context(arm, layout, free_scene, 2, settings)
-    p_target = p_channel if arm.n_channels else np.zeros(1)
-    plate, target, state_w, weights, res_weights = _ms_terms(arm, layout, segs, scene, ctx)
-    iterations = 0
-    if warm_start is not None and warm_start.shooting_nodes.shape == weights.shape:
-        nodes = warm_start.shooting_nodes.copy()
-        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
-    else:
-        if warm_start is not None and warm_start.scene is not None:
-            start_eq = solve(arm, warm_start.pressures, replace(warm_start.scene, obstacles=()),
-                             model, True, record=False, settings=settings, warm_start=warm_start)
-            p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
-        else:
-            start_eq = None
-            p_start = np.zeros_like(p_target)
-        if start_eq is None:
-            m0, iterations = _loaded_base_moment(arm, layout, free_scene, ctx, settings)[:2]
-        else:
-            m0 = float(start_eq.base_moment[-1])
-        rest = rest_strains(arm, p_start, layout)
-        free = np.empty((layout.n_rows, _planar.N_COLUMNS))
-        _planar._integrate(m0, scene.base_theta, layout.secf, layout.sec_steps, np.vstack(rest),
-                           ctx.loads, True, free)
-        P = _planar
-        nodes = _nodes_from_states(free[:, [P.X, P.Y, P.THETA, P.NX, P.NY, P.M]], segs)
-    rest, p_now = np.empty((3, len(arm.sections))), np.empty(p_target.shape[0])
-    discs = scene.discs_array()
-    eps = 1e-7 * state_w
-    ok, its, res, stable = _contact._follow(
-        nodes, scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, layout.tubes_i,
-        layout.tubes_f, p_start, p_target, ctx.q, ctx.q, plate, plate, target, target, discs, eps,
-        weights, res_weights, settings.tol, settings.max_iter, 0.5, settings.dt0, settings.dt_min,
-        rest, p_now)
-    return _shooting_result(nodes, scene, segs, layout, sec_start, rest, ctx.q, plate, discs,
-                            record, True, converged=bool(ok), stable=bool(stable),
-                            iterations=int(iterations + its), residual=float(res), model=model,
-                            pressures=p_inputs, channel_pressures=p_channel)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import solver
-from solver import _planar, _spatial, designs
+from solver import _planar, _rod, _spatial, designs
 
 S = importlib.import_module("solver.solve")
 
@@ -64,7 +64,7 @@ def test_3d_test_agrees_with_planar_test_on_planar_equilibria(guess, stable):
     packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
     ctx2 = S._context(arm, packed, scene, 2, settings)
     rest = np.empty((3, len(arm.sections)))
-    _planar._rest_strains(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf,
+    _rod._rest_strains(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf,
                           rest)
     out = _planar._newton(guess, scene.base_theta, packed.secf, packed.sec_steps, rest,
                           ctx2.loads, ctx2.m_tip, 1e-9, 30, 5.0, np.empty((1, _planar.N_COLUMNS)))
@@ -97,7 +97,7 @@ def test_spatial_solve_of_planar_scenes_matches_planar_solver_or_buckles_sideway
         assert spatial.converged and spatial.stable
         packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
         rest = np.empty((3, len(arm.sections)))
-        _planar._rest_strains(p_channel, packed.tubes_i, packed.tubes_f, packed.secf, rest)
+        _rod._rest_strains(p_channel, packed.tubes_i, packed.tubes_f, packed.secf, rest)
         m0 = np.array([0.0, 0.0, planar.base_moment[-1]])
         ok, _, _, stable_in_3d = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
                                                   packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8,
@@ -233,7 +233,7 @@ def test_sideways_buckle_takes_the_plus_z_mirror_image():
     settings = solver.Settings()
     packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
     rest = np.empty((3, len(arm.sections)))
-    _planar._rest_strains(p, packed.tubes_i, packed.tubes_f, packed.secf, rest)
+    _rod._rest_strains(p, packed.tubes_i, packed.tubes_f, packed.secf, rest)
     mirror = eq.base_moment * np.array([-1.0, -1.0, 1.0])
     ok, _, res, stable = _spatial._newton(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j,
                                           rest, ctx.loads, ctx.m_tip, 1e-9, 2, 1.0, work, dummy)

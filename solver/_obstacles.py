@@ -1,0 +1,97 @@
+"""Obstacle geometry shared by the contact kernels and the contact-free guards.
+
+Obstacles are discs in the x–y plane, an (n, 4) array of centre x, centre y, radius and
+penalty stiffness (N/m²). Two questions are asked of a quasi-static path between accepted
+states: is the backbone clear of every disc, and did any backbone sample *tunnel* — pass
+through a disc between two states, which a continuation step can do when it is too long
+(a penalty disc exerts no force on a backbone that has already crossed it)?
+"""
+
+from __future__ import annotations
+
+import math
+
+from solver._jit import njit
+
+CX, CY, RADIUS, STIFFNESS = range(4)
+
+
+@njit
+def _contact_force(x, y, discs):
+    """Penalty force per length (fx, fy) and deepest penetration at backbone point (x, y).
+
+    f = k · max(0, R − |r − c|) · (r − c)/|r − c| summed over the discs (N/m).
+    """
+    fx = 0.0
+    fy = 0.0
+    deepest = 0.0
+    for d in range(discs.shape[0]):
+        dx = x - discs[d, CX]
+        dy = y - discs[d, CY]
+        dist = math.sqrt(dx * dx + dy * dy)
+        pen = discs[d, RADIUS] - dist
+        if pen > 0.0 and dist > 0.0:
+            scale = discs[d, STIFFNESS] * pen / dist
+            fx += scale * dx
+            fy += scale * dy
+            if pen > deepest:
+                deepest = pen
+    return fx, fy, deepest
+
+
+@njit
+def _penalty_energy(pen, stiffness):
+    """Potential (J/m) of the penalty force per length: ½ k pen² inside, 0 outside."""
+    return 0.5 * stiffness * pen * pen if pen > 0.0 else 0.0
+
+
+@njit
+def _clearance(x, y, discs):
+    """Smallest signed gap from (x, y) to the disc surfaces (m; negative inside a disc)."""
+    gap = math.inf
+    for d in range(discs.shape[0]):
+        g = math.hypot(x - discs[d, CX], y - discs[d, CY]) - discs[d, RADIUS]
+        if g < gap:
+            gap = g
+    return gap
+
+
+@njit
+def _segment_depth(ax, ay, bx, by, cx, cy, radius):
+    """Deepest penetration of the straight segment a → b into the disc (c, radius) (m)."""
+    ex = bx - ax
+    ey = by - ay
+    length2 = ex * ex + ey * ey
+    t = 0.0
+    if length2 > 0.0:
+        t = min(1.0, max(0.0, ((cx - ax) * ex + (cy - ay) * ey) / length2))
+    return radius - math.hypot(ax + t * ex - cx, ay + t * ey - cy)
+
+
+@njit
+def _tunnels(prev_xy, new_xy, discs, slack):
+    """True when a backbone sample crossed into a disc between two states, deeper than at
+    either end.
+
+    Each sample is taken to move along the straight segment between its two positions; a
+    move is a tunnel when that segment goes deeper into a disc than the deeper of its two
+    end points by more than ``slack`` (m). Sliding along or around a disc's surface in
+    short steps is not a tunnel; jumping through the disc (or across part of it) is.
+
+    Args:
+        prev_xy, new_xy: (N, ≥2) sample positions (m) of the two states (columns x, y).
+        discs: (n, 4) obstacles. slack: allowance (m).
+    """
+    for k in range(prev_xy.shape[0]):
+        ax = prev_xy[k, 0]
+        ay = prev_xy[k, 1]
+        bx = new_xy[k, 0]
+        by = new_xy[k, 1]
+        for d in range(discs.shape[0]):
+            cx = discs[d, CX]
+            cy = discs[d, CY]
+            r = discs[d, RADIUS]
+            end = max(r - math.hypot(ax - cx, ay - cy), r - math.hypot(bx - cx, by - cy))
+            if _segment_depth(ax, ay, bx, by, cx, cy, r) > max(end, 0.0) + slack:
+                return True
+    return False

@@ -1,0 +1,269 @@
+"""Energy of the planar discrete rod, for snapping where path following cannot go on.
+
+Where a quasi-static path reaches a fold the arm snaps: it moves dynamically to another
+stable equilibrium. The multiple-shooting kernels of :mod:`solver._contact` find equilibria
+by Newton, which needs a start inside the basin of the state the arm lands in; they have no
+way to look for it. This module gives them one: the total potential energy of the rod,
+discretised on the shooting grid, whose local minimisation from the last state before the
+fold (damped motion, in effect) lands on a stable equilibrium near the one the arm falls
+into. Newton on the shooting system then polishes it.
+
+The discrete rod: nodes k = 0..N at the samples of the shooting layout (section junctions
+not repeated), element e between nodes e and e + 1 of length h_e in section i. Unknowns:
+node angles θ_1..θ_N (θ_0 is the clamped base) and per element the shear v1_e and the
+stretch deviation w_e = v3_e − v*_i. Positions r_{e+1} = r_e + h_e (v3_e d3 + v1_e d1) at the
+mid angle (θ_e + θ_{e+1})/2. Energy
+
+    Σ_e h_e [½EI (Δθ/h − u*)² + ½EA w² + ½GA v1²]     (strain energy of the Cosserat rod)
+    − Σ_e h_e q·(r_e + r_{e+1})/2 − Σ_i W_i·r(end of i) − F·r_N − M θ_N     (dead loads)
+    + Σ_k ω_k Φ(pen_d(r_k))                                                (penalty contact)
+
+with ω_k the trapezoid weights and Φ the penalty potential ½ k pen²
+(:func:`solver._obstacles._penalty_energy`). The unshearable model (1/GA = 0) fixes v1 = 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from solver._jit import njit
+from solver._obstacles import CX, CY, RADIUS, STIFFNESS, _penalty_energy
+from solver._rod import CA, CG, CI, LEN
+
+
+@njit
+def _positions(theta0, x, sec_of, h, v_rest, pos, mid_c, mid_s):
+    """Node positions (N + 1, 2) of the unknowns ``x`` and each element's mid-angle cos, sin."""
+    n = h.shape[0]
+    pos[0, 0] = 0.0
+    pos[0, 1] = 0.0
+    for e in range(n):
+        th_a = theta0 if e == 0 else x[e - 1]
+        th_b = x[e]
+        phi = 0.5 * (th_a + th_b)
+        c = math.cos(phi)
+        s = math.sin(phi)
+        mid_c[e] = c
+        mid_s[e] = s
+        v1 = x[n + e]
+        v3 = v_rest[sec_of[e]] + x[2 * n + e]
+        pos[e + 1, 0] = pos[e, 0] + h[e] * (v3 * c - v1 * s)
+        pos[e + 1, 1] = pos[e, 1] + h[e] * (v3 * s + v1 * c)
+
+
+@njit
+def energy_and_gradient(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at, plate,
+                        tip_force, tip_moment, discs, grad):
+    """Total potential energy (J) of the discrete rod at unknowns ``x`` (3N,) = (θ_1..θ_N,
+    v1_0..v1_{N−1}, w_0..w_{N−1}); its gradient into ``grad`` (3N,).
+
+    Args:
+        theta0: base angle (rad). sec_of: (N,) section of each element. h: (N,) lengths (m).
+        secf: (6, ns) section array. u_rest, v_rest: (ns,) rest curvature and stretch.
+        q: (ns, 2) distributed load (N/m). plate_at: (ns,) node index of each section end;
+        plate: (ns, 2) endplate weight there (N), the last one at the tip node.
+        tip_force: (2,) tip force and payload weight (N). tip_moment: N m.
+        discs: (k, 4) obstacles.
+    """
+    n = h.shape[0]
+    pos = np.empty((n + 1, 2))
+    mid_c = np.empty(n)
+    mid_s = np.empty(n)
+    _positions(theta0, x, sec_of, h, v_rest, pos, mid_c, mid_s)
+    # dV/dr at every node (minus the external force there).
+    force = np.zeros((n + 1, 2))
+    e_total = 0.0
+    for e in range(n):
+        i = sec_of[e]
+        for d in range(2):
+            half = 0.5 * h[e] * q[i, d]
+            force[e, d] -= half
+            force[e + 1, d] -= half
+            e_total -= half * (pos[e, d] + pos[e + 1, d])
+    for i in range(plate.shape[0]):
+        k = plate_at[i]
+        for d in range(2):
+            force[k, d] -= plate[i, d]
+            e_total -= plate[i, d] * pos[k, d]
+    for d in range(2):
+        force[n, d] -= tip_force[d]
+        e_total -= tip_force[d] * pos[n, d]
+    for k in range(n + 1):
+        w = 0.5 * ((h[k - 1] if k > 0 else 0.0) + (h[k] if k < n else 0.0))
+        for dd in range(discs.shape[0]):
+            dx = pos[k, 0] - discs[dd, CX]
+            dy = pos[k, 1] - discs[dd, CY]
+            dist = math.sqrt(dx * dx + dy * dy)
+            pen = discs[dd, RADIUS] - dist
+            if pen > 0.0 and dist > 0.0:
+                e_total += w * _penalty_energy(pen, discs[dd, STIFFNESS])
+                push = w * discs[dd, STIFFNESS] * pen / dist
+                force[k, 0] -= push * dx
+                force[k, 1] -= push * dy
+    for k in range(grad.shape[0]):
+        grad[k] = 0.0
+    # Tail sums T_e = Σ_{m > e} dV/dr_m: the sensitivity of V to element e's chord.
+    tail_x = 0.0
+    tail_y = 0.0
+    th_last = x[n - 1]
+    e_total -= tip_moment * th_last
+    grad[n - 1] -= tip_moment
+    for e in range(n - 1, -1, -1):
+        tail_x += force[e + 1, 0]
+        tail_y += force[e + 1, 1]
+        i = sec_of[e]
+        c = mid_c[e]
+        s = mid_s[e]
+        v1 = x[n + e]
+        w = x[2 * n + e]
+        v3 = v_rest[i] + w
+        th_a = theta0 if e == 0 else x[e - 1]
+        kappa = (x[e] - th_a) / h[e] - u_rest[i]
+        ei = 1.0 / secf[CI, i]
+        e_total += 0.5 * h[e] * ei * kappa * kappa
+        m = ei * kappa
+        grad[e] += m
+        if e > 0:
+            grad[e - 1] -= m
+        # Chord Δ_e = h (v3 d3 + v1 d1); ∂Δ/∂φ = h (v3 d1 − v1 d3), φ the mid angle.
+        dphi = h[e] * (tail_x * (-v3 * s - v1 * c) + tail_y * (v3 * c - v1 * s))
+        grad[e] += 0.5 * dphi
+        if e > 0:
+            grad[e - 1] += 0.5 * dphi
+        e_total += 0.5 * h[e] * w * w / secf[CA, i]
+        grad[2 * n + e] = h[e] * (w / secf[CA, i] + tail_x * c + tail_y * s)
+        if secf[CG, i] > 0.0:
+            e_total += 0.5 * h[e] * v1 * v1 / secf[CG, i]
+            grad[n + e] = h[e] * (v1 / secf[CG, i] - tail_x * s + tail_y * c)
+    return e_total
+
+
+@njit
+def shooting_states(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at, plate, tip_force,
+                    discs, states):
+    """Shooting states (x, y, θ, n_x, n_y, m) at every node of the discrete rod (N + 1, 6).
+
+    n at a node is the sum of the external forces distal to it (the free tip carries
+    ``tip_force``); at a section end it is taken just distal of the endplate, the state
+    multiple shooting starts the next section from. m = EI (θ' − u*) of the element that
+    starts at the node (the last element's at the tip).
+    """
+    n = h.shape[0]
+    pos = np.empty((n + 1, 2))
+    mid_c = np.empty(n)
+    mid_s = np.empty(n)
+    _positions(theta0, x, sec_of, h, v_rest, pos, mid_c, mid_s)
+    force = np.zeros((n + 1, 2))
+    for e in range(n):
+        for d in range(2):
+            half = 0.5 * h[e] * q[sec_of[e], d]
+            force[e, d] += half
+            force[e + 1, d] += half
+    for i in range(plate.shape[0]):
+        for d in range(2):
+            force[plate_at[i], d] += plate[i, d]
+    for k in range(n + 1):
+        w = 0.5 * ((h[k - 1] if k > 0 else 0.0) + (h[k] if k < n else 0.0))
+        for dd in range(discs.shape[0]):
+            dx = pos[k, 0] - discs[dd, CX]
+            dy = pos[k, 1] - discs[dd, CY]
+            dist = math.sqrt(dx * dx + dy * dy)
+            pen = discs[dd, RADIUS] - dist
+            if pen > 0.0 and dist > 0.0:
+                push = w * discs[dd, STIFFNESS] * pen / dist
+                force[k, 0] += push * dx
+                force[k, 1] += push * dy
+    nx = tip_force[0]
+    ny = tip_force[1]
+    for k in range(n, -1, -1):
+        th = theta0 if k == 0 else x[k - 1]
+        e = min(k, n - 1)
+        th_a = theta0 if e == 0 else x[e - 1]
+        i = sec_of[e]
+        states[k, 0] = pos[k, 0]
+        states[k, 1] = pos[k, 1]
+        states[k, 2] = th
+        states[k, 3] = nx
+        states[k, 4] = ny
+        states[k, 5] = ((x[e] - th_a) / h[e] - u_rest[i]) / secf[CI, i]
+        nx += force[k, 0]
+        ny += force[k, 1]
+
+
+def element_layout(secf, steps):
+    """Per-element section index (N,), lengths (N,), and the node index of each section end."""
+    sec_of = np.repeat(np.arange(steps.shape[0]), steps)
+    h = np.repeat(secf[LEN] / steps, steps)
+    return sec_of.astype(np.int64), h, np.cumsum(steps).astype(np.int64)
+
+
+def strains_of_record(record, steps):
+    """The discrete rod's unknowns, in absolute terms, of a recorded state: node angles
+    θ_1..θ_N, and per element the shear v1 and stretch v3 (means of its end samples).
+
+    Args:
+        record: (Σ(steps + 1), ≥13) a :mod:`solver._contact` record (columns x, y, θ, …, v1,
+            v3), junction samples repeated. steps: (ns,) RK4 steps per section.
+    """
+    from solver._contact import C_TH, C_V1, C_V3
+    rows = np.concatenate([np.arange(k) + 1 + off for k, off in
+                           zip(steps, np.concatenate([[0], np.cumsum(steps + 1)[:-1]]))])
+    first = np.concatenate([[0], rows[:-1]])  # the row each element starts from
+    return (record[rows, C_TH], 0.5 * (record[first, C_V1] + record[rows, C_V1]),
+            0.5 * (record[first, C_V3] + record[rows, C_V3]))
+
+
+def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_moment, discs,
+          max_iter=3000):
+    """Minimise the discrete rod's energy under the given loads from the state ``start``.
+
+    Args:
+        start: (θ, v1, v3), each (N,): node angles and element strains
+            (:func:`strains_of_record`, or a previous result's).
+        theta0: base angle (rad). secf, steps: the layout's section array and steps.
+        level_rest: (3, ns) rest strains at the loads to relax under; q, plate (ns, 2),
+            tip_force (2,), tip_moment, discs (k, 4): those loads (``plate`` includes the
+            endplate at the tip; ``tip_force`` is the rest of the tip load).
+
+    Returns:
+        ((Σ(steps + 1), 6) states (x, y, θ, n_x, n_y, m) on the record's rows, the minimum
+        as a ``start``), or None if the minimisation failed.
+    """
+    from scipy.optimize import minimize
+
+    sec_of, h, ends = element_layout(secf, steps)
+    n = h.size
+    u_rest, v_rest = level_rest[1], level_rest[2]
+    x0 = np.concatenate([start[0], start[1], start[2] - v_rest[sec_of]])
+    if not np.all(np.isfinite(x0)):
+        return None
+    shearable = secf[CG] > 0.0
+    if not shearable.all():
+        x0[n:2 * n][~shearable[sec_of]] = 0.0
+    # Variables scaled by the square root of their stiffness (bending 2EI/h, stretch h·EA,
+    # shear h·GA): the Hessian of the strain energy is then near the identity.
+    scale = 1.0 / np.sqrt(np.concatenate([
+        2.0 / (secf[CI, sec_of] * h),
+        h / np.where(shearable, secf[CG], 1.0)[sec_of],
+        h / secf[CA, sec_of]]))
+    grad = np.empty(3 * n)
+    args = (theta0, sec_of, h, secf, u_rest, v_rest, q, ends, plate, tip_force,
+            float(tip_moment), discs, grad)
+
+    def fun(y):
+        energy = energy_and_gradient(y * scale, *args)
+        return energy, grad * scale
+
+    result = minimize(fun, x0 / scale, jac=True, method="L-BFGS-B",
+                      options={"maxiter": max_iter, "gtol": 1e-12, "ftol": 0.0})
+    x = result.x * scale
+    if not np.all(np.isfinite(x)):
+        return None
+    nodes = np.empty((n + 1, 6))
+    shooting_states(x, theta0, sec_of, h, secf, u_rest, v_rest, q, ends, plate, tip_force, discs,
+                    nodes)
+    node_of_row = np.concatenate([np.arange(k + 1) + off for k, off in
+                                  zip(steps, np.concatenate([[0], np.cumsum(steps)[:-1]]))])
+    return nodes[node_of_row], (x[:n], x[n:2 * n], x[2 * n:] + v_rest[sec_of])
