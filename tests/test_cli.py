@@ -165,3 +165,33 @@ def test_console_script_prints_one_line_and_no_traceback(tmp_path):
     assert proc.stderr.strip().splitlines() == [
         f"softarm solve: error: cannot read design file '{missing}': No such file or directory"]
     assert proc.stdout == ""
+
+
+@pytest.mark.parametrize("command", _commands_with("--pressures-psi"))
+def test_negative_value_after_a_space_reaches_the_command(capsys, command):
+    """``--pressures-psi -5,...`` must not be argparse's "expected one argument"."""
+    lines = _fails_cleanly(capsys, [command, "--pressures-psi", "-5,0,0,0,0,0"])
+    assert "expected one argument" not in lines[-1]
+
+
+def test_solve_negative_pressure_after_a_space(capsys):
+    lines = _fails_cleanly(capsys, ["solve", "--pressures-psi", "-5,0,0,0,0,0"], "'s1_I' is negative")
+    assert len(lines) == 1
+
+
+def test_negative_plain_numbers_still_parse(capsys):
+    assert main(["solve", "--base-angle", "-30", "--pressures-psi", "5,0,0,0,0,0", "--json"]) == 0
+    assert '"converged": true' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("extra", [[], ["--shape"]])
+def test_closed_stdout_pipe_ends_silently(extra):
+    """``softarm solve --json | head -1``: no BrokenPipeError traceback, SIGPIPE-like status."""
+    script = Path(sys.executable).with_name("softarm")
+    argv = [str(script)] if script.exists() else [sys.executable, "-m", "softarm_gym.cli"]
+    proc = subprocess.Popen([*argv, "solve", "--json", *extra], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before the first byte is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert err == ""
