@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import os
 import re
 import sys
+
+from softarm_gym.files import json_text
 
 COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators", "stress")
 """Command modules under :mod:`softarm_gym.commands`, in help order."""
@@ -67,21 +68,12 @@ def main(argv=None) -> int:
 
 
 def emit(payload: dict, as_json: bool, text: str) -> None:
-    """Print ``payload`` as JSON, or ``text`` for people."""
+    """Print ``payload`` as strict JSON (a non-finite number is ``null``, see
+    :func:`softarm_gym.files.json_text`), or ``text`` for people."""
     if as_json:
-        print(json.dumps(payload, indent=2, default=_jsonable))
+        print(json_text(payload))
     else:
         print(text)
-
-
-def _jsonable(obj):
-    import numpy as np
-
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 if __name__ == "__main__":

@@ -4,13 +4,15 @@ The subcommands and their options are read from the parser itself, so a command 
 ``COMMANDS`` is covered by the generic tests without editing this file.
 """
 
+import json
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from softarm_gym.cli import COMMANDS, build_parser, main
+from softarm_gym.cli import COMMANDS, build_parser, emit, main
 
 
 def _subparsers():
@@ -139,6 +141,8 @@ def test_too_few_levels(capsys, command):
 
 @pytest.mark.parametrize("argv, match", [
     (["design", "--sections", "0"], "--sections must be integers >= 1"),
+    (["design", "--sections", "1000"], "--sections must be at most 8 (MAX_SECTIONS"),
+    (["design", "--sections", "3,1e400"], "--sections must be at most 8"),
     (["design", "--lengths=-1", "--no-progress"], "lengths"),
     (["estimators", "--pressures-psi=-5", "--no-progress"], "pressure levels"),
     (["stress", "--classes", "bogus"], "unknown stress class bogus"),
@@ -195,3 +199,11 @@ def test_closed_stdout_pipe_ends_silently(extra):
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141
     assert err == ""
+
+
+def test_json_output_is_strict_json(capsys):
+    """Standard parsers reject NaN/Infinity: a non-finite number is written as null."""
+    emit({"tip": np.array([np.nan, 0.5]), "residual": np.float64(np.inf)}, True, "")
+    out = capsys.readouterr().out
+    assert json.loads(out, parse_constant=lambda c: pytest.fail(f"{c} in JSON output")) == {
+        "tip": [None, 0.5], "residual": None}
