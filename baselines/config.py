@@ -395,28 +395,32 @@ def load_policy(model_path: Path | str, *, trust_pickle: bool = False):
     if not meta_path.is_file():
         raise ValueError(f"{model_path.name} has no metadata file {meta_path.name} next to it")
     meta = read_metadata(meta_path)
-    venv = DummyVecEnv([lambda: make_env(meta["env_id"], meta.get("env_kwargs", {}))])
-    if trust_pickle:
-        policy = ALGOS[meta["algo"]].load(model_path, device="cpu")
-    else:
-        policy = _rebuilt_policy(meta, model_path, venv.observation_space, venv.action_space)
     pickled = legacy_normalization_path(model_path)
-    if norm_path.is_file():
-        vecnorm = VecNormalize(venv, training=False)
-        size = int(np.prod(venv.observation_space.shape))
-        restore_normalization(vecnorm, load_normalization(norm_path, size))
-    elif pickled.is_file() and trust_pickle:
-        vecnorm = VecNormalize.load(str(pickled), venv)
-    elif pickled.is_file():
+    if not norm_path.is_file() and pickled.is_file() and not trust_pickle:
         raise ValueError(f"{model_path.name}: its normalisation statistics are the pickle {pickled.name}, "
                          "which can run code when loaded; if you made it, convert the model with "
                          "python -m baselines.convert (or pass --trust-pickle)")
-    elif meta.get("normalized"):
+    if not norm_path.is_file() and not pickled.is_file() and meta.get("normalized"):
         raise ValueError(f"{model_path.name} was trained on normalised observations but "
                          f"{norm_path.name} is missing")
-    else:
+    venv = DummyVecEnv([lambda: make_env(meta["env_id"], meta.get("env_kwargs", {}))])
+    try:
+        if trust_pickle:
+            policy = ALGOS[meta["algo"]].load(model_path, device="cpu")
+        else:
+            policy = _rebuilt_policy(meta, model_path, venv.observation_space, venv.action_space)
+        if norm_path.is_file():
+            vecnorm = VecNormalize(venv, training=False)
+            size = int(np.prod(venv.observation_space.shape))
+            restore_normalization(vecnorm, load_normalization(norm_path, size))
+        elif pickled.is_file():
+            vecnorm = VecNormalize.load(str(pickled), venv)
+        else:
+            venv.close()
+            return policy, meta, None
+    except BaseException:
         venv.close()
-        return policy, meta, None
+        raise
     vecnorm.training = False
     vecnorm.norm_reward = False
     return policy, meta, vecnorm
