@@ -174,3 +174,16 @@ def test_sigterm_saves_like_ctrl_c(tmp_path):
     assert proc.returncode == 128 + signal.SIGTERM, err
     assert err.strip().splitlines()[-1].startswith("baselines.train: interrupted at step ")
     assert json.loads(sidecar_paths(latest_checkpoint(run))[0].read_text())["kind"] == "interrupted"
+
+
+def test_fault_drill_counts_what_it_checks(tiny_sac_run, tmp_path):
+    from baselines import faults
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_sac_run, run)
+    assert faults._check_folder(run) == 0
+    (run / "checkpoints" / "model_100_steps.zip").write_bytes(b"half a zip")
+    assert faults._check_folder(run) == 1
+    tally = faults.drill(cycles=1, timesteps=400, workdir=tmp_path / "drill")
+    assert tally["sigint"] == tally["clean_sigint_exits"] == tally["sigint_saved_at_stop"] == 1
+    assert tally["unloadable_files"] == 0 and tally["final_timesteps"] == 400

@@ -13,6 +13,7 @@ import pickle
 import shutil
 import zipfile
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import torch
@@ -86,6 +87,9 @@ def test_pickled_object_in_policy_weights_is_refused(model, marker):
     with pytest.raises(ValueError, match=r"policy.pth is not plain weights \(refused by torch.load"):
         load_policy(model)
     assert not marker.exists()
+    with zipfile.ZipFile(model) as archive:  # what a full unpickle of that entry would do
+        torch.load(io.BytesIO(archive.read("policy.pth")), weights_only=False)
+    assert marker.exists()
 
 
 def test_pickled_normalisation_statistics_are_refused_without_trust_pickle(model, marker, capsys):
@@ -102,15 +106,19 @@ def test_pickled_normalisation_statistics_are_refused_without_trust_pickle(model
 @pytest.mark.parametrize("trust_pickle", [False, True])
 def test_metadata_env_id_cannot_import_a_module(model, marker, tmp_path, monkeypatch, trust_pickle):
     """``gym.make("evil:Env")`` would import ``evil.py`` from the path; metadata may not name it."""
-    (tmp_path / "evil_softarm_env.py").write_text(f"open({str(marker)!r}, 'w')\nclass Env: pass\n")
+    module = f"evil_env_{trust_pickle}"  # one name per case: a module is imported only once
+    (tmp_path / f"{module}.py").write_text(f"open({str(marker)!r}, 'w')\nclass Env: pass\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    _edit_metadata(model, env_id="evil_softarm_env:Env")
+    _edit_metadata(model, env_id=f"{module}:Env")
     with pytest.raises(ValueError, match=r"model.json: environment id must be a registered SoftArm/\* id"):
         load_policy(model, trust_pickle=trust_pickle)
     assert not marker.exists()
     with pytest.raises(ValueError, match="registered SoftArm"):  # an explicit --env neither
-        evaluate(controller="jacobian", env_id="evil_softarm_env:Env", episodes=1)
+        evaluate(controller="jacobian", env_id=f"{module}:Env", episodes=1)
     assert not marker.exists()
+    with contextlib.suppress(Exception):  # what gym.make does with such an id
+        gym.make(f"{module}:Env")
+    assert marker.exists()
 
 
 @pytest.mark.parametrize(("changes", "match"), [
