@@ -386,22 +386,25 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
     if resumed:
         print(f"resuming {run_dir.name} at step {done} of {config['timesteps']}{note}", file=sys.stderr)
     try:
-        if config["timesteps"] > done:
-            model.learn(total_timesteps=config["timesteps"] - done, callback=CallbackList(callbacks),
-                        reset_num_timesteps=not resumed)
-    except KeyboardInterrupt:
-        checkpoint = save("interrupted")
+        try:
+            if config["timesteps"] > done:
+                model.learn(total_timesteps=config["timesteps"] - done, callback=CallbackList(callbacks),
+                            reset_num_timesteps=not resumed)
+        except KeyboardInterrupt:
+            checkpoint = save("interrupted")
+            raise TrainingInterrupted(run_dir, checkpoint, int(model.num_timesteps)) from None
+        final_steps = int(model.num_timesteps)
+        summary = {**meta, "timesteps_done": final_steps, **spent(),
+                   "steps_per_s": (final_steps - done) / max(time.perf_counter() - start, 1e-9),
+                   "threads": config["threads"], "time_limit_min": time_limit_min,
+                   "resumed_from": done or None}
+        save("final", run_dir / "final_model.zip", **{k: v for k, v in summary.items() if k not in meta})
+        write_json(run_dir / "summary.json", summary)
+    finally:
+        model.logger.close()
         venv.close()
-        raise TrainingInterrupted(run_dir, checkpoint, int(model.num_timesteps)) from None
-
-    final_steps = int(model.num_timesteps)
-    elapsed = spent()
-    summary = {**meta, "timesteps_done": final_steps, **elapsed,
-               "steps_per_s": (final_steps - done) / max(time.perf_counter() - start, 1e-9),
-               "threads": config["threads"], "time_limit_min": time_limit_min, "resumed_from": done or None}
-    save("final", run_dir / "final_model.zip", **{k: v for k, v in summary.items() if k not in meta})
-    write_json(run_dir / "summary.json", summary)
-    venv.close()
+        if eval_venv is not None:
+            eval_venv.close()
     return run_dir
 
 
