@@ -149,9 +149,9 @@ def legacy_normalization_path(model_path: Path | str) -> Path:
 
 _POLICY_KWARGS = {
     "net_arch": "list of layer sizes, or a mapping of such lists (pi, qf, vf)",
-    "log_std_init": "number", "use_sde": "bool", "n_critics": "integer",
-    "share_features_extractor": "bool", "ortho_init": "bool", "squash_output": "bool",
-    "use_expln": "bool", "clip_mean": "number", "full_std": "bool", "normalize_images": "bool",
+    "log_std_init": "a number", "use_sde": "a bool", "n_critics": "an integer in 1..16",
+    "share_features_extractor": "a bool", "ortho_init": "a bool", "squash_output": "a bool",
+    "use_expln": "a bool", "clip_mean": "a number", "full_std": "a bool", "normalize_images": "a bool",
 }
 """policy_kwargs a metadata file may set: plain data only (no classes, no callables)."""
 _MAX_LAYER, _MAX_LAYERS = 4096, 16
@@ -184,12 +184,12 @@ def _policy_kwargs(kwargs, where: str) -> dict:
                     _layers(layers, f"{where} net_arch[{name!r}]")
             else:
                 _layers(value, f"{where} net_arch")
-        elif kind == "bool" and not isinstance(value, bool) \
-                or kind == "integer" and (isinstance(value, bool) or not isinstance(value, int)
-                                          or not 1 <= value <= 16) \
-                or kind == "number" and (isinstance(value, bool) or not isinstance(value, (int, float))
-                                         or not math.isfinite(value)):
-            raise ValueError(f"{where} policy_kwargs[{key!r}] must be a {kind}; got {value!r:.80}")
+        elif kind == "a bool" and not isinstance(value, bool) \
+                or kind.startswith("an integer") and (isinstance(value, bool) or not isinstance(value, int)
+                                                      or not 1 <= value <= 16) \
+                or kind == "a number" and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                           or not math.isfinite(value)):
+            raise ValueError(f"{where} policy_kwargs[{key!r}] must be {kind}; got {value!r:.80}")
     return kwargs
 
 

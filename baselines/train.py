@@ -46,6 +46,7 @@ import argparse
 import copy
 import json
 import math
+import numbers
 import os
 import re
 import signal
@@ -409,11 +410,10 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
 
 
 def _check_counts(eval_freq: int, checkpoint_freq: int, threads: int) -> None:
-    for name, value in (("eval_freq", eval_freq), ("checkpoint_freq", checkpoint_freq)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise ValueError(f"{name} must be an integer >= 0; got {value!r}")
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
-        raise ValueError(f"threads must be an integer >= 1; got {threads!r}")
+    for name, value, low in (("eval_freq", eval_freq, 0), ("checkpoint_freq", checkpoint_freq, 0),
+                             ("threads", threads, 1)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+            raise ValueError(f"{name} must be an integer >= {low}; got {value!r}")
 
 
 def _check_time_limit(time_limit_min) -> None:

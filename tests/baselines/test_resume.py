@@ -159,6 +159,8 @@ def test_on_policy_resume_with_reward_normalisation(tmp_path):
 def test_misuse_is_a_clear_error(tiny_sac_run, tmp_path):
     with pytest.raises(ValueError, match="already holds a run; continue it with --resume"):
         train(ENV_ID, "sac", seed=3, log_dir=tiny_sac_run.parent, hyperparams=TINY["sac"], progress=False)
+    with pytest.raises(ValueError, match="checkpoint_freq must be an integer >= 0"):
+        train(ENV_ID, "sac", log_dir=tmp_path / "new", hyperparams=TINY["sac"], checkpoint_freq=-1)
     with pytest.raises(ValueError, match="is not a training run folder"):
         resume(tmp_path)
     (tmp_path / "config.json").write_text(json.dumps({"env_id": ENV_ID}))
