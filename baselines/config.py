@@ -11,14 +11,34 @@ nothing is ``eval``-ed). Keys other than the ones below go to the SB3 algorithm 
 * ``noise_type`` / ``noise_std`` (off-policy only): ``"normal"`` action noise of that std.
 
 A trained model ``FILE.zip`` is accompanied by ``FILE.json`` (env id, algorithm, env_kwargs,
-seed, training summary) and, when observations were normalised, ``FILE_vecnormalize.pkl``;
-:func:`load_policy` reads all three so an evaluation needs only the zip's path.
+policy class and ``policy_kwargs``, seed, training summary) and, when observations were
+normalised, ``FILE_vecnormalize.json`` (the statistics as plain numbers); :func:`load_policy`
+reads all three so an evaluation needs only the zip's path.
+
+Loading is safe by default: nothing in these files can run code. An SB3 zip also holds
+cloudpickled Python objects (its ``data`` entry), and SB3's ``load`` and ``VecNormalize.load``
+unpickle them — a crafted file then runs whatever it likes. :func:`load_policy` instead
+
+* reads only the ``policy.pth`` entry of the zip, with ``torch.load(weights_only=True)``
+  (tensors only), into a policy rebuilt from the metadata: an SB3 policy alias of the
+  algorithm and JSON ``policy_kwargs`` from a short list of known keys;
+* reads the normalisation statistics from JSON;
+* accepts from the metadata only registered ``SoftArm/*`` environment ids (Gymnasium
+  imports the module of an id of the form ``module:Env``).
+
+``trust_pickle=True`` (``--trust-pickle``) loads the old way, for files you made yourself:
+``ALGO.load`` on the zip and a ``FILE_vecnormalize.pkl``. ``python -m baselines.convert``
+turns such a trusted model into the safe format.
 """
 
 from __future__ import annotations
 
 import copy
+import inspect
+import io
 import json
+import math
+import zipfile
 from pathlib import Path
 
 import gymnasium as gym
@@ -28,9 +48,12 @@ from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.noise import NormalActionNoise
 
 import softarm_gym  # noqa: F401  (registers the SoftArm/* environments)
+from softarm_gym.files import write_json
 
 __all__ = ["ALGOS", "HYPERPARAMS_DIR", "load_hyperparams", "split_hyperparams", "make_env",
-           "sidecar_paths", "load_policy", "action_noise"]
+           "check_env_id", "sidecar_paths", "legacy_normalization_path", "policy_metadata",
+           "save_normalization", "load_normalization", "restore_normalization", "read_metadata",
+           "load_policy", "action_noise"]
 
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
 """Algorithm names accepted by ``--algo``."""
@@ -86,32 +109,281 @@ def action_noise(special: dict, n_actions: int):
     return NormalActionNoise(mean=np.zeros(n_actions), sigma=std * np.ones(n_actions))
 
 
+def check_env_id(env_id) -> str:
+    """``env_id`` if it is a registered ``SoftArm/*`` id, else ValueError.
+
+    Gymnasium imports the module named in an id of the form ``module:Env`` (code from the
+    working directory), so ids from files are restricted to this project's registry entries.
+    """
+    if not (isinstance(env_id, str) and env_id.startswith("SoftArm/") and env_id in gym.registry):
+        known = ", ".join(sorted(k for k in gym.registry if k.startswith("SoftArm/")))
+        raise ValueError(f"environment id must be a registered SoftArm/* id ({known}); got {env_id!r}")
+    return env_id
+
+
 def make_env(env_id: str, env_kwargs: dict | None = None, **overrides) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs, **overrides)``; overrides win (e.g. ``observation=...``)."""
+    """``gym.make(env_id, **env_kwargs, **overrides)``; overrides win (e.g. ``observation=...``).
+
+    Raises:
+        ValueError: ``env_id`` is not a registered ``SoftArm/*`` id (:func:`check_env_id`).
+    """
     kwargs = dict(env_kwargs or {})
     kwargs.update(overrides)
-    return gym.make(env_id, **kwargs)
+    return gym.make(check_env_id(env_id), **kwargs)
 
 
 def sidecar_paths(model_path: Path | str) -> tuple[Path, Path]:
-    """(metadata JSON, VecNormalize pickle) paths that belong to ``model_path`` (``.zip``)."""
+    """(metadata JSON, normalisation-statistics JSON) paths that belong to ``model_path`` (``.zip``)."""
     model_path = Path(model_path)
     stem = model_path.with_suffix("")
-    return stem.with_suffix(".json"), stem.parent / f"{stem.name}_vecnormalize.pkl"
+    return stem.with_suffix(".json"), stem.parent / f"{stem.name}_vecnormalize.json"
 
 
-def load_policy(model_path: Path | str):
-    """Load a trained model with its metadata and observation-normalisation statistics.
+def legacy_normalization_path(model_path: Path | str) -> Path:
+    """The ``FILE_vecnormalize.pkl`` (a pickled ``VecNormalize``) of models saved before the JSON format."""
+    stem = Path(model_path).with_suffix("")
+    return stem.parent / f"{stem.name}_vecnormalize.pkl"
 
-    Args:
-        model_path: a ``.zip`` written by :mod:`baselines.train`.
 
-    Returns:
-        (model, metadata dict, ``VecNormalize`` or None). The VecNormalize is loaded around a
-        throw-away env and set to evaluation mode; use its ``normalize_obs``.
+# ----------------------------------------------------------------- what the metadata may say
+
+_POLICY_KWARGS = {
+    "net_arch": "list of layer sizes, or a mapping of such lists (pi, qf, vf)",
+    "log_std_init": "a number", "use_sde": "a bool", "n_critics": "an integer in 1..16",
+    "share_features_extractor": "a bool", "ortho_init": "a bool", "squash_output": "a bool",
+    "use_expln": "a bool", "clip_mean": "a number", "full_std": "a bool", "normalize_images": "a bool",
+}
+"""policy_kwargs a metadata file may set: plain data only (no classes, no callables)."""
+_MAX_LAYER, _MAX_LAYERS = 4096, 16
+_MAX_METADATA_BYTES = 1_000_000
+_MAX_WEIGHTS_BYTES = 256 * 2**20
+
+
+def _layers(value, where: str) -> list[int]:
+    if not isinstance(value, list) or len(value) > _MAX_LAYERS or any(
+            isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= _MAX_LAYER for n in value):
+        raise ValueError(f"{where} must be a list of at most {_MAX_LAYERS} layer sizes in "
+                         f"1..{_MAX_LAYER}; got {value!r:.80}")
+    return value
+
+
+def _policy_kwargs(kwargs, where: str) -> dict:
+    """Check metadata ``policy_kwargs`` against :data:`_POLICY_KWARGS` (types and sizes)."""
+    if not isinstance(kwargs, dict):
+        raise ValueError(f"{where} policy_kwargs must be a mapping; got {kwargs!r:.80}")
+    for key, value in kwargs.items():
+        if key not in _POLICY_KWARGS:
+            raise ValueError(f"{where} policy_kwargs has {key!r}, which a metadata file may not set "
+                             f"(allowed: {', '.join(_POLICY_KWARGS)})")
+        kind = _POLICY_KWARGS[key]
+        if key == "net_arch":
+            if isinstance(value, dict):
+                for name, layers in value.items():
+                    if name not in ("pi", "qf", "vf"):
+                        raise ValueError(f"{where} net_arch has unknown head {name!r} (pi, qf, vf)")
+                    _layers(layers, f"{where} net_arch[{name!r}]")
+            else:
+                _layers(value, f"{where} net_arch")
+        elif kind == "a bool" and not isinstance(value, bool) \
+                or kind.startswith("an integer") and (isinstance(value, bool) or not isinstance(value, int)
+                                                      or not 1 <= value <= 16) \
+                or kind == "a number" and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                           or not math.isfinite(value)):
+            raise ValueError(f"{where} policy_kwargs[{key!r}] must be {kind}; got {value!r:.80}")
+    return kwargs
+
+
+def policy_metadata(model) -> dict:
+    """``{"policy": alias, "policy_kwargs": ...}`` that rebuild ``model``'s policy (see
+    :func:`load_policy`); ``policy_kwargs`` as the policy constructor receives them."""
+    algo = next(name for name, cls in ALGOS.items() if isinstance(model, cls))
+    aliases = ALGOS[algo].policy_aliases
+    alias = next((name for name, cls in aliases.items() if type(model.policy) is cls), None)
+    if alias is None:
+        raise ValueError(f"the {algo} policy {type(model.policy).__name__} is not one of the SB3 aliases "
+                         f"{', '.join(ALGOS[algo].policy_aliases)}")
+    kwargs = copy.deepcopy(dict(model.policy_kwargs))
+    if "use_sde" in inspect.signature(type(model.policy)).parameters:  # PPO passes it separately
+        kwargs.setdefault("use_sde", bool(getattr(model, "use_sde", False)))
+    return {"policy": alias, "policy_kwargs": kwargs}
+
+
+def read_metadata(meta_path: Path | str) -> dict:
+    """A model's metadata JSON, checked: known ``algo``, registered ``SoftArm/*`` ``env_id``,
+    ``env_kwargs`` a mapping, ``policy`` an SB3 alias of the algorithm, safe ``policy_kwargs``.
 
     Raises:
-        ValueError: the file or its metadata is missing or names an unknown algorithm.
+        ValueError: missing, unreadable, oversized or malformed metadata (one line).
+    """
+    meta_path = Path(meta_path)
+    try:
+        with open(meta_path, "rb") as fh:
+            raw = fh.read(_MAX_METADATA_BYTES + 1)
+    except OSError as exc:
+        raise ValueError(f"cannot read metadata file {meta_path.name}: {exc.strerror}") from None
+    if len(raw) > _MAX_METADATA_BYTES:
+        raise ValueError(f"{meta_path.name} is larger than {_MAX_METADATA_BYTES:,} bytes")
+    try:
+        meta = json.loads(raw)
+    except (ValueError, RecursionError) as exc:
+        raise ValueError(f"{meta_path.name} is not valid JSON: {str(exc):.120}") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"{meta_path.name} must hold a JSON object")
+    algo = meta.get("algo")
+    if not (isinstance(algo, str) and algo in ALGOS):
+        raise ValueError(f"{meta_path.name} names unknown algo {algo!r:.60}; expected one of "
+                         f"{', '.join(ALGOS)}")
+    try:
+        check_env_id(meta.get("env_id"))
+    except ValueError as exc:
+        raise ValueError(f"{meta_path.name}: {exc}") from None
+    if not isinstance(meta.get("env_kwargs", {}), dict):
+        raise ValueError(f"{meta_path.name}: env_kwargs must be a mapping")
+    policy = meta.get("policy")
+    if not (isinstance(policy, str) and policy in ALGOS[algo].policy_aliases):
+        raise ValueError(f"{meta_path.name}: policy must be one of {', '.join(ALGOS[algo].policy_aliases)} "
+                         f"(an SB3 alias of {algo}); got {policy!r:.60}. Models saved before this check "
+                         "can be converted with python -m baselines.convert")
+    _policy_kwargs(meta.get("policy_kwargs", {}), meta_path.name)
+    return meta
+
+
+# ----------------------------------------------------------------- normalisation statistics
+
+def save_normalization(vecnorm, path: Path | str) -> None:
+    """Write a ``VecNormalize``'s settings and running statistics to ``path`` as JSON, atomically."""
+    if isinstance(vecnorm.obs_rms, dict):
+        raise ValueError("saving normalisation statistics of Dict observations is not supported; "
+                         "use observation_format='flat'")
+
+    def stats(rms):
+        return {"mean": np.asarray(rms.mean, dtype=float).ravel().tolist(),
+                "var": np.asarray(rms.var, dtype=float).ravel().tolist(), "count": float(rms.count)}
+
+    write_json(path, {"format": "vecnormalize-1", "norm_obs": bool(vecnorm.norm_obs),
+                      "norm_reward": bool(vecnorm.norm_reward), "clip_obs": float(vecnorm.clip_obs),
+                      "clip_reward": float(vecnorm.clip_reward), "gamma": float(vecnorm.gamma),
+                      "epsilon": float(vecnorm.epsilon), "obs_rms": stats(vecnorm.obs_rms),
+                      "ret_rms": stats(vecnorm.ret_rms)}, indent=1)
+
+
+def load_normalization(path: Path | str, obs_size: int) -> dict:
+    """The statistics written by :func:`save_normalization`, checked (sizes, finite, var >= 0).
+
+    Args:
+        path: the JSON file.
+        obs_size: the flat observation size they must match.
+
+    Raises:
+        ValueError: unreadable or inconsistent statistics (one line).
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            data = json.loads(fh.read(_MAX_METADATA_BYTES + 1))
+    except OSError as exc:
+        raise ValueError(f"cannot read {path.name}: {exc.strerror}") from None
+    except (ValueError, RecursionError) as exc:
+        raise ValueError(f"{path.name} is not valid JSON: {str(exc):.120}") from None
+    if not isinstance(data, dict) or data.get("format") != "vecnormalize-1":
+        raise ValueError(f"{path.name} is not a vecnormalize-1 statistics file")
+    for key in ("norm_obs", "norm_reward"):
+        if not isinstance(data.get(key), bool):
+            raise ValueError(f"{path.name}: {key} must be true or false")
+    for key in ("clip_obs", "clip_reward", "epsilon", "gamma"):
+        v = data.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{path.name}: {key} must be a finite number > 0; got {v!r:.40}")
+    for key, size in (("obs_rms", obs_size), ("ret_rms", 1)):
+        rms = data.get(key)
+        try:
+            mean, var = (np.asarray(rms[k], dtype=float) for k in ("mean", "var"))
+            count = float(rms["count"])
+        except (TypeError, KeyError, ValueError):
+            raise ValueError(f"{path.name}: {key} must hold mean, var (lists of numbers) and count") from None
+        if mean.shape != (size,) or var.shape != (size,) or not (
+                np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)
+                and math.isfinite(count) and count > 0):
+            raise ValueError(f"{path.name}: {key} must have {size} finite means, {size} finite variances "
+                             f">= 0 and a count > 0")
+        data[key] = {"mean": mean, "var": var, "count": count}
+    return data
+
+
+def restore_normalization(vecnorm, stats: dict) -> None:
+    """Put :func:`load_normalization` statistics into a ``VecNormalize`` (settings and running stats)."""
+    for key in ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon"):
+        setattr(vecnorm, key, stats[key])
+    for key in ("obs_rms", "ret_rms"):
+        rms = getattr(vecnorm, key)
+        rms.mean = stats[key]["mean"].reshape(np.shape(rms.mean)).copy()
+        rms.var = stats[key]["var"].reshape(np.shape(rms.var)).copy()
+        rms.count = stats[key]["count"]
+
+
+# ----------------------------------------------------------------- loading a trained policy
+
+def _weights(model_path: Path) -> dict:
+    """The ``policy.pth`` state dict of an SB3 zip, loaded with ``torch.load(weights_only=True)``."""
+    import torch
+
+    try:
+        with zipfile.ZipFile(model_path) as archive:
+            info = archive.getinfo("policy.pth")
+            if info.file_size > _MAX_WEIGHTS_BYTES:
+                raise ValueError(f"{model_path.name}: policy.pth is {info.file_size:,} bytes; at most "
+                                 f"{_MAX_WEIGHTS_BYTES:,} are read")
+            raw = archive.read(info)
+    except zipfile.BadZipFile:
+        raise ValueError(f"{model_path.name} is not a zip file") from None
+    except KeyError:
+        raise ValueError(f"{model_path.name} has no policy.pth (not a model saved by SB3)") from None
+    try:
+        state = torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
+    except Exception as exc:  # weights_only refuses anything but tensors and plain containers
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"{model_path.name}: policy.pth is not plain weights (refused by "
+                         f"torch.load(weights_only=True): {first:.160})") from None
+    if not isinstance(state, dict):
+        raise ValueError(f"{model_path.name}: policy.pth must hold a state dict")
+    return state
+
+
+def _rebuilt_policy(meta: dict, model_path: Path, observation_space, action_space):
+    """The metadata's policy class with its kwargs, and the zip's weights loaded into it."""
+    cls = ALGOS[meta["algo"]].policy_aliases[meta["policy"]]
+    try:
+        policy = cls(observation_space, action_space, lambda _: 0.0, **meta.get("policy_kwargs", {}))
+    except (TypeError, ValueError, AssertionError) as exc:
+        raise ValueError(f"{model_path.name}: cannot build {meta['policy']} from its metadata: "
+                         f"{str(exc):.160}") from None
+    try:
+        policy.load_state_dict(_weights(model_path), strict=True)
+    except RuntimeError as exc:  # missing/unexpected keys, wrong shapes
+        raise ValueError(f"{model_path.name}: the weights do not fit the policy its metadata describes "
+                         f"({str(exc).splitlines()[0]:.160})") from None
+    policy.set_training_mode(False)
+    return policy
+
+
+def load_policy(model_path: Path | str, *, trust_pickle: bool = False):
+    """Load a trained policy with its metadata and observation-normalisation statistics.
+
+    Args:
+        model_path: a ``.zip`` written by :mod:`baselines.train` (or converted by
+            :mod:`baselines.convert`), with ``FILE.json`` and, if observations were normalised,
+            ``FILE_vecnormalize.json`` next to it.
+        trust_pickle: load the old way (module docstring): ``ALGO.load`` unpickles the zip's
+            Python objects and ``FILE_vecnormalize.pkl`` is unpickled if there is no JSON —
+            either can run arbitrary code, so only for files you made yourself.
+
+    Returns:
+        (policy, metadata dict, ``VecNormalize`` or None). ``policy.predict(obs,
+        deterministic=True)`` acts; the VecNormalize wraps a throw-away env, is in evaluation
+        mode, and its ``normalize_obs`` prepares observations.
+
+    Raises:
+        ValueError: a missing, malformed or unsafe file, named on one line.
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -122,16 +394,33 @@ def load_policy(model_path: Path | str):
     meta_path, norm_path = sidecar_paths(model_path)
     if not meta_path.is_file():
         raise ValueError(f"{model_path.name} has no metadata file {meta_path.name} next to it")
-    meta = json.loads(meta_path.read_text())
-    algo = meta.get("algo")
-    if algo not in ALGOS:
-        raise ValueError(f"{meta_path.name} names unknown algo {algo!r}")
-    model = ALGOS[algo].load(model_path, device="cpu")
-    vecnorm = None
-    if norm_path.is_file():
-        env_id, env_kwargs = meta["env_id"], meta.get("env_kwargs", {})
-        venv = DummyVecEnv([lambda: make_env(env_id, env_kwargs)])
-        vecnorm = VecNormalize.load(str(norm_path), venv)
-        vecnorm.training = False
-        vecnorm.norm_reward = False
-    return model, meta, vecnorm
+    meta = read_metadata(meta_path)
+    pickled = legacy_normalization_path(model_path)
+    if not norm_path.is_file() and pickled.is_file() and not trust_pickle:
+        raise ValueError(f"{model_path.name}: its normalisation statistics are the pickle {pickled.name}, "
+                         "which can run code when loaded; if you made it, convert the model with "
+                         "python -m baselines.convert (or pass --trust-pickle)")
+    if not norm_path.is_file() and not pickled.is_file() and meta.get("normalized"):
+        raise ValueError(f"{model_path.name} was trained on normalised observations but "
+                         f"{norm_path.name} is missing")
+    venv = DummyVecEnv([lambda: make_env(meta["env_id"], meta.get("env_kwargs", {}))])
+    try:
+        if trust_pickle:
+            policy = ALGOS[meta["algo"]].load(model_path, device="cpu")
+        else:
+            policy = _rebuilt_policy(meta, model_path, venv.observation_space, venv.action_space)
+        if norm_path.is_file():
+            vecnorm = VecNormalize(venv, training=False)
+            size = int(np.prod(venv.observation_space.shape))
+            restore_normalization(vecnorm, load_normalization(norm_path, size))
+        elif pickled.is_file():
+            vecnorm = VecNormalize.load(str(pickled), venv)
+        else:
+            venv.close()
+            return policy, meta, None
+    except BaseException:
+        venv.close()
+        raise
+    vecnorm.training = False
+    vecnorm.norm_reward = False
+    return policy, meta, vecnorm

@@ -5,6 +5,13 @@
         --payload-kg 0,0.5 --json
     python -m baselines.evaluate --controller jacobian --env SoftArm/OctArmReach-v0 --json
 
+Models load safely (:func:`baselines.config.load_policy`): only the weights of the zip, read
+with ``torch.load(weights_only=True)``, into a policy rebuilt from the JSON metadata, and JSON
+normalisation statistics — a crafted model file cannot run code. ``--trust-pickle`` loads
+the zip with SB3's ``ALGO.load`` and a legacy ``_vecnormalize.pkl`` instead: both unpickle
+Python objects, which can run arbitrary code, so use it only for files you made yourself
+(or convert those once with ``python -m baselines.convert``).
+
 The policy is rolled out deterministically for whole episodes (``max_episode_steps``);
 episode ``i`` is reset with seed ``seed + i``, so every policy and estimator sees the same
 targets. Only the observation changes with ``--observation``: the success, the final error
@@ -33,6 +40,7 @@ from tqdm import tqdm
 
 from baselines.config import load_policy, make_env
 from softarm_gym.controllers import JacobianController
+from softarm_gym.files import json_text, write_json
 from softarm_gym.sensing import ESTIMATORS
 
 __all__ = ["evaluate", "rollouts", "summarize", "main", "CONTROLLERS"]
@@ -124,7 +132,7 @@ def _payload(text: str | None):
 def evaluate(*, model: str | Path | None = None, controller: str | None = None, env_id: str | None = None,
              observation: str = "true", sensor_noise: str = "off", payload_kg=None,
              env_kwargs: dict | None = None, episodes: int = 100, seed: int = 0,
-             progress: bool = False) -> dict:
+             progress: bool = False, trust_pickle: bool = False) -> dict:
     """Evaluate a saved model or a controller; returns the :func:`summarize` metrics plus the setup.
 
     Args:
@@ -138,9 +146,10 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
         episodes: episodes to run.
         seed: episode ``i`` uses seed ``seed + i``.
         progress: tqdm bar on stderr.
+        trust_pickle: load ``model`` with SB3's pickle-based loader (module docstring).
 
     Raises:
-        ValueError: bad or conflicting arguments, or an unreadable model.
+        ValueError: bad or conflicting arguments, or an unreadable or unsafe model.
     """
     if (model is None) == (controller is None):
         raise ValueError("give exactly one of --model and --controller")
@@ -150,7 +159,7 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
         raise ValueError(f"sensor_noise must be 'off' or 'thesis'; got {sensor_noise!r}")
     kwargs = {}
     if model is not None:
-        policy, meta, vecnorm = load_policy(model)
+        policy, meta, vecnorm = load_policy(model, trust_pickle=trust_pickle)
         env_id = env_id or meta["env_id"]
         kwargs.update(meta.get("env_kwargs", {}))
         agent = f"{meta['algo']}:{Path(model).name}"
@@ -214,6 +223,9 @@ def main(argv=None) -> int:
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--out", default=None, help="also write the JSON result to this file")
     parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--trust-pickle", action="store_true",
+                        help="load the model with SB3's pickle-based loader; pickles can run arbitrary "
+                             "code, so only for files you made yourself")
     args = parser.parse_args(argv)
     try:
         env_kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
@@ -222,14 +234,15 @@ def main(argv=None) -> int:
         result = evaluate(model=args.model, controller=args.controller, env_id=args.env,
                           observation=args.observation, sensor_noise=args.sensor_noise,
                           payload_kg=_payload(args.payload_kg), env_kwargs=env_kwargs,
-                          episodes=args.episodes, seed=args.seed, progress=not args.no_progress)
+                          episodes=args.episodes, seed=args.seed, progress=not args.no_progress,
+                          trust_pickle=args.trust_pickle)
     except (ValueError, json.JSONDecodeError) as exc:
         print(f"baselines.evaluate: error: {exc}", file=sys.stderr)
         return 2
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(result, indent=2) + "\n")
-    print(json.dumps(result, indent=2) if args.json else _text(result))
+        write_json(args.out, result)
+    print(json_text(result) if args.json else _text(result))
     return 0
 
 

@@ -33,6 +33,7 @@ import pandas as pd
 
 from baselines.config import ALGOS, sidecar_paths
 from baselines.evaluate import evaluate
+from softarm_gym.files import write_json
 from softarm_gym.sensing import ESTIMATORS
 
 __all__ = ["collect", "evaluation_jobs", "run_evaluations", "ship", "report", "main"]
@@ -113,7 +114,7 @@ def _run_job(job: tuple[Path, dict]) -> str:
     result["cell"] = path.stem.split("__", 1)[1]
     result["agent_name"] = path.stem.split("__", 1)[0]
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(result, indent=2) + "\n")
+    write_json(path, result)
     return path.name
 
 
@@ -154,7 +155,7 @@ def ship(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
         meta_path = sidecar_paths(dst)[0]
         meta = json.loads(meta_path.read_text())
         meta["selected_from"] = best["agent_name"]
-        meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+        write_json(meta_path, meta)
         shipped.append(dst)
     return shipped
 

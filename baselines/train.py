@@ -1,18 +1,40 @@
 """Train an SB3 agent on a soft-arm environment with the hyperparameters of ``baselines/hyperparams``.
 
     python -m baselines.train --env SoftArm/OctArmReach-v0 --algo sac --timesteps 300000 --seed 0
+    python -m baselines.train --resume runs/sac_OctArmReach-v0_s0      # after Ctrl-C or a crash
 
 writes into ``<log-dir>/<algo>_<env>_s<seed>/``:
 
+* ``config.json`` — everything needed to continue the run (``--resume``);
 * ``monitor.csv`` — one row per training episode (return, length, wall time, final
   ``is_success`` and ``distance``), the learning curve;
-* ``progress.csv`` and TensorBoard event files — SB3's logger;
-* ``checkpoints/`` — model + VecNormalize every ``--checkpoint-freq`` steps;
+* ``progress.csv`` and TensorBoard event files — SB3's logger (a resumed run moves the
+  previous ``progress.csv`` to ``progress_<k>.csv``);
+* ``checkpoints/model_<steps>_steps.zip`` every ``--checkpoint-freq`` steps, each with its
+  ``.json`` metadata and ``_vecnormalize.json`` statistics (and, with
+  ``--save-replay-buffer``, ``_replay_buffer.npz``; only the newest checkpoint keeps one);
 * ``evaluations.npz`` — periodic deterministic evaluations (``--eval-freq``);
 * ``best_model.zip`` (by evaluation return) and ``final_model.zip``, each with its ``.json``
-  metadata and ``_vecnormalize.pkl`` statistics (see :mod:`baselines.config`);
+  metadata and ``_vecnormalize.json`` statistics (see :mod:`baselines.config`);
 * ``summary.json`` — timesteps, training wall time, the process's CPU time (the machine may
   be shared: CPU time says how much compute the run actually got) and the hyperparameters.
+
+Faults lose at most the steps since the last checkpoint:
+
+* every model file and sidecar is written to a temporary file and renamed into place, and a
+  checkpoint's metadata JSON is written last, so a checkpoint with metadata is complete and a
+  ``kill -9`` leaves no half-written file under a final name;
+* Ctrl-C (SIGINT) or SIGTERM saves a checkpoint at the current step (model, statistics,
+  replay buffer if enabled, metadata), prints one line and exits with 130 (143 for
+  SIGTERM); :func:`train` raises :class:`TrainingInterrupted` instead;
+* ``--resume RUN_DIR`` (:func:`resume`) reloads the newest complete checkpoint and continues
+  with the same step counter up to the run's target (or a new ``--timesteps``); the
+  evaluation history and best score carry over. Without a saved replay buffer an off-policy
+  run first collects ``learning_starts`` new steps before it updates again. The resumed
+  session seeds its environments with ``seed + steps done`` (no replay of the first episodes).
+
+Resuming reads only weights (``torch.load(weights_only=True)``), JSON and ``.npz`` arrays
+(``allow_pickle=False``): nothing in a run folder is unpickled.
 
 A tqdm progress bar goes to stderr. Torch is limited to ``--threads`` (default 1) threads: the
 networks are small and the machine's cores are better spent on the environment.
@@ -21,15 +43,23 @@ networks are small and the machine's cores are better spent on the environment.
 from __future__ import annotations
 
 import argparse
+import copy
 import json
+import math
+import numbers
+import os
+import re
+import signal
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import torch
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback, EvalCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, EvalCallback
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.save_util import load_from_zip_file, recursive_setattr
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from tqdm import tqdm
 
@@ -37,28 +67,134 @@ from baselines.config import (
     ALGOS,
     HYPERPARAMS_DIR,
     action_noise,
+    check_env_id,
     load_hyperparams,
+    load_normalization,
     make_env,
+    policy_metadata,
+    restore_normalization,
+    save_normalization,
     sidecar_paths,
     split_hyperparams,
 )
+from softarm_gym.files import atomic_write, write_json
 
-__all__ = ["train", "main"]
+__all__ = ["train", "resume", "TrainingInterrupted", "latest_checkpoint", "save_checkpoint", "main"]
 
 MONITOR_KEYS = ("is_success", "distance")
 """Final-step info entries written to ``monitor.csv`` for every training episode."""
+CONFIG_FILE = "config.json"
+_CHECKPOINT = re.compile(r"model_(\d+)_steps\.json")
+_REPLAY_FIELDS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
 
+
+class TrainingInterrupted(KeyboardInterrupt):
+    """Training was interrupted (Ctrl-C, SIGTERM) after its state was saved.
+
+    Attributes:
+        run_dir: the run folder (continue with :func:`resume`).
+        checkpoint: the checkpoint written at the interruption (None if the model did not
+            exist yet).
+        timesteps: environment steps done.
+    """
+
+    def __init__(self, run_dir: Path, checkpoint: Path | None, timesteps: int):
+        super().__init__(f"training interrupted at step {timesteps}")
+        self.run_dir, self.checkpoint, self.timesteps = run_dir, checkpoint, timesteps
+
+
+# --------------------------------------------------------------------------- checkpoints
+
+def _replay_path(model_path: Path) -> Path:
+    return model_path.with_name(f"{model_path.stem}_replay_buffer.npz")
+
+
+def save_checkpoint(model, model_path: Path | str, meta: dict, *, replay_buffer: bool = False) -> Path:
+    """Save ``model`` with its sidecars, each file atomically, the metadata JSON last.
+
+    Args:
+        model: an SB3 algorithm (its VecNormalize, if any, is saved too).
+        model_path: ``.../NAME.zip``.
+        meta: metadata to store; the policy description, ``normalized``, ``timesteps_done``
+            and ``n_updates`` are added.
+        replay_buffer: also save an off-policy model's replay buffer (``.npz``).
+
+    Returns:
+        The metadata path (its existence marks the checkpoint complete).
+    """
+    model_path = Path(model_path)
+    meta_path, norm_path = sidecar_paths(model_path)
+    with atomic_write(model_path, "wb") as fh:
+        model.save(fh)
+    vecnorm = model.get_vec_normalize_env()
+    if vecnorm is not None:
+        save_normalization(vecnorm, norm_path)
+    saved_buffer = None
+    if replay_buffer and getattr(model, "replay_buffer", None) is not None:
+        buffer = model.replay_buffer
+        arrays = {name: getattr(buffer, name) for name in _REPLAY_FIELDS
+                  if getattr(buffer, name, None) is not None}
+        with atomic_write(_replay_path(model_path), "wb") as fh:
+            np.savez(fh, pos=np.int64(buffer.pos), full=np.bool_(buffer.full), **arrays)
+        saved_buffer = _replay_path(model_path).name
+    write_json(meta_path, {**meta, **policy_metadata(model), "normalized": vecnorm is not None,
+                           "timesteps_done": int(model.num_timesteps), "n_updates": int(model._n_updates),
+                           "replay_buffer": saved_buffer})
+    return meta_path
+
+
+def latest_checkpoint(run_dir: Path | str) -> Path | None:
+    """The newest complete checkpoint (``.zip``) under ``run_dir/checkpoints``, or None."""
+    found = []
+    for meta_path in (Path(run_dir) / "checkpoints").glob("model_*_steps.json"):
+        match = _CHECKPOINT.fullmatch(meta_path.name)
+        if match and meta_path.with_suffix(".zip").is_file():
+            found.append((int(match.group(1)), meta_path.with_suffix(".zip")))
+    return max(found)[1] if found else None
+
+
+def _restore(model, checkpoint: Path, meta: dict) -> str:
+    """Load a checkpoint's weights, optimiser states, counters and replay buffer into ``model``.
+
+    Returns a note on the replay buffer for the resume message.
+    """
+    _, params, variables = load_from_zip_file(checkpoint, device="cpu", load_data=False)
+    model.set_parameters(params, exact_match=True, device="cpu")
+    for name, tensor in (variables or {}).items():  # e.g. SAC's log_ent_coef, kept by identity
+        recursive_setattr(model, f"{name}.data", tensor.data)
+    model.num_timesteps = int(meta["timesteps_done"])
+    model._n_updates = int(meta.get("n_updates", 0))
+    buffer = getattr(model, "replay_buffer", None)
+    if buffer is None:
+        return ""
+    path = checkpoint.parent / meta["replay_buffer"] if meta.get("replay_buffer") else None
+    if path is not None and path.is_file():
+        with np.load(path, allow_pickle=False) as data:
+            for name in _REPLAY_FIELDS:
+                if getattr(buffer, name, None) is None:
+                    continue
+                if name not in data or data[name].shape != getattr(buffer, name).shape:
+                    raise ValueError(f"{path.name} does not fit the replay buffer of this run ({name})")
+                getattr(buffer, name)[...] = data[name]
+            buffer.pos, buffer.full = int(data["pos"]), bool(data["full"])
+        return f", replay buffer of {buffer.size() * buffer.n_envs} transitions"
+    model.learning_starts = model.num_timesteps + model.learning_starts
+    return f", no replay buffer saved: collecting {model.learning_starts - model.num_timesteps} steps first"
+
+
+# --------------------------------------------------------------------------- callbacks
 
 class _ProgressBar(BaseCallback):
     """A tqdm bar over environment steps, on stderr."""
 
-    def __init__(self, total: int):
+    def __init__(self, total: int, initial: int):
         super().__init__()
-        self._total = total
+        self._total, self._initial = total, initial
         self._bar = None
 
     def _on_training_start(self) -> None:
-        self._bar = tqdm(total=self._total, unit="step", file=sys.stderr, dynamic_ncols=True)
+        self._bar = tqdm(total=self._total, initial=self._initial, unit="step", file=sys.stderr,
+                         dynamic_ncols=True)
 
     def _on_step(self) -> bool:
         self._bar.update(self.training_env.num_envs)
@@ -83,29 +219,71 @@ class _TimeLimit(BaseCallback):
         return time.perf_counter() - self._start < self._seconds
 
 
-class _SaveNormalization(BaseCallback):
-    """Called by ``EvalCallback`` on a new best model: saves the matching VecNormalize statistics."""
+class _Checkpoints(BaseCallback):
+    """Calls ``save()`` whenever the step counter passes a multiple of ``freq`` (also after a resume)."""
 
-    def __init__(self, path: Path):
+    def __init__(self, freq: int, save):
         super().__init__()
-        self._path = path
+        self._freq, self._save, self._next = freq, save, 0
+
+    def _on_training_start(self) -> None:
+        self._next = (self.model.num_timesteps // self._freq + 1) * self._freq
 
     def _on_step(self) -> bool:
-        vecnorm = self.model.get_vec_normalize_env()
-        if vecnorm is not None:
-            vecnorm.save(str(self._path))
+        if self.model.num_timesteps >= self._next:
+            self._save()
+            self._next = (self.model.num_timesteps // self._freq + 1) * self._freq
         return True
 
 
-def _vec_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir: Path | None):
+class _Evaluation(EvalCallback):
+    """``EvalCallback`` that writes ``evaluations.npz`` atomically (to a temporary name, then a
+    rename) and saves each new best model through ``save_best(mean_reward)``."""
+
+    def __init__(self, eval_env, run_dir: Path, save_best, **kwargs):
+        super().__init__(eval_env, log_path=str(run_dir), best_model_save_path=None, **kwargs)
+        self.log_path = str(run_dir / ".evaluations.tmp")  # np.savez appends .npz
+        self._final = run_dir / "evaluations.npz"
+        self._save_best = save_best
+
+    def restore(self, upto: int, best_mean_reward: float) -> None:
+        """Continue the history of a resumed run: evaluations up to step ``upto``, and its best score."""
+        self.best_mean_reward = best_mean_reward
+        if not self._final.is_file():
+            return
+        with np.load(self._final, allow_pickle=False) as data:
+            keep = data["timesteps"] <= upto
+            self.evaluations_timesteps = data["timesteps"][keep].tolist()
+            self.evaluations_results = data["results"][keep].tolist()
+            self.evaluations_length = data["ep_lengths"][keep].tolist()
+            if "successes" in data:
+                self.evaluations_successes = data["successes"][keep].tolist()
+
+    def _on_step(self) -> bool:
+        best = self.best_mean_reward
+        keep_going = super()._on_step()
+        if Path(self.log_path + ".npz").is_file():
+            os.replace(self.log_path + ".npz", self._final)
+        if self.best_mean_reward > best:
+            self._save_best(self.best_mean_reward)
+        return keep_going
+
+
+# --------------------------------------------------------------------------- the run
+
+def _vec_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir: Path | None,
+             append: bool = False):
     def factory(rank: int):
         def thunk():
             env = make_env(env_id, env_kwargs)
-            if monitor_dir is not None:
-                filename = str(monitor_dir / ("monitor.csv" if rank == 0 else f"{rank}.monitor.csv"))
-                env = Monitor(env, filename, info_keywords=MONITOR_KEYS)
-            else:
+            if monitor_dir is None:
                 env = Monitor(env, info_keywords=MONITOR_KEYS)
+            else:
+                path = monitor_dir / ("monitor.csv" if rank == 0 else f"{rank}.monitor.csv")
+                t_start = _monitor_start(path) if append else None
+                env = Monitor(env, str(path), info_keywords=MONITOR_KEYS, override_existing=t_start is None)
+                if t_start is not None:  # times stay relative to the run's first start
+                    env.t_start = t_start
             env.reset(seed=seed + rank)
             env.action_space.seed(seed + rank)
             return env
@@ -116,24 +294,148 @@ def _vec_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir:
     return venv
 
 
-def _write_metadata(model_path: Path, meta: dict) -> None:
-    meta_path, _ = sidecar_paths(model_path)
-    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+def _monitor_start(path: Path) -> float | None:
+    """``t_start`` of an existing monitor file's header line, or None."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            header = json.loads(fh.readline().lstrip("#"))
+        return float(header["t_start"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _rotate(path: Path) -> None:
+    """Move ``path`` to ``<stem>_<k>.csv`` (first free k) so a resumed logger does not overwrite it."""
+    if path.is_file():
+        k = 0
+        while path.with_name(f"{path.stem}_{k}{path.suffix}").exists():
+            k += 1
+        os.replace(path, path.with_name(f"{path.stem}_{k}{path.suffix}"))
+
+
+def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bool,
+           time_limit_min: float | None) -> Path:
+    """Build the model (fresh, or from ``checkpoint``), train to ``config['timesteps']``, save."""
+    params = config["hyperparams"]
+    special, algo_kwargs = split_hyperparams(copy.deepcopy(params))  # SB3 edits policy_kwargs in place
+    env_id, algo = config["env_id"], config["algo"]
+    n_envs = int(special.get("n_envs", 1))
+    env_kwargs = dict(special.get("env_kwargs", {}))
+    normalize = special.get("normalize", False)
+    norm_kwargs = normalize if isinstance(normalize, dict) else {}
+    resumed = checkpoint is not None
+    prior = json.loads(sidecar_paths(checkpoint)[0].read_text()) if resumed else {}
+    # A resumed session reseeds with seed + steps done, so it does not replay the first episodes.
+    seed = config["seed"] + int(prior.get("timesteps_done", 0))
+
+    torch.set_num_threads(config["threads"])
+    venv = _vec_env(env_id, env_kwargs, n_envs, seed, run_dir, append=resumed)
+    eval_venv = _vec_env(env_id, env_kwargs, 1, seed + 10_000, None) if config["eval_freq"] else None
+    if normalize:
+        venv = VecNormalize(venv, **norm_kwargs)
+        if resumed:
+            restore_normalization(venv, load_normalization(sidecar_paths(checkpoint)[1],
+                                                           int(np.prod(venv.observation_space.shape))))
+        if eval_venv is not None:
+            eval_venv = VecNormalize(eval_venv, training=False, norm_reward=False,
+                                     **{k: v for k, v in norm_kwargs.items() if k != "norm_reward"})
+    noise = action_noise(special, venv.action_space.shape[0])
+    if noise is not None:
+        algo_kwargs["action_noise"] = noise
+    model = ALGOS[algo](special["policy"], venv, seed=seed, device="cpu", verbose=0, **algo_kwargs)
+    note = _restore(model, checkpoint, prior) if resumed else ""
+    if resumed:
+        _rotate(run_dir / "progress.csv")
+    model.set_logger(configure(str(run_dir), ["csv", "tensorboard"] if config["tensorboard"] else ["csv"]))
+
+    meta = {"env_id": env_id, "algo": algo, "seed": config["seed"], "env_kwargs": env_kwargs,
+            "hyperparams": params, "timesteps": config["timesteps"]}
+    wall0, cpu0 = float(prior.get("wall_time_s", 0.0)), float(prior.get("cpu_time_s", 0.0))
+    start, cpu_start = time.perf_counter(), time.process_time()
+
+    def spent() -> dict:
+        return {"wall_time_s": wall0 + time.perf_counter() - start,
+                "cpu_time_s": cpu0 + time.process_time() - cpu_start}
+
+    def save(kind: str, path: Path | None = None, **extra) -> Path:
+        path = path or run_dir / "checkpoints" / f"model_{model.num_timesteps}_steps.zip"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        keep_buffer = config["save_replay_buffer"] and kind in ("checkpoint", "interrupted")
+        save_checkpoint(model, path, {**meta, "kind": kind, **spent(), **extra}, replay_buffer=keep_buffer)
+        if keep_buffer:  # replay buffers are large: only the newest complete checkpoint keeps one
+            for old in path.parent.glob("model_*_steps_replay_buffer.npz"):
+                if old != _replay_path(path):
+                    old.unlink(missing_ok=True)
+        return path
+
+    done = int(model.num_timesteps)
+    callbacks = [_ProgressBar(config["timesteps"], done)] if progress else []
+    if time_limit_min is not None:
+        callbacks.append(_TimeLimit(60.0 * time_limit_min))
+    if config["checkpoint_freq"]:
+        callbacks.append(_Checkpoints(config["checkpoint_freq"], lambda: save("checkpoint")))
+    if eval_venv is not None:
+        evaluation = _Evaluation(
+            eval_venv, run_dir, lambda best: save("best", run_dir / "best_model.zip", best_mean_reward=best),
+            n_eval_episodes=config["eval_episodes"], eval_freq=max(config["eval_freq"] // n_envs, 1),
+            deterministic=True, verbose=0)
+        if resumed:
+            best_meta = sidecar_paths(run_dir / "best_model.zip")[0]
+            best = json.loads(best_meta.read_text()).get("best_mean_reward") if best_meta.is_file() else None
+            evaluation.restore(done, -math.inf if best is None else float(best))
+        callbacks.append(evaluation)
+    if resumed:
+        print(f"resuming {run_dir.name} at step {done} of {config['timesteps']}{note}", file=sys.stderr)
+    try:
+        try:
+            if config["timesteps"] > done:
+                model.learn(total_timesteps=config["timesteps"] - done, callback=CallbackList(callbacks),
+                            reset_num_timesteps=not resumed)
+        except KeyboardInterrupt:
+            checkpoint = save("interrupted")
+            raise TrainingInterrupted(run_dir, checkpoint, int(model.num_timesteps)) from None
+        final_steps = int(model.num_timesteps)
+        summary = {**meta, "timesteps_done": final_steps, **spent(),
+                   "steps_per_s": (final_steps - done) / max(time.perf_counter() - start, 1e-9),
+                   "threads": config["threads"], "time_limit_min": time_limit_min,
+                   "resumed_from": done or None}
+        save("final", run_dir / "final_model.zip", **{k: v for k, v in summary.items() if k not in meta})
+        write_json(run_dir / "summary.json", summary)
+    finally:
+        model.logger.close()
+        venv.close()
+        if eval_venv is not None:
+            eval_venv.close()
+    return run_dir
+
+
+def _check_counts(eval_freq: int, checkpoint_freq: int, threads: int) -> None:
+    for name, value, low in (("eval_freq", eval_freq, 0), ("checkpoint_freq", checkpoint_freq, 0),
+                             ("threads", threads, 1)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+            raise ValueError(f"{name} must be an integer >= {low}; got {value!r}")
+
+
+def _check_time_limit(time_limit_min) -> None:
+    if time_limit_min is not None and not time_limit_min > 0:
+        raise ValueError(f"time_limit_min must be > 0 (minutes); got {time_limit_min}")
 
 
 def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0,
           log_dir: Path | str = "runs", hyperparams: dict | None = None,
           hyperparams_dir: Path | str = HYPERPARAMS_DIR, eval_freq: int = 10_000, eval_episodes: int = 20,
           checkpoint_freq: int = 50_000, threads: int = 1, progress: bool = True,
-          tensorboard: bool = True, time_limit_min: float | None = None) -> Path:
-    """Train ``algo`` on ``env_id`` and save everything under ``log_dir``.
+          tensorboard: bool = True, time_limit_min: float | None = None,
+          save_replay_buffer: bool = False) -> Path:
+    """Train ``algo`` on ``env_id`` and save everything under ``log_dir`` (module docstring).
 
     Args:
         env_id: registered environment id (e.g. ``"SoftArm/OctArmReach-v0"``).
         algo: one of :data:`baselines.config.ALGOS`.
         timesteps: environment steps; default the YAML's ``n_timesteps``.
         seed: seeds the algorithm, the environments and torch.
-        log_dir: parent folder of the run folder.
+        log_dir: parent folder of the run folder ``<algo>_<env>_s<seed>``, which must not
+            hold a run already (continue one with :func:`resume`).
         hyperparams: replaces the YAML entry entirely (tests use tiny networks this way).
         hyperparams_dir: folder of the YAML files.
         eval_freq: steps between deterministic evaluations (0 disables them).
@@ -144,105 +446,138 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
         tensorboard: also write TensorBoard event files.
         time_limit_min: stop after this many minutes of training even if ``timesteps`` are not
             done (``summary.json`` records the steps actually taken).
+        save_replay_buffer: off-policy algorithms: save the replay buffer with each checkpoint
+            (and at an interruption), so a resumed run continues with it.
 
     Returns:
         The run folder.
 
     Raises:
-        ValueError: bad arguments or hyperparameters.
+        ValueError: bad arguments or hyperparameters, or a run folder that already holds a run.
+        TrainingInterrupted: on KeyboardInterrupt (SIGINT) during training, after saving a
+            checkpoint.
     """
     if algo not in ALGOS:
         raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
+    check_env_id(env_id)
     params = load_hyperparams(algo, env_id, hyperparams_dir) if hyperparams is None else dict(hyperparams)
-    special, algo_kwargs = split_hyperparams(params)
+    special, _ = split_hyperparams(params)
     total = int(special["n_timesteps"] if timesteps is None else timesteps)
     if total < 1:
         raise ValueError(f"timesteps must be >= 1; got {total}")
-    for name, value in (("eval_freq", eval_freq), ("checkpoint_freq", checkpoint_freq)):
-        if value < 0:
-            raise ValueError(f"{name} must be >= 0; got {value}")
-    if time_limit_min is not None and not time_limit_min > 0:
-        raise ValueError(f"time_limit_min must be > 0 (minutes); got {time_limit_min}")
-    n_envs = int(special.get("n_envs", 1))
-    env_kwargs = dict(special.get("env_kwargs", {}))
-    normalize = special.get("normalize", False)
-    norm_kwargs = normalize if isinstance(normalize, dict) else {}
-
-    torch.set_num_threads(threads)
+    _check_counts(eval_freq, checkpoint_freq, threads)
+    _check_time_limit(time_limit_min)
     run_dir = Path(log_dir) / f"{algo}_{env_id.split('/')[-1]}_s{seed}"
+    if (run_dir / CONFIG_FILE).is_file():
+        raise ValueError(f"{run_dir} already holds a run; continue it with --resume {run_dir}, or choose "
+                         "another --log-dir or --seed")
     run_dir.mkdir(parents=True, exist_ok=True)
-    venv = _vec_env(env_id, env_kwargs, n_envs, seed, run_dir)
-    eval_venv = _vec_env(env_id, env_kwargs, 1, seed + 10_000, None) if eval_freq else None
-    if normalize:
-        venv = VecNormalize(venv, **norm_kwargs)
-        if eval_venv is not None:
-            eval_venv = VecNormalize(eval_venv, training=False, norm_reward=False,
-                                     **{k: v for k, v in norm_kwargs.items() if k != "norm_reward"})
-    noise = action_noise(special, venv.action_space.shape[0])
-    if noise is not None:
-        algo_kwargs["action_noise"] = noise
-    model = ALGOS[algo](special["policy"], venv, seed=seed, device="cpu", verbose=0, **algo_kwargs)
-    model.set_logger(configure(str(run_dir), ["csv", "tensorboard"] if tensorboard else ["csv"]))
+    config = {"env_id": env_id, "algo": algo, "seed": seed, "hyperparams": params, "timesteps": total,
+              "eval_freq": eval_freq, "eval_episodes": eval_episodes, "checkpoint_freq": checkpoint_freq,
+              "threads": threads, "tensorboard": tensorboard, "save_replay_buffer": save_replay_buffer}
+    try:
+        write_json(run_dir / CONFIG_FILE, config)
+    except TypeError as exc:
+        raise ValueError(f"hyperparameters must be plain data (numbers, strings, lists, mappings) to be "
+                         f"saved with the run: {exc}") from None
+    return _learn(config, run_dir, None, progress=progress, time_limit_min=time_limit_min)
 
-    meta = {"env_id": env_id, "algo": algo, "seed": seed, "env_kwargs": env_kwargs,
-            "hyperparams": params, "timesteps": total}
-    callbacks = [_ProgressBar(total)] if progress else []
-    if time_limit_min is not None:
-        callbacks.append(_TimeLimit(60.0 * time_limit_min))
-    if checkpoint_freq:
-        callbacks.append(CheckpointCallback(max(checkpoint_freq // n_envs, 1), str(run_dir / "checkpoints"),
-                                            name_prefix="model", save_vecnormalize=bool(normalize)))
-    if eval_venv is not None:
-        best = run_dir / "best_model.zip"
-        callbacks.append(EvalCallback(
-            eval_venv, n_eval_episodes=eval_episodes, eval_freq=max(eval_freq // n_envs, 1),
-            log_path=str(run_dir), best_model_save_path=str(run_dir), deterministic=True, verbose=0,
-            callback_on_new_best=_SaveNormalization(sidecar_paths(best)[1]) if normalize else None))
-    start, cpu_start = time.perf_counter(), time.process_time()
-    model.learn(total_timesteps=total, callback=CallbackList(callbacks))
-    wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
 
-    final = run_dir / "final_model.zip"
-    model.save(final)
-    if normalize:
-        venv.save(str(sidecar_paths(final)[1]))
-    done = int(model.num_timesteps)
-    summary = {**meta, "timesteps_done": done, "wall_time_s": wall, "cpu_time_s": cpu,
-               "steps_per_s": done / wall,
-               "threads": threads, "time_limit_min": time_limit_min}
-    (run_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    _write_metadata(final, summary)
-    if eval_venv is not None and (run_dir / "best_model.zip").is_file():
-        _write_metadata(run_dir / "best_model.zip", summary)
-    venv.close()
-    return run_dir
+def resume(run_dir: Path | str, *, timesteps: int | None = None, time_limit_min: float | None = None,
+           threads: int | None = None, progress: bool = True) -> Path:
+    """Continue the run in ``run_dir`` from its newest complete checkpoint.
+
+    The step counter, weights, optimiser states, observation statistics, evaluation history,
+    best score and (if saved) replay buffer carry over; the environments start new episodes.
+
+    Args:
+        run_dir: a folder written by :func:`train`.
+        timesteps: new total number of steps (default: the run's target).
+        time_limit_min: wall-time budget of this session (minutes).
+        threads: torch CPU threads (default: the run's).
+        progress: show a tqdm bar on stderr.
+
+    Returns:
+        The run folder.
+
+    Raises:
+        ValueError: not a run folder, no complete checkpoint yet, or a bad argument.
+        TrainingInterrupted: as :func:`train`.
+    """
+    run_dir = Path(run_dir)
+    config_path = run_dir / CONFIG_FILE
+    if not config_path.is_file():
+        raise ValueError(f"{run_dir} is not a training run folder (no {CONFIG_FILE})")
+    config = json.loads(config_path.read_text())
+    check_env_id(config.get("env_id"))
+    checkpoint = latest_checkpoint(run_dir)
+    if checkpoint is None:
+        raise ValueError(f"{run_dir} has no complete checkpoint to resume from; start it again with "
+                         "baselines.train (after removing the folder)")
+    if timesteps is not None:
+        if timesteps < 1:
+            raise ValueError(f"timesteps must be >= 1; got {timesteps}")
+        config["timesteps"] = int(timesteps)
+    if threads is not None:
+        config["threads"] = threads
+    _check_counts(config["eval_freq"], config["checkpoint_freq"], config["threads"])
+    _check_time_limit(time_limit_min)
+    write_json(config_path, config)
+    return _learn(config, run_dir, checkpoint, progress=progress, time_limit_min=time_limit_min)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m baselines.train", description=__doc__.splitlines()[0])
-    parser.add_argument("--env", required=True, help="environment id, e.g. SoftArm/OctArmReach-v0")
-    parser.add_argument("--algo", required=True, choices=tuple(ALGOS))
-    parser.add_argument("--timesteps", type=int, default=None, help="default: n_timesteps of the YAML")
+    parser.add_argument("--env", help="environment id, e.g. SoftArm/OctArmReach-v0")
+    parser.add_argument("--algo", choices=tuple(ALGOS))
+    parser.add_argument("--resume", metavar="RUN_DIR", default=None,
+                        help="continue this run from its newest checkpoint (--env/--algo not needed)")
+    parser.add_argument("--timesteps", type=int, default=None,
+                        help="total steps (default: n_timesteps of the YAML, or the resumed run's)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--log-dir", default="runs", help="parent of the run folder (default %(default)s)")
     parser.add_argument("--hyperparams-dir", default=str(HYPERPARAMS_DIR))
     parser.add_argument("--eval-freq", type=int, default=10_000, help="0 disables periodic evaluation")
     parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--checkpoint-freq", type=int, default=50_000, help="0 disables checkpoints")
-    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    parser.add_argument("--save-replay-buffer", action="store_true",
+                        help="save the off-policy replay buffer with checkpoints (resume continues with it)")
+    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default 1)")
     parser.add_argument("--time-limit-min", type=float, default=None,
                         help="stop training after this many minutes of wall time")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     args = parser.parse_args(argv)
+    if args.resume is None and (args.env is None or args.algo is None):
+        parser.error("--env and --algo are required (or --resume RUN_DIR)")
+    received = []
+
+    def stop(signum, frame):  # schedulers stop jobs with SIGTERM: save first, as on Ctrl-C
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)
     try:
-        run_dir = train(args.env, args.algo, timesteps=args.timesteps, seed=args.seed, log_dir=args.log_dir,
-                        hyperparams_dir=args.hyperparams_dir, eval_freq=args.eval_freq,
-                        eval_episodes=args.eval_episodes, checkpoint_freq=args.checkpoint_freq,
-                        threads=args.threads, progress=not args.no_progress,
-                        time_limit_min=args.time_limit_min)
+        if args.resume is not None:
+            run_dir = resume(args.resume, timesteps=args.timesteps, time_limit_min=args.time_limit_min,
+                             threads=args.threads, progress=not args.no_progress)
+        else:
+            run_dir = train(args.env, args.algo, timesteps=args.timesteps, seed=args.seed,
+                            log_dir=args.log_dir, hyperparams_dir=args.hyperparams_dir,
+                            eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
+                            checkpoint_freq=args.checkpoint_freq, threads=args.threads or 1,
+                            progress=not args.no_progress, time_limit_min=args.time_limit_min,
+                            save_replay_buffer=args.save_replay_buffer)
     except ValueError as exc:
         print(f"baselines.train: error: {exc}", file=sys.stderr)
         return 2
+    except TrainingInterrupted as exc:
+        print(f"baselines.train: interrupted at step {exc.timesteps}; saved {exc.checkpoint}; "
+              f"continue with: python -m baselines.train --resume {exc.run_dir}", file=sys.stderr)
+        return 128 + (received[0] if received else signal.SIGINT)
+    except KeyboardInterrupt:
+        print("baselines.train: interrupted outside training; nothing new saved (complete checkpoints "
+              "are kept)", file=sys.stderr)
+        return 128 + (received[0] if received else signal.SIGINT)
     print(run_dir)
     return 0
 

@@ -9,8 +9,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
+import os
+import re
 import sys
+
+from softarm_gym.files import json_text
 
 COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators", "stress")
 """Command modules under :mod:`softarm_gym.commands`, in help order."""
@@ -31,32 +34,46 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_NEGATIVE_VALUE = re.compile(r"-(\d|\.\d|inf|nan)", re.IGNORECASE)
+
+
+def _attach_negative_values(argv: list[str]) -> list[str]:
+    """``--opt -5,0`` → ``--opt=-5,0``: argparse takes a value starting with ``-`` for an option
+    unless it is one plain number, so a list such as ``--pressures-psi -5,0`` would fail with
+    "expected one argument" before the command could say what is wrong with it."""
+    out: list[str] = []
+    for token in argv:
+        if out and out[-1].startswith("--") and "=" not in out[-1] and _NEGATIVE_VALUE.match(token):
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_attach_negative_values(sys.argv[1:] if argv is None else list(argv)))
     try:
-        return int(args._run(args) or 0)
+        code = int(args._run(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
+        return code
+    except BrokenPipeError:
+        # The reader went away (``softarm solve --json | head -1``): stop quietly, as a command
+        # killed by SIGPIPE would; stdout goes to /dev/null so the exit-time flush cannot fail again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + 13
     except (UsageError, ValueError) as exc:
         print(f"softarm {args.command}: error: {exc}", file=sys.stderr)
         return 2
 
 
 def emit(payload: dict, as_json: bool, text: str) -> None:
-    """Print ``payload`` as JSON, or ``text`` for people."""
+    """Print ``payload`` as strict JSON (a non-finite number is ``null``, see
+    :func:`softarm_gym.files.json_text`), or ``text`` for people."""
     if as_json:
-        print(json.dumps(payload, indent=2, default=_jsonable))
+        print(json_text(payload))
     else:
         print(text)
-
-
-def _jsonable(obj):
-    import numpy as np
-
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 if __name__ == "__main__":

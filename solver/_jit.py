@@ -1,16 +1,119 @@
-"""The one place that sets numba flags for every kernel in :mod:`solver`.
+"""The one place that sets numba flags for every kernel in :mod:`solver` (and its users).
 
 Kernels are compiled with ``cache=True`` so that a fresh process (a test run, a CI job,
 an environment worker) loads machine code from ``__pycache__`` instead of recompiling.
 ``fastmath`` stays off: the kernels rely on NaN/inf propagating so that a diverging
 solve is detected and reported rather than silently returning garbage.
+
+The on-disk cache heals itself:
+
+* an entry that cannot be read (a truncated or corrupt ``.nbi``/``.nbc`` file, say from a
+  full disk or a killed process) is deleted with a :class:`CacheWarning` and the kernel
+  recompiled, instead of every later process failing with ``UnpicklingError``;
+* where numba finds no writable cache directory (a read-only install without a writable
+  HOME, which numba reports as "cannot cache function ...: no locator available"), the
+  cache moves to :func:`fallback_cache_dir` (``$TMPDIR/softarm-numba-<uid>``), as if
+  ``NUMBA_CACHE_DIR`` had been set, with a :class:`CacheWarning` the first time. Set
+  ``NUMBA_CACHE_DIR`` yourself to choose the place.
+
+:func:`clear_cache` (``softarm warmup --clear``) deletes the compiled files of every kernel
+made with :func:`njit`.
 """
 
 from __future__ import annotations
 
+import glob
+import os
+import stat
+import tempfile
+import warnings
+from pathlib import Path
+
 import numba
+from numba.core import config
+from numba.core.caching import FunctionCache
+
+__all__ = ["njit", "prange", "CacheWarning", "clear_cache", "fallback_cache_dir"]
 
 _FLAGS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+_KERNELS: list = []
+"""Every dispatcher made by :func:`njit` with caching on (for :func:`clear_cache`)."""
+
+
+class CacheWarning(UserWarning):
+    """The numba cache was repaired or moved; results are unaffected."""
+
+
+class _HealingCache(FunctionCache):
+    """numba's per-function cache, except that an unreadable entry is deleted and recompiled."""
+
+    def load_overload(self, sig, target_context):
+        try:
+            return super().load_overload(sig, target_context)
+        except Exception as exc:  # UnpicklingError, EOFError, ...: whatever a damaged file raises
+            self._discard(f"could not be read ({type(exc).__name__}: {exc})")
+            return None  # numba compiles it, then saves a fresh entry
+
+    def save_overload(self, sig, data):
+        try:
+            super().save_overload(sig, data)
+        except Exception as exc:  # a damaged index met while saving, a full disk, ...
+            self._discard(f"could not be written ({type(exc).__name__}: {exc})")
+
+    def files(self) -> list[Path]:
+        """This kernel's index and data files."""
+        base = glob.escape(os.path.join(self.cache_path, self._impl.filename_base))
+        return [Path(p) for p in glob.glob(base + ".nbi") + glob.glob(base + ".*.nbc")]
+
+    def _discard(self, why: str) -> None:
+        for path in self.files():
+            path.unlink(missing_ok=True)
+        warnings.warn(f"numba cache of {self._py_func.__qualname__} in {self.cache_path} {why}; "
+                      "removed it, the kernel is compiled afresh", CacheWarning, stacklevel=4)
+
+
+def fallback_cache_dir() -> Path:
+    """A private cache directory for when numba finds no writable one.
+
+    ``$TMPDIR/softarm-numba-<uid>``, created with mode 0700, so that later processes reuse
+    it. If that path exists but is not a directory owned by this user and closed to others
+    (cache files are unpickled, so a directory others can write would let them run code
+    here), a fresh ``mkdtemp`` directory is used instead.
+    """
+    uid = os.getuid() if hasattr(os, "getuid") else None
+    path = Path(tempfile.gettempdir()) / f"softarm-numba-{uid if uid is not None else 'user'}"
+    try:
+        path.mkdir(mode=0o700, exist_ok=True)
+        st = path.lstat()
+        private = stat.S_ISDIR(st.st_mode) and not st.st_mode & 0o022 \
+            and (uid is None or st.st_uid == uid)
+    except OSError:
+        private = False
+    return path if private else Path(tempfile.mkdtemp(prefix="softarm-numba-"))
+
+
+def _cache_for(dispatcher) -> _HealingCache:
+    try:
+        return _HealingCache(dispatcher.py_func)
+    except RuntimeError as exc:  # "cannot cache function ...: no locator available for file ..."
+        if config.CACHE_DIR:
+            raise
+        existing = {p for p in Path(tempfile.gettempdir()).glob("softarm-numba-*")}
+        config.CACHE_DIR = str(fallback_cache_dir())
+        if Path(config.CACHE_DIR) not in existing:  # say it once, not in every later process
+            warnings.warn(f"numba found no writable cache directory ({exc}); caching in "
+                          f"{config.CACHE_DIR} instead (set NUMBA_CACHE_DIR to choose)",
+                          CacheWarning, stacklevel=4)
+        return _HealingCache(dispatcher.py_func)
+
+
+def _compile(fn, flags):
+    cache = flags.pop("cache")
+    dispatcher = numba.njit(**flags)(fn)
+    if cache:
+        dispatcher._cache = _cache_for(dispatcher)  # what ``enable_caching`` sets, healing
+        _KERNELS.append(dispatcher)
+    return dispatcher
 
 
 def njit(*args, **overrides):
@@ -20,8 +123,22 @@ def njit(*args, **overrides):
     """
     flags = {**_FLAGS, **overrides}
     if args and callable(args[0]):
-        return numba.njit(**flags)(args[0])
-    return numba.njit(*args, **flags)
+        return _compile(args[0], flags)
+    if args:
+        raise TypeError("njit takes keyword flags only (signatures are inferred)")
+    return lambda fn: _compile(fn, dict(flags))
+
+
+def clear_cache() -> list[Path]:
+    """Delete every compiled file (``*.nbi``, ``*.nbc``) in the cache directories of the kernels
+    made so far by :func:`njit`; returns the deleted paths. Import the kernels' modules first."""
+    folders = {Path(k._cache.cache_path) for k in _KERNELS}
+    removed = []
+    for folder in sorted(folders):
+        for path in sorted([*folder.glob("*.nbi"), *folder.glob("*.nbc")]):
+            path.unlink(missing_ok=True)
+            removed.append(path)
+    return removed
 
 
 prange = numba.prange

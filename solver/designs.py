@@ -26,13 +26,36 @@ Bending stiffness, ``ei=`` (DESIGN §2):
   for the CT base section Table 5.1's ``E·(6·I_tube + 5·At·Ro²/2)``.
 * ``"tubes"``: parallel-axis sum over the actual tube positions, ``E·Σ(I_tube + At·y_k²)``
   (a bundle bonded along its length; an upper bound).
+
+Validation. Every field is checked when a parameter object is built, whether in Python or
+from a design file: numbers are real numbers (never ``bool``), finite and within the ranges
+below (generous physical bounds that keep the solver's arithmetic far from overflow); counts
+and indices are integers; names are strings. A design has at most :data:`MAX_SECTIONS`
+sections and :data:`MAX_TUBES` tubes (and channels), and a design file at most
+:data:`MAX_FILE_BYTES`; each limit is named in the error it raises. Every problem is a
+one-line ``ValueError`` saying which field of which entry is wrong.
+
+=====================================  ===========================
+field                                  accepted range
+=====================================  ===========================
+lengths (section ``length``)           (0, 100] m
+radii (tube ``radius`` ≥ 0, material)  (0, 10] m
+``EA``, ``GA`` / ``EI``, ``GJ``        (0, 1e15] N / N m²
+moduli                                 (0, 1e12] Pa
+``density``                            (0, 1e5] kg/m³
+``mass_per_length`` / ``endplate_mass``  [0, 1e6] kg/m / kg
+``angle_deg``                          [-360, 360] deg
+``max_pressure``                       [0, 1e12] Pa (> 0 with tubes)
+names                                  1–100 characters; ``source`` up to 10,000
+=====================================  ===========================
 """
 
 from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field, replace
+import numbers
+from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 
 from solver.actuator import PSI, max_stretch
 
@@ -40,22 +63,97 @@ __all__ = [
     "TubeMaterial", "Section", "Tube", "ArmDesign", "octarm_v", "octarm_vi", "ct",
     "octarm_two_section", "rod", "pneumatic", "hydraulic", "fluid_arm", "FluidDesign",
     "from_json", "load", "get",
-    "DESIGN_NAMES",
+    "DESIGN_NAMES", "MAX_SECTIONS", "MAX_TUBES", "MAX_FILE_BYTES",
 ]
 
+MAX_SECTIONS = 32
+"""Most sections a design may have (the thesis's arms have 2–3; each adds RK4 steps to every solve)."""
+MAX_TUBES = 256
+"""Most tubes, and most channels, a design may have."""
+MAX_FILE_BYTES = 1_000_000
+"""Largest design file :func:`load` reads (a design at both caps above is about 150 kB)."""
+_MAX_NAME = 100
+_MAX_SOURCE = 10_000
+_MAX_LENGTH, _MAX_RADIUS = 100.0, 10.0  # m
+_MAX_STIFFNESS = 1e15  # N (EA, GA) or N m² (EI, GJ)
+_MAX_MODULUS = 1e12  # Pa
+_MAX_PRESSURE = 1e12  # Pa (stress tests scale pressure with the moduli)
+_MAX_DENSITY = 1e5  # kg/m³
+_MAX_MASS = 1e6  # kg/m or kg
 
-def _positive(obj, *names):
-    for n in names:
-        v = getattr(obj, n)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ValueError(f"{type(obj).__name__}.{n} must be a finite number > 0; got {v!r}")
+
+def _short(value) -> str:
+    """``repr(value)`` cut to one short line (a bad field may hold megabytes or deep nesting)."""
+    try:
+        text = repr(value)
+    except RecursionError:
+        text = f"<deeply nested {type(value).__name__}>"
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _non_negative(obj, *names):
-    for n in names:
-        v = getattr(obj, n)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-            raise ValueError(f"{type(obj).__name__}.{n} must be a finite number >= 0; got {v!r}")
+def _number(obj, name: str, low: float, high: float, unit: str, *, open_low: bool = False) -> None:
+    """Check that field ``name`` is a real number (not a bool) in [low, high] (or (low, high]); store
+    it as a float."""
+    v = getattr(obj, name)
+    x = math.nan
+    if isinstance(v, numbers.Real) and not isinstance(v, bool):
+        try:
+            x = float(v)
+        except OverflowError:  # an integer beyond float range
+            x = math.inf
+    if not (math.isfinite(x) and (x > low if open_low else x >= low) and x <= high):
+        bound = f"> {low:g}" if open_low else f">= {low:g}"
+        raise ValueError(f"{type(obj).__name__}.{name} must be a finite number {bound} and <= {high:g}"
+                         f"{' ' + unit if unit else ''}; got {_short(v)}")
+    object.__setattr__(obj, name, x)
+
+
+def _integer(obj, name: str, low: int, high: int, limit: str = "") -> None:
+    """Check that field ``name`` is an integer (not a bool, not a float) in [low, high]."""
+    v = getattr(obj, name)
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not low <= v <= high:
+        raise ValueError(f"{type(obj).__name__}.{name} must be an integer in [{low}, {high}]"
+                         f"{limit}; got {_short(v)}")
+    object.__setattr__(obj, name, int(v))
+
+
+def _text(value, what: str, max_length: int, allow_empty: bool = False) -> str:
+    if not isinstance(value, str) or len(value) > max_length or (not value and not allow_empty):
+        size = f"at most {max_length}" if allow_empty else f"1 to {max_length}"
+        raise ValueError(f"{what} must be a string of {size} characters; got {_short(value)}")
+    return value
+
+
+def _entries(value, what: str, limit: int, limit_name: str) -> tuple:
+    """A list or tuple of at most ``limit`` entries, as a tuple."""
+    if not isinstance(value, (list, tuple)):
+        raise ValueError(f"{what} must be a list; got {_short(value)}")
+    if len(value) > limit:
+        raise ValueError(f"{what} has {len(value)} entries; at most {limit} are supported "
+                         f"(solver.designs.{limit_name})")
+    return tuple(value)
+
+
+def _build(cls, value, where: str):
+    """``value`` if it already is a ``cls``, else ``cls(**value)`` with the problem named on one line."""
+    if isinstance(value, cls):
+        return value
+    if not isinstance(value, dict):
+        raise ValueError(f"{where} must be a mapping of {cls.__name__} fields (a JSON object); "
+                         f"got {_short(value)}")
+    init = [f for f in fields(cls) if f.init]
+    unknown = sorted(map(repr, set(value) - {f.name for f in init}))
+    if unknown:
+        raise ValueError(f"{where} has unknown fields: {', '.join(unknown)} ({cls.__name__} has "
+                         f"{', '.join(f.name for f in init)})")
+    missing = [f.name for f in init if f.default is MISSING and f.default_factory is MISSING
+               and f.name not in value]
+    if missing:
+        raise ValueError(f"{where} is missing fields: {', '.join(missing)}")
+    try:
+        return cls(**value)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -79,7 +177,12 @@ class TubeMaterial:
     wind_angle_deg: float
 
     def __post_init__(self):
-        _positive(self, "youngs_modulus", "shear_modulus", "density", "inner_radius", "outer_radius")
+        for name in ("youngs_modulus", "shear_modulus"):
+            _number(self, name, 0.0, _MAX_MODULUS, "Pa", open_low=True)
+        _number(self, "density", 0.0, _MAX_DENSITY, "kg/m³", open_low=True)
+        for name in ("inner_radius", "outer_radius"):
+            _number(self, name, 0.0, _MAX_RADIUS, "m", open_low=True)
+        _number(self, "wind_angle_deg", 0.0, 90.0, "deg")
         if self.inner_radius >= self.outer_radius:
             raise ValueError(
                 f"tube inner radius {self.inner_radius} m must be smaller than outer radius "
@@ -134,10 +237,14 @@ class Section:
     n_tubes: int = 0
 
     def __post_init__(self):
-        _positive(self, "length", "EA", "GA", "EI", "GJ")
-        _non_negative(self, "mass_per_length", "endplate_mass")
-        if int(self.n_tubes) != self.n_tubes or self.n_tubes < 0:
-            raise ValueError(f"n_tubes must be a non-negative integer; got {self.n_tubes}")
+        _number(self, "length", 0.0, _MAX_LENGTH, "m", open_low=True)
+        for name in ("EA", "GA"):
+            _number(self, name, 0.0, _MAX_STIFFNESS, "N", open_low=True)
+        for name in ("EI", "GJ"):
+            _number(self, name, 0.0, _MAX_STIFFNESS, "N m²", open_low=True)
+        _number(self, "mass_per_length", 0.0, _MAX_MASS, "kg/m")
+        _number(self, "endplate_mass", 0.0, _MAX_MASS, "kg")
+        _integer(self, "n_tubes", 0, MAX_TUBES, " (solver.designs.MAX_TUBES)")
 
 
 @dataclass(frozen=True)
@@ -160,21 +267,16 @@ class Tube:
     material: TubeMaterial
 
     def __post_init__(self):
-        _non_negative(self, "radius")
-        if not (0 <= self.first_section <= self.last_section):
+        _integer(self, "channel", 0, MAX_TUBES - 1, " (solver.designs.MAX_TUBES channels)")
+        _number(self, "angle_deg", -360.0, 360.0, "deg")
+        _number(self, "radius", 0.0, _MAX_RADIUS, "m")
+        for name in ("first_section", "last_section"):
+            _integer(self, name, 0, MAX_SECTIONS - 1, " (solver.designs.MAX_SECTIONS sections)")
+        if self.first_section > self.last_section:
             raise ValueError(
                 f"tube spans sections {self.first_section}..{self.last_section}: need "
                 "0 <= first_section <= last_section")
-        if isinstance(self.material, dict):
-            try:
-                object.__setattr__(self, "material", TubeMaterial(**self.material))
-            except TypeError as exc:
-                raise ValueError(f"tube material has missing or unknown fields: {exc}") from None
-        if not isinstance(self.material, TubeMaterial):
-            raise ValueError(f"Tube.material must be a TubeMaterial (or its fields as a dict); "
-                             f"got {self.material!r}")
-        if int(self.channel) != self.channel:
-            raise ValueError(f"Tube.channel must be an integer; got {self.channel!r}")
+        object.__setattr__(self, "material", _build(TubeMaterial, self.material, "Tube.material"))
 
     @property
     def offset(self) -> tuple[float, float]:
@@ -211,13 +313,40 @@ class ArmDesign:
                                 hash=False)
 
     def __post_init__(self):
+        _text(self.name, "ArmDesign.name", _MAX_NAME)
+        _text(self.source, "ArmDesign.source", _MAX_SOURCE, allow_empty=True)
+        try:
+            plain = isinstance(self.extra, dict) and bool(json.dumps(self.extra, allow_nan=False))
+        except (TypeError, ValueError, RecursionError):
+            plain = False
+        if not plain:
+            raise ValueError("ArmDesign.extra must be a mapping of plain JSON values (finite numbers, "
+                             f"strings, lists, mappings); got {_short(self.extra)}")
+        sections = _entries(self.sections, "ArmDesign.sections", MAX_SECTIONS, "MAX_SECTIONS")
         object.__setattr__(self, "sections", tuple(
-            s if isinstance(s, Section) else Section(**s) for s in self.sections))
-        object.__setattr__(self, "tubes", tuple(
-            t if isinstance(t, Tube) else Tube(**t) for t in self.tubes))
-        object.__setattr__(self, "channels", tuple(self.channels))
-        object.__setattr__(self, "planar_channels", tuple(
-            (str(n), tuple(int(i) for i in idx)) for n, idx in self.planar_channels))
+            _build(Section, s, f"sections[{k}]") for k, s in enumerate(sections)))
+        tubes = _entries(self.tubes, "ArmDesign.tubes", MAX_TUBES, "MAX_TUBES")
+        object.__setattr__(self, "tubes", tuple(_build(Tube, t, f"tubes[{k}]") for k, t in enumerate(tubes)))
+        channels = _entries(self.channels, "ArmDesign.channels", MAX_TUBES, "MAX_TUBES")
+        object.__setattr__(self, "channels", tuple(
+            _text(c, f"channels[{k}]", _MAX_NAME) for k, c in enumerate(channels)))
+        planar = []
+        for k, entry in enumerate(_entries(self.planar_channels, "ArmDesign.planar_channels", MAX_TUBES,
+                                           "MAX_TUBES")):
+            if not isinstance(entry, (list, tuple)) or len(entry) != 2:
+                raise ValueError(f"planar_channels[{k}] must be a [name, [channel indices...]] pair; "
+                                 f"got {_short(entry)}")
+            name, idx = entry
+            idx = _entries(idx, f"planar_channels[{k}] indices", MAX_TUBES, "MAX_TUBES")
+            if any(isinstance(i, bool) or not isinstance(i, numbers.Integral) for i in idx):
+                raise ValueError(f"planar_channels[{k}] indices must be integers; got {_short(idx)}")
+            planar.append((_text(name, f"planar_channels[{k}] name", _MAX_NAME), tuple(int(i) for i in idx)))
+        object.__setattr__(self, "planar_channels", tuple(planar))
+        _number(self, "max_pressure", 0.0, _MAX_PRESSURE, "Pa")
+        for what, names in (("channel", self.channels), ("planar channel", [n for n, _ in planar])):
+            repeated = sorted({n for n in names if names.count(n) > 1})
+            if repeated:
+                raise ValueError(f"design {self.name!r}: {what} name {repeated[0]!r} is used twice")
         if not self.sections:
             raise ValueError(f"design {self.name!r} has no sections")
         n_sec, n_ch = len(self.sections), len(self.channels)
@@ -236,8 +365,9 @@ class ArmDesign:
                 raise ValueError(f"design {self.name!r}: channel {name!r} drives no tube")
         for name, idx in self.planar_channels:
             if not idx or any(not (0 <= i < n_ch) for i in idx):
-                raise ValueError(f"design {self.name!r}: planar channel {name!r} maps to {idx}")
-        if self.tubes and not (math.isfinite(self.max_pressure) and self.max_pressure > 0):
+                raise ValueError(f"design {self.name!r}: planar channel {name!r} maps to "
+                                 f"{_short(list(idx))}; need one or more channel indices in 0..{n_ch - 1}")
+        if self.tubes and not self.max_pressure > 0:
             raise ValueError(f"design {self.name!r}: max_pressure must be a finite number > 0 Pa; "
                              f"got {self.max_pressure!r}")
 
@@ -270,31 +400,50 @@ class ArmDesign:
                 "tubes": [asdict(t) for t in self.tubes], "channels": list(self.channels),
                 "planar_channels": [[n, list(idx)] for n, idx in self.planar_channels],
                 "max_pressure": self.max_pressure, "source": self.source}
-        return json.dumps(data, indent=2)
+        return json.dumps(data, indent=2, allow_nan=False)
 
 
 def from_json(text: str) -> ArmDesign:
     """Build a design from the JSON written by :meth:`ArmDesign.to_json`.
 
     Raises:
-        ValueError: malformed JSON, unknown or missing fields, or invalid values.
+        ValueError: (one line) text over :data:`MAX_FILE_BYTES`, malformed or too deeply nested
+            JSON, unknown or missing fields, or any invalid value such as ``NaN`` or ``Infinity``
+            (module docstring).
     """
+    if len(text) > MAX_FILE_BYTES:
+        raise ValueError(f"design file has {len(text):,} characters; at most {MAX_FILE_BYTES:,} are "
+                         "read (solver.designs.MAX_FILE_BYTES)")
     try:
-        data = json.loads(text)
+        data = json.loads(text)  # NaN/Infinity parse to floats and fail the field's check, by name
     except json.JSONDecodeError as exc:
         raise ValueError(f"design file is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise ValueError("design file is nested too deeply to be a design") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise ValueError(f"design file has an unusable number: {str(exc).split(';')[0]}") from None
     if not isinstance(data, dict):
         raise ValueError("design file must hold a JSON object")
-    try:
-        return ArmDesign(**data)
-    except TypeError as exc:
-        raise ValueError(f"design file has missing or unknown fields: {exc}") from None
+    return _build(ArmDesign, data, "design file")
 
 
 def load(path) -> ArmDesign:
-    """Read a design JSON file (see :func:`from_json`)."""
-    with open(path, encoding="utf-8") as fh:
-        return from_json(fh.read())
+    """Read a design JSON file of at most :data:`MAX_FILE_BYTES` (see :func:`from_json`).
+
+    Raises:
+        OSError: the file cannot be read.
+        ValueError: anything wrong with its content, on one line.
+    """
+    with open(path, "rb") as fh:
+        raw = fh.read(MAX_FILE_BYTES + 1)
+    if len(raw) > MAX_FILE_BYTES:
+        raise ValueError(f"design file is larger than {MAX_FILE_BYTES:,} bytes "
+                         "(solver.designs.MAX_FILE_BYTES)")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"design file is not UTF-8 text (byte {exc.start})") from None
+    return from_json(text)
 
 
 # --------------------------------------------------------------------------- builders

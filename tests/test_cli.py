@@ -4,13 +4,15 @@ The subcommands and their options are read from the parser itself, so a command 
 ``COMMANDS`` is covered by the generic tests without editing this file.
 """
 
+import json
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from softarm_gym.cli import COMMANDS, build_parser, main
+from softarm_gym.cli import COMMANDS, build_parser, emit, main
 
 
 def _subparsers():
@@ -139,6 +141,8 @@ def test_too_few_levels(capsys, command):
 
 @pytest.mark.parametrize("argv, match", [
     (["design", "--sections", "0"], "--sections must be integers >= 1"),
+    (["design", "--sections", "1000"], "--sections must be at most 8 (MAX_SECTIONS"),
+    (["design", "--sections", "3,1e400"], "--sections must be at most 8"),
     (["design", "--lengths=-1", "--no-progress"], "lengths"),
     (["estimators", "--pressures-psi=-5", "--no-progress"], "pressure levels"),
     (["stress", "--classes", "bogus"], "unknown stress class bogus"),
@@ -165,3 +169,41 @@ def test_console_script_prints_one_line_and_no_traceback(tmp_path):
     assert proc.stderr.strip().splitlines() == [
         f"softarm solve: error: cannot read design file '{missing}': No such file or directory"]
     assert proc.stdout == ""
+
+
+@pytest.mark.parametrize("command", _commands_with("--pressures-psi"))
+def test_negative_value_after_a_space_reaches_the_command(capsys, command):
+    """``--pressures-psi -5,...`` must not be argparse's "expected one argument"."""
+    lines = _fails_cleanly(capsys, [command, "--pressures-psi", "-5,0,0,0,0,0"])
+    assert "expected one argument" not in lines[-1]
+
+
+def test_solve_negative_pressure_after_a_space(capsys):
+    lines = _fails_cleanly(capsys, ["solve", "--pressures-psi", "-5,0,0,0,0,0"], "'s1_I' is negative")
+    assert len(lines) == 1
+
+
+def test_negative_plain_numbers_still_parse(capsys):
+    assert main(["solve", "--base-angle", "-30", "--pressures-psi", "5,0,0,0,0,0", "--json"]) == 0
+    assert '"converged": true' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("extra", [[], ["--shape"]])
+def test_closed_stdout_pipe_ends_silently(extra):
+    """``softarm solve --json | head -1``: no BrokenPipeError traceback, SIGPIPE-like status."""
+    script = Path(sys.executable).with_name("softarm")
+    argv = [str(script)] if script.exists() else [sys.executable, "-m", "softarm_gym.cli"]
+    proc = subprocess.Popen([*argv, "solve", "--json", *extra], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before the first byte is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert err == ""
+
+
+def test_json_output_is_strict_json(capsys):
+    """Standard parsers reject NaN/Infinity: a non-finite number is written as null."""
+    emit({"tip": np.array([np.nan, 0.5]), "residual": np.float64(np.inf)}, True, "")
+    out = capsys.readouterr().out
+    assert json.loads(out, parse_constant=lambda c: pytest.fail(f"{c} in JSON output")) == {
+        "tip": [None, 0.5], "residual": None}

@@ -24,6 +24,8 @@ def design_from_args(args) -> solver.designs.ArmDesign:
             return solver.designs.load(args.design_file)
         except OSError as exc:
             raise UsageError(f"cannot read design file {args.design_file!r}: {exc.strerror}") from None
+        except ValueError as exc:
+            raise UsageError(f"{args.design_file}: {exc}") from None
     kwargs = {"ei": args.ei} if args.ei and args.design in ("octarm_v", "ct", "octarm_2s") else {}
     return solver.designs.get(args.design, **kwargs)
 

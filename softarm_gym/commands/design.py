@@ -33,10 +33,18 @@ def add_arguments(p):
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
 
+MAX_SECTIONS = 8
+"""Largest ``--sections``: the exhaustive search tries 4^N layouts at every size (65,536 at N = 8)."""
+
+
 def _sections(text: str) -> list[int]:
     values = parse_floats(text, "--sections")
     if values.size == 0 or np.any(values != np.round(values)) or np.any(values < 1):
         raise UsageError(f"--sections must be integers >= 1; got {text!r}")
+    if np.any(values > MAX_SECTIONS):
+        raise UsageError(f"--sections must be at most {MAX_SECTIONS} (MAX_SECTIONS: the exhaustive search "
+                         f"tries 4^N layouts per size, 4^{MAX_SECTIONS} = {4 ** MAX_SECTIONS:,}); "
+                         f"got {text!r}")
     return [int(v) for v in values]
 
 

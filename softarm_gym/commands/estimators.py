@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 
 import numpy as np
@@ -10,6 +9,7 @@ from tqdm import tqdm
 
 from softarm_gym.cli import UsageError, emit
 from softarm_gym.commands.common import parse_floats
+from softarm_gym.files import write_json
 
 NAME = "estimators"
 HELP = ("RMS tip error of every shape estimator over the 64 on/off configurations of OctArm VI "
@@ -58,8 +58,7 @@ def run(args) -> int:
     finally:
         bar.close()
     if args.json_out:
-        with open(args.json_out, "w", encoding="utf-8") as fh:
-            json.dump(result, fh, indent=1)
+        write_json(args.json_out, result, indent=1)
     if args.plot:
         plot_study(result, args.plot)
     if args.payload_plot:

@@ -24,6 +24,8 @@ __all__ = ["SoftArmEnv", "ACTION_MODES", "OBSERVATION_FORMATS"]
 
 ACTION_MODES = ("absolute", "delta")
 OBSERVATION_FORMATS = ("flat", "dict")
+MIN_RENDER_SIZE, MAX_RENDER_SIZE = 16, 4096
+"""Limits of ``render_size`` (px, the side of the square frame): 4096² RGB is 50 MB a frame."""
 
 
 def _finite_number(name: str, value, minimum: float | None = None) -> float:
@@ -33,6 +35,19 @@ def _finite_number(name: str, value, minimum: float | None = None) -> float:
     if minimum is not None and value < minimum:
         raise ValueError(f"{name} must be >= {minimum}; got {value!r}")
     return float(value)
+
+
+def _check_options(options, allowed: tuple[str, ...]) -> dict:
+    """``reset(options=...)`` as a dict (None → empty); unknown keys raise instead of being ignored."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise ValueError(f"reset options must be a dict; got {options!r}")
+    unknown = sorted(map(repr, set(options) - set(allowed)))
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {', '.join(unknown)}; this environment accepts "
+                         f"{', '.join(map(repr, allowed))}")
+    return options
 
 
 def _design(design) -> solver.designs.ArmDesign:
@@ -138,6 +153,10 @@ class SoftArmEnv(gym.Env):
         self.n_backbone = int(n_backbone)
         self.observation_format = observation_format
         self.render_mode = render_mode
+        if isinstance(render_size, bool) or not isinstance(render_size, (int, np.integer)) \
+                or not MIN_RENDER_SIZE <= render_size <= MAX_RENDER_SIZE:
+            raise ValueError(f"render_size must be an integer in [{MIN_RENDER_SIZE}, {MAX_RENDER_SIZE}] px; "
+                             f"got {render_size!r}")
         self.render_size = int(render_size)
 
         self.p_max = float(self.arm.max_pressure)
@@ -292,8 +311,9 @@ class SoftArmEnv(gym.Env):
         if a.shape != (self.n_inputs,):
             raise ValueError(f"action must have shape ({self.n_inputs},) for channels "
                              f"{', '.join(self.input_names)}; got shape {a.shape}")
-        if not math.isfinite(a.sum()):
-            k = int(np.argmax(~np.isfinite(a)))
+        finite = np.isfinite(a)  # elementwise: a.sum() overflows for finite values like 1e308
+        if not finite.all():
+            k = int(np.argmax(~finite))
             raise ValueError(f"action for channel {self.input_names[k]!r} is not finite: {a[k]}")
         a = np.clip(a, -1.0, 1.0)
         if self.action_mode == "absolute":

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 import solver
-from softarm_gym.envs.base import SoftArmEnv, _finite_number
+from softarm_gym.envs.base import SoftArmEnv, _check_options, _finite_number
 
 __all__ = ["ReachEnv"]
 
@@ -73,7 +73,9 @@ class ReachEnv(SoftArmEnv):
     ``payload_kg``, a target — the tip of the arm at uniformly random pressures, solved
     cold (the solver follows the quasi-static path from rest), so every target is
     reachable by this episode's arm and payload (or
-    ``options={"target": (x, y)}``) — and start pressures uniform in
+    ``options={"target": (x, y)}``; a target farther from the base than the arm fully stretched
+    at the rated pressure raises ``ValueError``, as does any other option key) — and start
+    pressures uniform in
     [0, ``initial_pressure_fraction``]·p_max.
 
     ## Episode End
@@ -112,7 +114,7 @@ class ReachEnv(SoftArmEnv):
       when the observation's estimator reads them (not for ``true`` and ``model``, which
       need none — skipping them is most of a ``true`` step's saving); True forces them into
       ``info["sensors"]``.
-    * ``render_mode`` (None, ``"rgb_array"`` or ``"human"``), ``render_size`` (400 px).
+    * ``render_mode`` (None, ``"rgb_array"`` or ``"human"``), ``render_size`` (400 px, at most 4096).
 
     ## Info
 
@@ -150,11 +152,26 @@ class ReachEnv(SoftArmEnv):
         return -high, high
 
     def _reset_task(self, options, start):
-        if options and "target" in options:
-            target = np.asarray(options["target"], dtype=float)
-            if target.shape != (self.dim,) or not np.all(np.isfinite(target)):
+        options = _check_options(options, ("target",))
+        if "target" in options:
+            try:
+                target = np.asarray(options["target"], dtype=float)
+            except (TypeError, ValueError):
+                target = None
+            if target is None or target.shape != (self.dim,) or not np.all(np.isfinite(target)):
                 raise ValueError(f"options['target'] must be a finite {self.dim}-D point (m); "
                                  f"got {options['target']!r}")
+            # No pressure stretches a section beyond its stretch with every channel at p_max, so
+            # a target farther than that (plus the success tolerance) from the base can never be
+            # reached; the observation would also clip it silently.
+            stretch = solver.rest_strains(self._sim_arm, np.full(self._sim_arm.n_channels, self.p_max))[2]
+            limit = min(float(sum(s.length * v for s, v in zip(self._sim_arm.sections, stretch)))
+                        + self.success_tolerance, self.reach)
+            distance = float(np.linalg.norm(target))
+            if distance > limit:
+                raise ValueError(f"options['target'] {tuple(target.tolist())} is {distance:.3g} m from the "
+                                 f"base; {self.arm.name} reaches at most {limit:.3f} m (every section "
+                                 "fully stretched at the rated pressure)")
             self._target = target.copy()
             self.target_pressures_pa = None
             return self._scene, start

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 import solver
-from softarm_gym.envs.base import SoftArmEnv, _finite_number, _range
+from softarm_gym.envs.base import SoftArmEnv, _check_options, _finite_number, _range
 
 __all__ = ["WrapEnv", "wrap_angle", "arm_half_thickness"]
 
@@ -179,10 +179,13 @@ class WrapEnv(SoftArmEnv):
         return np.array([-r, -r, 0.0]), np.array([r, r, r])
 
     def _reset_task(self, options, start):
-        if options and "object" in options:
+        options = _check_options(options, ("object",))
+        if "object" in options:
             obj = np.asarray(options["object"], dtype=float)
-            if obj.shape != (3,) or not np.all(np.isfinite(obj)) or obj[2] <= 0:
-                raise ValueError("options['object'] must be (x, y, object_radius) in m with radius > 0; "
+            if obj.shape != (3,) or not np.all(np.isfinite(obj)) or obj[2] <= 0 \
+                    or np.any(np.abs(obj) > self.reach):
+                raise ValueError("options['object'] must be (x, y, object_radius) in m with radius > 0, "
+                                 f"each within ±{self.reach:.3f} m (twice the arm's length); "
                                  f"got {options['object']!r}")
             self.touch_arc_length = None
             placed = self._place(obj[:2], float(obj[2]), start)

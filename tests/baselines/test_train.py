@@ -25,7 +25,9 @@ def test_tiny_sac_run_writes_logs_checkpoints_and_sidecars(tiny_sac_run):
     assert list(run.glob("events.out.tfevents.*")), "no TensorBoard event file"
     assert sorted(p.name for p in (run / "checkpoints").glob("*.zip")) == \
         ["model_100_steps.zip", "model_200_steps.zip"]
-    assert len(list((run / "checkpoints").glob("*vecnormalize*.pkl"))) == 2
+    assert len(list((run / "checkpoints").glob("*_vecnormalize.json"))) == 2
+    assert len(list((run / "checkpoints").glob("model_*_steps.json"))) == 2  # metadata with every checkpoint
+    assert not list(run.rglob("*.pkl")) and not list(run.rglob("*.tmp"))
     for name in ("final_model.zip", "best_model.zip"):
         meta_path, norm_path = sidecar_paths(run / name)
         assert (run / name).is_file() and norm_path.is_file()
@@ -70,6 +72,12 @@ def test_bad_hyperparameters_are_named(tmp_path):
     assert HYPERPARAMS_DIR.is_dir()
 
 
-def test_cli_reports_bad_input_with_exit_status_2(tmp_path, capsys):
-    assert main(["--env", "SoftArm/Nope-v0", "--algo", "sac", "--log-dir", str(tmp_path)]) == 2
-    assert "no entry for 'SoftArm/Nope-v0'" in capsys.readouterr().err
+@pytest.mark.parametrize(("env_id", "message"), [
+    ("SoftArm/OctArmWrap-v0", "no entry for 'SoftArm/OctArmWrap-v0'"),
+    ("SoftArm/Nope-v0", "registered SoftArm/* id"),
+    ("evil_module:Env", "registered SoftArm/* id"),
+])
+def test_cli_reports_bad_input_with_exit_status_2(tmp_path, capsys, env_id, message):
+    assert main(["--env", env_id, "--algo", "sac", "--log-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1

@@ -39,6 +39,28 @@ def test_bad_target_option():
     env = ReachEnv("ct")
     with pytest.raises(ValueError, match="target"):
         env.reset(seed=0, options={"target": (np.nan, 0.0)})
+    with pytest.raises(ValueError, match="target"):
+        env.reset(seed=0, options={"target": "far"})
+
+
+@pytest.mark.parametrize("target", [(100.0, 100.0), (0.0, -1.1)])
+def test_unreachable_target_is_an_error_not_a_clipped_goal(target):
+    """OctArm V is 0.83 m long, 1.03 m with every channel at 100 psi: 100 m is also outside the
+    observation bounds (2 L), 1.1 m only beyond full stretch (plus the 2 cm tolerance)."""
+    env = ReachEnv("octarm_v")
+    with pytest.raises(ValueError, match=r"reaches at most 1\.049 m"):
+        env.reset(seed=0, options={"target": target})
+    _, info = env.reset(seed=0, options={"target": (0.0, -1.0)})  # within the stretched length
+    np.testing.assert_array_equal(info["target"], [0.0, -1.0])
+
+
+@pytest.mark.parametrize("options", [{"targte": (0.1, -0.3)}, {"target": (0.1, -0.3), "seed": 1}])
+def test_unknown_reset_options_raise(options):
+    env = ReachEnv("ct")
+    with pytest.raises(ValueError, match="unknown reset option.*accepts 'target'"):
+        env.reset(seed=0, options=options)
+    with pytest.raises(ValueError, match="must be a dict"):
+        env.reset(seed=0, options=[("target", (0.1, -0.3))])
 
 
 def test_reward_decreases_with_distance():

@@ -30,6 +30,14 @@ def test_non_finite_action_names_the_channel(bad):
         env.step(action)
 
 
+def test_huge_finite_action_is_clipped_not_called_infinite():
+    """1e308 is finite; their sum overflows, which must not matter."""
+    env = ReachEnv("ct")
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.full(4, 1e308))
+    np.testing.assert_allclose(info["pressures_pa"], env.p_max)
+
+
 def test_wrong_action_shape_is_a_value_error():
     env = ReachEnv("ct")
     env.reset(seed=0)
@@ -172,6 +180,10 @@ def test_payload_range_is_drawn_per_episode():
     ({"max_solver_failures": 0}, "max_solver_failures"),
     ({"success_tolerance": 0.0}, "success_tolerance"),
     ({"render_mode": "ascii"}, "render_mode"),
+    ({"render_size": 10**6}, r"render_size must be an integer in \[16, 4096\]"),
+    ({"render_size": 8}, "render_size"),
+    ({"render_size": 400.0}, "render_size"),
+    ({"render_size": True}, "render_size"),
     ({"model": "euler"}, "unknown model"),
 ])
 def test_bad_kwargs_raise_clear_value_errors(kwargs, match):

@@ -101,6 +101,10 @@ def test_object_option_and_validation():
     assert info["object_radius"] == 0.05 and env.touch_arc_length is None
     with pytest.raises(ValueError, match="object"):
         env.reset(seed=0, options={"object": (0.2, -0.4, -1.0)})
+    with pytest.raises(ValueError, match="each within"):
+        env.reset(seed=0, options={"object": (100.0, 100.0, 0.05)})
+    with pytest.raises(ValueError, match=r"unknown reset option\(s\) 'target'; .* accepts 'object'"):
+        env.reset(seed=0, options={"target": (0.2, -0.4)})
     for kwargs, match in (({"object_radius": 0.0}, "object_radius"),
                           ({"contact_stiffness": 0.0}, "stiffness"),
                           ({"penetration_tolerance": 0.0}, "penetration_tolerance"),

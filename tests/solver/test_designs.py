@@ -1,5 +1,6 @@
 """Designs: numbers traced to the thesis, validation, JSON round trip."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -102,8 +103,8 @@ def test_json_round_trip(name, tmp_path):
 @pytest.mark.parametrize("text, match", [
     ("{not json", "not valid JSON"),
     ("[1, 2]", "JSON object"),
-    ('{"name": "x"}', "missing or unknown"),
-    ('{"name": "x", "sections": [], "colour": 1}', "missing or unknown"),
+    ('{"name": "x"}', "missing fields: sections"),
+    ('{"name": "x", "sections": [], "colour": 1}', "unknown fields: 'colour'"),
     ('{"name": "x", "sections": []}', "no sections"),
     ('{"name": "x", "sections": [{"length": -1, "EA": 1, "GA": 1, "EI": 1, "GJ": 1}]}', "length"),
 ])
@@ -150,15 +151,32 @@ def test_json_after_a_solve_and_bad_design_files():
     solver.solve(arm, np.zeros(6), solver.Scene(base_angle_deg=90))
     assert designs.from_json(arm.to_json()) == arm
     data = arm.to_json().replace('"wind_angle_deg": 78.0', '"wind_angel_deg": 78.0', 1)
-    with pytest.raises(ValueError, match="tube material has missing or unknown fields"):
+    with pytest.raises(ValueError, match=r"tubes\[0\]: Tube.material has unknown fields: 'wind_angel_deg'"):
         designs.from_json(data)
     import json
 
     raw = json.loads(arm.to_json())
     raw["tubes"][0]["material"] = 5
-    with pytest.raises(ValueError, match="Tube.material must be a TubeMaterial"):
+    with pytest.raises(ValueError, match="Tube.material must be a mapping of TubeMaterial fields"):
         designs.from_json(json.dumps(raw))
     raw = json.loads(arm.to_json())
     raw["max_pressure"] = float("inf")
     with pytest.raises(ValueError, match="max_pressure must be a finite number"):
         designs.from_json(json.dumps(raw))
+
+
+def test_python_api_gets_the_same_checks_as_design_files():
+    sec = designs.octarm_v().sections[0]
+    with pytest.raises(ValueError, match=r"Section.length must be a finite number > 0 and <= 100 m; got Tru"):
+        dataclasses.replace(sec, length=True)
+    with pytest.raises(ValueError, match="Section.n_tubes must be an integer"):
+        dataclasses.replace(sec, n_tubes=6.0)
+    with pytest.raises(ValueError, match=r"at most 32 are supported \(solver.designs.MAX_SECTIONS\)"):
+        designs.ArmDesign(name="long", sections=(sec,) * (designs.MAX_SECTIONS + 1))
+    with pytest.raises(ValueError, match="ArmDesign.name must be a string"):
+        designs.ArmDesign(name=("octarm",), sections=(sec,))
+    # numpy scalars are numbers: stored as plain floats and ints, so the JSON stays plain.
+    arm = designs.ArmDesign(name="np", sections=(dataclasses.replace(sec, EI=np.float32(0.5),
+                                                                     n_tubes=np.int64(3)),))
+    assert type(arm.sections[0].EI) is float and type(arm.sections[0].n_tubes) is int
+    assert designs.from_json(arm.to_json()) == arm

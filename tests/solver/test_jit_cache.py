@@ -1,0 +1,98 @@
+"""The numba cache heals: damaged entries are recompiled, a read-only install caches elsewhere.
+
+Each test runs fresh Python processes against a cache directory of its own, so the cache the
+rest of the suite uses is never touched.
+"""
+
+import os
+import shutil
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from solver import _jit
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPT = "import solver; print(solver.pressure_from_stretch(1.1, 2e6, 9.3e-3, 14e-3, 78.0))"
+"""Compiles two small kernels of solver.actuator (_pressure and _pressure_and_slope)."""
+
+
+def _run(env_changes: dict, code: str = SCRIPT, cwd=None, remove=()) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k not in remove}
+    env.update(env_changes)
+    proc = subprocess.run([sys.executable, "-c", code], env=env, cwd=cwd, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+@pytest.mark.parametrize("damaged", ["actuator._pressure-*.nbi", "actuator._pressure-*.1.nbc"])
+def test_damaged_cache_file_is_removed_and_recompiled(tmp_path, damaged):
+    env = {"NUMBA_CACHE_DIR": str(tmp_path)}
+    first = _run(env)
+    assert "CacheWarning" not in first.stderr
+    (path,) = tmp_path.glob(f"*/{damaged}")
+    path.write_bytes(path.read_bytes()[:20])  # truncated, as by a full disk or a killed writer
+    second = _run(env)
+    assert second.stdout == first.stdout
+    assert "CacheWarning: numba cache of _pressure" in second.stderr and "could not be read" in second.stderr
+    assert path.stat().st_size > 20  # written afresh
+    third = _run(env)
+    assert third.stdout == first.stdout and "CacheWarning" not in third.stderr
+
+
+def test_read_only_install_without_home_caches_in_a_private_temp_dir(tmp_path):
+    """No writable ``__pycache__`` next to the sources and no HOME: numba alone fails with
+    "cannot cache function '_pressure': no locator available"."""
+    package = tmp_path / "site-packages"
+    shutil.copytree(ROOT / "solver", package / "solver", ignore=shutil.ignore_patterns("__pycache__"))
+    # Unwritable even for root (who ignores permission bits): __pycache__ is a file, HOME is
+    # below a file. For other users the copy is read-only as well.
+    (package / "solver" / "__pycache__").write_text("")
+    (tmp_path / "file").write_text("")
+    for path in [package, *package.rglob("*")]:
+        path.chmod(path.stat().st_mode & ~(stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    env = {"PYTHONPATH": str(package), "HOME": str(tmp_path / "file" / "home"), "TMPDIR": str(temp)}
+    try:
+        first = _run(env, cwd=tmp_path, remove=("NUMBA_CACHE_DIR", "XDG_CACHE_HOME"))
+        second = _run(env, cwd=tmp_path, remove=("NUMBA_CACHE_DIR", "XDG_CACHE_HOME"))
+    finally:
+        for path in [package, *package.rglob("*")]:
+            path.chmod(path.stat().st_mode | stat.S_IWUSR)
+    assert float(first.stdout) == pytest.approx(319617.2252157, rel=1e-12)
+    assert "no writable cache directory" in first.stderr and "CacheWarning" in first.stderr
+    assert second.stdout == first.stdout and second.stderr == ""  # said once; the cache is reused
+    (cache,) = temp.glob("softarm-numba-*")
+    assert stat.S_IMODE(cache.stat().st_mode) == 0o700
+    assert list(cache.glob("*/actuator._pressure-*.nbi"))
+
+
+def test_fallback_dir_that_others_can_write_is_not_used(tmp_path, monkeypatch):
+    """Cache files are unpickled: a planted, world-writable directory must not be trusted."""
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    assert _jit.fallback_cache_dir() == tmp_path / f"softarm-numba-{os.getuid()}"
+    planted = tmp_path / f"softarm-numba-{os.getuid()}"
+    planted.chmod(0o777)
+    other = _jit.fallback_cache_dir()
+    assert other != planted and other.parent == tmp_path and stat.S_IMODE(other.stat().st_mode) == 0o700
+
+
+def test_warmup_clear_deletes_the_cache_and_compiles_it_again(tmp_path):
+    env = {"NUMBA_CACHE_DIR": str(tmp_path)}
+    _run(env)  # a cache with two kernels in it
+    (folder,) = tmp_path.glob("solver_*")
+    stale = folder / "removed_kernel-1.py311.nbi"
+    stale.write_bytes(b"\x80junk")
+    script = Path(sys.executable).with_name("softarm")
+    proc = subprocess.run([str(script), "warmup", "--clear"], env={**os.environ, **env}, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    removed = int(proc.stdout.split("removed ")[1].split()[0])
+    assert removed >= 5 and not stale.exists()  # 2 kernels × (index + data) + the stale index
+    assert "numba kernels ready" in proc.stdout
+    assert len(list(folder.glob("_planar.*.nbi"))) > 3  # the solver's kernels, compiled again
