@@ -151,12 +151,29 @@ class Plan:
 
     Attributes:
         chunks: the work.
-        finish: ``finish(results, seconds)`` builds the result from the chunks' outputs, in
-            order, and their summed compute time (s).
+        finish: ``finish(results, seconds)`` builds the result from the chunks' outputs and
+            their compute times (s), both lists in chunk order.
     """
 
     chunks: Sequence[Chunk]
     finish: Callable
+
+    @staticmethod
+    def combine(plans: Sequence[Plan], finish: Callable) -> Plan:
+        """One plan running all of ``plans``; its result is ``finish([result of each plan])``."""
+        plans = list(plans)
+        return Plan([c for p in plans for c in p.chunks],
+                    lambda results, seconds: finish(_finish_each(plans, results, seconds)))
+
+
+def _finish_each(plans, results, seconds) -> list:
+    """``[plan.finish(its results, its seconds), ...]`` from the concatenated chunk outputs."""
+    out, start = [], 0
+    for p in plans:
+        stop = start + len(p.chunks)
+        out.append(p.finish(results[start:stop], seconds[start:stop]))
+        start = stop
+    return out
 
 
 # ----------------------------------------------------------------------------- chunk store
@@ -282,14 +299,8 @@ class Runner:
 
     def run_plans(self, plans: Sequence[Plan], desc: str = "sweep", unit: str = "pt") -> list:
         """Run the chunks of every plan under one progress bar; ``[plan.finish(...), ...]``."""
-        chunks = [c for p in plans for c in p.chunks]
-        outputs = self.run(chunks, desc, unit)
-        out, start = [], 0
-        for p in plans:
-            part = outputs[start:start + len(p.chunks)]
-            start += len(p.chunks)
-            out.append(p.finish([r for r, _ in part], float(sum(s for _, s in part))))
-        return out
+        outputs = self.run([c for p in plans for c in p.chunks], desc, unit)
+        return _finish_each(plans, [r for r, _ in outputs], [s for _, s in outputs])
 
     def run(self, chunks: Sequence[Chunk], desc: str = "sweep", unit: str = "pt") -> list:
         """``[(result, seconds), ...]`` of every chunk, in order (``seconds``: its compute time)."""

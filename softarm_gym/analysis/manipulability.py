@@ -332,7 +332,7 @@ def dexterity_plan(arm: solver.designs.ArmDesign, scene: solver.Scene | None = N
                             valid=np.concatenate([r["valid"] for r in results]),
                             sigma=np.concatenate([r["sigma"] for r in results]),
                             scene=scene, model=model, planar=planar, length=arm.length,
-                            alpha=float(alpha), seconds=seconds)
+                            alpha=float(alpha), seconds=float(sum(seconds)))
     return Plan(chunks, finish)
 
 

@@ -261,7 +261,7 @@ def workspace_plan(arm: solver.designs.ArmDesign, scene: solver.Scene | None = N
             raise ValueError(f"no grid point of design {arm.name!r} converged; nothing to analyse")
         return Workspace(design=arm.name, grid=grid, tips=points, converged=converged, scene=scene,
                          model=model, planar=planar, length=arm.length, alpha=float(alpha),
-                         seconds=seconds)
+                         seconds=float(sum(seconds)))
     return Plan(tips.chunks, finish)
 
 
