@@ -105,8 +105,10 @@ def _canonical(obj):
         return {"ndarray": data.dtype.str, "shape": list(data.shape),
                 "sha256": hashlib.sha256(data.tobytes()).hexdigest()}
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        # The fields that take part in equality: caches (compare=False) change with use.
         return {"dataclass": f"{type(obj).__module__}.{type(obj).__qualname__}",
-                "fields": {f.name: _canonical(getattr(obj, f.name)) for f in dataclasses.fields(obj)}}
+                "fields": {f.name: _canonical(getattr(obj, f.name))
+                           for f in dataclasses.fields(obj) if f.compare}}
     if isinstance(obj, (tuple, list)):
         return [_canonical(v) for v in obj]
     if isinstance(obj, dict):
@@ -226,8 +228,11 @@ class ChunkStore:
             np.savez(fh, **result, **{_SECONDS: np.float64(seconds)})
 
     def remove(self, keys) -> None:
+        """Delete these chunks, and temporary files a killed process left while writing them."""
         for key in keys:
             self.path(key).unlink(missing_ok=True)
+            for tmp in self.directory.glob(f".{key}.npz.*"):
+                tmp.unlink(missing_ok=True)
 
 
 # ----------------------------------------------------------------------------- runner
@@ -310,9 +315,6 @@ class Runner:
         for i, c in enumerate(chunks):
             copies.setdefault(c.key, []).append(i)
         self._load(chunks, outputs, copies)
-        bar = tqdm(total=sum(c.size for c in chunks), unit=unit, desc=desc, file=sys.stderr,
-                   initial=sum(c.size for c, o in zip(chunks, outputs) if o is not None),
-                   disable=not self.progress, dynamic_ncols=True)
 
         def record(i, result, seconds):
             result = _check_result(result, chunks[i])
@@ -324,16 +326,26 @@ class Runner:
                 bar.update(chunks[j].size)
 
         todo = [idx[0] for idx in copies.values() if outputs[idx[0]] is None]
+        ray, connected = _ray_connect(self.address) if todo and self.backend == "ray" else (None, False)
+        bar = tqdm(total=sum(c.size for c in chunks), unit=unit, desc=desc, file=sys.stderr,
+                   initial=sum(c.size for c, o in zip(chunks, outputs) if o is not None),
+                   disable=not self.progress, dynamic_ncols=True)
         try:
             if self.backend == "local":
                 for i in todo:
                     record(i, *_timed_call(chunks[i].fn, chunks[i].args))
-            else:
-                self._run_ray(chunks, todo, record, outputs)
+            elif todo:
+                # Ray's driver prints its notices (a worker died, ...) on stdout, which holds
+                # the commands' --json output; what matters reaches the caller as a JobError.
+                with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):
+                    self._run_ray(ray, chunks, todo, record, outputs)
         except KeyboardInterrupt:
             raise Interrupted(f"interrupted; {self._kept(outputs)}") from None
         finally:
             bar.close()
+            if connected:
+                with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):
+                    ray.shutdown()
         return outputs
 
     def discard(self) -> None:
@@ -366,45 +378,38 @@ class Runner:
         return (f"{n_done} of {len(outputs)} chunks finished and kept in {self._store.directory}; "
                 "rerun the same command with --resume to continue")
 
-    def _run_ray(self, chunks, todo, record, outputs) -> None:
-        ray, connected = _ray_connect(self.address)
+    def _run_ray(self, ray, chunks, todo, record, outputs) -> None:
+        task = ray.remote(_ray_call).options(num_cpus=1, max_retries=int(self.retries),
+                                             retry_exceptions=False)
+        limit = self.in_flight or max(4, 2 * int(ray.cluster_resources().get("CPU", 1)))
+        queue, pending = list(reversed(todo)), {}
         try:
-            task = ray.remote(_ray_call).options(num_cpus=1, max_retries=int(self.retries),
-                                                 retry_exceptions=False)
-            limit = self.in_flight or max(4, 2 * int(ray.cluster_resources().get("CPU", 1)))
-            queue, pending = list(reversed(todo)), {}
-            try:
-                while queue or pending:
-                    while queue and len(pending) < limit:
-                        i = queue.pop()
-                        pending[task.remote(chunks[i].fn, chunks[i].args)] = i
-                    (ref,), _ = ray.wait(list(pending), num_returns=1)
-                    i = pending.pop(ref)
-                    try:
-                        result, seconds, fingerprint, node = ray.get(ref)
-                    except ray.exceptions.RayTaskError as exc:  # the chunk itself raised
-                        cause = exc.cause if isinstance(exc.cause, BaseException) else None
-                        if cause is None:
-                            raise
-                        raise cause from None
-                    except ray.exceptions.RayError as exc:
-                        what = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-                        raise JobError(
-                            f"Ray lost chunk {i + 1} of {len(chunks)} after {self.retries} retries "
-                            f"({type(exc).__name__}: {what[:160]}); "
-                            f"{self._kept(outputs)}") from None
-                    if fingerprint != code_fingerprint():
-                        raise JobError(
-                            f"the Ray worker on node {node} runs other solver/softarm_gym code "
-                            f"(fingerprint {fingerprint}, this process {code_fingerprint()}): install "
-                            "the same softarm-gym version on every node")
-                    record(i, result, seconds)
-            finally:
-                for ref in pending:
-                    ray.cancel(ref, force=True)
+            while queue or pending:
+                while queue and len(pending) < limit:
+                    i = queue.pop()
+                    pending[task.remote(chunks[i].fn, chunks[i].args)] = i
+                (ref,), _ = ray.wait(list(pending), num_returns=1)
+                i = pending.pop(ref)
+                try:
+                    result, seconds, fingerprint, node = ray.get(ref)
+                except ray.exceptions.RayTaskError as exc:  # the chunk itself raised
+                    if not isinstance(exc.cause, BaseException):
+                        raise
+                    raise exc.cause from None
+                except ray.exceptions.RayError as exc:
+                    raise JobError(
+                        f"Ray lost chunk {i + 1} of {len(chunks)} after {self.retries} retries "
+                        f"({type(exc).__name__}: {_first_line(exc)[:160]}); {self._kept(outputs)}"
+                    ) from None
+                if fingerprint != code_fingerprint():
+                    raise JobError(
+                        f"the Ray worker on node {node} runs other solver/softarm_gym code "
+                        f"(fingerprint {fingerprint}, this process {code_fingerprint()}): install "
+                        "the same softarm-gym version on every node")
+                record(i, result, seconds)
         finally:
-            if connected:
-                ray.shutdown()
+            for ref in pending:
+                ray.cancel(ref, force=True)
 
 
 # ----------------------------------------------------------------------------- Ray connection

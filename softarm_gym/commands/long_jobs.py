@@ -80,11 +80,11 @@ def check_outputs(args, images=(), files=("output",)) -> None:
             continue
         flag = "--" + name.replace("_", "-")
         path = Path(value)
-        if name in images:
-            _check_image_format(flag, path)
-        parent = path.parent if str(path.parent) else Path(".")
         if path.is_dir():
             raise UsageError(f"{flag} {value}: is a directory")
+        if name in images:
+            _check_image_format(flag, path)
+        parent = path.parent
         if not parent.is_dir():
             raise UsageError(f"{flag} {value}: directory {str(parent)!r} does not exist")
         try:
