@@ -269,8 +269,11 @@ def cluster():
     log = open(Path(temp) / "head.log", "w")
     proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **NO_AUTH},
                             start_new_session=True)
-    saved = {k: os.environ.get(k) for k in NO_AUTH}
-    os.environ.update(NO_AUTH)  # for the drivers this process starts
+    # For the drivers this process starts, and for private instances (ray.init() without an
+    # address), whose session files then go under this fixture's directory too.
+    private = {**NO_AUTH, "RAY_TMPDIR": temp}
+    saved = {k: os.environ.get(k) for k in private}
+    os.environ.update(private)
     try:
         deadline = time.monotonic() + 90
         while "Ray runtime started" not in (Path(temp) / "head.log").read_text():
@@ -320,12 +323,24 @@ def test_every_sweep_command_on_ray_matches_the_local_backend(capsys, tmp_path, 
 
 
 def test_python_api_on_ray_matches_local(cluster):
+    import ray
+
     arm, scene = solver.designs.octarm_two_section(), solver.Scene(base_angle_deg=45.0)
     grid = pressure_grid(arm, levels=4)  # 256 points in 4 tasks
     local = sweep_tips(arm, grid, scene)
-    remote = sweep_tips(arm, grid, scene, backend="ray", chunk_size=64, address=cluster.address)
-    np.testing.assert_array_equal(remote[0], local[0])
-    np.testing.assert_array_equal(remote[1], local[1])
+    runs = [sweep_tips(arm, grid, scene, backend="ray", chunk_size=64, address=cluster.address)]
+    assert not ray.is_initialized()  # the sweep disconnected again
+    runs.append(sweep_tips(arm, grid, scene, backend="ray", chunk_size=64))  # a private instance
+    assert not ray.is_initialized()
+    ray.init(address=cluster.address, log_to_driver=False)
+    try:  # a Ray session the caller opened is used and left open
+        runs.append(sweep_tips(arm, grid, scene, backend="ray", chunk_size=64))
+        assert ray.is_initialized()
+    finally:
+        ray.shutdown()
+    for tips, converged in runs:
+        np.testing.assert_array_equal(tips, local[0])
+        np.testing.assert_array_equal(converged, local[1])
 
 
 def _kill_a_worker_mid_sweep(cluster, proc, chunks: Path) -> int:
