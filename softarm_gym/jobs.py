@@ -272,8 +272,9 @@ class Runner:
 
     Attributes:
         backend: ``"local"`` or ``"ray"``.
-        address: Ray cluster address (``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"``); None
-            connects to the Ray instance this process already uses, or starts a private local one.
+        address: Ray cluster address (``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"``). None:
+            the Ray session this process already has, else Ray's default (the cluster
+            ``ray start`` left on this machine, else a private instance for the run).
         store: chunk directory (None: results are kept in memory only).
         resume: reuse the chunks already in ``store``.
         progress: a progress bar on stderr.
