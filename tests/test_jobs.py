@@ -33,25 +33,16 @@ from softarm_gym.jobs import (
     atomic_path,
     code_fingerprint,
 )
+from tests.timings import without_timings
 
-TIMING_KEYS = {"seconds", "seconds_full", "seconds_cc", "time_ms", "steps_per_s"}
 NO_AUTH = {"RAY_AUTH_MODE": "disabled"}  # the fixture cluster runs without token authentication
-
-
-def _strip(obj):
-    """A command's JSON without wall-clock figures (the only fields allowed to differ)."""
-    if isinstance(obj, dict):
-        return {k: _strip(v) for k, v in obj.items() if k not in TIMING_KEYS}
-    if isinstance(obj, list):
-        return [_strip(v) for v in obj]
-    return obj
 
 
 def _run_json(capsys, argv):
     code = main(argv)
     out, err = capsys.readouterr()
     assert code == 0, err
-    return _strip(json.loads(out))
+    return without_timings(json.loads(out))
 
 
 def _cli(argv, **kwargs):
@@ -391,7 +382,7 @@ def test_a_killed_worker_is_retried(capsys, tmp_path, cluster):
     _kill_a_worker_mid_sweep(cluster, proc, chunks)
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
-    assert _strip(json.loads(out)) == reference
+    assert without_timings(json.loads(out)) == reference
 
 
 def test_a_worker_dying_without_retries_keeps_the_chunks_and_resumes(capsys, tmp_path, cluster):
