@@ -51,9 +51,14 @@ def _cli(argv, **kwargs):
                             stderr=subprocess.PIPE, text=True, env={**os.environ, **NO_AUTH}, **kwargs)
 
 
+def _kept(directory: Path) -> list[Path]:
+    """The finished chunks in ``directory`` (not the hidden files being written)."""
+    return sorted(directory.glob("[!.]*.npz"))
+
+
 def _wait_for_chunks(directory: Path, n: int, proc, timeout=120.0):
     deadline = time.monotonic() + timeout
-    while len(list(directory.glob("*.npz"))) < n:
+    while len(_kept(directory)) < n:
         assert proc.poll() is None, f"the sweep ended before {n} chunks were kept: {proc.communicate()}"
         assert time.monotonic() < deadline, "no chunks appeared"
         time.sleep(0.01)
@@ -215,8 +220,7 @@ def test_ctrl_c_then_resume_gives_the_uninterrupted_result(capsys, tmp_path):
     assert proc.returncode == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert "interrupted" in err and f"kept in {chunks}" in err and "--resume" in err
-    kept = len(list(chunks.glob("*.npz")))
-    assert 2 <= kept < 8
+    assert 2 <= len(_kept(chunks)) < 8
     assert _run_json(capsys, DEXTERITY + ["--chunk-dir", str(chunks), "--resume"]) == reference
     assert not list(chunks.glob("*.npz"))
 
@@ -228,7 +232,7 @@ def test_killed_driver_then_resume_gives_the_uninterrupted_result(capsys, tmp_pa
     _wait_for_chunks(chunks, 3, proc)
     proc.kill()
     proc.communicate(timeout=30)
-    kept = sorted(chunks.glob("[!.]*.npz"))  # a write cut off by the kill stays a hidden temp file
+    kept = _kept(chunks)  # a write cut off by the kill stays a hidden temp file
     assert 3 <= len(kept) < 16
     store = ChunkStore(chunks)
     assert all(store.load(p.stem) is not None for p in kept)
@@ -395,7 +399,7 @@ def test_a_worker_dying_without_retries_keeps_the_chunks_and_resumes(capsys, tmp
     assert proc.returncode == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert "WorkerCrashedError" in err and f"kept in {chunks}" in err and "--resume" in err
-    assert len(list(chunks.glob("*.npz"))) >= 2
+    assert len(_kept(chunks)) >= 2
     assert _run_json(capsys, DEXTERITY + ray_args + ["--resume"]) == reference
     assert not list(chunks.glob("*.npz"))
 
