@@ -8,12 +8,12 @@ STAMP   = $(VENV)/.installed
 
 .PHONY: demo test lint bench clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	# The local CPU wheel; any other torch spec pulls gigabytes of CUDA packages.
 	$(BIN)/pip install -q torch==2.13.0
-	$(BIN)/pip install -q -e ".[dev,baselines]"
+	$(BIN)/pip install -q -e ".[dev,baselines,ray]"
 	touch $(STAMP)
 
 demo: $(STAMP)

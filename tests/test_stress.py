@@ -9,6 +9,7 @@ import pytest
 import solver
 from softarm_gym.benchmarks import stress
 from softarm_gym.cli import main
+from tests.timings import without_timings
 
 FIELDS = {"n", "converged_fraction", "flagged_unconverged_fraction", "nan_count", "exceptions",
           "worst_residual", "worst_iterations", "time_ms", "failures", "diagnosis"}
@@ -48,6 +49,29 @@ def test_same_seed_same_scenes_and_outcomes(smoke):
     other = stress.random_trials(5, np.random.default_rng(4))
     first = stress.random_trials(5, np.random.default_rng(3))
     assert not all(np.array_equal(a.pressures, b.pressures) for a, b in zip(first, other))
+
+
+def test_chunking_does_not_change_the_report(smoke):
+    """Chunks of 7 trials (each diagnosing its own first failures; the merge keeps the first
+    two overall) give the report of the default 250-trial chunks, timings apart."""
+    small = stress.run(seed=3, n_random=40, n_per_class=2, env_steps=24, n_diagnose=2, chunk_size=7)
+    assert without_timings(small) == without_timings(smoke)
+
+
+def test_chunked_records_merge_into_the_serial_ones():
+    """With one Newton iteration most solves fail: each chunk diagnoses its own first three
+    failures, and the merge keeps the first three overall, as a serial run does."""
+    from dataclasses import asdict
+
+    trials = stress.random_trials(8, np.random.default_rng(5))
+    settings = solver.Settings.without_fallback(max_iter=1)
+    serial = asdict(stress.run_trials(trials, settings, n_diagnose=3))
+    chunks = [stress._trials_chunk(tuple(trials[a:a + 3]), settings, 3) for a in range(0, 8, 3)]
+    merged = asdict(stress._merge_records(chunks, 3))
+    assert len(serial["failures"]) > 3 and len(serial["diagnoses"]) == 3
+    for key in serial:
+        if key != "seconds":
+            assert merged[key] == serial[key], key
 
 
 def test_scaled_stiffness_keeps_the_actuation_and_scaled_length_the_arm():

@@ -2,8 +2,9 @@
 
 ``workspace`` sweeps a pressure grid and returns the tip cloud with its area, density,
 highest point and mean; ``dexterity_map`` adds the Jacobian and the dexterity measures at
-every grid point; ``reproduce`` holds the thesis reproductions behind ``softarm workspace``
-and ``softarm dexterity``.
+every grid point (``*_plan`` give their chunks, to run with :class:`softarm_gym.jobs.Runner`:
+Ray, resume, one progress bar for several sweeps); ``reproduce`` holds the thesis
+reproductions behind ``softarm workspace`` and ``softarm dexterity``.
 """
 
 from softarm_gym.analysis.manipulability import (
@@ -14,10 +15,11 @@ from softarm_gym.analysis.manipulability import (
     DexterityMap,
     dexterity,
     dexterity_map,
+    dexterity_plan,
     jacobian,
     step_study,
 )
-from softarm_gym.analysis.sweep import BACKENDS, PressureGrid, pressure_grid, sweep_tips
+from softarm_gym.analysis.sweep import BACKENDS, PressureGrid, pressure_grid, sweep_tips, tips_plan
 from softarm_gym.analysis.workspace import (
     DEFAULT_ALPHA_FRACTION,
     Workspace,
@@ -25,11 +27,12 @@ from softarm_gym.analysis.workspace import (
     alpha_shape_area,
     occupancy_area,
     workspace,
+    workspace_plan,
 )
 
 __all__ = [
     "DEFAULT_REL_STEP", "MEASURES", "METHODS", "Dexterity", "DexterityMap", "dexterity",
-    "dexterity_map", "jacobian", "step_study", "BACKENDS", "PressureGrid", "pressure_grid",
-    "sweep_tips", "DEFAULT_ALPHA_FRACTION", "Workspace", "alpha_complex",
-    "alpha_shape_area", "occupancy_area", "workspace",
+    "dexterity_map", "dexterity_plan", "jacobian", "step_study", "BACKENDS", "PressureGrid",
+    "pressure_grid", "sweep_tips", "tips_plan", "DEFAULT_ALPHA_FRACTION", "Workspace",
+    "alpha_complex", "alpha_shape_area", "occupancy_area", "workspace", "workspace_plan",
 ]

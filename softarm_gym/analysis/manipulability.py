@@ -33,23 +33,24 @@ thesis's text defines it); condition number = σ₁/σ_k.
 from __future__ import annotations
 
 import math
-import sys
-import time
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-from tqdm import tqdm
 
 import solver
 from softarm_gym.analysis.sweep import PressureGrid, pressure_grid
 from softarm_gym.analysis.workspace import alpha_complex, sweep_inputs
+from softarm_gym.jobs import Chunk, Plan, Runner, chunk_bounds
 
-__all__ = ["jacobian", "dexterity", "Dexterity", "dexterity_map", "DexterityMap", "step_study",
-           "MEASURES", "METHODS", "DEFAULT_REL_STEP"]
+__all__ = ["jacobian", "dexterity", "Dexterity", "dexterity_map", "dexterity_plan", "DexterityMap",
+           "step_study", "MEASURES", "METHODS", "DEFAULT_REL_STEP", "DEFAULT_DEXTERITY_CHUNK"]
 
 DEFAULT_REL_STEP = 1e-4
 """Finite-difference step as a fraction of the design's rated pressure (module docstring)."""
+DEFAULT_DEXTERITY_CHUNK = 64
+"""Grid points per chunk of :func:`dexterity_map`: a point costs 1 + 2·n_inputs solves
+(~35 ms for OctArm V), so a chunk takes ~2 s."""
 METHODS = ("central", "richardson")
 MEASURES = ("sigma_min", "sigma_max", "manipulability", "isotropy", "condition")
 """Dexterity measures, in the order of the thesis's Fig. 5.5 (a)–(e)."""
@@ -191,7 +192,8 @@ class DexterityMap:
         scene, model, planar: what was solved.
         length: arm length L (m).
         alpha: alpha-shape radius for the dexterous areas (m).
-        seconds: wall time (s).
+        seconds: compute time (s), the sum of the chunks' times (see
+            :attr:`~softarm_gym.analysis.workspace.Workspace.seconds`).
     """
 
     design: str
@@ -259,10 +261,31 @@ class DexterityMap:
         return out
 
 
+def _dexterity_rows(arm, grid, start, stop, scene, model, planar, rel_step):
+    """Grid rows ``start..stop-1``: ``{"tips", "valid", "sigma"}`` (see :class:`DexterityMap`)."""
+    rows = grid.rows(start, stop)
+    dim = 2 if planar else 3
+    tips = np.full((rows.shape[0], dim), np.nan)
+    valid = np.zeros(rows.shape[0], dtype=bool)
+    sigma = np.full((rows.shape[0], min(dim, grid.n_inputs)), np.nan)
+    for k, p in enumerate(rows):
+        eq = solver.solve(arm, p, scene, model=model, planar=planar, record=False)
+        tips[k] = eq.tip
+        if not eq.converged:
+            continue
+        try:
+            sigma[k] = dexterity(jacobian(arm, eq, rel_step=rel_step)).sigma
+        except solver.SolverError:
+            continue
+        valid[k] = True
+    return {"tips": tips, "valid": valid, "sigma": sigma}
+
+
 def dexterity_map(arm: solver.designs.ArmDesign, scene: solver.Scene | None = None, *,
                   levels: int = 7, max_pressure: float | None = None, model: str = "full",
                   planar: bool = True, rel_step: float = DEFAULT_REL_STEP, alpha: float | None = None,
-                  progress: bool = False) -> DexterityMap:
+                  backend: str = "local", chunk_size: int = DEFAULT_DEXTERITY_CHUNK,
+                  address: str | None = None, progress: bool = False) -> DexterityMap:
     """Jacobian and dexterity measures at every point of the thesis's pressure grid.
 
     Each point is the equilibrium a cold :func:`solver.solve` returns (the one
@@ -275,33 +298,42 @@ def dexterity_map(arm: solver.designs.ArmDesign, scene: solver.Scene | None = No
         levels, max_pressure: the grid (:func:`~softarm_gym.analysis.sweep.pressure_grid`).
         rel_step: finite-difference step (fraction of the rated pressure).
         alpha: alpha-shape radius for dexterous areas (m); default 0.1·L.
+        backend, address: ``"local"`` or ``"ray"`` and the Ray cluster (see
+            :func:`~softarm_gym.analysis.sweep.sweep_tips`).
+        chunk_size: grid points per chunk (a Ray task).
         progress: progress bar on stderr.
 
     Returns:
-        The :class:`DexterityMap`.
+        The :class:`DexterityMap`. For chunks kept on disk, resuming, or several maps under
+        one progress bar, run :func:`dexterity_plan` with a :class:`~softarm_gym.jobs.Runner`.
     """
+    plan = dexterity_plan(arm, scene, levels=levels, max_pressure=max_pressure, model=model,
+                          planar=planar, rel_step=rel_step, alpha=alpha, chunk_size=chunk_size)
+    runner = Runner(backend, address, progress=progress)
+    return runner.run_plans([plan], desc=f"{arm.name} dexterity")[0]
+
+
+def dexterity_plan(arm: solver.designs.ArmDesign, scene: solver.Scene | None = None, *,
+                   levels: int = 7, max_pressure: float | None = None, model: str = "full",
+                   planar: bool = True, rel_step: float = DEFAULT_REL_STEP,
+                   alpha: float | None = None, chunk_size: int = DEFAULT_DEXTERITY_CHUNK) -> Plan:
+    """The chunks of :func:`dexterity_map` (same arguments); the result is the :class:`DexterityMap`."""
     scene, alpha = sweep_inputs(arm, scene, alpha)
+    if not (isinstance(rel_step, (int, float)) and math.isfinite(rel_step) and 0 < rel_step <= 0.1):
+        raise ValueError(f"rel_step must lie in (0, 0.1]; got {rel_step!r}")
     grid = pressure_grid(arm, levels, max_pressure, planar)
-    rows = grid.rows()
-    dim = 2 if planar else 3
-    tips = np.full((grid.size, dim), np.nan)
-    valid = np.zeros(grid.size, dtype=bool)
-    sigma = np.full((grid.size, min(dim, grid.n_inputs)), np.nan)
-    start = time.perf_counter()
-    for k in tqdm(range(grid.size), file=sys.stderr, disable=not progress, unit="pt",
-                  desc=f"{arm.name} dexterity"):
-        eq = solver.solve(arm, rows[k], scene, model=model, planar=planar, record=False)
-        tips[k] = eq.tip
-        if not eq.converged:
-            continue
-        try:
-            sigma[k] = dexterity(jacobian(arm, eq, rel_step=rel_step)).sigma
-        except solver.SolverError:
-            continue
-        valid[k] = True
-    return DexterityMap(design=arm.name, grid=grid, tips=tips, valid=valid, sigma=sigma,
-                        scene=scene, model=model, planar=planar, length=arm.length,
-                        alpha=float(alpha), seconds=time.perf_counter() - start)
+    solver.solve_batch(arm, grid.rows(0, 1), scene, model=model, planar=planar)  # validate once
+    chunks = [Chunk(_dexterity_rows, (arm, grid, a, b, scene, model, planar, float(rel_step)), b - a)
+              for a, b in chunk_bounds(grid.size, chunk_size)]
+
+    def finish(results, seconds):
+        return DexterityMap(design=arm.name, grid=grid,
+                            tips=np.concatenate([r["tips"] for r in results]),
+                            valid=np.concatenate([r["valid"] for r in results]),
+                            sigma=np.concatenate([r["sigma"] for r in results]),
+                            scene=scene, model=model, planar=planar, length=arm.length,
+                            alpha=float(alpha), seconds=float(sum(seconds)))
+    return Plan(chunks, finish)
 
 
 def step_study(arm: solver.designs.ArmDesign, eq: solver.Equilibrium, rel_steps) -> np.ndarray:

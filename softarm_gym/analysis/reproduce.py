@@ -7,6 +7,9 @@
 * :func:`dexterity_comparison`: §5.3.2, dexterity maps of both arms (Fig. 5.5) and the
   dexterous area versus σ_min threshold (Fig. 5.6).
 
+Each study runs all its sweeps through one :class:`~softarm_gym.jobs.Runner` (one progress
+bar, the chosen backend, chunks kept on disk for ``--resume``).
+
 The thesis's own numbers are kept here, beside the functions that reproduce them.
 """
 
@@ -15,8 +18,9 @@ from __future__ import annotations
 import numpy as np
 
 import solver
-from softarm_gym.analysis.manipulability import DexterityMap, dexterity_map
-from softarm_gym.analysis.workspace import Workspace, workspace
+from softarm_gym.analysis.manipulability import DEFAULT_DEXTERITY_CHUNK, DexterityMap, dexterity_plan
+from softarm_gym.analysis.workspace import Workspace, workspace_plan
+from softarm_gym.jobs import Runner
 
 __all__ = ["THESIS_TABLE_2_2", "THESIS_5_3_1", "ENDPLATE_MASS", "EI_READINGS", "table_2_2",
            "closest_reading", "ct_vs_octarm", "dexterity_comparison", "dexterous_area_curves"]
@@ -37,15 +41,16 @@ EI_READINGS = ("eq2.32", "tubes")
 
 
 def table_2_2(levels: int = 7, angles=(0.0, 45.0, 90.0), readings=EI_READINGS,
-              progress: bool = False, **sweep) -> list[dict]:
+              runner: Runner | None = None, chunk_size: int | None = None) -> list[dict]:
     """Mean tip height over the OctArm V workspace, constant curvature versus full model.
 
     Args:
         levels: pressure levels per channel (7 → the thesis's 117,649 points).
         angles: base angles (deg).
         readings: ``ei`` readings of :func:`solver.designs.octarm_v`.
-        progress: progress bars on stderr.
-        **sweep: passed to :func:`~softarm_gym.analysis.workspace.workspace` (backend, ...).
+        runner: runs the sweeps (default: local, in memory, no progress bar).
+        chunk_size: grid rows per chunk (default by planar/spatial, see
+            :func:`~softarm_gym.analysis.sweep.default_chunk_size`).
 
     Returns:
         One row per (reading, angle): ``ei``, ``base_angle_deg``, ``cc_mean_y``,
@@ -53,25 +58,28 @@ def table_2_2(levels: int = 7, angles=(0.0, 45.0, 90.0), readings=EI_READINGS,
         ``thesis_difference`` (None where the thesis has no entry), ``n``, ``n_failed``,
         ``seconds_full``, ``seconds_cc``.
     """
+    cases = [(ei, float(angle)) for ei in readings for angle in angles]
+    plans = []
+    for ei, angle in cases:
+        arm, scene = solver.designs.octarm_v(ei=ei), solver.Scene(base_angle_deg=angle)
+        plans += [workspace_plan(arm, scene, levels=levels, chunk_size=chunk_size),
+                  workspace_plan(arm, scene, levels=levels, model="constant_curvature",
+                                 chunk_size=chunk_size)]
+    spaces = (runner or Runner()).run_plans(plans, desc="table 2.2 sweeps")
     rows = []
-    for ei in readings:
-        arm = solver.designs.octarm_v(ei=ei)
-        for angle in angles:
-            scene = solver.Scene(base_angle_deg=float(angle))
-            full = workspace(arm, scene, levels=levels, progress=progress, **sweep)
-            cc = workspace(arm, scene, levels=levels, model="constant_curvature",
-                           progress=progress, **sweep)
-            thesis = THESIS_TABLE_2_2.get(float(angle))
-            rows.append({
-                "ei": ei, "base_angle_deg": float(angle),
-                "cc_mean_y": float(cc.mean_tip[1]), "full_mean_y": float(full.mean_tip[1]),
-                "difference": float(cc.mean_tip[1] - full.mean_tip[1]),
-                "thesis_cc": thesis[0] if thesis else None,
-                "thesis_full": thesis[1] if thesis else None,
-                "thesis_difference": round(thesis[0] - thesis[1], 3) if thesis else None,
-                "n": full.n, "n_failed": full.n_failed + cc.n_failed,
-                "seconds_full": full.seconds, "seconds_cc": cc.seconds,
-            })
+    for k, (ei, angle) in enumerate(cases):
+        full, cc = spaces[2 * k], spaces[2 * k + 1]
+        thesis = THESIS_TABLE_2_2.get(angle)
+        rows.append({
+            "ei": ei, "base_angle_deg": angle,
+            "cc_mean_y": float(cc.mean_tip[1]), "full_mean_y": float(full.mean_tip[1]),
+            "difference": float(cc.mean_tip[1] - full.mean_tip[1]),
+            "thesis_cc": thesis[0] if thesis else None,
+            "thesis_full": thesis[1] if thesis else None,
+            "thesis_difference": round(thesis[0] - thesis[1], 3) if thesis else None,
+            "n": full.n, "n_failed": full.n_failed + cc.n_failed,
+            "seconds_full": full.seconds, "seconds_cc": cc.seconds,
+        })
     return rows
 
 
@@ -86,34 +94,36 @@ def closest_reading(rows: list[dict]) -> dict:
 
 
 def ct_vs_octarm(levels: int = 7, max_psi: float = 70.0, endplate_masses=(0.0, ENDPLATE_MASS),
-                 progress: bool = False, **sweep) -> dict[str, Workspace]:
+                 runner: Runner | None = None, chunk_size: int | None = None) -> dict[str, Workspace]:
     """§5.3.1: hanging workspaces of the two-section OctArm and the CT arm.
 
     Returns:
         ``{label: Workspace}``: ``"octarm_2s (endplates m kg)"`` per mass, then ``"ct"``.
     """
     scene = solver.Scene(base_angle_deg=0.0)
-    out = {}
-    for mass in endplate_masses:
-        arm = solver.designs.octarm_two_section(endplate_mass=float(mass))
-        out[f"octarm_2s (endplates {mass:g} kg)"] = workspace(
-            arm, scene, levels=levels, max_pressure=max_psi * solver.PSI, progress=progress, **sweep)
-    out["ct"] = workspace(solver.designs.ct(), scene, levels=levels,
-                          max_pressure=max_psi * solver.PSI, progress=progress, **sweep)
-    return out
+    arms = _section_5_3_arms(endplate_masses)
+    plans = [workspace_plan(arm, scene, levels=levels, max_pressure=max_psi * solver.PSI,
+                            chunk_size=chunk_size) for arm in arms.values()]
+    return dict(zip(arms, (runner or Runner()).run_plans(plans, desc="fig 5.4 sweeps")))
 
 
 def dexterity_comparison(levels: int = 7, max_psi: float = 70.0,
-                         endplate_masses=(0.0, ENDPLATE_MASS), progress: bool = False,
-                         ) -> dict[str, DexterityMap]:
+                         endplate_masses=(0.0, ENDPLATE_MASS), runner: Runner | None = None,
+                         chunk_size: int = DEFAULT_DEXTERITY_CHUNK) -> dict[str, DexterityMap]:
     """§5.3.2: hanging dexterity maps of the two-section OctArm (per endplate mass) and the CT
     arm (Fig. 5.5), labelled as in :func:`ct_vs_octarm`."""
     scene = solver.Scene(base_angle_deg=0.0)
+    arms = _section_5_3_arms(endplate_masses)
+    plans = [dexterity_plan(arm, scene, levels=levels, max_pressure=max_psi * solver.PSI,
+                            chunk_size=chunk_size) for arm in arms.values()]
+    return dict(zip(arms, (runner or Runner()).run_plans(plans, desc="fig 5.5 dexterity")))
+
+
+def _section_5_3_arms(endplate_masses) -> dict:
     arms = {f"octarm_2s (endplates {mass:g} kg)":
             solver.designs.octarm_two_section(endplate_mass=float(mass)) for mass in endplate_masses}
     arms["ct"] = solver.designs.ct()
-    return {label: dexterity_map(arm, scene, levels=levels, max_pressure=max_psi * solver.PSI,
-                                 progress=progress) for label, arm in arms.items()}
+    return arms
 
 
 def dexterous_area_curves(maps: dict[str, DexterityMap], n_thresholds: int = 41) -> dict:

@@ -24,7 +24,6 @@ thesis's Figs. 2.7 and 5.4.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -32,9 +31,10 @@ import numpy as np
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
 import solver
-from softarm_gym.analysis.sweep import DEFAULT_CHUNK, PressureGrid, pressure_grid, sweep_tips
+from softarm_gym.analysis.sweep import PressureGrid, pressure_grid, tips_plan
+from softarm_gym.jobs import Plan, Runner
 
-__all__ = ["Workspace", "workspace", "alpha_shape_area", "alpha_complex",
+__all__ = ["Workspace", "workspace", "workspace_plan", "alpha_shape_area", "alpha_complex",
            "occupancy_area", "DEFAULT_ALPHA_FRACTION"]
 
 DEFAULT_ALPHA_FRACTION = 0.1
@@ -111,7 +111,9 @@ class Workspace:
         planar: planar or spatial sweep.
         length: arm reference length L (m), for normalised areas.
         alpha: alpha-shape radius used by :attr:`area_m2` (m).
-        seconds: wall time of the sweep (s).
+        seconds: compute time of the sweep (s): the sum of its chunks' times, which is the
+            wall time on the local backend (chunks of a resumed sweep count with the time
+            they took when they ran; on Ray, chunks overlap).
     """
 
     design: str
@@ -215,7 +217,7 @@ class Workspace:
 
 def workspace(arm: solver.designs.ArmDesign, scene: solver.Scene | None = None, *, levels: int = 7,
               max_pressure: float | None = None, model: str = "full", planar: bool = True,
-              alpha: float | None = None, backend: str = "local", chunk_size: int = DEFAULT_CHUNK,
+              alpha: float | None = None, backend: str = "local", chunk_size: int | None = None,
               address: str | None = None, progress: bool = False) -> Workspace:
     """Sweep the pressure grid and collect the tip cloud (the thesis's workspace, §2.4, §5.3.1).
 
@@ -228,22 +230,39 @@ def workspace(arm: solver.designs.ArmDesign, scene: solver.Scene | None = None, 
         model: ``"full"``, ``"unshearable"`` or ``"constant_curvature"``.
         planar: planar inputs, or one per spatial channel (tips are then 3-D).
         alpha: alpha-shape radius for the area (m); default ``DEFAULT_ALPHA_FRACTION``·L.
-        backend, chunk_size, address, progress: see :func:`sweep_tips`.
+        backend, chunk_size, address, progress: see
+            :func:`~softarm_gym.analysis.sweep.sweep_tips`.
 
     Returns:
-        The :class:`Workspace`.
+        The :class:`Workspace`. For chunks kept on disk, resuming, or several workspaces under
+        one progress bar, run :func:`workspace_plan` with a :class:`~softarm_gym.jobs.Runner`.
+    """
+    plan = workspace_plan(arm, scene, levels=levels, max_pressure=max_pressure, model=model,
+                          planar=planar, alpha=alpha, chunk_size=chunk_size)
+    return Runner(backend, address, progress=progress).run_plans([plan], desc=f"{arm.name} sweep")[0]
+
+
+def workspace_plan(arm: solver.designs.ArmDesign, scene: solver.Scene | None = None, *,
+                   levels: int = 7, max_pressure: float | None = None, model: str = "full",
+                   planar: bool = True, alpha: float | None = None,
+                   chunk_size: int | None = None) -> Plan:
+    """The chunks of :func:`workspace` (same arguments); the plan's result is the :class:`Workspace`.
+
+    Raises:
+        ValueError: bad arguments; when the plan finishes, no grid point converged.
     """
     scene, alpha = sweep_inputs(arm, scene, alpha)
     grid = pressure_grid(arm, levels, max_pressure, planar)
-    start = time.perf_counter()
-    tips, converged = sweep_tips(arm, grid, scene, model, planar, backend, chunk_size, address,
-                                 progress)
-    seconds = time.perf_counter() - start
-    if not converged.any():
-        raise ValueError(f"no grid point of design {arm.name!r} converged; nothing to analyse")
-    return Workspace(design=arm.name, grid=grid, tips=tips, converged=converged, scene=scene,
-                     model=model, planar=planar, length=arm.length, alpha=float(alpha),
-                     seconds=seconds)
+    tips = tips_plan(arm, grid, scene, model, planar, chunk_size)
+
+    def finish(results, seconds):
+        points, converged = tips.finish(results, seconds)
+        if not converged.any():
+            raise ValueError(f"no grid point of design {arm.name!r} converged; nothing to analyse")
+        return Workspace(design=arm.name, grid=grid, tips=points, converged=converged, scene=scene,
+                         model=model, planar=planar, length=arm.length, alpha=float(alpha),
+                         seconds=float(sum(seconds)))
+    return Plan(tips.chunks, finish)
 
 
 def sweep_inputs(arm, scene, alpha):

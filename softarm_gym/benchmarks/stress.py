@@ -16,22 +16,30 @@ Every solve runs twice: with the solver's fallbacks (quasi-static continuation w
 halving, tangent/secant predictor, fold scan with snap — the default :class:`solver.Settings`)
 and without them (:meth:`solver.Settings.without_fallback`, plain Newton from the start
 state). The report shows both, so the fallbacks' contribution is measured, not claimed.
+
+The study runs in chunks (:data:`DEFAULT_STRESS_CHUNK` trials, or one environment case)
+through :class:`softarm_gym.jobs.Runner`, on this machine or on Ray, resumable: trials are
+drawn in the driver, each chunk's outcome depends only on its trials, and the chunks' records
+are merged in order, so the report (timings apart) does not depend on chunking or backend.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
 import solver
+from softarm_gym.jobs import Chunk, Plan, Runner, chunk_bounds
 from solver import PSI, designs
 from solver.designs import ArmDesign
 
 __all__ = ["Trial", "CLASSES", "random_trials", "class_trials", "run_trials", "summarize",
-           "run_env_steps", "run", "format_report", "TARGET_CONVERGED_FRACTION"]
+           "run_env_steps", "env_plan", "run", "plan", "format_report", "TARGET_CONVERGED_FRACTION",
+           "DEFAULT_STRESS_CHUNK"]
 
 TARGET_CONVERGED_FRACTION = 0.999
 """Issue target: converged fraction of the random set (with fallbacks)."""
@@ -44,6 +52,9 @@ LOCKUP_FRACTION = 0.999
 """``near_lockup`` rates its arm at the pressure that holds λ = LOCKUP_FRACTION · λmax."""
 
 _FAILURE_EXAMPLES = 5
+
+DEFAULT_STRESS_CHUNK = 250
+"""Trials per chunk (a trial is one solve, a ``wrap_press`` trial 8): ~1 s at ~4 ms a solve."""
 
 
 @dataclass(frozen=True)
@@ -484,16 +495,41 @@ def _tally(diagnoses: list) -> dict:
     return out
 
 
-def _study(trials, progress, label, n_diagnose) -> dict:
+def _trials_chunk(trials, settings, n_diagnose):
+    """:func:`run_trials` on a chunk: ``{"records": JSON of the _Records}`` (exact floats, NaN/inf kept)."""
+    rec = run_trials(trials, settings, None, n_diagnose)
+    return {"records": np.array(json.dumps(asdict(rec), default=_json_scalar))}
+
+
+def _json_scalar(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _merge_records(results, n_diagnose) -> _Records:
+    """The chunks' records in order, as one serial run would have recorded them: each chunk
+    diagnosed its first ``n_diagnose`` failures, so the first ``n_diagnose`` overall are there."""
+    parts = [json.loads(str(r["records"])) for r in results]
+    rec = _Records(**{f.name: [v for part in parts for v in part[f.name]] for f in fields(_Records)})
+    del rec.diagnoses[n_diagnose:]
+    return rec
+
+
+def _study_plan(trials, n_diagnose, chunk_size) -> Plan:
     """Both columns: the solver's fallbacks on (default) and off (plain Newton)."""
-    out = {}
-    for key, settings, diag in (("with_fallback", solver.Settings(), n_diagnose),
-                                ("without_fallback", solver.Settings.without_fallback(), 0)):
-        tick = progress(f"{label} ({key.replace('_', ' ')})", len(trials)) if progress else None
-        out[key] = summarize(run_trials(trials, settings, tick, diag))
-    summary = dict(out["with_fallback"])
-    summary["without_fallback"] = out["without_fallback"]
-    return summary
+    columns = []
+    for settings, diag in ((solver.Settings(), n_diagnose), (solver.Settings.without_fallback(), 0)):
+        chunks = [Chunk(_trials_chunk, (tuple(trials[a:b]), settings, diag),
+                        size=sum(t.pressures.shape[0] for t in trials[a:b]))
+                  for a, b in chunk_bounds(len(trials), chunk_size)]
+        columns.append(Plan(chunks, lambda results, _, diag=diag: summarize(_merge_records(results, diag))))
+
+    def finish(out):
+        summary = dict(out[0])
+        summary["without_fallback"] = out[1]
+        return summary
+    return Plan.combine(columns, finish)
 
 
 # ----------------------------------------------------------------------------- environments
@@ -517,16 +553,44 @@ def _finite_obs(obs) -> bool:
     return bool(np.all(np.isfinite(obs)))
 
 
-def run_env_steps(n_steps: int, seed: int = 0, ids=None, observations=None, progress=None) -> dict:
-    """Random-action steps on every (environment ID, observation mode) case.
+def _env_case(env_id, observation, observation_format, reset_seed, actions):
+    """Random-action steps on one (ID, observation) case: ``{"case": JSON {"row", "message"}}``."""
+    import gymnasium as gym
 
-    ``n_steps`` is split evenly over the cases, rounded up (at least ``n_steps`` in all);
-    cases alternate the flat and dict observation formats. Episodes reset when they end.
+    import softarm_gym  # noqa: F401 - registers the SoftArm/* IDs in a fresh Ray worker
 
-    Returns:
-        ``{"steps", "cases", "exceptions", "nan_observations", "nan_rewards",
-        "solver_failures", "failure_truncations", "resets", "seconds", "per_case": [...],
-        "exception_messages": [...]}``.
+    row = dict(env_id=env_id, observation=observation, steps=0, exceptions=0, nan_observations=0,
+               nan_rewards=0, solver_failures=0, failure_truncations=0, resets=0)
+    message = None
+    start = time.perf_counter()
+    try:
+        env = gym.make(env_id, observation=observation, observation_format=observation_format)
+        obs, _ = env.reset(seed=reset_seed)
+        row["nan_observations"] += not _finite_obs(obs)
+        for action in actions:
+            obs, reward, terminated, truncated, info = env.step(action)
+            row["steps"] += 1
+            row["nan_observations"] += not _finite_obs(obs)
+            row["nan_rewards"] += not math.isfinite(float(reward))
+            row["solver_failures"] += not info["converged"]
+            if terminated or truncated:
+                row["failure_truncations"] += info["solver_failures"] >= env.unwrapped.max_solver_failures
+                obs, _ = env.reset()
+                row["resets"] += 1
+                row["nan_observations"] += not _finite_obs(obs)
+        env.close()
+    except Exception as exc:  # noqa: BLE001 — the study counts every escape
+        row["exceptions"] += 1
+        message = f"{env_id}/{observation}: {type(exc).__name__}: {exc}"[:300]
+    row["steps_per_s"] = row["steps"] / max(time.perf_counter() - start, 1e-9)
+    return {"case": np.array(json.dumps({"row": row, "message": message}, default=_json_scalar))}
+
+
+def env_plan(n_steps: int, seed: int = 0, ids=None, observations=None) -> Plan:
+    """The chunks of :func:`run_env_steps` (one per case); the plan's result is its dict.
+
+    The actions and reset seeds of every case are drawn here, in case order from one
+    generator, so a case's steps do not depend on where it runs.
     """
     import gymnasium as gym
 
@@ -542,50 +606,53 @@ def run_env_steps(n_steps: int, seed: int = 0, ids=None, observations=None, prog
             raise ValueError(f"unknown observation {obs!r}; choose from {', '.join(ESTIMATORS)}")
     cases = [(i, o) for i in ids for o in observations]
     per_case = -(-int(n_steps) // len(cases))  # ceil: at least n_steps in all
-    totals = dict(steps=0, exceptions=0, nan_observations=0, nan_rewards=0, solver_failures=0,
-                  failure_truncations=0, resets=0)
-    rows, messages = [], []
+    spaces = {}
     rng = np.random.default_rng(seed)
-    start = time.perf_counter()
-    tick = progress("env steps", per_case * len(cases)) if progress and per_case else None
+    chunks = []
     for k, (env_id, obs) in enumerate(cases if per_case else ()):
-        row = dict(env_id=env_id, observation=obs, steps=0, exceptions=0, nan_observations=0,
-                   nan_rewards=0, solver_failures=0, failure_truncations=0, resets=0)
-        case_start = time.perf_counter()
-        try:
-            env = gym.make(env_id, observation=obs, observation_format=("flat", "dict")[k % 2])
-            observation, _ = env.reset(seed=int(rng.integers(2**31)))
-            row["nan_observations"] += not _finite_obs(observation)
-            for action in _actions(rng, env.action_space, per_case):
-                observation, reward, terminated, truncated, info = env.step(action)
-                row["steps"] += 1
-                row["nan_observations"] += not _finite_obs(observation)
-                row["nan_rewards"] += not math.isfinite(float(reward))
-                row["solver_failures"] += not info["converged"]
-                if terminated or truncated:
-                    row["failure_truncations"] += info["solver_failures"] >= env.unwrapped.max_solver_failures
-                    observation, _ = env.reset()
-                    row["resets"] += 1
-                    row["nan_observations"] += not _finite_obs(observation)
-                if tick:
-                    tick()
-            env.close()
-        except Exception as exc:  # noqa: BLE001 — the study counts every escape
-            row["exceptions"] += 1
-            messages.append(f"{env_id}/{obs}: {type(exc).__name__}: {exc}"[:300])
-        row["steps_per_s"] = row["steps"] / max(time.perf_counter() - case_start, 1e-9)
-        for key in totals:
-            totals[key] += row[key]
-        rows.append(row)
-    return {**totals, "cases": len(rows), "seconds": time.perf_counter() - start, "per_case": rows,
-            "exception_messages": messages[:_FAILURE_EXAMPLES]}
+        if env_id not in spaces:
+            probe = gym.make(env_id)
+            spaces[env_id] = probe.action_space
+            probe.close()
+        reset_seed = int(rng.integers(2**31))
+        actions = _actions(rng, spaces[env_id], per_case)
+        chunks.append(Chunk(_env_case, (env_id, obs, ("flat", "dict")[k % 2], reset_seed, actions),
+                            size=per_case))
+
+    def finish(results, seconds):
+        cases_out = [json.loads(str(r["case"])) for r in results]
+        rows = [c["row"] for c in cases_out]
+        messages = [c["message"] for c in cases_out if c["message"]]
+        totals = {key: sum(r[key] for r in rows) for key in
+                  ("steps", "exceptions", "nan_observations", "nan_rewards", "solver_failures",
+                   "failure_truncations", "resets")}
+        return {**totals, "cases": len(rows), "seconds": float(sum(seconds)), "per_case": rows,
+                "exception_messages": messages[:_FAILURE_EXAMPLES]}
+    return Plan(chunks, finish)
+
+
+def run_env_steps(n_steps: int, seed: int = 0, ids=None, observations=None,
+                  progress: bool = False) -> dict:
+    """Random-action steps on every (environment ID, observation mode) case.
+
+    ``n_steps`` is split evenly over the cases, rounded up (at least ``n_steps`` in all);
+    cases alternate the flat and dict observation formats. Episodes reset when they end.
+
+    Returns:
+        ``{"steps", "cases", "exceptions", "nan_observations", "nan_rewards",
+        "solver_failures", "failure_truncations", "resets", "seconds", "per_case": [...],
+        "exception_messages": [...]}``; ``seconds`` is the summed time of the cases.
+    """
+    plan = env_plan(n_steps, seed, ids, observations)
+    return Runner(progress=progress).run_plans([plan], desc="stress env steps", unit="step")[0]
 
 
 # ----------------------------------------------------------------------------- the study
 
 
 def run(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: int = 100_000,
-        classes=None, n_diagnose: int = 20, progress=None) -> dict:
+        classes=None, n_diagnose: int = 20, progress: bool = False, backend: str = "local",
+        address: str | None = None, chunk_size: int = DEFAULT_STRESS_CHUNK) -> dict:
     """The whole study.
 
     Args:
@@ -595,12 +662,26 @@ def run(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: 
         env_steps: total random-action environment steps (0 skips the environment part).
         classes: adversarial classes to run (default all of :data:`CLASSES`).
         n_diagnose: failed solves per entry retried with :data:`STRONGER` settings.
-        progress: optional ``progress(label, total) -> tick()`` factory (a progress bar).
+        progress: one progress bar (solves and env steps) on stderr.
+        backend, address: ``"local"`` or ``"ray"`` and the Ray cluster (see
+            :class:`softarm_gym.jobs.Runner`).
+        chunk_size: trials per chunk.
 
     Returns:
         ``{"seed", "random": {...}, "classes": {name: {...}}, "env": {...}, "targets": {...}}``;
         each solver entry holds the fields of :func:`summarize` (with fallbacks) and
-        ``without_fallback`` (the same fields with plain Newton).
+        ``without_fallback`` (the same fields with plain Newton). For chunks kept on disk and
+        resuming, run :func:`plan` with a :class:`~softarm_gym.jobs.Runner`.
+    """
+    study = plan(seed, n_random, n_per_class, env_steps, classes, n_diagnose, chunk_size)
+    return Runner(backend, address, progress=progress).run_plans([study], desc="stress", unit="solve")[0]
+
+
+def plan(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: int = 100_000,
+         classes=None, n_diagnose: int = 20, chunk_size: int = DEFAULT_STRESS_CHUNK) -> Plan:
+    """The chunks of :func:`run` (same arguments); the plan's result is the study's dict.
+
+    The trials and actions are drawn here, in the order :func:`run` has always drawn them.
     """
     for name, value in (("n_random", n_random), ("n_per_class", n_per_class), ("n_diagnose", n_diagnose)):
         if isinstance(value, bool) or int(value) != value or value < 0:
@@ -609,22 +690,28 @@ def run(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: 
     for name in classes:
         if name not in CLASSES:
             raise ValueError(f"unknown stress class {name!r}; choose from {', '.join(CLASSES)}")
-    root = np.random.SeedSequence(seed)
-    seeds = root.spawn(len(CLASSES) + 2)
-    result = {"seed": seed}
+    seeds = np.random.SeedSequence(seed).spawn(len(CLASSES) + 2)
+    parts = {}
     if n_random:
-        result["random"] = _study(random_trials(n_random, np.random.default_rng(seeds[0])), progress,
-                                  "random", n_diagnose)
-    result["classes"] = {}
+        parts["random"] = _study_plan(random_trials(n_random, np.random.default_rng(seeds[0])),
+                                      n_diagnose, chunk_size)
     for name in classes if n_per_class else ():
         rng = np.random.default_rng(seeds[2 + CLASSES.index(name)])
-        result["classes"][name] = _study(class_trials(name, n_per_class, rng), progress, name,
-                                         n_diagnose)
+        parts[("class", name)] = _study_plan(class_trials(name, n_per_class, rng), n_diagnose, chunk_size)
     if env_steps:
-        result["env"] = run_env_steps(env_steps, seed=int(seeds[1].generate_state(1)[0]),
-                                      progress=progress)
-    result["targets"] = _targets(result)
-    return result
+        parts["env"] = env_plan(env_steps, seed=int(seeds[1].generate_state(1)[0]))
+
+    def finish(out):
+        done = dict(zip(parts, out))
+        result = {"seed": seed}
+        if "random" in done:
+            result["random"] = done["random"]
+        result["classes"] = {key[1]: v for key, v in done.items() if isinstance(key, tuple)}
+        if "env" in done:
+            result["env"] = done["env"]
+        result["targets"] = _targets(result)
+        return result
+    return Plan.combine(list(parts.values()), finish)
 
 
 def _entries(result):

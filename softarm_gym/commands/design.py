@@ -5,8 +5,17 @@ from __future__ import annotations
 import numpy as np
 
 from softarm_gym import design_tools
-from softarm_gym.cli import UsageError, emit
+from softarm_gym.cli import UsageError
 from softarm_gym.commands.common import parse_floats
+from softarm_gym.commands.long_jobs import (
+    add_job_arguments,
+    check_outputs,
+    finish,
+    interruptible,
+    runner_from_args,
+    save_plot,
+)
+from softarm_gym.design_tools.sweep import DEFAULT_DESIGN_CHUNK, sweep_plan
 
 NAME = "design"
 HELP = "optimal tubes per section that maximise load capacity (thesis ch. 3, Figs. 3.4-3.7)"
@@ -31,6 +40,8 @@ def add_arguments(p):
     p.add_argument("--plot", metavar="FILE.png", help="plot the load capacity of the best layouts")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_job_arguments(p, "(size, layout) evaluations per chunk (default %(default)s: ~1 s)",
+                      DEFAULT_DESIGN_CHUNK)
 
 
 MAX_SECTIONS = 8
@@ -48,18 +59,19 @@ def _sections(text: str) -> list[int]:
     return [int(v) for v in values]
 
 
+@interruptible
 def run(args) -> int:
     sections = _sections(args.sections)
     sizes = None if args.lengths is None else parse_floats(args.lengths, "--lengths")
     moduli = [None] if args.youngs_modulus is None else list(
         parse_floats(args.youngs_modulus, "--youngs-modulus"))
-    sweeps = []
-    for n in sections:
-        for modulus in moduli:
-            sweeps.append(design_tools.sweep(
-                args.fluid, args.constraint, n, sizes, tapered=args.tapered,
-                template_pressure=args.template_pressure, youngs_modulus=modulus,
-                progress=not args.no_progress))
+    check_outputs(args, images=("plot",))
+    runner = runner_from_args(args, progress=not args.no_progress)
+    plans = [sweep_plan(args.fluid, args.constraint, n, sizes, tapered=args.tapered,
+                        template_pressure=args.template_pressure, youngs_modulus=modulus,
+                        chunk_size=args.chunk_size)
+             for n in sections for modulus in moduli]
+    sweeps = runner.run_plans(plans, desc=f"{args.fluid} {args.constraint} designs", unit="design")
     runs = [s.to_dict() for s in sweeps]
     best = max((s.best for s in sweeps if s.best is not None), key=lambda c: c.load_n, default=None)
     best_dict = None if best is None else {"tubes": list(best.tubes), "length_m": best.length_m,
@@ -69,8 +81,8 @@ def run(args) -> int:
     if args.plot:
         from softarm_gym.design_tools.plots import plot_sweeps
 
-        plot_sweeps(sweeps, args.plot)
-    emit(payload, args.json, _text(sweeps, best))
+        save_plot(plot_sweeps, args.plot, sweeps)
+    finish(args, payload, _text(sweeps, best), runner)
     return 0 if best is not None else 1
 
 

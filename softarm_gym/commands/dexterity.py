@@ -14,9 +14,22 @@ import numpy as np
 
 import solver
 from softarm_gym.analysis import reproduce
-from softarm_gym.analysis.manipulability import DEFAULT_REL_STEP, MEASURES, dexterity_map
-from softarm_gym.cli import UsageError, emit
+from softarm_gym.analysis.manipulability import (
+    DEFAULT_DEXTERITY_CHUNK,
+    DEFAULT_REL_STEP,
+    MEASURES,
+    dexterity_plan,
+)
+from softarm_gym.cli import UsageError
 from softarm_gym.commands.common import add_design_arguments, design_from_args
+from softarm_gym.commands.long_jobs import (
+    add_job_arguments,
+    check_outputs,
+    finish,
+    interruptible,
+    runner_from_args,
+    save_plot,
+)
 from softarm_gym.commands.workspace import add_grid_arguments
 
 NAME = "dexterity"
@@ -36,25 +49,30 @@ def add_arguments(p):
     p.add_argument("--area-plot", metavar="FILE.png", default=None,
                    help="save the dexterous area versus sigma_min threshold (Fig. 5.6)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_job_arguments(p, "grid points per chunk (default %(default)s: ~2 s for OctArm V)",
+                      DEFAULT_DEXTERITY_CHUNK)
 
 
+@interruptible
 def run(args) -> int:
     if args.thresholds < 2:
         raise UsageError(f"--thresholds must be >= 2; got {args.thresholds}")
+    check_outputs(args, images=("plot", "area_plot"))
+    runner = runner_from_args(args, progress=not args.quiet)
     if args.reproduce:
         if args.design_file or args.ei:
             raise UsageError("--reproduce fig-5.5 fixes the designs; drop --design-file/--ei")
         max_psi = 70.0 if args.max_psi is None else args.max_psi
-        maps = reproduce.dexterity_comparison(levels=args.levels, max_psi=max_psi,
-                                              progress=not args.quiet)
+        maps = reproduce.dexterity_comparison(levels=args.levels, max_psi=max_psi, runner=runner,
+                                              chunk_size=args.chunk_size)
     else:
         arm = design_from_args(args)
         scene = solver.Scene(base_angle_deg=args.base_angle, payload_kg=args.payload,
                              gravity=args.gravity)
         max_pressure = None if args.max_psi is None else args.max_psi * solver.PSI
-        maps = {arm.name: dexterity_map(arm, scene, levels=args.levels, max_pressure=max_pressure,
-                                        model=args.model, rel_step=args.rel_step,
-                                        progress=not args.quiet)}
+        plan = dexterity_plan(arm, scene, levels=args.levels, max_pressure=max_pressure,
+                              model=args.model, rel_step=args.rel_step, chunk_size=args.chunk_size)
+        maps = {arm.name: runner.run_plans([plan], desc=f"{arm.name} dexterity")[0]}
     curves = reproduce.dexterous_area_curves(maps, args.thresholds)
     payload = {"maps": {}, "thresholds_m_per_pa": next(iter(curves.values()))[0]}
     lines = []
@@ -75,12 +93,12 @@ def run(args) -> int:
     if args.plot:
         from softarm_gym.analysis.figures import plot_dexterity
 
-        plot_dexterity(maps.values(), args.plot, labels=list(maps))
+        save_plot(plot_dexterity, args.plot, maps.values(), labels=list(maps))
         payload["plot"] = args.plot
     if args.area_plot:
         from softarm_gym.analysis.figures import plot_dexterous_area
 
-        plot_dexterous_area(curves, args.area_plot)
+        save_plot(plot_dexterous_area, args.area_plot, curves)
         payload["area_plot"] = args.area_plot
-    emit(payload, args.json, "\n".join(lines))
+    finish(args, payload, "\n".join(lines), runner)
     return 0

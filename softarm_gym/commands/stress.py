@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
-import sys
-
-from softarm_gym.cli import UsageError, emit
+from softarm_gym.cli import UsageError
+from softarm_gym.commands.long_jobs import (
+    add_job_arguments,
+    check_outputs,
+    finish,
+    interruptible,
+    runner_from_args,
+)
 
 NAME = "stress"
 HELP = "stress-test the solver and environments (random and adversarial scenes, random actions)"
@@ -28,24 +33,10 @@ def add_arguments(p):
                    help="smoke run: 200 random solves, 10 per class, 480 env steps")
     p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_job_arguments(p, "trials per chunk (default: about 1 s of solves); an env case is one chunk")
 
 
-def _progress_factory(enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    def start(label, total):
-        bar = tqdm(total=total, desc=f"stress {label}", file=sys.stderr, leave=False)
-
-        def tick():
-            bar.update()
-            if bar.n >= total:
-                bar.close()
-        return tick
-    return start
-
-
+@interruptible
 def run(args) -> int:
     from softarm_gym.benchmarks import stress
 
@@ -63,8 +54,11 @@ def run(args) -> int:
         if unknown or not classes:
             raise UsageError(f"unknown stress class {', '.join(unknown) or repr(args.classes)}; "
                              f"choose from {', '.join(stress.CLASSES)}")
-    result = stress.run(seed=args.seed, n_random=n_random, n_per_class=n_per_class,
+    check_outputs(args)
+    runner = runner_from_args(args, progress=not args.no_progress)
+    study = stress.plan(seed=args.seed, n_random=n_random, n_per_class=n_per_class,
                         env_steps=env_steps, classes=classes, n_diagnose=args.diagnose,
-                        progress=_progress_factory(not args.no_progress))
-    emit(result, args.json, stress.format_report(result))
+                        chunk_size=args.chunk_size or stress.DEFAULT_STRESS_CHUNK)
+    (result,) = runner.run_plans([study], desc="stress", unit="solve")
+    finish(args, result, stress.format_report(result), runner)
     return 0 if result["targets"]["zero_nan"] else 1

@@ -12,11 +12,19 @@ import math
 import time
 
 import solver
-from softarm_gym.analysis import BACKENDS, reproduce
-from softarm_gym.analysis.sweep import DEFAULT_CHUNK
-from softarm_gym.analysis.workspace import workspace
-from softarm_gym.cli import UsageError, emit
+from softarm_gym.analysis import reproduce
+from softarm_gym.analysis.sweep import DEFAULT_CHUNK, DEFAULT_SPATIAL_CHUNK
+from softarm_gym.analysis.workspace import workspace_plan
+from softarm_gym.cli import UsageError
 from softarm_gym.commands.common import add_design_arguments, design_from_args
+from softarm_gym.commands.long_jobs import (
+    add_job_arguments,
+    check_outputs,
+    finish,
+    interruptible,
+    runner_from_args,
+    save_plot,
+)
 
 NAME = "workspace"
 HELP = "sweep the pressure grid: tip cloud, area, density, highest and mean tip"
@@ -30,11 +38,8 @@ def add_arguments(p):
                    help="one pressure per spatial channel, 3-D tips (area of the x-y projection)")
     p.add_argument("--alpha", type=float, default=None,
                    help="alpha-shape radius for the area (m; default 0.1 L)")
-    p.add_argument("--backend", choices=BACKENDS, default="local",
-                   help="local numba threads, or Ray tasks (needs the ray extra)")
-    p.add_argument("--address", default=None,
-                   help="Ray cluster address (default: start or reuse a local Ray instance)")
-    p.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK, help="grid rows per task")
+    add_job_arguments(p, f"grid rows per chunk (default {DEFAULT_CHUNK} planar, "
+                         f"{DEFAULT_SPATIAL_CHUNK} spatial: ~1 s each)")
     p.add_argument("--reproduce", choices=REPRODUCTIONS, default=None,
                    help="rerun a thesis study instead of a single sweep")
     p.add_argument("--plot", metavar="FILE.png", default=None, help="save a picture")
@@ -54,28 +59,30 @@ def add_grid_arguments(p):
     p.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
 
 
+@interruptible
 def run(args) -> int:
+    check_outputs(args, images=("plot",))
+    runner = runner_from_args(args, progress=not args.quiet)
     if args.reproduce == "table-2.2":
-        return _table_2_2(args)
+        return _table_2_2(args, runner)
     if args.reproduce == "fig-5.4":
-        return _fig_5_4(args)
+        return _fig_5_4(args, runner)
     arm = design_from_args(args)
     max_pressure = None if args.max_psi is None else args.max_psi * solver.PSI
     options = dict(levels=args.levels, max_pressure=max_pressure, model=args.model,
-                   planar=not args.spatial, alpha=args.alpha, backend=args.backend,
-                   chunk_size=args.chunk_size, address=args.address, progress=not args.quiet)
+                   planar=not args.spatial, alpha=args.alpha, chunk_size=args.chunk_size)
     if args.reproduce == "fig-2.7":
-        return _fig_2_7(args, arm, options)
+        return _fig_2_7(args, runner, arm, options)
     scene = solver.Scene(base_angle_deg=args.base_angle, payload_kg=args.payload,
                          gravity=args.gravity)
-    ws = workspace(arm, scene, **options)
+    (ws,) = runner.run_plans([workspace_plan(arm, scene, **options)], desc=f"{arm.name} sweep")
     payload = ws.summary()
     if args.plot:
         from softarm_gym.analysis.figures import plot_workspaces
 
-        plot_workspaces([ws], args.plot)
+        save_plot(plot_workspaces, args.plot, [ws])
         payload["plot"] = args.plot
-    emit(payload, args.json, _describe(ws))
+    finish(args, payload, _describe(ws), runner)
     return 0
 
 
@@ -90,16 +97,16 @@ def _describe(ws) -> str:
             f"occupied 1 cm cells {ws.occupancy_area(0.01):.4f} m^2")
 
 
-def _sweep_options(args) -> dict:
+def _check_fixed_designs(args) -> None:
     if args.design_file or args.ei or args.spatial or args.alpha is not None:
         raise UsageError(f"--reproduce {args.reproduce} fixes the designs and the area method; "
                          "drop --design-file/--ei/--spatial/--alpha")
-    return dict(backend=args.backend, chunk_size=args.chunk_size, address=args.address)
 
 
-def _table_2_2(args) -> int:
+def _table_2_2(args, runner) -> int:
+    _check_fixed_designs(args)
     start = time.perf_counter()
-    rows = reproduce.table_2_2(levels=args.levels, progress=not args.quiet, **_sweep_options(args))
+    rows = reproduce.table_2_2(levels=args.levels, runner=runner, chunk_size=args.chunk_size)
     rms = reproduce.closest_reading(rows)
     closest = min((v, k) for k, v in rms.items() if v is not None)[1] if rms else None
     lines = ["Table 2.2: mean tip y over the OctArm V workspace (m)",
@@ -114,43 +121,45 @@ def _table_2_2(args) -> int:
     lines.append("RMS difference from the thesis: " +
                  ", ".join(f"{k} {v:.3f} m" for k, v in rms.items() if v is not None) +
                  f"; closest: {closest}")
-    emit({"rows": rows, "rms_vs_thesis": rms, "closest": closest,
-          "seconds": time.perf_counter() - start}, args.json, "\n".join(lines))
+    finish(args, {"rows": rows, "rms_vs_thesis": rms, "closest": closest,
+                  "seconds": time.perf_counter() - start}, "\n".join(lines), runner)
     return 0
 
 
-def _fig_2_7(args, arm, options) -> int:
+def _fig_2_7(args, runner, arm, options) -> int:
     if args.payload or args.gravity != 9.81:
         raise UsageError("--reproduce fig-2.7 sets gravity and payload itself; drop --payload/--gravity")
     scenes = {"no loading": solver.Scene(base_angle_deg=args.base_angle, gravity=0.0),
               "self-weight": solver.Scene(base_angle_deg=args.base_angle),
               "self-weight + 0.25 kg": solver.Scene(base_angle_deg=args.base_angle, payload_kg=0.25)}
-    spaces = {label: workspace(arm, scene, **options) for label, scene in scenes.items()}
+    plans = [workspace_plan(arm, scene, **options) for scene in scenes.values()]
+    spaces = dict(zip(scenes, runner.run_plans(plans, desc="fig 2.7 sweeps")))
     payload = {label: ws.summary() for label, ws in spaces.items()}
     if args.plot:
         from softarm_gym.analysis.figures import plot_workspaces
 
-        plot_workspaces(spaces.values(), args.plot, labels=list(spaces))
+        save_plot(plot_workspaces, args.plot, spaces.values(), labels=list(spaces))
         payload["plot"] = args.plot
-    emit(payload, args.json, "\n".join(f"[{label}] {_describe(ws)}" for label, ws in spaces.items()))
+    finish(args, payload, "\n".join(f"[{label}] {_describe(ws)}" for label, ws in spaces.items()),
+           runner)
     return 0
 
 
-def _fig_5_4(args) -> int:
-    options = _sweep_options(args)
+def _fig_5_4(args, runner) -> int:
+    _check_fixed_designs(args)
     max_psi = 70.0 if args.max_psi is None else args.max_psi
-    spaces = reproduce.ct_vs_octarm(levels=args.levels, max_psi=max_psi,
-                                    progress=not args.quiet, **options)
+    spaces = reproduce.ct_vs_octarm(levels=args.levels, max_psi=max_psi, runner=runner,
+                                    chunk_size=args.chunk_size)
     payload = {"workspaces": {label: ws.summary() for label, ws in spaces.items()},
                "thesis": reproduce.THESIS_5_3_1, "endplate_mass_kg": reproduce.ENDPLATE_MASS}
     if args.plot:
         from softarm_gym.analysis.figures import plot_workspaces
 
-        plot_workspaces(spaces.values(), args.plot, labels=list(spaces))
+        save_plot(plot_workspaces, args.plot, spaces.values(), labels=list(spaces))
         payload["plot"] = args.plot
     lines = [f"[{label}] {_describe(ws)}\n  convex hull "
              f"{ws.hull_area_m2 / (math.pi * ws.length**2):.3f} pi L^2" for label, ws in spaces.items()]
     lines.append("thesis: OctArm highest (+-0.31, -0.02) m, area 0.5 pi L^2; "
                  "CT highest (+-0.37, 0.11) m, area 0.6 pi L^2")
-    emit(payload, args.json, "\n".join(lines))
+    finish(args, payload, "\n".join(lines), runner)
     return 0

@@ -4,7 +4,9 @@ For every candidate layout (tubes per section drawn from {3, 6, 9, 12}, Eq. 3.12
 value of the swept size, the tube outer radius follows from the constraint case, the wall
 thickness and section lengths from the dexterity template (:mod:`.template`), and the load
 capacity from the solver (:mod:`.capacity`). The best layout at each size is the one with
-the largest load capacity.
+the largest load capacity. The (size, layout) pairs are evaluated in chunks of
+:data:`DEFAULT_DESIGN_CHUNK` through :class:`softarm_gym.jobs.Runner` (locally or on Ray,
+resumable); each evaluation is independent, so the result does not depend on the chunking.
 
 Constraint cases, all read with β = 0.09 as a *diameter* ratio (the thesis writes
 ``R_o = βL`` but calls R "diameter" throughout §3 and quotes "base diameter/length = 0.09";
@@ -24,11 +26,11 @@ the internal volumes of §3.4.3 confirm the diameter reading, see ``docs/design_
 from __future__ import annotations
 
 import itertools
+import json
 import math
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
-from tqdm import tqdm
 
 import solver
 from softarm_gym.design_tools.capacity import CapacityError, load_capacity
@@ -38,11 +40,13 @@ from softarm_gym.design_tools.template import (
     build_arm,
     template,
 )
+from softarm_gym.jobs import Chunk, Plan, Runner, chunk_bounds
 from solver.designs import FluidDesign
 
 __all__ = [
     "CONSTRAINTS", "FLUIDS", "TEMPLATE_PRESSURES", "DEFAULT_SIZES", "Candidate", "Sweep",
-    "fluid_params", "configurations", "outer_radius", "evaluate", "sweep",
+    "fluid_params", "configurations", "outer_radius", "evaluate", "sweep", "sweep_plan",
+    "DEFAULT_DESIGN_CHUNK",
 ]
 
 CONSTRAINTS = ("tube-ratio", "base-ratio", "diameter", "gripping-radius")
@@ -57,6 +61,8 @@ DEFAULT_SIZES = {
     "gripping-radius": tuple(np.round(np.arange(0.1, 1.001, 0.1), 3)),
 }
 """Swept size per constraint: total length L (m), or distal length L_N for gripping-radius."""
+DEFAULT_DESIGN_CHUNK = 128
+"""(size, layout) evaluations per chunk: one takes ~8 ms, so a chunk ~1 s."""
 
 
 @dataclass(frozen=True)
@@ -241,7 +247,8 @@ def evaluate(params: FluidDesign, constraint: str, tubes, size: float, *,
 
 def sweep(fluid: str, constraint: str, n_sections: int, sizes=None, *, tapered: bool = False,
           template_pressure: str = "max", youngs_modulus: float | None = None,
-          model: str = "full", progress: bool = True) -> Sweep:
+          model: str = "full", progress: bool = True, backend: str = "local",
+          address: str | None = None, chunk_size: int = DEFAULT_DESIGN_CHUNK) -> Sweep:
     """Exhaustive search over layouts at every size (thesis §3.3).
 
     Args:
@@ -254,24 +261,60 @@ def sweep(fluid: str, constraint: str, n_sections: int, sizes=None, *, tapered: 
         youngs_modulus: override Table 3.1's E (Pa), e.g. for §3.4.5.
         model: solver model.
         progress: tqdm bar on stderr.
+        backend, address: ``"local"`` or ``"ray"`` and the Ray cluster (see
+            :class:`softarm_gym.jobs.Runner`).
+        chunk_size: evaluations per chunk (a Ray task).
+
+    For chunks kept on disk, resuming, or several sweeps under one progress bar, run
+    :func:`sweep_plan` with a :class:`~softarm_gym.jobs.Runner`.
     """
+    plan = sweep_plan(fluid, constraint, n_sections, sizes, tapered=tapered,
+                      template_pressure=template_pressure, youngs_modulus=youngs_modulus,
+                      model=model, chunk_size=chunk_size)
+    runner = Runner(backend, address, progress=progress)
+    return runner.run_plans([plan], desc=f"{fluid} {constraint} N={n_sections}", unit="design")[0]
+
+
+def _evaluate_chunk(params, constraint, pairs, template_pressure, model):
+    """Evaluate ``(tubes, size)`` pairs: ``{"candidates": JSON list of Candidate fields}``.
+
+    JSON keeps every float exactly (shortest repr, NaN included), so a chunk kept on disk
+    reads back as the same candidates.
+    """
+    out = [asdict(evaluate(params, constraint, tubes, size, template_pressure=template_pressure,
+                           model=model)) for tubes, size in pairs]
+    return {"candidates": np.array(json.dumps(out))}
+
+
+def _candidates(result) -> list[Candidate]:
+    fields = json.loads(str(result["candidates"]))
+    return [Candidate(**{**f, "tubes": tuple(f["tubes"]),
+                         "section_lengths_m": tuple(f["section_lengths_m"])}) for f in fields]
+
+
+def sweep_plan(fluid: str, constraint: str, n_sections: int, sizes=None, *, tapered: bool = False,
+               template_pressure: str = "max", youngs_modulus: float | None = None,
+               model: str = "full", chunk_size: int = DEFAULT_DESIGN_CHUNK) -> Plan:
+    """The chunks of :func:`sweep` (same arguments); the plan's result is the :class:`Sweep`."""
     params = fluid_params(fluid, youngs_modulus)
     if constraint not in CONSTRAINTS:
         raise ValueError(f"unknown constraint {constraint!r}; choose one of {', '.join(CONSTRAINTS)}")
+    if template_pressure not in TEMPLATE_PRESSURES:
+        raise ValueError(f"template_pressure must be one of {TEMPLATE_PRESSURES}; got {template_pressure!r}")
+    if model not in solver.MODELS:
+        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(solver.MODELS)}")
     sizes = DEFAULT_SIZES[constraint] if sizes is None else tuple(float(s) for s in sizes)
     if not sizes or any(not (math.isfinite(s) and s > 0) for s in sizes):
         raise ValueError(f"sizes must be finite lengths > 0 m; got {sizes!r}")
     layouts = configurations(n_sections, tapered)
-    rows = []
-    with tqdm(total=len(sizes) * len(layouts), disable=not progress, leave=False,
-              desc=f"{fluid} {constraint} N={n_sections}", unit="design") as bar:
-        for size in sizes:
-            row = []
-            for tubes in layouts:
-                row.append(evaluate(params, constraint, tubes, size,
-                                    template_pressure=template_pressure, model=model))
-                bar.update()
-            rows.append(tuple(row))
-    return Sweep(fluid=fluid, constraint=constraint, n_sections=int(n_sections),
-                 template_pressure=template_pressure, params=params, sizes=sizes,
-                 configurations=layouts, candidates=tuple(rows))
+    pairs = [(tubes, size) for size in sizes for tubes in layouts]
+    chunks = [Chunk(_evaluate_chunk, (params, constraint, tuple(pairs[a:b]), template_pressure, model),
+                    size=b - a) for a, b in chunk_bounds(len(pairs), chunk_size)]
+
+    def finish(results, seconds):
+        flat = [c for r in results for c in _candidates(r)]
+        rows = tuple(tuple(flat[i * len(layouts):(i + 1) * len(layouts)]) for i in range(len(sizes)))
+        return Sweep(fluid=fluid, constraint=constraint, n_sections=int(n_sections),
+                     template_pressure=template_pressure, params=params, sizes=sizes,
+                     configurations=layouts, candidates=rows)
+    return Plan(chunks, finish)

@@ -62,7 +62,7 @@ def test_dexterity_json_and_plots(capsys, tmp_path):
 @pytest.mark.parametrize("argv, message", [
     (["workspace", "--levels", "1"], "levels must be an integer >= 2"),
     (["workspace", "--design", "ct", "--max-psi", "100"], "exceeds design"),
-    (["workspace", "--backend", "local", "--address", "auto"], "backend is 'local'"),
+    (["workspace", "--backend", "local", "--address", "auto"], "--address needs --backend ray"),
     (["workspace", "--reproduce", "table-2.2", "--ei", "tubes"], "fixes the designs"),
     (["dexterity", "--thresholds", "1"], "--thresholds must be >= 2"),
     (["dexterity", "--rel-step", "0.5", "--levels", "2"], "rel_step"),

@@ -138,5 +138,9 @@ def test_dexterity_map_over_a_small_grid():
     areas = dm.dexterous_area(thresholds)
     assert areas[0] == pytest.approx(alpha_shape_area(dm.tips, dm.alpha))
     assert np.all(np.diff(areas) <= 1e-15) and areas[-1] == 0.0
+    # Chunks of 7 points (12 chunks, the last short) give the same map bit for bit.
+    again = dexterity_map(arm, levels=3, chunk_size=7)
+    for name in ("tips", "valid", "sigma"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(dm, name))
     with pytest.raises(ValueError, match="unknown dexterity measure"):
         dm.measure("volume")

@@ -69,16 +69,3 @@ def test_sweep_rejects_bad_options():
         sweep_tips(ARM, grid.rows(), SCENE)
     with pytest.raises(ValueError, match="ArmDesign"):
         pressure_grid("octarm_v")
-
-
-def test_ray_backend_returns_the_local_tips():
-    ray = pytest.importorskip("ray", reason="Ray is optional (pip install 'softarm-gym[ray]')")
-    grid = pressure_grid(ARM, levels=4)  # 256 points in 4 tasks
-    local, ok_local = sweep_tips(ARM, grid, SCENE)
-    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
-    try:
-        remote, ok_remote = sweep_tips(ARM, grid, SCENE, backend="ray", chunk_size=64)
-    finally:
-        ray.shutdown()
-    np.testing.assert_array_equal(remote, local)
-    np.testing.assert_array_equal(ok_remote, ok_local)

@@ -56,6 +56,9 @@ def test_sweep_picks_the_largest_load_and_reports_it():
     assert set(data["best"]) >= {"tubes", "length_m", "load_n"}
     assert data["best"]["load_n"] == max(c.load_n for c in s.best_per_size)
     assert len(data["sweep"]) == 32
+    # Chunks of 5 evaluations (and their trip through JSON) give the same sweep.
+    again = dt.sweep("pneumatic", "tube-ratio", 2, sizes=(0.5, 1.0), progress=False, chunk_size=5)
+    assert again.to_dict() == data
 
 
 def test_infeasible_layouts_are_reported_not_raised():

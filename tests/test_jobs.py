@@ -1,0 +1,436 @@
+"""Long jobs (``softarm_gym.jobs`` and the sweep commands' options): chunk keys, the chunk store,
+resume after Ctrl-C, a killed driver or a killed Ray worker, safe output files, and every sweep
+command on a real local Ray cluster (``ray start --head`` in a fixture), compared bit for bit
+with the local backend.
+
+All Ray tests live in this module so that the suite starts one cluster (2 CPUs) only.
+"""
+
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import solver
+from softarm_gym.analysis import pressure_grid, sweep_tips
+from softarm_gym.analysis.workspace import workspace_plan
+from softarm_gym.cli import main
+from softarm_gym.jobs import (
+    Chunk,
+    ChunkStore,
+    Interrupted,
+    JobError,
+    Runner,
+    atomic_path,
+    code_fingerprint,
+)
+from tests.timings import without_timings
+
+NO_AUTH = {"RAY_AUTH_MODE": "disabled"}  # the fixture cluster runs without token authentication
+
+
+def _run_json(capsys, argv):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    return without_timings(json.loads(out))
+
+
+def _cli(argv, **kwargs):
+    """The command line in a child process (to be interrupted or killed)."""
+    return subprocess.Popen([sys.executable, "-m", "softarm_gym.cli", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, **NO_AUTH}, **kwargs)
+
+
+def _kept(directory: Path) -> list[Path]:
+    """The finished chunks in ``directory`` (not the hidden files being written)."""
+    return sorted(directory.glob("[!.]*.npz"))
+
+
+def _wait_for_chunks(directory: Path, n: int, proc, timeout=120.0):
+    deadline = time.monotonic() + timeout
+    while len(_kept(directory)) < n:
+        assert proc.poll() is None, f"the sweep ended before {n} chunks were kept: {proc.communicate()}"
+        assert time.monotonic() < deadline, "no chunks appeared"
+        time.sleep(0.01)
+
+
+# ----------------------------------------------------------------------------- keys and store
+
+_calls = []
+
+
+def _square(x):
+    _calls.append(x)
+    return {"y": np.array([x * x], dtype=float)}
+
+
+def _interrupt_at_3(x):
+    if x == 3:
+        raise KeyboardInterrupt
+    return {"y": np.array([x])}
+
+
+def test_chunk_keys_are_stable_across_processes_and_ignore_caches():
+    arm, scene = solver.designs.octarm_v(), solver.Scene(base_angle_deg=45.0)
+    key = workspace_plan(arm, scene, levels=2).chunks[0].key  # after a validating solve (caches filled)
+    code = ("import solver; from softarm_gym.analysis.workspace import workspace_plan; "
+            "print(workspace_plan(solver.designs.octarm_v(), solver.Scene(base_angle_deg=45.0), "
+            "levels=2).chunks[0].key)")
+    other = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert other.stdout.strip() == key
+    changed = workspace_plan(arm, solver.Scene(base_angle_deg=45.000001), levels=2).chunks[0].key
+    assert changed != key
+    assert workspace_plan(arm, scene, levels=2, chunk_size=32).chunks[0].key != key
+    assert len(code_fingerprint()) == 16
+
+
+def test_store_writes_atomically_and_drops_unreadable_chunks(tmp_path):
+    store = ChunkStore(tmp_path / "chunks")
+    store.save("a", {"y": np.arange(3.0)}, 1.5)
+    result, seconds = store.load("a")
+    np.testing.assert_array_equal(result["y"], np.arange(3.0))
+    assert seconds == 1.5 and sorted(p.name for p in store.directory.iterdir()) == ["a.npz"]
+    store.path("b").write_bytes(b"PK\x03\x04 truncated")  # a chunk cut off mid-write elsewhere
+    assert store.load("b") is None and not store.path("b").exists()
+    with pytest.raises(JobError, match="cannot use chunk directory"):
+        ChunkStore("/proc/softarm-chunks")
+
+
+def test_ctrl_c_while_a_chunk_is_written_completes_the_chunk(tmp_path, monkeypatch):
+    """A SIGINT that lands inside ``ZipFile.open`` (as a Ctrl-C did in a run of the suite)
+    cuts the chunk short, and can leave numpy's zip writer with an open handle whose cleanup
+    raises a ValueError in place of the KeyboardInterrupt. The store holds SIGINT back until
+    the chunk is whole.
+    The signal is real; it is sent from inside ``ZipFile._open_to_write``, the window."""
+    import zipfile
+
+    open_to_write = zipfile.ZipFile._open_to_write
+
+    def interrupted(self, *args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)
+        return open_to_write(self, *args, **kwargs)
+
+    monkeypatch.setattr(zipfile.ZipFile, "_open_to_write", interrupted)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    store = ChunkStore(tmp_path)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            store.save("c", {"a": np.arange(3.0), "b": np.ones(2)}, 1.0)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    monkeypatch.undo()
+    loaded = store.load("c")
+    assert loaded is not None, "the chunk being written when Ctrl-C came was not completed"
+    result, seconds = loaded
+    np.testing.assert_array_equal(result["a"], np.arange(3.0))
+    assert seconds == 1.0 and os.listdir(tmp_path) == ["c.npz"]
+
+
+def test_resume_reuses_kept_chunks_and_discard_removes_them(tmp_path):
+    chunks = [Chunk(_square, (x,)) for x in (1, 2, 3, 2)]  # the repeated chunk runs once
+    _calls.clear()
+    first = Runner(store=tmp_path).run(chunks)
+    assert _calls == [1, 2, 3] and [r["y"][0] for r, _ in first] == [1, 4, 9, 4]
+    assert len(list(tmp_path.glob("*.npz"))) == 3
+    _calls.clear()
+    runner = Runner(store=tmp_path, resume=True)
+    again = runner.run(chunks + [Chunk(_square, (5,))])
+    assert _calls == [5] and [r["y"][0] for r, _ in again] == [1, 4, 9, 4, 25]
+    runner.discard()
+    assert not list(tmp_path.glob("*.npz"))
+
+
+def test_ctrl_c_keeps_finished_chunks_and_is_one_line(tmp_path):
+    runner = Runner(store=tmp_path)
+    with pytest.raises(Interrupted) as caught:
+        runner.run([Chunk(_interrupt_at_3, (x,)) for x in range(1, 6)])
+    assert isinstance(caught.value, KeyboardInterrupt) and isinstance(caught.value, ValueError)
+    message = str(caught.value)
+    assert "\n" not in message and "2 of 5 chunks finished and kept in" in message and "--resume" in message
+    assert len(list(tmp_path.glob("*.npz"))) == 2
+
+
+def test_atomic_path_never_leaves_a_partial_file(tmp_path):
+    target = tmp_path / "out.json"
+    target.write_text("old")
+    with pytest.raises(RuntimeError), atomic_path(target) as tmp:
+        Path(tmp).write_text("half")
+        raise RuntimeError
+    assert target.read_text() == "old" and os.listdir(tmp_path) == ["out.json"]
+    with atomic_path(target) as tmp:
+        Path(tmp).write_text("new")
+    assert target.read_text() == "new" and os.listdir(tmp_path) == ["out.json"]
+
+
+# ----------------------------------------------------------------------------- commands, local
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["workspace", "--plot", "/nonexistent/ws.png"], "directory '/nonexistent' does not exist"),
+    (["workspace", "--plot", "ws.xyz"], "unsupported image format 'xyz'"),
+    (["workspace", "--plot", "."], "is a directory"),
+    (["dexterity", "--area-plot", "/nonexistent/a.png"], "--area-plot"),
+    (["design", "--plot", "fig"], "no image extension"),
+    (["stress", "--output", "/nonexistent/s.json"], "--output"),
+    (["workspace", "--chunk-dir", "/proc/chunks"], "cannot use chunk directory"),
+    (["workspace", "--backend", "ray", "--address", "nowhere"], "is not 'auto', HOST:PORT"),
+])
+def test_bad_output_paths_fail_before_the_sweep(capsys, argv, message):
+    start = time.perf_counter()
+    assert main(argv) == 2  # the default sweeps take minutes: these must fail before any of it
+    assert time.perf_counter() - start < 10
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err, err
+
+
+def test_output_file_holds_the_printed_json(capsys, tmp_path):
+    out = tmp_path / "ws.json"
+    argv = ["workspace", "--levels", "2", "--json", "--quiet", "--chunk-dir", str(tmp_path / "c"),
+            "--output", str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert json.loads(out.read_text()) == json.loads(printed)
+    assert sorted(os.listdir(tmp_path)) == ["c", "ws.json"] and not os.listdir(tmp_path / "c")
+
+
+DEXTERITY = ["dexterity", "--levels", "2", "--chunk-size", "8", "--json", "--quiet"]
+"""64 OctArm V points in 8 chunks of ~0.3 s."""
+DESIGN = ["design", "--sections", "3", "--lengths", "0.5,1,1.5,2", "--chunk-size", "16", "--json",
+          "--no-progress"]
+"""256 layouts in 16 chunks of ~0.1 s."""
+
+
+def test_ctrl_c_then_resume_gives_the_uninterrupted_result(capsys, tmp_path):
+    reference = _run_json(capsys, DEXTERITY + ["--chunk-dir", str(tmp_path / "ref")])
+    chunks = tmp_path / "chunks"
+    proc = _cli(DEXTERITY + ["--chunk-dir", str(chunks)])
+    _wait_for_chunks(chunks, 2, proc)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert "interrupted" in err and f"kept in {chunks}" in err and "--resume" in err
+    assert 2 <= len(_kept(chunks)) < 8
+    assert _run_json(capsys, DEXTERITY + ["--chunk-dir", str(chunks), "--resume"]) == reference
+    assert not list(chunks.glob("*.npz"))
+
+
+def test_killed_driver_then_resume_gives_the_uninterrupted_result(capsys, tmp_path):
+    reference = _run_json(capsys, DESIGN + ["--chunk-dir", str(tmp_path / "ref")])
+    chunks = tmp_path / "chunks"
+    proc = _cli(DESIGN + ["--chunk-dir", str(chunks)])
+    _wait_for_chunks(chunks, 3, proc)
+    proc.kill()
+    proc.communicate(timeout=30)
+    kept = _kept(chunks)  # a write cut off by the kill stays a hidden temp file
+    assert 3 <= len(kept) < 16
+    store = ChunkStore(chunks)
+    assert all(store.load(p.stem) is not None for p in kept)
+    assert _run_json(capsys, DESIGN + ["--chunk-dir", str(chunks), "--resume"]) == reference
+    assert not os.listdir(chunks)
+
+
+# ----------------------------------------------------------------------------- a real Ray cluster
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Cluster:
+    def __init__(self, address: str, pid: int):
+        self.address, self.pid = address, pid
+
+    def workers_running_chunks(self) -> list[int]:
+        """PIDs of this cluster's Ray workers that are executing a chunk right now."""
+        found = []
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                title = (entry / "cmdline").read_bytes().split(b"\0")[0]
+            except OSError:
+                continue
+            if title.startswith(b"ray::_ray_call") and self._descends(int(entry.name)):
+                found.append(int(entry.name))
+        return found
+
+    def _descends(self, pid: int) -> bool:
+        while pid > 1:
+            if pid == self.pid:
+                return True
+            try:
+                stat = Path(f"/proc/{pid}/stat").read_text()
+            except OSError:
+                return False
+            pid = int(stat.rsplit(")", 1)[1].split()[1])
+        return False
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """``ray start --head --block`` on loopback ports with 2 CPUs, owned by this module: stopping
+    the blocking process stops the cluster (no ``ray stop``, which would stop every cluster)."""
+    ray_exe = Path(sys.executable).with_name("ray")
+    temp = tempfile.mkdtemp(prefix="ray-", dir="/tmp")  # Ray's socket paths must stay short
+    port = _free_port()
+    argv = [str(ray_exe), "start", "--head", "--block", "--node-ip-address", "127.0.0.1",
+            "--port", str(port), "--num-cpus", "2", "--include-dashboard=false",
+            "--disable-usage-stats", "--temp-dir", temp, "--object-store-memory", str(100 * 2**20),
+            "--ray-client-server-port", str(_free_port()),
+            "--dashboard-agent-listen-port", str(_free_port())]
+    log = open(Path(temp) / "head.log", "w")
+    proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **NO_AUTH},
+                            start_new_session=True)
+    # For the drivers this process starts, and for private instances (ray.init() without an
+    # address), whose session files then go under this fixture's directory too.
+    private = {**NO_AUTH, "RAY_TMPDIR": temp}
+    saved = {k: os.environ.get(k) for k in private}
+    os.environ.update(private)
+    try:
+        deadline = time.monotonic() + 90
+        while "Ray runtime started" not in (Path(temp) / "head.log").read_text():
+            assert proc.poll() is None, (Path(temp) / "head.log").read_text()[-2000:]
+            assert time.monotonic() < deadline, "the Ray head did not start"
+            time.sleep(0.2)
+        yield Cluster(f"127.0.0.1:{port}", proc.pid)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+        proc.terminate()
+        try:
+            proc.wait(timeout=60)
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)  # anything of this cluster still alive
+            except ProcessLookupError:
+                pass
+            log.close()
+            shutil.rmtree(temp, ignore_errors=True)
+
+
+SWEEPS = {
+    "workspace": ["workspace", "--levels", "3", "--base-angle", "90", "--chunk-size", "100",
+                  "--json", "--quiet"],
+    "workspace-spatial": ["workspace", "--design", "octarm_2s", "--spatial", "--levels", "3",
+                          "--chunk-size", "128", "--json", "--quiet"],
+    "dexterity": ["dexterity", "--design", "ct", "--levels", "3", "--chunk-size", "16", "--json",
+                  "--quiet"],
+    "design": ["design", "--sections", "2", "--lengths", "0.5,1", "--chunk-size", "5", "--json",
+               "--no-progress"],
+    "stress": ["stress", "--n-random", "30", "--n-per-class", "2", "--env-steps", "48",
+               "--chunk-size", "10", "--diagnose", "2", "--json", "--no-progress"],
+}
+
+
+@pytest.mark.parametrize("name", SWEEPS)
+def test_every_sweep_command_on_ray_matches_the_local_backend(capsys, tmp_path, cluster, name):
+    argv = SWEEPS[name] + ["--chunk-dir", str(tmp_path)]
+    local = _run_json(capsys, argv)
+    remote = _run_json(capsys, argv + ["--backend", "ray", "--address", cluster.address])
+    assert remote == local
+    assert not list(tmp_path.glob("*.npz"))
+
+
+def test_python_api_on_ray_matches_local(cluster):
+    import ray
+
+    arm, scene = solver.designs.octarm_two_section(), solver.Scene(base_angle_deg=45.0)
+    grid = pressure_grid(arm, levels=4)  # 256 points in 4 tasks
+    local = sweep_tips(arm, grid, scene)
+    runs = [sweep_tips(arm, grid, scene, backend="ray", chunk_size=64, address=cluster.address)]
+    assert not ray.is_initialized()  # the sweep disconnected again
+    runs.append(sweep_tips(arm, grid, scene, backend="ray", chunk_size=64))  # a private instance
+    assert not ray.is_initialized()
+    ray.init(address=cluster.address, log_to_driver=False)
+    try:  # a Ray session the caller opened is used and left open
+        runs.append(sweep_tips(arm, grid, scene, backend="ray", chunk_size=64))
+        assert ray.is_initialized()
+    finally:
+        ray.shutdown()
+    for tips, converged in runs:
+        np.testing.assert_array_equal(tips, local[0])
+        np.testing.assert_array_equal(converged, local[1])
+
+
+def _kill_a_worker_mid_sweep(cluster, proc, chunks: Path) -> int:
+    _wait_for_chunks(chunks, 2, proc)
+    deadline = time.monotonic() + 60
+    while not (busy := cluster.workers_running_chunks()):
+        assert proc.poll() is None, "the sweep finished before a worker could be killed"
+        assert time.monotonic() < deadline
+        time.sleep(0.005)
+    os.kill(busy[0], signal.SIGKILL)
+    return busy[0]
+
+
+def test_a_killed_worker_is_retried(capsys, tmp_path, cluster):
+    reference = _run_json(capsys, DEXTERITY + ["--chunk-dir", str(tmp_path / "ref")])
+    chunks = tmp_path / "chunks"
+    proc = _cli(DEXTERITY + ["--chunk-dir", str(chunks), "--backend", "ray", "--address", cluster.address])
+    _kill_a_worker_mid_sweep(cluster, proc, chunks)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert without_timings(json.loads(out)) == reference
+
+
+def test_a_worker_dying_without_retries_keeps_the_chunks_and_resumes(capsys, tmp_path, cluster):
+    reference = _run_json(capsys, DEXTERITY + ["--chunk-dir", str(tmp_path / "ref")])
+    chunks = tmp_path / "chunks"
+    ray_args = ["--chunk-dir", str(chunks), "--backend", "ray", "--address", cluster.address]
+    proc = _cli(DEXTERITY + ray_args + ["--retries", "0"])
+    _kill_a_worker_mid_sweep(cluster, proc, chunks)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert "WorkerCrashedError" in err and f"kept in {chunks}" in err and "--resume" in err
+    assert len(_kept(chunks)) >= 2
+    assert _run_json(capsys, DEXTERITY + ray_args + ["--resume"]) == reference
+    assert not list(chunks.glob("*.npz"))
+
+
+def test_unreachable_address_is_one_line(capsys, tmp_path, cluster):
+    closed = _free_port()
+    start = time.perf_counter()
+    argv = ["workspace", "--levels", "2", "--quiet", "--chunk-dir", str(tmp_path), "--backend", "ray"]
+    assert main(argv + ["--address", f"127.0.0.1:{closed}"]) == 2
+    assert time.perf_counter() - start < 20  # Ray alone would retry for minutes
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"cannot reach a Ray cluster at '127.0.0.1:{closed}'" in err
+
+
+def test_ray_version_mismatch_is_one_line(capsys, tmp_path, cluster):
+    """The cluster's GCS records the Ray and Python versions it was started with and every
+    driver checks them on connecting; a head claiming another Ray release is what a node
+    left on an old install looks like."""
+    import ray._raylet
+    from ray._private import ray_constants
+
+    gcs = ray._raylet.GcsClient(address=cluster.address)
+    key, namespace = b"CLUSTER_METADATA", ray_constants.KV_NAMESPACE_CLUSTER
+    original = gcs.internal_kv_get(key, namespace=namespace)
+    gcs.internal_kv_put(key, json.dumps({**json.loads(original), "ray_version": "0.0.1"}).encode(),
+                        True, namespace=namespace)
+    try:
+        argv = ["workspace", "--levels", "2", "--quiet", "--chunk-dir", str(tmp_path), "--backend",
+                "ray", "--address", cluster.address]
+        assert main(argv) == 2
+    finally:
+        gcs.internal_kv_put(key, original, True, namespace=namespace)
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Ray version mismatch" in err and "runs Ray 0.0.1" in err
