@@ -56,7 +56,25 @@ def observation_slices(env) -> dict[str, slice]:
     return env.unwrapped.observation_slices
 
 
-class JacobianController:
+class _PressureController:
+    """Turns the commanded pressures of ``step_fraction`` into actions of the env's action mode.
+
+    Subclasses set ``action_mode``, ``delta_scale`` and ``_slices`` and define ``step_fraction``.
+    """
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The action (env's action mode, float32 in [-1, 1]) for a flat observation."""
+        obs = np.asarray(obs, dtype=float)
+        target = self.step_fraction(obs)
+        if self.action_mode == "absolute":
+            action = 2.0 * target - 1.0
+        else:
+            current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
+            action = (target - current) / self.delta_scale
+        return np.clip(action, -1.0, 1.0).astype(np.float32)
+
+
+class JacobianController(_PressureController):
     """Box-constrained damped-least-squares control on the nominal model (module docstring).
 
     Args:
@@ -135,23 +153,12 @@ class JacobianController:
         delta = lsq_linear(rows, rhs, bounds=(low, high), method="bvls").x
         return np.clip(fraction + delta, 0.0, 1.0)
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        """The action (env's action mode, float32 in [-1, 1]) for a flat observation."""
-        obs = np.asarray(obs, dtype=float)
-        target = self.step_fraction(obs)
-        if self.action_mode == "absolute":
-            action = 2.0 * target - 1.0
-        else:
-            current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
-            action = (target - current) / self.delta_scale
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
-
 
 _MIN_INCREMENT = 1e-3
 """CurlController's smallest pressure step (fraction of p_max), far above float32 rounding."""
 
 
-class CurlController:
+class CurlController(_PressureController):
     """Scripted wrap: curl every section towards the disc, ramping to p_max, then hold.
 
     What it knows: the nominal design (which planar inputs turn the arm clockwise and which
@@ -230,14 +237,3 @@ class CurlController:
         step = np.where(self._inputs > 0, increment, -increment)
         self._command = np.clip(current + step, 0.0, 1.0)
         return self._command
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        """The action (env's action mode, float32 in [-1, 1]) for a flat observation."""
-        obs = np.asarray(obs, dtype=float)
-        target = self.step_fraction(obs)
-        if self.action_mode == "absolute":
-            action = 2.0 * target - 1.0
-        else:
-            current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
-            action = (target - current) / self.delta_scale
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
