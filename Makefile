@@ -1,5 +1,5 @@
 # Two commands do all the set-up on a fresh machine:
-#   make demo   creates .venv, installs the package, runs the main job
+#   make demo   creates .venv, installs the package, compiles the kernels, runs the main job
 #   make test   creates .venv, installs the package, runs every test
 PYTHON ?= python3
 VENV   ?= .venv
@@ -17,6 +17,7 @@ $(STAMP): pyproject.toml Makefile
 	touch $(STAMP)
 
 demo: $(STAMP)
+	$(BIN)/softarm warmup
 	$(BIN)/softarm demo
 
 test: $(STAMP)

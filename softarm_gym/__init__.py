@@ -2,7 +2,10 @@
 
 Importing the package registers the environments (``gym.make("SoftArm/OctArmReach-v0")``);
 the classes live in :mod:`softarm_gym.envs`. Default kwargs below are the only difference
-between the OctArm and CT variants.
+between the OctArm and CT variants. Each ``reward_threshold`` is floor(0.9 × the mean return
+of the reference controller over 20 seeded episodes): the Jacobian controller on reach, the
+scripted curl on wrap (``python -m softarm_gym.benchmarks.reference``; measured values in
+``docs/bench/reference_returns.json``, explained in ``docs/environments.md``).
 """
 
 from gymnasium.envs.registration import register
@@ -14,6 +17,7 @@ register(
     entry_point="softarm_gym.envs:ReachEnv",
     vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
     max_episode_steps=100,
+    reward_threshold=86.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0},
 )
 
@@ -22,6 +26,7 @@ register(
     entry_point="softarm_gym.envs:ReachEnv",
     vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
     max_episode_steps=100,
+    reward_threshold=87.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0},
 )
 
@@ -29,6 +34,7 @@ register(
     id="SoftArm/OctArmWrap-v0",
     entry_point="softarm_gym.envs:WrapEnv",
     max_episode_steps=200,
+    reward_threshold=99.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.09, 0.11)},
 )
 
@@ -36,6 +42,7 @@ register(
     id="SoftArm/CTWrap-v0",
     entry_point="softarm_gym.envs:WrapEnv",
     max_episode_steps=200,
+    reward_threshold=88.0,
     # The CT arm turns by at most ~200 deg at 70 psi (docs/environments.md): larger objects,
     # a half-turn placement and a 90 deg success threshold.
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.15, 0.20),

@@ -1,4 +1,5 @@
-"""A classical comparison for the RL baselines: a damped-least-squares Jacobian controller.
+"""Classical comparisons for the RL baselines: a damped-least-squares Jacobian controller (reach)
+and a scripted curl (wrap).
 
 :class:`JacobianController` acts on exactly the observation vector a policy sees, and on
 nothing else of the episode. What it knows:
@@ -40,7 +41,7 @@ from scipy.optimize import lsq_linear
 import solver
 from softarm_gym.analysis import jacobian
 
-__all__ = ["JacobianController", "observation_slices"]
+__all__ = ["JacobianController", "CurlController", "observation_slices"]
 
 
 def observation_slices(env) -> dict[str, slice]:
@@ -55,7 +56,25 @@ def observation_slices(env) -> dict[str, slice]:
     return env.unwrapped.observation_slices
 
 
-class JacobianController:
+class _PressureController:
+    """Turns the commanded pressures of ``step_fraction`` into actions of the env's action mode.
+
+    Subclasses set ``action_mode``, ``delta_scale`` and ``_slices`` and define ``step_fraction``.
+    """
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The action (env's action mode, float32 in [-1, 1]) for a flat observation."""
+        obs = np.asarray(obs, dtype=float)
+        target = self.step_fraction(obs)
+        if self.action_mode == "absolute":
+            action = 2.0 * target - 1.0
+        else:
+            current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
+            action = (target - current) / self.delta_scale
+        return np.clip(action, -1.0, 1.0).astype(np.float32)
+
+
+class JacobianController(_PressureController):
     """Box-constrained damped-least-squares control on the nominal model (module docstring).
 
     Args:
@@ -134,13 +153,87 @@ class JacobianController:
         delta = lsq_linear(rows, rhs, bounds=(low, high), method="bvls").x
         return np.clip(fraction + delta, 0.0, 1.0)
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        """The action (env's action mode, float32 in [-1, 1]) for a flat observation."""
+
+_MIN_INCREMENT = 1e-3
+"""CurlController's smallest pressure step (fraction of p_max), far above float32 rounding."""
+
+
+class CurlController(_PressureController):
+    """Scripted wrap: curl every section towards the disc, ramping to p_max, then hold.
+
+    What it knows: the nominal design (which planar inputs turn the arm clockwise and which
+    counter-clockwise: the sign of Σ u2*·L over the sections with one input at p_max,
+    :func:`solver.rest_strains`), the action mode and the layout of the flat observation.
+    At an episode's first step it reads from the observation the estimated backbone and the
+    disc centre (first two entries of ``goal``), and takes the disc's side from the cross
+    product of the backbone tangent and the direction to the centre at the backbone sample
+    nearest the disc. It then drives the inputs that curl towards that side up to p_max in
+    steps of 1/``ramp_steps`` of p_max, and the others to zero. When the observed pressures
+    show that the env rejected the last command (an unconverged contact solve keeps the
+    previous state), it holds the accepted pressures for one step and then goes on with half
+    the step; once the step is below 1/1000 of p_max it holds. It uses no contact or wrap
+    feedback: the reference a learned wrap policy should beat.
+
+    Args:
+        env: a (possibly wrapped) planar wrap environment with ``observation_format='flat'``.
+        ramp_steps: steps from zero to full pressure while no command is rejected (>= 1).
+
+    Raises:
+        ValueError: a bad ``ramp_steps`` or an environment that is not a flat wrap env.
+    """
+
+    def __init__(self, env, ramp_steps: int = 10):
+        if isinstance(ramp_steps, bool) or int(ramp_steps) != ramp_steps or ramp_steps < 1:
+            raise ValueError(f"ramp_steps must be an integer >= 1; got {ramp_steps!r}")
+        base = env.unwrapped
+        if getattr(base, "observation_format", None) != "flat" or not hasattr(base, "success_wrap_deg"):
+            raise ValueError("CurlController needs a wrap environment with observation_format='flat'")
+        self.ramp_steps = int(ramp_steps)
+        self.action_mode = base.action_mode
+        self.delta_scale = float(base.delta_scale)
+        self._slices = observation_slices(env)
+        lengths = np.array([section.length for section in base.arm.sections])
+        turning = np.empty(base.n_inputs)
+        for k in range(base.n_inputs):
+            pressures = np.zeros(base.n_inputs)
+            pressures[k] = base.arm.max_pressure
+            channels = solver.channel_pressures(base.arm, pressures, planar=True)
+            _, u2, _ = solver.rest_strains(base.arm, channels)
+            turning[k] = u2 @ lengths
+        self.turning = turning
+        """Total rest turning (rad) of the arm with each input alone at p_max (> 0: counter-clockwise)."""
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the side, the last command and the step size (call at every episode start)."""
+        self._inputs = None
+        self._command = None
+        self._increment = 1.0 / self.ramp_steps
+
+    def _side(self, obs: np.ndarray) -> float:
+        """+1 when the disc lies to the left of the backbone (counter-clockwise curl), else −1."""
+        backbone = obs[self._slices["backbone"]].reshape(-1, 2)
+        center = obs[self._slices["goal"]][:2]
+        k = int(np.argmin(np.hypot(*(backbone - center).T)))
+        tangent = backbone[min(k + 1, len(backbone) - 1)] - backbone[max(k - 1, 0)]
+        to_center = center - backbone[k]
+        return 1.0 if tangent[0] * to_center[1] - tangent[1] * to_center[0] > 0 else -1.0
+
+    def step_fraction(self, obs: np.ndarray) -> np.ndarray:
+        """The next commanded pressures (fractions of p_max) for a flat observation."""
         obs = np.asarray(obs, dtype=float)
-        target = self.step_fraction(obs)
-        if self.action_mode == "absolute":
-            action = 2.0 * target - 1.0
-        else:
-            current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
-            action = (target - current) / self.delta_scale
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
+        current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
+        if self._inputs is None:
+            self._inputs = (np.sign(self.turning) == self._side(obs)).astype(float)
+        # The observation is float32: a command the env took matches it to ~1e-7.
+        elif np.max(np.abs(current - self._command)) > 1e-5:
+            # Rejected: hold the accepted state for a step (so the env's run of consecutive
+            # failures ends), then go on with half the step.
+            self._increment *= 0.5
+            self._command = current
+            return self._command
+        # Below a thousandth of p_max the next rejection could not be seen: stop and hold.
+        increment = self._increment if self._increment >= _MIN_INCREMENT else 0.0
+        step = np.where(self._inputs > 0, increment, -increment)
+        self._command = np.clip(current + step, 0.0, 1.0)
+        return self._command

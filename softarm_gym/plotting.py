@@ -6,17 +6,32 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
+
+SEQUENTIAL_CMAP = "viridis"
+"""Colour map of every value-coded plot: perceptually uniform and readable in grey."""
 
 
 def figure(*args, **kwargs):
-    """A new figure on the non-interactive backend."""
+    """A new figure on the non-interactive backend, ``plt.subplots`` arguments.
+
+    Constrained layout by default, so titles, tick labels and colourbars do not overlap.
+    """
+    kwargs.setdefault("layout", "constrained")
     return plt.subplots(*args, **kwargs)
 
 
-def save(fig, path) -> None:
-    """Save and close ``fig``."""
+def few_ticks(ax, n: int = 5) -> None:
+    """At most ``n`` major ticks per axis (dense panels otherwise run their tick labels together)."""
+    ax.xaxis.set_major_locator(MaxNLocator(n))
+    ax.yaxis.set_major_locator(MaxNLocator(n))
+
+
+def save(fig, path):
+    """Save and close ``fig``; return it (closed figures can still be inspected)."""
     fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
+    return fig
 
 
 def draw_backbone(ax, positions, section_ends=(), **style):

@@ -3,7 +3,9 @@
 Default: the solver (RK4 resolution sweep, warm and cold solves, scipy solve_bvp reference,
 spatial, batch). ``--peer pyelastica`` settles the same OctArm V scenes with PyElastica.
 ``--env`` times the environments instead: every registered ID and observation mode, single
-and vectorised, and the batched vector env.
+and vectorised, and the batched vector env. ``--first-episode`` times the first episode of
+every registered ID in a fresh process after ``softarm warmup`` against its steady speed
+(``--cold`` adds the same with an empty numba cache).
 """
 
 from __future__ import annotations
@@ -23,6 +25,11 @@ def add_arguments(p):
                    help="benchmark the environments (steps/s) instead of the solver")
     p.add_argument("--estimators", action="store_true",
                    help="benchmark sensor synthesis and every shape estimator instead")
+    p.add_argument("--first-episode", action="store_true",
+                   help="first episode of every ID in a fresh process (after softarm warmup) against "
+                        "its steady speed")
+    p.add_argument("--cold", action="store_true",
+                   help="with --first-episode: also with an empty numba cache (compiles; slow)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -44,6 +51,17 @@ def run(args) -> int:
                 lines.append(f"| {name} | {1e6 * rows['planar'][name]:.0f} | "
                              f"{'—' if not isinstance(spatial, float) else f'{1e6 * spatial:.0f}'} |")
         emit(rows, args.json, "\n".join(lines))
+        return 0
+    if args.cold and not args.first_episode:
+        raise UsageError("--cold only applies to --first-episode")
+    if args.first_episode:
+        from softarm_gym.benchmarks import first_episode
+        from softarm_gym.commands import warmup
+
+        progress("softarm warmup (loads what is cached, compiles the rest)")
+        warmup.warm()
+        result = first_episode.run(episodes=1 if args.quick else 3, cold=args.cold, progress=progress)
+        emit(result, args.json, first_episode.format_table(result))
         return 0
     if args.env:
         from softarm_gym.benchmarks import envs, vector_bench

@@ -14,7 +14,7 @@ import numpy as np
 
 import solver
 from softarm_gym.cli import UsageError
-from softarm_gym.plotting import draw_backbone, figure, save
+from softarm_gym.plotting import draw_backbone, few_ticks, figure, save
 
 NAME = "demo"
 HELP = "run a reach episode (GIF) and picture every design's shapes under gravity"
@@ -49,7 +49,8 @@ def run(args) -> int:
     return 0
 
 
-def _shapes(out) -> None:
+def _shapes(out):
+    """Every named design under gravity at a few pressure patterns and base angles; returns the figure."""
     designs = [solver.designs.octarm_v(), solver.designs.octarm_vi(), solver.designs.ct()]
     angles = (0.0, 90.0)
     fig, axes = figure(len(angles), len(designs), figsize=(4 * len(designs), 7.5))
@@ -70,9 +71,14 @@ def _shapes(out) -> None:
                       f"({eq.tip[0]:+.3f}, {eq.tip[1]:+.3f}) m  converged={eq.converged} "
                       f"stable={eq.stable}")
             ax.plot([0], [0], "ks")
-            ax.set_aspect("equal")
+            # Equal scales by widening the data limits, not by shrinking a narrow panel.
+            ax.set_aspect("equal", adjustable="datalim")
+            few_ticks(ax, 4)
+            ax.set_xlabel("x (m)")
+            ax.set_ylabel("y (m)")
             ax.set_title(f"{arm.name}, base {angle:g} deg", fontsize=9)
             ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=7)
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center", ncols=4, fontsize=8)
     save(fig, out)
     print(f"wrote {out} ({time.perf_counter() - start:.1f} s)")
+    return fig

@@ -111,8 +111,8 @@ def _panel(ax, levels, table, names):
     ax.grid(alpha=0.3)
 
 
-def plot_study(result: dict, path) -> None:
-    """Figs. 4.4–4.5 style: RMS tip error / L against pressure (±1 std shaded)."""
+def plot_study(result: dict, path):
+    """Figs. 4.4–4.5 style: RMS tip error / L against pressure (±1 std shaded); returns the figure."""
     from softarm_gym.plotting import figure, save
 
     levels = result["pressures_psi"]
@@ -126,13 +126,13 @@ def plot_study(result: dict, path) -> None:
             ax = axes[r, c]
             _panel(ax, levels, data[key], names)
             ax.set_title(f"{label} base: {title}", fontsize=9)
-            ax.set_ylabel("RMS tip error / L")
+            ax.set_ylabel("RMS tip error / L (–)")
     axes[0, 0].legend(fontsize=8)
-    save(fig, path)
+    return save(fig, path)
 
 
-def plot_payload(result: dict, path) -> None:
-    """Fig. 4.6 style: estimators without and with an unknown tip payload."""
+def plot_payload(result: dict, path):
+    """Fig. 4.6 style: estimators without and with an unknown tip payload; returns the figure."""
     from softarm_gym.plotting import figure, save
 
     levels = result["pressures_psi"]
@@ -148,6 +148,6 @@ def plot_payload(result: dict, path) -> None:
             ax = axes[r, c]
             _panel(ax, levels, table, names)
             ax.set_title(f"{label} base: {title}", fontsize=9)
-            ax.set_ylabel("RMS tip error / L")
+            ax.set_ylabel("RMS tip error / L (–)")
     axes[0, 0].legend(fontsize=8)
-    save(fig, path)
+    return save(fig, path)

@@ -9,7 +9,7 @@ __all__ = ["plot_sweeps"]
 _STYLES = ("-", "--", "-.", ":")
 
 
-def plot_sweeps(sweeps, path) -> None:
+def plot_sweeps(sweeps, path):
     """Load capacity of the best layout of each sweep, saved to ``path`` (PNG).
 
     Sweeps over several sizes give load capacity versus length (Figs. 3.4–3.5, B.1–B.6),
@@ -20,13 +20,15 @@ def plot_sweeps(sweeps, path) -> None:
     Args:
         sweeps: :class:`~softarm_gym.design_tools.sweep.Sweep` objects.
         path: output file.
+
+    Returns:
+        The (closed) matplotlib figure.
     """
     if not sweeps:
         raise ValueError("nothing to plot: no sweeps")
     if any(len(s.sizes) > 1 for s in sweeps):
-        _versus_size(sweeps, path)
-    else:
-        _versus_parameter(sweeps, path)
+        return _versus_size(sweeps, path)
+    return _versus_parameter(sweeps, path)
 
 
 def _versus_size(sweeps, path) -> None:
@@ -59,7 +61,7 @@ def _versus_size(sweeps, path) -> None:
     ax.set_ylabel("load capacity W at p_test (N)")
     ax.set_title(f"{first.fluid}, {first.constraint} (template at p_{first.template_pressure})")
     ax.legend(fontsize=8)
-    save(fig, path)
+    return save(fig, path)
 
 
 def _versus_parameter(sweeps, path) -> None:
@@ -71,7 +73,7 @@ def _versus_parameter(sweeps, path) -> None:
     x = [r[0] for r in rows]
     fig, ax = figure(figsize=(6.5, 4.2))
     ax.plot(x, [r[1].load_n for r in rows], "k^--", label="load capacity")
-    ax.set_xlabel("Young's modulus E (MPa)" if by_modulus else "number of sections")
+    ax.set_xlabel("Young's modulus E (MPa)" if by_modulus else "number of sections N (–)")
     ax.set_ylabel("load capacity W at p_test (N)")
     twin = ax.twinx()
     twin.plot(x, [r[1].thickness_m * 1e3 for r in rows], "ko-", mfc="none", label="tube thickness")
@@ -81,5 +83,5 @@ def _versus_parameter(sweeps, path) -> None:
                     textcoords="offset points", xytext=(2, 4))
     first = sweeps[0]
     ax.set_title(f"{first.fluid}, {first.constraint}, L = {first.sizes[0]:g} m")
-    fig.legend(loc="upper left", fontsize=8)
-    save(fig, path)
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
+    return save(fig, path)

@@ -187,8 +187,10 @@ class SoftArmEnv(gym.Env):
         if observation_format == "flat":
             self.observation_space = spaces.Box(low, high, dtype=np.float32)
         else:
-            self.observation_space = spaces.Dict({
-                name: spaces.Box(low[sl], high[sl], dtype=np.float32) for name, sl in self._slices.items()})
+            # A sequence of pairs keeps the flat order (a plain dict would be sorted by key), so
+            # FlattenObservation of the Dict format is the flat format and observation_slices apply.
+            self.observation_space = spaces.Dict([
+                (name, spaces.Box(low[sl], high[sl], dtype=np.float32)) for name, sl in self._slices.items()])
         self._obs = np.zeros(low.size)
         self._sim_arm = self.arm
         self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, gravity=self.gravity)

@@ -6,7 +6,7 @@ import pytest
 
 import softarm_gym  # noqa: F401
 from baselines.evaluate import evaluate
-from softarm_gym.controllers import JacobianController, observation_slices
+from softarm_gym.controllers import CurlController, JacobianController, observation_slices
 
 
 def test_observation_slices_match_the_dict_layout():
@@ -48,3 +48,42 @@ def test_bad_arguments_are_named():
         JacobianController(env, max_step=2.0)
     with pytest.raises(ValueError, match="observation_format='flat'"):
         JacobianController(gym.make("SoftArm/CTReach-v0", observation_format="dict"))
+
+
+def _final_wrap(env, controller, seed, steps=60):
+    obs, _ = env.reset(seed=seed)
+    controller.reset()
+    for _ in range(steps):
+        obs, _, _, _, info = env.step(controller.act(obs))
+    return info["wrap_angle_deg"]
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_curl_controller_curls_towards_the_disc(seed):
+    env = gym.make("SoftArm/OctArmWrap-v0")
+    ctrl = CurlController(env)
+    chosen = _final_wrap(env, ctrl, seed)
+    # The other side: flip the inputs after the controller has chosen them.
+    obs, _ = env.reset(seed=seed)
+    ctrl.reset()
+    ctrl.act(obs)
+    ctrl._inputs = 1.0 - ctrl._inputs
+    for _ in range(59):
+        obs, _, _, _, info = env.step(ctrl.act(obs))
+    assert chosen > 180.0 > info["wrap_angle_deg"]
+
+
+def test_curl_controller_holds_after_a_rejected_command():
+    env = gym.make("SoftArm/OctArmWrap-v0")
+    ctrl = CurlController(env, ramp_steps=4)
+    obs, _ = env.reset(seed=0)
+    first = ctrl.step_fraction(obs)
+    current = 0.5 * (obs[observation_slices(env)["pressures"]] + 1.0)
+    assert np.all(first[ctrl._inputs > 0] >= current[ctrl._inputs > 0])
+    # The env kept the old pressures (a rejected step): hold them, then halve the step.
+    assert np.array_equal(ctrl.step_fraction(obs), current)
+    assert ctrl._increment == pytest.approx(0.125)
+    with pytest.raises(ValueError, match="ramp_steps"):
+        CurlController(env, ramp_steps=0)
+    with pytest.raises(ValueError, match="wrap environment"):
+        CurlController(gym.make("SoftArm/CTReach-v0"))

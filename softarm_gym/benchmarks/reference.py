@@ -1,0 +1,133 @@
+"""Returns of the reference controllers on every registered ID, and the reward thresholds from them.
+
+The reference controller of a reach ID is :class:`softarm_gym.controllers.JacobianController`
+(damped least squares on the nominal model); of a wrap ID the scripted
+:class:`softarm_gym.controllers.CurlController`. Each runs ``episodes`` full episodes of
+``gym.make(env_id)`` with the registered defaults, episode i seeded with i, and its
+undiscounted returns are recorded. The registered ``reward_threshold`` of each ID is
+:func:`reward_threshold` of the mean return::
+
+    python -m softarm_gym.benchmarks.reference --episodes 20 --json > docs/bench/reference_returns.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+import softarm_gym  # noqa: F401  (registers the IDs)
+from softarm_gym.benchmarks.envs import env_ids
+from softarm_gym.controllers import CurlController, JacobianController
+
+__all__ = ["THRESHOLD_FRACTION", "reward_threshold", "reference_controller", "episode", "run", "main"]
+
+THRESHOLD_FRACTION = 0.9
+"""The threshold rule: this fraction of the reference's mean return (returns are positive)."""
+
+
+def reward_threshold(mean_return: float) -> float:
+    """The documented rule: ``floor(THRESHOLD_FRACTION · mean)`` of the reference's mean return.
+
+    Raises:
+        ValueError: a non-positive or non-finite mean (the rule is for positive returns).
+    """
+    if not (math.isfinite(mean_return) and mean_return > 0):
+        raise ValueError(f"the threshold rule needs a positive mean return; got {mean_return!r}")
+    return float(math.floor(THRESHOLD_FRACTION * mean_return))
+
+
+def reference_controller(env):
+    """The reference controller of ``env``'s task (reach: Jacobian, wrap: scripted curl)."""
+    if hasattr(env.unwrapped, "success_wrap_deg"):
+        return CurlController(env)
+    return JacobianController(env)
+
+
+def episode(env_id: str, seed: int) -> dict:
+    """One reference episode of ``gym.make(env_id)`` seeded with ``seed``.
+
+    Returns:
+        ``return`` (undiscounted), ``length``, ``success`` (``is_success`` of the last step).
+    """
+    env = gym.make(env_id)
+    controller = reference_controller(env)
+    obs, _ = env.reset(seed=seed)
+    controller.reset()
+    total, length, done, info = 0.0, 0, False, {}
+    while not done:
+        obs, reward, terminated, truncated, info = env.step(controller.act(obs))
+        total += float(reward)
+        length += 1
+        done = terminated or truncated
+    env.close()
+    return {"return": total, "length": length, "success": bool(info.get("is_success", False))}
+
+
+def run(episodes: int = 20, ids=None, progress: bool = True) -> dict:
+    """Reference returns of ``episodes`` seeded episodes (seeds 0 … episodes−1) per ID.
+
+    Returns:
+        ``{env_id: {"controller", "returns", "mean", "std", "success_rate", "mean_length",
+        "threshold"}}``.
+    """
+    if isinstance(episodes, bool) or int(episodes) != episodes or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1; got {episodes!r}")
+    result = {}
+    for env_id in ids or env_ids():
+        start = time.perf_counter()
+        rows = [episode(env_id, seed) for seed in tqdm(range(int(episodes)), desc=env_id, file=sys.stderr,
+                                                       disable=not progress, leave=False)]
+        returns = np.array([r["return"] for r in rows])
+        mean = float(returns.mean())
+        result[env_id] = {
+            "controller": type(reference_controller(gym.make(env_id))).__name__,
+            "returns": returns.tolist(), "mean": mean, "std": float(returns.std()),
+            "success_rate": float(np.mean([r["success"] for r in rows])),
+            "mean_length": float(np.mean([r["length"] for r in rows])),
+            "threshold": reward_threshold(mean), "seconds": time.perf_counter() - start}
+    return result
+
+
+def format_table(result: dict) -> str:
+    """A Markdown table of :func:`run`'s result."""
+    lines = ["| ID | reference | episodes | mean return ± std | success | registered threshold |",
+             "|---|---|---|---|---|---|"]
+    for env_id, row in result.items():
+        lines.append(f"| `{env_id}` | `{row['controller']}` | {len(row['returns'])} | "
+                     f"{row['mean']:.1f} ± {row['std']:.1f} | {100 * row['success_rate']:.0f} % | "
+                     f"{row['threshold']:g} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m softarm_gym.benchmarks.reference",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=20, help="seeded episodes per ID (default 20)")
+    parser.add_argument("--json", action="store_true", help="machine-readable output")
+    args = parser.parse_args(argv)
+    try:
+        result = run(args.episodes)
+    except ValueError as exc:
+        print(f"reference: error: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        payload = {"command": f"python -m softarm_gym.benchmarks.reference --episodes {args.episodes} --json",
+                   "date": time.strftime("%Y-%m-%d"),
+                   "rule": f"reward_threshold = floor({THRESHOLD_FRACTION} * mean return of the reference "
+                           f"controller over seeds 0-{args.episodes - 1})",
+                   "ids": result}
+        print(json.dumps(payload, indent=2))
+    else:
+        print(format_table(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

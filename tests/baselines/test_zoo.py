@@ -1,0 +1,51 @@
+"""rl-baselines3-zoo reads the project's hyperparameter files, and their budgets are the reported runs'."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from baselines.config import HYPERPARAMS_DIR, load_hyperparams
+
+RESULTS = Path(__file__).resolve().parents[2] / "baselines" / "results" / "training"
+
+
+@pytest.mark.parametrize("summary", sorted(RESULTS.glob("*/summary.json")), ids=lambda p: p.parent.name)
+def test_yaml_budget_is_the_step_count_of_the_reported_run(summary):
+    run = json.loads(summary.read_text())
+    params = load_hyperparams(run["algo"], run["env_id"])
+    assert params["n_timesteps"] == run["timesteps_done"]
+    for key in ("env_kwargs", "normalize", "learning_rate", "gamma", "batch_size"):
+        assert params[key] == run["hyperparams"][key], key
+    assert params["policy_kwargs"]["net_arch"] == run["hyperparams"]["policy_kwargs"]["net_arch"]
+
+
+def test_rl_zoo3_trains_with_the_project_hyperparameters(tmp_path):
+    pytest.importorskip("rl_zoo3")
+    env_id = "SoftArm/OctArmReach-v0"
+    steps = 300
+    # The YAML as it is, except that learning starts (and the buffer stays small) within the smoke run.
+    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "sac", "--env", env_id,
+           "--gym-packages", "softarm_gym", "-conf", str(HYPERPARAMS_DIR / "sac.yml"),
+           "-n", str(steps), "-f", str(tmp_path), "--eval-freq", "-1", "--seed", "0",
+           "--device", "cpu", "--num-threads", "1", "-params", "learning_starts:100", "buffer_size:1000"]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    run = tmp_path / "sac" / "SoftArm-OctArmReach-v0_1"
+    assert (run / "SoftArm-OctArmReach-v0" / "vecnormalize.pkl").is_file()  # `normalize` was honoured
+    config = yaml.unsafe_load((run / "SoftArm-OctArmReach-v0" / "config.yml").read_text())
+    expected = load_hyperparams("sac", env_id)
+    assert config["env_kwargs"] == expected["env_kwargs"]  # delta actions reached gym.make
+    assert config["n_timesteps"] == expected["n_timesteps"]
+    episodes = (run / "0.monitor.csv").read_text().splitlines()[2:]
+    assert [int(line.split(",")[1]) for line in episodes] == [100] * (steps // 100)
+
+    from stable_baselines3 import SAC
+
+    model = SAC.load(run / "SoftArm-OctArmReach-v0.zip", device="cpu")
+    assert model.num_timesteps == steps
+    assert model.gamma == expected["gamma"]
+    assert model.policy.net_arch == expected["policy_kwargs"]["net_arch"]

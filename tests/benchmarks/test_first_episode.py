@@ -1,0 +1,41 @@
+"""``softarm warmup`` covers every registered env configuration; the first-episode benchmark."""
+
+import gymnasium as gym
+import pytest
+
+import softarm_gym  # noqa: F401
+from softarm_gym.benchmarks.first_episode import format_table, measure, run
+from softarm_gym.cli import main
+from softarm_gym.commands.warmup import cases
+from softarm_gym.sensing import ESTIMATORS
+
+
+def test_warmup_runs_every_registered_id_in_every_observation_mode():
+    ids = {env_id for env_id in gym.registry if env_id.startswith("SoftArm/")}
+    planar = {(env_id, kw["observation"]) for env_id, kw in cases() if kw.get("planar", True)}
+    assert planar == {(env_id, obs) for env_id in ids for obs in ESTIMATORS}
+    spatial = {(env_id, kw["observation"]) for env_id, kw in cases() if not kw.get("planar", True)}
+    assert {env_id for env_id, _ in spatial} == {env_id for env_id in ids if "Reach" in env_id}
+    for env_id, kwargs in cases():  # every case is a valid configuration
+        gym.make(env_id, **kwargs).close()
+
+
+def test_measure_times_the_first_and_the_steady_episodes():
+    row = measure("SoftArm/CTReach-v0", episodes=1)
+    assert row["steps"] == 100
+    assert row["first_seconds"] > 0 and row["import_seconds"] >= 0
+    assert row["first_steps_per_s"] == pytest.approx(100 / row["first_seconds"])
+    steady_episode = 100 / row["steady_steps_per_s"]
+    assert row["first_overhead_seconds"] == pytest.approx(row["first_seconds"] - steady_episode)
+
+
+def test_fresh_process_table():
+    result = run(ids=["SoftArm/CTReach-v0"], episodes=1)
+    row = result["rows"]["SoftArm/CTReach-v0"]
+    assert row["ratio"] == pytest.approx(row["warm"]["first_steps_per_s"] / row["warm"]["steady_steps_per_s"])
+    assert "SoftArm/CTReach-v0" in format_table(result)
+
+
+def test_cold_needs_first_episode(capsys):
+    assert main(["bench", "--cold"]) == 2
+    assert "--cold only applies to --first-episode" in capsys.readouterr().err

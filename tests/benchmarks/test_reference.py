@@ -1,0 +1,39 @@
+"""Registered reward thresholds come from the reference controllers' recorded, reproducible returns."""
+
+import json
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+
+from softarm_gym.benchmarks.envs import env_ids
+from softarm_gym.benchmarks.reference import episode, reward_threshold, run
+
+RECORD_PATH = Path(__file__).resolve().parents[2] / "docs" / "bench" / "reference_returns.json"
+RECORD = json.loads(RECORD_PATH.read_text())
+
+
+@pytest.mark.parametrize("env_id", env_ids())
+def test_registered_threshold_is_the_rule_applied_to_the_recorded_mean(env_id):
+    row = RECORD["ids"][env_id]
+    assert len(row["returns"]) == 20
+    assert math.isclose(row["mean"], sum(row["returns"]) / 20)
+    assert gym.spec(env_id).reward_threshold == reward_threshold(row["mean"]) == row["threshold"]
+
+
+@pytest.mark.parametrize("env_id", env_ids())
+def test_recorded_returns_are_reproduced(env_id):
+    # Any change to the env, its defaults or the controllers shows up here: rerun the command
+    # in docs/bench/reference_returns.json and update the registered thresholds.
+    for seed in (0, 1):
+        recorded = RECORD["ids"][env_id]["returns"][seed]
+        assert episode(env_id, seed)["return"] == pytest.approx(recorded, rel=1e-9)
+
+
+def test_rule_and_arguments():
+    assert reward_threshold(96.6) == 86.0
+    with pytest.raises(ValueError, match="positive mean"):
+        reward_threshold(-3.0)
+    with pytest.raises(ValueError, match="episodes"):
+        run(0)
