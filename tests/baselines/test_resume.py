@@ -186,6 +186,6 @@ def test_fault_drill_counts_what_it_checks(tiny_sac_run, tmp_path):
     assert faults._check_folder(run) == 0
     (run / "checkpoints" / "model_100_steps.zip").write_bytes(b"half a zip")
     assert faults._check_folder(run) == 1
-    tally = faults.drill(cycles=1, timesteps=400, workdir=tmp_path / "drill")
+    tally = faults.drill(cycles=1, timesteps=1500, workdir=tmp_path / "drill")
     assert tally["sigint"] == tally["clean_sigint_exits"] == tally["sigint_saved_at_stop"] == 1
-    assert tally["unloadable_files"] == 0 and tally["final_timesteps"] == 400
+    assert tally["unloadable_files"] == 0 and tally["final_timesteps"] == 1500
