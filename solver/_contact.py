@@ -250,19 +250,28 @@ def _stability(blocks):
     buckling mode. That sub-problem is conservative with penalty contact too (the discs push
     on the sub-rod alone); the forward test (∂(n, m)(s)/∂(n0, m0) from the base), exact for
     dead loads, is not: it takes the reaction of the part beyond s as dead, and called stable
-    contact states unstable. Returns the smallest det δ(x, y, θ)(s) over segment starts.
+    contact states unstable.
+
+    Under a stiff penalty the fields grow like e^(s/ℓ) across a contact and turn parallel,
+    so they are re-orthonormalised (QR) at every segment, the sign of the factors' product
+    kept: det δ(x, y, θ)(s) has the sign of sign · det Q(x, y, θ)(s). Returns the smallest
+    such signed det of the orthonormalised fields over segment starts.
     """
     fields = np.zeros((6, 3))
     for d in range(3):
         fields[d, d] = 1.0
+    sign = 1.0
     smallest = 1.0
     for seg in range(blocks.shape[0] - 1, -1, -1):
         if not np.all(np.isfinite(blocks[seg])):
             return -1.0
-        fields = np.linalg.solve(blocks[seg], fields)
-        det = (fields[0, 0] * (fields[1, 1] * fields[2, 2] - fields[1, 2] * fields[2, 1])
-               - fields[0, 1] * (fields[1, 0] * fields[2, 2] - fields[1, 2] * fields[2, 0])
-               + fields[0, 2] * (fields[1, 0] * fields[2, 1] - fields[1, 1] * fields[2, 0]))
+        fields, r = np.linalg.qr(np.linalg.solve(blocks[seg], fields))
+        for d in range(3):
+            if r[d, d] < 0.0:
+                sign = -sign
+        det = sign * (fields[0, 0] * (fields[1, 1] * fields[2, 2] - fields[1, 2] * fields[2, 1])
+                      - fields[0, 1] * (fields[1, 0] * fields[2, 2] - fields[1, 2] * fields[2, 0])
+                      + fields[0, 2] * (fields[1, 0] * fields[2, 1] - fields[1, 1] * fields[2, 0]))
         if not det > 0.0:
             return det
         smallest = min(smallest, det)

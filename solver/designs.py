@@ -212,6 +212,24 @@ class TubeMaterial:
         """Braid lock-up stretch λmax = 1/(√3 cos α)."""
         return max_stretch(self.wind_angle_deg)
 
+    @property
+    def ring_stiffness(self) -> float:
+        """Contact stiffness of the unpressurised tube squeezed across a diameter (N/m²):
+        line load per unit length of tube per metre of diametral compression.
+
+        A ring of mean radius R = (Ro + Ri)/2 and wall t = Ro − Ri under a diametral line
+        load w per length compresses by δ = 0.1488·w·R³/D (Roark's Formulas for Stress and
+        Strain, thin circular ring loaded by two opposed forces), with the plate bending
+        stiffness D = E t³ / (12 (1 − ν²)) of the wall, ν = ½ for rubber. It is the
+        penalty stiffness of contact through the tube (about 1e5 N/m² for OctArm V): a lower
+        bound, since the pressure adds membrane stiffness, and a rough one, the wall being
+        thick (t/R ≈ 0.4). See docs/design.md, "Contact stiffness".
+        """
+        t = self.outer_radius - self.inner_radius
+        radius = 0.5 * (self.outer_radius + self.inner_radius)
+        plate = self.youngs_modulus * t**3 / (12.0 * (1.0 - 0.25))
+        return plate / (0.1488 * radius**3)
+
 
 @dataclass(frozen=True)
 class Section:

@@ -20,7 +20,10 @@ class Disc:
             arm's half-thickness if the arm's surface, not its axis, should touch.
         stiffness: penalty k (N/m²): force per unit reference length per metre of
             penetration. Larger is stiffer and harder for the solver; 2e4 gives ~1 mm
-            penetration under ~20 N/m of contact load.
+            penetration under ~20 N/m of contact load. ``math.inf``: a rigid disc (hard
+            contact), solved by penalty continuation until the deepest penetration is
+            below ``Settings.gap_tol``. A physical value for an arm's own compliance is
+            :meth:`solver.designs.TubeMaterial.ring_stiffness` of its outer tubes.
     """
 
     center: tuple = (0.0, 0.0)
@@ -34,9 +37,12 @@ class Disc:
         object.__setattr__(self, "center", (float(c[0]), float(c[1])))
         for name in ("radius", "stiffness"):
             v = getattr(self, name)
+            rigid_ok = name == "stiffness" and v == math.inf
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
-                    or not math.isfinite(v) or v <= 0:
-                raise ValueError(f"Disc.{name} must be a finite number > 0; got {v!r}")
+                    or not (math.isfinite(v) or rigid_ok) or v <= 0:
+                what = "a number > 0 or math.inf (rigid)" if name == "stiffness" else \
+                    "a finite number > 0"
+                raise ValueError(f"Disc.{name} must be {what}; got {v!r}")
             object.__setattr__(self, name, float(v))
 
 
@@ -111,6 +117,11 @@ class Scene:
         if isinstance(self.tip_moment, float):
             return np.array([0.0, 0.0, self.tip_moment])
         return np.array(self.tip_moment, dtype=float)
+
+    @property
+    def has_rigid_obstacles(self) -> bool:
+        """True when an obstacle is rigid (``stiffness=math.inf``, hard contact)."""
+        return any(d.stiffness == math.inf for d in self.obstacles)
 
     @property
     def is_planar(self) -> bool:

@@ -49,6 +49,9 @@ class Settings:
             penalty makes contact paths turn sharply, and the step that may not tunnel
             through a disc is short where the backbone sweeps past one.
         n_scan: grid points of the fold scan over the base moment (0: no scan).
+        gap_tol: deepest penetration (m) a rigid obstacle (``Disc(stiffness=math.inf)``) may
+            be left with: its penalty is stiffened tenfold until the solve meets it (up to
+            ``RIGID_MAX_STIFFNESS``; about 1e-5 m is reachable for OctArm-sized arms).
         shortcuts: skip what a scene does not need (closed-form arcs when unloaded, the
             planar kernel for in-plane spatial solves). False forces the general path; the
             tests use it to check that each shortcut agrees with it.
@@ -61,13 +64,14 @@ class Settings:
     dt_min: float = 1.0 / 256.0
     contact_dt_min: float = 1.0 / 16384.0
     n_scan: int = 96
+    gap_tol: float = 1e-4
     shortcuts: bool = True
 
     def __post_init__(self):
         if int(self.steps_per_section) != self.steps_per_section or self.steps_per_section < 1:
             raise ValueError(f"steps_per_section must be an integer >= 1; got {self.steps_per_section}")
         if not (self.tol > 0 and self.max_iter >= 1 and 0 < self.dt_min <= self.dt0 <= 1
-                and 0 < self.contact_dt_min <= self.dt0
+                and 0 < self.contact_dt_min <= self.dt0 and 0 < self.gap_tol
                 and (self.n_scan == 0 or self.n_scan >= 4)):
             raise ValueError(f"invalid solver settings: {self}")
 
@@ -116,6 +120,8 @@ class Equilibrium:
         in_contact: the backbone presses on an obstacle somewhere (False without obstacles).
         base_force: internal force n(0) at the base (N, world frame).
         pressures: the pressures solved for (Pa), in the order of ``design.input_names``.
+        penalty_stiffness: with rigid obstacles, the penalty stiffness (N/m²) that met
+            ``Settings.gap_tol`` (NaN otherwise).
         model, planar: what was solved.
     """
 
@@ -145,6 +151,7 @@ class Equilibrium:
     shooting_nodes: np.ndarray = field(default_factory=_empty(0), repr=False)
     scene: Scene | None = field(default=None, repr=False)
     channel_pressures: np.ndarray = field(default_factory=_empty(0), repr=False)
+    penalty_stiffness: float = math.nan
 
     @property
     def tip_angle(self) -> float:
@@ -393,8 +400,8 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
     if scene.obstacles and model != "constant_curvature":
         if not planar:
             raise ValueError("obstacles (contact) are supported in planar solves only")
-        eq = _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                            settings)
+        contact = _solve_rigid if scene.has_rigid_obstacles else _solve_contact
+        eq = contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings)
     elif model == "constant_curvature" or (settings.shortcuts and not _has_load(arm, scene)):
         eq = _closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     elif planar:
@@ -954,6 +961,63 @@ def _solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, 
                            warm_start, record, settings, load_moments=True)
 
 
+# Penalty continuation for rigid obstacles (Disc(stiffness=math.inf)): the first penalty
+# makes the decay length (EI/k)^¼ a twentieth of the arm; each stage stiffens it tenfold.
+# Beyond ~1e8 N/m² the forward-difference segment Jacobians (positions perturbed by 1e-7·L
+# against a penalty that turns that into ~100 N/m) are too coarse for the stability test;
+# OctArm V reaches 1e-5 m of penetration at 1.2e8.
+RIGID_GROWTH = 10.0
+RIGID_MAX_STIFFNESS = 3e8
+
+
+def _solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """A solve with rigid obstacles (hard contact) by penalty continuation.
+
+    The rigid discs get a finite penalty k: from a warm start its final one, else the k
+    at which the decay length (EI_min/k)^¼ is L/20. After each solve, while the deepest
+    penetration exceeds ``settings.gap_tol``, k is multiplied by RIGID_GROWTH and the
+    solve continues from the last state, the penalty ramped up along the path (the
+    homotopy of :func:`_solve_shooting`). The penetration falls as 1/k and the state
+    converges to the hard-contact limit (tested). If the penetration is still above
+    ``gap_tol`` where the next stage would pass RIGID_MAX_STIFFNESS, the result is reported
+    unconverged.
+    """
+    warm_k = warm_start.penalty_stiffness if warm_start is not None else math.nan
+    stiffness = warm_k if math.isfinite(warm_k) else min(
+        s.EI for s in arm.sections) * (20.0 / arm.length) ** 4
+    eq = warm_start
+    iterations = 0
+    while True:
+        stage = replace(scene, obstacles=tuple(
+            replace(d, stiffness=stiffness) if d.stiffness == math.inf else d
+            for d in scene.obstacles))
+        eq = _solve_contact(arm, packed, p_inputs, p_channel, stage, model, eq, True, settings)
+        iterations += eq.iterations
+        deepest = float(eq.penetration.max()) if eq.penetration.size else 0.0
+        met = deepest <= settings.gap_tol
+        if not eq.converged or met or stiffness * RIGID_GROWTH > RIGID_MAX_STIFFNESS:
+            break
+        stiffness *= RIGID_GROWTH
+    eq = replace(eq, scene=scene, penalty_stiffness=stiffness, iterations=iterations,
+                 converged=bool(eq.converged and met))
+    return eq if record else _unrecorded(eq)
+
+
+def _unrecorded(eq):
+    """``eq`` without its backbone samples (a solve with ``record=False``)."""
+    return Equilibrium(**{f: getattr(eq, f) for f in (
+        "tip", "converged", "stable", "iterations", "residual", "snapped", "in_contact",
+        "base_force", "pressures", "model", "planar", "base_moment", "shooting_nodes", "scene",
+        "channel_pressures", "penalty_stiffness")})
+
+
+def _effective_discs(scene, stiffness):
+    """The scene's discs as a kernel array, rigid ones at the penalty ``stiffness``."""
+    discs = scene.discs_array()
+    discs[discs[:, 3] == math.inf, 3] = stiffness
+    return discs
+
+
 def _solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
     """Planar solve with penalty contact against the scene's discs (:mod:`solver._contact`).
 
@@ -1028,6 +1092,8 @@ def _solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mo
             _context(arm, layout, start_scene, 2, settings)
         if warm_start.shooting_nodes.shape == weights.shape:
             nodes = warm_start.shooting_nodes.copy()
+        elif warm_start.s.size:
+            nodes = _nodes_from_record(warm_start, layout, segs, sec_start)
         else:
             free = np.empty((layout.n_rows, _planar.N_COLUMNS))
             _planar._integrate(float(warm_start.base_moment[-1]), scene.base_theta, layout.secf,
@@ -1037,7 +1103,13 @@ def _solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mo
             nodes = _nodes_from_states(free[:, [P.X, P.Y, P.THETA, P.NX, P.NY, P.M]], segs)
         start_plate, start_target = _ms_terms(arm, layout, segs, start_scene, start_ctx,
                                               load_moments)[:2]
-        start = (p_start, start_ctx.q, start_plate, start_target, goal[_contact.L_DISCS])
+        # The same obstacles at the warm start's stiffness (a stiffer penalty is ramped in),
+        # or the scene's where they differ.
+        start_discs = _effective_discs(warm_start.scene, warm_start.penalty_stiffness)
+        if start_discs.shape != goal[_contact.L_DISCS].shape or np.any(
+                start_discs[:, :3] != goal[_contact.L_DISCS][:, :3]):
+            start_discs = goal[_contact.L_DISCS]
+        start = (p_start, start_ctx.q, start_plate, start_target, start_discs)
     else:
         nodes, iterations, loaded = _loaded_nodes(arm, layout, segs, sec_start, scene, ctx,
                                                   settings, load_moments)
@@ -1193,6 +1265,27 @@ def _planar_loads(layout, level):
 
 def _shooting_dt_min(scene, settings):
     return settings.contact_dt_min if scene.obstacles else settings.dt_min
+
+
+def _nodes_from_record(eq, layout, segs, sec_start):
+    """Multiple-shooting nodes on ``layout`` from a recorded equilibrium at another
+    resolution, interpolated linearly in arc length within each section (so that a node at
+    a section start takes the internal force past the endplate)."""
+    states = np.column_stack([eq.positions, eq.angles, eq.internal_force, eq.internal_moment])
+    ends = np.asarray(eq.section_ends)
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    rows = segs[:, _contact.SEG_ROW0] + segs[:, _contact.SEG_FIRST]
+    s_rows = np.concatenate([np.linspace(0, n, n + 1) * h + s0 for n, h, s0 in zip(
+        layout.sec_steps, layout.sec_len / layout.sec_steps, sec_start)])
+    out = np.empty((layout.n_rows, 6))
+    row = 0
+    for i, n in enumerate(layout.sec_steps):
+        part = slice(starts[i], ends[i] + 1)
+        for c in range(6):
+            out[row:row + n + 1, c] = np.interp(s_rows[row:row + n + 1], eq.s[part],
+                                                states[part, c])
+        row += n + 1
+    return np.concatenate([out[rows[0], 3:], out[rows[1:]].ravel()])
 
 
 def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_moments):

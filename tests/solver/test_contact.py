@@ -1,5 +1,7 @@
 """Penalty contact against discs: agrees with the free rod when out of reach; balances forces."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -300,3 +302,51 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
                                np.empty((segs.shape[0], 6, 6)))
     assert np.abs(F).max() < 1e-6  # the planar equilibrium, in multiple-shooting form
     assert (measure > 0) == stable
+
+
+def _curl_into_disc(stiffness):
+    return solver.Scene(base_angle_deg=0,
+                        obstacles=(solver.Disc((-0.20, -0.55), 0.12, stiffness),))
+
+
+def test_penalty_converges_to_the_hard_contact_limit():
+    """As the penalty stiffens tenfold, the penetration falls about fivefold and the tip moves
+    less and less (by 9 mm, 1.8 mm, 0.37 mm, 0.06 mm): the penalty solution converges to the
+    hard-contact one, and a rigid disc (penalty continuation to 3e-5 m) lands on its limit."""
+    arm = designs.octarm_v()
+    p = np.array([60, 0, 60, 0, 60, 0]) * PSI
+    tips, depths = [], []
+    for k in (1e4, 1e5, 1e6, 1e7, 1e8):
+        eq = solver.solve(arm, p, _curl_into_disc(k))
+        assert eq.converged and eq.stable
+        tips.append(eq.tip)
+        depths.append(eq.penetration.max())
+    moves = np.linalg.norm(np.diff(tips, axis=0), axis=1)
+    assert np.all(moves[1:] < moves[:-1] / 3)
+    assert np.all(np.array(depths[1:]) < np.array(depths[:-1]) / 3)
+    hard = solver.solve(arm, p, _curl_into_disc(math.inf), settings=solver.Settings(gap_tol=3e-5))
+    assert hard.converged and hard.penetration.max() <= 3e-5
+    assert np.linalg.norm(hard.tip - tips[-1]) <= moves[-1]
+
+
+def test_rigid_disc_along_a_warm_ramp():
+    """Warm steps against a rigid disc start at the penalty the last step ended with and keep
+    every penetration within the gap tolerance."""
+    arm = designs.octarm_v()
+    scene = _curl_into_disc(math.inf)
+    p = np.array([60, 0, 60, 0, 60, 0]) * PSI
+    eq = None
+    for frac in np.linspace(0, 1, 11):
+        eq = solver.solve(arm, frac * p, scene, warm_start=eq)
+        assert eq.converged
+        assert eq.penetration.max() <= solver.Settings().gap_tol
+        assert math.isfinite(eq.penalty_stiffness) or not eq.in_contact
+    cold = solver.solve(arm, p, scene)
+    assert cold.converged and eq.in_contact
+    np.testing.assert_allclose(eq.tip, cold.tip, atol=2e-4)  # both within the gap tolerance
+
+
+def test_rigid_disc_validation():
+    assert solver.Disc(stiffness=math.inf).stiffness == math.inf
+    with pytest.raises(ValueError, match="math.inf"):
+        solver.Disc(stiffness=math.nan)
