@@ -114,7 +114,10 @@ class WrapEnv(SoftArmEnv):
     ``action_mode``, ``delta_scale``, ``n_backbone``, ``observation_format``,
     ``initial_pressure_fraction``, ``solver_failure_penalty``, ``max_solver_failures``,
     ``model``, ``render_mode``, ``render_size``), plus: ``object_radius`` (a number or
-    ``(low, high)`` range, m; default (0.09, 0.11)), ``contact_stiffness`` (1e5 N/m²),
+    ``(low, high)`` range, m; default (0.09, 0.11)), ``contact_stiffness`` (``"tube"``: the
+    ring stiffness of the distal section's tubes, ``TubeMaterial.ring_stiffness``, 9.8e4 N/m²
+    for OctArm V and CT — the arm's own compliance, see docs/design.md §9; a number in N/m²;
+    or ``"rigid"`` for hard contact),
     ``contact_margin`` (5 mm), ``placement_gap`` (1 cm), ``placement_wrap_deg`` (300),
     ``wrap_weight`` (1), ``approach_weight`` (1), ``penetration_weight`` (0.1),
     ``penetration_tolerance`` (5 mm), ``control_weight`` (0.01), ``success_bonus`` (1),
@@ -134,7 +137,7 @@ class WrapEnv(SoftArmEnv):
     """
 
     def __init__(self, design="octarm_v", *, object_radius=(0.09, 0.11),
-                 contact_stiffness: float = 1.0e5, contact_margin: float = 0.005, placement_gap: float = 0.01,
+                 contact_stiffness="tube", contact_margin: float = 0.005, placement_gap: float = 0.01,
                  placement_wrap_deg: float = 300.0, wrap_weight: float = 1.0,
                  approach_weight: float = 1.0, penetration_weight: float = 0.1,
                  penetration_tolerance: float = 0.005, control_weight: float = 0.01,
@@ -143,9 +146,11 @@ class WrapEnv(SoftArmEnv):
         self.object_radius_range = _range("object_radius", object_radius)
         if self.object_radius_range[0] <= 0:
             raise ValueError(f"object_radius must be > 0 (m); got {object_radius!r}")
-        self.contact_stiffness = _finite_number("contact_stiffness", contact_stiffness, 0.0)
-        if self.contact_stiffness <= 0:
-            raise ValueError(f"contact_stiffness must be > 0 (N/m²); got {contact_stiffness}")
+        if contact_stiffness not in ("tube", "rigid"):
+            _finite_number("contact_stiffness", contact_stiffness, 0.0)
+            if contact_stiffness <= 0:
+                raise ValueError(f"contact_stiffness must be > 0 (N/m²), 'tube' or 'rigid'; got "
+                                 f"{contact_stiffness}")
         self.contact_margin = _finite_number("contact_margin", contact_margin, 0.0)
         self.placement_gap = _finite_number("placement_gap", placement_gap, 0.0)
         self.placement_wrap_deg = _finite_number("placement_wrap_deg", placement_wrap_deg, 0.0)
@@ -173,6 +178,11 @@ class WrapEnv(SoftArmEnv):
             raise ValueError(f"object_radius {self.object_radius_range[1]} m must be smaller than "
                              f"the arm's length {self.arm.length:.3f} m")
         self.half_thickness = arm_half_thickness(self.arm)
+        if contact_stiffness == "tube":
+            last = len(self.arm.sections) - 1
+            contact_stiffness = min(t.material.ring_stiffness for t in self.arm.tubes
+                                    if t.last_section >= last)
+        self.contact_stiffness = math.inf if contact_stiffness == "rigid" else float(contact_stiffness)
 
     def _goal_bounds(self):
         r = self.reach
@@ -217,7 +227,9 @@ class WrapEnv(SoftArmEnv):
         disc = solver.Disc(center=(float(center[0]), float(center[1])), radius=contact,
                            stiffness=self.contact_stiffness)
         scene = replace(self._scene, obstacles=(disc,))
-        eq = solver.solve(self._sim_arm, start.pressures, scene, model=self.model, planar=True)
+        # From the start state itself: the disc is placed clear of it, so the state stands.
+        eq = solver.solve(self._sim_arm, start.pressures, scene, model=self.model, planar=True,
+                          warm_start=start)
         if not eq.converged:
             return None
         self._center = np.array(disc.center)
