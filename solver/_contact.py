@@ -13,15 +13,17 @@ deep wrap amplifies errors by e^(contact length/ℓ) and fails. We use multiple 
 arm is cut into segments of a few RK4 steps (chosen by the wrapper, see below),
 the state at every segment start is an unknown, and Newton solves continuity between
 segments plus the free-tip conditions n(L) = F_tip + W_plate, m(L) = M_tip. Endplate weights
-jump n at the junctions. The segment maps' Jacobians come from forward differences, and the
-banded Newton system is solved in O(N) (:func:`_band_solve`).
+jump n at the junctions. The segment maps' Jacobians are integrated with the segments (the
+variational equations, through the same RK4 stages: the exact derivative of the discrete
+map), and the banded Newton system is solved in O(N) (:func:`_band_solve`).
 
 Resolution: the penalty's kink where the backbone meets a disc costs RK4 its order, and a
-contact patch shorter than a step is seen by one or two stages only; so in contact the
-wrapper refines the steps to h ≤ ℓ/10 (tip error ≤ 3e-5·L against a 512-step solve on the
-tests' scenes). Splitting each step exactly at the crossings was tried: it is more accurate
-per step, but the split points move with the state, the map gets kinks where one crosses a
-step boundary, and Newton stalls on them along deep wraps.
+contact patch shorter than a step is seen by one or two stages only. Steps are half the
+decay length away from discs and refined fivefold near them (:func:`_segment`), which keeps
+the tip within 5e-5·L of a 512-step solve with contact at the free tip or further in.
+Splitting each step exactly at the crossings was tried: more accurate per step, but the
+split points move with the state, the map gets kinks where one crosses a step boundary, and
+Newton stalls on them along deep wraps.
 
 Stability: the Jacobi fields of the free tip are carried back to the base through the
 segment maps' Jacobians (:func:`_stability`): the conjugate-point test of the spatial
@@ -35,7 +37,7 @@ import math
 import numpy as np
 
 from solver._jit import njit
-from solver._obstacles import _contact_force, _tunnels
+from solver._obstacles import _contact_force, _contact_stiffness, _nearest_surface, _tunnels
 from solver._rod import _rest_strains
 
 # Columns of recorded samples: s, x, y, θ, n_x, n_y, m, f_x, f_y, penetration, v1, v3, u
@@ -47,6 +49,9 @@ SEG_SECTION, SEG_FIRST, SEG_STEPS, SEG_END, SEG_ROW0 = range(5)
 # Bandwidth of the shooting Jacobian (sub- and super-diagonals: a row of segment k's
 # continuity couples its 6-state start to the next segment's), and its band storage: the
 # rows of LAPACK's dgbtrf layout, with room for the fill-in of partial pivoting.
+# RK4 substeps per step near a disc (see _segment): with steps of half the decay length
+# (EI/k)^¼ away from contact, a tenth of it where the arm may touch.
+NEAR_SUBSTEPS = 5
 BAND = 2 * 8
 BAND_ROWS = 3 * 8 + 1
 # A sample may sink this much deeper (in m) between two accepted states than at either: the
@@ -116,14 +121,101 @@ def _rk4(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs):
 
 
 @njit
-def _segment(z, seg, grid, rest, level, out_state, work, record, out):
+def _tangent_rhs(st, P, dP, ca, cg, ci, vr, discs):
+    """dP = A(st)·P for the tangent P (6, 6) of the state, A = ∂(state')/∂(state) of
+    :func:`_rhs`, written out over A's non-zeros (14 of 36)."""
+    th = st[2]
+    nx = st[3]
+    ny = st[4]
+    c = math.cos(th)
+    sn = math.sin(th)
+    n1 = -nx * sn + ny * c
+    n3 = nx * c + ny * sn
+    v1 = n1 * cg
+    v3 = vr + n3 * ca
+    # x' = v3 c − v1 s, y' = v3 s + v1 c with ∂n1/∂θ = −n3, ∂n3/∂θ = n1.
+    a02 = ca * n1 * c - v3 * sn + cg * n3 * sn - v1 * c
+    a03 = ca * c * c + cg * sn * sn
+    a04 = (ca - cg) * sn * c
+    a12 = ca * n1 * sn + v3 * c - cg * n3 * c - v1 * sn
+    a14 = ca * sn * sn + cg * c * c
+    # m' = (cg − ca) n1 n3 − vr n1
+    a52 = (cg - ca) * (n1 * n1 - n3 * n3) + vr * n3
+    a53 = (cg - ca) * (-sn * n3 + n1 * c) + vr * sn
+    a54 = (cg - ca) * (c * n3 + n1 * sn) - vr * c
+    k00, k01, k11 = _contact_stiffness(st[0], st[1], discs)
+    for j in range(6):
+        p0 = P[0, j]
+        p1 = P[1, j]
+        p2 = P[2, j]
+        p3 = P[3, j]
+        p4 = P[4, j]
+        dP[0, j] = a02 * p2 + a03 * p3 + a04 * p4
+        dP[1, j] = a12 * p2 + a04 * p3 + a14 * p4
+        dP[2, j] = ci * P[5, j]
+        dP[3, j] = -(k00 * p0 + k01 * p1)
+        dP[4, j] = -(k01 * p0 + k11 * p1)
+        dP[5, j] = a52 * p2 + a53 * p3 + a54 * p4
+
+
+@njit
+def _rk4_tangent(st, P, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs):
+    """:func:`_rk4` on the state and, with the same stages, on its tangent ``P`` (6, 6), in
+    place: the exact derivative of the RK4 step (where no stage point sits on a disc
+    surface). ``tw`` (5, 6, 6) scratch."""
+    k1 = work[0]
+    k2 = work[1]
+    k3 = work[2]
+    k4 = work[3]
+    tmp = work[4]
+    K1 = tw[0]
+    K2 = tw[1]
+    K3 = tw[2]
+    K4 = tw[3]
+    Q = tw[4]
+    _rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
+    _tangent_rhs(st, P, K1, ca, cg, ci, vr, discs)
+    for d in range(6):
+        tmp[d] = st[d] + 0.5 * h * k1[d]
+        for e in range(6):
+            Q[d, e] = P[d, e] + 0.5 * h * K1[d, e]
+    _rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
+    _tangent_rhs(tmp, Q, K2, ca, cg, ci, vr, discs)
+    for d in range(6):
+        tmp[d] = st[d] + 0.5 * h * k2[d]
+        for e in range(6):
+            Q[d, e] = P[d, e] + 0.5 * h * K2[d, e]
+    _rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
+    _tangent_rhs(tmp, Q, K3, ca, cg, ci, vr, discs)
+    for d in range(6):
+        tmp[d] = st[d] + h * k3[d]
+        for e in range(6):
+            Q[d, e] = P[d, e] + h * K3[d, e]
+    _rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
+    _tangent_rhs(tmp, Q, K4, ca, cg, ci, vr, discs)
+    for d in range(6):
+        st[d] += h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+        for e in range(6):
+            P[d, e] += h / 6.0 * (K1[d, e] + 2.0 * K2[d, e] + 2.0 * K3[d, e] + K4[d, e])
+
+
+@njit
+def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw):
     """Integrate segment ``seg`` from state ``z`` (6,) into ``out_state`` (6,).
 
     ``grid`` = (θ0, segs, secf, steps, sec_start) and ``level`` (a level tuple, see
     ``L_P``…) give the layout and loads. Applies the endplate jump n(s⁺) = n(s⁻) − W at a
-    section end (not at the tip: that is the boundary condition). ``work`` is (5, 6)
+    section end (not at the tip: that is the boundary condition). ``work`` is (7, 6)
     scratch. With ``record``, writes the segment's nodes (and the section's last node) into
-    ``out``.
+    ``out``. With ``phi`` (6, 6) (not empty), the segment map's Jacobian ∂out_state/∂z is
+    integrated into it alongside (``tw`` (8, 6, 6) scratch).
+
+    Near a disc every RK4 step is refined into NEAR_SUBSTEPS substeps: the penalty's kink at
+    the disc surface, and contact patches shorter than a step, cost RK4 its accuracy there,
+    and only there. A step that cannot reach a disc (its start clears every disc by more
+    than the step's reach, h·|r'|, plus h) is taken whole; in between, the two results are
+    blended with a smoothstep weight of that clearance, so the map stays smooth in the
+    state (a switch would put jumps of RK4's truncation size into it, which stall Newton).
     """
     segs = grid[G_SEGS]
     secf = grid[G_SECF]
@@ -142,14 +234,75 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out):
     vr = rest[2, i]
     qx = q[i, 0]
     qy = q[i, 1]
+    tangent = phi.shape[0] > 0
     st = out_state
     for d in range(6):
         st[d] = z[d]
+        if tangent:
+            for e in range(6):
+                phi[d, e] = 1.0 if d == e else 0.0
+    start = work[5]
+    fine = work[6]
     for j in range(first, first + nst):
         if record:
             _write_row(st, sec_start[i] + j * h, out, segs[seg, SEG_ROW0] + j, ca, cg, ci, ur, vr,
                        discs)
-        _rk4(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
+        if discs.shape[0] > 0:
+            for d in range(6):
+                start[d] = st[d]
+                if tangent:
+                    for e in range(6):
+                        tw[5, d, e] = phi[d, e]
+        if tangent:
+            _rk4_tangent(st, phi, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
+        else:
+            _rk4(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
+        if discs.shape[0] == 0:
+            continue
+        # work[0] holds the slope at the start: r' its first two entries.
+        rx = work[0, 0]
+        ry = work[0, 1]
+        speed = math.sqrt(rx * rx + ry * ry)
+        gap, ux, uy = _nearest_surface(start[0], start[1], discs)
+        clear = gap - h * speed
+        if clear >= h:
+            continue
+        for d in range(6):
+            fine[d] = start[d]
+            if tangent:
+                for e in range(6):
+                    tw[6, d, e] = tw[5, d, e]
+        for _ in range(NEAR_SUBSTEPS):
+            if tangent:
+                _rk4_tangent(fine, tw[6], h / NEAR_SUBSTEPS, work, tw, ca, cg, ci, ur, vr, qx, qy,
+                             discs)
+            else:
+                _rk4(fine, h / NEAR_SUBSTEPS, work, ca, cg, ci, ur, vr, qx, qy, discs)
+        if clear <= 0.0:
+            for d in range(6):
+                st[d] = fine[d]
+                if tangent:
+                    for e in range(6):
+                        phi[d, e] = tw[6, d, e]
+            continue
+        x = 1.0 - clear / h
+        weight = x * x * (3.0 - 2.0 * x)
+        if tangent:
+            # d(weight)/dz = w'(x)·(−1/h)·d(clear)/dz; clear = |r − c| − R − h|r'| at the
+            # step's start, whose tangent is tw[5].
+            dw = -6.0 * x * (1.0 - x) / h
+            _slope_of_speed(start, work[4], ca, cg, vr, rx, ry, speed, h)
+            for e in range(6):
+                grad = ux * tw[5, 0, e] + uy * tw[5, 1, e]
+                for d in range(6):
+                    grad -= work[4, d] * tw[5, d, e]
+                tw[7, 0, e] = dw * grad
+            for d in range(6):
+                for e in range(6):
+                    phi[d, e] = weight * tw[6, d, e] + (1.0 - weight) * phi[d, e] \
+                        + (fine[d] - st[d]) * tw[7, 0, e]
+        for d in range(6):
+            st[d] = weight * fine[d] + (1.0 - weight) * st[d]
     if segs[seg, SEG_END] == 1:
         if record:
             _write_row(st, sec_start[i] + secf[0, i], out, segs[seg, SEG_ROW0] + steps[i], ca, cg,
@@ -157,6 +310,32 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out):
         if i < secf.shape[1] - 1:
             st[3] -= level[L_PLATE][i, 0]
             st[4] -= level[L_PLATE][i, 1]
+
+
+@njit
+def _slope_of_speed(st, out, ca, cg, vr, rx, ry, speed, h):
+    """h·∂|r'|/∂(state) (6,) at ``st`` into ``out``, r' = (rx, ry) its slope."""
+    th = st[2]
+    nx = st[3]
+    ny = st[4]
+    c = math.cos(th)
+    sn = math.sin(th)
+    n1 = -nx * sn + ny * c
+    n3 = nx * c + ny * sn
+    v1 = n1 * cg
+    v3 = vr + n3 * ca
+    a02 = ca * n1 * c - v3 * sn + cg * n3 * sn - v1 * c
+    a03 = ca * c * c + cg * sn * sn
+    a04 = (ca - cg) * sn * c
+    a12 = ca * n1 * sn + v3 * c - cg * n3 * c - v1 * sn
+    a14 = ca * sn * sn + cg * c * c
+    scale = h / speed if speed > 0.0 else 0.0
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = scale * (rx * a02 + ry * a12)
+    out[3] = scale * (rx * a03 + ry * a04)
+    out[4] = scale * (rx * a04 + ry * a14)
+    out[5] = 0.0
 
 
 @njit
@@ -175,31 +354,31 @@ def _start_state(Z, seg, theta0, z):
 
 
 @njit
-def _system(Z, grid, rest, level, eps, F, J, want_jac, blocks):
+def _system(Z, grid, rest, level, F, J, want_jac, blocks):
     """Residuals F (N,) of the multiple-shooting system and, if ``want_jac``, its Jacobian J.
 
     Unknowns Z: (n0x, n0y, m0), then the 6-state at the start of segments 1..M−1. Rows: the
     6 continuity conditions of segments 0..M−2, then n(L), m(L) against the level's tip
     target. J is banded (each row couples one segment's start to the next's) and is stored
     in the band form of :func:`_band_solve`, ``(BAND_ROWS, N)``. The segment maps'
-    derivatives are forward differences with steps ``eps`` (6,) per state component, kept in
-    ``blocks`` (M, 6, 6). With ``want_jac``, returns the stability measure of
-    :func:`_stability` (positive: stable).
+    Jacobians are integrated with the segments (:func:`_segment`) into ``blocks``
+    (M, 6, 6) (their stability test: :func:`_stability`).
     """
     segs = grid[G_SEGS]
     target = level[L_TARGET]
     n_seg = segs.shape[0]
     z = np.empty(6)
-    zp = np.empty(6)
     end = np.empty(6)
-    endp = np.empty(6)
-    work = np.empty((5, 6))
+    work = np.empty((7, 6))
+    tw = np.empty((8, 6, 6))
+    no_tangent = np.empty((0, 6))
     dummy = np.empty((1, N_COLUMNS))
     if want_jac:
         J[:, :] = 0.0  # band storage: A[i, j] at J[BAND + i − j, j]
     for seg in range(n_seg):
         _start_state(Z, seg, grid[G_THETA0], z)
-        _segment(z, seg, grid, rest, level, end, work, False, dummy)
+        block = blocks[seg] if want_jac else no_tangent
+        _segment(z, seg, grid, rest, level, end, work, False, dummy, block, tw)
         row = 6 * seg
         last = seg == n_seg - 1
         if not last:
@@ -214,14 +393,6 @@ def _system(Z, grid, rest, level, eps, F, J, want_jac, blocks):
         if not last:
             for d in range(6):
                 J[BAND - 3, 3 + 6 * seg + d] = -1.0  # A[row + d, row + d + 3]
-        block = blocks[seg]
-        for c in range(6):
-            for d in range(6):
-                zp[d] = z[d]
-            zp[c] = z[c] + eps[c]
-            _segment(zp, seg, grid, rest, level, endp, work, False, dummy)
-            for d in range(6):
-                block[d, c] = (endp[d] - end[d]) / eps[c]
         # Segment 0 starts at the clamped base: only n0, m0 (its columns 3..5) are unknowns.
         first_comp = 3 if seg == 0 else 0
         col0 = 0 if seg == 0 else 3 + 6 * (seg - 1)
@@ -233,9 +404,6 @@ def _system(Z, grid, rest, level, eps, F, J, want_jac, blocks):
             else:
                 for d in range(3):
                     J[BAND + row + d - col, col] = block[3 + d, c]
-    if not want_jac:
-        return 1.0
-    return _stability(blocks)
 
 
 @njit
@@ -253,29 +421,100 @@ def _stability(blocks):
     contact states unstable.
 
     Under a stiff penalty the fields grow like e^(s/ℓ) across a contact and turn parallel,
-    so they are re-orthonormalised (QR) at every segment, the sign of the factors' product
-    kept: det δ(x, y, θ)(s) has the sign of sign · det Q(x, y, θ)(s). Returns the smallest
-    such signed det of the orthonormalised fields over segment starts.
+    so they are re-orthonormalised (Gram–Schmidt) at every segment: that multiplies them by
+    a triangular matrix of positive determinant, which keeps the sign of det δ(x, y, θ)(s).
+    Returns the smallest det of the orthonormalised fields over segment starts.
     """
     fields = np.zeros((6, 3))
     for d in range(3):
         fields[d, d] = 1.0
-    sign = 1.0
+    lu = np.empty((6, 6))
+    perm = np.empty(6, dtype=np.int64)
     smallest = 1.0
     for seg in range(blocks.shape[0] - 1, -1, -1):
-        if not np.all(np.isfinite(blocks[seg])):
+        for a in range(6):
+            for b in range(6):
+                lu[a, b] = blocks[seg, a, b]
+        if not _lu6(lu, perm):
             return -1.0
-        fields, r = np.linalg.qr(np.linalg.solve(blocks[seg], fields))
-        for d in range(3):
-            if r[d, d] < 0.0:
-                sign = -sign
-        det = sign * (fields[0, 0] * (fields[1, 1] * fields[2, 2] - fields[1, 2] * fields[2, 1])
-                      - fields[0, 1] * (fields[1, 0] * fields[2, 2] - fields[1, 2] * fields[2, 0])
-                      + fields[0, 2] * (fields[1, 0] * fields[2, 1] - fields[1, 1] * fields[2, 0]))
+        for c in range(3):
+            _lu6_solve(lu, perm, fields[:, c])
+        if not _orthonormalise(fields):
+            return 0.0
+        det = (fields[0, 0] * (fields[1, 1] * fields[2, 2] - fields[1, 2] * fields[2, 1])
+               - fields[0, 1] * (fields[1, 0] * fields[2, 2] - fields[1, 2] * fields[2, 0])
+               + fields[0, 2] * (fields[1, 0] * fields[2, 1] - fields[1, 1] * fields[2, 0]))
         if not det > 0.0:
             return det
         smallest = min(smallest, det)
     return smallest
+
+
+@njit
+def _lu6(a, perm):
+    """LU-factor the 6×6 ``a`` in place with partial pivoting (rows ``perm``); False if it
+    is singular or not finite."""
+    for k in range(6):
+        perm[k] = k
+    for k in range(6):
+        p = k
+        for i in range(k + 1, 6):
+            if abs(a[i, k]) > abs(a[p, k]):
+                p = i
+        if not (abs(a[p, k]) > 0.0) or not math.isfinite(a[p, k]):
+            return False
+        if p != k:
+            for c in range(6):
+                tmp = a[k, c]
+                a[k, c] = a[p, c]
+                a[p, c] = tmp
+            tmp_i = perm[k]
+            perm[k] = perm[p]
+            perm[p] = tmp_i
+        for i in range(k + 1, 6):
+            a[i, k] /= a[k, k]
+            for c in range(k + 1, 6):
+                a[i, c] -= a[i, k] * a[k, c]
+    return True
+
+
+@njit
+def _lu6_solve(lu, perm, b):
+    """Solve with the factors of :func:`_lu6`, ``b`` (6,) in place."""
+    x = np.empty(6)
+    for i in range(6):
+        x[i] = b[perm[i]]
+    for i in range(6):
+        for c in range(i):
+            x[i] -= lu[i, c] * x[c]
+    for i in range(5, -1, -1):
+        for c in range(i + 1, 6):
+            x[i] -= lu[i, c] * x[c]
+        x[i] /= lu[i, i]
+    for i in range(6):
+        b[i] = x[i]
+
+
+@njit
+def _orthonormalise(f):
+    """Gram–Schmidt on the three columns of ``f`` (6, 3), in place; False if a column
+    vanished (the fields are then degenerate)."""
+    for c in range(3):
+        for p in range(c):
+            dot = 0.0
+            for d in range(6):
+                dot += f[d, c] * f[d, p]
+            for d in range(6):
+                f[d, c] -= dot * f[d, p]
+        norm = 0.0
+        for d in range(6):
+            norm += f[d, c] * f[d, c]
+        norm = math.sqrt(norm)
+        if not norm > 0.0:
+            return False
+        for d in range(6):
+            f[d, c] /= norm
+    return True
 
 
 @njit
@@ -365,49 +604,68 @@ def _weighted_norm(v, weights):
 
 
 @njit
-def _newton(Z, grid, rest, level, eps, weights, res_weights, tol, max_iter, max_step):
+def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     """Damped Newton on the multiple-shooting system at ``level``; ``Z`` is updated in place.
 
     Residuals and steps are measured in weighted RMS norms (weights: metres for positions,
     radians, the force and moment scales); a step is clipped to ``max_step`` and then halved
     until the residual decreases (a long wrap against a stiff penalty is far from linear
-    over a full Newton step). Returns (converged, iterations, |F|, stable).
+    over a full Newton step). The factored Jacobian is kept while the residual falls at
+    least twentyfold per iteration (a Jacobian costs about two passes over the arm, a
+    residual one) and recomputed otherwise, and at a converged state for its stability
+    test.
+    Returns (converged, iterations, |F|, stable).
     """
     n = Z.shape[0]
     F = np.empty(n)
     F_try = np.empty(n)
     J = np.empty((BAND_ROWS, n))
+    piv = np.empty(n, dtype=np.int64)
     blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
     base = np.empty(n)
     step = np.empty(n)
-    stable = False
-    res = math.inf
+    _system(Z, grid, rest, level, F, J, True, blocks)
+    fresh = True
+    res = _weighted_norm(F, res_weights)
     for it in range(max_iter + 1):
-        dmin = _system(Z, grid, rest, level, eps, F, J, True, blocks)
-        stable = dmin > 0.0
-        res = _weighted_norm(F, res_weights)
         if not math.isfinite(res):
             return False, it, math.inf, False
         if res <= tol:
-            return True, it, res, stable
+            if not fresh:
+                _system(Z, grid, rest, level, F, J, True, blocks)
+            return True, it, res, _stability(blocks) > 0.0
         if it == max_iter:
             break
+        if fresh and not _band_factor(J, piv):
+            return False, it, res, False
         for k in range(n):
             step[k] = F[k]
-        if not _band_solve(J, step):
-            return False, it, res, stable
+        _band_lu_solve(J, piv, step)
         norm = _weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         for k in range(n):
             base[k] = Z[k]
+        res_try = math.inf
         for _ in range(8):
             for k in range(n):
                 Z[k] = base[k] - alpha * step[k]
-            _system(Z, grid, rest, level, eps, F_try, J, False, blocks)
-            if _weighted_norm(F_try, res_weights) < res:
+            _system(Z, grid, rest, level, F_try, J, False, blocks)
+            res_try = _weighted_norm(F_try, res_weights)
+            if res_try < res:
                 break
             alpha *= 0.5
-    return False, max_iter, res, stable
+        slow = not res_try <= 0.05 * res
+        res = res_try
+        for k in range(n):
+            F[k] = F_try[k]
+        fresh = False
+        if slow:
+            _system(Z, grid, rest, level, F, J, True, blocks)
+            res = _weighted_norm(F, res_weights)
+            fresh = True
+    if not fresh:
+        _system(Z, grid, rest, level, F, J, True, blocks)
+    return False, max_iter, res, _stability(blocks) > 0.0
 
 
 # A homotopy end (a "level") is a tuple (p, q, plate, target, discs): channel pressures
@@ -450,8 +708,8 @@ def _at_level(t, a, b, now, tubes_i, tubes_f, secf, rest):
 
 
 @njit
-def _follow(Z, grid, tubes_i, tubes_f, a, b, eps, weights, res_weights, tol, max_iter, max_step,
-            dt0, dt_min, rest, now, predict_cap):
+def _follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, max_step, dt0,
+            dt_min, rest, now, predict_cap):
     """Quasi-static ramp from level ``a`` to level ``b`` (tuples, see ``L_P``…``L_DISCS``;
     cf. :func:`solver._planar._follow`): pressures, distributed loads, endplate weights, tip
     targets and obstacles all linear in t.
@@ -487,11 +745,11 @@ def _follow(Z, grid, tubes_i, tubes_f, a, b, eps, weights, res_weights, tol, max
     has_discs = a[L_DISCS].shape[0] > 0
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
-    _system(Z, grid, rest, now, eps, F, rec_new, False, np.empty((0, 6, 6)))
+    _system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)))
     res = _weighted_norm(F, res_weights)
     total += 1
     if not res <= tol:  # not an equilibrium of ``a`` (or NaN): correct it first
-        ok, its, res, stable = _newton(Z, grid, rest, now, eps, weights, res_weights, tol,
+        ok, its, res, stable = _newton(Z, grid, rest, now, weights, res_weights, tol,
                                        max_iter, max_step)
         total += its
         if not (ok and stable):
@@ -504,7 +762,7 @@ def _follow(Z, grid, tubes_i, tubes_f, a, b, eps, weights, res_weights, tol, max
     # Tangent predictor for the first step. Without it the first step's correction is
     # judged against a zero prediction, and a large pressure change is halved until its
     # correction is small in absolute terms — five or six converged steps thrown away.
-    _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, eps, rest, now, slope)
+    _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, slope)
     total += 1
     while t < 1.0:
         t_new = min(1.0, t + dt)
@@ -518,7 +776,7 @@ def _follow(Z, grid, tubes_i, tubes_f, a, b, eps, weights, res_weights, tol, max
             guess[k] = accepted[k] + cap * slope[k] * (t_new - t)
             Z[k] = guess[k]
         final = t_new >= 1.0
-        ok, its, res, stable = _newton(Z, grid, rest, now, eps, weights, res_weights,
+        ok, its, res, stable = _newton(Z, grid, rest, now, weights, res_weights,
                                        tol if final else 1e3 * tol, max_iter if final else 8,
                                        max_step)
         total += its
@@ -560,14 +818,16 @@ def _record(Z, grid, rest, level, out):
     """Write the backbone of the state ``Z`` into ``out`` (rows Σ(steps + 1), N_COLUMNS)."""
     z = np.empty(6)
     end = np.empty(6)
-    work = np.empty((5, 6))
+    work = np.empty((7, 6))
+    no_tangent = np.empty((0, 6))
+    tw = np.empty((0, 6, 6))
     for seg in range(grid[G_SEGS].shape[0]):
         _start_state(Z, seg, grid[G_THETA0], z)
-        _segment(z, seg, grid, rest, level, end, work, True, out)
+        _segment(z, seg, grid, rest, level, end, work, True, out, no_tangent, tw)
 
 
 @njit
-def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, eps, rest, now, slope):
+def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, slope):
     """dZ/dt = −J⁻¹ ∂F/∂t at the start state (an equilibrium of level ``a``), ∂F/∂t by a
     forward difference, into ``slope``; zero where J or the result is not finite."""
     secf = grid[G_SECF]
@@ -578,9 +838,9 @@ def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, eps, rest, now, slope):
     J = np.empty((BAND_ROWS, n))
     blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
     _at_level(eps_t, a, b, now, tubes_i, tubes_f, secf, rest)
-    _system(Z, grid, rest, now, eps, F1, J, False, blocks)
+    _system(Z, grid, rest, now, F1, J, False, blocks)
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
-    _system(Z, grid, rest, now, eps, F0, J, True, blocks)
+    _system(Z, grid, rest, now, F0, J, True, blocks)
     for k in range(n):
         F1[k] = -(F1[k] - F0[k]) / eps_t
     slope[:] = F1

@@ -46,6 +46,49 @@ def _penalty_energy(pen, stiffness):
 
 
 @njit
+def _contact_stiffness(x, y, discs):
+    """∂f/∂r of :func:`_contact_force` at (x, y), f the penalty force per length: the
+    symmetric 2×2 (k00, k01, k11) summed over the discs pressed,
+    −k ûûᵀ + (k·pen/|d|)(I − ûûᵀ), û = d/|d|, d = r − c."""
+    k00 = 0.0
+    k01 = 0.0
+    k11 = 0.0
+    for d in range(discs.shape[0]):
+        dx = x - discs[d, CX]
+        dy = y - discs[d, CY]
+        dist = math.sqrt(dx * dx + dy * dy)
+        pen = discs[d, RADIUS] - dist
+        if pen > 0.0 and dist > 0.0:
+            k = discs[d, STIFFNESS]
+            ux = dx / dist
+            uy = dy / dist
+            hoop = k * pen / dist
+            k00 += -k * ux * ux + hoop * (1.0 - ux * ux)
+            k01 += -(k + hoop) * ux * uy
+            k11 += -k * uy * uy + hoop * (1.0 - uy * uy)
+    return k00, k01, k11
+
+
+@njit
+def _nearest_surface(x, y, discs):
+    """(gap, ux, uy): the smallest signed gap from (x, y) to a disc surface (m; negative
+    inside) and the outward unit normal of that disc there (∂gap/∂(x, y))."""
+    gap = math.inf
+    ux = 0.0
+    uy = 0.0
+    for d in range(discs.shape[0]):
+        dx = x - discs[d, CX]
+        dy = y - discs[d, CY]
+        dist = math.sqrt(dx * dx + dy * dy)
+        g = dist - discs[d, RADIUS]
+        if g < gap:
+            gap = g
+            ux = dx / dist if dist > 0.0 else 0.0
+            uy = dy / dist if dist > 0.0 else 0.0
+    return gap, ux, uy
+
+
+@njit
 def _clearance(x, y, discs):
     """Smallest signed gap from (x, y) to the disc surfaces (m; negative inside a disc)."""
     gap = math.inf

@@ -51,7 +51,7 @@ class Settings:
         n_scan: grid points of the fold scan over the base moment (0: no scan).
         gap_tol: deepest penetration (m) a rigid obstacle (``Disc(stiffness=math.inf)``) may
             be left with: its penalty is stiffened tenfold until the solve meets it (up to
-            ``RIGID_MAX_STIFFNESS``; about 1e-5 m is reachable for OctArm-sized arms).
+            ``RIGID_MAX_STIFFNESS``; 1e-7 m is reachable for OctArm-sized arms).
         shortcuts: skip what a scene does not need (closed-form arcs when unloaded, the
             planar kernel for in-plane spatial solves). False forces the general path; the
             tests use it to check that each shortcut agrees with it.
@@ -876,18 +876,17 @@ def _solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
                        section_ends=_section_ends(packed), **common_out)
 
 
-# RK4 step in contact, as a fraction of the decay length ℓ = (EI/k)^¼ (see _contact_layout):
-# ℓ/2 left tip errors of 5e-4·L where a short contact patch falls between stages; ℓ/10 keeps
-# them under 3e-5·L.
-CONTACT_STEP = 0.1
+# RK4 step in contact, as a fraction of the decay length ℓ = (EI/k)^¼ (see _contact_layout);
+# the kernel refines steps that may reach a disc (solver._contact.NEAR_SUBSTEPS).
+CONTACT_STEP = 0.5
 
 
 def _contact_layout(arm, packed, scene):
     """Resolution and segments for contact solves (cached per design, settings, stiffness).
 
     In contact, deflections vary over ℓ_i = (EI_i/k)^¼; RK4 steps are refined to
-    h ≤ CONTACT_STEP·ℓ_i (at least the setting's count, at most 1024 per section; the
-    penalty's kink at the disc surface, not ℓ, sets this: see :mod:`solver._contact`) and
+    h ≤ CONTACT_STEP·ℓ_i (at least the setting's count, at most 1024 per section; steps
+    near a disc are subdivided further by the kernel, see :mod:`solver._contact`) and
     multiple-shooting segments span 4 steps.
     """
     stiffness = max(d.stiffness for d in scene.obstacles)
@@ -962,12 +961,11 @@ def _solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, 
 
 
 # Penalty continuation for rigid obstacles (Disc(stiffness=math.inf)): the first penalty
-# makes the decay length (EI/k)^¼ a twentieth of the arm; each stage stiffens it tenfold.
-# Beyond ~1e8 N/m² the forward-difference segment Jacobians (positions perturbed by 1e-7·L
-# against a penalty that turns that into ~100 N/m) are too coarse for the stability test;
-# OctArm V reaches 1e-5 m of penetration at 1.2e8.
+# makes the decay length (EI/k)^¼ a twentieth of the arm; each stage stiffens it tenfold, up
+# to RIGID_MAX_STIFFNESS (OctArm V pressed into a disc: 1e-5 m of penetration at 1.2e8 N/m²,
+# 2e-7 m at 1.2e10).
 RIGID_GROWTH = 10.0
-RIGID_MAX_STIFFNESS = 3e8
+RIGID_MAX_STIFFNESS = 1e11
 
 
 def _solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
@@ -1122,12 +1120,11 @@ def _solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mo
                                     channel_pressures=p_channel)
     now = _contact._new_level(goal)
     rest = np.empty((3, len(arm.sections)))
-    eps = 1e-7 * state_w
     grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
     snapped = False
     for _ in range(MAX_SNAPS + 1):
         ok, its, res, stable, t, dt = _contact._follow(
-            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, eps, weights, res_weights,
+            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, weights, res_weights,
             settings.tol, settings.max_iter, 0.5, settings.dt0, _shooting_dt_min(scene, settings),
             rest, now, math.inf)
         iterations += its
@@ -1135,8 +1132,8 @@ def _solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mo
             break
         # The path cannot go on past level t (a fold): the arm snaps. Find the stable
         # equilibrium it lands on a little further on and continue from there.
-        landed, level = _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, eps,
-                                    weights, res_weights, settings, ctx.params)
+        landed, level = _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, weights,
+                                    res_weights, settings, ctx.params)
         if landed is None:
             break
         nodes[:] = landed
@@ -1167,7 +1164,7 @@ def _level_span(start, goal, p_max):
     return max(span, 1e-12)
 
 
-def _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, eps, weights, res_weights,
+def _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, weights, res_weights,
                 settings, params):
     """The snap of a multiple-shooting path that ends at a fold at level t (step dt failed
     beyond it): (landed nodes, their level) or (None, None).
@@ -1186,8 +1183,8 @@ def _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, eps, weights,
         level = _interpolate_level(start, goal, min(1.0, t_over), arm.max_pressure)
         over = _interpolate_level(start, goal, t_over, arm.max_pressure) if t_over > 1.0 \
             else None
-        landed = _snap(nodes, grid, layout, now, level, over, eps, weights, res_weights,
-                       settings, params)
+        landed = _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
+                       params)
         if landed is not None:
             return landed, level
     return None, None
@@ -1200,7 +1197,7 @@ def _interpolate_level(start, goal, t, p_max):
     return (np.clip(level[0], 0.0, p_max), *level[1:])
 
 
-def _snap(nodes, grid, layout, now, level, over, eps, weights, res_weights, settings, params):
+def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings, params):
     """Where a multiple-shooting path ends at a fold: the stable equilibrium at ``level``
     that the arm, at ``nodes`` (level ``now``), snaps to; None if none is found.
 
@@ -1244,7 +1241,7 @@ def _snap(nodes, grid, layout, now, level, over, eps, weights, res_weights, sett
                 return None
             states, state = relaxed
         landed = _nodes_from_states(states, segs)
-    ok, _, _, stable = C._newton(landed, grid, rest, level, eps, weights, res_weights,
+    ok, _, _, stable = C._newton(landed, grid, rest, level, weights, res_weights,
                                  settings.tol, 4 * settings.max_iter, 0.5)
     return landed if ok and stable else None
 
@@ -1320,8 +1317,8 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
         goal = (p0, ctx.q, plate, target, discs)
         grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
         ok, its, res, stable, _, _ = _contact._follow(
-            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, 1e-7 * state_w, weights,
-            res_weights, settings.tol, settings.max_iter, 0.5, settings.dt0,
+            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, weights, res_weights,
+            settings.tol, settings.max_iter, 0.5, settings.dt0,
             _shooting_dt_min(scene, settings), np.empty((3, len(arm.sections))),
             _contact._new_level(goal), 0.5)
         hit = arm._solver_cache[key] = (nodes, int(its), bool(ok and stable))
