@@ -977,7 +977,8 @@ def _solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, rec
     solve continues from the last state, the penalty ramped up along the path (the
     homotopy of :func:`_solve_shooting`). The penetration falls as 1/k and the state
     converges to the hard-contact limit (tested). If the penetration is still above
-    ``gap_tol`` where the next stage would pass RIGID_MAX_STIFFNESS, the result is reported
+    ``gap_tol`` where the next stage would pass RIGID_MAX_STIFFNESS, or a stage does not
+    converge (the last converged stage is then returned), the result is reported
     unconverged.
     """
     warm_k = warm_start.penalty_stiffness if warm_start is not None else math.nan
@@ -989,11 +990,22 @@ def _solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, rec
         stage = replace(scene, obstacles=tuple(
             replace(d, stiffness=stiffness) if d.stiffness == math.inf else d
             for d in scene.obstacles))
-        eq = _solve_contact(arm, packed, p_inputs, p_channel, stage, model, eq, True, settings)
-        iterations += eq.iterations
+        attempt = _solve_contact(arm, packed, p_inputs, p_channel, stage, model, eq, True,
+                                 settings)
+        iterations += attempt.iterations
+        if not attempt.converged:
+            # Keep the last stage that converged (stiffness one step back), reported as not
+            # meeting the tolerance; a first stage that fails is returned as it is.
+            if eq is None or eq is warm_start:
+                eq, met = attempt, False
+            else:
+                stiffness /= RIGID_GROWTH
+                met = False
+            break
+        eq = attempt
         deepest = float(eq.penetration.max()) if eq.penetration.size else 0.0
         met = deepest <= settings.gap_tol
-        if not eq.converged or met or stiffness * RIGID_GROWTH > RIGID_MAX_STIFFNESS:
+        if met or stiffness * RIGID_GROWTH > RIGID_MAX_STIFFNESS:
             break
         stiffness *= RIGID_GROWTH
     eq = replace(eq, scene=scene, penalty_stiffness=stiffness, iterations=iterations,

@@ -9,6 +9,7 @@ with 1024 steps per section; it agrees with the independent solve_bvp formulatio
 from __future__ import annotations
 
 import importlib.util
+import math
 import time
 from pathlib import Path
 
@@ -103,6 +104,7 @@ def run(quick: bool = False, progress=None) -> dict:
     result["scipy"] = _scipy_rows(cases, refs, quick, tick)
     result["spatial"] = _spatial(quick)
     result["batch"] = _batch(quick)
+    result["contact"] = contact(quick, tick)
     default = next(r for r in rows if r["steps_per_section"] == result["default_steps_per_section"])
     if result["scipy"]:
         best = min(result["scipy"], key=lambda r: r["median_tip_error_over_L"])
@@ -134,6 +136,83 @@ def _scipy_rows(cases, refs, quick, tick):
                      "max_tip_error_over_L": float(np.max(errors))})
         tick(f"scipy tol {tol:g}")
     return rows
+
+
+def contact_scenes(n: int, seed: int = 4):
+    """Seeded OctArm V scenes with a disc the arm runs into on its way to random pressures,
+    clear of the unactuated arm: (arm, planar pressures (Pa), disc centre, disc radius, base
+    angle). Hanging and horizontal bases."""
+    arm = solver.designs.octarm_v()
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < n:
+        base = float(rng.choice([0.0, 90.0]))
+        p = rng.uniform(0, 1, 6) * arm.max_pressure * (rng.uniform(size=6) < 0.6)
+        free = solver.solve(arm, p, solver.Scene(base_angle_deg=base))
+        j = int(rng.integers(len(free.s) // 3, len(free.s)))
+        radius = float(rng.uniform(0.05, 0.15))
+        normal = rng.choice([-1.0, 1.0]) * np.array([-np.sin(free.angles[j]), np.cos(free.angles[j])])
+        center = free.positions[j] + normal * (radius - rng.uniform(0.0, 0.03))
+        rest = solver.solve(arm, np.zeros(6), solver.Scene(base_angle_deg=base))
+        if np.hypot(*(rest.positions - center).T).min() > radius + 0.01:
+            out.append((arm, p, tuple(center), radius, base))
+    return out
+
+
+def contact(quick: bool = False, progress=None) -> dict:
+    """Contact solves: time against tip error, against the hard-contact limit.
+
+    For each scene of :func:`contact_scenes` the reference is the rigid disc solved at 64
+    RK4 steps per section with ``gap_tol`` 1e-6 m (the hard-contact limit; scenes where it
+    does not converge are left out). Timed: the cold
+    solve and one warm step (a 1 % pressure change from the converged state), for the
+    tubes' own penalty (``TubeMaterial.ring_stiffness``, the wrap envs' default) at 8, 16
+    (default) and 32 steps per section, and for the rigid disc at the default resolution
+    with ``gap_tol`` 1e-4 and 1e-5 m. The penalty's errors are mostly its compliance, not
+    the discretisation: the 32-step row shows what is left at finer resolution.
+    """
+    tick = progress or (lambda *_: None)
+    cases = contact_scenes(3 if quick else 8)
+    arm = cases[0][0]
+    ring = arm.tubes[-1].material.ring_stiffness
+    configs = [("penalty (tube ring stiffness)", ring, steps, 1e-4) for steps in (8, 16, 32)]
+    configs += [("rigid", math.inf, 16, tol) for tol in (1e-4, 1e-5)]
+    repeat = 2 if quick else 3
+    refs, kept = [], []
+    for case in cases:
+        arm, p, center, radius, base = case
+        scene = solver.Scene(base_angle_deg=base, obstacles=(solver.Disc(center, radius, math.inf),))
+        ref = solver.solve(arm, p, scene, record=False, settings=solver.Settings(
+            steps_per_section=64, gap_tol=1e-6))
+        if ref.converged:
+            refs.append(ref.tip)
+            kept.append(case)
+    cases = kept
+    rows = []
+    rng = np.random.default_rng(5)
+    for label, stiffness, steps, tol in configs:
+        settings = solver.Settings(steps_per_section=steps, gap_tol=tol)
+        errors, cold, warm, ok, touched = [], [], [], [], 0
+        for (arm, p, center, radius, base), ref in zip(cases, refs):
+            scene = solver.Scene(base_angle_deg=base, obstacles=(solver.Disc(center, radius, stiffness),))
+            eq = solver.solve(arm, p, scene, settings=settings)
+            ok.append(eq.converged)
+            touched += eq.in_contact
+            errors.append(np.linalg.norm(eq.tip - ref) / arm.length)
+            cold.append(_median_time(repeat, arm, p, scene, settings=settings, record=False))
+            step = np.clip(p + rng.normal(0.0, 0.01 * arm.max_pressure, p.shape), 0.0, arm.max_pressure)
+            warm.append(_median_time(repeat, arm, step, scene, settings=settings, record=False,
+                                     warm_start=eq))
+        rows.append({"contact": label, "stiffness": stiffness, "steps_per_section": steps,
+                     "gap_tol": tol if stiffness == math.inf else None,
+                     "max_tip_error_over_L": float(np.max(errors)),
+                     "median_tip_error_over_L": float(np.median(errors)),
+                     "median_cold_ms": 1e3 * float(np.median(cold)),
+                     "median_warm_ms": 1e3 * float(np.median(warm)),
+                     "converged_fraction": float(np.mean(ok)), "in_contact": touched})
+        tick(f"contact {label} {steps}")
+    return {"scenes": len(cases), "design": arm.name, "ring_stiffness": ring,
+            "reference": "rigid disc, 64 steps per section, gap_tol 1e-6 m", "rows": rows}
 
 
 def _spatial(quick):
@@ -190,9 +269,27 @@ def format_table(result: dict) -> str:
         lines.append(f"Speed-up at the default setting over the most accurate scipy run: "
                      f"{result['speedup_vs_scipy_warm']:,.0f}× warm-started, "
                      f"{result['speedup_vs_scipy_cold']:,.0f}× cold.")
+    if result.get("contact"):
+        lines += ["", contact_table(result["contact"])]
     sp, b = result["spatial"], result["batch"]
     lines.append(f"Spatial warm-started step: {sp['median_warm_us']:.0f} µs "
                  f"({sp['warm_solves_per_s']:,.0f}/s, {100 * sp['converged_fraction']:.1f}% converged). "
                  f"solve_batch: {b['points']:,} cold solves in {b['seconds']:.2f} s on "
                  f"{b['threads']} threads ({b['cold_solves_per_s']:,.0f}/s).")
+    return "\n".join(lines)
+
+
+def contact_table(result: dict) -> str:
+    """The README table of :func:`contact`."""
+    lines = [f"Contact ({result['scenes']} {result['design']} scenes; error against the hard-contact "
+             f"limit: {result['reference']})", "",
+             "| contact | RK4 steps/section | max tip error / L | median error / L | cold solve (ms) "
+             "| warm step (ms) | converged |", "|---|---|---|---|---|---|---|"]
+    for r in result["rows"]:
+        label = r["contact"] if r["gap_tol"] is None else f"rigid, gap_tol {r['gap_tol']:g} m"
+        if r["gap_tol"] is None:
+            label += f" {r['stiffness']:.2g} N/m²"
+        lines.append(f"| {label} | {r['steps_per_section']} | {r['max_tip_error_over_L']:.1e} | "
+                     f"{r['median_tip_error_over_L']:.1e} | {r['median_cold_ms']:.1f} | "
+                     f"{r['median_warm_ms']:.2f} | {100 * r['converged_fraction']:.0f} % |")
     return "\n".join(lines)
