@@ -201,9 +201,10 @@ def training_observation(summary: dict) -> str:
     return summary.get("env_kwargs", {}).get("observation", "true")
 
 
-def _env_ids(runs: list[dict]) -> list[str]:
-    """:data:`ENV_IDS`, then any other environment the runs used."""
-    return [*ENV_IDS, *sorted({r["env_id"] for r in runs} - set(ENV_IDS))]
+def _env_ids(runs: list[dict], table: pd.DataFrame | None = None) -> list[str]:
+    """The environments of the runs (and of the evaluations in ``table``), :data:`ENV_IDS` first."""
+    used = {r["env_id"] for r in runs} | (set(table["env_id"]) if table is not None and len(table) else set())
+    return [e for e in ENV_IDS if e in used] + sorted(used - set(ENV_IDS))
 
 
 def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
@@ -285,6 +286,10 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "per run (runs in `runs/`, two at a time), then `python -m baselines.results collect`, "
              "`python -m baselines.results evaluate --workers W`, `python -m baselines.results ship` "
              "(best policy per env → `baselines/trained/`) and `python -m baselines.results report`.", ""]
+    by_run = {r["run"]: r for r in runs}
+    if len(table):  # the observation mode each agent was trained on (the controller: true)
+        table["trained_on"] = [training_observation(by_run[name]) if name in by_run else "true"
+                               for name in table["agent_name"]]
     main = table[table["cell"] == "main"] if len(table) else table
     lines += ["## Reach with true observations", "",
               f"{_episodes(main['episodes'])} each, no sensor noise, no payload." if len(main)
@@ -292,8 +297,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
               "| env | agent | budget (min) | train steps | train wall (min) | train CPU (min) | success "
               "| median err (mm) | p95 err (mm) | median steps to success |",
               "|---|---|---|---|---|---|---|---|---|---|"]
-    by_run = {r["run"]: r for r in runs}
-    for env_id in _env_ids(runs):
+    for env_id in _env_ids(runs, table):
         rows = main[main["env_id"] == env_id] if len(main) else main
         if not len(rows):
             continue
@@ -306,11 +310,10 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
             lines.append(f"| {env_id} | {row['agent_name']} | {budget} | {steps} | {wall} | {cpu} | "
                          f"{100 * row['success_rate']:.0f} % | {_mm(row['median_final_error_m'])} | "
                          f"{_mm(row['p95_final_error_m'])} | {_steps(row['median_steps_to_success'])} |")
-        observations = pd.Series([training_observation(by_run[name]) if name in by_run else None
-                                  for name in rows["agent_name"]], index=rows.index, dtype=object)
         for algo in ALGOS:
             for observation in ESTIMATORS:
-                learned = rows[rows["agent_name"].str.startswith(f"{algo}_") & (observations == observation)]
+                learned = rows[rows["agent_name"].str.startswith(f"{algo}_")
+                               & (rows["trained_on"] == observation)]
                 if len(learned) < 2:
                     continue
                 rates = 100 * learned["success_rate"]
@@ -320,9 +323,9 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                              f"{_mm(learned['median_final_error_m'].mean())} | "
                              f"{_mm(learned['p95_final_error_m'].mean())} | |")
     lines += ["", "Targets of the issue, as measured:", ""]
-    for env_id, agent, goal in TARGETS:
-        rows = main[(main["env_id"] == env_id) & main["agent_name"].str.startswith(agent)] \
-            if len(main) else main
+    for env_id, agent, goal in TARGETS:  # the targets are for policies trained on true observations
+        rows = main[(main["env_id"] == env_id) & main["agent_name"].str.startswith(agent)
+                    & (main["trained_on"] == "true")] if len(main) else main
         if len(rows):
             best = rows["success_rate"].max()
             lines.append(f"* {agent} on {env_id}: best {100 * best:.0f} % against the target "
@@ -336,16 +339,25 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
               "periodic deterministic evaluations" + (f", {per_eval}" if per_eval else "") + "):",
               "", f"![learning curves]({picture.as_posix()})", ""]
     grid = table[table["cell"] != "main"] if len(table) else table
-    lines += ["## Estimator in the loop", "",
-              (f"{_episodes(grid['episodes'])} per cell" if len(grid) else "No cell evaluated yet") +
-              "; cells give success rate / median final error (mm). "
+    lines += _estimator_section(grid, _env_ids(runs, table))
+    text = "\n".join(lines) + "\n"
+    Path(out).write_text(text)
+    return text
+
+
+def _estimator_section(grid: pd.DataFrame, env_ids: list[str]) -> list[str]:
+    """The estimator-in-the-loop tables (nothing if no grid cell was evaluated)."""
+    if not len(grid):
+        return []
+    lines = ["## Estimator in the loop", "",
+              f"{_episodes(grid['episodes'])} per cell; cells give success rate / median final error (mm). "
               "`clean`: perfect sensors, no payload; `noisy`: Table 4.3 sensor resolutions "
               "(encoder 3 cm, inclinometer 2.5°, load cell); `noisy+payload`: the same plus a tip "
               f"payload drawn per episode uniformly in {PAYLOAD_RANGE_KG[0]}–{PAYLOAD_RANGE_KG[1]} kg, "
               "unknown to the agents and to the estimators. The last column is the mean estimation "
               "error of the tip (mm) for that estimator and condition, averaged over agents.", ""]
-    for env_id in _env_ids(runs):
-        rows = grid[grid["env_id"] == env_id] if len(grid) else grid
+    for env_id in env_ids:
+        rows = grid[grid["env_id"] == env_id]
         if not len(rows):
             continue
         agents = sorted(rows["agent_name"].unique())
@@ -365,9 +377,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                 lines.append(f"| {observation} | {condition} | " + " | ".join(values) +
                              f" | {_mm(cell['mean_estimation_error_m'].mean())} |")
         lines.append("")
-    text = "\n".join(lines) + "\n"
-    Path(out).write_text(text)
-    return text
+    return lines
 
 
 def main(argv=None) -> int:
