@@ -659,7 +659,7 @@ def main(argv=None) -> int:
         received.append(signum)
         raise KeyboardInterrupt
 
-    signal.signal(signal.SIGTERM, stop)
+    previous = signal.signal(signal.SIGTERM, stop)
     try:
         if args.address is not None and args.backend != "ray":
             raise ValueError("--address needs --backend ray")
@@ -685,6 +685,8 @@ def main(argv=None) -> int:
         print(f"baselines.sweep: error: interrupted; finished runs are kept in {args.out}; rerun the same "
               "command with --resume to continue", file=sys.stderr)
         return 2
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     if result.failed or result.failed_cells:
         first = result.failed[0] if result.failed else next(iter(result.failed_cells))
         error = result.runs[first]["error"] if result.failed else result.failed_cells[first]
