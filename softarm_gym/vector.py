@@ -18,8 +18,8 @@ from gymnasium.vector.utils import batch_space
 
 import solver
 from softarm_gym.envs import ReachEnv
-from softarm_gym.sensing._kernels import _hermite_resample
-from solver._jit import njit
+from solver.jit import njit
+from solver.rod import hermite_resample
 
 __all__ = ["BatchedReachVectorEnv"]
 
@@ -49,7 +49,7 @@ def _fill_observations(shapes, section_ends, s_query, fraction, target, low, hig
             # dr/ds = v3 d3 + v1 d1, d3 = (cos θ, sin θ), d1 = (−sin θ, cos θ)
             tangent[r, 0] = rec[r, 8] * c - rec[r, 7] * sn
             tangent[r, 1] = rec[r, 8] * sn + rec[r, 7] * c
-        _hermite_resample(rec[:, 0], rec[:, 1:3], tangent[:rows], s_query, backbone)
+        hermite_resample(rec[:, 0], rec[:, 1:3], tangent[:rows], s_query, backbone)
         tips[k, 0] = rec[rows - 1, 1]
         tips[k, 1] = rec[rows - 1, 2]
         backbone[backbone.shape[0] - 1, 0] = tips[k, 0]

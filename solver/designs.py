@@ -57,6 +57,7 @@ import math
 import numbers
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 
+from solver._cache import DesignCache
 from solver.actuator import PSI, max_stretch
 
 __all__ = [
@@ -326,9 +327,9 @@ class ArmDesign:
     max_pressure: float = 0.0
     source: str = ""
     extra: dict = field(default_factory=dict, compare=False, hash=False)
-    # Arrays the solver derives from this (immutable) design, keyed by what they depend on.
-    _solver_cache: dict = field(default_factory=dict, init=False, repr=False, compare=False,
-                                hash=False)
+    # What the solver derives from this (immutable) design, keyed by what it depends on.
+    _solver_cache: DesignCache = field(default_factory=DesignCache, init=False, repr=False,
+                                       compare=False, hash=False)
 
     def __post_init__(self):
         _text(self.name, "ArmDesign.name", _MAX_NAME)

@@ -7,7 +7,7 @@ runs a short episode of every registered ID in every observation mode with Table
 sensor noise and a payload range, the spatial reach task with every estimator that supports
 it, and the batched vector env. ``--clear`` first deletes every compiled file of the
 project's kernels (a damaged or stale cache; damaged entries also heal on their own, see
-:mod:`solver._jit`).
+:mod:`solver.jit`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 import solver
-from solver._jit import clear_cache
+from solver.jit import clear_cache
 
 NAME = "warmup"
 HELP = "compile the numba kernels the solver and the registered envs use into the on-disk cache"
