@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from softarm_gym.render import TRUE_COLOUR, ArmRenderer3D, Cylinder, Sphere
-from tests.envs.frames import colour_mask
+from softarm_gym.envs import ReachEnv
+from softarm_gym.render import ESTIMATE_COLOUR, TARGET_COLOUR, TRUE_COLOUR, ArmRenderer3D, Cylinder, Sphere
+from tests.envs.frames import colour_mask, has_colour
 
 OUT_OF_VIEW = np.full((2, 3), 50.0)  # an estimate far outside every view: nothing of it is drawn
 
@@ -20,6 +21,11 @@ def _pixels(renderer, frame, view, colour, tol=30):
         & (display[:, 1] > box.y0) & (display[:, 1] < box.y1)
     metres_per_pixel = np.diff(ax.get_xlim())[0] / box.width
     return ax.transData.inverted().transform(display[inside]), metres_per_pixel
+
+
+def _spatial_env(**kwargs):
+    return ReachEnv("octarm_v", planar=False, observation="true", render_mode="rgb_array",
+                    render_size=400, **kwargs)
 
 
 def test_views_show_the_projections_of_a_spatial_backbone():
@@ -47,6 +53,74 @@ def test_top_view_is_seen_from_above_with_z_pointing_down_the_frame():
     tip_row = frame.shape[0] - ax.transData.transform((0.0, 0.8))[1]
     assert tip_row > base_row + 50
     assert colour_mask(frame, TRUE_COLOUR)[int(tip_row), int(ax.transData.transform((0.0, 0.8))[0])]
+
+
+def test_out_of_plane_reach_spans_z_in_the_top_view_and_an_in_plane_state_is_a_flat_line():
+    env = _spatial_env()
+    env.reset(seed=0, options={"target": (0.3, -0.4, 0.3)})
+    action = -np.ones(9)
+    action[env.input_names.index("s1_III")] = 0.2  # one off-plane channel: bends the arm towards +z
+    env.step(action)
+    z = env.unwrapped._eq.positions[:, 2]
+    assert z.max() > 0.3  # the state is clearly out of plane
+    frame = env.render()
+    renderer = env.unwrapped._renderer
+    seen, mpp = _pixels(renderer, frame, "top", TRUE_COLOUR)
+    assert abs(seen[:, 1].max() - z.max()) < 6 * mpp and abs(seen[:, 1].min() - z.min()) < 6 * mpp
+    side, _ = _pixels(renderer, frame, "side", TRUE_COLOUR)
+    assert abs(side[:, 0].max() - z.max()) < 6 * mpp
+
+    env.step(-np.ones(9))  # no pressure: the arm hangs in the x–y plane
+    assert np.all(np.abs(env.unwrapped._eq.positions[:, 2]) < 1e-9)
+    flat, mpp = _pixels(renderer, env.render(), "top", TRUE_COLOUR)
+    assert len(flat) > 20
+    assert np.ptp(flat[:, 1]) < 6 * mpp and np.abs(flat[:, 1]).max() < 3 * mpp
+    assert np.ptp(flat[:, 0]) > 0.2  # a line along x, not a dot
+    env.close()
+
+
+def test_target_is_drawn_at_its_3d_position_in_every_view():
+    env = _spatial_env()
+    target = np.array([0.3, -0.4, 0.3])
+    env.reset(seed=0, options={"target": tuple(target)})
+    frame = env.render()
+    renderer = env.unwrapped._renderer
+    for view, (h, v) in {"front": (0, 1), "side": (2, 1), "top": (0, 2)}.items():
+        seen, mpp = _pixels(renderer, frame, view, TARGET_COLOUR)
+        assert len(seen) > 10, view
+        np.testing.assert_allclose(seen.mean(axis=0), target[[h, v]], atol=2 * mpp, err_msg=view)
+    env.close()
+
+
+def test_spatial_frame_has_the_planar_frame_size_and_shows_truth_and_estimate():
+    for size in (200, 333):
+        planar = ReachEnv("octarm_v", render_mode="rgb_array", render_size=size)
+        planar.reset(seed=0)
+        spatial = ReachEnv("octarm_v", planar=False, observation="constant_curvature",
+                           render_mode="rgb_array", render_size=size)
+        spatial.reset(seed=0)
+        spatial.step(np.linspace(-1.0, 0.5, 9))
+        frame = spatial.render()
+        assert frame.shape == planar.render().shape == (size, size, 3)
+        assert has_colour(frame, TRUE_COLOUR) and has_colour(frame, ESTIMATE_COLOUR)
+        assert has_colour(frame, TARGET_COLOUR)
+
+
+def test_spatial_frames_are_deterministic():
+    def episode():
+        env = _spatial_env()
+        env.reset(seed=3)
+        first = env.render()
+        env.step(np.linspace(-1.0, 1.0, 9))
+        second = env.render()
+        return env, first, second
+
+    env, first, second = episode()
+    _, first_again, second_again = episode()
+    np.testing.assert_array_equal(first, first_again)
+    np.testing.assert_array_equal(second, second_again)
+    assert not np.array_equal(first, second)
+    np.testing.assert_array_equal(env.render(), second)  # a repeated frame leaves no trace
 
 
 def test_frame_depends_only_on_its_arguments():
@@ -135,3 +209,11 @@ def test_renderer_3d_validates_its_arguments():
     with pytest.raises(ValueError, match=r"target must be a \(3,\) point"):
         renderer.frame(spatial, spatial, spatial, spatial[0], target=(0.1, 0.2))
 
+
+def test_human_mode_shows_spatial_frames():
+    pytest.importorskip("pygame")
+    env = ReachEnv("ct", planar=False, render_mode="human", render_size=128)
+    env.reset(seed=0)
+    assert env.render() is None
+    env.step(np.zeros(6))
+    env.close()
