@@ -106,14 +106,14 @@ class ArmRenderer:
         return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()
 
 
-def _vector(name: str, value) -> np.ndarray:
+def _vector(name: str, value) -> tuple[float, float, float]:
     try:
         v = np.array(value, dtype=float).ravel()
     except (TypeError, ValueError):
         v = np.empty(0)
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         raise ValueError(f"{name} must be three finite numbers (m); got {value!r}")
-    return v
+    return tuple(float(c) for c in v)
 
 
 def _length(name: str, value) -> float:
@@ -133,11 +133,11 @@ class Sphere:
     """A sphere for :class:`ArmRenderer3D` (an object to wrap or an obstacle).
 
     Attributes:
-        center: (3,) centre (m).
+        center: (x, y, z) of the centre (m).
         radius: radius (m), > 0.
     """
 
-    center: np.ndarray
+    center: tuple[float, float, float]
     radius: float
 
     def __post_init__(self):
@@ -146,7 +146,7 @@ class Sphere:
 
     def outline(self, h: int, v: int) -> np.ndarray:
         """(M, 2) outline of the sphere seen along the third axis, in coordinates ``h``, ``v`` (m)."""
-        return _circle(self.center[[h, v]], self.radius)
+        return _circle((self.center[h], self.center[v]), self.radius)
 
 
 @dataclass(frozen=True)
@@ -154,24 +154,24 @@ class Cylinder:
     """A finite circular cylinder for :class:`ArmRenderer3D`, its axis in any direction.
 
     Attributes:
-        center: (3,) centre of the axis segment (m).
-        axis: (3,) axis direction (any non-zero vector; stored normalised).
+        center: (x, y, z) of the middle of the axis (m).
+        axis: direction of the axis (any non-zero vector; stored normalised).
         radius: radius (m), > 0.
         length: length along the axis (m), > 0.
     """
 
-    center: np.ndarray
-    axis: np.ndarray
+    center: tuple[float, float, float]
+    axis: tuple[float, float, float]
     radius: float
     length: float
 
     def __post_init__(self):
         object.__setattr__(self, "center", _vector("Cylinder.center", self.center))
-        axis = _vector("Cylinder.axis", self.axis)
+        axis = np.array(_vector("Cylinder.axis", self.axis))
         norm = float(np.linalg.norm(axis))
         if norm == 0.0:
             raise ValueError("Cylinder.axis must be a non-zero direction; got (0, 0, 0)")
-        object.__setattr__(self, "axis", axis / norm)
+        object.__setattr__(self, "axis", tuple(float(c) for c in axis / norm))
         object.__setattr__(self, "radius", _length("Cylinder.radius", self.radius))
         object.__setattr__(self, "length", _length("Cylinder.length", self.length))
 
@@ -181,7 +181,7 @@ class Cylinder:
         A convex body's silhouette is the convex hull of its projection; for a cylinder,
         the hull of its two end circles.
         """
-        a = self.axis
+        a = np.array(self.axis)
         e1 = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(a, e1)

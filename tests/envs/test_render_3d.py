@@ -147,7 +147,7 @@ def test_objects_are_drawn_in_every_view():
     frame = renderer.frame(backbone, backbone[1:], OUT_OF_VIEW, OUT_OF_VIEW[0], objects=[sphere],
                            disc=((-0.5, -0.5), 0.1))
     for view, (h, v) in {"front": (0, 1), "side": (2, 1), "top": (0, 2)}.items():
-        col, row = renderer.axes[view].transData.transform(sphere.center[[h, v]])
+        col, row = renderer.axes[view].transData.transform((sphere.center[h], sphere.center[v]))
         assert _is_object_grey(frame[int(frame.shape[0] - row), int(col)]), view
     # The disc of a planar task is a cylinder along z through the whole view: in the top view,
     # a band at x = −0.5 from z = −1 to 1.
@@ -165,9 +165,10 @@ def test_object_outlines():
     sphere = Sphere((0.1, 0.2, 0.3), 0.2)
     for h, v in ((0, 1), (2, 1), (0, 2)):
         ring = sphere.outline(h, v)
-        np.testing.assert_allclose(np.linalg.norm(ring - sphere.center[[h, v]], axis=1), 0.2)
+        np.testing.assert_allclose(np.linalg.norm(ring - (sphere.center[h], sphere.center[v]), axis=1), 0.2)
     upright = Cylinder((0.1, 0.2, 0.3), (0.0, 0.0, 2.0), radius=0.05, length=0.4)
-    np.testing.assert_allclose(upright.axis, [0.0, 0.0, 1.0])
+    assert upright.axis == (0.0, 0.0, 1.0)
+    assert upright == Cylinder((0.1, 0.2, 0.3), (0.0, 0.0, 1.0), 0.05, 0.4) and len({upright, sphere}) == 2
     ring = upright.outline(0, 1)  # seen along its axis: a circle
     np.testing.assert_allclose(np.linalg.norm(ring - [0.1, 0.2], axis=1), 0.05)
     side = upright.outline(0, 2)  # seen from the side: a 2r × length rectangle
