@@ -17,7 +17,7 @@ from gymnasium import spaces
 
 import solver
 from softarm_gym.envs.randomization import ArmRandomization
-from softarm_gym.render import ArmRenderer, HumanWindow
+from softarm_gym.render import ArmRenderer, ArmRenderer3D, HumanWindow
 from softarm_gym.sensing import ESTIMATORS, SensorNoise, make_estimator, synthesize
 
 __all__ = ["SoftArmEnv", "ACTION_MODES", "OBSERVATION_FORMATS"]
@@ -383,12 +383,15 @@ class SoftArmEnv(gym.Env):
         if self._eq is None:
             raise RuntimeError("call reset() before render()")
         if self._renderer is None:
-            self._renderer = ArmRenderer(extent=1.3 * self.arm.length, size=self.render_size)
+            renderer = ArmRenderer if self.planar else ArmRenderer3D
+            self._renderer = renderer(extent=1.3 * self.arm.length, size=self.render_size)
         eq = self._eq
-        # Spatial arms are drawn as their projection on the x–y plane.
+        artists = self._task_artists()
+        if not self.planar and "target" in artists:
+            artists["target"] = self._target  # Reach's task hook gives the x–y projection
         frame = self._renderer.frame(
-            eq.positions[:, :2], eq.positions[list(eq.section_ends), :2], self._shape.backbone[:, :2],
-            self._shape.tip[:2], caption=self._caption(), **self._task_artists())
+            eq.positions, eq.positions[list(eq.section_ends)], self._shape.backbone,
+            self._shape.tip, caption=self._caption(), **artists)
         if self.render_mode == "rgb_array":
             return frame
         if self._window is None:

@@ -93,7 +93,7 @@ class ReachEnv(SoftArmEnv):
     * ``planar`` (True): the planar model. ``False``: the spatial arm — one pressure per
       spatial channel (OctArm ``s1_I, s1_II, s1_III, ...``, CT ``inner_I, ..., outer_III``),
       3-D positions, section ends as (x, y, z, d3) and a 3-D target; the ``inclinometer``
-      estimator is planar only (``ValueError``); rendering shows the x–y projection.
+      estimator is planar only (``ValueError``); rendering shows the arm in 3D (see ``render_mode``).
     * ``observation`` (``"true"``): the shape estimator, one of ``softarm_gym.sensing.ESTIMATORS``.
     * ``sensor_noise`` (``"off"``): ``"off"``, ``"thesis"`` (Table 4.3 resolutions), a dict of
       ``SensorNoise`` fields or a ``SensorNoise``.
@@ -115,6 +115,9 @@ class ReachEnv(SoftArmEnv):
       need none — skipping them is most of a ``true`` step's saving); True forces them into
       ``info["sensors"]``.
     * ``render_mode`` (None, ``"rgb_array"`` or ``"human"``), ``render_size`` (400 px, at most 4096).
+      A planar arm is drawn in the x–y plane; a spatial one (``planar=False``) in three
+      orthographic views — front (x–y), side (z–y) and top (x–z), axes in metres — with the
+      target at its 3-D position, in a frame of the same size.
 
     ## Info
 
