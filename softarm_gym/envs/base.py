@@ -387,8 +387,6 @@ class SoftArmEnv(gym.Env):
             self._renderer = renderer(extent=1.3 * self.arm.length, size=self.render_size)
         eq = self._eq
         artists = self._task_artists()
-        if not self.planar and "target" in artists:
-            artists["target"] = self._target  # Reach's task hook gives the x–y projection
         frame = self._renderer.frame(
             eq.positions, eq.positions[list(eq.section_ends)], self._shape.backbone,
             self._shape.tip, caption=self._caption(), **artists)

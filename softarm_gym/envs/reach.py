@@ -207,7 +207,7 @@ class ReachEnv(SoftArmEnv):
         return self.terminate_on_success and success
 
     def _task_artists(self):
-        return {"target": self._target[:2]}
+        return {"target": self._target}
 
     def _caption(self):
         return super()._caption() + f"\ndistance {1000 * math.dist(self._eq.tip, self._target):.1f} mm"
