@@ -49,7 +49,13 @@ from solver.layout import (
     X,
     Y,
 )
-from solver.rod import arc_chain_planar, integrate_planar, rest_strains_into
+from solver.rod import (
+    arc_chain_planar,
+    integrate_planar,
+    planar_rest_gradient,
+    rest_strains_cached,
+    rest_strains_into,
+)
 
 
 @njit
@@ -211,9 +217,81 @@ def _follow(state, grid, tubes, a, b, params, work, guard):
     return ok, stable, snapped, total, res, 1.0 if ok else math.nan, 0.0
 
 
+# Newton iterations of the stepper's direct attempt: a prediction that is any good converges
+# in two or three; one that is not is left to the continuation of :func:`_path` early.
+DIRECT_ITER = 6
+
+
+@njit
+def _step(state, grid, tubes, a, b, params, work, memo):
+    """A warm step of the stepper (:class:`solver.stepper.Stepper`): :func:`_follow` from an
+    equilibrium at ``a`` to the pressures of ``b`` (the same loads), first tried as one
+    Newton solve from a first-order prediction.
+
+    The prediction moves m0 by the rest-strain gradient of the start state
+    (:func:`solver.rod.planar_rest_gradient`) times the change of the rest strains. It is
+    accepted on the terms :func:`_path` accepts a continuation step: Newton converged on a
+    stable state that moved from the prediction by at most ``JUMP`` plus half the predicted
+    move. Otherwise the step is :func:`_follow`'s (continuation, fold scan), with the same
+    prediction as its first tangent.
+
+    Args:
+        state, grid, tubes, a, b, params, work: as :func:`_follow`.
+        memo: (p_seen (n_tubes,), stretch (n_tubes,), rest_a (3, ns), grad (2, ns)): the
+            λ(p) cache (:func:`solver.rod.rest_strains_cached`), the start state's rest
+            strains and gradient (NaN: unknown). Updated to the returned state when it
+            converged; the gradient is computed only if ``work`` records.
+
+    Returns:
+        As :func:`_follow`.
+    """
+    theta0, secf, steps = grid
+    rest, p_now, loads_now, out, record = work
+    p_seen, stretch, rest_a, grad = memo
+    p_b, loads, m_tip = b
+    m_start = state[0]
+    rest_strains_cached(p_b, tubes[0], tubes[1], secf, p_seen, stretch, rest)
+    slope = math.nan
+    if math.isfinite(grad[0, 0]):
+        slope = 0.0
+        for i in range(secf.shape[1]):
+            slope += (grad[0, i] * (rest[REST_U2, i] - rest_a[REST_U2, i])
+                      + grad[1, i] * (rest[REST_V3, i] - rest_a[REST_V3, i]))
+    guess = m_start + (slope if math.isfinite(slope) else 0.0)
+    root, ok, its, res, stable, bm, x, y, th = _newton(
+        guess, theta0, secf, steps, rest, loads, m_tip, params[TOL],
+        min(int(params[MAX_ITER]), DIRECT_ITER), params[MAX_STEP], out, record)
+    snapped = False
+    if ok and stable and abs(root - guess) <= params[JUMP] + 0.5 * abs(guess - m_start):
+        state[0] = root
+        state[1] = x
+        state[2] = y
+        state[3] = th
+        for c in range(p_b.shape[0]):
+            p_now[c] = p_b[c]
+        loads_now[:, :] = loads
+    else:
+        m_end, ok, more, snapped, stable, res, x, y, th = _path(
+            m_start, theta0, secf, steps, tubes[0], tubes[1], a[0], p_b, a[1], loads, a[2],
+            m_tip, params, rest, p_now, loads_now, out, record, np.empty(0), np.empty((0, 4)),
+            slope)
+        state[0] = m_end
+        state[1] = x
+        state[2] = y
+        state[3] = th
+        its += more
+    if ok:
+        rest_a[:, :] = rest
+        if record:
+            planar_rest_gradient(out, secf, steps, rest, grad)
+        else:
+            grad[0, 0] = math.nan
+    return ok, stable, snapped, its, res, 1.0 if ok else math.nan, 0.0
+
+
 @njit
 def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-          mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs):
+          mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs, slope0=math.nan):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
 
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
@@ -237,6 +315,9 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     with obstacles the same way: the backbone must stay clear of every disc by half an RK4
     step at every accepted state, and no sample may pass through a disc between accepted
     states (:func:`solver._obstacles._tunnels`; a step that fails only that is halved).
+
+    ``slope0``: dm0/dt at the start, if the caller knows it (the stepper's rest-strain
+    gradient); otherwise a large change gets a finite-difference tangent (two passes).
 
     Returns:
         (m0, converged, iterations, snapped, stable, |residual|, tip x, y, θ).
@@ -276,7 +357,9 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     big = mtip_a != mtip_b or _big_change(p_a, p_b, loads_a, loads_b)
     slope = 0.0
     eps = 1e-6
-    if big:
+    if math.isfinite(slope0):
+        slope = slope0
+    elif big:
         slope = _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
                          loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out)
         total += 2
@@ -431,6 +514,100 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
         ok[k] = conv
         stable_out[k] = stab
         m0_out[k] = root
+
+
+@njit(inline="always")
+def _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
+              rest_a, grad, report):
+    """Row k of :func:`_cold_rows`: a cold solve, as :func:`solver.solve`'s single shooting."""
+    rest, p_now, loads_now = work
+    out = records[k]
+    ok, stable, snapped, its, res, _, _ = _follow(
+        states[k], grid, tubes, (p_zero, loads, mtip), (p[k], loads, mtip), params,
+        (rest[k], p_now[k], loads_now[k], out, record), (np.empty(0), np.empty((0, 4))))
+    report[k, 0] = ok
+    report[k, 1] = stable
+    report[k, 2] = snapped
+    report[k, 3] = its
+    report[k, 4] = res
+    if ok and record:
+        rest_strains_into(p[k], tubes[0], tubes[1], grid[1], rest_a[k])
+        planar_rest_gradient(out, grid[1], grid[2], rest_a[k], grad[k])
+
+
+@njit(parallel=True)
+def _cold_rows_parallel(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
+                        record, rest_a, grad, report):
+    """Cold solves of many copies in parallel (see :class:`solver.stepper.BatchStepper`).
+
+    Row k follows the path from ``states[k, 0]`` (the loaded unactuated arm's m0) at zero
+    pressure to ``p[k]``, exactly as :func:`solver._paths_planar.solve_single` does, so that
+    a row gives the bits a single solve gives. Writes ``states`` (n, 4), ``report`` (n, 5):
+    converged, stable, snapped, iterations, residual; with ``record`` the backbone into
+    ``records[k]`` (otherwise an (n, 1, N_COLUMNS) scratch) and, where converged, the rest
+    strains ``rest_a[k]`` (3, ns) and their gradient ``grad[k]`` (2, ns) the stepper
+    predicts with. ``work`` is per-row scratch.
+    """
+    for k in prange(p.shape[0]):
+        _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
+                  rest_a, grad, report)
+
+
+@njit
+def _cold_rows_serial(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
+                      record, rest_a, grad, report):
+    """:func:`_cold_rows_parallel` on one thread (small batches: no thread start-up)."""
+    for k in range(p.shape[0]):
+        _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
+                  rest_a, grad, report)
+
+
+@njit(inline="always")
+def _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records, memo,
+              report):
+    """Row k of :func:`_step_rows`: :func:`_step`, the record kept only if it converged."""
+    rest, p_now, loads_now, scratch = work
+    p_seen, stretch, rest_a, grad = memo
+    m_start = states[k, 0]
+    ok, stable, snapped, its, res, _, _ = _step(
+        states[k], grid, tubes, (p_from[k], loads, mtip), (p_to[k], loads, mtip), params,
+        (rest[k], p_now[k], loads_now[k], scratch[k], True),
+        (p_seen[k], stretch[k], rest_a[k], grad[k]))
+    report[k, 0] = ok
+    report[k, 1] = stable
+    report[k, 2] = snapped
+    report[k, 3] = its
+    report[k, 4] = res
+    if ok:
+        records[k, :, :] = scratch[k]
+    else:
+        states[k, 0] = m_start
+
+
+@njit(parallel=True)
+def _step_rows_parallel(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                        memo, active, report):
+    """Warm steps of many copies in parallel: :func:`_step` per row, from the equilibrium
+    ``states[k]``/``records[k]`` at ``p_from[k]`` to ``p_to[k]`` (n, n_channels). A row
+    that converged gets its new record, state and predictor memo (per-row arrays of
+    :func:`_step`'s ``memo``); one that did not keeps its equilibrium. ``work``: per-row
+    scratch (rest, p_now, loads_now, scratch records). Rows where ``active`` (n,) is False
+    are skipped. ``report`` as :func:`_cold_rows_parallel`.
+    """
+    for k in prange(p_to.shape[0]):
+        if active[k]:
+            _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                      memo, report)
+
+
+@njit
+def _step_rows_serial(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                      memo, active, report):
+    """:func:`_step_rows_parallel` on one thread."""
+    for k in range(p_to.shape[0]):
+        if active[k]:
+            _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                      memo, report)
 
 
 @njit(parallel=True)

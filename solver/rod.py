@@ -78,10 +78,11 @@ from solver.layout import (
 )
 
 __all__ = [
-    "base_rotation", "rotation_to_quaternion", "rest_strains_into", "planar_strains",
-    "integrate_planar", "planar_state_rhs", "planar_state_jacobian", "planar_state_rk4_step",
-    "spatial_rhs", "spatial_rk4_step", "integrate_spatial", "record_spatial_row",
-    "arc_chain_planar", "arc_chain_spatial", "hermite_resample", "det3",
+    "base_rotation", "rotation_to_quaternion", "rest_strains_into", "rest_strains_cached",
+    "planar_strains", "integrate_planar", "planar_rest_gradient", "planar_state_rhs",
+    "planar_state_jacobian", "planar_state_rk4_step", "spatial_rhs", "spatial_rk4_step",
+    "integrate_spatial", "record_spatial_row", "arc_chain_planar", "arc_chain_spatial",
+    "hermite_resample", "det3",
 ]
 
 
@@ -178,20 +179,53 @@ def rest_strains_into(p_channel, tubes_i, tubes_f, secf, rest):
         secf: (6, ns) section array.
         rest: (3, ns) output rows u1* (rad/m), u2* (rad/m), v3*.
     """
-    ns = secf.shape[1]
-    for i in range(ns):
+    _clear_rest(rest)
+    for k in range(tubes_i.shape[0]):
+        _add_tube(k, _tube_stretch(k, p_channel, tubes_i, tubes_f), tubes_i, tubes_f, rest)
+    _scale_rest(secf, rest)
+
+
+@njit
+def rest_strains_cached(p_channel, tubes_i, tubes_f, secf, p_seen, stretch, rest):
+    """:func:`rest_strains_into`, solving λ(p) (a Newton iteration per tube) only for the
+    tubes whose channel pressure differs from the one in ``p_seen`` (n_tubes,); ``stretch``
+    (n_tubes,) holds each tube's λ at ``p_seen`` and both are updated."""
+    _clear_rest(rest)
+    for k in range(tubes_i.shape[0]):
+        p = p_channel[tubes_i[k, T_CHANNEL]]
+        if p != p_seen[k]:
+            stretch[k] = _tube_stretch(k, p_channel, tubes_i, tubes_f)
+            p_seen[k] = p
+        _add_tube(k, stretch[k], tubes_i, tubes_f, rest)
+    _scale_rest(secf, rest)
+
+
+@njit(inline="always")
+def _tube_stretch(k, p_channel, tubes_i, tubes_f):
+    return _stretch(p_channel[tubes_i[k, T_CHANNEL]], tubes_f[k, TF_E], tubes_f[k, TF_AREA_RATIO],
+                    tubes_f[k, TF_COS_ALPHA])
+
+
+@njit(inline="always")
+def _clear_rest(rest):
+    for i in range(rest.shape[1]):
         rest[REST_U1, i] = 0.0
         rest[REST_U2, i] = 0.0
         rest[REST_V3, i] = 0.0
-    for k in range(tubes_i.shape[0]):
-        lam = _stretch(p_channel[tubes_i[k, T_CHANNEL]], tubes_f[k, TF_E], tubes_f[k, TF_AREA_RATIO],
-                       tubes_f[k, TF_COS_ALPHA])
-        f = tubes_f[k, TF_EAT] * (lam - 1.0)
-        for i in range(tubes_i[k, T_FIRST], tubes_i[k, T_LAST] + 1):
-            rest[REST_V3, i] += f
-            rest[REST_U1, i] += f * tubes_f[k, TF_B]
-            rest[REST_U2, i] -= f * tubes_f[k, TF_A]
-    for i in range(ns):
+
+
+@njit(inline="always")
+def _add_tube(k, lam, tubes_i, tubes_f, rest):
+    f = tubes_f[k, TF_EAT] * (lam - 1.0)
+    for i in range(tubes_i[k, T_FIRST], tubes_i[k, T_LAST] + 1):
+        rest[REST_V3, i] += f
+        rest[REST_U1, i] += f * tubes_f[k, TF_B]
+        rest[REST_U2, i] -= f * tubes_f[k, TF_A]
+
+
+@njit(inline="always")
+def _scale_rest(secf, rest):
+    for i in range(rest.shape[1]):
         rest[REST_V3, i] = 1.0 + rest[REST_V3, i] / secf[EA, i]
         rest[REST_U1, i] /= secf[EI, i]
         rest[REST_U2, i] /= secf[EI, i]
@@ -200,23 +234,47 @@ def rest_strains_into(p_channel, tubes_i, tubes_f, secf, rest):
 # ----------------------------------------------------------------------------- planar
 
 
-@njit
+@njit(inline="always")
 def planar_strains(th, nx, ny, ca, cg, vr):
     """The planar constitutive law at orientation θ under the internal force (n_x, n_y):
     (cos θ, sin θ, n1, n3, v1, v3), n1 = n·d1, n3 = n·d3, v1 = n1/GA, v3 = v* + n3/EA."""
-    c = math.cos(th)
-    sn = math.sin(th)
+    return _strains_cs(math.cos(th), math.sin(th), nx, ny, ca, cg, vr)
+
+
+@njit(inline="always")
+def _strains_cs(c, sn, nx, ny, ca, cg, vr):
+    """:func:`planar_strains` given (cos θ, sin θ)."""
     n1 = -nx * sn + ny * c
     n3 = nx * c + ny * sn
     return c, sn, n1, n3, n1 * cg, vr + n3 * ca
 
 
-@njit
-def _planar_dead_rhs(sig, th, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, qx, qy):
-    """Right-hand side of (θ, m, a, b, x, y) under dead loads at local coordinate ``sig``."""
+# Below this turn (rad) cos and sin of θ + δ come from those of θ and Taylor polynomials of
+# δ (terms to δ¹¹ and δ¹², truncation < 1e-16 at 0.3): RK4 stages sit a fraction of a step
+# from their node, and libm's sin and cos would otherwise be two thirds of a pass.
+SMALL_TURN = 0.3
+
+
+@njit(inline="always")
+def _turned(th, c, sn, d):
+    """(cos, sin) of θ + δ from θ, cos θ, sin θ."""
+    if abs(d) > SMALL_TURN:
+        return math.cos(th + d), math.sin(th + d)
+    d2 = d * d
+    sd = d * (1.0 + d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (
+        -1.0 / 5040.0 + d2 * (1.0 / 362880.0 + d2 * (-1.0 / 39916800.0))))))
+    cd = 1.0 + d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 * (
+        1.0 / 40320.0 + d2 * (-1.0 / 3628800.0 + d2 * (1.0 / 479001600.0))))))
+    return c * cd - sn * sd, sn * cd + c * sd
+
+
+@njit(inline="always")
+def _planar_dead_rhs(sig, c, sn, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, qx, qy):
+    """Right-hand side of (θ, m, a, b, x, y) under dead loads at local coordinate ``sig``,
+    θ given by (cos θ, sin θ)."""
     nx = nex + qx * (length - sig)
     ny = ney + qy * (length - sig)
-    c, sn, n1, n3, v1, v3 = planar_strains(th, nx, ny, ca, cg, vr)
+    c, sn, n1, n3, v1, v3 = _strains_cs(c, sn, nx, ny, ca, cg, vr)
     return (ur + m * ci, v1 * n3 - v3 * n1, b * ci,
             ((cg - ca) * (n1 * n1 - n3 * n3) + vr * n3) * a, v3 * c - v1 * sn, v3 * sn + v1 * c)
 
@@ -244,6 +302,9 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out):
     s0 = 0.0
     row = 0
     bmin = 1.0
+    # cos θ and sin θ at the node, carried from node to node by the turn between them.
+    c_node = math.cos(th)
+    s_node = math.sin(th)
     for i in range(secf.shape[1]):
         length = secf[LEN, i]
         nst = steps[i]
@@ -262,7 +323,7 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out):
             if record:
                 nx = nex + qx * (length - sig)
                 ny = ney + qy * (length - sig)
-                c, sn, n1, n3, v1, v3 = planar_strains(th, nx, ny, ca, cg, vr)
+                c, sn, n1, n3, v1, v3 = _strains_cs(c_node, s_node, nx, ny, ca, cg, vr)
                 out[row, S] = s0 + sig
                 out[row, X] = x
                 out[row, Y] = y
@@ -276,16 +337,22 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out):
                 row += 1
             if j == nst:
                 break
-            k1 = _planar_dead_rhs(sig, th, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
+            k1 = _planar_dead_rhs(sig, c_node, s_node, m, a, b, length, ca, cg, ci, ur, vr, nex, ney,
+                                  qx, qy)
             hh = 0.5 * h
-            k2 = _planar_dead_rhs(sig + hh, th + hh * k1[0], m + hh * k1[1], a + hh * k1[2],
-                                  b + hh * k1[3], length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
-            k3 = _planar_dead_rhs(sig + hh, th + hh * k2[0], m + hh * k2[1], a + hh * k2[2],
-                                  b + hh * k2[3], length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
-            k4 = _planar_dead_rhs(sig + h, th + h * k3[0], m + h * k3[1], a + h * k3[2],
-                                  b + h * k3[3], length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
+            c, sn = _turned(th, c_node, s_node, hh * k1[0])
+            k2 = _planar_dead_rhs(sig + hh, c, sn, m + hh * k1[1], a + hh * k1[2], b + hh * k1[3],
+                                  length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
+            c, sn = _turned(th, c_node, s_node, hh * k2[0])
+            k3 = _planar_dead_rhs(sig + hh, c, sn, m + hh * k2[1], a + hh * k2[2], b + hh * k2[3],
+                                  length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
+            c, sn = _turned(th, c_node, s_node, h * k3[0])
+            k4 = _planar_dead_rhs(sig + h, c, sn, m + h * k3[1], a + h * k3[2], b + h * k3[3],
+                                  length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
             w = h / 6.0
-            th += w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            turn = w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            c_node, s_node = _turned(th, c_node, s_node, turn)
+            th += turn
             m += w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
             a += w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
             b += w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
@@ -295,6 +362,72 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out):
                 bmin = b
         s0 += length
     return th, m, b, x, y, bmin
+
+
+@njit
+def planar_rest_gradient(record, secf, steps, rest, grad):
+    """How the base moment of a planar dead-load equilibrium moves with the rest strains:
+    ∂m0/∂u*_i and ∂m0/∂v*_i with the tip condition m(L) = M_tip held (the predictor of a warm
+    step to new pressures).
+
+    The linearised statics δθ' = δm/EI + δu*, δm' = K·δθ − n1·δv* (K = ∂m'/∂θ, as in
+    :func:`integrate_planar`) are integrated for a unit change of each section's u* and v*
+    and of m0, by Heun's rule on the recorded nodes: second-order accurate, which is plenty
+    for a prediction that Newton then corrects.
+
+    Args:
+        record: (Σ(steps + 1), N_COLUMNS) the equilibrium's record (:func:`integrate_planar`).
+        secf: (6, ns) section array. steps: (ns,). rest: (3, ns) its rest strains.
+        grad: (2, ns) written: rows ∂m0/∂u* (N m²), ∂m0/∂v* (N m).
+    """
+    ns = secf.shape[1]
+    n_par = 2 * ns + 1
+    a = np.zeros(n_par)
+    b = np.zeros(n_par)
+    b[2 * ns] = 1.0  # the m0 direction: δθ(0) = 0, δm(0) = 1
+    row = 0
+    for i in range(ns):
+        ca = secf[CA, i]
+        cg = secf[CG, i]
+        ci = secf[CI, i]
+        vr = rest[REST_V3, i]
+        k0, n1_0 = _stiffness_and_shear(record, row, ca, cg, vr)
+        for j in range(steps[i]):
+            r = row + j + 1
+            h = record[r, S] - record[r - 1, S]
+            k1, n1_1 = _stiffness_and_shear(record, r, ca, cg, vr)
+            for par in range(n_par):
+                if 2 * i + 2 <= par < 2 * ns:
+                    continue  # a later section's parameter: still zero
+                du = 1.0 if par == 2 * i else 0.0
+                dv = 1.0 if par == 2 * i + 1 else 0.0
+                da0 = ci * b[par] + du
+                db0 = k0 * a[par] - dv * n1_0
+                a_pred = a[par] + h * da0
+                b_pred = b[par] + h * db0
+                da1 = ci * b_pred + du
+                db1 = k1 * a_pred - dv * n1_1
+                a[par] += 0.5 * h * (da0 + da1)
+                b[par] += 0.5 * h * (db0 + db1)
+            k0 = k1
+            n1_0 = n1_1
+        row += steps[i] + 1
+    for i in range(ns):
+        grad[0, i] = -b[2 * i] / b[2 * ns]
+        grad[1, i] = -b[2 * i + 1] / b[2 * ns]
+
+
+@njit(inline="always")
+def _stiffness_and_shear(record, r, ca, cg, vr):
+    """K = ∂m'/∂θ and n1 at recorded row ``r``: n1 and n3 from the recorded strains where
+    the section is shearable and extensible (no trigonometry), else from θ and n."""
+    if cg > 0.0 and ca > 0.0:
+        n1 = record[r, V1] / cg
+        n3 = (record[r, V3] - vr) / ca
+    else:
+        c, sn, n1, n3, v1, v3 = planar_strains(record[r, THETA], record[r, NX], record[r, NY], ca,
+                                               cg, vr)
+    return (cg - ca) * (n1 * n1 - n3 * n3) + vr * n3, n1
 
 
 @njit
