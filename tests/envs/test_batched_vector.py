@@ -1,72 +1,102 @@
-"""The solve_batch-backed vector env matches the single ReachEnv, copy by copy."""
+"""The BatchedReachVectorEnv is, copy by copy and bit for bit, the single ReachEnv."""
 
+import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium.vector import AutoresetMode
 
-import solver
 from softarm_gym.vector import BatchedReachVectorEnv
 
 
-def test_observations_match_single_env_layout_and_values():
-    env = BatchedReachVectorEnv(num_envs=3)
-    obs, info = env.reset(seed=0)
-    assert obs.shape == (3, env.single_observation_space.shape[0])
-    assert env.observation_space.contains(obs)
-    actions = np.random.default_rng(0).uniform(-1, 1, (3, 6)).astype(np.float32)
-    obs, reward, terminated, truncated, info = env.step(actions)
-    assert info["converged"].all()
-    single = env._template
-    for k in range(3):
-        # The single env's observation of the same equilibrium: warm path from the start state.
-        fraction = 0.5 * (np.clip(actions[k], -1, 1) + 1)
-        eq = solver.solve(env.arm, fraction * single.p_max, env.scene)
-        np.testing.assert_allclose(info["tip_true"][k], eq.tip, atol=1e-9)
-        from softarm_gym.sensing.estimators import shape_from_equilibrium
-        shape = shape_from_equilibrium(eq, single.n_backbone)
-        single._shape, single._fraction, single._target = shape, fraction, info["target"][k]
-        np.testing.assert_allclose(obs[k], single._observation(), atol=1e-5)
-        distance = np.hypot(*(eq.tip - info["target"][k]))
-        expected = -distance - single.control_weight * np.mean(fraction**2) + \
-            (single.success_bonus if distance <= single.success_tolerance else 0.0)
-        assert reward[k] == pytest.approx(expected, abs=1e-6)
-        parts = sum(info[name][k] for name in ("reward_distance", "reward_control",
-                                               "reward_success", "reward_solver"))
-        assert reward[k] == pytest.approx(parts, abs=1e-12)
+def _assert_same(a, b, where):
+    """Recursive exact equality of vector-env outputs (arrays, dicts of arrays)."""
+    if isinstance(a, dict):
+        assert list(a) == list(b), f"{where}: keys {list(a)} != {list(b)}"
+        for key in a:
+            _assert_same(a[key], b[key], f"{where}[{key!r}]")
+    elif isinstance(a, tuple):
+        assert len(a) == len(b)
+        for i, (x, y) in enumerate(zip(a, b)):
+            _assert_same(x, y, f"{where}[{i}]")
+    else:
+        a, b = np.asarray(a), np.asarray(b)
+        assert a.dtype == b.dtype, f"{where}: dtype {a.dtype} != {b.dtype}"
+        np.testing.assert_array_equal(a, b, err_msg=where)
 
 
-def test_same_seed_same_trajectory_and_autoreset():
-    runs = []
-    for _ in range(2):
-        env = BatchedReachVectorEnv(num_envs=4, max_episode_steps=3)
-        obs, _ = env.reset(seed=7)
-        rng = np.random.default_rng(1)
-        trace = [obs]
-        for _ in range(4):
-            obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, (4, 6)))
-            trace += [obs, reward]
-        runs.append(trace)
-        assert trunc.sum() == 0 and "_final_obs" not in info  # step 4: fresh episodes
-    for a, b in zip(*runs):
-        np.testing.assert_array_equal(a, b)
+@pytest.mark.parametrize("env_id, kwargs", [
+    ("SoftArm/OctArmReach-v0", {}),
+    ("SoftArm/OctArmReach-v0", {"action_mode": "delta", "terminate_on_success": True,
+                                "success_tolerance": 0.15}),
+    ("SoftArm/CTReach-v0", {"payload_kg": 0.05, "base_angle_deg": 45.0}),
+])
+def test_copy_i_seeded_s_is_the_single_env_seeded_s_plus_i(env_id, kwargs):
+    """Observations, rewards, flags and infos equal SyncVectorEnv's over the single env, bit
+    for bit, across autoresets (NEXT_STEP)."""
+    n, steps = 3, 9
+    batched = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                           max_episode_steps=4, **kwargs)
+    sync = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": AutoresetMode.NEXT_STEP},
+                        max_episode_steps=4, **kwargs)
+    assert batched.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    _assert_same(batched.reset(seed=11), sync.reset(seed=11), "reset")
+    rng = np.random.default_rng(5)
+    ended = 0
+    for t in range(steps):
+        actions = rng.uniform(-1.2, 1.2, batched.action_space.shape).astype(np.float32)
+        out_b, out_s = batched.step(actions), sync.step(actions)
+        _assert_same(out_b, out_s, f"step {t}")
+        ended += int(np.sum(out_b[2] | out_b[3]))
+    assert ended >= n  # the episodes ended (and the copies were reset) along the way
+    batched.close()
+    sync.close()
 
 
-def test_truncation_resets_in_the_same_step():
-    env = BatchedReachVectorEnv(num_envs=2, max_episode_steps=2)
-    env.reset(seed=3)
-    env.step(np.zeros((2, 6)))
-    obs, reward, term, trunc, info = env.step(np.zeros((2, 6)))
-    assert trunc.all() and info["_final_obs"].all()
-    assert (env._steps == 0).all()
+def test_unseeded_reset_continues_each_copy_stream():
+    a, b = BatchedReachVectorEnv(num_envs=2), BatchedReachVectorEnv(num_envs=2)
+    a.reset(seed=3)
+    b.reset(seed=[3, 4])
+    assert a.np_random_seed == b.np_random_seed == (3, 4)
+    _assert_same(a.reset(), b.reset(), "second reset")
+    first = a.reset(seed=3)[1]["target"]
+    assert not np.array_equal(first, a.reset()[1]["target"])
 
 
-def test_bad_input():
-    with pytest.raises(ValueError, match="observation='true' only"):
+def test_gymnasium_vector_wrappers_accept_it():
+    envs = gym.wrappers.vector.RecordEpisodeStatistics(
+        gym.wrappers.vector.NormalizeObservation(
+            BatchedReachVectorEnv(num_envs=2, max_episode_steps=2)))
+    obs, _ = envs.reset(seed=0)
+    finished = []
+    for _ in range(5):
+        obs, reward, term, trunc, info = envs.step(np.zeros((2, 6)))
+        assert np.all(np.isfinite(obs))
+        if "episode" in info:
+            finished.append(info["_episode"].copy())
+    assert finished and all(mask.all() for mask in finished)
+
+
+def test_step_before_reset_and_bad_input():
+    with pytest.raises(ValueError, match="does not support observation='load_cell'"):
         BatchedReachVectorEnv(num_envs=2, observation="load_cell")
-    with pytest.raises(ValueError, match="does not support payload_kg"):
-        BatchedReachVectorEnv(num_envs=2, payload_kg=0.1)
+    with pytest.raises(ValueError, match="payload_kg range"):
+        BatchedReachVectorEnv(num_envs=2, payload_kg=(0.0, 0.1))
+    with pytest.raises(ValueError, match="randomization"):
+        BatchedReachVectorEnv(num_envs=2, randomization={"youngs_modulus_rel": 0.1})
+    with pytest.raises(ValueError, match="planar=False"):
+        BatchedReachVectorEnv(num_envs=2, planar=False)
+    with pytest.raises(ValueError, match="constant_curvature"):
+        BatchedReachVectorEnv(num_envs=2, model="constant_curvature")
     with pytest.raises(ValueError, match="num_envs"):
         BatchedReachVectorEnv(num_envs=0)
     env = BatchedReachVectorEnv(num_envs=2)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros((2, 6)))
+    with pytest.raises(ValueError, match="reset options"):
+        env.reset(seed=0, options={"target": (0.1, 0.2)})
+    with pytest.raises(ValueError, match="seed"):
+        env.reset(seed=[1, 2, 3])
     env.reset(seed=0)
     with pytest.raises(ValueError, match="env 1, channel 's1_II\\+III' is not finite"):
         env.step(np.array([[0, 0, 0, 0, 0, 0], [0, np.nan, 0, 0, 0, 0]]))
@@ -77,16 +107,13 @@ def test_bad_input():
 @pytest.mark.parametrize("env_id", ["SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0"])
 def test_make_vec_vector_entry_point(env_id):
     """The reach IDs register the batched env as their ``vector_entry_point``."""
-    import gymnasium as gym
-
     envs = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
     assert isinstance(envs, BatchedReachVectorEnv)
     assert envs.num_envs == 3 and envs.max_episode_steps == gym.spec(env_id).max_episode_steps
     assert envs.arm.name == gym.spec(env_id).kwargs["design"]
-    obs, _ = envs.reset(seed=0)
+    obs, info = envs.reset(seed=0)
     assert obs.shape == (3, *envs.single_observation_space.shape)
+    assert envs.observation_space.contains(obs)
     single = gym.make(env_id)
     assert envs.observation_slices == single.unwrapped.observation_slices
-    np.testing.assert_allclose(obs[:, envs.observation_slices["goal"]][:, :2],
-                               envs.reset(seed=0)[1]["target"], rtol=1e-6)  # float32 obs
     envs.close()
