@@ -1,7 +1,7 @@
 """Planar quasi-static Cosserat kernels: shooting on the base moment with RK4.
 
 Planar statics of the thesis's Eqs. (2.25)–(2.27) and (2.55)–(2.57), written in the
-rest-strain form of DESIGN §2. In section i, with s the reference arc length,
+rest-strain form of docs/design.md §1–4. In section i, with s the reference arc length,
 
     x' = v3 cos θ − v1 sin θ,   y' = v3 sin θ + v1 cos θ          (2.25)–(2.26)
     θ' = u*_i + m / EI_i                                          (2.27), (2.30)

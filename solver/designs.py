@@ -20,7 +20,7 @@ Channel maps, in one place:
   ``[inner_I, inner_II+III, outer_I, outer_II+III]`` — inner_I bends the whole arm
   clockwise, outer_I bends section 1 counter-clockwise, and so on.
 
-Bending stiffness, ``ei=`` (DESIGN §2):
+Bending stiffness, ``ei=`` (docs/design.md §1–4):
 
 * ``"eq2.32"`` (default): ``EI = E·N_t·(I_tube + At·Ro²/2)`` as Eq. (2.32) and Table 4.2;
   for the CT base section Table 5.1's ``E·(6·I_tube + 5·At·Ro²/2)``.

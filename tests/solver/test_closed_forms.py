@@ -1,4 +1,4 @@
-"""The solver against closed forms that do not depend on our code (DESIGN §7)."""
+"""The solver against closed forms that do not depend on our code (docs/design.md §12)."""
 
 import math
 

@@ -5,7 +5,7 @@ import pytest
 
 from softarm_gym.envs import ReachEnv
 from softarm_gym.render import ESTIMATE_COLOUR, TARGET_COLOUR, TRUE_COLOUR, ArmRenderer3D, Cylinder, Sphere
-from tests.envs.frames import colour_mask, has_colour
+from tests.frames import colour_mask, has_colour
 
 OUT_OF_VIEW = np.full((2, 3), 50.0)  # an estimate far outside every view: nothing of it is drawn
 
