@@ -34,7 +34,7 @@ register(
     id="SoftArm/OctArmWrap-v0",
     entry_point="softarm_gym.envs:WrapEnv",
     max_episode_steps=200,
-    reward_threshold=99.0,
+    reward_threshold=143.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.09, 0.11)},
 )
 

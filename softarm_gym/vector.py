@@ -1,81 +1,78 @@
 """A batched vector environment: many reach tasks stepped by one parallel solver call.
 
 ``gym.make_vec("SoftArm/OctArmReach-v0", num_envs=1024, vectorization_mode="vector_entry_point")``
-returns a :class:`BatchedReachVectorEnv`: all arms move together through
-:func:`solver.step_batch` (numba ``prange`` over the copies), and observations, rewards and
-resets are computed for the whole batch at once. Observations, actions and rewards are
-those of :class:`softarm_gym.envs.ReachEnv` with ``observation="true"``, so a policy trained
-on one runs on the other. Estimator observations, payloads and parameter randomisation need
-the per-copy machinery of the single env: use ``vectorization_mode="sync"`` or ``"async"``
-for those (a clear ``ValueError`` says so).
+returns a :class:`BatchedReachVectorEnv`: all arms move together through a
+:class:`solver.BatchStepper` (numba ``prange`` over the copies), and observations, rewards
+and resets are computed for the whole batch by the batch-first functions of
+:mod:`softarm_gym.envs.terms` that the single :class:`~softarm_gym.envs.ReachEnv` uses for
+its batch of one. Copy i of an env reset with ``seed=s`` is, bit for bit, the single env
+reset with ``seed=s + i`` (observations, rewards, flags and infos, as
+``gym.make_vec(..., vectorization_mode="sync")`` gives them), so a policy trained on one
+runs on the other.
+
+It follows Gymnasium's vector API: ``NEXT_STEP`` autoreset (the step after an episode
+ends resets that copy, returning its first observation, reward 0 and no termination), the
+single env's ``info`` keys as arrays with ``_key`` masks. What needs per-copy machinery —
+estimator observations, payload ranges, parameter randomisation, the wrap task, 3D — is
+refused with a ``ValueError`` naming it: use ``vectorization_mode="sync"`` or ``"async"``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 import solver
 from softarm_gym.envs import ReachEnv
-from softarm_gym.sensing._kernels import _hermite_resample
-from solver._jit import njit
+from softarm_gym.envs.reach import TARGET_ATTEMPTS
+from softarm_gym.envs.terms import (
+    REACH_TERMS,
+    clip_observations,
+    fill_pressures,
+    fill_reach_goals,
+    fill_true_shapes,
+    fractions_from_actions,
+    reach_reward_sum,
+    reach_rewards,
+)
+from solver import layout as L
 
 __all__ = ["BatchedReachVectorEnv"]
 
-_SUPPORTED = {"design", "base_angle_deg", "n_backbone", "action_mode", "delta_scale",
-              "distance_weight", "control_weight", "success_bonus", "success_tolerance",
-              "initial_pressure_fraction", "solver_failure_penalty", "max_solver_failures",
-              "terminate_on_success", "observation", "planar", "model"}
+
+def _unsupported(env: ReachEnv) -> list[str]:
+    """What of a configured single env the batched env cannot simulate."""
+    reasons = []
+    if env.observation_name != "true":
+        reasons.append(f"observation={env.observation_name!r} (estimators need per-copy sensing; "
+                       "the batched env observes 'true')")
+    if not env.planar:
+        reasons.append("planar=False")
+    if env.payload_range[0] != env.payload_range[1]:
+        reasons.append(f"a payload_kg range {env.payload_range} (one scene serves every copy)")
+    if env.randomization.active:
+        reasons.append("randomization (one arm serves every copy)")
+    if env.observation_format != "flat":
+        reasons.append(f"observation_format={env.observation_format!r}")
+    if env.synthesize_sensors:
+        reasons.append("synthesize_sensors=True")
+    if env.render_mode is not None:
+        reasons.append(f"render_mode={env.render_mode!r}")
+    return reasons
 
 
-@njit
-def _fill_observations(shapes, section_ends, s_query, fraction, target, low, high, tip_slice,
-                       ends_slice, backbone_slice, pressure_slice, goal_slice, obs, tips, tangent,
-                       backbone):
-    """Flat ReachEnv observations of every copy from its recorded backbone.
-
-    ``shapes`` (n, N, 10) are :mod:`solver._planar` records (s, x, y, θ, m, n_x, n_y, v1, v3, u).
-    The backbone is resampled by the same cubic Hermite rule as the ``true`` estimator.
-    """
-    n = shapes.shape[0]
-    ns = section_ends.shape[0]
-    for k in range(n):
-        rec = shapes[k]
-        rows = rec.shape[0]
-        for r in range(rows):
-            c = np.cos(rec[r, 3])
-            sn = np.sin(rec[r, 3])
-            # dr/ds = v3 d3 + v1 d1, d3 = (cos θ, sin θ), d1 = (−sin θ, cos θ)
-            tangent[r, 0] = rec[r, 8] * c - rec[r, 7] * sn
-            tangent[r, 1] = rec[r, 8] * sn + rec[r, 7] * c
-        _hermite_resample(rec[:, 0], rec[:, 1:3], tangent[:rows], s_query, backbone)
-        tips[k, 0] = rec[rows - 1, 1]
-        tips[k, 1] = rec[rows - 1, 2]
-        backbone[backbone.shape[0] - 1, 0] = tips[k, 0]
-        backbone[backbone.shape[0] - 1, 1] = tips[k, 1]
-        o = obs[k]
-        o[tip_slice[0]] = tips[k, 0]
-        o[tip_slice[0] + 1] = tips[k, 1]
-        for i in range(ns):
-            r = section_ends[i]
-            base = ends_slice[0] + 4 * i
-            o[base] = rec[r, 1]
-            o[base + 1] = rec[r, 2]
-            o[base + 2] = np.cos(rec[r, 3])
-            o[base + 3] = np.sin(rec[r, 3])
-        for j in range(backbone.shape[0]):
-            o[backbone_slice[0] + 2 * j] = backbone[j, 0]
-            o[backbone_slice[0] + 2 * j + 1] = backbone[j, 1]
-        for c in range(fraction.shape[1]):
-            o[pressure_slice[0] + c] = 2.0 * fraction[k, c] - 1.0
-        g = goal_slice[0]
-        o[g] = target[k, 0]
-        o[g + 1] = target[k, 1]
-        o[g + 2] = target[k, 0] - tips[k, 0]
-        o[g + 3] = target[k, 1] - tips[k, 1]
-        for d in range(o.shape[0]):
-            o[d] = min(max(o[d], low[d]), high[d])
+def _info_arrays(items: Sequence[tuple[str, object]], n: int) -> dict:
+    """Vector infos as Gymnasium builds them from n single infos with every key present:
+    each ``key`` followed by its all-True ``_key`` mask."""
+    infos = {}
+    for key, value in items:
+        infos[key] = value
+        infos[f"_{key}"] = np.ones(n, dtype=bool)
+    return infos
 
 
 class BatchedReachVectorEnv(VectorEnv):
@@ -83,164 +80,233 @@ class BatchedReachVectorEnv(VectorEnv):
 
     Same spaces, rewards (``reward_distance + reward_control + reward_success +
     reward_solver``), targets (tips of cold equilibria at uniform random pressures), start
-    states and failure policy as :class:`~softarm_gym.envs.ReachEnv` — see its env card.
-    Episodes end by truncation after ``max_episode_steps`` or ``max_solver_failures``
-    consecutive unconverged steps (or on success with ``terminate_on_success``); finished
-    copies are reset in the same step (``AutoresetMode.SAME_STEP``), their last observation
-    in ``infos["final_obs"]``.
+    states, failure policy and ``info`` as :class:`~softarm_gym.envs.ReachEnv` — see its env
+    card. Episodes end by truncation after ``max_episode_steps`` or ``max_solver_failures``
+    consecutive unconverged steps (or on success with ``terminate_on_success``); a finished
+    copy is reset at its next step (``AutoresetMode.NEXT_STEP``, its action ignored).
 
     Args:
         num_envs: number of arms.
         max_episode_steps: truncation length (default 100, as registered).
-        **kwargs: ReachEnv arguments; only those in ``_SUPPORTED`` with ``observation="true"``.
+        **kwargs: ReachEnv arguments. Refused with a ``ValueError`` naming them: estimator
+            observations, ``planar=False``, payload ranges, randomisation, the Dict format,
+            sensor synthesis, rendering, and arms the lean planar solver does not step.
     """
 
-    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
     def __init__(self, num_envs: int = 64, max_episode_steps: int = 100, **kwargs):
-        if isinstance(num_envs, bool) or int(num_envs) != num_envs or num_envs < 1:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1; got {num_envs!r}")
-        unsupported = sorted(set(kwargs) - _SUPPORTED)
-        if unsupported:
-            raise ValueError(
-                f"the batched vector env does not support {', '.join(unsupported)}; use "
-                "gym.make_vec(..., vectorization_mode='sync') for those")
-        if kwargs.get("observation", "true") != "true":
-            raise ValueError("the batched vector env provides observation='true' only; use "
-                             "vectorization_mode='sync' or 'async' for estimator observations")
-        if kwargs.pop("model", "full") != "full":
-            raise ValueError("the batched vector env simulates the full model only")
-        self._template = ReachEnv(**kwargs)
-        t = self._template
-        self.num_envs = int(num_envs)
+        if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
+                or max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be an integer >= 1; got {max_episode_steps!r}")
+        self._template = t = ReachEnv(**kwargs)
+        reasons = _unsupported(t)
+        if reasons:
+            raise ValueError(f"the batched vector env does not support {'; '.join(reasons)}; use "
+                             "gym.make_vec(..., vectorization_mode='sync' or 'async') for those")
+        self.num_envs = n = int(num_envs)
         self.max_episode_steps = int(max_episode_steps)
         self.single_observation_space = t.observation_space
         self.single_action_space = t.action_space
-        self.observation_space = batch_space(t.observation_space, self.num_envs)
-        self.action_space = batch_space(t.action_space, self.num_envs)
+        self.observation_space = batch_space(t.observation_space, n)
+        self.action_space = batch_space(t.action_space, n)
         self.arm = t.arm
-        self.scene = solver.Scene(base_angle_deg=t.base_angle_deg)
+        self.scene = solver.Scene(base_angle_deg=t.base_angle_deg, payload_kg=t.payload_range[0],
+                                  gravity=t.gravity)
         self.render_mode = None
-        n = self.num_envs
+        try:
+            self._batch = solver.BatchStepper(self.arm, self.scene, n, model=t.model)
+        except ValueError as exc:
+            raise ValueError(f"the batched vector env cannot step this arm: {exc}") from None
+        self._rngs: list[np.random.Generator] | None = None
         self._obs = np.zeros((n, t.observation_space.shape[0]))
+        self._low = t.observation_space.low.astype(np.float64)
+        self._high = t.observation_space.high.astype(np.float64)
         self._tips = np.zeros((n, 2))
         self._target = np.zeros((n, 2))
         self._fraction = np.zeros((n, t.n_inputs))
         self._steps = np.zeros(n, dtype=np.int64)
         self._failures = np.zeros(n, dtype=np.int64)
-        self._state = None
-        self._s_query = np.linspace(0.0, self.arm.length, t.n_backbone)
-        self._slices = {name: np.array([sl.start], dtype=np.int64)
-                        for name, sl in t.observation_slices.items()}
+        self._autoreset = np.zeros(n, dtype=bool)
+        self._terms = np.zeros((n, len(REACH_TERMS)))
+        self._distance = np.zeros(n)
+        self._success = np.zeros(n, dtype=bool)
+        slices = t.observation_slices
+        self._shape_starts = np.array([slices[name].start for name in ("tip", "section_ends", "backbone")],
+                                      dtype=np.int64)
+        self._s_query = None
+        self._tangent = np.empty((self._batch.records.shape[1], 2))
+        self._backbone = np.empty((t.n_backbone, 2))
 
     @property
     def observation_slices(self) -> dict[str, slice]:
         """Where each block sits in one copy's flat observation (as the single env's)."""
         return self._template.observation_slices
 
+    @property
+    def np_random_seed(self):
+        """The seed of each copy's generator (as ``SyncVectorEnv`` reports them)."""
+        return None if self._rngs is None else tuple(self._seeds)
+
     # ------------------------------------------------------------------ helpers
 
-    def _solve(self, fraction, rows=None, cold=False):
-        """Step (or cold-solve) the given rows to ``fraction`` · p_max; updates the batch state."""
-        p = fraction * self._template.p_max
-        if rows is None:
-            self._state = solver.step_batch(self.arm, p, self.scene, None if cold else self._state,
-                                            record=True)
-            return self._state.converged
-        sub = solver.step_batch(self.arm, p, self.scene, None, record=True)
-        st = self._state
-        for name in ("pressures", "tips", "converged", "shapes", "base_moment", "channel_pressures"):
-            getattr(st, name)[rows] = getattr(sub, name)
-        return sub.converged
+    def _seed(self, seed) -> None:
+        n = self.num_envs
+        if seed is None:
+            seeds = [None] * n
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(n)]
+        elif isinstance(seed, Sequence) and len(seed) == n:
+            seeds = list(seed)
+        else:
+            raise ValueError(f"seed must be None, an int (copy i is seeded s + i) or {n} seeds; "
+                             f"got {seed!r}")
+        if seed is None and self._rngs is not None:
+            return  # as a single env reset without a seed: keep drawing from the same streams
+        pairs = [seeding.np_random(s) for s in seeds]
+        self._rngs = [rng for rng, _ in pairs]
+        self._seeds = [s for _, s in pairs]
 
-    def _reset_rows(self, rows):
-        """New targets and start states for ``rows`` (an index array)."""
-        rng = self.np_random
+    def _reset_rows(self, rows: np.ndarray) -> solver.BatchReport:
+        """New start states and targets of ``rows``, drawn as ReachEnv.reset draws them."""
         t = self._template
         k = rows.size
-        target_fraction = rng.uniform(0.0, 1.0, (k, t.n_inputs))
-        targets = solver.step_batch(self.arm, target_fraction * t.p_max, self.scene)
-        # A target whose cold solve did not converge is replaced by the rest position's tip
-        # of a fresh draw until all converge (rare: see softarm stress).
-        for _ in range(20):
-            bad = ~targets.converged
-            if not bad.any():
-                break
-            target_fraction[bad] = rng.uniform(0.0, 1.0, (int(bad.sum()), t.n_inputs))
-            retry = solver.step_batch(self.arm, target_fraction[bad] * t.p_max, self.scene)
-            targets.tips[bad] = retry.tips
-            targets.converged[bad] = retry.converged
-        self._target[rows] = targets.tips
-        start = rng.uniform(0.0, t.initial_pressure_fraction, (k, t.n_inputs))
-        converged = self._solve(start, rows)
-        start[~converged] = 0.0
-        if not converged.all():
-            self._solve(start, rows)
+        start = np.stack([self._rngs[i].uniform(0.0, t.initial_pressure_fraction, t.n_inputs)
+                          for i in rows]) if k else np.zeros((0, t.n_inputs))
+        report = self._batch.reset(start * t.p_max, rows)
+        failed = ~report.converged
+        if failed.any():
+            # As ReachEnv: a start state that does not converge falls back to the rest state.
+            start[failed] = 0.0
+            retry = self._batch.reset(start[failed], rows[failed])
+            report = solver.BatchReport(*(np.where(failed, r_retry, r_first)
+                                          for r_retry, r_first in zip(_scatter(retry, failed), report)))
+            if not retry.converged.all():
+                raise RuntimeError(f"the unactuated {self.arm.name} arm has no converged equilibrium "
+                                   f"in scene {self.scene}")
         self._fraction[rows] = start
+        pending = np.arange(k)
+        for _ in range(TARGET_ATTEMPTS):
+            fraction = np.stack([self._rngs[rows[j]].uniform(0.0, 1.0, t.n_inputs) for j in pending])
+            tips, target_report = self._batch.solve_tips(fraction * t.p_max)
+            done = target_report.converged
+            self._target[rows[pending[done]]] = tips[done]
+            pending = pending[~done]
+            if not pending.size:
+                break
+        else:
+            raise RuntimeError(f"no converged target in {TARGET_ATTEMPTS} random pressure draws for "
+                               f"{self.arm.name} in {self.scene}")
         self._steps[rows] = 0
         self._failures[rows] = 0
+        return report
 
-    def _observe(self):
+    def _observe(self) -> np.ndarray:
         t = self._template
-        st = self._state
-        rows = st.shapes.shape[1]
-        _fill_observations(st.shapes, np.asarray(st.section_ends, dtype=np.int64), self._s_query,
-                           self._fraction, self._target, t._low64, t._high64, self._slices["tip"],
-                           self._slices["section_ends"], self._slices["backbone"],
-                           self._slices["pressures"], self._slices["goal"], self._obs, self._tips,
-                           np.empty((rows, 2)), np.empty((t.n_backbone, 2)))
-        return self._obs.astype(np.float32)
+        records = self._batch.records
+        if self._s_query is None:
+            self._s_query = np.linspace(0.0, float(records[0, -1, L.S]), t.n_backbone)
+        fill_true_shapes(records, np.asarray(self._batch.section_ends, dtype=np.int64), self._s_query,
+                         self._shape_starts, self._obs, self._tips, self._tangent, self._backbone)
+        slices = t.observation_slices
+        fill_pressures(self._fraction, slices["pressures"].start, self._obs)
+        fill_reach_goals(self._target, self._tips, slices["goal"].start, self._obs)
+        out = np.empty(self._obs.shape, dtype=np.float32)
+        clip_observations(self._obs, self._low, self._high, out)
+        return out
+
+    def _rewards(self, converged: np.ndarray) -> np.ndarray:
+        t = self._template
+        reach_rewards(self._tips, self._target, self._fraction, converged, t.distance_weight,
+                      t.control_weight, t.success_bonus, t.success_tolerance,
+                      t.solver_failure_penalty, self._terms, self._distance, self._success)
+        return reach_reward_sum(self._terms)
+
+    def _infos(self, report: solver.BatchReport) -> dict:
+        """The single env's info keys, batched as ``SyncVectorEnv`` batches them."""
+        n = self.num_envs
+        solver_items = [("converged", report.converged.copy()), ("stable", report.stable.copy()),
+                        ("snapped", report.snapped.copy()), ("iterations", report.iterations.copy()),
+                        ("residual", report.residual.copy())]
+        items = [
+            ("tip_true", self._tips.copy()),
+            ("tip_estimated", self._tips.copy()),
+            ("estimation_error", np.zeros(n)),
+            ("sensors", {}),
+            ("converged", report.converged.copy()),
+            ("solver", _info_arrays(solver_items, n)),
+            ("solver_failures", self._failures.copy()),
+            ("pressures_pa", self._batch.pressures.copy()),
+            ("payload_kg", np.full(n, self.scene.payload_kg)),
+            ("is_success", self._success.copy()),
+            ("target", self._target.copy()),
+            ("distance", self._distance.copy()),
+        ]
+        items += [(name, self._terms[:, j].copy()) for j, name in enumerate(REACH_TERMS)]
+        return _info_arrays(items, n)
 
     # ------------------------------------------------------------------ gym API
 
     def reset(self, *, seed=None, options=None):
-        super().reset(seed=seed)
-        n = self.num_envs
-        self._state = solver.step_batch(self.arm, np.zeros((n, self._template.n_inputs)),
-                                        self.scene, record=True)
-        self._reset_rows(np.arange(n))
+        """Reset every copy (copy i seeded ``seed + i``); ``options`` are not supported."""
+        if options:
+            raise ValueError(f"the batched vector env takes no reset options; got {sorted(options)}")
+        self._seed(seed)
+        report = self._reset_rows(np.arange(self.num_envs))
+        self._autoreset[:] = False
         obs = self._observe()
-        return obs, {"target": self._target.copy(), "tip_true": self._tips.copy()}
+        self._rewards(np.ones(self.num_envs, dtype=bool))
+        return obs, self._infos(report)
 
     def step(self, actions):
+        if self._rngs is None:
+            raise RuntimeError("call reset() before step()")
         t = self._template
         a = np.asarray(actions, dtype=np.float64)
         if a.shape != (self.num_envs, t.n_inputs):
             raise ValueError(f"actions must have shape ({self.num_envs}, {t.n_inputs}); got {a.shape}")
-        bad = ~np.isfinite(a)
-        if bad.any():
-            env, ch = np.argwhere(bad)[0]
-            raise ValueError(f"action for env {env}, channel {t.input_names[ch]!r} is not finite: "
-                             f"{a[env, ch]}")
-        a = np.clip(a, -1.0, 1.0)
-        if t.action_mode == "absolute":
-            fraction = 0.5 * (a + 1.0)
-        else:
-            fraction = np.clip(self._fraction + t.delta_scale * a, 0.0, 1.0)
-        ok = self._solve(fraction)
+        stepping = ~self._autoreset
+        # Copies being reset ignore their actions (NEXT_STEP autoreset), as Sync/AsyncVectorEnv do.
+        a = np.where(stepping[:, None], a, 0.0)
+        fraction = np.empty_like(self._fraction)
+        bad = fractions_from_actions(a, self._fraction, t.action_mode == "delta", t.delta_scale, fraction)
+        if bad >= 0:
+            env, channel = divmod(bad, t.n_inputs)
+            raise ValueError(f"action for env {env}, channel {t.input_names[channel]!r} is not finite: "
+                             f"{a[env, channel]}")
+        fraction[~stepping] = self._fraction[~stepping]
+        report = self._batch.step(fraction * t.p_max, active=stepping)
+        ok = report.converged | ~stepping
         self._fraction = np.where(ok[:, None], fraction, self._fraction)
         self._failures = np.where(ok, 0, self._failures + 1)
-        self._steps += 1
+        self._steps += stepping
+        resetting = np.flatnonzero(self._autoreset)
+        if resetting.size:
+            reset_report = self._reset_rows(resetting)
+            spread = _scatter(reset_report, self._autoreset)
+            report = solver.BatchReport(*(np.where(self._autoreset, r_reset, r_step)
+                                          for r_reset, r_step in zip(spread, report)))
         obs = self._observe()
-        distance = np.hypot(*(self._tips - self._target).T)
-        success = distance <= t.success_tolerance
-        terms = {"reward_distance": -t.distance_weight * distance,
-                 "reward_control": -t.control_weight * np.mean(self._fraction ** 2, axis=1),
-                 "reward_success": np.where(success, t.success_bonus, 0.0),
-                 "reward_solver": np.where(ok, 0.0, -t.solver_failure_penalty)}
-        reward = terms["reward_distance"] + terms["reward_control"] + terms["reward_success"] \
-            + terms["reward_solver"]
-        terminated = success & t.terminate_on_success
-        truncated = (self._steps >= self.max_episode_steps) | (self._failures >= t.max_solver_failures)
-        infos = {**terms, "distance": distance, "is_success": success, "converged": ok,
-                 "tip_true": self._tips.copy(), "target": self._target.copy()}
-        done = terminated | truncated
-        if done.any():
-            infos["final_obs"] = obs.copy()  # meaningful where ``_final_obs`` is True
-            infos["_final_obs"] = done.copy()
-            self._reset_rows(np.flatnonzero(done))
-            obs = self._observe()
+        reward = self._rewards(ok)
+        reward[~stepping] = 0.0
+        terminated = self._success & t.terminate_on_success & stepping
+        truncated = ((self._steps >= self.max_episode_steps) | (self._failures >= t.max_solver_failures)) \
+            & stepping
+        infos = self._infos(report)
+        self._autoreset = terminated | truncated
         return obs, reward, terminated, truncated, infos
 
     def close_extras(self, **kwargs):
         self._template.close()
+
+
+def _scatter(report: solver.BatchReport, mask: np.ndarray) -> list[np.ndarray]:
+    """The fields of a report of the rows ``mask`` selects, spread to full-length arrays."""
+    fields = []
+    for values in report:
+        full = np.zeros(mask.shape[0], dtype=values.dtype)
+        full[mask] = values
+        fields.append(full)
+    return fields

@@ -9,24 +9,18 @@ Pure numerics: numpy, scipy and numba only (never gymnasium), usable on its own:
     eq.tip, eq.converged, eq.stable
 """
 
-from solver import actuator, designs
+from solver import actuator, designs, rod
+from solver._model import rest_strains
 from solver.actuator import PSI, pressure_from_stretch, stretch_from_pressure
+from solver.results import BatchState, Equilibrium
 from solver.scene import Disc, Scene
-from solver.solve import (
-    MODELS,
-    BatchState,
-    Equilibrium,
-    Settings,
-    SolverError,
-    channel_pressures,
-    rest_strains,
-    solve,
-    solve_batch,
-    step_batch,
-)
+from solver.settings import MODELS, Settings, SolverError
+from solver.solve import channel_pressures, solve, solve_batch, step_batch
+from solver.stepper import BatchReport, BatchStepper, Stepper, StepReport
 
 __all__ = [
-    "actuator", "designs", "PSI", "pressure_from_stretch", "stretch_from_pressure", "Scene", "Disc",
-    "MODELS", "Equilibrium", "Settings", "SolverError", "rest_strains", "solve", "solve_batch",
-    "step_batch", "BatchState", "channel_pressures",
+    "actuator", "designs", "rod", "PSI", "pressure_from_stretch", "stretch_from_pressure",
+    "Scene", "Disc", "MODELS", "Equilibrium", "Settings", "SolverError", "rest_strains", "solve",
+    "solve_batch", "step_batch", "BatchState", "channel_pressures", "Stepper", "StepReport",
+    "BatchStepper", "BatchReport",
 ]

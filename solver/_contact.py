@@ -36,22 +36,57 @@ import math
 
 import numpy as np
 
-from solver._jit import njit
 from solver._obstacles import _contact_force, _contact_stiffness, _nearest_surface, _tunnels
-from solver._rod import _rest_strains
+from solver.jit import njit
+from solver.layout import (
+    C_COLUMNS,
+    C_FX,
+    C_FY,
+    C_PEN,
+    C_S,
+    C_U,
+    C_V1,
+    C_V3,
+    C_X,
+    C_Y,
+    DT0,
+    DT_MIN,
+    G_SECF,
+    G_SEGS,
+    G_START,
+    G_STEPS,
+    G_THETA0,
+    L_DISCS,
+    L_P,
+    L_PLATE,
+    L_Q,
+    L_TARGET,
+    MAX_ITER,
+    MAX_STEP,
+    PREDICT_CAP,
+    REST_U2,
+    REST_V3,
+    SEG_END,
+    SEG_FIRST,
+    SEG_ROW0,
+    SEG_SECTION,
+    SEG_STEPS,
+    TOL,
+)
+from solver.rod import (
+    planar_state_jacobian,
+    planar_state_rhs,
+    planar_state_rk4_step,
+    planar_strains,
+    rest_strains_into,
+)
 
-# Columns of recorded samples: s, x, y, θ, n_x, n_y, m, f_x, f_y, penetration, v1, v3, u
-C_S, C_X, C_Y, C_TH, C_NX, C_NY, C_M, C_FX, C_FY, C_PEN, C_V1, C_V3, C_U = range(13)
-N_COLUMNS = 13
-# Columns of the segment table (M, 5): section, first local step, steps, ends the section,
-# first recorded row of the section.
-SEG_SECTION, SEG_FIRST, SEG_STEPS, SEG_END, SEG_ROW0 = range(5)
-# Bandwidth of the shooting Jacobian (sub- and super-diagonals: a row of segment k's
-# continuity couples its 6-state start to the next segment's), and its band storage: the
-# rows of LAPACK's dgbtrf layout, with room for the fill-in of partial pivoting.
 # RK4 substeps per step near a disc (see _segment): with steps of half the decay length
 # (EI/k)^¼ away from contact, a tenth of it where the arm may touch.
 NEAR_SUBSTEPS = 5
+# Bandwidth of the shooting Jacobian (sub- and super-diagonals: a row of segment k's
+# continuity couples its 6-state start to the next segment's), and its band storage: the
+# rows of LAPACK's dgbtrf layout, with room for the fill-in of partial pivoting.
 BAND = 2 * 8
 BAND_ROWS = 3 * 8 + 1
 # A sample may sink this much deeper (in m) between two accepted states than at either: the
@@ -60,89 +95,25 @@ TUNNEL_SLACK = 2e-3
 
 
 @njit
-def _rhs(st, out, ca, cg, ci, ur, vr, qx, qy, discs):
-    """Derivative of the state (x, y, θ, n_x, n_y, m) into ``out``."""
-    th = st[2]
-    nx = st[3]
-    ny = st[4]
-    c = math.cos(th)
-    sn = math.sin(th)
-    n1 = -nx * sn + ny * c
-    n3 = nx * c + ny * sn
-    v1 = n1 * cg
-    v3 = vr + n3 * ca
-    fx, fy, pen = _contact_force(st[0], st[1], discs)
-    out[0] = v3 * c - v1 * sn
-    out[1] = v3 * sn + v1 * c
-    out[2] = ur + st[5] * ci
-    out[3] = -qx - fx
-    out[4] = -qy - fy
-    out[5] = v1 * n3 - v3 * n1
-
-
-@njit
 def _write_row(st, s, out, row, ca, cg, ci, ur, vr, discs):
     fx, fy, pen = _contact_force(st[0], st[1], discs)
-    c = math.cos(st[2])
-    sn = math.sin(st[2])
-    n1 = -st[3] * sn + st[4] * c
-    n3 = st[3] * c + st[4] * sn
+    c, sn, n1, n3, v1, v3 = planar_strains(st[2], st[3], st[4], ca, cg, vr)
     out[row, C_S] = s
     for d in range(6):
         out[row, C_X + d] = st[d]
     out[row, C_FX] = fx
     out[row, C_FY] = fy
     out[row, C_PEN] = pen
-    out[row, C_V1] = n1 * cg
-    out[row, C_V3] = vr + n3 * ca
+    out[row, C_V1] = v1
+    out[row, C_V3] = v3
     out[row, C_U] = ur + st[5] * ci
-
-
-@njit
-def _rk4(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs):
-    """One RK4 step of length ``h`` of the state ``st`` (6,), in place; ``work`` (≥5, 6)."""
-    k1 = work[0]
-    k2 = work[1]
-    k3 = work[2]
-    k4 = work[3]
-    tmp = work[4]
-    _rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
-    for d in range(6):
-        tmp[d] = st[d] + 0.5 * h * k1[d]
-    _rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
-    for d in range(6):
-        tmp[d] = st[d] + 0.5 * h * k2[d]
-    _rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
-    for d in range(6):
-        tmp[d] = st[d] + h * k3[d]
-    _rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
-    for d in range(6):
-        st[d] += h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
 
 
 @njit
 def _tangent_rhs(st, P, dP, ca, cg, ci, vr, discs):
     """dP = A(st)·P for the tangent P (6, 6) of the state, A = ∂(state')/∂(state) of
-    :func:`_rhs`, written out over A's non-zeros (14 of 36)."""
-    th = st[2]
-    nx = st[3]
-    ny = st[4]
-    c = math.cos(th)
-    sn = math.sin(th)
-    n1 = -nx * sn + ny * c
-    n3 = nx * c + ny * sn
-    v1 = n1 * cg
-    v3 = vr + n3 * ca
-    # x' = v3 c − v1 s, y' = v3 s + v1 c with ∂n1/∂θ = −n3, ∂n3/∂θ = n1.
-    a02 = ca * n1 * c - v3 * sn + cg * n3 * sn - v1 * c
-    a03 = ca * c * c + cg * sn * sn
-    a04 = (ca - cg) * sn * c
-    a12 = ca * n1 * sn + v3 * c - cg * n3 * c - v1 * sn
-    a14 = ca * sn * sn + cg * c * c
-    # m' = (cg − ca) n1 n3 − vr n1
-    a52 = (cg - ca) * (n1 * n1 - n3 * n3) + vr * n3
-    a53 = (cg - ca) * (-sn * n3 + n1 * c) + vr * sn
-    a54 = (cg - ca) * (c * n3 + n1 * sn) - vr * c
+    :func:`solver.rod.planar_state_rhs`, written out over A's non-zeros (14 of 36)."""
+    a02, a03, a04, a12, a14, a52, a53, a54 = planar_state_jacobian(st[2], st[3], st[4], ca, cg, vr)
     k00, k01, k11 = _contact_stiffness(st[0], st[1], discs)
     for j in range(6):
         p0 = P[0, j]
@@ -173,25 +144,25 @@ def _rk4_tangent(st, P, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs):
     K3 = tw[2]
     K4 = tw[3]
     Q = tw[4]
-    _rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
+    planar_state_rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
     _tangent_rhs(st, P, K1, ca, cg, ci, vr, discs)
     for d in range(6):
         tmp[d] = st[d] + 0.5 * h * k1[d]
         for e in range(6):
             Q[d, e] = P[d, e] + 0.5 * h * K1[d, e]
-    _rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
+    planar_state_rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
     _tangent_rhs(tmp, Q, K2, ca, cg, ci, vr, discs)
     for d in range(6):
         tmp[d] = st[d] + 0.5 * h * k2[d]
         for e in range(6):
             Q[d, e] = P[d, e] + 0.5 * h * K2[d, e]
-    _rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
+    planar_state_rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
     _tangent_rhs(tmp, Q, K3, ca, cg, ci, vr, discs)
     for d in range(6):
         tmp[d] = st[d] + h * k3[d]
         for e in range(6):
             Q[d, e] = P[d, e] + h * K3[d, e]
-    _rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
+    planar_state_rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
     _tangent_rhs(tmp, Q, K4, ca, cg, ci, vr, discs)
     for d in range(6):
         st[d] += h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
@@ -230,8 +201,8 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw):
     ca = secf[1, i]
     cg = secf[2, i]
     ci = secf[3, i]
-    ur = rest[1, i]
-    vr = rest[2, i]
+    ur = rest[REST_U2, i]
+    vr = rest[REST_V3, i]
     qx = q[i, 0]
     qy = q[i, 1]
     tangent = phi.shape[0] > 0
@@ -256,7 +227,7 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw):
         if tangent:
             _rk4_tangent(st, phi, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
         else:
-            _rk4(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
+            planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
         if discs.shape[0] == 0:
             continue
         # work[0] holds the slope at the start: r' its first two entries.
@@ -277,7 +248,7 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw):
                 _rk4_tangent(fine, tw[6], h / NEAR_SUBSTEPS, work, tw, ca, cg, ci, ur, vr, qx, qy,
                              discs)
             else:
-                _rk4(fine, h / NEAR_SUBSTEPS, work, ca, cg, ci, ur, vr, qx, qy, discs)
+                planar_state_rk4_step(fine, h / NEAR_SUBSTEPS, work, ca, cg, ci, ur, vr, qx, qy, discs)
         if clear <= 0.0:
             for d in range(6):
                 st[d] = fine[d]
@@ -315,20 +286,7 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw):
 @njit
 def _slope_of_speed(st, out, ca, cg, vr, rx, ry, speed, h):
     """h·∂|r'|/∂(state) (6,) at ``st`` into ``out``, r' = (rx, ry) its slope."""
-    th = st[2]
-    nx = st[3]
-    ny = st[4]
-    c = math.cos(th)
-    sn = math.sin(th)
-    n1 = -nx * sn + ny * c
-    n3 = nx * c + ny * sn
-    v1 = n1 * cg
-    v3 = vr + n3 * ca
-    a02 = ca * n1 * c - v3 * sn + cg * n3 * sn - v1 * c
-    a03 = ca * c * c + cg * sn * sn
-    a04 = (ca - cg) * sn * c
-    a12 = ca * n1 * sn + v3 * c - cg * n3 * c - v1 * sn
-    a14 = ca * sn * sn + cg * c * c
+    a02, a03, a04, a12, a14, a52, a53, a54 = planar_state_jacobian(st[2], st[3], st[4], ca, cg, vr)
     scale = h / speed if speed > 0.0 else 0.0
     out[0] = 0.0
     out[1] = 0.0
@@ -372,7 +330,7 @@ def _system(Z, grid, rest, level, F, J, want_jac, blocks):
     work = np.empty((7, 6))
     tw = np.empty((8, 6, 6))
     no_tangent = np.empty((0, 6))
-    dummy = np.empty((1, N_COLUMNS))
+    dummy = np.empty((1, C_COLUMNS))
     if want_jac:
         J[:, :] = 0.0  # band storage: A[i, j] at J[BAND + i − j, j]
     for seg in range(n_seg):
@@ -596,14 +554,6 @@ def _weighted_norm(v, weights):
 
 
 @njit
-def _weighted_norm(v, weights):
-    acc = 0.0
-    for k in range(v.shape[0]):
-        acc += (v[k] / weights[k]) ** 2
-    return math.sqrt(acc / v.shape[0])
-
-
-@njit
 def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     """Damped Newton on the multiple-shooting system at ``level``; ``Z`` is updated in place.
 
@@ -668,15 +618,6 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
     return False, max_iter, res, _stability(blocks) > 0.0
 
 
-# A homotopy end (a "level") is a tuple (p, q, plate, target, discs): channel pressures
-# (n_channels,), distributed loads (ns, 2), endplate weights (ns, 2), tip target n(L⁻), M_tip
-# (3,) and obstacles (k, 4). Ramps interpolate every entry linearly between two ends.
-L_P, L_Q, L_PLATE, L_TARGET, L_DISCS = range(5)
-# The layout tuple ``grid``: base angle θ0, segment table, section array (6, ns), RK4 steps
-# per section (ns,) and section start arc lengths (ns,).
-G_THETA0, G_SEGS, G_SECF, G_STEPS, G_START = range(5)
-
-
 @njit
 def _set_level(t, a, b, now):
     """Interpolate the homotopy between level tuples ``a`` and ``b`` at ``t`` into ``now``."""
@@ -704,12 +645,36 @@ def _new_level(a):
 def _at_level(t, a, b, now, tubes_i, tubes_f, secf, rest):
     """:func:`_set_level`, then the rest strains of its pressures into ``rest``."""
     _set_level(t, a, b, now)
-    _rest_strains(now[L_P], tubes_i, tubes_f, secf, rest)
+    rest_strains_into(now[L_P], tubes_i, tubes_f, secf, rest)
 
 
 @njit
-def _follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, max_step, dt0,
-            dt_min, rest, now, predict_cap):
+def _follow(Z, grid, tubes, a, b, params, work, guard):
+    """Multiple-shooting path following, in the signature the path-following kernels share.
+
+    Args:
+        Z: (N,) the nodes of the start state (see :func:`_system`), updated in place.
+        grid: the layout tuple (``G_*``). tubes: (tubes_i, tubes_f).
+        a, b: start and goal level tuples (``L_*``).
+        params: (N_PARAMS,) numeric parameters (TOL, MAX_STEP, DT0, DT_MIN, MAX_ITER,
+            PREDICT_CAP are used). work: (rest, now, weights, res_weights): scratch holding
+            the returned state's rest strains and level, and the norms' weights (see
+            :func:`_path`). guard: unused.
+
+    Returns:
+        (converged, stable, snapped, iterations, residual, t, dt), as
+        :func:`solver._planar._follow`: t the level reached, dt the step that failed
+        beyond it (0 if the start itself could not be corrected). Snaps are the caller's.
+    """
+    ok, total, res, stable, t, dt = _path(
+        Z, grid, tubes[0], tubes[1], a, b, work[2], work[3], params[TOL], int(params[MAX_ITER]),
+        params[MAX_STEP], params[DT0], params[DT_MIN], work[0], work[1], params[PREDICT_CAP])
+    return ok, stable, False, total, res, t, dt
+
+
+@njit
+def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, max_step, dt0,
+          dt_min, rest, now, predict_cap):
     """Quasi-static ramp from level ``a`` to level ``b`` (tuples, see ``L_P``…``L_DISCS``;
     cf. :func:`solver._planar._follow`): pressures, distributed loads, endplate weights, tip
     targets and obstacles all linear in t.
@@ -740,8 +705,8 @@ def _follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter
     rows = 0
     for i in range(steps.shape[0]):
         rows += steps[i] + 1
-    rec_prev = np.empty((rows, N_COLUMNS))
-    rec_new = np.empty((rows, N_COLUMNS))
+    rec_prev = np.empty((rows, C_COLUMNS))
+    rec_new = np.empty((rows, C_COLUMNS))
     has_discs = a[L_DISCS].shape[0] > 0
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
@@ -815,7 +780,7 @@ def _follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter
 
 @njit
 def _record(Z, grid, rest, level, out):
-    """Write the backbone of the state ``Z`` into ``out`` (rows Σ(steps + 1), N_COLUMNS)."""
+    """Write the backbone of the state ``Z`` into ``out`` (rows Σ(steps + 1), C_COLUMNS)."""
     z = np.empty(6)
     end = np.empty(6)
     work = np.empty((7, 6))

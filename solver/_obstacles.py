@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import math
 
-from solver._jit import njit
-
-CX, CY, RADIUS, STIFFNESS = range(4)
+from solver.jit import njit
+from solver.layout import CX, CY, RADIUS, STIFFNESS
 
 
 @njit

@@ -1,7 +1,7 @@
 """Planar quasi-static Cosserat kernels: shooting on the base moment with RK4.
 
 Planar statics of the thesis's Eqs. (2.25)–(2.27) and (2.55)–(2.57), written in the
-rest-strain form of DESIGN §2. In section i, with s the reference arc length,
+rest-strain form of docs/design.md §1–4. In section i, with s the reference arc length,
 
     x' = v3 cos θ − v1 sin θ,   y' = v3 sin θ + v1 cos θ          (2.25)–(2.26)
     θ' = u*_i + m / EI_i                                          (2.27), (2.30)
@@ -29,12 +29,11 @@ import math
 
 import numpy as np
 
-from solver._jit import njit, prange
+from solver._homotopy import _big_change
 from solver._obstacles import _clearance, _tunnels
-from solver._rod import (
-    CA,
-    CG,
-    CI,
+from solver._spatial import _planar_state_stable
+from solver.jit import njit, prange
+from solver.layout import (
     DT0,
     DT_MIN,
     JUMP,
@@ -42,118 +41,21 @@ from solver._rod import (
     M_BOUND,
     MAX_ITER,
     MAX_STEP,
+    N_COLUMNS,
     N_SCAN,
+    REST_U2,
+    REST_V3,
     TOL,
-    _big_change,
-    _rest_strains,
+    X,
+    Y,
 )
-from solver._spatial import _planar_state_stable
-
-# Columns of the recorded samples: s, x, y, θ, m, internal force n (world x, y), strains v1,
-# v3 and curvature u. Adjacent pairs are the result's (N, 2) fields as slices.
-S, X, Y, THETA, M, NX, NY, V1, V3, U = range(10)
-N_COLUMNS = 10
-# Columns of the loads array (ns, 4): internal force just proximal of each section end
-# (n_end x, y; N) and distributed load per reference length (q x, y; N/m).
-
-
-@njit
-def _rhs(sig, th, m, a, b, length, c_a, c_g, c_i, u_rest, v_rest, nex, ney, qx, qy):
-    """Right-hand side of the planar state (θ, m, a, b, x, y) at local coordinate ``sig``."""
-    nx = nex + qx * (length - sig)
-    ny = ney + qy * (length - sig)
-    c = math.cos(th)
-    sn = math.sin(th)
-    n1 = -nx * sn + ny * c
-    n3 = nx * c + ny * sn
-    v1 = n1 * c_g
-    v3 = v_rest + n3 * c_a
-    dth = u_rest + m * c_i
-    dm = v1 * n3 - v3 * n1
-    da = b * c_i
-    db = ((c_g - c_a) * (n1 * n1 - n3 * n3) + v_rest * n3) * a
-    dx = v3 * c - v1 * sn
-    dy = v3 * sn + v1 * c
-    return dth, dm, da, db, dx, dy
-
-
-@njit
-def _integrate(m0, theta0, secf, steps, rest, loads, record, out):
-    """One RK4 pass base → tip from base moment ``m0``.
-
-    Args:
-        m0: base moment (N m). theta0: base orientation θ0 (rad).
-        secf: (6, ns) section array. steps: (ns,) RK4 steps per section.
-        rest: (3, ns) rest strains (u1*, u2*, v3*); the plane uses u2* and v3*.
-        loads: (ns, 4) section-end internal force and distributed load.
-        record: write samples to ``out`` ((Σsteps + ns, N_COLUMNS)) when True.
-
-    Returns:
-        (θ, m, ∂m/∂m0, x, y at the tip, min over nodes of ∂m/∂m0 on (0, L]).
-    """
-    th = theta0
-    m = m0
-    a = 0.0
-    b = 1.0
-    x = 0.0
-    y = 0.0
-    s0 = 0.0
-    row = 0
-    bmin = 1.0
-    for i in range(secf.shape[1]):
-        length = secf[LEN, i]
-        nst = steps[i]
-        h = length / nst
-        ca = secf[CA, i]
-        cg = secf[CG, i]
-        ci = secf[CI, i]
-        ur = rest[1, i]
-        vr = rest[2, i]
-        nex = loads[i, 0]
-        ney = loads[i, 1]
-        qx = loads[i, 2]
-        qy = loads[i, 3]
-        for j in range(nst + 1):
-            sig = j * h
-            if record:
-                nx = nex + qx * (length - sig)
-                ny = ney + qy * (length - sig)
-                c = math.cos(th)
-                sn = math.sin(th)
-                n1 = -nx * sn + ny * c
-                n3 = nx * c + ny * sn
-                out[row, S] = s0 + sig
-                out[row, X] = x
-                out[row, Y] = y
-                out[row, THETA] = th
-                out[row, M] = m
-                out[row, NX] = nx
-                out[row, NY] = ny
-                out[row, V1] = n1 * cg
-                out[row, V3] = vr + n3 * ca
-                out[row, U] = ur + m * ci
-                row += 1
-            if j == nst:
-                break
-            k1 = _rhs(sig, th, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
-            hh = 0.5 * h
-            k2 = _rhs(sig + hh, th + hh * k1[0], m + hh * k1[1], a + hh * k1[2], b + hh * k1[3],
-                      length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
-            k3 = _rhs(sig + hh, th + hh * k2[0], m + hh * k2[1], a + hh * k2[2], b + hh * k2[3],
-                      length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
-            k4 = _rhs(sig + h, th + h * k3[0], m + h * k3[1], a + h * k3[2], b + h * k3[3],
-                      length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
-            w = h / 6.0
-            th += w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-            m += w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-            a += w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-            b += w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
-            x += w * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4])
-            y += w * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5])
-            if b < bmin:
-                bmin = b
-        s0 += length
-    return th, m, b, x, y, bmin
+from solver.rod import (
+    arc_chain_planar,
+    integrate_planar,
+    planar_rest_gradient,
+    rest_strains_cached,
+    rest_strains_into,
+)
 
 
 @njit
@@ -173,7 +75,7 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
     base = m0
     res_base = math.inf
     for it in range(max_iter + 1):
-        th, m, b, x, y, bmin = _integrate(m0, theta0, secf, steps, rest, loads, record, out)
+        th, m, b, x, y, bmin = integrate_planar(m0, theta0, secf, steps, rest, loads, record, out)
         res = m - m_tip
         if abs(res) <= tol:
             return m0, True, it, abs(res), bmin > 0.0, bmin, x, y, th
@@ -228,7 +130,7 @@ def _scan(theta0, secf, steps, rest, loads, m_tip, params, n_scan, guess, out):
     prev_m = 0.0
     for k in range(n_scan + 1):
         mk = -m_bound + 2.0 * m_bound * k / n_scan
-        th, m, b, x, y, bmin = _integrate(mk, theta0, secf, steps, rest, loads, False, out)
+        th, m, b, x, y, bmin = integrate_planar(mk, theta0, secf, steps, rest, loads, False, out)
         r = m - m_tip
         its += 1
         if k > 0 and math.isfinite(r) and math.isfinite(prev_r) and (r == 0.0 or prev_r * r < 0.0):
@@ -243,7 +145,7 @@ def _scan(theta0, secf, steps, rest, loads, m_tip, params, n_scan, guess, out):
                 lo, hi, r_lo = prev_m, mk, prev_r
                 for _ in range(60):
                     mid = 0.5 * (lo + hi)
-                    th, m, b, x, y, bmin = _integrate(mid, theta0, secf, steps, rest, loads, False,
+                    th, m, b, x, y, bmin = integrate_planar(mid, theta0, secf, steps, rest, loads, False,
                                                       out)
                     its += 1
                     r_mid = m - m_tip
@@ -279,18 +181,117 @@ def _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
     Newton solves of ``softarm stress`` eight points of convergence.
     """
     mt0 = _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    th0, m_a, b_a, x0, y0, bm0 = _integrate(m0, theta0, secf, steps, rest, loads_now, False, out)
+    rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+    th0, m_a, b_a, x0, y0, bm0 = integrate_planar(m0, theta0, secf, steps, rest, loads_now, False, out)
     mt1 = _level(eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    th1, m_b, b_b, x1, y1, bm1 = _integrate(m0, theta0, secf, steps, rest, loads_now, False, out)
+    rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+    th1, m_b, b_b, x1, y1, bm1 = integrate_planar(m0, theta0, secf, steps, rest, loads_now, False, out)
     slope = -((m_b - mt1) - (m_a - mt0)) / eps / b_a if b_a != 0.0 else 0.0
     return slope if math.isfinite(slope) else 0.0
 
 
 @njit
-def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-            mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs):
+def _follow(state, grid, tubes, a, b, params, work, guard):
+    """Planar dead-load path following, in the signature the path-following kernels share.
+
+    Args:
+        state: (4,) in: the base moment m0 (N m) of the equilibrium at ``a``; out: m0, tip x,
+            y (m) and θ (rad) of the returned state.
+        grid: (θ0, secf (6, ns), steps (ns,)). tubes: (tubes_i, tubes_f).
+        a, b: start and goal levels (channel pressures, loads (ns, 4), tip moment).
+        params: (N_PARAMS,) numeric parameters (:mod:`solver.layout`).
+        work: (rest (3, ns), p_now, loads_now (ns, 4), out (≥1, N_COLUMNS), record); see
+            :func:`_path`. guard: (c_j_3d, discs); see :func:`_path`.
+
+    Returns:
+        (converged, stable, snapped, iterations, residual, t, dt): t is 1 when converged
+        (NaN otherwise: the planar path does not report how far it got), dt 0.
+    """
+    m0, ok, total, snapped, stable, res, x, y, th = _path(
+        state[0], grid[0], grid[1], grid[2], tubes[0], tubes[1], a[0], b[0], a[1], b[1], a[2],
+        b[2], params, work[0], work[1], work[2], work[3], work[4], guard[0], guard[1])
+    state[0] = m0
+    state[1] = x
+    state[2] = y
+    state[3] = th
+    return ok, stable, snapped, total, res, 1.0 if ok else math.nan, 0.0
+
+
+# Newton iterations of the stepper's direct attempt: a prediction that is any good converges
+# in two or three; one that is not is left to the continuation of :func:`_path` early.
+DIRECT_ITER = 6
+
+
+@njit
+def _step(state, grid, tubes, a, b, params, work, memo):
+    """A warm step of the stepper (:class:`solver.stepper.Stepper`): :func:`_follow` from an
+    equilibrium at ``a`` to the pressures of ``b`` (the same loads), first tried as one
+    Newton solve from a first-order prediction.
+
+    The prediction moves m0 by the rest-strain gradient of the start state
+    (:func:`solver.rod.planar_rest_gradient`) times the change of the rest strains. It is
+    accepted on the terms :func:`_path` accepts a continuation step: Newton converged on a
+    stable state that moved from the prediction by at most ``JUMP`` plus half the predicted
+    move. Otherwise the step is :func:`_follow`'s (continuation, fold scan), with the same
+    prediction as its first tangent.
+
+    Args:
+        state, grid, tubes, a, b, params, work: as :func:`_follow`.
+        memo: (p_seen (n_tubes,), stretch (n_tubes,), rest_a (3, ns), grad (2, ns)): the
+            λ(p) cache (:func:`solver.rod.rest_strains_cached`), the start state's rest
+            strains and gradient (NaN: unknown). Updated to the returned state when it
+            converged; the gradient is computed only if ``work`` records.
+
+    Returns:
+        As :func:`_follow`.
+    """
+    theta0, secf, steps = grid
+    rest, p_now, loads_now, out, record = work
+    p_seen, stretch, rest_a, grad = memo
+    p_b, loads, m_tip = b
+    m_start = state[0]
+    rest_strains_cached(p_b, tubes[0], tubes[1], secf, p_seen, stretch, rest)
+    slope = math.nan
+    if math.isfinite(grad[0, 0]):
+        slope = 0.0
+        for i in range(secf.shape[1]):
+            slope += (grad[0, i] * (rest[REST_U2, i] - rest_a[REST_U2, i])
+                      + grad[1, i] * (rest[REST_V3, i] - rest_a[REST_V3, i]))
+    guess = m_start + (slope if math.isfinite(slope) else 0.0)
+    root, ok, its, res, stable, bm, x, y, th = _newton(
+        guess, theta0, secf, steps, rest, loads, m_tip, params[TOL],
+        min(int(params[MAX_ITER]), DIRECT_ITER), params[MAX_STEP], out, record)
+    snapped = False
+    if ok and stable and abs(root - guess) <= params[JUMP] + 0.5 * abs(guess - m_start):
+        state[0] = root
+        state[1] = x
+        state[2] = y
+        state[3] = th
+        for c in range(p_b.shape[0]):
+            p_now[c] = p_b[c]
+        loads_now[:, :] = loads
+    else:
+        m_end, ok, more, snapped, stable, res, x, y, th = _path(
+            m_start, theta0, secf, steps, tubes[0], tubes[1], a[0], p_b, a[1], loads, a[2],
+            m_tip, params, rest, p_now, loads_now, out, record, np.empty(0), np.empty((0, 4)),
+            slope)
+        state[0] = m_end
+        state[1] = x
+        state[2] = y
+        state[3] = th
+        its += more
+    if ok:
+        rest_a[:, :] = rest
+        if record:
+            planar_rest_gradient(out, secf, steps, rest, grad)
+        else:
+            grad[0, 0] = math.nan
+    return ok, stable, snapped, its, res, 1.0 if ok else math.nan, 0.0
+
+
+@njit
+def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+          mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs, slope0=math.nan):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
 
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
@@ -314,6 +315,9 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
     with obstacles the same way: the backbone must stay clear of every disc by half an RK4
     step at every accepted state, and no sample may pass through a disc between accepted
     states (:func:`solver._obstacles._tunnels`; a step that fails only that is halved).
+
+    ``slope0``: dm0/dt at the start, if the caller knows it (the stepper's rest-strain
+    gradient); otherwise a large change gets a finite-difference tangent (two passes).
 
     Returns:
         (m0, converged, iterations, snapped, stable, |residual|, tip x, y, θ).
@@ -343,8 +347,8 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
     rec_new = np.empty((rows, N_COLUMNS))
     if discs.shape[0] > 0:
         _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
-        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-        _integrate(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
+        rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+        integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
         if not _clear_of(rec_prev, discs, half_h):
             return m0, False, 1, snapped, False, math.inf, x, y, th
     # Tangent predictor for the first step (the later steps use the secant through accepted
@@ -353,14 +357,16 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
     big = mtip_a != mtip_b or _big_change(p_a, p_b, loads_a, loads_b)
     slope = 0.0
     eps = 1e-6
-    if big:
+    if math.isfinite(slope0):
+        slope = slope0
+    elif big:
         slope = _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
                          loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out)
         total += 2
     while t < 1.0:
         t_new = min(1.0, t + dt)
         m_tip = _level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
-        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+        rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         guess = m0 + slope * (t_new - t)
         # Intermediate points only seed the next prediction: a looser tolerance and a short
         # iteration budget (a step that needs more is rejected anyway) keep ramps cheap.
@@ -378,7 +384,7 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
                                                                   c_j_3d, rest, loads_now):
                 return root, False, total, snapped, False, res, x, y, th
             if discs.shape[0] > 0:
-                _integrate(root, theta0, secf, steps, rest, loads_now, True, rec_new)
+                integrate_planar(root, theta0, secf, steps, rest, loads_now, True, rec_new)
                 total += 1
                 if not _clear_of(rec_new, discs, half_h):
                     return root, False, total, snapped, False, res, x, y, th
@@ -445,17 +451,15 @@ def _follow(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_
 @njit
 def _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
                mtip_b, rest, p_now, loads_now, out, total, snapped, res):
-    """The unconverged return of :func:`_follow`: the last accepted state ``m0`` at its level
+    """The unconverged return of :func:`_path`: the last accepted state ``m0`` at its level
     ``t``, re-integrated so that the reported tip and scratch arrays belong to it (finite,
     flagged ``converged=False``) rather than to the failed attempt."""
     _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    th, m, b, x, y, bmin = _integrate(m0, theta0, secf, steps, rest, loads_now, False, out)
+    rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+    th, m, b, x, y, bmin = integrate_planar(m0, theta0, secf, steps, rest, loads_now, False, out)
     return m0, False, total + 1, snapped, bmin > 0.0, res, x, y, th
 
 
-_NO_GUARD = np.empty(0)
-_NO_DISCS = np.empty((0, 4))
 
 
 @njit
@@ -483,27 +487,127 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
     n = p_targets.shape[0]
     ns = secf.shape[1]
     nc = p_targets.shape[1]
+    grid = (theta0, secf, steps)
+    tubes = (tubes_i, tubes_f)
+    no_guard = np.empty(0)
+    no_discs = np.empty((0, 4))
     for k in prange(n):
         rest = np.empty((3, ns))
         p_now = np.empty(nc)
         loads_now = np.empty((ns, 4))
         # A converged row's backbone is recorded by its final Newton pass.
-        root, conv, its, snapped, stab, res, x, y, th = _follow(
-            m0_start[k], theta0, secf, steps, tubes_i, tubes_f, p_start[k], p_targets[k], loads,
-            loads, mtip, mtip, params, rest, p_now, loads_now, shapes[k], record, _NO_GUARD,
-            _NO_DISCS)
+        state = np.empty(4)
+        state[0] = m0_start[k]
+        conv, stab, snapped, its, res, t, dt = _follow(
+            state, grid, tubes, (p_start[k], loads, mtip), (p_targets[k], loads, mtip), params,
+            (rest, p_now, loads_now, shapes[k], record), (no_guard, no_discs))
+        root, x, y = state[0], state[1], state[2]
         conv = conv and math.isfinite(x) and math.isfinite(y)
         if not conv:
             # Keep the last good state: its rest strains, shape and tip.
             root = m0_start[k]
-            _rest_strains(p_start[k], tubes_i, tubes_f, secf, rest)
-            th, m, b, x, y, bmin = _integrate(root, theta0, secf, steps, rest, loads, record,
+            rest_strains_into(p_start[k], tubes_i, tubes_f, secf, rest)
+            th, m, b, x, y, bmin = integrate_planar(root, theta0, secf, steps, rest, loads, record,
                                               shapes[k])
         tips[k, 0] = x
         tips[k, 1] = y
         ok[k] = conv
         stable_out[k] = stab
         m0_out[k] = root
+
+
+@njit(inline="always")
+def _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
+              rest_a, grad, report):
+    """Row k of :func:`_cold_rows`: a cold solve, as :func:`solver.solve`'s single shooting."""
+    rest, p_now, loads_now = work
+    out = records[k]
+    ok, stable, snapped, its, res, _, _ = _follow(
+        states[k], grid, tubes, (p_zero, loads, mtip), (p[k], loads, mtip), params,
+        (rest[k], p_now[k], loads_now[k], out, record), (np.empty(0), np.empty((0, 4))))
+    report[k, 0] = ok
+    report[k, 1] = stable
+    report[k, 2] = snapped
+    report[k, 3] = its
+    report[k, 4] = res
+    if ok and record:
+        rest_strains_into(p[k], tubes[0], tubes[1], grid[1], rest_a[k])
+        planar_rest_gradient(out, grid[1], grid[2], rest_a[k], grad[k])
+
+
+@njit(parallel=True)
+def _cold_rows_parallel(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
+                        record, rest_a, grad, report):
+    """Cold solves of many copies in parallel (see :class:`solver.stepper.BatchStepper`).
+
+    Row k follows the path from ``states[k, 0]`` (the loaded unactuated arm's m0) at zero
+    pressure to ``p[k]``, exactly as :func:`solver._paths_planar.solve_single` does, so that
+    a row gives the bits a single solve gives. Writes ``states`` (n, 4), ``report`` (n, 5):
+    converged, stable, snapped, iterations, residual; with ``record`` the backbone into
+    ``records[k]`` (otherwise an (n, 1, N_COLUMNS) scratch) and, where converged, the rest
+    strains ``rest_a[k]`` (3, ns) and their gradient ``grad[k]`` (2, ns) the stepper
+    predicts with. ``work`` is per-row scratch.
+    """
+    for k in prange(p.shape[0]):
+        _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
+                  rest_a, grad, report)
+
+
+@njit
+def _cold_rows_serial(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
+                      record, rest_a, grad, report):
+    """:func:`_cold_rows_parallel` on one thread (small batches: no thread start-up)."""
+    for k in range(p.shape[0]):
+        _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
+                  rest_a, grad, report)
+
+
+@njit(inline="always")
+def _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records, memo,
+              report):
+    """Row k of :func:`_step_rows`: :func:`_step`, the record kept only if it converged."""
+    rest, p_now, loads_now, scratch = work
+    p_seen, stretch, rest_a, grad = memo
+    m_start = states[k, 0]
+    ok, stable, snapped, its, res, _, _ = _step(
+        states[k], grid, tubes, (p_from[k], loads, mtip), (p_to[k], loads, mtip), params,
+        (rest[k], p_now[k], loads_now[k], scratch[k], True),
+        (p_seen[k], stretch[k], rest_a[k], grad[k]))
+    report[k, 0] = ok
+    report[k, 1] = stable
+    report[k, 2] = snapped
+    report[k, 3] = its
+    report[k, 4] = res
+    if ok:
+        records[k, :, :] = scratch[k]
+    else:
+        states[k, 0] = m_start
+
+
+@njit(parallel=True)
+def _step_rows_parallel(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                        memo, active, report):
+    """Warm steps of many copies in parallel: :func:`_step` per row, from the equilibrium
+    ``states[k]``/``records[k]`` at ``p_from[k]`` to ``p_to[k]`` (n, n_channels). A row
+    that converged gets its new record, state and predictor memo (per-row arrays of
+    :func:`_step`'s ``memo``); one that did not keeps its equilibrium. ``work``: per-row
+    scratch (rest, p_now, loads_now, scratch records). Rows where ``active`` (n,) is False
+    are skipped. ``report`` as :func:`_cold_rows_parallel`.
+    """
+    for k in prange(p_to.shape[0]):
+        if active[k]:
+            _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                      memo, report)
+
+
+@njit
+def _step_rows_serial(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                      memo, active, report):
+    """:func:`_step_rows_parallel` on one thread."""
+    for k in range(p_to.shape[0]):
+        if active[k]:
+            _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                      memo, report)
 
 
 @njit(parallel=True)
@@ -517,20 +621,14 @@ def _arc_tips(theta0, secf, tubes_i, tubes_f, p_channels, tips):
     ns = secf.shape[1]
     for k in prange(p_channels.shape[0]):
         rest = np.empty((3, ns))
-        _rest_strains(p_channels[k], tubes_i, tubes_f, secf, rest)
-        th = theta0
-        x = 0.0
-        y = 0.0
+        rest_strains_into(p_channels[k], tubes_i, tubes_f, secf, rest)
+        tip = np.empty((1, 2))
+        ends = np.empty((ns, 3))
+        length = np.empty(1)
+        length[0] = 0.0
         for i in range(ns):
-            length = secf[LEN, i] * rest[2, i]  # arc length of the stretched section
-            kappa = rest[1, i] / rest[2, i]       # curvature per unit of that arc length
-            turn = kappa * length
-            if abs(turn) < 1e-8:
-                x += length * math.cos(th)
-                y += length * math.sin(th)
-            else:
-                x += (math.sin(th + turn) - math.sin(th)) / kappa
-                y += (math.cos(th) - math.cos(th + turn)) / kappa
-            th += turn
-        tips[k, 0] = x
-        tips[k, 1] = y
+            length[0] += secf[LEN, i]
+        arc_chain_planar(theta0, secf[LEN], rest[REST_U2], rest[REST_V3], length, tip,
+                         np.empty(0), ends)
+        tips[k, 0] = tip[0, 0]
+        tips[k, 1] = tip[0, 1]

@@ -28,9 +28,9 @@ import math
 
 import numpy as np
 
-from solver._jit import njit
-from solver._obstacles import CX, CY, RADIUS, STIFFNESS, _penalty_energy
-from solver._rod import CA, CG, CI, LEN
+from solver._obstacles import _penalty_energy
+from solver.jit import njit
+from solver.layout import C_TH, C_V1, C_V3, CA, CG, CI, CX, CY, LEN, RADIUS, STIFFNESS
 
 
 @njit
@@ -207,7 +207,6 @@ def strains_of_record(record, steps):
         record: (Σ(steps + 1), ≥13) a :mod:`solver._contact` record (columns x, y, θ, …, v1,
             v3), junction samples repeated. steps: (ns,) RK4 steps per section.
     """
-    from solver._contact import C_TH, C_V1, C_V3
     rows = np.concatenate([np.arange(k) + 1 + off for k, off in
                            zip(steps, np.concatenate([[0], np.cumsum(steps + 1)[:-1]]))])
     first = np.concatenate([[0], rows[:-1]])  # the row each element starts from

@@ -23,271 +23,44 @@ import math
 
 import numpy as np
 
-from solver._jit import njit
-from solver._rod import DT0, DT_MIN, JUMP, MAX_ITER, MAX_STEP, N_SCAN, TOL, _big_change, _rest_strains
-
-
-def base_rotation(theta0: float) -> np.ndarray:
-    """Directors [d1 d2 d3] (columns) of the base: d3 = (cos θ0, sin θ0, 0), d2 = +z."""
-    c, s = math.cos(theta0), math.sin(theta0)
-    return np.array([[-s, 0.0, c], [c, 0.0, s], [0.0, 1.0, 0.0]])
-
-
-def arc_chain(rot0, sec_len, sec_steps, u1, u2, v3, record):
-    """Closed-form backbone of sections that each take their rest strains exactly.
-
-    Each section is a circular arc (helix-free: u3 = 0, v = (0, 0, v3)): with κ = |u| and
-    axis k = u/κ in the body frame, R(σ) = R0·exp(σ[u]×) and
-    r(σ) = r0 + R0·[v3·e3·sin(κσ)/κ + v3·(k × e3)(1 − cos κσ)/κ].
-
-    Returns:
-        positions (N, 3), frames (N, 3, 3), s (N,) — or only the tip row when not recorded.
-    """
-    pos, frames, svals = [np.zeros(3)], [rot0.copy()], [0.0]
-    r = np.zeros(3)
-    rot = rot0.copy()
-    s0 = 0.0
-    for i in range(len(sec_len)):
-        u = np.array([u1[i], u2[i], 0.0])
-        kappa = float(np.hypot(u1[i], u2[i]))
-        n = int(sec_steps[i]) if record else 1
-        start_r, start_rot = r.copy(), rot.copy()
-        for j in range(1, n + 1):
-            sig = sec_len[i] * j / n
-            rel_r, rel_rot = _arc(u, kappa, v3[i], sig)
-            r = start_r + start_rot @ rel_r
-            rot = start_rot @ rel_rot
-            if record:
-                pos.append(r.copy())
-                frames.append(rot.copy())
-                svals.append(s0 + sig)
-        if record and i < len(sec_len) - 1:
-            # Repeat the junction so that every section owns its end sample (as the
-            # shooting kernels record them).
-            pos.append(r.copy())
-            frames.append(rot.copy())
-            svals.append(s0 + sec_len[i])
-        s0 += sec_len[i]
-    if not record:
-        return r[None, :], rot[None, :, :], np.array([s0])
-    return np.array(pos), np.array(frames), np.array(svals)
-
-
-def _arc(u, kappa, v3, sig):
-    """Relative position and rotation after ``sig`` along an arc of body curvature ``u``."""
-    e3 = np.array([0.0, 0.0, 1.0])
-    if kappa * sig < 1e-8:
-        return v3 * sig * e3, np.eye(3)
-    k = u / kappa
-    phi = kappa * sig
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    rot = np.eye(3) + math.sin(phi) * kx + (1.0 - math.cos(phi)) * (kx @ kx)
-    rel = v3 * (e3 * math.sin(phi) / kappa + np.cross(k, e3) * (1.0 - math.cos(phi)) / kappa)
-    return rel, rot
-
-
-@njit
-def _rot_to_quat(r, out):
-    """Unit quaternion of rotation matrix ``r`` (Shepperd's method)."""
-    tr = r[0, 0] + r[1, 1] + r[2, 2]
-    if tr > 0.0:
-        s = math.sqrt(tr + 1.0) * 2.0
-        out[0] = 0.25 * s
-        out[1] = (r[2, 1] - r[1, 2]) / s
-        out[2] = (r[0, 2] - r[2, 0]) / s
-        out[3] = (r[1, 0] - r[0, 1]) / s
-    elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
-        s = math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]) * 2.0
-        out[0] = (r[2, 1] - r[1, 2]) / s
-        out[1] = 0.25 * s
-        out[2] = (r[0, 1] + r[1, 0]) / s
-        out[3] = (r[0, 2] + r[2, 0]) / s
-    elif r[1, 1] > r[2, 2]:
-        s = math.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]) * 2.0
-        out[0] = (r[0, 2] - r[2, 0]) / s
-        out[1] = (r[0, 1] + r[1, 0]) / s
-        out[2] = 0.25 * s
-        out[3] = (r[1, 2] + r[2, 1]) / s
-    else:
-        s = math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]) * 2.0
-        out[0] = (r[1, 0] - r[0, 1]) / s
-        out[1] = (r[0, 2] + r[2, 0]) / s
-        out[2] = (r[1, 2] + r[2, 1]) / s
-        out[3] = 0.25 * s
-
-
-# State layout: r 0:3, quaternion 3:7, m 7:10, δφ 10:19 (3 columns), δm 19:28.
-NSTATE = 28
-
-
-@njit
-def _rhs(sig, y, dy, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i):
-    """Derivative of the spatial state (see module docstring) at local coordinate ``sig``.
-
-    Written out in scalars: this runs 4× per RK4 step and must not allocate.
-    ``loads_i`` (6,) = n_end (x, y, z) and q (x, y, z) of the section.
-    """
-    qn = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5] + y[6] * y[6])
-    w = y[3] / qn
-    x = y[4] / qn
-    yy = y[5] / qn
-    z = y[6] / qn
-    r00 = w * w + x * x - yy * yy - z * z
-    r01 = 2.0 * (x * yy - w * z)
-    r02 = 2.0 * (x * z + w * yy)
-    r10 = 2.0 * (x * yy + w * z)
-    r11 = w * w - x * x + yy * yy - z * z
-    r12 = 2.0 * (yy * z - w * x)
-    r20 = 2.0 * (x * z - w * yy)
-    r21 = 2.0 * (yy * z + w * x)
-    r22 = w * w - x * x - yy * yy + z * z
-    rest = length - sig
-    n0 = loads_i[0] + loads_i[3] * rest
-    n1 = loads_i[1] + loads_i[4] * rest
-    n2 = loads_i[2] + loads_i[5] * rest
-    m0 = y[7]
-    m1 = y[8]
-    m2 = y[9]
-    # Body-frame components (Rᵀ n, Rᵀ m).
-    nb0 = r00 * n0 + r10 * n1 + r20 * n2
-    nb1 = r01 * n0 + r11 * n1 + r21 * n2
-    nb2 = r02 * n0 + r12 * n1 + r22 * n2
-    mb0 = r00 * m0 + r10 * m1 + r20 * m2
-    mb1 = r01 * m0 + r11 * m1 + r21 * m2
-    mb2 = r02 * m0 + r12 * m1 + r22 * m2
-    v0 = nb0 * cg
-    v1 = nb1 * cg
-    v2 = v3r + nb2 * ca
-    u0 = u1r + mb0 * ci
-    u1 = u2r + mb1 * ci
-    u2 = mb2 * cj
-    rp0 = r00 * v0 + r01 * v1 + r02 * v2
-    rp1 = r10 * v0 + r11 * v1 + r12 * v2
-    rp2 = r20 * v0 + r21 * v1 + r22 * v2
-    dy[0] = rp0
-    dy[1] = rp1
-    dy[2] = rp2
-    dy[3] = 0.5 * (-x * u0 - yy * u1 - z * u2)
-    dy[4] = 0.5 * (w * u0 - z * u1 + yy * u2)
-    dy[5] = 0.5 * (z * u0 + w * u1 - x * u2)
-    dy[6] = 0.5 * (-yy * u0 + x * u1 + w * u2)
-    # m' = −r' × n
-    dy[7] = -(rp1 * n2 - rp2 * n1)
-    dy[8] = -(rp2 * n0 - rp0 * n2)
-    dy[9] = -(rp0 * n1 - rp1 * n0)
-    for j in range(3):
-        p0 = y[10 + 3 * j]
-        p1 = y[11 + 3 * j]
-        p2 = y[12 + 3 * j]
-        a0 = y[19 + 3 * j] + (m1 * p2 - m2 * p1)
-        a1 = y[20 + 3 * j] + (m2 * p0 - m0 * p2)
-        a2 = y[21 + 3 * j] + (m0 * p1 - m1 * p0)
-        da = (cj - ci) * (r02 * a0 + r12 * a1 + r22 * a2)
-        dy[10 + 3 * j] = ci * a0 + da * r02
-        dy[11 + 3 * j] = ci * a1 + da * r12
-        dy[12 + 3 * j] = ci * a2 + da * r22
-        # δr' = δφ × r' − P (δφ × n)
-        pn0 = p1 * n2 - p2 * n1
-        pn1 = p2 * n0 - p0 * n2
-        pn2 = p0 * n1 - p1 * n0
-        dp = (ca - cg) * (r02 * pn0 + r12 * pn1 + r22 * pn2)
-        d0 = (p1 * rp2 - p2 * rp1) - (cg * pn0 + dp * r02)
-        d1 = (p2 * rp0 - p0 * rp2) - (cg * pn1 + dp * r12)
-        d2 = (p0 * rp1 - p1 * rp0) - (cg * pn2 + dp * r22)
-        dy[19 + 3 * j] = -(d1 * n2 - d2 * n1)
-        dy[20 + 3 * j] = -(d2 * n0 - d0 * n2)
-        dy[21 + 3 * j] = -(d0 * n1 - d1 * n0)
-
-
-@njit
-def _det3(cols):
-    """Determinant of the 3×3 matrix stored column-wise in ``cols`` (9,)."""
-    return (cols[0] * (cols[4] * cols[8] - cols[5] * cols[7])
-            - cols[3] * (cols[1] * cols[8] - cols[2] * cols[7])
-            + cols[6] * (cols[1] * cols[5] - cols[2] * cols[4]))
-
-
-@njit
-def _integrate(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos, out_rot, out_m, work):
-    """One RK4 pass base → tip from base moment ``m0`` (3,).
-
-    Args:
-        quat0: (4,) base orientation quaternion. secf: (6, ns) section array (see
-            :mod:`solver._planar`); c_j: (ns,) 1/GJ. rest: (3, ns) rest strains.
-        loads: (ns, 6) section-end internal force and distributed load (x, y, z each).
-        work: (6, NSTATE) scratch: state, k1..k4, stage state.
-
-    Returns:
-        det ∂m(L)/∂m0, whose sign changes at folds; ``work[0]`` holds the tip state. When ``record``,
-        positions, frames and moments are written to ``out_pos`` (N,3), ``out_rot`` (N,3,3),
-        ``out_m`` (N,3).
-    """
-    y = work[0]
-    k1 = work[1]
-    k2 = work[2]
-    k3 = work[3]
-    k4 = work[4]
-    tmp = work[5]
-    for d in range(NSTATE):
-        y[d] = 0.0
-    for d in range(4):
-        y[3 + d] = quat0[d]
-    for d in range(3):
-        y[7 + d] = m0[d]
-        y[19 + 4 * d] = 1.0  # δm(0) = identity columns
-    row = 0
-    for i in range(secf.shape[1]):
-        length = secf[0, i]
-        nst = steps[i]
-        h = length / nst
-        ca = secf[1, i]
-        cg = secf[2, i]
-        ci = secf[3, i]
-        for j in range(nst + 1):
-            sig = j * h
-            if record:
-                _record_row(y, out_pos, out_rot, out_m, row)
-                row += 1
-            if j == nst:
-                break
-            _rhs(sig, y, k1, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i], rest[2, i],
-                 loads[i])
-            for d in range(NSTATE):
-                tmp[d] = y[d] + 0.5 * h * k1[d]
-            _rhs(sig + 0.5 * h, tmp, k2, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i],
-                 rest[2, i], loads[i])
-            for d in range(NSTATE):
-                tmp[d] = y[d] + 0.5 * h * k2[d]
-            _rhs(sig + 0.5 * h, tmp, k3, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i],
-                 rest[2, i], loads[i])
-            for d in range(NSTATE):
-                tmp[d] = y[d] + h * k3[d]
-            _rhs(sig + h, tmp, k4, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i], rest[2, i],
-                 loads[i])
-            for d in range(NSTATE):
-                y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
-            qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
-            for d in range(3, 7):
-                y[d] /= qn
-    return _det3(y[19:28])
-
-
-@njit
-def _record_row(y, out_pos, out_rot, out_m, row):
-    qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
-    w, x, yy, z = y[3] / qn, y[4] / qn, y[5] / qn, y[6] / qn
-    out_rot[row, 0, 0] = w * w + x * x - yy * yy - z * z
-    out_rot[row, 0, 1] = 2.0 * (x * yy - w * z)
-    out_rot[row, 0, 2] = 2.0 * (x * z + w * yy)
-    out_rot[row, 1, 0] = 2.0 * (x * yy + w * z)
-    out_rot[row, 1, 1] = w * w - x * x + yy * yy - z * z
-    out_rot[row, 1, 2] = 2.0 * (yy * z - w * x)
-    out_rot[row, 2, 0] = 2.0 * (x * z - w * yy)
-    out_rot[row, 2, 1] = 2.0 * (yy * z + w * x)
-    out_rot[row, 2, 2] = w * w - x * x - yy * yy + z * z
-    for d in range(3):
-        out_pos[row, d] = y[d]
-        out_m[row, d] = y[7 + d]
+from solver._homotopy import _big_change
+from solver.jit import njit
+from solver.layout import (
+    CA,
+    CG,
+    CI,
+    DT0,
+    DT_MIN,
+    JUMP,
+    LEN,
+    MAX_ITER,
+    MAX_STEP,
+    N_SCAN,
+    NEX,
+    NEY,
+    NSTATE,
+    QX,
+    QY,
+    REST_U1,
+    REST_U2,
+    REST_V3,
+    SL_N,
+    SL_Q,
+    SP_DM,
+    SP_DPHI,
+    SP_M,
+    SP_Q,
+    SP_R,
+    TOL,
+)
+from solver.rod import (
+    base_rotation,
+    det3,
+    integrate_spatial,
+    rest_strains_into,
+    rotation_to_quaternion,
+    spatial_rk4_step,
+)
 
 
 @njit
@@ -302,11 +75,11 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
     base = np.empty(3)
     res_base = math.inf
     for it in range(max_iter + 1):
-        det = _integrate(m0, quat0, secf, steps, c_j, rest, loads, False, dummy[0], dummy[1],
+        det = integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads, False, dummy[0], dummy[1],
                          dummy[2], work)
         y = work[0]
         for d in range(3):
-            r[d] = y[7 + d] - m_tip[d]
+            r[d] = y[SP_M + d] - m_tip[d]
         res = math.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2)
         if res <= tol:
             return True, it, res, _stability(secf, steps, c_j, rest, loads, work)
@@ -327,7 +100,7 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
             break
         # Cramer's rule on the 3×3 shooting Jacobian (columns ∂m(L)/∂m0_j): a nearly
         # singular matrix ends the iteration above instead of raising.
-        _cramer3(y[19:28], r, step)
+        _cramer3(y[SP_DM:SP_DM + 9], r, step)
         norm = math.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
         shrink = max_step / norm if norm > max_step else 1.0
         for d in range(3):
@@ -336,9 +109,30 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
 
 
 @njit
-def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-            mtip_b, params, rest, p_now, loads_now, m_tip):
-    """Spatial quasi-static path following (see :func:`solver._planar._follow`).
+def _follow(state, grid, tubes, a, b, params, work, guard):
+    """Spatial dead-load path following, in the signature the path-following kernels share.
+
+    Args:
+        state: (3,) the base moment m0 (N m), updated in place.
+        grid: (quat0 (4,), secf (6, ns), steps (ns,), c_j (ns,)). tubes: (tubes_i, tubes_f).
+        a, b: start and goal levels (channel pressures, loads (ns, 6), tip moment (3,)).
+        params: (N_PARAMS,) numeric parameters. work: (rest, p_now, loads_now, m_tip) scratch
+            holding the returned state's level. guard: unused (the planar kernel's).
+
+    Returns:
+        (converged, stable, snapped, iterations, residual, t, dt) (t: 1 when converged, else
+        NaN; dt 0), as :func:`solver._planar._follow`.
+    """
+    ok, total, stable, res, snapped = _path(
+        state, grid[0], grid[1], grid[2], grid[3], tubes[0], tubes[1], a[0], b[0], a[1], b[1],
+        a[2], b[2], params, work[0], work[1], work[2], work[3])
+    return ok, stable, snapped, total, res, 1.0 if ok else math.nan, 0.0
+
+
+@njit
+def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+          mtip_b, params, rest, p_now, loads_now, m_tip):
+    """Spatial quasi-static path following (see :func:`solver._planar._path`).
 
     ``m0`` (3,) is updated in place. Where the step falls below ``DT_MIN`` without a stable
     converged equilibrium, stability is lost between the last two levels (a bifurcation or
@@ -378,7 +172,7 @@ def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, lo
     while t < 1.0:
         t_new = min(1.0, t + dt)
         _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
-        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+        rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         for d in range(3):
             guess[d] = accepted[d] + slope[d] * (t_new - t)
             m0[d] = guess[d]
@@ -426,7 +220,7 @@ def _follow(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, lo
         for d in range(3):
             m0[d] = accepted[d]
         _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
-        _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+        rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         return False, total, False, res, snaps > 0
     return ok, total, stable, res, snaps > 0
 
@@ -448,7 +242,7 @@ def _negative_eigenvalues(d):
     (9,), from the roots of its characteristic cubic (closed form, no allocation)."""
     tr = d[0] + d[4] + d[8]
     minors = (d[0] * d[4] - d[1] * d[3]) + (d[0] * d[8] - d[2] * d[6]) + (d[4] * d[8] - d[5] * d[7])
-    det = _det3(d)
+    det = det3(d)
     # λ³ + a λ² + b λ + c with a = −tr, b = Σ principal 2×2 minors, c = −det; λ = x − a/3.
     a = -tr
     b = minors
@@ -500,46 +294,20 @@ def _stability(secf, steps, c_j, rest, loads, work):
         work: (6, NSTATE) scratch whose row 0 holds the tip state; overwritten.
     """
     y = work[0]
-    k1 = work[1]
-    k2 = work[2]
-    k3 = work[3]
-    k4 = work[4]
-    tmp = work[5]
-    for d in range(10, NSTATE):
+    for d in range(SP_DPHI, NSTATE):
         y[d] = 0.0
     for d in range(3):
-        y[10 + 4 * d] = 1.0  # δφ(L) = identity columns, δm(L) = 0
-    # The RK4 step is written out as in _integrate: a shared step function (even with
-    # numba's inline="always") made warm spatial solves 11 % slower.
+        y[SP_DPHI + 4 * d] = 1.0  # δφ(L) = identity columns, δm(L) = 0
     for i in range(secf.shape[1] - 1, -1, -1):
-        length = secf[0, i]
+        length = secf[LEN, i]
         nst = steps[i]
         h = -length / nst
-        ca = secf[1, i]
-        cg = secf[2, i]
-        ci = secf[3, i]
         for j in range(nst):
-            sig = length + j * h
-            _rhs(sig, y, k1, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i], rest[2, i],
-                 loads[i])
-            for d in range(NSTATE):
-                tmp[d] = y[d] + 0.5 * h * k1[d]
-            _rhs(sig + 0.5 * h, tmp, k2, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i],
-                 rest[2, i], loads[i])
-            for d in range(NSTATE):
-                tmp[d] = y[d] + 0.5 * h * k2[d]
-            _rhs(sig + 0.5 * h, tmp, k3, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i],
-                 rest[2, i], loads[i])
-            for d in range(NSTATE):
-                tmp[d] = y[d] + h * k3[d]
-            _rhs(sig + h, tmp, k4, length, ca, cg, ci, c_j[i], rest[0, i], rest[1, i], rest[2, i],
-                 loads[i])
-            for d in range(NSTATE):
-                y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
-            qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
-            for d in range(3, 7):
-                y[d] /= qn
-            if not math.isfinite(_det3(y[10:19])) or _negative_eigenvalues(y[10:19]) > 0:
+            spatial_rk4_step(y, length + j * h, h, work, length, secf[CA, i], secf[CG, i],
+                             secf[CI, i], c_j[i], rest[REST_U1, i], rest[REST_U2, i],
+                             rest[REST_V3, i], loads[i])
+            dphi = y[SP_DPHI:SP_DPHI + 9]
+            if not math.isfinite(det3(dphi)) or _negative_eigenvalues(dphi) > 0:
                 return False
     return True
 
@@ -561,21 +329,18 @@ def _planar_state_stable(x, y, theta, m_z, secf, steps, c_j, rest, loads_planar)
     work = np.empty((6, NSTATE))
     loads = np.zeros((loads_planar.shape[0], 6))
     for i in range(loads_planar.shape[0]):
-        loads[i, 0] = loads_planar[i, 0]
-        loads[i, 1] = loads_planar[i, 1]
-        loads[i, 3] = loads_planar[i, 2]
-        loads[i, 4] = loads_planar[i, 3]
-    c = math.cos(theta)
-    sn = math.sin(theta)
-    rot = np.array([[-sn, 0.0, c], [c, 0.0, sn], [0.0, 1.0, 0.0]])
+        loads[i, SL_N] = loads_planar[i, NEX]
+        loads[i, SL_N + 1] = loads_planar[i, NEY]
+        loads[i, SL_Q] = loads_planar[i, QX]
+        loads[i, SL_Q + 1] = loads_planar[i, QY]
     tip = work[0]
-    tip[0] = x
-    tip[1] = y
-    tip[2] = 0.0
-    _rot_to_quat(rot, tip[3:7])
-    tip[7] = 0.0
-    tip[8] = 0.0
-    tip[9] = m_z
+    tip[SP_R] = x
+    tip[SP_R + 1] = y
+    tip[SP_R + 2] = 0.0
+    rotation_to_quaternion(base_rotation(theta), tip[SP_Q:SP_Q + 4])
+    tip[SP_M] = 0.0
+    tip[SP_M + 1] = 0.0
+    tip[SP_M + 2] = m_z
     return _stability(secf, steps, c_j, rest, loads, work)
 
 
@@ -599,16 +364,16 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
     """
     scale = 4.0 * params[JUMP]
     _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    _integrate(accepted, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1],
+    rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+    integrate_spatial(accepted, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1],
                dummy[2], work)
     a = np.empty((3, 3))
     for j in range(3):
         for d in range(3):
-            a[d, j] = work[0, 19 + 3 * j + d]
+            a[d, j] = work[0, SP_DM + 3 * j + d]
     total = 1
     for d in range(9):
-        if not math.isfinite(work[0, 19 + d]):
+        if not math.isfinite(work[0, SP_DM + d]):
             return False, total
     vt = np.linalg.svd(a)[2]
     mode = vt[2].copy()
@@ -620,7 +385,7 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
         for d in range(3):
             mode[d] = -mode[d]
     _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
+    rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     amp = 0.03
     while amp < 4.0:
         for sign in (1.0, -1.0):
@@ -634,10 +399,10 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
                 if _mirror_symmetric(accepted, rest, loads_now, m_tip, scale):
                     # A pitchfork out of the x–y plane: both mirror images are equilibria
                     # (reflection z → −z maps m to (−m_x, −m_y, m_z)). Take the +z one.
-                    _integrate(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0],
+                    integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0],
                                dummy[1], dummy[2], work)
                     total += 1
-                    if work[0, 2] < 0.0:
+                    if work[0, SP_R + 2] < 0.0:
                         m0[0] = -m0[0]
                         m0[1] = -m0[1]
                 return True, total
@@ -653,7 +418,7 @@ def _mirror_symmetric(m0, rest, loads, m_tip, scale):
     if abs(m0[0]) > tiny or abs(m0[1]) > tiny or abs(m_tip[0]) > tiny or abs(m_tip[1]) > tiny:
         return False
     for i in range(rest.shape[1]):
-        if rest[0, i] != 0.0 or loads[i, 2] != 0.0 or loads[i, 5] != 0.0:
+        if rest[REST_U1, i] != 0.0 or loads[i, SL_N + 2] != 0.0 or loads[i, SL_Q + 2] != 0.0:
             return False
     return True
 
@@ -668,18 +433,18 @@ def _tangent(m0, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a
     for d in range(3):
         slope[d] = 0.0
     _set_level(t + eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    _integrate(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1], dummy[2],
+    rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+    integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1], dummy[2],
                work)
     for d in range(3):
-        r[d] = work[0, 7 + d] - m_tip[d]
+        r[d] = work[0, SP_M + d] - m_tip[d]
     _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
-    _rest_strains(p_now, tubes_i, tubes_f, secf, rest)
-    _integrate(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1], dummy[2],
+    rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+    integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1], dummy[2],
                work)
     for d in range(3):
-        r[d] = -((r[d] - (work[0, 7 + d] - m_tip[d])) / eps)
-    _cramer3(work[0, 19:28], r, slope)
+        r[d] = -((r[d] - (work[0, SP_M + d] - m_tip[d])) / eps)
+    _cramer3(work[0, SP_DM:SP_DM + 9], r, slope)
     for d in range(3):
         if not math.isfinite(slope[d]):
             for k in range(3):

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from solver._jit import njit
+from solver.jit import njit
 
 PSI = 6894.757293168361
 """One pound per square inch in pascals."""

@@ -20,7 +20,7 @@ Channel maps, in one place:
   ``[inner_I, inner_II+III, outer_I, outer_II+III]`` — inner_I bends the whole arm
   clockwise, outer_I bends section 1 counter-clockwise, and so on.
 
-Bending stiffness, ``ei=`` (DESIGN §2):
+Bending stiffness, ``ei=`` (docs/design.md §1–4):
 
 * ``"eq2.32"`` (default): ``EI = E·N_t·(I_tube + At·Ro²/2)`` as Eq. (2.32) and Table 4.2;
   for the CT base section Table 5.1's ``E·(6·I_tube + 5·At·Ro²/2)``.
@@ -57,6 +57,7 @@ import math
 import numbers
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 
+from solver._cache import DesignCache
 from solver.actuator import PSI, max_stretch
 
 __all__ = [
@@ -326,9 +327,9 @@ class ArmDesign:
     max_pressure: float = 0.0
     source: str = ""
     extra: dict = field(default_factory=dict, compare=False, hash=False)
-    # Arrays the solver derives from this (immutable) design, keyed by what they depend on.
-    _solver_cache: dict = field(default_factory=dict, init=False, repr=False, compare=False,
-                                hash=False)
+    # What the solver derives from this (immutable) design, keyed by what it depends on.
+    _solver_cache: DesignCache = field(default_factory=DesignCache, init=False, repr=False,
+                                       compare=False, hash=False)
 
     def __post_init__(self):
         _text(self.name, "ArmDesign.name", _MAX_NAME)

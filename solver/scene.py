@@ -48,7 +48,7 @@ class Disc:
 
 @dataclass(frozen=True)
 class Scene:
-    """Everything outside the arm that sets its equilibrium (DESIGN §2 conventions).
+    """Everything outside the arm that sets its equilibrium (docs/design.md §1–4 conventions).
 
     Frame: base at the origin, ``x`` horizontal, ``y`` vertical up, ``z`` out of plane;
     gravity acts along −y.

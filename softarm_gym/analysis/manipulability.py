@@ -2,7 +2,7 @@
 
 The Jacobian J = ∂tip/∂p (m/Pa) of the tip position with respect to the channel pressures at
 an equilibrium is taken by finite differences of warm-started solves, which follow the
-quasi-static path from that equilibrium (DESIGN §2), so the derivative is the one of the
+quasi-static path from that equilibrium (docs/design.md §1–4), so the derivative is the one of the
 branch the arm is on:
 
 * ``method="central"`` (default): (f(p + h) − f(p − h)) / 2h, error O(h²); at a pressure

@@ -1,7 +1,7 @@
 """PyElastica peer: the same planar arm and scene, settled by PyElastica's damped dynamics.
 
 :func:`settle` builds a PyElastica ``CosseratRod`` equivalent to our planar model of an arm
-(DESIGN §2) and integrates its damped dynamics until the tip stops moving; :func:`run_peer`
+(docs/design.md §1–4) and integrates its damped dynamics until the tip stops moving; :func:`run_peer`
 does that for the fixed OctArm V scene set of :func:`peer_scenes`, and :func:`compare` adds
 our converged reference so the two can be read side by side (``softarm bench --peer
 pyelastica``).
@@ -91,7 +91,7 @@ class PeerResult:
     """Static equilibrium reached by PyElastica's damped dynamics.
 
     Attributes:
-        tip: (2,) tip position (m), planar frame of DESIGN §2.
+        tip: (2,) tip position (m), planar frame of docs/design.md §1–4.
         seconds: wall time of the integration (s), excluding building the rod.
         steps: number of PositionVerlet time steps taken.
         settled: whether the settling criterion was met before ``max_time``.
@@ -379,14 +379,15 @@ def settle(arm, pressures_pa, scene: solver.Scene | None = None, n_elem: int = 6
 # ----------------------------------------------------------------------------- validation
 
 ELASTICA_ALPHA2_TIP = (1.0 - 0.160642, -0.493457)
-"""Inextensible cantilever, horizontal clamp, dead tip load α = P·L²/EI = 2 (DESIGN §7): tip (x, y)/L."""
+"""Inextensible cantilever, horizontal clamp, dead tip load α = P·L²/EI = 2: tip (x, y)/L
+(docs/design.md §12)."""
 
 
 def arc_tip(arm, pressures_pa, base_angle_deg: float) -> np.ndarray:
     """Closed-form tip (2,) (m) of an unloaded arm: each section an arc of curvature u2*, stretch v3*.
 
     With no loads the internal force and the moment beyond the rest curvature vanish, so every
-    section is exactly a circular arc (DESIGN §7) — independent of the rod discretisation.
+    section is exactly a circular arc (docs/design.md §12) — independent of the rod discretisation.
     """
     _, u2, v3 = solver.rest_strains(arm, solver.channel_pressures(arm, pressures_pa))
     theta = math.radians(base_angle_deg - 90.0)

@@ -7,7 +7,7 @@ runs a short episode of every registered ID in every observation mode with Table
 sensor noise and a payload range, the spatial reach task with every estimator that supports
 it, and the batched vector env. ``--clear`` first deletes every compiled file of the
 project's kernels (a damaged or stale cache; damaged entries also heal on their own, see
-:mod:`solver._jit`).
+:mod:`solver.jit`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 import solver
-from solver._jit import clear_cache
+from solver.jit import clear_cache
 
 NAME = "warmup"
 HELP = "compile the numba kernels the solver and the registered envs use into the on-disk cache"
@@ -28,7 +28,7 @@ STEPS = 3
 """Steps per warm-up episode (each kernel needs one call per argument type)."""
 
 
-KERNEL_MODULES = ("solver", "softarm_gym.sensing._kernels", "softarm_gym.vector")
+KERNEL_MODULES = ("solver", "softarm_gym.sensing._kernels", "softarm_gym.envs.terms")
 """Modules whose import defines every project kernel (for ``--clear``)."""
 
 
@@ -83,8 +83,10 @@ def warm(progress=None) -> float:
         _episode(gym.make(env_id, **kwargs), seed=k)
         if progress:
             progress(f"{env_id} {kwargs} ({time.perf_counter() - t:.1f} s)")
-    for env_id in ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0"):
-        _episode(gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point"), seed=0)
+    # Small batches run the one-thread kernels, larger ones the parallel ones: warm both.
+    for num_envs in (2, solver.BatchStepper.PARALLEL_MIN):
+        _episode(gym.make_vec("SoftArm/OctArmReach-v0", num_envs=num_envs,
+                              vectorization_mode="vector_entry_point"), seed=0)
     return time.perf_counter() - start
 
 

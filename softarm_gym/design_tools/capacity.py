@@ -9,7 +9,7 @@ what the thesis's definition tests: W is the load "brought to horizontal by
 pressurization", y(W) = 0.
 
 That path is exactly what a cold :func:`solver.solve` follows (load the unactuated arm,
-then ramp the pressures along the stable branch, DESIGN §2), so each y(W) is one cold
+then ramp the pressures along the stable branch, docs/design.md §1–4), so each y(W) is one cold
 solve. The root of y(W) is bracketed by doubling from an eighth of the arm's weight and
 found by Brent's method. A negative W (an upward tip force is needed) means the arm cannot
 lift even itself to horizontal. Where y(W) jumps across 0 (a snap during pressurisation)

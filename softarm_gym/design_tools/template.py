@@ -5,7 +5,7 @@ two together around a bigger one, and so on (Eq. 3.2, ``Θ_i = 360°/(N − i + 
 section's rest curvature at the template pressure, ``|u*_i| = M_i,max / EI_i``, the
 reference length that gives that wrap is ``L_i = Θ_i / |u*_i|`` (Eq. 3.3).
 
-``|u*_i|`` comes from the tube geometry through :func:`solver.rest_strains` (DESIGN §2:
+``|u*_i|`` comes from the tube geometry through :func:`solver.rest_strains` (docs/design.md §1–4:
 moments from geometry, not the printed factors of Eq. 2.64), with the section's two lifting
 channels (II and III) at the template pressure and channel I at 0; by the symmetry of the
 tube ring, channel I alone gives the same magnitude.
@@ -118,7 +118,7 @@ def lifting_pressures(arm: solver.designs.ArmDesign, pressure: float) -> np.ndar
     """Planar inputs with every section's II + III channel at ``pressure``, channel I at 0.
 
     Channel I sits on +d1 (on top of a horizontal arm) and bends the arm clockwise, so
-    II + III, below the axis, curl it upwards (DESIGN §2).
+    II + III, below the axis, curl it upwards (docs/design.md §1–4).
 
     Returns:
         (n_inputs,) pressures (Pa) in the order of ``arm.input_names(planar=True)``.

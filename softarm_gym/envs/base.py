@@ -17,8 +17,10 @@ from gymnasium import spaces
 
 import solver
 from softarm_gym.envs.randomization import ArmRandomization
-from softarm_gym.render import ArmRenderer, HumanWindow
-from softarm_gym.sensing import ESTIMATORS, SensorNoise, make_estimator, synthesize
+from softarm_gym.envs.terms import clip_observations, fill_pressures, fill_true_shapes, fractions_from_actions
+from softarm_gym.render import ArmRenderer, ArmRenderer3D, HumanWindow
+from softarm_gym.sensing import ESTIMATORS, SensorNoise, make_estimator, shape_from_equilibrium, synthesize
+from solver import layout as L
 
 __all__ = ["SoftArmEnv", "ACTION_MODES", "OBSERVATION_FORMATS"]
 
@@ -192,13 +194,16 @@ class SoftArmEnv(gym.Env):
             self.observation_space = spaces.Dict([
                 (name, spaces.Box(low[sl], high[sl], dtype=np.float32)) for name, sl in self._slices.items()])
         self._obs = np.zeros(low.size)
+        self._shape_starts = np.array([self._slices[name].start for name in
+                                       ("tip", "section_ends", "backbone")], dtype=np.int64)
         self._sim_arm = self.arm
         self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, gravity=self.gravity)
-        self._eq = None
+        self._stepper = None
         self._fraction = np.zeros(self.n_inputs)
         self._failures = 0
         self._readings = None
-        self._shape = None
+        self._shape_estimate = None
+        self._estimated_tip = np.zeros(self.dim)
         self._renderer = None
         self._window = None
 
@@ -231,10 +236,13 @@ class SoftArmEnv(gym.Env):
         """
         raise NotImplementedError
 
-    def _fill_goal(self, out: np.ndarray) -> None:
+    def _fill_goal(self, obs: np.ndarray) -> None:
+        """Write the goal block of the flat observation ``obs`` (D,) (float64)."""
         raise NotImplementedError
 
-    def _task_reward(self, eq: solver.Equilibrium) -> tuple[dict[str, float], bool, dict]:
+    def _task_reward(self, converged: bool) -> tuple[dict[str, float], bool, dict]:
+        """Reward terms (``reward_*``, ``reward_solver`` last, summing to the reward), success
+        and task info of the current state; ``converged``: whether the step converged."""
         raise NotImplementedError
 
     def _task_artists(self) -> dict:
@@ -254,46 +262,56 @@ class SoftArmEnv(gym.Env):
             else self.payload_range[0]
         self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, payload_kg=payload,
                                    gravity=self.gravity)
+        stepper = solver.Stepper(self._sim_arm, self._scene, model=self.model, planar=self.planar)
         fraction = self._initial_fraction()
-        eq = self._solve(fraction, warm_start=None)
-        if not eq.converged:
+        report = stepper.reset(fraction * self.p_max)
+        if not report.converged:
             fraction = np.zeros(self.n_inputs)
-            eq = self._solve(fraction, warm_start=None)
-        if not eq.converged:
+            report = stepper.reset(fraction)
+        if not report.converged:
             raise RuntimeError(f"the unactuated {self.arm.name} arm has no converged equilibrium in "
-                               f"scene {self._scene}: residual {eq.residual:.3g} N m")
+                               f"scene {self._scene}: residual {report.residual:.3g} N m")
         self._fraction = fraction
-        self._scene, eq = self._reset_task(options, eq)
-        self._eq = eq
+        scene, eq = self._reset_task(options, stepper.equilibrium)
+        if scene != stepper.scene:
+            stepper = stepper.with_scene(scene)
+            stepper.adopt(eq)
+        self._scene = scene
+        self._stepper = stepper
+        if stepper.record is not None:
+            # Scratch of the lean ``true`` observation (:meth:`_sense`), for this arm's record.
+            self._s_query = np.linspace(0.0, float(stepper.record[-1, L.S]), self.n_backbone)
+            self._section_rows = np.array(stepper.section_ends, dtype=np.int64)
+            self._tangent = np.empty((stepper.record.shape[0], 2))
+            self._backbone = np.empty((self.n_backbone, 2))
         self._failures = 0
         self.estimator.reset()
         self._sense()
-        terms, success, task_info = self._task_reward(eq)
-        info = self._info(terms, success, task_info, eq)
+        attempt = solver.StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
+        terms, success, task_info = self._task_reward(True)
+        info = self._info(terms, success, task_info, attempt)
         if self.render_mode == "human":
             self.render()
         return self._observation(), info
 
     def step(self, action):
-        if self._eq is None:
+        if self._stepper is None:
             raise RuntimeError("call reset() before step()")
         fraction = self._action_to_fraction(action)
-        eq = self._solve(fraction, warm_start=self._eq)
-        ok = bool(eq.converged and math.isfinite(eq.tip.sum()))
+        report = self._stepper.step(fraction * self.p_max)
+        ok = report.converged
         if ok:
-            self._eq = eq
             self._fraction = fraction
             self._failures = 0
         else:
             self._failures += 1
         self._sense()
-        terms, success, task_info = self._task_reward(self._eq)
-        terms["reward_solver"] = 0.0 if ok else -self.solver_failure_penalty
+        terms, success, task_info = self._task_reward(ok)
         reward = 0.0
         for value in terms.values():
             reward += value
         truncated = self._failures >= self.max_solver_failures
-        info = self._info(terms, success, task_info, eq)
+        info = self._info(terms, success, task_info, report)
         if self.render_mode == "human":
             self.render()
         return self._observation(), reward, self._terminated(success), truncated, info
@@ -303,9 +321,22 @@ class SoftArmEnv(gym.Env):
 
     # ------------------------------------------------------------------ internals
 
-    def _solve(self, fraction: np.ndarray, warm_start) -> solver.Equilibrium:
-        return solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
-                            planar=self.planar, warm_start=warm_start, record=True)
+    @property
+    def _eq(self) -> solver.Equilibrium | None:
+        """The current (last converged) equilibrium of the simulated arm."""
+        return None if self._stepper is None else self._stepper.equilibrium
+
+    @property
+    def _shape(self):
+        """The estimator's :class:`~softarm_gym.sensing.ShapeEstimate` of the current state
+        (for the lean ``true`` path, built on first access)."""
+        if self._shape_estimate is None and self._stepper is not None:
+            self._shape_estimate = shape_from_equilibrium(self._eq, self.n_backbone)
+        return self._shape_estimate
+
+    def _solver_term(self, converged: bool) -> float:
+        """The ``reward_solver`` term: minus the penalty for an unconverged step."""
+        return 0.0 if converged else -self.solver_failure_penalty
 
     def _action_to_fraction(self, action) -> np.ndarray:
         """Validate and clip a normalised action; return channel pressures as fractions of p_max."""
@@ -313,24 +344,33 @@ class SoftArmEnv(gym.Env):
         if a.shape != (self.n_inputs,):
             raise ValueError(f"action must have shape ({self.n_inputs},) for channels "
                              f"{', '.join(self.input_names)}; got shape {a.shape}")
-        finite = np.isfinite(a)  # elementwise: a.sum() overflows for finite values like 1e308
-        if not finite.all():
-            k = int(np.argmax(~finite))
-            raise ValueError(f"action for channel {self.input_names[k]!r} is not finite: {a[k]}")
-        a = np.clip(a, -1.0, 1.0)
-        if self.action_mode == "absolute":
-            return 0.5 * (a + 1.0)
-        return np.clip(self._fraction + self.delta_scale * a, 0.0, 1.0)
+        fraction = np.empty(self.n_inputs)
+        bad = fractions_from_actions(a.reshape(1, -1), self._fraction.reshape(1, -1),
+                                     self.action_mode == "delta", self.delta_scale,
+                                     fraction.reshape(1, -1))
+        if bad >= 0:
+            raise ValueError(f"action for channel {self.input_names[bad]!r} is not finite: {a[bad]}")
+        return fraction
 
     def _sense(self) -> None:
-        """Readings of the current equilibrium and the estimator's shape from them."""
+        """Readings of the current equilibrium and the estimator's shape from them, written to
+        the shape blocks of the observation (tip, section ends, backbone)."""
+        stepper = self._stepper
+        if self.observation_name == "true" and stepper.record is not None \
+                and not self.synthesize_sensors:
+            # The lean path: the true shape straight from the solver's record.
+            self._readings = None
+            self._shape_estimate = None
+            tip = self._estimated_tip.reshape(1, -1)
+            fill_true_shapes(stepper.record.reshape(1, *stepper.record.shape), self._section_rows,
+                             self._s_query, self._shape_starts, self._obs.reshape(1, -1), tip,
+                             self._tangent, self._backbone)
+            return
         eq = self._eq
         self._readings = synthesize(eq, self._sim_arm, self.sensor_noise, self.np_random) \
             if self.synthesize_sensors else None
-        self._shape = self.estimator.estimate(self._readings, eq.pressures, truth=eq)
-
-    def _observation(self):
-        shape = self._shape
+        shape = self._shape_estimate = self.estimator.estimate(self._readings, eq.pressures, truth=eq)
+        self._estimated_tip = np.array(shape.tip, dtype=float)
         obs = self._obs
         obs[self._slices["tip"]] = shape.tip
         ends = obs[self._slices["section_ends"]].reshape(self.n_sections, 2 * self.dim)
@@ -342,30 +382,33 @@ class SoftArmEnv(gym.Env):
             ends[:, :3] = shape.section_ends
             ends[:, 3:] = shape.section_frames[:, :, 2]
         obs[self._slices["backbone"]] = shape.backbone.ravel()
-        obs[self._slices["pressures"]] = 2.0 * self._fraction - 1.0
-        self._fill_goal(obs[self._slices["goal"]])
-        np.clip(obs, self._low64, self._high64, out=obs)
-        flat = obs.astype(np.float32)
+
+    def _observation(self):
+        obs = self._obs
+        fill_pressures(self._fraction.reshape(1, -1), self._slices["pressures"].start, obs.reshape(1, -1))
+        self._fill_goal(obs)
+        flat = np.empty(obs.size, dtype=np.float32)
+        clip_observations(self._obs.reshape(1, -1), self._low64, self._high64, flat.reshape(1, -1))
         if self.observation_format == "flat":
             return flat
         return {name: flat[sl] for name, sl in self._slices.items()}
 
-    def _info(self, terms: dict, success: bool, task_info: dict, attempted: solver.Equilibrium) -> dict:
-        eq = self._eq
+    def _info(self, terms: dict, success: bool, task_info: dict, attempt: solver.StepReport) -> dict:
+        stepper = self._stepper
+        tip = stepper.tip
+        readings = self._readings
         info = {
-            "tip_true": eq.tip.copy(),
-            "tip_estimated": np.asarray(self._shape.tip, dtype=float).copy(),
-            "estimation_error": math.dist(self._shape.tip, eq.tip),
-            "sensors": {} if self._readings is None else {
-                "encoder_lengths": self._readings.encoder_lengths,
-                "inclinometers": self._readings.inclinometers,
-                "base_wrench": self._readings.base_wrench},
-            "converged": bool(attempted.converged),
-            "solver": {"converged": bool(attempted.converged), "iterations": int(attempted.iterations),
-                       "residual": float(attempted.residual), "stable": bool(attempted.stable),
-                       "snapped": bool(attempted.snapped)},
+            "tip_true": tip.copy(),
+            "tip_estimated": self._estimated_tip.copy(),
+            "estimation_error": math.dist(self._estimated_tip, tip),
+            "sensors": {} if readings is None else {
+                "encoder_lengths": readings.encoder_lengths,
+                "inclinometers": readings.inclinometers,
+                "base_wrench": readings.base_wrench},
+            "converged": attempt.converged,
+            "solver": attempt._asdict(),
             "solver_failures": self._failures,
-            "pressures_pa": eq.pressures.copy(),
+            "pressures_pa": stepper.pressures.copy(),
             "payload_kg": self._scene.payload_kg,
             "is_success": bool(success),
         }
@@ -380,15 +423,16 @@ class SoftArmEnv(gym.Env):
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or "
                             "'human' to gym.make")
             return None
-        if self._eq is None:
+        if self._stepper is None:
             raise RuntimeError("call reset() before render()")
         if self._renderer is None:
-            self._renderer = ArmRenderer(extent=1.3 * self.arm.length, size=self.render_size)
+            renderer = ArmRenderer if self.planar else ArmRenderer3D
+            self._renderer = renderer(extent=1.3 * self.arm.length, size=self.render_size)
         eq = self._eq
-        # Spatial arms are drawn as their projection on the x–y plane.
+        artists = self._task_artists()
         frame = self._renderer.frame(
-            eq.positions[:, :2], eq.positions[list(eq.section_ends), :2], self._shape.backbone[:, :2],
-            self._shape.tip[:2], caption=self._caption(), **self._task_artists())
+            eq.positions, eq.positions[list(eq.section_ends)], self._shape.backbone,
+            self._shape.tip, caption=self._caption(), **artists)
         if self.render_mode == "rgb_array":
             return frame
         if self._window is None:

@@ -8,10 +8,13 @@ import numpy as np
 
 import solver
 from softarm_gym.envs.base import SoftArmEnv, _check_options, _finite_number
+from softarm_gym.envs.terms import REACH_TERMS, fill_reach_goals, reach_rewards
 
 __all__ = ["ReachEnv"]
 
-_TARGET_ATTEMPTS = 20
+TARGET_ATTEMPTS = 20
+"""Random pressure draws tried for a target before reset gives up (a draw whose cold solve
+does not converge is redrawn)."""
 
 
 class ReachEnv(SoftArmEnv):
@@ -93,7 +96,7 @@ class ReachEnv(SoftArmEnv):
     * ``planar`` (True): the planar model. ``False``: the spatial arm — one pressure per
       spatial channel (OctArm ``s1_I, s1_II, s1_III, ...``, CT ``inner_I, ..., outer_III``),
       3-D positions, section ends as (x, y, z, d3) and a 3-D target; the ``inclinometer``
-      estimator is planar only (``ValueError``); rendering shows the x–y projection.
+      estimator is planar only (``ValueError``); rendering shows the arm in 3D (see ``render_mode``).
     * ``observation`` (``"true"``): the shape estimator, one of ``softarm_gym.sensing.ESTIMATORS``.
     * ``sensor_noise`` (``"off"``): ``"off"``, ``"thesis"`` (Table 4.3 resolutions), a dict of
       ``SensorNoise`` fields or a ``SensorNoise``.
@@ -115,6 +118,9 @@ class ReachEnv(SoftArmEnv):
       need none — skipping them is most of a ``true`` step's saving); True forces them into
       ``info["sensors"]``.
     * ``render_mode`` (None, ``"rgb_array"`` or ``"human"``), ``render_size`` (400 px, at most 4096).
+      A planar arm is drawn in the x–y plane; a spatial one (``planar=False``) in three
+      orthographic views — front (x–y), side (z–y) and top (x–z), axes in metres — with the
+      target at its 3-D position, in a frame of the same size.
 
     ## Info
 
@@ -145,6 +151,11 @@ class ReachEnv(SoftArmEnv):
         self.target_pressures_pa = None
         super().__init__(design, **kwargs)
         self._target = np.zeros(self.dim)
+        # One-row buffers of the batch-first reward (softarm_gym.envs.terms.reach_rewards).
+        self._terms = np.zeros((1, len(REACH_TERMS)))
+        self._distance = np.zeros(1)
+        self._success = np.zeros(1, dtype=np.bool_)
+        self._converged = np.zeros(1, dtype=np.bool_)
 
     def _goal_bounds(self):
         r = self.reach
@@ -175,7 +186,7 @@ class ReachEnv(SoftArmEnv):
             self._target = target.copy()
             self.target_pressures_pa = None
             return self._scene, start
-        for _ in range(_TARGET_ATTEMPTS):
+        for _ in range(TARGET_ATTEMPTS):
             fraction = self.np_random.uniform(0.0, 1.0, self.n_inputs)
             eq = solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
                               planar=self.planar, record=False)
@@ -183,28 +194,34 @@ class ReachEnv(SoftArmEnv):
                 self._target = eq.tip.copy()
                 self.target_pressures_pa = eq.pressures.copy()
                 return self._scene, start
-        raise RuntimeError(f"no converged target in {_TARGET_ATTEMPTS} random pressure draws for "
+        raise RuntimeError(f"no converged target in {TARGET_ATTEMPTS} random pressure draws for "
                            f"{self.arm.name} in {self._scene}")
 
-    def _fill_goal(self, out):
-        out[:self.dim] = self._target
-        out[self.dim:] = self._target - self._shape.tip
+    def _fill_goal(self, obs):
+        fill_reach_goals(self._target.reshape(1, -1), self._estimated_tip.reshape(1, -1),
+                         self._slices["goal"].start, obs.reshape(1, -1))
 
-    def _task_reward(self, eq):
-        distance = math.dist(eq.tip, self._target)
-        success = distance <= self.success_tolerance
-        terms = {
-            "reward_distance": -self.distance_weight * distance,
-            "reward_control": -self.control_weight * float(self._fraction @ self._fraction) / self.n_inputs,
-            "reward_success": self.success_bonus if success else 0.0,
-        }
-        return terms, success, {"target": self._target.copy(), "distance": distance}
+    def _task_reward(self, converged):
+        reach_rewards(self._stepper.tip.reshape(1, -1), self._target.reshape(1, -1),
+                      self._fraction.reshape(1, -1), self._converged_row(converged),
+                      self.distance_weight, self.control_weight, self.success_bonus,
+                      self.success_tolerance, self.solver_failure_penalty, self._terms,
+                      self._distance, self._success)
+        t = self._terms[0]
+        distance = float(self._distance[0])
+        terms = {REACH_TERMS[0]: float(t[0]), REACH_TERMS[1]: float(t[1]),
+                 REACH_TERMS[2]: float(t[2]), REACH_TERMS[3]: float(t[3])}
+        return terms, bool(self._success[0]), {"target": self._target.copy(), "distance": distance}
+
+    def _converged_row(self, converged):
+        self._converged[0] = converged
+        return self._converged
 
     def _terminated(self, success):
         return self.terminate_on_success and success
 
     def _task_artists(self):
-        return {"target": self._target[:2]}
+        return {"target": self._target}
 
     def _caption(self):
-        return super()._caption() + f"\ndistance {1000 * math.dist(self._eq.tip, self._target):.1f} mm"
+        return super()._caption() + f"\ndistance {1000 * math.dist(self._stepper.tip, self._target):.1f} mm"

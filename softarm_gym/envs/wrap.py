@@ -237,11 +237,13 @@ class WrapEnv(SoftArmEnv):
         self._contact_radius = contact
         return scene, eq
 
-    def _fill_goal(self, out):
+    def _fill_goal(self, obs):
+        out = obs[self._slices["goal"]]
         out[:2] = self._center
         out[2] = self._contact_radius
 
-    def _task_reward(self, eq):
+    def _task_reward(self, converged):
+        eq = self._eq
         wrap = wrap_angle(eq.positions, self._center, self._contact_radius, self.contact_margin)
         penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
         rel = eq.positions - self._center
@@ -254,6 +256,7 @@ class WrapEnv(SoftArmEnv):
             "reward_penetration": -self.penetration_weight * penetration / self.penetration_tolerance,
             "reward_control": -self.control_weight * float(self._fraction @ self._fraction) / self.n_inputs,
             "reward_success": self.success_bonus if success else 0.0,
+            "reward_solver": self._solver_term(converged),
         }
         info = {"wrap_angle_deg": wrap_deg, "penetration": penetration, "gap": gap,
                 "object_center": self._center.copy(), "object_radius": self._object_radius,

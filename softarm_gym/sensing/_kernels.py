@@ -1,14 +1,28 @@
-"""numba kernels of the sensing package: quadrature, resampling and backbone integration.
+"""numba kernels of the sensing package: cable quadrature, the load-cell integration and the
+chapter-4 reduced model.
 
-Every kernel takes float arrays and writes into preallocated outputs; the validated public
-wrappers live in :mod:`softarm_gym.sensing.sensors` and :mod:`softarm_gym.sensing.estimators`.
+The rod equations, RK4 steps, arcs and resampling are the solver's (:mod:`solver.rod`); only
+the reduced model of §4.2.2–4.2.3, whose equations differ, is integrated here. Every kernel
+takes float arrays and writes into preallocated outputs; the validated public wrappers live
+in :mod:`softarm_gym.sensing.sensors` and :mod:`softarm_gym.sensing.estimators`.
 """
 
 from __future__ import annotations
 
 import math
 
-from solver._jit import njit
+import numpy as np
+
+from solver.jit import njit
+from solver.layout import NSTATE, SL_N, SL_Q, SP_M, SP_Q, SP_R
+from solver.rod import (
+    hermite_resample,
+    planar_state_rhs,
+    planar_state_rk4_step,
+    record_spatial_row,
+    spatial_rhs,
+    spatial_rk4_step,
+)
 
 
 @njit
@@ -61,113 +75,14 @@ def _planar_cable_integrand(shear_stretch, curvature, radius, out):
 
 
 @njit
-def _hermite_resample(s, pos, tangent, s_query, out):
-    """Cubic Hermite interpolation of a backbone at reference arc lengths ``s_query``.
-
-    Args:
-        s: (N,) non-decreasing sample arc lengths (m); repeated values (section junctions)
-            are zero-length intervals and are skipped.
-        pos: (N, D) positions (m). tangent: (N, D) dr/ds at the samples.
-        s_query: (K,) increasing query arc lengths within [s[0], s[-1]] (m).
-        out: (K, D) written.
-    """
-    n = s.shape[0]
-    dim = pos.shape[1]
-    j = 0
-    for k in range(s_query.shape[0]):
-        q = s_query[k]
-        while j < n - 2 and (s[j + 1] < q or s[j + 1] <= s[j]):
-            j += 1
-        h = s[j + 1] - s[j]
-        if h <= 0.0:
-            for d in range(dim):
-                out[k, d] = pos[j + 1, d]
-            continue
-        t = (q - s[j]) / h
-        t2 = t * t
-        t3 = t2 * t
-        h00 = 2.0 * t3 - 3.0 * t2 + 1.0
-        h10 = t3 - 2.0 * t2 + t
-        h01 = -2.0 * t3 + 3.0 * t2
-        h11 = t3 - t2
-        for d in range(dim):
-            out[k, d] = (h00 * pos[j, d] + h10 * h * tangent[j, d] + h01 * pos[j + 1, d]
-                         + h11 * h * tangent[j + 1, d])
-
-
-@njit
-def _arc_chain_planar(theta0, sec_len, curvature, stretch, s_query, backbone, ends):
-    """Planar chain of circular arcs (constant curvature and stretch per section, no shear).
-
-    Args:
-        theta0: base orientation θ0 of d3 (rad).
-        sec_len: (n_sections,) reference lengths (m).
-        curvature: (n_sections,) dθ/ds per reference length (rad/m).
-        stretch: (n_sections,) axial stretch v3.
-        s_query: (K,) increasing reference arc lengths in [0, L] (m).
-        backbone: (K, 2) written: positions at ``s_query`` (m).
-        ends: (n_sections, 3) written: (x, y, θ) at each section end.
-    """
-    x = 0.0
-    y = 0.0
-    th = theta0
-    s0 = 0.0
-    k = 0
-    ns = sec_len.shape[0]
-    for i in range(ns):
-        last = i == ns - 1
-        while k < s_query.shape[0] and (s_query[k] <= s0 + sec_len[i] or last):
-            px, py, _ = _arc_point(x, y, th, curvature[i], stretch[i], s_query[k] - s0)
-            backbone[k, 0] = px
-            backbone[k, 1] = py
-            k += 1
-        x, y, th = _arc_point(x, y, th, curvature[i], stretch[i], sec_len[i])
-        ends[i, 0] = x
-        ends[i, 1] = y
-        ends[i, 2] = th
-        s0 += sec_len[i]
-
-
-@njit
-def _arc_point(x, y, th, kappa, stretch, sig):
-    """Pose after ``sig`` of reference arc length along an arc (x, y, θ start)."""
-    dth = kappa * sig
-    if abs(dth) < 1e-9:
-        c = 1.0 - dth * dth / 6.0
-        d = dth / 2.0
-    else:
-        c = math.sin(dth) / dth
-        d = (1.0 - math.cos(dth)) / dth
-    ell = stretch * sig
-    ct = math.cos(th)
-    st = math.sin(th)
-    # Chord in the local frame (along d3, along the bending normal), rotated to the world.
-    return x + ell * (c * ct - d * st), y + ell * (c * st + d * ct), th + dth
-
-
-@njit
-def _wrench_rhs(sig, th, m, ca, cg, ci, ur, vr, nx0, ny0, qx, qy):
-    """Planar rod statics with the internal force n(σ) = n_start − q·σ (world frame)."""
-    nx = nx0 - qx * sig
-    ny = ny0 - qy * sig
-    c = math.cos(th)
-    sn = math.sin(th)
-    n1 = -nx * sn + ny * c
-    n3 = nx * c + ny * sn
-    v1 = n1 * cg
-    v3 = vr + n3 * ca
-    return ur + m * ci, v1 * n3 - v3 * n1, v3 * c - v1 * sn, v3 * sn + v1 * c
-
-
-@njit
 def _load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
-                      q, point, s_out, pos_out, tan_out, ends_out):
+                      q, point, work, s_out, pos_out, tan_out, ends_out):
     """Integrate the planar equilibrium equations base → tip from a measured base wrench (§4.2.1).
 
-    Same rod statics as the solver (DESIGN §2): θ' = u* + m/EI, m' = v1 n3 − v3 n1,
-    v1 = n1/GA, v3 = v* + n3/EA, r' = v3 d3 + v1 d1, with n(s) = n0 − ∫₀ˢ q − Σ point loads
-    passed (the weight of the nominal arm is known; an unknown tip payload is already in n0).
-    Fixed-step RK4 on (θ, m, x, y).
+    The solver's rod statics (:func:`solver.rod.planar_state_rhs`, RK4 by
+    :func:`solver.rod.planar_state_rk4_step`) on the state (x, y, θ, n_x, n_y, m) from
+    (0, 0, θ0, n0, m0), with n' = −q and each endplate's weight taken off n at its section
+    end (the weight of the nominal arm is known; an unknown tip payload is already in n0).
 
     Args:
         theta0: base orientation (rad). n0x, n0y, m0: measured base wrench (N, N, N m).
@@ -176,6 +91,7 @@ def _load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u
         u_rest, v_rest: (ns,) rest curvature (rad/m) and stretch from the pressures.
         q: (ns, 2) distributed load per reference length (N/m); point: (ns, 2) point load at
             each section end (endplate weight) (N).
+        work: (7, 6) scratch.
         s_out: (Σ(steps + 1),) written: arc length of the samples (junctions repeated).
         pos_out, tan_out: (Σ(steps + 1), 2) written: positions and dr/ds.
         ends_out: (ns, 3) written: (x, y, θ) at each section end.
@@ -183,53 +99,39 @@ def _load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u
     Returns:
         The tip moment m(L) (N m): zero for a consistent measurement.
     """
-    th = theta0
-    m = m0
-    x = 0.0
-    y = 0.0
-    nx = n0x
-    ny = n0y
+    st = work[5]
+    rate = work[6]
+    st[0] = 0.0
+    st[1] = 0.0
+    st[2] = theta0
+    st[3] = n0x
+    st[4] = n0y
+    st[5] = m0
+    no_discs = np.empty((0, 4))
     s0 = 0.0
     row = 0
     for i in range(sec_len.shape[0]):
         h = sec_len[i] / sec_steps[i]
-        ca = c_a[i]
-        cg = c_g[i]
-        ci = c_i[i]
-        ur = u_rest[i]
-        vr = v_rest[i]
-        qx = q[i, 0]
-        qy = q[i, 1]
         for j in range(sec_steps[i] + 1):
-            sig = j * h
-            d = _wrench_rhs(sig, th, m, ca, cg, ci, ur, vr, nx, ny, qx, qy)
-            s_out[row] = s0 + sig
-            pos_out[row, 0] = x
-            pos_out[row, 1] = y
-            tan_out[row, 0] = d[2]
-            tan_out[row, 1] = d[3]
+            planar_state_rhs(st, rate, c_a[i], c_g[i], c_i[i], u_rest[i], v_rest[i], q[i, 0],
+                             q[i, 1], no_discs)
+            s_out[row] = s0 + j * h
+            pos_out[row, 0] = st[0]
+            pos_out[row, 1] = st[1]
+            tan_out[row, 0] = rate[0]
+            tan_out[row, 1] = rate[1]
             row += 1
             if j == sec_steps[i]:
                 break
-            hh = 0.5 * h
-            k2 = _wrench_rhs(sig + hh, th + hh * d[0], m + hh * d[1], ca, cg, ci, ur, vr, nx, ny,
-                             qx, qy)
-            k3 = _wrench_rhs(sig + hh, th + hh * k2[0], m + hh * k2[1], ca, cg, ci, ur, vr, nx, ny,
-                             qx, qy)
-            k4 = _wrench_rhs(sig + h, th + h * k3[0], m + h * k3[1], ca, cg, ci, ur, vr, nx, ny,
-                             qx, qy)
-            w = h / 6.0
-            th += w * (d[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-            m += w * (d[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-            x += w * (d[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-            y += w * (d[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
-        ends_out[i, 0] = x
-        ends_out[i, 1] = y
-        ends_out[i, 2] = th
-        nx = nx - qx * sec_len[i] - point[i, 0]
-        ny = ny - qy * sec_len[i] - point[i, 1]
+            planar_state_rk4_step(st, h, work, c_a[i], c_g[i], c_i[i], u_rest[i], v_rest[i],
+                                  q[i, 0], q[i, 1], no_discs)
+        ends_out[i, 0] = st[0]
+        ends_out[i, 1] = st[1]
+        ends_out[i, 2] = st[2]
+        st[3] -= point[i, 0]
+        st[4] -= point[i, 1]
         s0 += sec_len[i]
-    return m
+    return st[5]
 
 
 @njit
@@ -324,110 +226,64 @@ def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weigh
     res[ns] = m_tip * moment_scale
 
 
-# Spatial load-cell state: r 0:3, R 3:12 (row-major), m 12:15.
-SPATIAL_STATE = 15
-
-
 @njit
-def _wrench_rhs_spatial(sig, y, dy, ca, cg, ci, cj, u1r, u2r, v3r, n_start, q):
-    """Spatial rod statics with n(σ) = n_start − q·σ: r' = R v, R' = R[u]×, m' = −r' × n.
-
-    v = (n_b1/GA, n_b2/GA, v* + n_b3/EA), u = (u1* + m_b1/EI, u2* + m_b2/EI, m_b3/GJ), with
-    n_b = Rᵀn, m_b = Rᵀm. Writes dy (15,); no allocation.
-    """
-    n0 = n_start[0] - q[0] * sig
-    n1 = n_start[1] - q[1] * sig
-    n2 = n_start[2] - q[2] * sig
-    m0 = y[12]
-    m1 = y[13]
-    m2 = y[14]
-    nb = (y[3] * n0 + y[6] * n1 + y[9] * n2, y[4] * n0 + y[7] * n1 + y[10] * n2,
-          y[5] * n0 + y[8] * n1 + y[11] * n2)
-    mb = (y[3] * m0 + y[6] * m1 + y[9] * m2, y[4] * m0 + y[7] * m1 + y[10] * m2,
-          y[5] * m0 + y[8] * m1 + y[11] * m2)
-    v0 = nb[0] * cg
-    v1 = nb[1] * cg
-    v2 = v3r + nb[2] * ca
-    u0 = u1r + mb[0] * ci
-    u1 = u2r + mb[1] * ci
-    u2 = mb[2] * cj
-    for r in range(3):
-        a = y[3 + 3 * r]
-        b = y[4 + 3 * r]
-        c = y[5 + 3 * r]
-        dy[r] = a * v0 + b * v1 + c * v2
-        # Row r of R[u]×: [a b c]·[[0, −u2, u1], [u2, 0, −u0], [−u1, u0, 0]].
-        dy[3 + 3 * r] = b * u2 - c * u1
-        dy[4 + 3 * r] = c * u0 - a * u2
-        dy[5 + 3 * r] = a * u1 - b * u0
-    dy[12] = -(dy[1] * n2 - dy[2] * n1)
-    dy[13] = -(dy[2] * n0 - dy[0] * n2)
-    dy[14] = -(dy[0] * n1 - dy[1] * n0)
-
-
-@njit
-def _load_cell_spatial(rot0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
+def _load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
                        v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
     """Integrate the spatial equilibrium equations base → tip from a measured 6-axis wrench.
 
+    The solver's rod statics and RK4 step (:func:`solver.rod.spatial_rhs`,
+    :func:`solver.rod.spatial_rk4_step`; their m0-sensitivities start and stay at zero),
+    with the internal force known from the measured n0: n' = −q, and each endplate's weight
+    taken off at its section end.
+
     Args:
-        rot0: (3, 3) base directors. n0, m0: (3,) base force and moment, world frame.
+        quat0: (4,) base orientation quaternion. n0, m0: (3,) base force and moment, world.
         sec_len, sec_steps, c_a, c_g, c_i, c_j: (ns,) lengths, RK4 steps, 1/EA, 1/GA, 1/EI, 1/GJ.
         u1_rest, u2_rest, v_rest: (ns,) rest strains from the pressures.
         q: (ns, 3) distributed load (N/m); point: (ns, 3) point load at each section end (N).
-        work: (7, 15) scratch. s_out (N,), pos_out, tan_out (N, 3): samples, written.
+        work: (8, NSTATE) scratch. s_out (N,), pos_out, tan_out (N, 3): samples, written.
         ends_out: (ns, 3) and frames_out: (ns, 3, 3): section-end positions and directors.
 
     Returns:
         |m(L)|, the tip moment (N m): zero for a consistent measurement.
     """
     y = work[0]
-    k1 = work[1]
-    k2 = work[2]
-    k3 = work[3]
-    k4 = work[4]
-    tmp = work[5]
-    n_start = work[6, 0:3]
-    for d in range(SPATIAL_STATE):
+    rate = work[6]
+    loads_i = work[7, :6]
+    n_start = work[7, 6:9]
+    moments = np.empty((sec_len.shape[0], 3))
+    for d in range(NSTATE):
         y[d] = 0.0
-    for r in range(3):
-        for c in range(3):
-            y[3 + 3 * r + c] = rot0[r, c]
-        y[12 + r] = m0[r]
-        n_start[r] = n0[r]
+    for d in range(4):
+        y[SP_Q + d] = quat0[d]
+    for d in range(3):
+        y[SP_M + d] = m0[d]
+        n_start[d] = n0[d]
     row = 0
     s0 = 0.0
     for i in range(sec_len.shape[0]):
-        h = sec_len[i] / sec_steps[i]
-        args = (c_a[i], c_g[i], c_i[i], c_j[i], u1_rest[i], u2_rest[i], v_rest[i])
+        length = sec_len[i]
+        h = length / sec_steps[i]
+        for d in range(3):  # n(σ) = n_end + q·(L − σ)
+            loads_i[SL_N + d] = n_start[d] - q[i, d] * length
+            loads_i[SL_Q + d] = q[i, d]
         for j in range(sec_steps[i] + 1):
-            sig = j * h
-            _wrench_rhs_spatial(sig, y, k1, *args, n_start, q[i])
-            s_out[row] = s0 + sig
+            spatial_rhs(j * h, y, rate, length, c_a[i], c_g[i], c_i[i], c_j[i], u1_rest[i],
+                        u2_rest[i], v_rest[i], loads_i)
+            s_out[row] = s0 + j * h
             for d in range(3):
-                pos_out[row, d] = y[d]
-                tan_out[row, d] = k1[d]
+                pos_out[row, d] = y[SP_R + d]
+                tan_out[row, d] = rate[SP_R + d]
             row += 1
             if j == sec_steps[i]:
                 break
-            for d in range(SPATIAL_STATE):
-                tmp[d] = y[d] + 0.5 * h * k1[d]
-            _wrench_rhs_spatial(sig + 0.5 * h, tmp, k2, *args, n_start, q[i])
-            for d in range(SPATIAL_STATE):
-                tmp[d] = y[d] + 0.5 * h * k2[d]
-            _wrench_rhs_spatial(sig + 0.5 * h, tmp, k3, *args, n_start, q[i])
-            for d in range(SPATIAL_STATE):
-                tmp[d] = y[d] + h * k3[d]
-            _wrench_rhs_spatial(sig + h, tmp, k4, *args, n_start, q[i])
-            for d in range(SPATIAL_STATE):
-                y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
-        for r in range(3):
-            ends_out[i, r] = y[r]
-            for c in range(3):
-                frames_out[i, r, c] = y[3 + 3 * r + c]
-            n_start[r] = n_start[r] - q[i, r] * sec_len[i] - point[i, r]
-        s0 += sec_len[i]
-    return math.sqrt(y[12] ** 2 + y[13] ** 2 + y[14] ** 2)
+            spatial_rk4_step(y, j * h, h, work, length, c_a[i], c_g[i], c_i[i], c_j[i],
+                             u1_rest[i], u2_rest[i], v_rest[i], loads_i)
+        record_spatial_row(y, ends_out, frames_out, moments, i)
+        for d in range(3):
+            n_start[d] = loads_i[SL_N + d] - point[i, d]
+        s0 += length
+    return math.sqrt(y[SP_M] ** 2 + y[SP_M + 1] ** 2 + y[SP_M + 2] ** 2)
 
 
 # Spatial reduced-model state: r 0:3, R 3:12 (row-major), m 12:15, body shear (n1, n2) 15:17,
@@ -537,88 +393,6 @@ def _reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_res
 
 
 @njit
-def _arc_relative(k0, k1, kappa, stretch, sig, rel_pos, rel_rot):
-    """Pose after ``sig`` along an arc of body curvature κ·(k0, k1, 0), no shear or torsion.
-
-    Rodrigues: R = I + sin φ·K + (1 − cos φ)·K², K = [k]×, φ = κσ; and
-    r = v·∫₀^σ R e3 = v·σ·((1 − cos φ)/φ·(k1, −k0, 0) + (sin φ/φ)·e3). Writes rel_pos (3,),
-    rel_rot (3, 3).
-    """
-    phi = kappa * sig
-    if abs(phi) < 1e-9:
-        a = 1.0 - phi * phi / 6.0
-        b = phi / 2.0
-    else:
-        a = math.sin(phi) / phi
-        b = (1.0 - math.cos(phi)) / phi
-    ell = stretch * sig
-    rel_pos[0] = ell * b * k1
-    rel_pos[1] = -ell * b * k0
-    rel_pos[2] = ell * a
-    s = math.sin(phi)
-    c = 1.0 - math.cos(phi)
-    rel_rot[0, 0] = 1.0 - c * k1 * k1
-    rel_rot[0, 1] = c * k0 * k1
-    rel_rot[0, 2] = s * k1
-    rel_rot[1, 0] = c * k0 * k1
-    rel_rot[1, 1] = 1.0 - c * k0 * k0
-    rel_rot[1, 2] = -s * k0
-    rel_rot[2, 0] = -s * k1
-    rel_rot[2, 1] = s * k0
-    rel_rot[2, 2] = 1.0 - c * (k0 * k0 + k1 * k1)
-
-
-@njit
-def _arc_chain_spatial(rot0, sec_len, curvature, stretch, s_query, work, backbone, ends, frames):
-    """Spatial chain of arcs (constant body curvature (u1, u2, 0) and stretch per section).
-
-    Args:
-        rot0: (3, 3) base directors. sec_len, stretch: (ns,). curvature: (ns, 2) (u1, u2) (rad/m).
-        s_query: (K,) increasing reference arc lengths in [0, L] (m).
-        work: (4, 3, 3) scratch (frame, relative rotation, product, relative position in row 0).
-        backbone: (K, 3) written. ends: (ns, 3) and frames: (ns, 3, 3) written.
-    """
-    rot = work[0]
-    rel_rot = work[1]
-    prod = work[2]
-    rel_pos = work[3, 0]
-    for r in range(3):
-        for c in range(3):
-            rot[r, c] = rot0[r, c]
-    x0 = 0.0
-    x1 = 0.0
-    x2 = 0.0
-    s0 = 0.0
-    k = 0
-    ns = sec_len.shape[0]
-    for i in range(ns):
-        kappa = math.hypot(curvature[i, 0], curvature[i, 1])
-        k0 = curvature[i, 0] / kappa if kappa > 0.0 else 0.0
-        k1 = curvature[i, 1] / kappa if kappa > 0.0 else 0.0
-        while k < s_query.shape[0] and (s_query[k] <= s0 + sec_len[i] or i == ns - 1):
-            _arc_relative(k0, k1, kappa, stretch[i], s_query[k] - s0, rel_pos, rel_rot)
-            backbone[k, 0] = x0 + rot[0, 0] * rel_pos[0] + rot[0, 1] * rel_pos[1] + rot[0, 2] * rel_pos[2]
-            backbone[k, 1] = x1 + rot[1, 0] * rel_pos[0] + rot[1, 1] * rel_pos[1] + rot[1, 2] * rel_pos[2]
-            backbone[k, 2] = x2 + rot[2, 0] * rel_pos[0] + rot[2, 1] * rel_pos[1] + rot[2, 2] * rel_pos[2]
-            k += 1
-        _arc_relative(k0, k1, kappa, stretch[i], sec_len[i], rel_pos, rel_rot)
-        x0 += rot[0, 0] * rel_pos[0] + rot[0, 1] * rel_pos[1] + rot[0, 2] * rel_pos[2]
-        x1 += rot[1, 0] * rel_pos[0] + rot[1, 1] * rel_pos[1] + rot[1, 2] * rel_pos[2]
-        x2 += rot[2, 0] * rel_pos[0] + rot[2, 1] * rel_pos[1] + rot[2, 2] * rel_pos[2]
-        for r in range(3):
-            for c in range(3):
-                prod[r, c] = rot[r, 0] * rel_rot[0, c] + rot[r, 1] * rel_rot[1, c] + rot[r, 2] * rel_rot[2, c]
-        for r in range(3):
-            for c in range(3):
-                rot[r, c] = prod[r, c]
-                frames[i, r, c] = prod[r, c]
-        ends[i, 0] = x0
-        ends[i, 1] = x1
-        ends[i, 2] = x2
-        s0 += sec_len[i]
-
-
-@njit
 def _planar_shape(s, pos, theta, strain, ends, s_query, backbone, section_ends, tangent):
     """The ``true`` shape of a recorded planar equilibrium in one pass.
 
@@ -635,7 +409,7 @@ def _planar_shape(s, pos, theta, strain, ends, s_query, backbone, section_ends, 
         section_ends[i, 0] = pos[ends[i], 0]
         section_ends[i, 1] = pos[ends[i], 1]
         section_ends[i, 2] = theta[ends[i]]
-    _hermite_resample(s, pos, tangent, s_query, backbone)
+    hermite_resample(s, pos, tangent, s_query, backbone)
     last = s.shape[0] - 1
     backbone[backbone.shape[0] - 1, 0] = pos[last, 0]
     backbone[backbone.shape[0] - 1, 1] = pos[last, 1]

@@ -21,10 +21,6 @@ import numpy as np
 import solver
 from softarm_gym.sensing._kernels import (
     REDUCED_STATE,
-    SPATIAL_STATE,
-    _arc_chain_planar,
-    _arc_chain_spatial,
-    _hermite_resample,
     _load_cell_planar,
     _load_cell_spatial,
     _planar_shape,
@@ -33,6 +29,14 @@ from softarm_gym.sensing._kernels import (
     _reduced_spatial,
 )
 from softarm_gym.sensing.sensors import SensorReadings, cable_angles, cable_radius
+from solver.layout import NSTATE
+from solver.rod import (
+    arc_chain_planar,
+    arc_chain_spatial,
+    base_rotation,
+    hermite_resample,
+    rotation_to_quaternion,
+)
 
 __all__ = ["ShapeEstimate", "Estimator", "make_estimator", "ESTIMATORS", "shape_from_equilibrium"]
 
@@ -114,7 +118,7 @@ def shape_from_equilibrium(eq: solver.Equilibrium, n_samples: int = DEFAULT_SAMP
     section_ends = eq.positions[ends]
     frames = eq.orientations[ends]
     backbone = np.empty((n_samples, eq.positions.shape[1]))
-    _hermite_resample(np.ascontiguousarray(eq.s), np.ascontiguousarray(eq.positions),
+    hermite_resample(np.ascontiguousarray(eq.s), np.ascontiguousarray(eq.positions),
                       np.ascontiguousarray(tangent), s_query, backbone)
     backbone[-1] = eq.tip
     return ShapeEstimate(tip=eq.tip, section_ends=section_ends, backbone=backbone,
@@ -248,15 +252,15 @@ class ConstantCurvatureShape(Estimator):
         if self.planar:
             backbone = np.empty((self.n_samples, 2))
             ends = np.empty((len(self.sec_len), 3))
-            _arc_chain_planar(float(readings.inclinometers[0]), self.sec_len, curvature, stretch,
-                              self.s_query, backbone, ends)
+            arc_chain_planar(float(readings.inclinometers[0]), self.sec_len, curvature, stretch,
+                             self.s_query, backbone, np.empty(0), ends)
             backbone[-1] = ends[-1, :2]
             return ShapeEstimate(tip=ends[-1, :2], section_ends=ends, backbone=backbone)
         ns = len(self.sec_len)
         backbone, ends, frames = np.empty((self.n_samples, 3)), np.empty((ns, 3)), np.empty((ns, 3, 3))
-        _arc_chain_spatial(base_rotation(float(readings.inclinometers[0, 0])), self.sec_len,
-                           np.ascontiguousarray(curvature), stretch, self.s_query, np.empty((4, 3, 3)),
-                           backbone, ends, frames)
+        arc_chain_spatial(base_rotation(float(readings.inclinometers[0, 0])), self.sec_len,
+                          np.ascontiguousarray(curvature), stretch, self.s_query,
+                          np.empty((4, 3, 3)), backbone, np.empty((0, 3, 3)), ends, frames)
         backbone[-1] = ends[-1]
         return ShapeEstimate(tip=ends[-1], section_ends=ends, backbone=backbone, section_frames=frames)
 
@@ -335,12 +339,6 @@ def damped_newton(residual, z: np.ndarray, unknown_scale: np.ndarray, tol: float
     return False, float(np.max(np.abs(res)))
 
 
-def base_rotation(theta0: float) -> np.ndarray:
-    """Base directors [d1 d2 d3] (columns): d3 = (cos θ0, sin θ0, 0), d2 = +z (the solver's)."""
-    c, s = math.cos(theta0), math.sin(theta0)
-    return np.array([[-s, 0.0, c], [c, 0.0, s], [0.0, 1.0, 0.0]])
-
-
 class _Integrating(Estimator):
     """An estimator that integrates the rod equations on RK4 nodes and resamples the backbone.
 
@@ -376,7 +374,7 @@ class _Integrating(Estimator):
     def _shape(self, converged: bool = True) -> ShapeEstimate:
         dim = self._pos.shape[1]
         backbone = np.empty((self.n_samples, dim))
-        _hermite_resample(self._s, self._pos, self._tan, self.s_query, backbone)
+        hermite_resample(self._s, self._pos, self._tan, self.s_query, backbone)
         backbone[-1] = self._ends[-1, :dim]
         return ShapeEstimate(tip=self._ends[-1, :dim], section_ends=self._ends, backbone=backbone,
                              section_frames=self._frames, converged=converged)
@@ -411,7 +409,8 @@ class LoadCellShape(_Integrating):
         self.c_a = np.array([1.0 / s.EA for s in arm.sections])
         self.c_g = np.array([1.0 / s.GA for s in arm.sections])
         self.c_j = np.array([1.0 / s.GJ for s in arm.sections])
-        self._work = np.zeros((7, SPATIAL_STATE))
+        self._work = np.zeros((8, NSTATE)) if not planar else np.zeros((7, 6))
+        self._quat0 = np.empty(4)
 
     def _estimate(self, readings, pressures, truth):
         u1_rest, u2_rest, v_rest = self._rest(pressures)
@@ -419,11 +418,12 @@ class LoadCellShape(_Integrating):
             n0x, n0y, m0 = readings.base_wrench
             _load_cell_planar(float(readings.inclinometers[0]), n0x, n0y, m0, self.sec_len,
                               self.sec_steps, self.c_a, self.c_g, self.c_i, u2_rest, v_rest, self.q,
-                              self.point, self._s, self._pos, self._tan, self._ends)
+                              self.point, self._work, self._s, self._pos, self._tan, self._ends)
         else:
             # The base tilt (elevation of d3) with the known mounting heading (d2 = +z).
-            rot0 = base_rotation(float(readings.inclinometers[0, 0]))
-            _load_cell_spatial(rot0, readings.base_wrench[:3], readings.base_wrench[3:], self.sec_len,
+            rotation_to_quaternion(base_rotation(float(readings.inclinometers[0, 0])),
+                                   self._quat0)
+            _load_cell_spatial(self._quat0, readings.base_wrench[:3], readings.base_wrench[3:], self.sec_len,
                                self.sec_steps, self.c_a, self.c_g, self.c_i, self.c_j, u1_rest,
                                u2_rest, v_rest, self.q, self.point, self._work, self._s, self._pos,
                                self._tan, self._ends, self._frames)

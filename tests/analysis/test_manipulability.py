@@ -21,7 +21,7 @@ PSI = solver.PSI
 def _arc_jacobian(arm, pressures):
     """Closed-form ∂tip/∂p of a one-section arm with no loads, horizontal base (θ0 = 0).
 
-    The section is a circular arc of curvature u = u*(p) and stretch v = v*(p) (DESIGN §2):
+    The section is a circular arc of curvature u = u*(p) and stretch v = v*(p) (docs/design.md §1–4):
     tip = (v/u)(sin uL, 1 − cos uL). u*, v* are linear in the tube forces F = E·At·(λ − 1),
     and dλ/dp = 1/(dp/dλ) from the explicit actuator law p(λ) (Appendix A.1).
     """

@@ -1,5 +1,6 @@
 """rl-baselines3-zoo reads the project's hyperparameter files, and their budgets are the reported runs'."""
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -24,7 +25,9 @@ def test_yaml_budget_is_the_step_count_of_the_reported_run(summary):
 
 
 def test_rl_zoo3_trains_with_the_project_hyperparameters(tmp_path):
-    pytest.importorskip("rl_zoo3")
+    # Only look for it: importing rl_zoo3 patches gymnasium's TimeLimit for the whole process.
+    if importlib.util.find_spec("rl_zoo3") is None:
+        pytest.skip("rl_zoo3 not installed (pip install 'softarm-gym[baselines]')")
     env_id = "SoftArm/OctArmReach-v0"
     steps = 300
     # The YAML as it is, except that learning starts (and the buffer stays small) within the smoke run.

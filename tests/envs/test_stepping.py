@@ -1,6 +1,5 @@
 """Shared stepping behaviour: actions, failed solves, reward bookkeeping, observations, info."""
 
-import dataclasses
 
 import numpy as np
 import pytest
@@ -80,13 +79,9 @@ def test_failed_solve_keeps_last_good_state_penalises_and_truncates(monkeypatch)
     env = ReachEnv("octarm_v", solver_failure_penalty=2.5, max_solver_failures=3)
     env.reset(seed=1)
     obs_good, *_, info_good = env.step(np.zeros(6))
-    real_solve = solver.solve
-
-    def failing_solve(*args, **kwargs):
-        eq = real_solve(*args, **kwargs)
-        return dataclasses.replace(eq, converged=False, tip=eq.tip + 0.3)
-
-    monkeypatch.setattr(solver, "solve", failing_solve)
+    stepper = env._stepper
+    # A stepper whose steps fail (solver.Stepper keeps its state then: tests/solver/test_stepper.py).
+    monkeypatch.setattr(stepper, "step", lambda p: solver.StepReport(False, False, False, 12, 1.0))
     for k in range(1, 4):
         obs, reward, terminated, truncated, info = env.step(np.ones(6))
         assert info["converged"] is False and info["solver"]["converged"] is False
@@ -97,7 +92,7 @@ def test_failed_solve_keeps_last_good_state_penalises_and_truncates(monkeypatch)
         np.testing.assert_array_equal(obs, obs_good)
         assert truncated == (k == 3)
         assert not terminated
-    monkeypatch.setattr(solver, "solve", real_solve)
+    monkeypatch.undo()
     _, _, _, truncated, info = env.step(np.ones(6))
     assert info["converged"] and info["solver_failures"] == 0 and info["reward_solver"] == 0.0
     assert not truncated

@@ -8,7 +8,7 @@ import pytest
 import solver
 from softarm_gym.envs import WrapEnv, arm_half_thickness, wrap_angle
 from softarm_gym.render import OBJECT_COLOUR
-from tests.envs.frames import has_colour
+from tests.frames import has_colour
 
 
 def _arc(center, radius, start, stop, n=200):

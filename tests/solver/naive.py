@@ -60,7 +60,7 @@ def stretch_bisect(p, E, Ri, Ro, alpha_deg):
 
 
 def rest_strains(arm, channel_pressures):
-    """(u1*, u2*, v3*) per section by plain loops (DESIGN §2)."""
+    """(u1*, u2*, v3*) per section by plain loops (docs/design.md §1–4)."""
     ns = len(arm.sections)
     force = [0.0] * ns
     m1 = [0.0] * ns

@@ -1,4 +1,4 @@
-"""Actuator model (thesis §2.2) against DESIGN §2 facts and a first-principles p = dU/dV."""
+"""Actuator model (thesis §2.2) against docs/design.md §1–4 facts and a first-principles p = dU/dV."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""The solver against closed forms that do not depend on our code (DESIGN §7)."""
+"""The solver against closed forms that do not depend on our code (docs/design.md §12)."""
 
 import math
 
@@ -55,8 +55,8 @@ def test_pressurised_section_without_load_is_an_arc(monkeypatch):
 
     module = importlib.import_module("solver.solve")
     calls = []
-    original = module._closed_form
-    monkeypatch.setattr(module, "_closed_form", lambda *a: calls.append(1) or original(*a))
+    original = module.closed_form
+    monkeypatch.setattr(module, "closed_form", lambda *a: calls.append(1) or original(*a))
     arm = designs.octarm_v()
     p = np.array([80, 0, 0, 40, 20, 0]) * solver.PSI
     scene = solver.Scene(base_angle_deg=30, gravity=0.0)
@@ -93,19 +93,16 @@ def test_greenhill_column(ratio, buckled):
 
 def test_conjugate_point_test_flags_straight_column():
     """The straight state past Euler's load is an equilibrium, but unstable."""
-    import importlib
+    from solver import _planar, layout
+    from solver._model import context, pack
 
-    from solver import _planar
-    from solver import solve as _  # noqa: F401  (import side effects only)
-
-    S = importlib.import_module("solver.solve")
     rod = designs.rod(length=1.0, EI=1.0, EA=1e10, GA=1e10)
-    packed = S._pack(rod, "full", solver.Settings(steps_per_section=100))
-    dummy = np.zeros((1, _planar.N_COLUMNS))
+    packed = pack(rod, "full", solver.Settings(steps_per_section=100))
+    dummy = np.zeros((1, layout.N_COLUMNS))
     rest = np.array([[0.0], [0.0], [1.0]])  # no rest curvature, unit stretch
     for load, stable in ((2.3, True), (2.6, False)):  # π²/4 = 2.467
         scene = solver.Scene(base_angle_deg=180, tip_force=(0, -load), gravity=0)
-        ctx = S._context(rod, packed, scene, 2, solver.Settings(steps_per_section=100))
+        ctx = context(rod, packed, scene, 2, solver.Settings(steps_per_section=100))
         out = _planar._newton(0.0, scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads,
                               ctx.m_tip, 1e-12, 5, 10.0, dummy)
         m0, ok, its, res, is_stable, bmin, x, y, theta = out

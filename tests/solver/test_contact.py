@@ -274,26 +274,27 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     unstable, one hanging and stable), judged by the planar single-shooting test
     (∂m(s)/∂m0 > 0, exact for dead loads) and by the multiple-shooting test (the free tip's
     Jacobi fields carried to the base), which must agree."""
-    import importlib
+    from solver import _contact, _planar
+    from solver import layout as L
+    from solver._model import context, pack, shooting_layout, shooting_terms
+    from solver._paths_shooting import nodes_from_states
+    from solver.rod import rest_strains_into
 
-    from solver import _contact, _planar, _rod
-    S = importlib.import_module("solver.solve")
     arm = designs.get("octarm_vi")
     settings = solver.Settings()
     scene = solver.Scene(base_angle_deg=184.2557848920924, payload_kg=1.425695544488903)
-    packed = S._pack(arm, "full", settings)
-    ctx = S._context(arm, packed, scene, 2, settings)
+    packed = pack(arm, "full", settings)
+    ctx = context(arm, packed, scene, 2, settings)
     rest = np.empty((3, len(arm.sections)))
-    _rod._rest_strains(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf, rest)
-    out = np.empty((packed.n_rows, _planar.N_COLUMNS))
+    rest_strains_into(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf, rest)
+    out = np.empty((packed.n_rows, L.N_COLUMNS))
     m0, ok, _, _, planar_stable, *_ = _planar._newton(guess, scene.base_theta, packed.secf,
                                                        packed.sec_steps, rest, ctx.loads,
                                                        ctx.m_tip, 1e-9, 30, 5.0, out, True)
     assert ok and planar_stable == stable
-    layout, segs, sec_start = S._ms_layout(arm, packed)
-    P = _planar
-    nodes = S._nodes_from_states(out[:, [P.X, P.Y, P.THETA, P.NX, P.NY, P.M]], segs)
-    plate, target, state_w, *_ = S._ms_terms(arm, layout, segs, scene, ctx, True)
+    layout, segs, sec_start = shooting_layout(arm, packed)
+    nodes = nodes_from_states(out[:, [L.X, L.Y, L.THETA, L.NX, L.NY, L.M]], segs)
+    plate, target, state_w, *_ = shooting_terms(arm, layout, segs, scene, ctx, True)
     level = (np.zeros(arm.n_channels), ctx.q, plate, target, np.empty((0, 4)))
     grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
     F = np.empty(nodes.size)

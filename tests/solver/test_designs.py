@@ -30,7 +30,7 @@ def test_ring_radius_and_channel_layout():
 
 
 def test_rest_strain_fact():
-    """DESIGN §2: 100 psi in channel I of section 1 → u* = −11.48 rad/m, v3* = 1.0798."""
+    """docs/design.md §1–4: 100 psi in channel I of section 1 → u* = −11.48 rad/m, v3* = 1.0798."""
     arm = designs.octarm_v()
     p = np.zeros(9)
     p[0] = 100 * PSI

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from solver import _jit
+from solver import jit
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = "import solver; print(solver.pressure_from_stretch(1.1, 2e6, 9.3e-3, 14e-3, 78.0))"
@@ -75,10 +75,10 @@ def test_read_only_install_without_home_caches_in_a_private_temp_dir(tmp_path):
 def test_fallback_dir_that_others_can_write_is_not_used(tmp_path, monkeypatch):
     """Cache files are unpickled: a planted, world-writable directory must not be trusted."""
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
-    assert _jit.fallback_cache_dir() == tmp_path / f"softarm-numba-{os.getuid()}"
+    assert jit.fallback_cache_dir() == tmp_path / f"softarm-numba-{os.getuid()}"
     planted = tmp_path / f"softarm-numba-{os.getuid()}"
     planted.chmod(0o777)
-    other = _jit.fallback_cache_dir()
+    other = jit.fallback_cache_dir()
     assert other != planted and other.parent == tmp_path and stat.S_IMODE(other.stat().st_mode) == 0o700
 
 

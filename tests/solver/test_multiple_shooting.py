@@ -9,6 +9,9 @@ import pytest
 
 import solver
 from solver import PSI, designs
+from solver._model import context, pack
+from solver._paths_planar import solve_single
+from solver._paths_shooting import solve_multiple
 from tests.solver import naive
 
 S = importlib.import_module("solver.solve")
@@ -32,11 +35,11 @@ def test_multiple_equals_single_shooting_on_a_well_conditioned_arm():
     scene = solver.Scene(base_angle_deg=45, payload_kg=0.1)
     p = np.array([0, 60, 20, 0, 80, 10]) * PSI
     settings = solver.Settings()
-    packed = S._pack(arm, "full", settings)
+    packed = pack(arm, "full", settings)
     p_inputs, p_channel = S._channel_pressures(arm, p, True, packed)
-    single = S._solve_single(arm, packed, p_inputs, p_channel, scene, "full", None, True, settings)
-    multiple = S._solve_multiple(arm, packed, p_inputs, p_channel, scene, "full", None, True,
-                                 settings)
+    single = solve_single(arm, packed, p_inputs, p_channel, scene, "full", None, True, settings)
+    multiple = solve_multiple(arm, packed, p_inputs, p_channel, scene, "full", None, True,
+                              settings)
     assert single.converged and multiple.converged and multiple.stable
     np.testing.assert_allclose(multiple.positions, single.positions, atol=1e-9)
     np.testing.assert_allclose(multiple.internal_moment, single.internal_moment, atol=1e-8)
@@ -50,8 +53,8 @@ def test_long_heavy_arm_agrees_with_solve_bvp(factor, payload):
     arm = _long(designs.octarm_vi(), factor)
     psi = [20, 0, 0, 30, 10, 0]
     scene = solver.Scene(base_angle_deg=120, payload_kg=payload)
-    packed = S._pack(arm, "full", solver.Settings())
-    assert S._context(arm, packed, scene, 2, solver.Settings()).shooting_index > 100
+    packed = pack(arm, "full", solver.Settings())
+    assert context(arm, packed, scene, 2, solver.Settings()).shooting_index > 100
     errors = []
     for steps in (32, 64):
         eq = solver.solve(arm, np.array(psi) * PSI, scene,

@@ -85,7 +85,7 @@ def test_swapping_channels_ii_and_iii_mirrors_the_spatial_shape(fr, angle, paylo
        model=st.sampled_from(("full", "unshearable")), planar=st.booleans())
 def test_without_gravity_every_model_is_the_closed_form(name, fr, angle, model, planar):
     """No gravity, no payload: the shooting solver (shortcuts off) reproduces the
-    constant-curvature arcs, which are exact for unloaded arms (DESIGN §2)."""
+    constant-curvature arcs, which are exact for unloaded arms (docs/design.md §1–4)."""
     arm = NAMED[name]
     p = _pressures(arm, fr, planar)
     scene = solver.Scene(base_angle_deg=angle, gravity=0.0)

@@ -5,24 +5,24 @@ test cannot see) and the planar solver's own conjugate-point test on planar equi
 which is valid in the plane and independent of the 3D kernels.
 """
 
-import importlib
 import math
 
 import numpy as np
 import pytest
 
 import solver
-from solver import _planar, _rod, _spatial, designs
-
-S = importlib.import_module("solver.solve")
+from solver import _planar, _spatial, designs
+from solver import layout as L
+from solver._model import context, pack
+from solver.rod import base_rotation, integrate_spatial, rest_strains_into, rotation_to_quaternion
 
 
 def _kernel_inputs(arm, scene, settings):
-    packed = S._pack(arm, "full", settings)
-    ctx = S._context(arm, packed, scene, 3, settings)
+    packed = pack(arm, "full", settings)
+    ctx = context(arm, packed, scene, 3, settings)
     quat0 = np.empty(4)
-    _spatial._rot_to_quat(_spatial.base_rotation(scene.base_theta), quat0)
-    work = np.empty((6, _spatial.NSTATE))
+    rotation_to_quaternion(base_rotation(scene.base_theta), quat0)
+    work = np.empty((6, L.NSTATE))
     dummy = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
     return packed, ctx, quat0, work, dummy
 
@@ -62,12 +62,11 @@ def test_3d_test_agrees_with_planar_test_on_planar_equilibria(guess, stable):
     settings = solver.Settings(shortcuts=False)
     scene = solver.Scene(base_angle_deg=184.2557848920924, payload_kg=1.425695544488903)
     packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
-    ctx2 = S._context(arm, packed, scene, 2, settings)
+    ctx2 = context(arm, packed, scene, 2, settings)
     rest = np.empty((3, len(arm.sections)))
-    _rod._rest_strains(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf,
-                          rest)
+    rest_strains_into(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf, rest)
     out = _planar._newton(guess, scene.base_theta, packed.secf, packed.sec_steps, rest,
-                          ctx2.loads, ctx2.m_tip, 1e-9, 30, 5.0, np.empty((1, _planar.N_COLUMNS)))
+                          ctx2.loads, ctx2.m_tip, 1e-9, 30, 5.0, np.empty((1, L.N_COLUMNS)))
     assert out[1] and out[4] == stable
     m0 = np.array([0.0, 0.0, out[0]])
     ok, its, res, is_stable = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
@@ -97,7 +96,7 @@ def test_spatial_solve_of_planar_scenes_matches_planar_solver_or_buckles_sideway
         assert spatial.converged and spatial.stable
         packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
         rest = np.empty((3, len(arm.sections)))
-        _rod._rest_strains(p_channel, packed.tubes_i, packed.tubes_f, packed.secf, rest)
+        rest_strains_into(p_channel, packed.tubes_i, packed.tubes_f, packed.secf, rest)
         m0 = np.array([0.0, 0.0, planar.base_moment[-1]])
         ok, _, _, stable_in_3d = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
                                                   packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8,
@@ -233,11 +232,11 @@ def test_sideways_buckle_takes_the_plus_z_mirror_image():
     settings = solver.Settings()
     packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, settings)
     rest = np.empty((3, len(arm.sections)))
-    _rod._rest_strains(p, packed.tubes_i, packed.tubes_f, packed.secf, rest)
+    rest_strains_into(p, packed.tubes_i, packed.tubes_f, packed.secf, rest)
     mirror = eq.base_moment * np.array([-1.0, -1.0, 1.0])
     ok, _, res, stable = _spatial._newton(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j,
                                           rest, ctx.loads, ctx.m_tip, 1e-9, 2, 1.0, work, dummy)
     assert ok and stable
-    _spatial._integrate(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, ctx.loads,
-                        False, *dummy, work)
-    np.testing.assert_allclose(work[0, :3], eq.tip * np.array([1, 1, -1]), atol=1e-9)
+    integrate_spatial(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, ctx.loads,
+                      False, *dummy, work)
+    np.testing.assert_allclose(work[0, L.SP_R:L.SP_R + 3], eq.tip * np.array([1, 1, -1]), atol=1e-9)

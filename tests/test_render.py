@@ -5,7 +5,7 @@ import pytest
 
 from softarm_gym.envs import ReachEnv
 from softarm_gym.render import ESTIMATE_COLOUR, TARGET_COLOUR, TRUE_COLOUR, ArmRenderer
-from tests.envs.frames import has_colour
+from tests.frames import has_colour
 
 
 def test_rgb_array_frame_shows_truth_estimate_and_target():

@@ -1,4 +1,4 @@
-"""Shared fixtures of the environment tests."""
+"""Settings shared by every test."""
 
 import os
 

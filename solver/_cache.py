@@ -1,0 +1,32 @@
+"""The memo a design keeps of what the solver derived from it."""
+
+from __future__ import annotations
+
+
+class DesignCache:
+    """Kernel arrays, scene contexts, loading stages and layouts derived from one design.
+
+    Every entry is built once by :meth:`get` and reused; keys name their inputs by value.
+    Bounded: when it holds more than ``MAX_ENTRIES`` (randomised payloads, new obstacles
+    every episode) it starts afresh.
+    """
+
+    MAX_ENTRIES = 256
+
+    def __init__(self):
+        self._store = {}
+
+    def get(self, key, build):
+        """The entry for ``key``, built by ``build()`` the first time."""
+        hit = self._store.get(key)
+        if hit is None:
+            if len(self._store) >= self.MAX_ENTRIES:
+                self._store.clear()
+            hit = self._store[key] = build()
+        return hit
+
+    def __len__(self) -> int:
+        return len(self._store)
+
+    def clear(self) -> None:
+        self._store.clear()

@@ -1,0 +1,118 @@
+"""Solves with obstacles: the contact-free shortcuts, penalty contact by multiple shooting,
+and rigid obstacles by penalty continuation (docs/design.md §9–10)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from solver import layout as L
+from solver._model import contact_layout, reach
+from solver._paths_planar import solve_planar, solve_single
+from solver._paths_shooting import solve_shooting
+from solver.results import Equilibrium
+
+# Penalty continuation for rigid obstacles (Disc(stiffness=math.inf)): the first penalty
+# makes the decay length (EI/k)^¼ a twentieth of the arm; each stage stiffens it tenfold, up
+# to RIGID_MAX_STIFFNESS (OctArm V pressed into a disc: 1e-5 m of penetration at 1.2e8 N/m²,
+# 2e-7 m at 1.2e10).
+RIGID_GROWTH = 10.0
+RIGID_MAX_STIFFNESS = 1e11
+
+
+def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """A solve with rigid obstacles (hard contact) by penalty continuation.
+
+    The rigid discs get a finite penalty k: from a warm start its final one, else the k
+    at which the decay length (EI_min/k)^¼ is L/20. After each solve, while the deepest
+    penetration exceeds ``settings.gap_tol``, k is multiplied by RIGID_GROWTH and the
+    solve continues from the last state, the penalty ramped up along the path (the
+    homotopy of :func:`solver._paths_shooting.solve_shooting`). The penetration falls as 1/k and the state
+    converges to the hard-contact limit (tested). If the penetration is still above
+    ``gap_tol`` where the next stage would pass RIGID_MAX_STIFFNESS, or a stage does not
+    converge (the last converged stage is then returned), the result is reported
+    unconverged.
+    """
+    warm_k = warm_start.penalty_stiffness if warm_start is not None else math.nan
+    stiffness = warm_k if math.isfinite(warm_k) else min(
+        s.EI for s in arm.sections) * (20.0 / arm.length) ** 4
+    eq = warm_start
+    iterations = 0
+    while True:
+        stage = replace(scene, obstacles=tuple(
+            replace(d, stiffness=stiffness) if d.stiffness == math.inf else d
+            for d in scene.obstacles))
+        attempt = solve_contact(arm, packed, p_inputs, p_channel, stage, model, eq, True,
+                                 settings)
+        iterations += attempt.iterations
+        if not attempt.converged:
+            # Keep the last stage that converged (stiffness one step back), reported as not
+            # meeting the tolerance; a first stage that fails is returned as it is.
+            if eq is None or eq is warm_start:
+                eq, met = attempt, False
+            else:
+                stiffness /= RIGID_GROWTH
+                met = False
+            break
+        eq = attempt
+        deepest = float(eq.penetration.max()) if eq.penetration.size else 0.0
+        met = deepest <= settings.gap_tol
+        if met or stiffness * RIGID_GROWTH > RIGID_MAX_STIFFNESS:
+            break
+        stiffness *= RIGID_GROWTH
+    eq = replace(eq, scene=scene, penalty_stiffness=stiffness, iterations=iterations,
+                 converged=bool(eq.converged and met))
+    return eq if record else _unrecorded(eq)
+
+
+def _unrecorded(eq):
+    """``eq`` without its backbone samples (a solve with ``record=False``)."""
+    return Equilibrium(**{f: getattr(eq, f) for f in (
+        "tip", "converged", "stable", "iterations", "residual", "snapped", "in_contact",
+        "base_force", "pressures", "model", "planar", "base_moment", "shooting_nodes", "scene",
+        "channel_pressures", "penalty_stiffness")})
+
+
+def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Planar solve with penalty contact against the scene's discs (:mod:`solver._contact`).
+
+    Multiple shooting at the contact resolution (:func:`solver._model.contact_layout`),
+    obstacles present all along the quasi-static path
+    (:func:`solver._paths_shooting.solve_shooting`).
+
+    Shortcuts (``settings.shortcuts``), each exact:
+
+    * no disc within the arm's reach (:func:`solver._model.reach`): the contact-free solve;
+    * a cold solve, or a warm step from a state that touched nothing: single shooting
+      without contact, guarded — if the backbone stays clear of every disc by half an RK4
+      step at every accepted state (loading stage included) and no sample passes through a
+      disc between them (:func:`solver._planar._follow`), the contact-free path *is* the
+      path with obstacles (every penalty force is zero along it), obtained in tens of
+      microseconds instead of milliseconds. Otherwise the contact kernels follow the path.
+      The shortcut solves at the settings' resolution, the contact kernels at the finer
+      contact resolution; the two agree to the coarser one's discretisation error.
+    """
+    free_scene = replace(scene, obstacles=())
+    if settings.shortcuts:
+        discs = scene.discs_array()
+        if np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]
+                  > reach(arm, packed, scene)):
+            free = solve_planar(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
+                                 record, settings)
+            return _free_contact_result(free, scene)
+        if warm_start is None or not warm_start.in_contact:
+            free = solve_single(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
+                                 True, settings, guard_discs=discs)
+            if free.converged and free.stable:
+                return _free_contact_result(free, scene)
+    layout, segs, sec_start = contact_layout(arm, packed, scene)
+    return solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
+                           warm_start, record, settings, load_moments=False)
+
+
+def _free_contact_result(eq, scene):
+    """A contact-free equilibrium as the result of a solve in ``scene`` (zero contact)."""
+    n = eq.positions.shape[0]
+    return replace(eq, scene=scene, contact_force=np.zeros((n, 2)), penetration=np.zeros(n))

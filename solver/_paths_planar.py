@@ -1,0 +1,176 @@
+"""Planar dead-load solves: closed-form arcs, single shooting with its fold scan, and the
+choice between single and multiple shooting (docs/design.md §6–8, §10)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from solver import _planar
+from solver import layout as L
+from solver._model import MULTIPLE_SHOOTING_INDEX, SceneContext, context, rest_strains
+from solver._paths_shooting import solve_multiple
+from solver.results import Equilibrium
+from solver.rod import arc_chain_planar, arc_chain_spatial, base_rotation, integrate_planar
+
+NO_GUARD = np.empty(0)
+NO_DISCS = np.empty((0, 4))
+
+# Scratch of a planar path that records nothing.
+_NO_RECORD = np.empty((1, L.N_COLUMNS))
+
+
+def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
+    """Unloaded arm (or the constant-curvature model): each section a circular arc.
+
+    With no external load the internal force and moment vanish everywhere, so each section
+    takes its rest strains exactly: curvature u*, stretch v*, no shear. Exact for every
+    model; the ``constant_curvature`` model applies it whatever the loads.
+    """
+    u1, u2, v3 = rest_strains(arm, p_channel, packed)
+    ns = len(arm.sections)
+    seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
+    starts = np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])
+    s = np.concatenate([np.linspace(0.0, length, k + 1) + off for length, k, off in
+                        zip(packed.sec_len, packed.sec_steps, starts)]) if record else np.empty(0)
+    n = s.size
+    common = dict(converged=True, stable=True, iterations=0, residual=0.0, model=model,
+                  planar=planar, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
+                  base_moment=np.zeros(1 if planar else 3), base_force=np.zeros(2 if planar else 3))
+    ends = np.empty((ns, 3))
+    if planar:
+        positions, angles = np.empty((n, 2)), np.empty(n)
+        arc_chain_planar(scene.base_theta, packed.sec_len, u2, v3, s, positions, angles, ends)
+        tip = ends[-1, :2].copy()
+        if not record:
+            return Equilibrium(tip=tip, **common)
+        return Equilibrium(
+            tip=tip, s=s, positions=positions, angles=angles,
+            shear_stretch=np.column_stack([np.zeros(n), v3[seg]]), curvature=u2[seg].copy(),
+            internal_force=np.zeros((n, 2)), internal_moment=np.zeros(n),
+            section_ends=packed.section_ends, **common)
+    positions, frames = np.empty((n, 3)), np.empty((n, 3, 3))
+    arc_chain_spatial(base_rotation(scene.base_theta), packed.sec_len,
+                      np.ascontiguousarray(np.column_stack([u1, u2])), v3, s,
+                      np.empty((4, 3, 3)), positions, frames, ends, np.empty((ns, 3, 3)))
+    tip = ends[-1].copy()
+    if not record:
+        return Equilibrium(tip=tip, **common)
+    return Equilibrium(
+        tip=tip, s=s, positions=positions, orientations=frames,
+        shear_stretch=np.column_stack([np.zeros(n), np.zeros(n), v3[seg]]),
+        curvature=np.column_stack([u1[seg], u2[seg], np.zeros(n)]),
+        internal_force=np.zeros((n, 3)), internal_moment=np.zeros((n, 3)),
+        section_ends=packed.section_ends, **common)
+
+
+def follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None, guard_3d=False,
+           guard_discs=NO_DISCS):
+    """Run :func:`solver._planar._follow` from base moment ``m0``.
+
+    With ``out`` ((n_rows, N_COLUMNS)) a converged result's backbone is recorded into it;
+    with ``guard_3d`` every accepted state must be stable in 3D too (the in-plane shortcut
+    of a spatial solve); with ``guard_discs`` ((k, 4)) the path must stay clear of them
+    (the contact-free shortcut of a scene with obstacles).
+
+    Returns:
+        (state (4,): m0, tip x, y, θ; converged, stable, snapped, iterations, residual;
+        and the returned state's rest strains (3, ns) and loads (ns, 4)).
+    """
+    ns = packed.secf.shape[1]
+    rest, p_now, loads_now = np.empty((3, ns)), np.empty(p_target.shape[0]), np.empty((ns, 4))
+    state = np.array([m0, 0.0, 0.0, 0.0])
+    ok, stable, snapped, its, res, _, _ = _planar._follow(
+        state, (scene.base_theta, packed.secf, packed.sec_steps), (packed.tubes_i, packed.tubes_f),
+        (p_start, start_ctx.loads, start_ctx.m_tip), (p_target, ctx.loads, ctx.m_tip), ctx.params,
+        (rest, p_now, loads_now, _NO_RECORD if out is None else out, out is not None),
+        (packed.c_j if guard_3d else NO_GUARD, guard_discs))
+    return state, ok, stable, snapped, its, res, rest, loads_now
+
+
+def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False,
+                       guard_discs=NO_DISCS) -> tuple[float, int, bool, bool]:
+    """Stage 1 of a cold solve: the unactuated arm under its loads ramped from zero (cached).
+
+    Returns (m0, iterations, snapped, converged); with a guard (see :func:`follow`)
+    converged means also that the guard held all along.
+    """
+    def build():
+        zeros = np.zeros(max(arm.n_channels, 1))
+        unloaded = SceneContext(n_end=ctx.n_end * 0, q=ctx.q * 0, loads=ctx.loads * 0,
+                                m_tip=0.0, tol=ctx.tol, max_step=ctx.max_step,
+                                params=ctx.params, has_load=False, base_force=ctx.base_force * 0,
+                                shooting_index=0.0)
+        state, ok, _, snapped, its, _, _, _ = follow(packed, scene, zeros, zeros, unloaded, ctx,
+                                                     0.0, guard_3d=guard_3d,
+                                                     guard_discs=guard_discs)
+        return float(state[0]), int(its), bool(snapped), bool(ok)
+
+    key = ("loaded", packed.key, scene, guard_3d, guard_discs.tobytes())
+    return arm._solver_cache.get(key, build)
+
+
+def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Planar dead-load solve: single shooting, or multiple shooting where that is
+    ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``)."""
+    fallbacks = settings.n_scan > 0 and model != "constant_curvature"
+    ctx = context(arm, packed, scene, 2, settings)
+    methods = (solve_single, solve_multiple)
+    if fallbacks and ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
+        methods = methods[::-1]
+    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings)
+    eq = methods[0](*args)
+    if fallbacks and not (eq.converged and eq.stable):
+        # Each method covers the other's failures: multiple shooting the ill-conditioned
+        # arms, single shooting (which has the fold scan) the buckled columns.
+        other = methods[1](*args)
+        if other.converged and other.stable:
+            return replace(other, iterations=other.iterations + eq.iterations)
+    return eq
+
+
+def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings,
+                 guard_3d=False, guard_discs=NO_DISCS):
+    """Planar dead-load solve by single shooting on m0 (:func:`solver._planar._follow`).
+
+    With ``guard_3d`` (the in-plane shortcut of a spatial solve) the result is unconverged
+    as soon as the path leaves the states that are stable in 3D, loading stage included;
+    with ``guard_discs`` (the contact-free shortcut) as soon as it comes within half an RK4
+    step of a disc.
+    """
+    ctx = context(arm, packed, scene, 2, settings)
+    p_target = p_channel if arm.n_channels else np.zeros(1)
+    iterations = 0
+    snapped = False
+    if warm_start is not None and warm_start.scene is not None:
+        start_ctx = ctx if warm_start.scene == scene else \
+            context(arm, packed, warm_start.scene, 2, settings)
+        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+        m0 = float(warm_start.base_moment[-1])  # planar m_z, or z of a spatial m0
+    else:
+        m0, iterations, snapped, loaded = loaded_base_moment(arm, packed, scene, ctx, guard_3d,
+                                                             guard_discs)
+        if (guard_3d or guard_discs.size) and not loaded:
+            return Equilibrium(tip=np.full(2, np.nan), converged=False, stable=False,
+                               iterations=iterations, residual=math.inf)
+        start_ctx, p_start = ctx, np.zeros_like(p_target)
+    out = np.empty((packed.n_rows, L.N_COLUMNS)) if record else None
+    state, ok, stable, snap, its, res, rest, loads_now = follow(
+        packed, scene, p_start, p_target, start_ctx, ctx, m0, out, guard_3d, guard_discs)
+    common = dict(converged=bool(ok), stable=bool(stable), iterations=int(iterations + its),
+                  residual=float(res), snapped=bool(snapped or snap), model=model, planar=True,
+                  scene=scene, pressures=p_inputs, channel_pressures=p_channel,
+                  base_moment=state[:1].copy(), base_force=ctx.base_force)
+    if not record:
+        return Equilibrium(tip=state[1:3].copy(), **common)
+    if not ok:  # the returned (last good) state was not recorded by a final Newton pass
+        integrate_planar(state[0], scene.base_theta, packed.secf, packed.sec_steps, rest,
+                         loads_now, True, out)
+    # The result's arrays are views into this one record.
+    return Equilibrium(
+        tip=out[-1, L.X:L.Y + 1].copy(), s=out[:, L.S], positions=out[:, L.X:L.Y + 1],
+        angles=out[:, L.THETA], shear_stretch=out[:, L.V1:L.V3 + 1], curvature=out[:, L.U],
+        internal_force=out[:, L.NX:L.NY + 1], internal_moment=out[:, L.M],
+        section_ends=packed.section_ends, **common)

@@ -1,0 +1,352 @@
+"""Planar multiple shooting along the quasi-static path (contact, and arms too long or soft
+for single shooting): start states, the loading stage with obstacles, snaps at folds, and
+results (docs/design.md §6–9)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from solver import _contact, _planar, _relax
+from solver import layout as L
+from solver._model import context, rest_strains, shooting_layout, shooting_terms
+from solver.results import Equilibrium
+from solver.rod import integrate_planar, rest_strains_into
+
+# Snaps per multiple-shooting solve before it gives up (each costs an energy minimisation).
+MAX_SNAPS = 8
+
+# How far past a fold a snap looks, tried in turn: fractions of the rated pressure (or of
+# the loads being ramped in).
+SNAP_AHEAD = (0.0025, 0.01, 0.04, 0.16)
+
+# Newton step limit of multiple shooting, in the weighted RMS norm of the unknowns.
+MAX_STEP = 0.5
+
+# Scratch of a planar scan that records nothing.
+_NO_RECORD = np.empty((1, L.N_COLUMNS))
+_NO_GUARD = (np.empty(0), np.empty((0, 4)))
+
+
+def solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Planar dead-load solve by multiple shooting (the contact kernels, with no discs).
+
+    For arms whose single shooting is ill-conditioned (:func:`solver._model.shooting_index`), and
+    as the fallback of a failed single-shooting solve; see :func:`solve_shooting`.
+    """
+    layout, segs, sec_start = shooting_layout(arm, packed)
+    return solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
+                           warm_start, record, settings, load_moments=True)
+
+
+def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model, warm_start,
+                    record, settings, load_moments):
+    """Planar multiple-shooting solve along the quasi-static path, the scene's obstacles (if
+    any) present all along it.
+
+    Start state: a multiple-shooting ``warm_start`` at this resolution continues from its
+    nodes; any other warm start from its own base moment, re-integrated at this resolution
+    (corrected by Newton at the start of the ramp); a cold solve from the arm loaded with
+    the obstacles in place (:func:`_loaded_nodes`). Then pressures and loads are ramped from
+    the start's to the target's (:func:`solver._contact._follow`, which never lets the
+    backbone tunnel through a disc).
+    """
+    free_scene = replace(scene, obstacles=())
+    ctx = context(arm, layout, free_scene, 2, settings)
+    p_target = p_channel if arm.n_channels else np.zeros(1)
+    plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, ctx,
+                                                            load_moments)
+    goal = (p_target, ctx.q, plate, target, scene.discs_array())
+    iterations = 0
+    if warm_start is not None and warm_start.scene is not None:
+        start_scene = replace(warm_start.scene, obstacles=())
+        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+        start_ctx = ctx if start_scene == free_scene else \
+            context(arm, layout, start_scene, 2, settings)
+        if warm_start.shooting_nodes.shape == weights.shape:
+            nodes = warm_start.shooting_nodes.copy()
+        elif warm_start.s.size:
+            nodes = _nodes_from_record(warm_start, layout, segs, sec_start)
+        else:
+            free = np.empty((layout.n_rows, L.N_COLUMNS))
+            integrate_planar(float(warm_start.base_moment[-1]), scene.base_theta, layout.secf,
+                             layout.sec_steps, np.vstack(rest_strains(arm, p_start, layout)),
+                             start_ctx.loads, True, free)
+            nodes = nodes_from_states(free[:, _FREE_STATE], segs)
+        start_plate, start_target = shooting_terms(arm, layout, segs, start_scene, start_ctx,
+                                                   load_moments)[:2]
+        # The same obstacles at the warm start's stiffness (a stiffer penalty is ramped in),
+        # or the scene's where they differ.
+        start_discs = effective_discs(warm_start.scene, warm_start.penalty_stiffness)
+        if start_discs.shape != goal[L.L_DISCS].shape or np.any(
+                start_discs[:, :3] != goal[L.L_DISCS][:, :3]):
+            start_discs = goal[L.L_DISCS]
+        start = (p_start, start_ctx.q, start_plate, start_target, start_discs)
+    else:
+        nodes, iterations, loaded = _loaded_nodes(arm, layout, segs, sec_start, scene, ctx,
+                                                  settings, load_moments)
+        start = (np.zeros_like(p_target), *goal[1:])
+        if not loaded:
+            grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+            return _shooting_result(nodes, scene, grid, layout, start, record,
+                                    converged=False, stable=False, iterations=iterations,
+                                    residual=math.inf, model=model, pressures=p_inputs,
+                                    channel_pressures=p_channel)
+    now = _contact._new_level(goal)
+    rest = np.empty((3, len(arm.sections)))
+    grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+    snapped = False
+    params = shooting_params(scene, settings)
+    for _ in range(MAX_SNAPS + 1):
+        ok, stable, _, its, res, t, dt = _contact._follow(
+            nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal, params,
+            (rest, now, weights, res_weights), _NO_GUARD)
+        iterations += its
+        if ok or settings.n_scan == 0 or t >= 1.0:
+            break
+        # The path cannot go on past level t (a fold): the arm snaps. Find the stable
+        # equilibrium it lands on a little further on and continue from there.
+        landed, level = _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, weights,
+                                    res_weights, settings, ctx.params)
+        if landed is None:
+            break
+        nodes[:] = landed
+        start = level
+        snapped = True
+    return _shooting_result(nodes, scene, grid, layout, now, record,
+                            converged=bool(ok), stable=bool(stable), snapped=snapped,
+                            iterations=int(iterations), residual=float(res), model=model,
+                            pressures=p_inputs, channel_pressures=p_channel)
+
+
+def _level_span(start, goal, p_max):
+    """How much a homotopy between level tuples changes, relative to its scale: the largest
+    pressure change over the rated pressure, or load change over the load."""
+    span = float(np.max(np.abs(goal[L.L_P] - start[L.L_P]))) / p_max if p_max > 0 else 0.0
+    for k in (L.L_Q, L.L_PLATE, L.L_TARGET):
+        size = float(np.max(np.abs(goal[k]), initial=0.0))
+        if size > 0.0:
+            span = max(span, float(np.max(np.abs(goal[k] - start[k]))) / size)
+    return max(span, 1e-12)
+
+
+def _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, weights, res_weights,
+                settings, params):
+    """The snap of a multiple-shooting path that ends at a fold at level t (step dt failed
+    beyond it): (landed nodes, their level) or (None, None).
+
+    The arm is sought on its new branch at SNAP_AHEAD past the fold, in turn. The offsets
+    are physical (a fraction of the rated pressure, or of the loads), so that a cold ramp
+    and a fine warm ramp look at the same levels past the same fold. Close to the fold the
+    discrete energy's minimum may still sit by the vanishing branch (its fold lies O(h²)
+    away from the shooting system's); where the ramp ends before an offset, the loads are
+    carried on past its end (pressures kept within the rating) to pass the fold, and the
+    arm relaxed back to the end from there.
+    """
+    span = _level_span(start, goal, arm.max_pressure)
+    for ahead in SNAP_AHEAD:
+        t_over = t + max(ahead / span, dt)
+        level = _interpolate_level(start, goal, min(1.0, t_over), arm.max_pressure)
+        over = _interpolate_level(start, goal, t_over, arm.max_pressure) if t_over > 1.0 \
+            else None
+        landed = _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
+                       params)
+        if landed is not None:
+            return landed, level
+    return None, None
+
+
+def _interpolate_level(start, goal, t, p_max):
+    """The level tuple at ``t`` of the ramp from ``start`` to ``goal`` (t may exceed 1: the
+    ramp carried on), pressures kept within [0, p_max]."""
+    level = tuple(a + t * (b - a) for a, b in zip(start, goal))
+    return (np.clip(level[0], 0.0, p_max), *level[1:])
+
+
+def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings, params):
+    """Where a multiple-shooting path ends at a fold: the stable equilibrium at ``level``
+    that the arm, at ``nodes`` (level ``now``), snaps to; None if none is found.
+
+    Clear of every obstacle, the arm snaps as the single-shooting path does: to the stable
+    root of the level nearest its base moment (:func:`solver._planar._scan`, ``params`` its
+    parameters), if that is clear of the obstacles too. Otherwise, a local minimum of the
+    discrete rod's energy reached from the last state (:func:`solver._relax.relax`) — from
+    the scan's root if it lands in an obstacle; with ``over`` (a level past the ramp's end)
+    it relaxes there first and then back at ``level``. Either is polished by Newton on the
+    shooting system and must be stable.
+    """
+    theta0, segs = grid[L.G_THETA0], grid[L.G_SEGS]
+    target = level[L.L_TARGET]
+    rest = _level_rest(layout, level)
+    record = np.zeros((layout.n_rows, L.C_COLUMNS))
+    _contact._record(nodes, grid, _level_rest(layout, now), now, record)
+    landed = None
+    if not record[:, L.C_PEN].any() and params[L.N_SCAN] > 0:
+        loads = _planar_loads(layout, level)
+        m0, found, _ = _planar._scan(theta0, layout.secf, layout.sec_steps, rest, loads,
+                                     float(target[2]), params, int(params[L.N_SCAN]),
+                                     float(nodes[2]), _NO_RECORD)
+        if found:
+            free = np.empty((layout.n_rows, L.N_COLUMNS))
+            integrate_planar(m0, theta0, layout.secf, layout.sec_steps, rest, loads, True, free)
+            landed = nodes_from_states(free[:, _FREE_STATE], segs)
+            if not _planar._clear_of(free, level[L.L_DISCS], 0.0):
+                record[:, [L.C_X, L.C_Y, L.C_TH, L.C_V1, L.C_V3]] = free[:, [L.X, L.Y, L.THETA,
+                                                                           L.V1, L.V3]]
+                landed = None
+    if landed is None:
+        state = _relax.strains_of_record(record, layout.sec_steps)
+        for lvl in (over, level) if over is not None else (level,):
+            relaxed = _relax.relax(state, theta0, layout.secf, layout.sec_steps,
+                                   _level_rest(layout, lvl), lvl[L.L_Q], lvl[L.L_PLATE],
+                                   lvl[L.L_TARGET][:2] - lvl[L.L_PLATE][-1], lvl[L.L_TARGET][2],
+                                   lvl[L.L_DISCS])
+            if relaxed is None:
+                return None
+            states, state = relaxed
+        landed = nodes_from_states(states, segs)
+    ok, _, _, stable = _contact._newton(landed, grid, rest, level, weights, res_weights,
+                                        settings.tol, 4 * settings.max_iter, MAX_STEP)
+    return landed if ok and stable else None
+
+
+def _planar_loads(layout, level):
+    """The (ns, 4) loads array of :mod:`solver._planar` (n_end, q) of a level tuple."""
+    q, plate = level[L.L_Q], level[L.L_PLATE]
+    loads = np.empty((q.shape[0], 4))
+    running = level[L.L_TARGET][:2].copy()  # n(L⁻): tip load and the last endplate
+    for i in range(q.shape[0] - 1, -1, -1):
+        loads[i, :2] = running
+        loads[i, 2:] = q[i]
+        if i > 0:
+            running = running + q[i] * layout.sec_len[i] + plate[i - 1]
+    return loads
+
+
+def shooting_params(scene, settings, predict_cap=math.inf):
+    """The numeric parameters (:mod:`solver.layout`) of a multiple-shooting path: the
+    settings' tolerance (on the weighted RMS residual), iterations and steps, the smallest
+    step of a contact path where the scene has obstacles, and the cap on a predicted move."""
+    params = np.zeros(L.N_PARAMS)
+    params[L.TOL] = settings.tol
+    params[L.MAX_STEP] = MAX_STEP
+    params[L.DT0] = settings.dt0
+    params[L.DT_MIN] = settings.contact_dt_min if scene.obstacles else settings.dt_min
+    params[L.MAX_ITER] = settings.max_iter
+    params[L.N_SCAN] = settings.n_scan
+    params[L.PREDICT_CAP] = predict_cap
+    return params
+
+
+def effective_discs(scene, stiffness):
+    """The scene's discs as a kernel array, rigid ones at the penalty ``stiffness``."""
+    discs = scene.discs_array()
+    discs[discs[:, L.STIFFNESS] == math.inf, L.STIFFNESS] = stiffness
+    return discs
+
+
+def _nodes_from_record(eq, layout, segs, sec_start):
+    """Multiple-shooting nodes on ``layout`` from a recorded equilibrium at another
+    resolution, interpolated linearly in arc length within each section (so that a node at
+    a section start takes the internal force past the endplate)."""
+    states = np.column_stack([eq.positions, eq.angles, eq.internal_force, eq.internal_moment])
+    ends = np.asarray(eq.section_ends)
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    rows = segs[:, L.SEG_ROW0] + segs[:, L.SEG_FIRST]
+    s_rows = np.concatenate([np.linspace(0, n, n + 1) * h + s0 for n, h, s0 in zip(
+        layout.sec_steps, layout.sec_len / layout.sec_steps, sec_start)])
+    out = np.empty((layout.n_rows, 6))
+    row = 0
+    for i, n in enumerate(layout.sec_steps):
+        part = slice(starts[i], ends[i] + 1)
+        for c in range(6):
+            out[row:row + n + 1, c] = np.interp(s_rows[row:row + n + 1], eq.s[part],
+                                                states[part, c])
+        row += n + 1
+    return np.concatenate([out[rows[0], 3:], out[rows[1:]].ravel()])
+
+
+def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_moments):
+    """Stage 1 of a cold multiple-shooting solve (cached per scene): from the straight,
+    unloaded, unactuated arm the loads are ramped in with the obstacles in place. Returns a
+    copy of the nodes, the iterations and whether it converged.
+
+    An obstacle that overlaps the straight arm grows in during the ramp, from the radius at
+    which it just touches the arm's axis to its own. Loading a long arm from straight is far
+    from linear (its linear response to its own weight is metres): predicted moves are
+    capped at one Newton step limit.
+    """
+    def build():
+        plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, ctx,
+                                                                load_moments)
+        nodes = np.zeros(weights.shape)
+        rows = segs[1:, L.SEG_ROW0] + segs[1:, L.SEG_FIRST]
+        s_nodes = np.concatenate([np.linspace(0, n, n + 1) * h + s0 for n, h, s0 in zip(
+            layout.sec_steps, layout.sec_len / layout.sec_steps, sec_start)])[rows]
+        straight = nodes[3:].reshape(-1, 6)
+        axis = np.array([math.cos(scene.base_theta), math.sin(scene.base_theta)])
+        straight[:, :2] = s_nodes[:, None] * axis
+        straight[:, 2] = scene.base_theta
+        discs = scene.discs_array()
+        grown = discs.copy()
+        along = np.clip(discs[:, :2] @ axis, 0.0, arm.length)
+        grown[:, L.RADIUS] = np.minimum(discs[:, L.RADIUS],
+                                        np.hypot(*(discs[:, :2] - along[:, None] * axis).T))
+        p0 = np.zeros(max(arm.n_channels, 1))
+        start = (p0, np.zeros_like(ctx.q), np.zeros_like(plate), np.zeros(3), grown)
+        goal = (p0, ctx.q, plate, target, discs)
+        grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+        ok, stable, _, its, _, _, _ = _contact._follow(
+            nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal,
+            shooting_params(scene, settings, predict_cap=MAX_STEP),
+            (np.empty((3, len(arm.sections))), _contact._new_level(goal), weights, res_weights),
+            _NO_GUARD)
+        return nodes, int(its), bool(ok and stable)
+
+    nodes, its, ok = arm._solver_cache.get(("loaded-nodes", layout.key, scene, load_moments),
+                                           build)
+    return nodes.copy(), its, ok
+
+
+def _shooting_result(nodes, scene, grid, layout, level, record, **fields):
+    """The Equilibrium of a multiple-shooting state ``nodes`` at ``level`` (a level tuple,
+    ``L_*``; ``grid`` its layout tuple): the backbone is integrated from the nodes (contact
+    needs it for the wrap measures even when ``record`` is False; ``record`` decides whether
+    it is returned), with the contact fields if the scene has obstacles."""
+    contact = bool(scene.obstacles)
+    out = np.zeros((layout.n_rows, L.C_COLUMNS))
+    _contact._record(nodes, grid, _level_rest(layout, level), level, out)
+    common = dict(tip=out[-1, [L.C_X, L.C_Y]].copy(), planar=True, scene=scene,
+                  base_moment=np.array([nodes[2]]), base_force=nodes[:2].copy(),
+                  shooting_nodes=nodes, in_contact=bool(contact and out[:, L.C_PEN].max() > 0.0),
+                  **fields)
+    if not record:
+        return Equilibrium(**common)
+    extra = dict(contact_force=out[:, [L.C_FX, L.C_FY]].copy(),
+                 penetration=out[:, L.C_PEN].copy()) if contact else {}
+    return Equilibrium(
+        s=out[:, L.C_S].copy(), positions=out[:, [L.C_X, L.C_Y]].copy(),
+        angles=out[:, L.C_TH].copy(), shear_stretch=out[:, [L.C_V1, L.C_V3]].copy(),
+        curvature=out[:, L.C_U].copy(), internal_force=out[:, [L.C_NX, L.C_NY]].copy(),
+        internal_moment=out[:, L.C_M].copy(), section_ends=layout.section_ends, **extra,
+        **common)
+
+
+def _level_rest(layout, level):
+    """Rest strains (3, ns) at the pressures of a level tuple."""
+    rest = np.empty((3, layout.secf.shape[1]))
+    rest_strains_into(level[L.L_P], layout.tubes_i, layout.tubes_f, layout.secf, rest)
+    return rest
+
+
+# Columns of a planar record that make a multiple-shooting node state (x, y, θ, n_x, n_y, m).
+_FREE_STATE = [L.X, L.Y, L.THETA, L.NX, L.NY, L.M]
+
+
+def nodes_from_states(states, segs):
+    """Multiple-shooting unknowns from backbone samples ``states`` (N, 6) = (x, y, θ, n_x,
+    n_y, m) per sample: (n0, m0), then the state at every segment start."""
+    rows = segs[:, L.SEG_ROW0] + segs[:, L.SEG_FIRST]
+    return np.concatenate([states[rows[0], [3, 4, 5]], states[rows[1:]].ravel()])

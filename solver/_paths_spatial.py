@@ -1,0 +1,130 @@
+"""Spatial dead-load solves, and the in-plane shortcut that hands them to the planar kernel
+only where that cannot change the answer (docs/design.md §6, §10)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from solver import _spatial
+from solver import layout as L
+from solver._model import MULTIPLE_SHOOTING_INDEX, context, rest_strains
+from solver._paths_planar import NO_DISCS, NO_GUARD, solve_single
+from solver.results import Equilibrium
+from solver.rod import base_rotation, integrate_spatial, rotation_to_quaternion
+
+
+def in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
+                      settings):
+    """A spatial solve of an in-plane scene by the planar kernel, or None where that could
+    differ from the spatial path: the planar path must stay stable in 3D at every accepted
+    state (an arm curled in a vertical plane may buckle sideways), pass no fold, and single
+    shooting must suit the arm; otherwise the spatial kernels solve it (None)."""
+    ctx = context(arm, packed, scene, 2, settings)
+    if ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
+        return None
+    eq = solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
+                      settings, guard_3d=True)
+    return _embed(eq) if eq.converged and eq.stable else None
+
+
+def in_plane_state(eq: Equilibrium) -> bool:
+    """True when a spatial equilibrium lies in the x–y plane (base moment along z only)."""
+    return bool(eq.base_moment.size == 3 and eq.base_moment[0] == 0.0
+                and eq.base_moment[1] == 0.0)
+
+
+def in_plane(arm, packed, p_channel) -> bool:
+    """True when the pressures bend every section in the x–y plane only (u1* = 0)."""
+    u1, u2, _ = rest_strains(arm, p_channel, packed)
+    return bool(np.all(np.abs(u1) <= 1e-12 * (1.0 + np.abs(u2))))
+
+
+def _embed(eq: Equilibrium) -> Equilibrium:
+    """A planar equilibrium expressed in 3D (z = 0, d2 = +z)."""
+    n = eq.s.size
+    pad = np.zeros((n, 1))
+    c, s = np.cos(eq.angles), np.sin(eq.angles)
+    frames = np.zeros((n, 3, 3))
+    frames[:, 0, 0], frames[:, 1, 0] = -s, c
+    frames[:, 2, 1] = 1.0
+    frames[:, 0, 2], frames[:, 1, 2] = c, s
+    return replace(
+        eq, tip=np.append(eq.tip, 0.0), planar=False,
+        positions=np.hstack([eq.positions, pad]), angles=np.empty(0), orientations=frames,
+        shear_stretch=np.column_stack([eq.shear_stretch[:, 0], pad[:, 0], eq.shear_stretch[:, 1]])
+        if n else np.empty((0, 3)),
+        curvature=np.column_stack([pad[:, 0], eq.curvature, pad[:, 0]]) if n else np.empty((0, 3)),
+        internal_force=np.hstack([eq.internal_force, pad]) if n else np.empty((0, 3)),
+        internal_moment=np.column_stack([pad[:, 0], pad[:, 0], eq.internal_moment])
+        if n else np.empty((0, 3)),
+        base_moment=np.array([0.0, 0.0, eq.base_moment[-1]]))
+
+
+def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+    """Spatial dead-load solve by single shooting on m0 (:func:`solver._spatial._follow`):
+    the loading stage of a cold solve, then the pressure ramp."""
+    ctx = context(arm, packed, scene, 3, settings)
+    quat0 = np.empty(4)
+    rotation_to_quaternion(base_rotation(scene.base_theta), quat0)
+    p_target = p_channel if arm.n_channels else np.zeros(1)
+    ns = len(arm.sections)
+    rest, p_now, loads_now, m_tip = (np.empty((3, ns)), np.empty(p_target.shape[0]),
+                                     np.empty((ns, 6)), np.empty(3))
+    grid = (quat0, packed.secf, packed.sec_steps, packed.c_j)
+    tubes = (packed.tubes_i, packed.tubes_f)
+    work = (rest, p_now, loads_now, m_tip)
+    guard = (NO_GUARD, NO_DISCS)
+
+    iterations = 0
+    snap_load = False
+    m0 = np.zeros(3)
+    if warm_start is not None and warm_start.scene is not None:
+        start_ctx = context(arm, packed, warm_start.scene, 3, settings)
+        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+        m0[-warm_start.base_moment.size:] = warm_start.base_moment
+        start = (p_start, start_ctx.loads, start_ctx.m_tip)
+    else:
+        # Stage 1: load the unactuated arm (loads ramped from zero, straight rod, m0 = 0).
+        p_start = np.zeros_like(p_target)
+        _, _, snap_load, its, _, _, _ = _spatial._follow(
+            m0, grid, tubes, (p_start, np.zeros_like(ctx.loads), np.zeros(3)),
+            (p_start, ctx.loads, ctx.m_tip), ctx.params, work, guard)
+        iterations += its
+        start = (p_start, ctx.loads, ctx.m_tip)
+    ok, stable, snapped, its, _, _, _ = _spatial._follow(
+        m0, grid, tubes, start, (p_target, ctx.loads, ctx.m_tip), ctx.params, work, guard)
+    iterations += its
+    rows = packed.n_rows if record else 1
+    pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
+    state = np.empty((6, L.NSTATE))
+    integrate_spatial(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, loads_now,
+                      record, pos, rot, mom, state)
+    tip_state = state[0]
+    res = float(np.linalg.norm(tip_state[L.SP_M:L.SP_M + 3] - m_tip))
+    # ``stable`` is the stability of the returned state, from the Newton pass that converged
+    # on it.
+    common = dict(tip=tip_state[L.SP_R:L.SP_R + 3].copy(),
+                  converged=bool(ok and res <= 10 * ctx.tol), stable=bool(stable),
+                  iterations=int(iterations), residual=res, snapped=bool(snapped or snap_load),
+                  model=model, planar=False, scene=scene, pressures=p_inputs,
+                  channel_pressures=p_channel, base_moment=m0.copy(), base_force=ctx.base_force)
+    if not record:
+        return Equilibrium(**common)
+    seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
+    starts = np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])
+    s = np.concatenate([np.linspace(0.0, length, k + 1) + off for length, k, off in
+                        zip(packed.sec_len, packed.sec_steps, starts)])
+    local = s - starts[seg]
+    force = ctx.n_end[seg] + ctx.q[seg] * (packed.sec_len[seg] - local)[:, None]
+    nb = np.einsum("nji,nj->ni", rot, force)
+    mb = np.einsum("nji,nj->ni", rot, mom)
+    u1, u2, v3 = rest
+    strain_v = np.column_stack([nb[:, 0] * packed.c_g[seg], nb[:, 1] * packed.c_g[seg],
+                                v3[seg] + nb[:, 2] * packed.c_a[seg]])
+    strain_u = np.column_stack([u1[seg] + mb[:, 0] * packed.c_i[seg],
+                                u2[seg] + mb[:, 1] * packed.c_i[seg], mb[:, 2] * packed.c_j[seg]])
+    return Equilibrium(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
+                       curvature=strain_u, internal_force=force, internal_moment=mom,
+                       section_ends=packed.section_ends, **common)

@@ -1,0 +1,62 @@
+"""Array layouts of the rod kernels: every row and column by name.
+
+The kernels of :mod:`solver.rod` (and the solver's private ones) take plain float and int
+arrays; their users — the solver's wrappers, the sensing package, the batched environment —
+name rows and columns with these constants and never read them by number. numba treats
+module constants as compile-time constants.
+"""
+
+# Section array ``secf`` (6, ns): length (m), 1/EA, 1/GA (0: unshearable), 1/EI, EA, EI.
+LEN, CA, CG, CI, EA, EI = range(6)
+N_SECF = 6
+
+# Tubes: ``tubes_i`` (n_tubes, 3) channel, first and last section spanned;
+# ``tubes_f`` (n_tubes, 6) E·At (N), E (Pa), At/A, cos α, offsets a along d1 and b along d2 (m).
+T_CHANNEL, T_FIRST, T_LAST = range(3)
+TF_EAT, TF_E, TF_AREA_RATIO, TF_COS_ALPHA, TF_A, TF_B = range(6)
+
+# Rest strains ``rest`` (3, ns): curvatures u1*, u2* (rad/m) and stretch v3*.
+REST_U1, REST_U2, REST_V3 = range(3)
+
+# Numeric parameters ``params`` of the path-following kernels: Newton tolerance, step
+# limit, fold-scan bound, first and smallest continuation steps, Newton iterations, fold-scan
+# points, branch-jump floor, and the cap on a predicted move (multiple shooting).
+TOL, MAX_STEP, M_BOUND, DT0, DT_MIN, MAX_ITER, N_SCAN, JUMP, PREDICT_CAP = range(9)
+N_PARAMS = 9
+
+# Planar dead loads (ns, 4): internal force just proximal of each section end (n_end x, y;
+# N) and distributed load per reference length (q x, y; N/m).
+NEX, NEY, QX, QY = range(4)
+
+# Planar record (N, 10): s, x, y, θ, m, internal force n (world x, y), strains v1, v3 and
+# curvature u. Adjacent pairs are the result's (N, 2) fields as slices.
+S, X, Y, THETA, M, NX, NY, V1, V3, U = range(10)
+N_COLUMNS = 10
+
+# Spatial state (28,): position r, quaternion β of the directors, moment m (world), and the
+# sensitivities δφ (3 columns of 3) and δm (3 columns of 3).
+SP_R, SP_Q, SP_M, SP_DPHI, SP_DM = 0, 3, 7, 10, 19
+NSTATE = 28
+
+# Spatial dead loads (ns, 6): n_end (x, y, z; N) and q (x, y, z; N/m).
+SL_N, SL_Q = 0, 3
+
+# Contact record (N, 13): s, x, y, θ, n_x, n_y, m, f_x, f_y, penetration, v1, v3, u.
+C_S, C_X, C_Y, C_TH, C_NX, C_NY, C_M, C_FX, C_FY, C_PEN, C_V1, C_V3, C_U = range(13)
+C_COLUMNS = 13
+
+# Multiple-shooting segment table (M, 5): section, first local step, steps, ends the
+# section, first recorded row of the section.
+SEG_SECTION, SEG_FIRST, SEG_STEPS, SEG_END, SEG_ROW0 = range(5)
+
+# Obstacles (k, 4): centre x, centre y, radius (m), penalty stiffness (N/m²).
+CX, CY, RADIUS, STIFFNESS = range(4)
+
+# A multiple-shooting homotopy end ("level") is a tuple (p, q, plate, target, discs): channel
+# pressures (n_channels,), distributed loads (ns, 2), endplate weights (ns, 2), tip target
+# n(L⁻), M_tip (3,) and obstacles (k, 4).
+L_P, L_Q, L_PLATE, L_TARGET, L_DISCS = range(5)
+
+# The multiple-shooting layout tuple ``grid``: base angle θ0, segment table, section array,
+# RK4 steps per section (ns,) and section start arc lengths (ns,).
+G_THETA0, G_SEGS, G_SECF, G_STEPS, G_START = range(5)

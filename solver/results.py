@@ -1,0 +1,110 @@
+"""What a solve returns: :class:`Equilibrium` and, for batches, :class:`BatchState`."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from solver.scene import Scene
+
+__all__ = ["Equilibrium", "BatchState"]
+
+
+def _empty(*shape):
+    """A shared, read-only empty array: cheap defaults for fields a solve did not record."""
+    arr = np.empty(shape)
+    arr.flags.writeable = False
+    return lambda: arr
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """A static equilibrium of the arm.
+
+    Attributes:
+        tip: tip position, (2,) planar or (3,) spatial (m).
+        converged: Newton met the tolerance at the final load and pressure.
+        stable: the equilibrium passed the conjugate-point (Jacobi) test.
+        snapped: the quasi-static path passed a fold and jumped to another stable branch.
+        iterations: total Newton iterations (continuation included).
+        residual: |m(L) − M_tip| of the returned state (N m, norm in 3D).
+        s: (N,) reference arc length of the samples (m); empty when not recorded.
+        positions: (N, 2|3) backbone samples (m).
+        angles: (N,) planar orientation θ of d3 from +x (rad); spatial: ``orientations``.
+        orientations: (N, 3, 3) directors [d1 d2 d3] as columns (spatial only, else empty).
+        shear_stretch: (N, 2|3) strains v in the body frame (planar: v1, v3).
+        curvature: (N,) planar u2 (rad/m) or (N, 3) spatial u.
+        internal_force: (N, 2|3) n in the world frame (N).
+        internal_moment: (N,) planar m_z or (N, 3) spatial m in the world frame (N m).
+        section_ends: indices of the samples at each section end.
+        contact_force: (N, 2) penalty contact force per reference length (N/m, world frame);
+            empty unless the scene has obstacles.
+        penetration: (N,) depth of the backbone inside the nearest obstacle (m, ≥ 0).
+        in_contact: the backbone presses on an obstacle somewhere (False without obstacles).
+        base_force: internal force n(0) at the base (N, world frame).
+        pressures: the pressures solved for (Pa), in the order of ``design.input_names``.
+        penalty_stiffness: with rigid obstacles, the penalty stiffness (N/m²) that met
+            ``Settings.gap_tol`` (NaN otherwise).
+        model, planar: what was solved.
+    """
+
+    tip: np.ndarray
+    converged: bool
+    stable: bool
+    iterations: int
+    residual: float
+    snapped: bool = False
+    s: np.ndarray = field(default_factory=_empty(0))
+    positions: np.ndarray = field(default_factory=_empty(0, 2))
+    angles: np.ndarray = field(default_factory=_empty(0))
+    orientations: np.ndarray = field(default_factory=_empty(0, 3, 3))
+    shear_stretch: np.ndarray = field(default_factory=_empty(0, 2))
+    curvature: np.ndarray = field(default_factory=_empty(0))
+    internal_force: np.ndarray = field(default_factory=_empty(0, 2))
+    internal_moment: np.ndarray = field(default_factory=_empty(0))
+    section_ends: tuple = ()
+    contact_force: np.ndarray = field(default_factory=_empty(0, 2))
+    penetration: np.ndarray = field(default_factory=_empty(0))
+    in_contact: bool = False
+    base_force: np.ndarray = field(default_factory=_empty(0))
+    pressures: np.ndarray = field(default_factory=_empty(0))
+    model: str = "full"
+    planar: bool = True
+    base_moment: np.ndarray = field(default_factory=_empty(0), repr=False)
+    shooting_nodes: np.ndarray = field(default_factory=_empty(0), repr=False)
+    scene: Scene | None = field(default=None, repr=False)
+    channel_pressures: np.ndarray = field(default_factory=_empty(0), repr=False)
+    penalty_stiffness: float = math.nan
+
+    @property
+    def tip_angle(self) -> float:
+        """Planar tip orientation θ(L) (rad); NaN if not recorded or spatial."""
+        return float(self.angles[-1]) if self.angles.size else math.nan
+
+
+# ----------------------------------------------------------------------------- packing
+
+
+@dataclass
+class BatchState:
+    """Equilibria of n copies of one arm in one scene, stepped together by :func:`step_batch`.
+
+    Attributes:
+        pressures: (n, n_inputs) planar channel pressures of each copy (Pa).
+        tips: (n, 2) tip positions (m).
+        converged: (n,) whether the last step of each copy converged (a copy that did not
+            kept its previous state).
+        shapes: (n, N, 10) recorded backbones when stepped with ``record=True``: columns s, x,
+            y, θ, m, n_x, n_y, v1, v3, u (see :mod:`solver._planar`); else (n, 1, 10) scratch.
+        section_ends: sample indices of the section ends in ``shapes``.
+    """
+
+    pressures: np.ndarray
+    tips: np.ndarray
+    converged: np.ndarray
+    shapes: np.ndarray
+    section_ends: tuple
+    base_moment: np.ndarray = field(repr=False, default=None)
+    channel_pressures: np.ndarray = field(repr=False, default=None)

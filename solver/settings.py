@@ -1,0 +1,63 @@
+"""Solver settings, the model names and the solver's error."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["MODELS", "Settings", "SolverError", "DEFAULT_SETTINGS"]
+
+MODELS = ("full", "unshearable", "constant_curvature")
+
+
+class SolverError(RuntimeError):
+    """Raised by ``solve(..., strict=True)`` when no converged equilibrium was found."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Numerical settings of the shooting solver.
+
+    Attributes:
+        steps_per_section: fixed RK4 steps per section (error ∝ steps⁻⁴).
+        tol: Newton tolerance on the tip-moment residual, relative to EI_max / L.
+        max_iter: Newton iterations per continuation step.
+        dt0, dt_min: first and smallest continuation step (fraction of the ramp).
+        contact_dt_min: smallest continuation step of solves with obstacles: a stiff
+            penalty makes contact paths turn sharply, and the step that may not tunnel
+            through a disc is short where the backbone sweeps past one.
+        n_scan: grid points of the fold scan over the base moment (0: no scan).
+        gap_tol: deepest penetration (m) a rigid obstacle (``Disc(stiffness=math.inf)``) may
+            be left with: its penalty is stiffened tenfold until the solve meets it (up to
+            ``RIGID_MAX_STIFFNESS``; 1e-7 m is reachable for OctArm-sized arms).
+        shortcuts: skip what a scene does not need (closed-form arcs when unloaded, the
+            planar kernel for in-plane spatial solves). False forces the general path; the
+            tests use it to check that each shortcut agrees with it.
+    """
+
+    steps_per_section: int = 16
+    tol: float = 1e-10
+    max_iter: int = 12
+    dt0: float = 1.0
+    dt_min: float = 1.0 / 256.0
+    contact_dt_min: float = 1.0 / 16384.0
+    n_scan: int = 96
+    gap_tol: float = 1e-4
+    shortcuts: bool = True
+
+    def __post_init__(self):
+        if int(self.steps_per_section) != self.steps_per_section or self.steps_per_section < 1:
+            raise ValueError(f"steps_per_section must be an integer >= 1; got {self.steps_per_section}")
+        if not (self.tol > 0 and self.max_iter >= 1 and 0 < self.dt_min <= self.dt0 <= 1
+                and 0 < self.contact_dt_min <= self.dt0 and 0 < self.gap_tol
+                and (self.n_scan == 0 or self.n_scan >= 4)):
+            raise ValueError(f"invalid solver settings: {self}")
+
+    @classmethod
+    def without_fallback(cls, **kwargs) -> Settings:
+        """Plain Newton from the start state: no continuation, no step halving, no fold scan.
+
+        The stress test compares this against the default to show what the fallbacks buy.
+        """
+        return cls(dt0=1.0, dt_min=1.0, contact_dt_min=1.0, n_scan=0, **kwargs)
+
+DEFAULT_SETTINGS = Settings()

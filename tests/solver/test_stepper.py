@@ -1,0 +1,213 @@
+"""The lean stepper (:class:`solver.Stepper`) against the friendly API it shortcuts.
+
+Oracle: ``solve(arm, p, scene, warm_start=previous)``, which validates and looks up
+everything on every call and never uses the stepper's predictor; a step must land on the
+same equilibrium to the solver's tolerance, on the lean path and on every general one.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import solver
+from solver import PSI, designs
+from solver import layout as L
+
+
+def _walk(arm, n, scale, seed, planar=True):
+    """n pressure vectors: a random walk of steps ``scale``·p_max per input, clipped."""
+    rng = np.random.default_rng(seed)
+    k = arm.n_inputs(planar)
+    p = [rng.uniform(0.0, 0.5, k) * arm.max_pressure]
+    for _ in range(n - 1):
+        p.append(np.clip(p[-1] + rng.uniform(-scale, scale, k) * arm.max_pressure, 0.0,
+                         arm.max_pressure))
+    return p
+
+
+@pytest.mark.parametrize("design, scene, scale", [
+    ("octarm_v", solver.Scene(payload_kg=0.1), 0.02),
+    ("octarm_v", solver.Scene(base_angle_deg=0.0), 1.0),
+    ("ct", solver.Scene(base_angle_deg=45.0), 0.1),
+    ("octarm_vi", solver.Scene(base_angle_deg=180.0, payload_kg=0.05), 0.1),
+])
+def test_lean_steps_equal_warm_solves(design, scene, scale):
+    """Small steps, jumps anywhere in the pressure range (folds and snaps included), and an
+    upright arm under load: every step lands where the warm-started solve() does."""
+    arm = designs.get(design)
+    pressures = _walk(arm, 25, scale, seed=3)
+    stepper = solver.Stepper(arm, scene)
+    assert stepper.lean
+    stepper.reset(pressures[0])
+    eq = solver.solve(arm, pressures[0], scene)
+    for p in pressures[1:]:
+        report = stepper.step(p)
+        eq = solver.solve(arm, p, scene, warm_start=eq)
+        assert report.converged == eq.converged
+        assert report.snapped == eq.snapped
+        got = stepper.equilibrium
+        np.testing.assert_allclose(got.positions, eq.positions, atol=1e-8 * arm.length)
+        np.testing.assert_allclose(got.internal_moment, eq.internal_moment, atol=1e-7)
+        np.testing.assert_array_equal(stepper.tip, got.tip)
+        np.testing.assert_array_equal(got.pressures, p)
+
+
+@pytest.mark.parametrize("case", ["spatial", "contact", "unloaded", "constant_curvature"])
+def test_general_steps_equal_warm_solves(case):
+    arm = designs.octarm_v()
+    planar = case != "spatial"
+    scene = {"spatial": solver.Scene(payload_kg=0.1),
+             "contact": solver.Scene(base_angle_deg=0.0,
+                                     obstacles=(solver.Disc((0.25, -0.35), 0.08),)),
+             "unloaded": solver.Scene(gravity=0.0),
+             "constant_curvature": solver.Scene()}[case]
+    model = "constant_curvature" if case == "constant_curvature" else "full"
+    pressures = _walk(arm, 6, 0.05, seed=5, planar=planar)
+    stepper = solver.Stepper(arm, scene, model=model, planar=planar)
+    assert not stepper.lean
+    stepper.reset(pressures[0])
+    eq = solver.solve(arm, pressures[0], scene, model=model, planar=planar)
+    for p in pressures[1:]:
+        report = stepper.step(p)
+        eq = solver.solve(arm, p, scene, model=model, planar=planar, warm_start=eq)
+        assert report.converged and eq.converged
+        np.testing.assert_allclose(stepper.tip, eq.tip, atol=1e-9)
+        np.testing.assert_allclose(stepper.equilibrium.positions, eq.positions, atol=1e-9)
+
+
+def test_rest_gradient_predicts_the_base_moment():
+    """The predictor's gradient against central differences of converged solves: the base
+    moment's change over a small pressure step, to second order in the step."""
+    arm = designs.octarm_v()
+    scene = solver.Scene(payload_kg=0.2, base_angle_deg=60.0)
+    p = np.array([40, 10, 25, 8, 5, 30]) * PSI
+    stepper = solver.Stepper(arm, scene)
+    stepper.reset(p)
+    grad = stepper._memo[3].copy()
+    rest0 = np.vstack(solver.rest_strains(arm, stepper.channel_pressures))
+    for k in range(6):
+        dp = np.zeros(6)
+        dp[k] = 0.002 * arm.max_pressure
+        up = solver.solve(arm, p + dp, scene, warm_start=stepper.equilibrium)
+        down = solver.solve(arm, p - dp, scene, warm_start=stepper.equilibrium)
+        measured = (up.base_moment[0] - down.base_moment[0]) / 2
+        d_rest = (np.vstack(solver.rest_strains(arm, up.channel_pressures))
+                  - np.vstack(solver.rest_strains(arm, down.channel_pressures))) / 2
+        predicted = grad[0] @ d_rest[L.REST_U2] + grad[1] @ d_rest[L.REST_V3]
+        assert predicted == pytest.approx(measured, rel=1e-2, abs=1e-9)
+        assert rest0.shape == d_rest.shape
+
+
+def test_small_steps_take_one_newton_iteration():
+    """With the first-order prediction a 1 % step needs one correction (two passes)."""
+    arm = designs.octarm_v()
+    stepper = solver.Stepper(arm, solver.Scene(payload_kg=0.1))
+    pressures = _walk(arm, 21, 0.01, seed=9)
+    stepper.reset(pressures[0])
+    iterations = [stepper.step(p).iterations for p in pressures[1:]]
+    assert np.mean(iterations) <= 1.5, iterations
+
+
+def test_failed_step_keeps_the_state():
+    arm = designs.octarm_v()
+    settings = solver.Settings.without_fallback(max_iter=1)
+    stepper = solver.Stepper(arm, solver.Scene(base_angle_deg=0.0), settings=settings)
+    stepper.reset(np.zeros(6))
+    tip, record = stepper.tip.copy(), stepper.record.copy()
+    eq = stepper.equilibrium
+    report = stepper.step(np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0]) * arm.max_pressure)
+    assert not report.converged and report.iterations >= 1
+    np.testing.assert_array_equal(stepper.tip, tip)
+    np.testing.assert_array_equal(stepper.record, record)
+    np.testing.assert_array_equal(stepper.pressures, np.zeros(6))
+    assert stepper.equilibrium is eq
+
+
+def test_equilibria_handed_out_do_not_change():
+    arm = designs.octarm_v()
+    stepper = solver.Stepper(arm)
+    stepper.reset(np.zeros(6))
+    first = stepper.equilibrium
+    positions = first.positions.copy()
+    for p in _walk(arm, 4, 0.2, seed=1):
+        stepper.step(p)
+    np.testing.assert_array_equal(first.positions, positions)
+
+
+def test_bad_input_is_named():
+    arm = designs.octarm_v()
+    stepper = solver.Stepper(arm)
+    with pytest.raises(RuntimeError, match="reset"):
+        stepper.step(np.zeros(6))
+    stepper.reset(np.zeros(6))
+    with pytest.raises(ValueError, match="expects 6 pressures"):
+        stepper.step(np.zeros(5))
+    with pytest.raises(ValueError, match="not finite"):
+        stepper.step([0, 0, math.nan, 0, 0, 0])
+    with pytest.raises(ValueError, match="negative"):
+        stepper.step([0, -1.0, 0, 0, 0, 0])
+    with pytest.raises(ValueError, match="exceeds the design's rated maximum"):
+        stepper.step(np.full(6, 2 * arm.max_pressure))
+    np.testing.assert_array_equal(stepper.pressures, np.zeros(6))
+    other = solver.solve(arm, np.zeros(6), solver.Scene(payload_kg=0.3))
+    with pytest.raises(ValueError, match="not in this stepper's scene"):
+        stepper.adopt(other)
+    with pytest.raises(ValueError, match="settings"):
+        solver.Stepper(arm, settings={"tol": 1e-9})
+
+
+# ----------------------------------------------------------------------------- BatchStepper
+
+
+@pytest.mark.parametrize("n", [3, solver.BatchStepper.PARALLEL_MIN + 1])  # one thread, parallel
+@pytest.mark.parametrize("design", [designs.octarm_v, designs.ct])
+def test_batch_copies_are_steppers_bit_for_bit(design, n):
+    """Copy k of a BatchStepper gives the records, tips and reports a Stepper gives."""
+    arm, scene = design(), solver.Scene(base_angle_deg=60.0, payload_kg=0.05)
+    rng = np.random.default_rng(n)
+    p_max = arm.max_pressure
+    batch = solver.BatchStepper(arm, scene, n)
+    singles = [solver.Stepper(arm, scene) for _ in range(n)]
+    start = rng.uniform(0.0, 0.2, (n, arm.n_inputs(True))) * p_max
+    report = batch.reset(start)
+    for k, single in enumerate(singles):
+        assert single.reset(start[k]) == tuple(field[k] for field in report)
+    targets = rng.uniform(0.0, 1.0, (n, arm.n_inputs(True))) * p_max
+    tips, _ = batch.solve_tips(targets)
+    for k in range(n):
+        np.testing.assert_array_equal(tips[k], solver.solve(arm, targets[k], scene, record=False).tip)
+    for step in range(6):
+        # Jumps across the whole range: some steps snap or fall back to the general path.
+        p = rng.uniform(0.0, 1.0, (n, arm.n_inputs(True))) * p_max
+        active = rng.uniform(size=n) < 0.8
+        report = batch.step(p, active=active)
+        for k, single in enumerate(singles):
+            if active[k]:
+                assert single.step(p[k]) == tuple(field[k] for field in report), (step, k)
+            np.testing.assert_array_equal(batch.records[k], single.record)
+            np.testing.assert_array_equal(batch.pressures[k], single.pressures)
+    np.testing.assert_array_equal(batch.tips, [s.tip for s in singles])
+    assert batch.equilibrium(0).tip.tolist() == singles[0].equilibrium.tip.tolist()
+
+
+def test_batch_refuses_what_it_cannot_step():
+    arm = designs.octarm_v()
+    with pytest.raises(ValueError, match="obstacles"):
+        solver.BatchStepper(arm, solver.Scene(obstacles=(solver.Disc((0.1, -0.3), 0.05),)), 2)
+    with pytest.raises(ValueError, match="unloaded"):
+        solver.BatchStepper(arm, solver.Scene(gravity=0.0), 2)
+    with pytest.raises(ValueError, match="n must be"):
+        solver.BatchStepper(arm, solver.Scene(), 0)
+    batch = solver.BatchStepper(arm, solver.Scene(), 2)
+    with pytest.raises(RuntimeError, match="reset"):
+        batch.step(np.zeros((2, 6)))
+    batch.reset(np.zeros((2, 6)))
+    bad = np.zeros((2, 6))
+    bad[1, 2] = -1.0
+    with pytest.raises(ValueError, match="row 1"):
+        batch.step(bad)
+    with pytest.raises(ValueError, match=r"shape \(2, 6\)"):
+        batch.step(np.zeros((3, 6)))
+    with pytest.raises(ValueError, match="rows"):
+        batch.reset(np.zeros((1, 6)), rows=[5])
