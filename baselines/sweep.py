@@ -25,7 +25,7 @@ or the cluster at ``--address``. The output folder ``--out`` (default ``sweep``)
 * ``RESULTS.md`` — :func:`baselines.results.report` of those, with a table of the runs;
   ``--results FILE`` writes it elsewhere (the shipped ``baselines/RESULTS.md`` only if asked);
 * ``sweep.json`` — the plan and the state of every run: finished, failed (with the error) or
-  not finished, and how many attempts it took.
+  not finished, how many attempts it took and which host finished it.
 
 One progress bar covers the runs (another the evaluation cells). Faults:
 
@@ -383,7 +383,9 @@ class SweepResult:
 
     Attributes:
         runs: run name → ``{"state": "finished" | "failed" | "not finished", "attempts", "error",
-            "timesteps_done", "resumed_from"}``.
+            "node"}``: attempts in this command, the last error, the host that finished the run in
+            this command (None: finished before, or not finished). Steps and times are in the
+            run's ``summary.json``.
         failed_cells: evaluation cells (file names) that failed for good, with their errors.
         results_file: the regenerated results document.
     """
@@ -527,7 +529,7 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
     for spec in runs:
         finished = (runs_dir / spec.name / "summary.json").is_file()
         states[spec.name] = {"state": "finished" if finished else "not finished", "attempts": 0,
-                             "error": None}
+                             "error": None, "node": None}
 
     def record() -> None:
         write_json(out / PLAN_FILE, {
@@ -550,6 +552,7 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
             given_up = task.error is not None and task.attempts > retries
             state = "finished" if finished else "failed" if given_up else "not finished"
             states[task.name].update(attempts=task.attempts, error=None if finished else task.error,
+                                     node=task.result["node"] if task.result else None,
                                      state=state)
         record()
 

@@ -550,7 +550,7 @@ def test_rl_sweep_retries_a_killed_training_from_its_last_checkpoint(tmp_path, c
     assert kept <= summary["resumed_from"] < 400 and summary["resumed_from"] % 100 == 0
     assert (run / "progress_0.csv").is_file()  # the killed session's log, kept
     state = json.loads((tmp_path / "out" / PLAN_FILE).read_text())["runs"][0]
-    assert state["state"] == "finished" and state["attempts"] == 2
+    assert state["state"] == "finished" and state["attempts"] == 2 and state["node"] == socket.gethostname()
 
 
 def test_rl_sweep_worker_dying_without_retries_is_one_line_and_keeps_the_finished_run(tmp_path, cluster):

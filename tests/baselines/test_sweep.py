@@ -3,6 +3,7 @@
 cluster in tests/test_jobs.py (one cluster for the whole suite)."""
 
 import json
+import socket
 
 import pandas as pd
 import pytest
@@ -87,8 +88,8 @@ def test_local_sweep_writes_runs_results_and_resumes(tmp_path, capsys):
     assert (out / "results" / "eval" / "jacobian_OctArmReach-v0__main.json").is_file()
     assert not list((out / "results" / "eval").glob("*__cable_encoder__*"))  # --evaluate main: no grid
     plan = json.loads((out / "sweep.json").read_text())
-    assert [(r["name"], r["state"], r["attempts"]) for r in plan["runs"]] == \
-        [(n, "finished", 1) for n in names]
+    assert [(r["name"], r["state"], r["attempts"], r["node"]) for r in plan["runs"]] == \
+        [(n, "finished", 1, socket.gethostname()) for n in names]
     text = (out / "RESULTS.md").read_text()
     assert "# Sweep results" in text and "--observations true,cable_encoder" in text
     for name, observation in zip(names, ("true", "cable_encoder")):
@@ -127,6 +128,7 @@ def test_a_run_that_keeps_failing_is_reported_and_the_others_finish(tmp_path, ca
     assert failed["state"] == "failed" and failed["attempts"] == 2 and "negative dimension" in failed["error"]
     assert states["sac_OctArmReach-v0_s1"] == {**states["sac_OctArmReach-v0_s1"], "state": "finished",
                                                "attempts": 1, "error": None}
+    assert failed["node"] is None
     text = (out / "RESULTS.md").read_text()
     assert "| td3_OctArmReach-v0_s1 | SoftArm/OctArmReach-v0 | td3 | true | 1 | – / 200 |" in text
     assert "failed: RuntimeError" in text
