@@ -10,8 +10,10 @@ Each run is :func:`baselines.train.train` with the hyperparameters of
 budget) and the observation mode in ``env_kwargs``; an interrupted or failed run continues
 with :func:`baselines.train.resume`. ``--backend local`` (the default) runs the plan one run
 after another in this process; ``--backend ray`` makes every run one Ray task holding
-``--cpus-per-run`` CPUs (torch and numba use that many threads), on a private Ray instance
-or the cluster at ``--address``. The output folder ``--out`` (default ``sweep``) receives:
+``--cpus-per-run`` CPUs (torch and numba use that many threads), on the cluster at
+``--address`` or, without it, Ray's default: the cluster ``ray start`` left on this machine if
+there is one, else a private instance for this command. The output folder ``--out`` (default
+``sweep``) receives:
 
 * ``runs/<run>/`` — exactly what ``baselines.train`` writes (``config.json``, ``monitor.csv``,
   ``progress.csv``, TensorBoard files, ``checkpoints/``, ``evaluations.npz``,
@@ -469,8 +471,9 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
         runs: the plan.
         out: output folder (runs, results, ``RESULTS.md``, ``sweep.json``).
         backend: ``"local"`` or ``"ray"``.
-        address: Ray cluster (``"auto"``, ``"HOST:PORT"``); None: a private Ray instance, or the
-            session this process already has.
+        address: Ray cluster (``"auto"``, ``"HOST:PORT"``); None: the Ray session this process
+            already has, else Ray's default (a cluster started on this machine, else a private
+            instance).
         cpus_per_run: CPUs of each Ray task, and torch (and in Ray, numba) threads of each run.
         retries: times a failed run or evaluation cell is started again.
         resume: continue the runs already in ``out`` (else they are an error).
@@ -611,7 +614,8 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = argparse.ArgumentParser(prog="python -m baselines.sweep", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m baselines.sweep",
+                                     description=__doc__.split("\n\n")[0].replace("\n", " "))
     what = parser.add_argument_group("the plan")
     what.add_argument("--envs", default=",".join(results.ENV_IDS),
                       help="comma-separated environment ids (default %(default)s)")
@@ -627,7 +631,8 @@ def main(argv=None) -> int:
     where.add_argument("--backend", choices=BACKENDS, default="local",
                        help="one run after another in this process (local), or one Ray task per run")
     where.add_argument("--address", default=None, metavar="auto|HOST:PORT",
-                       help="Ray cluster to use with --backend ray (default: a private local instance)")
+                       help="Ray cluster to use with --backend ray (default: the cluster `ray start` "
+                            "left on this machine, else a private instance)")
     where.add_argument("--cpus-per-run", type=int, default=1, metavar="N",
                        help="CPUs of each run's Ray task, and its torch/numba threads (default %(default)s)")
     where.add_argument("--retries", type=int, default=DEFAULT_RETRIES, metavar="N",
