@@ -281,6 +281,9 @@ class CEMPlanner(_PressureController):
             < samples). iterations: CEM rounds per decision (>= 1). horizon: steps per
             sequence (>= 1). init_std: first-round standard deviation (action units, > 0).
         seed: seed of the planner's generator.
+
+    Attributes:
+        last_searched: whether the last decision ran rollouts (False: it held).
     """
 
     def __init__(self, env, samples: int = 32, elites: int = 6, iterations: int = 3, horizon: int = 1,
@@ -319,6 +322,7 @@ class CEMPlanner(_PressureController):
         self._rollout = None
         self._plan = np.zeros((self.horizon, self._n))
         self._stalled = None
+        self.last_searched = False
 
     # ------------------------------------------------------------------ model
 
@@ -408,6 +412,7 @@ class CEMPlanner(_PressureController):
         obs = np.asarray(obs, dtype=float)
         fraction = 0.5 * (obs[self._slices["pressures"]] + 1.0)
         self._track(obs, fraction)
+        self.last_searched = False
         if self._succeeds(fraction):
             return fraction
         score = self._score_wrap if self.wrap else self._score_reach
