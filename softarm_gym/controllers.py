@@ -422,6 +422,7 @@ class CEMPlanner(_PressureController):
         best, best_score = hold, -np.inf
         if self._stalled is not None and np.array_equal(self._stalled, obs):
             return fraction  # nothing better was found from this very state: do not search again
+        self.last_searched = True
         for _ in range(self.iterations):
             n_corners = self.samples // 4
             noise = self.rng.standard_normal((self.samples - 2 - n_corners, *mean.shape))
