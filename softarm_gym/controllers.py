@@ -242,7 +242,7 @@ class CurlController(_PressureController):
 
 class CEMPlanner(_PressureController):
     """Sampling-based model-predictive control: the cross-entropy method over action sequences,
-    each candidate rolled out on the nominal model from the current state. Reach and wrap.
+    each candidate rolled out on the nominal model from the current state. Reach, track, wrap.
 
     What it knows, as :class:`JacobianController`: the nominal design, the base angle, p_max,
     the action mode and ``delta_scale``, the observation layout, and the task's reward rule
@@ -276,7 +276,8 @@ class CEMPlanner(_PressureController):
     turn. Its randomness comes from its own generator (``seed``), so it is reproducible.
 
     Args:
-        env: a (possibly wrapped) planar reach or wrap env with ``observation_format='flat'``.
+        env: a (possibly wrapped) planar reach, track or wrap env with ``observation_format='flat'``
+            (on track it aims where the target's last displacement takes it).
         samples: candidate sequences per round (>= 2). elites: best kept per round (>= 1,
             < samples). iterations: CEM rounds per decision (>= 1). horizon: steps per
             sequence (>= 1). init_std: first-round standard deviation (action units, > 0).
@@ -300,6 +301,7 @@ class CEMPlanner(_PressureController):
         if getattr(base, "observation_format", None) != "flat" or not getattr(base, "planar", False):
             raise ValueError("CEMPlanner needs a planar env with observation_format='flat'")
         self.wrap = hasattr(base, "success_wrap_deg")
+        self.tracking = hasattr(base, "segment_steps")
         if not self.wrap and not hasattr(base, "success_tolerance"):
             raise ValueError("CEMPlanner plans reach and wrap tasks only")
         self.task = base  # the reward rule and its weights (configuration, not state)
@@ -337,14 +339,17 @@ class CEMPlanner(_PressureController):
                 scene = solver.Scene(base_angle_deg=self.scene.base_angle_deg,
                                      gravity=self.scene.gravity, obstacles=(disc,))
                 self._goal = goal.copy()
-            else:
-                self._goal = obs[self._slices["goal"]][:2].copy()
             self._nominal = solver.Stepper(self.arm, scene)
             self._nominal.reset(fraction * self.p_max)
             if self.wrap:
                 self._rollout = solver.Stepper(self.arm, scene)
         elif np.any(self._nominal.pressures != fraction * self.p_max):
             self._nominal.step(fraction * self.p_max)
+        if not self.wrap:
+            goal = obs[self._slices["goal"]]
+            # A tracking target moves first within a step: aim where its last displacement
+            # (the goal block's third part) takes it.
+            self._goal = goal[:2] + (goal[4:6] if self.tracking else 0.0)
 
     def _score_reach(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
         """Summed reach rewards of (m, horizon, n) action sequences on the batched model."""
