@@ -70,7 +70,8 @@ class _PressureController:
         if self.action_mode == "absolute":
             action = 2.0 * target - 1.0
         else:
-            current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
+            # Delta actions increment the command (the ``commanded`` block under pneumatic lag).
+            current = 0.5 * (obs[self._slices.get("commanded", self._slices["pressures"])] + 1.0)
             action = (target - current) / self.delta_scale
         return np.clip(action, -1.0, 1.0).astype(np.float32)
 

@@ -113,7 +113,8 @@ class WrapEnv(SoftArmEnv):
     ``gravity``, ``randomization``,
     ``action_mode``, ``delta_scale``, ``n_backbone``, ``observation_format``,
     ``initial_pressure_fraction``, ``solver_failure_penalty``, ``max_solver_failures``,
-    ``model``, ``render_mode``, ``render_size``), plus: ``object_radius`` (a number or
+    ``model``, ``actuation``, ``pressure_time_constant_s``, ``step_dt_s``, ``render_mode``,
+    ``render_size``), plus: ``object_radius`` (a number or
     ``(low, high)`` range, m; default (0.09, 0.11)), ``contact_stiffness`` (``"tube"``: the
     ring stiffness of the distal section's tubes, ``TubeMaterial.ring_stiffness``, 9.8e4 N/m²
     for OctArm V and CT — the arm's own compliance, see docs/design.md §9; a number in N/m²;
