@@ -2,9 +2,9 @@
 
 Each ID runs ``episodes`` full episodes of ``gym.make(env_id)`` with the registered defaults,
 episode i seeded with i, the planner seeded with i too. Reported per ID: the success rate
-(``is_success`` at the last step), the median final distance (reach, m) or wrap angle (wrap,
-deg), the median wall time per episode and per decision that searched (held decisions cost
-almost nothing)::
+(``is_success`` at the last step), the median final distance (reach, m), RMS tracking error
+(track, m) or wrap angle (wrap, deg), the median wall time per episode and per decision that
+searched (held decisions cost almost nothing)::
 
     python -m softarm_gym.benchmarks.planner --episodes 20 --json > docs/bench/planner.json
 """
@@ -31,7 +31,8 @@ def episode(env_id: str, seed: int, **planner_kwargs) -> dict:
     """One planned episode of ``gym.make(env_id)`` seeded with ``seed``.
 
     Returns:
-        ``success``, ``measure`` (final distance in m, or wrap angle in deg), ``seconds``,
+        ``success``, ``measure`` (reach: final distance, m; track: RMS tracking error over
+        the episode, m; wrap: wrap angle, deg), ``seconds``,
         ``decision_seconds`` (median time of the decisions that searched; None if none did).
     """
     env = gym.make(env_id)
@@ -50,7 +51,7 @@ def episode(env_id: str, seed: int, **planner_kwargs) -> dict:
         done = terminated or truncated
     seconds = time.perf_counter() - start
     env.close()
-    measure = info["wrap_angle_deg"] if "wrap_angle_deg" in info else info["distance"]
+    measure = info.get("wrap_angle_deg", info.get("tracking_rms_m", info["distance"]))
     return {"success": bool(info["is_success"]), "measure": float(measure), "seconds": seconds,
             "decision_seconds": float(np.median(searched)) if searched else None}
 
@@ -62,7 +63,8 @@ def run(ids=None, episodes: int = 20, progress: bool = True, **planner_kwargs) -
     for env_id in ids or env_ids():
         rows = [episode(env_id, seed, **planner_kwargs)
                 for seed in tqdm(range(episodes), desc=env_id, disable=not progress, file=sys.stderr)]
-        measure = "median_wrap_deg" if "Wrap" in env_id else "median_final_distance_m"
+        measure = ("median_wrap_deg" if "Wrap" in env_id else
+                   "median_tracking_rms_m" if "Track" in env_id else "median_final_distance_m")
         result["ids"][env_id] = {
             "success_rate": float(np.mean([r["success"] for r in rows])),
             measure: float(np.median([r["measure"] for r in rows])),
@@ -89,7 +91,8 @@ def main(argv=None) -> int:
         return 0
     print(f"{'environment':24s} {'success':>8s} {'median':>12s} {'s/episode':>10s} {'ms/decision':>12s}")
     for env_id, row in result["ids"].items():
-        median = row.get("median_wrap_deg", row.get("median_final_distance_m"))
+        median = next(row[key] for key in ("median_wrap_deg", "median_tracking_rms_m",
+                                           "median_final_distance_m") if key in row)
         unit = "deg" if "median_wrap_deg" in row else "m"
         print(f"{env_id:24s} {row['success_rate']:8.0%} {median:9.3f} {unit:3s}"
               f"{row['median_episode_s']:10.2f} {1000 * row['median_decision_s']:12.1f}")
