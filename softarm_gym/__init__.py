@@ -3,7 +3,7 @@
 Importing the package registers the environments (``gym.make("SoftArm/OctArmReach-v0")``);
 the classes live in :mod:`softarm_gym.envs`. Default kwargs below are the only difference
 between the OctArm and CT variants. Each ``reward_threshold`` is floor(0.9 × the mean return
-of the reference controller over 20 seeded episodes): the Jacobian controller on reach, the
+of the reference controller over 20 seeded episodes): the Jacobian controller on reach and track, the
 scripted curl on wrap (``python -m softarm_gym.benchmarks.reference``; measured values in
 ``docs/bench/reference_returns.json``, explained in ``docs/environments.md``).
 """
@@ -27,6 +27,22 @@ register(
     vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
     max_episode_steps=100,
     reward_threshold=87.0,
+    kwargs={"design": "ct", "base_angle_deg": 90.0},
+)
+
+register(
+    id="SoftArm/OctArmTrack-v0",
+    entry_point="softarm_gym.envs:TrackEnv",
+    max_episode_steps=200,
+    reward_threshold=101.0,
+    kwargs={"design": "octarm_v", "base_angle_deg": 90.0},
+)
+
+register(
+    id="SoftArm/CTTrack-v0",
+    entry_point="softarm_gym.envs:TrackEnv",
+    max_episode_steps=200,
+    reward_threshold=122.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0},
 )
 

@@ -1,5 +1,5 @@
-"""Classical comparisons for the RL baselines: a damped-least-squares Jacobian controller (reach)
-and a scripted curl (wrap).
+"""Classical comparisons for the RL baselines: a damped-least-squares Jacobian controller
+(reach), a scripted curl (wrap) and a sampling-based model-predictive planner (both).
 
 :class:`JacobianController` acts on exactly the observation vector a policy sees, and on
 nothing else of the episode. What it knows:
@@ -40,8 +40,9 @@ from scipy.optimize import lsq_linear
 
 import solver
 from softarm_gym.analysis import jacobian
+from softarm_gym.envs.terms import fractions_from_actions, reach_reward_sum, reach_rewards
 
-__all__ = ["JacobianController", "CurlController", "observation_slices"]
+__all__ = ["JacobianController", "CurlController", "CEMPlanner", "observation_slices"]
 
 
 def observation_slices(env) -> dict[str, slice]:
@@ -69,7 +70,8 @@ class _PressureController:
         if self.action_mode == "absolute":
             action = 2.0 * target - 1.0
         else:
-            current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
+            # Delta actions increment the command (the ``commanded`` block under pneumatic lag).
+            current = 0.5 * (obs[self._slices.get("commanded", self._slices["pressures"])] + 1.0)
             action = (target - current) / self.delta_scale
         return np.clip(action, -1.0, 1.0).astype(np.float32)
 
@@ -237,3 +239,214 @@ class CurlController(_PressureController):
         step = np.where(self._inputs > 0, increment, -increment)
         self._command = np.clip(current + step, 0.0, 1.0)
         return self._command
+
+
+class CEMPlanner(_PressureController):
+    """Sampling-based model-predictive control: the cross-entropy method over action sequences,
+    each candidate rolled out on the nominal model from the current state. Reach, track, wrap.
+
+    What it knows, as :class:`JacobianController`: the nominal design, the base angle, p_max,
+    the action mode and ``delta_scale``, the observation layout, and the task's reward rule
+    with the env's weights (reach: :func:`softarm_gym.envs.terms.reach_rewards`; wrap:
+    :meth:`~softarm_gym.envs.WrapEnv.wrap_terms`, the disc read from the observation and the
+    env's contact stiffness). Not the true state, the payload or a randomised arm.
+
+    Each decision (:meth:`step_fraction`):
+
+    1. Its nominal equilibrium follows the quasi-static path to the commanded pressures read
+       from the observation (the arm's own hysteresis and snaps included).
+    2. ``iterations`` rounds of the cross-entropy method: ``samples`` sequences of
+       ``horizon`` actions in [−1, 1] drawn from a clipped Gaussian (mean: the last plan
+       shifted by one step; standard deviation ``init_std``, then the elites'), turned into
+       pressures by the env's own action rule
+       (:func:`~softarm_gym.envs.terms.fractions_from_actions`), stepped from the nominal state
+       and scored by the sum of the task's rewards (an unconverged rollout step costs the env's
+       solver-failure penalty). Holding the current pressures is always one candidate, so on
+       the model the plan is never worse than standing still; the mean rounded to the box's
+       corner and a quarter of the samples drawn among the corners are candidates too (every
+       action at ±1: pressure limits make bang-bang commands optimal often, and Gaussian
+       draws rarely hit them). The ``elites`` best set the next mean and standard deviation.
+    3. The first command of the best sequence seen is sent; the rest seeds the next decision.
+
+    Where the nominal state already succeeds (reach: the tip within half the success
+    tolerance of the target; wrap: the success rule), it holds without searching, and so it
+    does when the observation is the one from which its last search found nothing better
+    than holding. Rollouts
+    run on :class:`solver.BatchStepper` (all candidates in one parallel call) for reach; for
+    wrap, whose contact has no batched kernel, one :class:`solver.Stepper` steps them in
+    turn. Its randomness comes from its own generator (``seed``), so it is reproducible.
+
+    Args:
+        env: a (possibly wrapped) planar reach, track or wrap env with ``observation_format='flat'``
+            (on track it aims where the target's last displacement takes it).
+        samples: candidate sequences per round (>= 2). elites: best kept per round (>= 1,
+            < samples). iterations: CEM rounds per decision (>= 1). horizon: steps per
+            sequence (>= 1). init_std: first-round standard deviation (action units, > 0).
+        seed: seed of the planner's generator.
+
+    Attributes:
+        last_searched: whether the last decision ran rollouts (False: it held).
+    """
+
+    def __init__(self, env, samples: int = 32, elites: int = 6, iterations: int = 3, horizon: int = 1,
+                 init_std: float = 0.5, seed: int = 0):
+        for name, value, low in (("samples", samples, 2), ("elites", elites, 1),
+                                 ("iterations", iterations, 1), ("horizon", horizon, 1)):
+            if isinstance(value, bool) or int(value) != value or value < low:
+                raise ValueError(f"{name} must be an integer >= {low}; got {value!r}")
+        if elites >= samples:
+            raise ValueError(f"elites ({elites}) must be fewer than samples ({samples})")
+        if not (np.isfinite(init_std) and init_std > 0):
+            raise ValueError(f"init_std must be > 0 (action units); got {init_std!r}")
+        base = env.unwrapped
+        if getattr(base, "observation_format", None) != "flat" or not getattr(base, "planar", False):
+            raise ValueError("CEMPlanner needs a planar env with observation_format='flat'")
+        self.wrap = hasattr(base, "success_wrap_deg")
+        self.tracking = hasattr(base, "segment_steps")
+        if not self.wrap and not hasattr(base, "success_tolerance"):
+            raise ValueError("CEMPlanner plans reach and wrap tasks only")
+        self.task = base  # the reward rule and its weights (configuration, not state)
+        self.arm = base.arm
+        self.scene = solver.Scene(base_angle_deg=base.base_angle_deg, gravity=base.gravity)
+        self.p_max = float(base.p_max)
+        self.action_mode = base.action_mode
+        self.delta_scale = float(base.delta_scale)
+        self.samples, self.elites, self.iterations = int(samples), int(elites), int(iterations)
+        self.horizon, self.init_std, self.seed = int(horizon), float(init_std), seed
+        self._slices = observation_slices(env)
+        self._n = base.n_inputs
+        self._batch = None if self.wrap else solver.BatchStepper(self.arm, self.scene, self.samples)
+        self.rng = np.random.default_rng(seed)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the nominal state, the disc and the plan (call at every episode start)."""
+        self._nominal = None
+        self._rollout = None
+        self._plan = np.zeros((self.horizon, self._n))
+        self._stalled = None
+        self.last_searched = False
+
+    # ------------------------------------------------------------------ model
+
+    def _track(self, obs: np.ndarray, fraction: np.ndarray) -> None:
+        """Move the nominal equilibrium to the commanded pressures (cold at the first step)."""
+        if self._nominal is None:
+            scene = self.scene
+            if self.wrap:
+                goal = obs[self._slices["goal"]]
+                disc = solver.Disc(center=(float(goal[0]), float(goal[1])), radius=float(goal[2]),
+                                   stiffness=self.task.contact_stiffness)
+                scene = solver.Scene(base_angle_deg=self.scene.base_angle_deg,
+                                     gravity=self.scene.gravity, obstacles=(disc,))
+                self._goal = goal.copy()
+            self._nominal = solver.Stepper(self.arm, scene)
+            self._nominal.reset(fraction * self.p_max)
+            if self.wrap:
+                self._rollout = solver.Stepper(self.arm, scene)
+        elif np.any(self._nominal.pressures != fraction * self.p_max):
+            self._nominal.step(fraction * self.p_max)
+        if not self.wrap:
+            goal = obs[self._slices["goal"]]
+            # A tracking target moves first within a step: aim where its last displacement
+            # (the goal block's third part) takes it.
+            self._goal = goal[:2] + (goal[4:6] if self.tracking else 0.0)
+
+    def _score_reach(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+        """Summed reach rewards of (m, horizon, n) action sequences on the batched model."""
+        batch = self._batch
+        batch.adopt(self._nominal.equilibrium)
+        fractions = np.repeat(fraction[None], batch.n, axis=0)
+        new = np.empty_like(fractions)
+        total = np.zeros(batch.n)
+        targets = np.repeat(self._goal[None], batch.n, axis=0)
+        terms, distance = np.empty((batch.n, 4)), np.empty(batch.n)
+        success = np.empty(batch.n, dtype=bool)
+        task = self.task
+        for h in range(self.horizon):
+            fractions_from_actions(actions[:, h], fractions, self.action_mode == "delta",
+                                   self.delta_scale, new)
+            report = batch.step(new * self.p_max)
+            fractions = np.where(report.converged[:, None], new, fractions)
+            reach_rewards(batch.tips, targets, fractions, report.converged, task.distance_weight,
+                          task.control_weight, task.success_bonus, task.success_tolerance,
+                          task.solver_failure_penalty, terms, distance, success)
+            total += reach_reward_sum(terms)
+        return total
+
+    def _score_wrap(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+        """Summed wrap rewards of (m, horizon, n) action sequences, rolled out one by one."""
+        rollout, start = self._rollout, self._nominal.equilibrium
+        new = np.empty((1, self._n))
+        totals = np.zeros(actions.shape[0])
+        for j, sequence in enumerate(actions):
+            rollout.adopt(start)
+            current = fraction.copy()
+            for action in sequence:
+                fractions_from_actions(action[None], current[None], self.action_mode == "delta",
+                                       self.delta_scale, new)
+                report = rollout.step(new[0] * self.p_max)
+                if report.converged:
+                    current = new[0].copy()
+                totals[j] += self._wrap_reward(rollout.equilibrium, current, report.converged)
+        return totals
+
+    def _wrap_reward(self, eq: solver.Equilibrium, fraction: np.ndarray, converged: bool) -> float:
+        penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
+        terms, _, _ = self.task.wrap_terms(eq.positions, penetration, fraction, self._goal[:2],
+                                           float(self._goal[2]))
+        return sum(terms.values()) + (0.0 if converged else -self.task.solver_failure_penalty)
+
+    def _succeeds(self, fraction: np.ndarray) -> bool:
+        eq = self._nominal.equilibrium
+        if self.wrap:
+            penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
+            return self.task.wrap_terms(eq.positions, penetration, fraction, self._goal[:2],
+                                        float(self._goal[2]))[1]
+        return float(np.hypot(*(eq.tip - self._goal))) <= 0.5 * self.task.success_tolerance
+
+    # ------------------------------------------------------------------ control
+
+    def _hold(self, fraction: np.ndarray) -> np.ndarray:
+        """Actions (horizon, n) that keep the pressures at ``fraction``."""
+        if self.action_mode == "delta":
+            return np.zeros((self.horizon, self._n))
+        return np.repeat((2.0 * fraction - 1.0)[None], self.horizon, axis=0)
+
+    def step_fraction(self, obs: np.ndarray) -> np.ndarray:
+        """The next commanded pressures (fractions of p_max) for a flat observation."""
+        obs = np.asarray(obs, dtype=float)
+        fraction = 0.5 * (obs[self._slices["pressures"]] + 1.0)
+        self._track(obs, fraction)
+        self.last_searched = False
+        if self._succeeds(fraction):
+            return fraction
+        score = self._score_wrap if self.wrap else self._score_reach
+        hold = self._hold(fraction)
+        mean = np.vstack([self._plan[1:], self._plan[-1:]]) if self._plan.any() else hold
+        std = np.full_like(mean, self.init_std)
+        best, best_score = hold, -np.inf
+        if self._stalled is not None and np.array_equal(self._stalled, obs):
+            return fraction  # nothing better was found from this very state: do not search again
+        self.last_searched = True
+        for _ in range(self.iterations):
+            n_corners = self.samples // 4
+            noise = self.rng.standard_normal((self.samples - 2 - n_corners, *mean.shape))
+            draws = np.clip(mean + std * noise, -1, 1)
+            # Pressure limits make bang-bang commands (every channel at 0 or p_max) optimal
+            # often, and Gaussian draws rarely hit them: the mean rounded to the box's corner
+            # and random corners are candidates too.
+            corners = self.rng.choice([-1.0, 1.0], size=(n_corners, *mean.shape))
+            candidates = np.concatenate([hold[None], np.sign(mean)[None], corners, draws])
+            scores = score(candidates, fraction)
+            order = np.argsort(-scores, kind="stable")
+            if scores[order[0]] > best_score:
+                best, best_score = candidates[order[0]], scores[order[0]]
+            elite = candidates[order[:self.elites]]
+            mean, std = elite.mean(axis=0), elite.std(axis=0) + 0.02
+        self._plan = best
+        self._stalled = obs.copy() if np.array_equal(best, hold) else None
+        target = np.empty((1, self._n))
+        fractions_from_actions(best[:1], fraction[None], self.action_mode == "delta", self.delta_scale,
+                               target)
+        return target[0]

@@ -60,6 +60,8 @@ def _unsupported(env: ReachEnv) -> list[str]:
         reasons.append(f"observation_format={env.observation_format!r}")
     if env.synthesize_sensors:
         reasons.append("synthesize_sensors=True")
+    if env.actuation != "ideal":
+        reasons.append(f"actuation={env.actuation!r}")
     if env.render_mode is not None:
         reasons.append(f"render_mode={env.render_mode!r}")
     return reasons

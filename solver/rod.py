@@ -640,17 +640,21 @@ def record_spatial_row(y, out_pos, out_rot, out_m, row):
 # ----------------------------------------------------------------------------- arcs
 
 
+
+@njit(inline="always")
+def _chord_factors(phi):
+    """(sin φ/φ, (1 − cos φ)/φ) of an arc turning by φ (rad): its chord along and across the
+    start tangent per unit length; the Taylor forms below 1e-9 rad."""
+    if abs(phi) < 1e-9:
+        return 1.0 - phi * phi / 6.0, phi / 2.0
+    return math.sin(phi) / phi, (1.0 - math.cos(phi)) / phi
+
 @njit
 def _arc_point(x, y, th, kappa, stretch, sig):
     """Planar pose (x, y, θ) after ``sig`` of reference arc length along an arc of curvature
     κ (per reference length) and stretch v from (x, y, θ)."""
     dth = kappa * sig
-    if abs(dth) < 1e-9:
-        c = 1.0 - dth * dth / 6.0
-        d = dth / 2.0
-    else:
-        c = math.sin(dth) / dth
-        d = (1.0 - math.cos(dth)) / dth
+    c, d = _chord_factors(dth)
     ell = stretch * sig
     ct = math.cos(th)
     st = math.sin(th)
@@ -703,12 +707,7 @@ def _arc_relative(k0, k1, kappa, stretch, sig, rel_pos, rel_rot):
     rel_rot (3, 3).
     """
     phi = kappa * sig
-    if abs(phi) < 1e-9:
-        a = 1.0 - phi * phi / 6.0
-        b = phi / 2.0
-    else:
-        a = math.sin(phi) / phi
-        b = (1.0 - math.cos(phi)) / phi
+    a, b = _chord_factors(phi)
     ell = stretch * sig
     rel_pos[0] = ell * b * k1
     rel_pos[1] = -ell * b * k0

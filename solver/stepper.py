@@ -466,6 +466,29 @@ class BatchStepper:
         self._ready[rows] = True
         return self._report(report)
 
+    def adopt(self, eq: Equilibrium, rows=None) -> None:
+        """Make ``eq`` (an equilibrium of this arm and model solved in this scene with
+        ``record=True``) the current state of ``rows`` (default: every copy) — e.g. to roll
+        candidate steps out from one state."""
+        if not isinstance(eq, Equilibrium):
+            raise ValueError("adopt() takes an Equilibrium returned by solve()")
+        _check_warm_start(eq, self.scene, self.model, True, self.channel_pressures[0])
+        if eq.scene != self.scene:
+            raise ValueError(f"the equilibrium was solved in {eq.scene}, not in {self.scene}")
+        if not eq.s.size:
+            raise ValueError("the equilibrium was solved with record=False; adopt needs its backbone")
+        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.int64).reshape(-1)
+        first = int(rows[0])
+        _write_record(eq, self._packed, self.records[first], self._memo[2][first], self._memo[3][first])
+        self.records[rows] = self.records[first]
+        self.pressures[rows] = eq.pressures
+        self.channel_pressures[rows] = eq.channel_pressures
+        self._memo[2][rows] = self._memo[2][first]
+        self._memo[3][rows] = self._memo[3][first]
+        self._states[rows, 0] = eq.base_moment[-1]
+        self._flags[rows] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
+        self._ready[rows] = True
+
     # ------------------------------------------------------------------ warm steps
 
     def step(self, pressures, active=None) -> BatchReport:

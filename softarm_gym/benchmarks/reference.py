@@ -44,7 +44,7 @@ def reward_threshold(mean_return: float) -> float:
 
 
 def reference_controller(env):
-    """The reference controller of ``env``'s task (reach: Jacobian, wrap: scripted curl)."""
+    """The reference controller of ``env``'s task (reach and track: Jacobian, wrap: scripted curl)."""
     if hasattr(env.unwrapped, "success_wrap_deg"):
         return CurlController(env)
     return JacobianController(env)

@@ -102,6 +102,7 @@ def run(quick: bool = False, progress=None) -> dict:
     result = {"scenes": len(cases), "designs": ["octarm_v", "ct"], "base_angles_deg": [0, 45, 90],
               "settings": rows, "default_steps_per_section": solver.Settings().steps_per_section}
     result["scipy"] = _scipy_rows(cases, refs, quick, tick)
+    result["stepper"] = _stepper(cases, warm_targets, repeat)
     result["spatial"] = _spatial(quick)
     result["batch"] = _batch(quick)
     result["contact"] = contact(quick, tick)
@@ -215,6 +216,35 @@ def contact(quick: bool = False, progress=None) -> dict:
             "reference": "rigid disc, 64 steps per section, gap_tol 1e-6 m", "rows": rows}
 
 
+def _stepper(cases, warm_targets, repeat) -> dict:
+    """The same small warm steps through :class:`solver.Stepper` and through ``solve()``.
+
+    Each case steps back and forth between its pressures and the nearby target (so every
+    step is a small one from a fresh equilibrium); medians over the cases of the per-case
+    median step time, both paths timed in the same loop.
+    """
+    stepper_times, solve_times, agree = [], [], []
+    for (arm, p, scene, _), target in zip(cases, warm_targets):
+        stepper = solver.Stepper(arm, scene)
+        stepper.reset(p)
+        eq = solver.solve(arm, p, scene, record=False)
+        steps, solves = [], []
+        for k in range(2 * repeat):
+            goal = target if k % 2 == 0 else p
+            start = time.perf_counter()
+            stepper.step(goal)
+            steps.append(time.perf_counter() - start)
+            start = time.perf_counter()
+            eq = solver.solve(arm, goal, scene, record=False, warm_start=eq)
+            solves.append(time.perf_counter() - start)
+        agree.append(float(np.linalg.norm(stepper.tip - eq.tip)) / arm.length)
+        stepper_times.append(np.median(steps))
+        solve_times.append(np.median(solves))
+    step_us, solve_us = 1e6 * float(np.median(stepper_times)), 1e6 * float(np.median(solve_times))
+    return {"median_step_us": step_us, "steps_per_s": 1e6 / step_us, "median_solve_us": solve_us,
+            "speedup_over_solve": solve_us / step_us, "max_tip_difference_over_L": float(np.max(agree))}
+
+
 def _spatial(quick):
     arm = solver.designs.octarm_v()
     rng = np.random.default_rng(2)
@@ -271,6 +301,12 @@ def format_table(result: dict) -> str:
                      f"{result['speedup_vs_scipy_cold']:,.0f}× cold.")
     if result.get("contact"):
         lines += ["", contact_table(result["contact"])]
+    if result.get("stepper"):
+        st = result["stepper"]
+        lines.append(f"Warm step through solver.Stepper: {st['median_step_us']:.1f} µs "
+                     f"({st['steps_per_s']:,.0f}/s), {st['speedup_over_solve']:.1f}× solve()'s "
+                     f"{st['median_solve_us']:.1f} µs on the same steps (tips agree to "
+                     f"{st['max_tip_difference_over_L']:.0e}·L).")
     sp, b = result["spatial"], result["batch"]
     lines.append(f"Spatial warm-started step: {sp['median_warm_us']:.0f} µs "
                  f"({sp['warm_solves_per_s']:,.0f}/s, {100 * sp['converged_fraction']:.1f}% converged). "

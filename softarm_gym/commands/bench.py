@@ -67,7 +67,7 @@ def run(args) -> int:
         from softarm_gym.benchmarks import envs, vector_bench
 
         result = envs.run(quick=args.quick, progress=progress)
-        sizes = (256,) if args.quick else (256, 1024, 4096)
+        sizes = (4, 256) if args.quick else (4, 16, 256, 1024, 4096)
         result["batched_vector"] = vector_bench.run(sizes, progress=progress)
         emit(result, args.json, envs.format_table(result) + "\n\n"
              + vector_bench.format_table(result["batched_vector"]))

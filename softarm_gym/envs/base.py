@@ -22,10 +22,12 @@ from softarm_gym.render import ArmRenderer, ArmRenderer3D, HumanWindow
 from softarm_gym.sensing import ESTIMATORS, SensorNoise, make_estimator, shape_from_equilibrium, synthesize
 from solver import layout as L
 
-__all__ = ["SoftArmEnv", "ACTION_MODES", "OBSERVATION_FORMATS"]
+__all__ = ["SoftArmEnv", "ACTION_MODES", "OBSERVATION_FORMATS", "ACTUATIONS"]
 
 ACTION_MODES = ("absolute", "delta")
 OBSERVATION_FORMATS = ("flat", "dict")
+ACTUATIONS = ("ideal", "lag")
+"""How channel pressures follow the command: at once, or through a first-order lag."""
 MIN_RENDER_SIZE, MAX_RENDER_SIZE = 16, 4096
 """Limits of ``render_size`` (px, the side of the square frame): 4096² RGB is 50 MB a frame."""
 
@@ -110,7 +112,8 @@ class SoftArmEnv(gym.Env):
                  n_backbone: int = 8, observation_format: str = "flat",
                  initial_pressure_fraction: float = 0.1, solver_failure_penalty: float = 1.0,
                  max_solver_failures: int = 5, model: str = "full", synthesize_sensors=None,
-                 render_mode: str | None = None, render_size: int = 400):
+                 actuation: str = "ideal", pressure_time_constant_s: float = 0.2,
+                 step_dt_s: float = 0.1, render_mode: str | None = None, render_size: int = 400):
         self.arm = _design(design)
         if not isinstance(planar, (bool, np.bool_)):
             raise ValueError(f"planar must be True or False; got {planar!r}")
@@ -151,6 +154,17 @@ class SoftArmEnv(gym.Env):
             raise ValueError(f"initial_pressure_fraction must lie in [0, 1]; got {initial_pressure_fraction}")
         self.solver_failure_penalty = _finite_number("solver_failure_penalty", solver_failure_penalty, 0.0)
         self.max_solver_failures = int(max_solver_failures)
+        if actuation not in ACTUATIONS:
+            raise ValueError(f"unknown actuation {actuation!r}; choose one of {', '.join(ACTUATIONS)}")
+        self.actuation = actuation
+        self.pressure_time_constant_s = _finite_number("pressure_time_constant_s",
+                                                       pressure_time_constant_s, 0.0)
+        self.step_dt_s = _finite_number("step_dt_s", step_dt_s, 0.0)
+        if self.pressure_time_constant_s <= 0 or self.step_dt_s <= 0:
+            raise ValueError(f"pressure_time_constant_s and step_dt_s must be > 0 (s); got "
+                             f"{pressure_time_constant_s}, {step_dt_s}")
+        # First-order lag sampled every step: p ← p + (1 − e^(−dt/τ))·(p_command − p).
+        self._lag_gain = -math.expm1(-self.step_dt_s / self.pressure_time_constant_s)
         self.model = model
         self.n_backbone = int(n_backbone)
         self.observation_format = observation_format
@@ -200,6 +214,7 @@ class SoftArmEnv(gym.Env):
         self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, gravity=self.gravity)
         self._stepper = None
         self._fraction = np.zeros(self.n_inputs)
+        self._command = self._fraction
         self._failures = 0
         self._readings = None
         self._shape_estimate = None
@@ -219,6 +234,8 @@ class SoftArmEnv(gym.Env):
             "section_ends": (ends_low, -ends_low),
             "backbone": (np.full(self.dim * self.n_backbone, -r), np.full(self.dim * self.n_backbone, r)),
             "pressures": (np.full(self.n_inputs, -1.0), np.full(self.n_inputs, 1.0)),
+            **({"commanded": (np.full(self.n_inputs, -1.0), np.full(self.n_inputs, 1.0))}
+               if self.actuation == "lag" else {}),
             "goal": (np.asarray(goal_low, dtype=float), np.asarray(goal_high, dtype=float)),
         }
 
@@ -271,7 +288,7 @@ class SoftArmEnv(gym.Env):
         if not report.converged:
             raise RuntimeError(f"the unactuated {self.arm.name} arm has no converged equilibrium in "
                                f"scene {self._scene}: residual {report.residual:.3g} N m")
-        self._fraction = fraction
+        self._fraction = self._command = fraction
         scene, eq = self._reset_task(options, stepper.equilibrium)
         if scene != stepper.scene:
             stepper = stepper.with_scene(scene)
@@ -297,11 +314,15 @@ class SoftArmEnv(gym.Env):
     def step(self, action):
         if self._stepper is None:
             raise RuntimeError("call reset() before step()")
-        fraction = self._action_to_fraction(action)
+        command = self._action_to_fraction(action)
+        fraction = command
+        if self.actuation == "lag":
+            fraction = self._fraction + self._lag_gain * (command - self._fraction)
         report = self._stepper.step(fraction * self.p_max)
         ok = report.converged
         if ok:
             self._fraction = fraction
+            self._command = command
             self._failures = 0
         else:
             self._failures += 1
@@ -345,7 +366,7 @@ class SoftArmEnv(gym.Env):
             raise ValueError(f"action must have shape ({self.n_inputs},) for channels "
                              f"{', '.join(self.input_names)}; got shape {a.shape}")
         fraction = np.empty(self.n_inputs)
-        bad = fractions_from_actions(a.reshape(1, -1), self._fraction.reshape(1, -1),
+        bad = fractions_from_actions(a.reshape(1, -1), self._command.reshape(1, -1),
                                      self.action_mode == "delta", self.delta_scale,
                                      fraction.reshape(1, -1))
         if bad >= 0:
@@ -386,6 +407,8 @@ class SoftArmEnv(gym.Env):
     def _observation(self):
         obs = self._obs
         fill_pressures(self._fraction.reshape(1, -1), self._slices["pressures"].start, obs.reshape(1, -1))
+        if self.actuation == "lag":
+            fill_pressures(self._command.reshape(1, -1), self._slices["commanded"].start, obs.reshape(1, -1))
         self._fill_goal(obs)
         flat = np.empty(obs.size, dtype=np.float32)
         clip_observations(self._obs.reshape(1, -1), self._low64, self._high64, flat.reshape(1, -1))
@@ -412,6 +435,8 @@ class SoftArmEnv(gym.Env):
             "payload_kg": self._scene.payload_kg,
             "is_success": bool(success),
         }
+        if self.actuation == "lag":
+            info["commanded_pressures_pa"] = self._command * self.p_max
         info.update(task_info)
         info.update(terms)
         return info

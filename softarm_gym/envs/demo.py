@@ -12,8 +12,6 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from softarm_gym.controllers import JacobianController
-
 __all__ = ["run_demo_episode"]
 
 
@@ -43,6 +41,9 @@ def run_demo_episode(out: str | Path = "reach_demo.gif", env_id: str = "SoftArm/
     if "Reach" not in env_id:
         raise ValueError(f"the demo controller reaches targets; {env_id!r} is not a reach environment")
     env = gym.make(env_id, render_mode="rgb_array", max_episode_steps=steps, **env_kwargs)
+    # Imported here: the controllers build on the envs package (its reward rules).
+    from softarm_gym.controllers import JacobianController
+
     controller = JacobianController(env)
     obs, info = env.reset(seed=seed)
     frames = [env.render()]

@@ -113,6 +113,14 @@ class ReachEnv(SoftArmEnv):
       ``success_tolerance`` (0.02 m), ``solver_failure_penalty`` (1), ``max_solver_failures`` (5),
       ``terminate_on_success`` (False).
     * ``initial_pressure_fraction`` (0.1), ``model`` (``"full"``, the simulator's rod model).
+    * ``actuation`` (``"ideal"``: the channels take the commanded pressures at once) or
+      ``"lag"``: each channel pressure follows its command through a first-order lag,
+      p ← p + (1 − e^(−dt/τ))·(p_command − p) per step, with ``pressure_time_constant_s`` τ
+      (0.2 s) and ``step_dt_s`` dt (0.1 s); the arm is quasi-static at every step. The
+      ``pressures`` block is then the measured pressures, a ``commanded`` block (same scale)
+      follows it, ``delta`` actions increment the command, and ``info`` adds
+      ``commanded_pressures_pa``. τ is an assumed order of magnitude, not a thesis figure
+      (docs/environments.md, "Pneumatic lag").
     * ``synthesize_sensors`` (None): synthesise sensor readings every step. By default only
       when the observation's estimator reads them (not for ``true`` and ``model``, which
       need none — skipping them is most of a ``true`` step's saving); True forces them into

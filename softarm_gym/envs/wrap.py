@@ -113,7 +113,8 @@ class WrapEnv(SoftArmEnv):
     ``gravity``, ``randomization``,
     ``action_mode``, ``delta_scale``, ``n_backbone``, ``observation_format``,
     ``initial_pressure_fraction``, ``solver_failure_penalty``, ``max_solver_failures``,
-    ``model``, ``render_mode``, ``render_size``), plus: ``object_radius`` (a number or
+    ``model``, ``actuation``, ``pressure_time_constant_s``, ``step_dt_s``, ``render_mode``,
+    ``render_size``), plus: ``object_radius`` (a number or
     ``(low, high)`` range, m; default (0.09, 0.11)), ``contact_stiffness`` (``"tube"``: the
     ring stiffness of the distal section's tubes, ``TubeMaterial.ring_stiffness``, 9.8e4 N/m²
     for OctArm V and CT — the arm's own compliance, see docs/design.md §9; a number in N/m²;
@@ -244,24 +245,42 @@ class WrapEnv(SoftArmEnv):
 
     def _task_reward(self, converged):
         eq = self._eq
-        wrap = wrap_angle(eq.positions, self._center, self._contact_radius, self.contact_margin)
         penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
-        rel = eq.positions - self._center
-        gap = max(float(np.hypot(rel[:, 0], rel[:, 1]).min()) - self._contact_radius, 0.0)
+        terms, success, info = self.wrap_terms(eq.positions, penetration, self._fraction,
+                                               self._center, self._contact_radius)
+        terms["reward_solver"] = self._solver_term(converged)
+        info.update({"object_center": self._center.copy(), "object_radius": self._object_radius,
+                     "contact_radius": self._contact_radius})
+        return terms, success, info
+
+    def wrap_terms(self, positions: np.ndarray, penetration: float, fraction: np.ndarray,
+                   center, contact_radius: float) -> tuple[dict[str, float], bool, dict]:
+        """The task's reward terms (all but ``reward_solver``), success and measures of a
+        backbone: the rule of the env card's Rewards, for this env's weights.
+
+        A pure function of its arguments (planners evaluate it on model rollouts).
+
+        Args:
+            positions: (N, 2) backbone samples (m). penetration: deepest penetration (m).
+            fraction: (n_inputs,) pressures / p_max. center: (2,) disc centre (m).
+            contact_radius: object radius + the arm's half-thickness (m).
+
+        Returns:
+            (terms, success, {"wrap_angle_deg", "penetration", "gap"}).
+        """
+        wrap = wrap_angle(positions, center, contact_radius, self.contact_margin)
+        rel = positions - np.asarray(center, dtype=float)
+        gap = max(float(np.hypot(rel[:, 0], rel[:, 1]).min()) - contact_radius, 0.0)
         wrap_deg = math.degrees(wrap)
         success = wrap_deg >= self.success_wrap_deg and penetration <= self.penetration_tolerance
         terms = {
             "reward_wrap": self.wrap_weight * min(wrap, 2.0 * math.pi) / (2.0 * math.pi),
             "reward_approach": -self.approach_weight * gap,
             "reward_penetration": -self.penetration_weight * penetration / self.penetration_tolerance,
-            "reward_control": -self.control_weight * float(self._fraction @ self._fraction) / self.n_inputs,
+            "reward_control": -self.control_weight * float(fraction @ fraction) / self.n_inputs,
             "reward_success": self.success_bonus if success else 0.0,
-            "reward_solver": self._solver_term(converged),
         }
-        info = {"wrap_angle_deg": wrap_deg, "penetration": penetration, "gap": gap,
-                "object_center": self._center.copy(), "object_radius": self._object_radius,
-                "contact_radius": self._contact_radius}
-        return terms, success, info
+        return terms, success, {"wrap_angle_deg": wrap_deg, "penetration": penetration, "gap": gap}
 
     def _terminated(self, success):
         return self.terminate_on_success and success

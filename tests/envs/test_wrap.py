@@ -118,3 +118,35 @@ def test_rgb_frame_shows_the_object():
                   render_mode="rgb_array", render_size=160)
     env.reset(seed=0)
     assert has_colour(env.render(), OBJECT_COLOUR, tol=60)
+
+
+@pytest.mark.parametrize("x, channels", [(-0.144, (0, 2, 4)), (0.144, (1, 3, 5))])
+def test_full_curl_onto_the_disc_converges_on_both_sides(x, channels):
+    """The hanging OctArm V curled onto a disc in 10 absolute steps, with channels I (disc on
+    the left) or II+III (its mirror on the right, twice the axial force): every step of the
+    ramp reaches its pressures and the arm ends wrapped far round the disc on either side."""
+    import gymnasium as gym
+
+    env = gym.make("SoftArm/OctArmWrap-v0", initial_pressure_fraction=0.0)
+    env.reset(seed=0, options={"object": (x, -0.139, 0.102)})
+    for k in range(1, 11):
+        action = -np.ones(6, dtype=np.float32)
+        action[list(channels)] = -1.0 + 2.0 * k / 10
+        _, _, _, _, info = env.step(action)
+        assert info["converged"], (k, info["solver"])
+    assert info["wrap_angle_deg"] > 240.0
+
+
+@pytest.mark.parametrize("env_id", ["SoftArm/OctArmWrap-v0", "SoftArm/CTWrap-v0"])
+def test_random_absolute_jumps_converge(env_id):
+    """Jumps between unrelated random pressures (the hardest contact paths) all converge."""
+    import gymnasium as gym
+
+    env = gym.make(env_id, max_episode_steps=50)
+    rng = np.random.default_rng(1)
+    env.reset(seed=1)
+    for step in range(150):
+        _, _, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        assert info["converged"], (step, info["solver"])
+        if term or trunc:
+            env.reset(seed=step)

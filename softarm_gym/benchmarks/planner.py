@@ -1,0 +1,103 @@
+"""The sampling-based planner (:class:`softarm_gym.controllers.CEMPlanner`) on every registered ID.
+
+Each ID runs ``episodes`` full episodes of ``gym.make(env_id)`` with the registered defaults,
+episode i seeded with i, the planner seeded with i too. Reported per ID: the success rate
+(``is_success`` at the last step), the median final distance (reach, m), RMS tracking error
+(track, m) or wrap angle (wrap, deg), the median wall time per episode and per decision that
+searched (held decisions cost almost nothing)::
+
+    python -m softarm_gym.benchmarks.planner --episodes 20 --json > docs/bench/planner.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+import softarm_gym  # noqa: F401  (registers the IDs)
+from softarm_gym.benchmarks.envs import env_ids
+from softarm_gym.controllers import CEMPlanner
+
+__all__ = ["episode", "run", "main"]
+
+
+def episode(env_id: str, seed: int, **planner_kwargs) -> dict:
+    """One planned episode of ``gym.make(env_id)`` seeded with ``seed``.
+
+    Returns:
+        ``success``, ``measure`` (reach: final distance, m; track: RMS tracking error over
+        the episode, m; wrap: wrap angle, deg), ``seconds``,
+        ``decision_seconds`` (median time of the decisions that searched; None if none did).
+    """
+    env = gym.make(env_id)
+    planner = CEMPlanner(env, seed=seed, **planner_kwargs)
+    obs, info = env.reset(seed=seed)
+    start = time.perf_counter()
+    searched = []
+    done = False
+    while not done:
+        t = time.perf_counter()
+        action = planner.act(obs)
+        spent = time.perf_counter() - t
+        if planner.last_searched:
+            searched.append(spent)
+        obs, _, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+    seconds = time.perf_counter() - start
+    env.close()
+    measure = info.get("wrap_angle_deg", info.get("tracking_rms_m", info["distance"]))
+    return {"success": bool(info["is_success"]), "measure": float(measure), "seconds": seconds,
+            "decision_seconds": float(np.median(searched)) if searched else None}
+
+
+def run(ids=None, episodes: int = 20, progress: bool = True, **planner_kwargs) -> dict:
+    """The planner's figures for ``ids`` (default: every registered ID)."""
+    result = {"command": f"python -m softarm_gym.benchmarks.planner --episodes {episodes} --json",
+              "episodes": episodes, "planner": planner_kwargs or "defaults", "ids": {}}
+    for env_id in ids or env_ids():
+        rows = [episode(env_id, seed, **planner_kwargs)
+                for seed in tqdm(range(episodes), desc=env_id, disable=not progress, file=sys.stderr)]
+        measure = ("median_wrap_deg" if "Wrap" in env_id else
+                   "median_tracking_rms_m" if "Track" in env_id else "median_final_distance_m")
+        result["ids"][env_id] = {
+            "success_rate": float(np.mean([r["success"] for r in rows])),
+            measure: float(np.median([r["measure"] for r in rows])),
+            "median_episode_s": float(np.median([r["seconds"] for r in rows])),
+            "median_decision_s": float(np.median([r["decision_seconds"] for r in rows
+                                                  if r["decision_seconds"] is not None] or [0.0])),
+            "episodes": rows,
+        }
+    return result
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=20, help="episodes per ID (default 20)")
+    parser.add_argument("--ids", default=None, help="comma-separated IDs (default: all registered)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error("--episodes must be >= 1")
+    result = run(args.ids.split(",") if args.ids else None, args.episodes, not args.no_progress)
+    if args.json:
+        print(json.dumps(result, indent=2, allow_nan=False))
+        return 0
+    print(f"{'environment':24s} {'success':>8s} {'median':>12s} {'s/episode':>10s} {'ms/decision':>12s}")
+    for env_id, row in result["ids"].items():
+        median = next(row[key] for key in ("median_wrap_deg", "median_tracking_rms_m",
+                                           "median_final_distance_m") if key in row)
+        unit = "deg" if "median_wrap_deg" in row else "m"
+        print(f"{env_id:24s} {row['success_rate']:8.0%} {median:9.3f} {unit:3s}"
+              f"{row['median_episode_s']:10.2f} {1000 * row['median_decision_s']:12.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
