@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -36,7 +37,8 @@ from baselines.evaluate import evaluate
 from softarm_gym.files import write_json
 from softarm_gym.sensing import ESTIMATORS
 
-__all__ = ["collect", "evaluation_jobs", "run_evaluations", "ship", "report", "main"]
+__all__ = ["collect", "evaluation_jobs", "run_evaluation_job", "run_evaluations", "ship", "report",
+           "training_observation", "DEFINITIONS", "main"]
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 RESULTS_DIR = PACKAGE_DIR / "results"
@@ -50,6 +52,12 @@ CONDITIONS = {"clean": ("off", None), "noisy": ("thesis", None),
 """Condition name → (sensor noise, payload range or None for the env's default of 0)."""
 TARGETS = (("SoftArm/OctArmReach-v0", "sac", 0.90), ("SoftArm/OctArmReach-v0", "jacobian", 0.99))
 """(env, agent name prefix, success rate) targets of the issue, checked in the report."""
+DEFINITIONS = ("Success = final true tip within the env's tolerance "
+               "(2 cm) after the 100-step episode; errors are final |true tip − target|; steps to "
+               "success = first step within tolerance, over the episodes that got there. "
+               "Policies are each run's `best_model.zip` (best periodic evaluation return during "
+               "training), acting deterministically; episode i of every evaluation uses seed i.")
+"""What the report's numbers mean (part of its introduction)."""
 
 
 def _runs(runs_dir: Path) -> list[Path]:
@@ -61,7 +69,7 @@ def collect(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list
 
     Writes ``summary.json``, ``monitor.csv`` (training episodes of all env copies, sorted by
     wall time, with a ``timesteps`` column) and ``evaluations.csv`` (periodic evaluations:
-    timesteps, success rate, mean return). Returns the run names.
+    timesteps, success rate, mean return, episodes per evaluation). Returns the run names.
     """
     names = []
     for run in _runs(Path(runs_dir)):
@@ -77,27 +85,38 @@ def collect(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list
             data = np.load(run / "evaluations.npz")
             table = pd.DataFrame({"timesteps": data["timesteps"],
                                   "success_rate": data["successes"].mean(axis=1),
-                                  "mean_return": data["results"].mean(axis=1)})
+                                  "mean_return": data["results"].mean(axis=1),
+                                  "episodes": data["results"].shape[1]})
             table.to_csv(out / "evaluations.csv", index=False, float_format="%.6g")
         names.append(run.name)
     return names
 
 
-def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list[tuple[Path, dict]]:
-    """(output JSON path, :func:`baselines.evaluate.evaluate` kwargs) of every grid cell not yet done."""
+def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, *, grid: bool = True,
+                    env_ids=ENV_IDS, episodes: int | None = None) -> list[tuple[Path, dict]]:
+    """(output JSON path, :func:`baselines.evaluate.evaluate` kwargs) of every grid cell not yet done.
+
+    Args:
+        runs_dir: folder of run folders; each one with a ``best_model.zip`` is an agent.
+        results_dir: the cells go to ``results_dir/eval/<agent>__<cell>.json``.
+        grid: the estimator-in-the-loop cells too, not only ``main``.
+        env_ids: environments the Jacobian controller is evaluated on, as a reference.
+        episodes: episodes of every cell (default :data:`MAIN_EPISODES` for ``main``,
+            :data:`GRID_EPISODES` for the others).
+    """
     agents = [(run.name, {"model": run / "best_model.zip"}) for run in _runs(Path(runs_dir))
               if (run / "best_model.zip").is_file()]
     agents += [(f"jacobian_{env_id.split('/')[-1]}", {"controller": "jacobian", "env_id": env_id})
-               for env_id in ENV_IDS]
+               for env_id in env_ids]
     jobs = []
     out_dir = Path(results_dir) / "eval"
     for name, who in agents:
-        cells = [("main", {"episodes": MAIN_EPISODES})]
-        for observation in ESTIMATORS:
+        cells = [("main", {"episodes": episodes or MAIN_EPISODES})]
+        for observation in ESTIMATORS if grid else ():
             for condition, (noise, payload) in CONDITIONS.items():
                 cells.append((f"{observation}__{condition}",
-                              {"episodes": GRID_EPISODES, "observation": observation, "sensor_noise": noise,
-                               "payload_kg": payload}))
+                              {"episodes": episodes or GRID_EPISODES, "observation": observation,
+                               "sensor_noise": noise, "payload_kg": payload}))
         for cell, kwargs in cells:
             path = out_dir / f"{name}__{cell}.json"
             if not path.is_file():
@@ -105,7 +124,8 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR)
     return jobs
 
 
-def _run_job(job: tuple[Path, dict]) -> str:
+def run_evaluation_job(job: tuple[Path, dict]) -> str:
+    """Evaluate one cell of :func:`evaluation_jobs` (one torch thread) and write its JSON; its name."""
     import torch
 
     torch.set_num_threads(1)
@@ -125,7 +145,7 @@ def run_evaluations(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
 
     jobs = [j for j in evaluation_jobs(runs_dir, results_dir) if only is None or only in j[0].name]
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        for _ in tqdm(pool.map(_run_job, jobs), total=len(jobs), file=sys.stderr, unit="cell"):
+        for _ in tqdm(pool.map(run_evaluation_job, jobs), total=len(jobs), file=sys.stderr, unit="cell"):
             pass
     return len(jobs)
 
@@ -168,16 +188,38 @@ def _steps(x) -> str:
     return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{x:.0f}"
 
 
+def _episodes(counts) -> str:
+    """``"20 episodes"``, ``"1 episode"``, or ``"2–20 episodes"`` when the counts differ."""
+    counts = sorted({int(v) for v in counts if not pd.isna(v)})
+    if len(counts) > 1:
+        return f"{counts[0]}–{counts[-1]} episodes"
+    return f"{counts[0]} episode{'s' if counts[0] != 1 else ''}"
+
+
+def training_observation(summary: dict) -> str:
+    """The shape estimator a run was trained with (its ``env_kwargs``; the env default is ``true``)."""
+    return summary.get("env_kwargs", {}).get("observation", "true")
+
+
+def _env_ids(runs: list[dict], table: pd.DataFrame | None = None) -> list[str]:
+    """The environments of the runs (and of the evaluations in ``table``), :data:`ENV_IDS` first."""
+    used = {r["env_id"] for r in runs} | (set(table["env_id"]) if table is not None and len(table) else set())
+    return [e for e in ENV_IDS if e in used] + sorted(used - set(ENV_IDS))
+
+
 def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
     from softarm_gym.plotting import figure, save
 
-    fig, axes = figure(1, len(ENV_IDS), figsize=(5.5 * len(ENV_IDS), 3.8), squeeze=False)
-    for ax, env_id in zip(axes[0], ENV_IDS):
+    env_ids = _env_ids(runs)
+    fig, axes = figure(1, len(env_ids), figsize=(5.5 * len(env_ids), 3.8), squeeze=False)
+    for ax, env_id in zip(axes[0], env_ids):
         for summary in runs:
             if summary["env_id"] != env_id:
                 continue
             folder = results_dir / "training" / summary["run"]
-            label = f"{summary['algo']} seed {summary['seed']}"
+            observation = training_observation(summary)
+            label = f"{summary['algo']} seed {summary['seed']}" + \
+                ("" if observation == "true" else f", {observation} obs.")
             if (folder / "monitor.csv").is_file():
                 episodes = pd.read_csv(folder / "monitor.csv")
                 window = max(1, min(50, len(episodes) // 5))
@@ -202,8 +244,17 @@ def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
     save(fig, path)
 
 
-def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR / "RESULTS.md") -> str:
-    """Write ``RESULTS.md`` (and ``results/learning_curves.png``) from the saved results; return the text."""
+def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR / "RESULTS.md", *,
+           title: str = "Baseline results", intro: list[str] | None = None) -> str:
+    """Write ``out`` (and ``results_dir/learning_curves.png``) from the saved results; return the text.
+
+    Args:
+        results_dir: what :func:`collect` and the evaluations wrote.
+        out: the Markdown file.
+        title: its heading.
+        intro: Markdown lines after the heading (default: how the shipped baselines were made;
+            other callers say how their runs were made, and include :data:`DEFINITIONS`).
+    """
     results_dir = Path(results_dir)
     runs = []
     for f in sorted((results_dir / "training").glob("*/summary.json")):
@@ -213,15 +264,12 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
     table = _load_evaluations(results_dir)
     if runs:
         _learning_curves(results_dir, runs, results_dir / "learning_curves.png")
-    lines = ["# Baseline results", "",
+    lines = [f"# {title}", ""]
+    lines += intro if intro is not None else [
              "Regenerated by `python -m baselines.results report` from the files under "
              "`baselines/results/`; every number below was measured on the project's 2-core machine "
              "(the CPU time of each run is given next to its wall time: the first runs shared the "
-             "machine with other jobs). Success = final true tip within the env's tolerance "
-             "(2 cm) after the 100-step episode; errors are final |true tip − target|; steps to "
-             "success = first step within tolerance, over the episodes that got there. "
-             "Policies are each run's `best_model.zip` (best periodic evaluation return during "
-             "training), acting deterministically; episode i of every evaluation uses seed i.", "",
+             "machine with other jobs). " + DEFINITIONS, "",
              "Agents: SAC (and TD3/PPO where listed) with the settings of `baselines/hyperparams/<algo>.yml` "
              "(delta pressure actions of at most 10 % of p_max per step, VecNormalize on observations, "
              "128×128 MLPs, one torch thread). The SAC seeds are trained for a fixed "
@@ -238,15 +286,21 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "per run (runs in `runs/`, two at a time), then `python -m baselines.results collect`, "
              "`python -m baselines.results evaluate --workers W`, `python -m baselines.results ship` "
              "(best policy per env → `baselines/trained/`) and `python -m baselines.results report`.", ""]
+    by_run = {r["run"]: r for r in runs}
+    if len(table):  # the observation mode each agent was trained on (the controller: true)
+        table["trained_on"] = [training_observation(by_run[name]) if name in by_run else "true"
+                               for name in table["agent_name"]]
     main = table[table["cell"] == "main"] if len(table) else table
     lines += ["## Reach with true observations", "",
-              f"{MAIN_EPISODES} episodes each, no sensor noise, no payload.", "",
+              f"{_episodes(main['episodes'])} each, no sensor noise, no payload." if len(main)
+              else "No agent has been evaluated yet.", "",
               "| env | agent | budget (min) | train steps | train wall (min) | train CPU (min) | success "
               "| median err (mm) | p95 err (mm) | median steps to success |",
               "|---|---|---|---|---|---|---|---|---|---|"]
-    by_run = {r["run"]: r for r in runs}
-    for env_id in ENV_IDS:
+    for env_id in _env_ids(runs, table):
         rows = main[main["env_id"] == env_id] if len(main) else main
+        if not len(rows):
+            continue
         for _, row in rows.sort_values("agent_name").iterrows():
             run = by_run.get(row["agent_name"])
             steps = f"{run['timesteps_done']:,}" if run else "–"
@@ -257,35 +311,53 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                          f"{100 * row['success_rate']:.0f} % | {_mm(row['median_final_error_m'])} | "
                          f"{_mm(row['p95_final_error_m'])} | {_steps(row['median_steps_to_success'])} |")
         for algo in ALGOS:
-            learned = rows[rows["agent_name"].str.startswith(f"{algo}_")] if len(rows) else rows
-            if len(learned) > 1:
+            for observation in ESTIMATORS:
+                learned = rows[rows["agent_name"].str.startswith(f"{algo}_")
+                               & (rows["trained_on"] == observation)]
+                if len(learned) < 2:
+                    continue
                 rates = 100 * learned["success_rate"]
-                lines.append(f"| {env_id} | **{algo} mean ± std over {len(learned)} seeds** | | | | | "
+                which = algo if observation == "true" else f"{algo} on {observation} observations"
+                lines.append(f"| {env_id} | **{which} mean ± std over {len(learned)} seeds** | | | | | "
                              f"**{rates.mean():.0f} ± {rates.std():.0f} %** | "
                              f"{_mm(learned['median_final_error_m'].mean())} | "
                              f"{_mm(learned['p95_final_error_m'].mean())} | |")
     lines += ["", "Targets of the issue, as measured:", ""]
-    for env_id, agent, goal in TARGETS:
-        rows = main[(main["env_id"] == env_id) & main["agent_name"].str.startswith(agent)] \
-            if len(main) else main
+    for env_id, agent, goal in TARGETS:  # the targets are for policies trained on true observations
+        rows = main[(main["env_id"] == env_id) & main["agent_name"].str.startswith(agent)
+                    & (main["trained_on"] == "true")] if len(main) else main
         if len(rows):
             best = rows["success_rate"].max()
             lines.append(f"* {agent} on {env_id}: best {100 * best:.0f} % against the target "
                          f"{100 * goal:.0f} % — {'met' if best >= goal else 'NOT met'} "
-                         f"({len(rows)} run{'s' if len(rows) > 1 else ''} of {MAIN_EPISODES} episodes).")
+                         f"({len(rows)} run{'s' if len(rows) > 1 else ''} of {_episodes(rows['episodes'])}).")
+    curves = [pd.read_csv(f) for f in sorted((results_dir / "training").glob("*/evaluations.csv"))]
+    per_eval = _episodes(pd.concat([c["episodes"] for c in curves if "episodes" in c])) \
+        if any("episodes" in c for c in curves) else None
+    picture = Path(os.path.relpath(results_dir.resolve() / "learning_curves.png", Path(out).resolve().parent))
     lines += ["", "Learning curves (final-step success of training episodes, rolling mean; dots: the "
-              "periodic deterministic evaluations, 20 episodes):", "",
-              "![learning curves](results/learning_curves.png)", ""]
-    lines += ["## Estimator in the loop", "",
-              f"{GRID_EPISODES} episodes per cell; cells give success rate / median final error (mm). "
+              "periodic deterministic evaluations" + (f", {per_eval}" if per_eval else "") + "):",
+              "", f"![learning curves]({picture.as_posix()})", ""]
+    grid = table[table["cell"] != "main"] if len(table) else table
+    lines += _estimator_section(grid, _env_ids(runs, table))
+    text = "\n".join(lines) + "\n"
+    Path(out).write_text(text)
+    return text
+
+
+def _estimator_section(grid: pd.DataFrame, env_ids: list[str]) -> list[str]:
+    """The estimator-in-the-loop tables (nothing if no grid cell was evaluated)."""
+    if not len(grid):
+        return []
+    lines = ["## Estimator in the loop", "",
+              f"{_episodes(grid['episodes'])} per cell; cells give success rate / median final error (mm). "
               "`clean`: perfect sensors, no payload; `noisy`: Table 4.3 sensor resolutions "
               "(encoder 3 cm, inclinometer 2.5°, load cell); `noisy+payload`: the same plus a tip "
               f"payload drawn per episode uniformly in {PAYLOAD_RANGE_KG[0]}–{PAYLOAD_RANGE_KG[1]} kg, "
               "unknown to the agents and to the estimators. The last column is the mean estimation "
               "error of the tip (mm) for that estimator and condition, averaged over agents.", ""]
-    grid = table[table["cell"] != "main"] if len(table) else table
-    for env_id in ENV_IDS:
-        rows = grid[grid["env_id"] == env_id] if len(grid) else grid
+    for env_id in env_ids:
+        rows = grid[grid["env_id"] == env_id]
         if not len(rows):
             continue
         agents = sorted(rows["agent_name"].unique())
@@ -305,9 +377,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                 lines.append(f"| {observation} | {condition} | " + " | ".join(values) +
                              f" | {_mm(cell['mean_estimation_error_m'].mean())} |")
         lines.append("")
-    text = "\n".join(lines) + "\n"
-    Path(out).write_text(text)
-    return text
+    return lines
 
 
 def main(argv=None) -> int:

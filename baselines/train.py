@@ -426,7 +426,7 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
           hyperparams_dir: Path | str = HYPERPARAMS_DIR, eval_freq: int = 10_000, eval_episodes: int = 20,
           checkpoint_freq: int = 50_000, threads: int = 1, progress: bool = True,
           tensorboard: bool = True, time_limit_min: float | None = None,
-          save_replay_buffer: bool = False) -> Path:
+          save_replay_buffer: bool = False, run_name: str | None = None) -> Path:
     """Train ``algo`` on ``env_id`` and save everything under ``log_dir`` (module docstring).
 
     Args:
@@ -434,8 +434,8 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
         algo: one of :data:`baselines.config.ALGOS`.
         timesteps: environment steps; default the YAML's ``n_timesteps``.
         seed: seeds the algorithm, the environments and torch.
-        log_dir: parent folder of the run folder ``<algo>_<env>_s<seed>``, which must not
-            hold a run already (continue one with :func:`resume`).
+        log_dir: parent folder of the run folder (``run_name``), which must not hold a run
+            already (continue one with :func:`resume`).
         hyperparams: replaces the YAML entry entirely (tests use tiny networks this way).
         hyperparams_dir: folder of the YAML files.
         eval_freq: steps between deterministic evaluations (0 disables them).
@@ -448,6 +448,8 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
             done (``summary.json`` records the steps actually taken).
         save_replay_buffer: off-policy algorithms: save the replay buffer with each checkpoint
             (and at an interruption), so a resumed run continues with it.
+        run_name: name of the run folder; default ``<algo>_<env>_s<seed>`` (``<env>`` without
+            the ``SoftArm/`` prefix). :mod:`baselines.sweep` adds the observation mode.
 
     Returns:
         The run folder.
@@ -467,7 +469,11 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
         raise ValueError(f"timesteps must be >= 1; got {total}")
     _check_counts(eval_freq, checkpoint_freq, threads)
     _check_time_limit(time_limit_min)
-    run_dir = Path(log_dir) / f"{algo}_{env_id.split('/')[-1]}_s{seed}"
+    if run_name is None:
+        run_name = f"{algo}_{env_id.split('/')[-1]}_s{seed}"
+    elif not isinstance(run_name, str) or run_name in ("", ".", "..") or any(c in run_name for c in "/\\\0"):
+        raise ValueError(f"run_name must be a plain folder name; got {run_name!r}")
+    run_dir = Path(log_dir) / run_name
     if (run_dir / CONFIG_FILE).is_file():
         raise ValueError(f"{run_dir} already holds a run; continue it with --resume {run_dir}, or choose "
                          "another --log-dir or --seed")

@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import hashlib
+import importlib
 import json
 import logging
 import os
@@ -53,7 +54,7 @@ from tqdm import tqdm
 
 __all__ = ["BACKENDS", "DEFAULT_RETRIES", "Chunk", "Plan", "Runner", "ChunkStore", "JobError",
            "Interrupted", "default_chunk_dir", "code_fingerprint", "chunk_bounds", "atomic_path",
-           "write_atomic"]
+           "write_atomic", "ray_session", "first_line"]
 
 BACKENDS = ("local", "ray")
 DEFAULT_RETRIES = 3
@@ -74,18 +75,15 @@ class Interrupted(JobError, KeyboardInterrupt):
 
 
 @cache
-def code_fingerprint() -> str:
-    """SHA-256 (16 hex digits) of the ``.py`` sources of ``solver`` and ``softarm_gym``.
+def code_fingerprint(packages: tuple[str, ...] = ("solver", "softarm_gym")) -> str:
+    """SHA-256 (16 hex digits) of the ``.py`` sources of ``packages`` (importable package names).
 
-    Part of every chunk key, and compared with what each Ray worker computes, so chunks are
-    never reused or mixed across code versions.
+    With the default, part of every chunk key, and compared with what each Ray worker
+    computes, so chunks are never reused or mixed across code versions.
     """
-    import softarm_gym
-    import solver
-
     digest = hashlib.sha256()
-    for package in (solver, softarm_gym):
-        root = Path(package.__file__).parent
+    for name in packages:
+        root = Path(importlib.import_module(name).__file__).parent
         for path in sorted(root.rglob("*.py")):
             digest.update(str(path.relative_to(root.parent)).encode())
             digest.update(path.read_bytes())
@@ -330,26 +328,20 @@ class Runner:
                 bar.update(chunks[j].size)
 
         todo = [idx[0] for idx in copies.values() if outputs[idx[0]] is None]
-        ray, connected = _ray_connect(self.address) if todo and self.backend == "ray" else (None, False)
-        bar = tqdm(total=sum(c.size for c in chunks), unit=unit, desc=desc, file=sys.stderr,
-                   initial=sum(c.size for c, o in zip(chunks, outputs) if o is not None),
-                   disable=not self.progress, dynamic_ncols=True)
-        try:
-            if self.backend == "local":
-                for i in todo:
-                    record(i, *_timed_call(chunks[i].fn, chunks[i].args))
-            elif todo:
-                # Ray's driver prints its notices (a worker died, ...) on stdout, which holds
-                # the commands' --json output; what matters reaches the caller as a JobError.
-                with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):
+        with contextlib.ExitStack() as stack:
+            ray = stack.enter_context(ray_session(self.address)) if todo and self.backend == "ray" else None
+            bar = stack.enter_context(tqdm(
+                total=sum(c.size for c in chunks), unit=unit, desc=desc, file=sys.stderr,
+                initial=sum(c.size for c, o in zip(chunks, outputs) if o is not None),
+                disable=not self.progress, dynamic_ncols=True))
+            try:
+                if self.backend == "local":
+                    for i in todo:
+                        record(i, *_timed_call(chunks[i].fn, chunks[i].args))
+                elif todo:
                     self._run_ray(ray, chunks, todo, record, outputs)
-        except KeyboardInterrupt:
-            raise Interrupted(f"interrupted; {self._kept(outputs)}") from None
-        finally:
-            bar.close()
-            if connected:
-                with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):
-                    ray.shutdown()
+            except KeyboardInterrupt:
+                raise Interrupted(f"interrupted; {self._kept(outputs)}") from None
         return outputs
 
     def discard(self) -> None:
@@ -403,7 +395,7 @@ class Runner:
                 except ray.exceptions.RayError as exc:
                     raise JobError(
                         f"Ray lost chunk {i + 1} of {len(chunks)} after {self.retries} retries "
-                        f"({type(exc).__name__}: {_first_line(exc)[:160]}); {self._kept(outputs)}"
+                        f"({type(exc).__name__}: {first_line(exc)[:160]}); {self._kept(outputs)}"
                     ) from None
                 if fingerprint != code_fingerprint():
                     raise JobError(
@@ -417,6 +409,29 @@ class Runner:
 
 
 # ----------------------------------------------------------------------------- Ray connection
+
+
+@contextlib.contextmanager
+def ray_session(address: str | None):
+    """The ``ray`` module, connected for the ``with`` block; stdout silenced meanwhile.
+
+    Connects to ``address`` (see :class:`Runner`) unless this process already has a Ray
+    session, which is then used and left open; a session opened here is shut down at the end.
+    Ray's driver prints its notices (a worker died, ...) on stdout, which holds the commands'
+    ``--json`` output; what matters reaches the caller as an exception.
+
+    Raises:
+        JobError: Ray is not installed, ``address`` is malformed or unreachable (checked
+            with a TCP probe first, where Ray alone retries for minutes), or the cluster runs
+            another Ray or Python version (one line each).
+    """
+    with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):
+        ray, connected = _ray_connect(address)
+        try:
+            yield ray
+        finally:
+            if connected:
+                ray.shutdown()
 
 
 def _ray_connect(address):
@@ -438,13 +453,14 @@ def _ray_connect(address):
     except RuntimeError as exc:
         if "version mismatch" in str(exc).lower():
             raise JobError(_mismatch(exc, address)) from None
-        raise JobError(f"cannot start Ray: {_first_line(exc)}") from None
+        raise JobError(f"cannot start Ray: {first_line(exc)}") from None
     except ConnectionError as exc:
-        raise JobError(f"cannot connect to a Ray cluster at {address!r}: {_first_line(exc)}") from None
+        raise JobError(f"cannot connect to a Ray cluster at {address!r}: {first_line(exc)}") from None
     return ray, True
 
 
-def _first_line(exc) -> str:
+def first_line(exc) -> str:
+    """The first line of an exception's message (its type name if it has none)."""
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
 

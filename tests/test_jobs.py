@@ -1,11 +1,13 @@
 """Long jobs (``softarm_gym.jobs`` and the sweep commands' options): chunk keys, the chunk store,
 resume after Ctrl-C, a killed driver or a killed Ray worker, safe output files, and every sweep
 command on a real local Ray cluster (``ray start --head`` in a fixture), compared bit for bit
-with the local backend.
+with the local backend; then RL training sweeps (``baselines.sweep``) on the same cluster.
 
 All Ray tests live in this module so that the suite starts one cluster (2 CPUs) only.
 """
 
+import contextlib
+import io
 import json
 import os
 import shutil
@@ -15,12 +17,16 @@ import subprocess
 import sys
 import tempfile
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import solver
+from baselines.sweep import CANCEL_GRACE_S, PLAN_FILE
+from baselines.sweep import main as sweep_main
 from softarm_gym.analysis import pressure_grid, sweep_tips
 from softarm_gym.analysis.workspace import workspace_plan
 from softarm_gym.cli import main
@@ -33,6 +39,7 @@ from softarm_gym.jobs import (
     atomic_path,
     code_fingerprint,
 )
+from tests.baselines.conftest import tiny_hyperparams
 from tests.timings import without_timings
 
 NO_AUTH = {"RAY_AUTH_MODE": "disabled"}  # the fixture cluster runs without token authentication
@@ -253,8 +260,8 @@ class Cluster:
     def __init__(self, address: str, pid: int):
         self.address, self.pid = address, pid
 
-    def workers_running_chunks(self) -> list[int]:
-        """PIDs of this cluster's Ray workers that are executing a chunk right now."""
+    def workers_running(self, task: str = "_ray_call") -> list[int]:
+        """PIDs of this cluster's Ray workers that are executing ``task`` (a function name) right now."""
         found = []
         for entry in Path("/proc").iterdir():
             if not entry.name.isdigit():
@@ -263,7 +270,7 @@ class Cluster:
                 title = (entry / "cmdline").read_bytes().split(b"\0")[0]
             except OSError:
                 continue
-            if title.startswith(b"ray::_ray_call") and self._descends(int(entry.name)):
+            if title.startswith(f"ray::{task}".encode()) and self._descends(int(entry.name)):
                 found.append(int(entry.name))
         return found
 
@@ -371,7 +378,7 @@ def test_python_api_on_ray_matches_local(cluster):
 def _kill_a_worker_mid_sweep(cluster, proc, chunks: Path) -> int:
     _wait_for_chunks(chunks, 2, proc)
     deadline = time.monotonic() + 60
-    while not (busy := cluster.workers_running_chunks()):
+    while not (busy := cluster.workers_running()):
         assert proc.poll() is None, "the sweep finished before a worker could be killed"
         assert time.monotonic() < deadline
         time.sleep(0.005)
@@ -404,17 +411,29 @@ def test_a_worker_dying_without_retries_keeps_the_chunks_and_resumes(capsys, tmp
     assert not list(chunks.glob("*.npz"))
 
 
-def test_unreachable_address_is_one_line(capsys, tmp_path, cluster):
+def _workspace_on(tmp_path: Path, address: str):
+    return main, ["workspace", "--levels", "2", "--quiet", "--chunk-dir", str(tmp_path), "--backend", "ray",
+                  "--address", address]
+
+
+def _rl_sweep_on(tmp_path: Path, address: str):
+    return sweep_main, _rl_sweep_args(tmp_path, "--backend", "ray", "--address", address)
+
+
+@pytest.mark.parametrize("command", [_workspace_on, _rl_sweep_on])
+def test_unreachable_address_is_one_line(capsys, tmp_path, cluster, command):
     closed = _free_port()
     start = time.perf_counter()
-    argv = ["workspace", "--levels", "2", "--quiet", "--chunk-dir", str(tmp_path), "--backend", "ray"]
-    assert main(argv + ["--address", f"127.0.0.1:{closed}"]) == 2
+    run, argv = command(tmp_path, f"127.0.0.1:{closed}")
+    assert run(argv) == 2
     assert time.perf_counter() - start < 20  # Ray alone would retry for minutes
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and f"cannot reach a Ray cluster at '127.0.0.1:{closed}'" in err
+    assert not list(tmp_path.glob("out/runs/*"))
 
 
-def test_ray_version_mismatch_is_one_line(capsys, tmp_path, cluster):
+@pytest.mark.parametrize("command", [_workspace_on, _rl_sweep_on])
+def test_ray_version_mismatch_is_one_line(capsys, tmp_path, cluster, command):
     """The cluster's GCS records the Ray and Python versions it was started with and every
     driver checks them on connecting; a head claiming another Ray release is what a node
     left on an old install looks like."""
@@ -427,10 +446,161 @@ def test_ray_version_mismatch_is_one_line(capsys, tmp_path, cluster):
     gcs.internal_kv_put(key, json.dumps({**json.loads(original), "ray_version": "0.0.1"}).encode(),
                         True, namespace=namespace)
     try:
-        argv = ["workspace", "--levels", "2", "--quiet", "--chunk-dir", str(tmp_path), "--backend",
-                "ray", "--address", cluster.address]
-        assert main(argv) == 2
+        run, argv = command(tmp_path, cluster.address)
+        assert run(argv) == 2
     finally:
         gcs.internal_kv_put(key, original, True, namespace=namespace)
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "Ray version mismatch" in err and "runs Ray 0.0.1" in err
+
+
+# ----------------------------------------------------------------------------- RL sweeps on the cluster
+
+RL_RUNS = ["sac_OctArmReach-v0_s0", "sac_OctArmReach-v0_s1"]
+
+
+def _rl_sweep_args(tmp_path: Path, *extra: str, seeds: str = "0,1", timesteps: int = 200) -> list[str]:
+    """``baselines.sweep`` on tiny SAC runs (8-unit networks) into ``tmp_path/out``."""
+    hyperparams = tmp_path / "hp"
+    if not hyperparams.is_dir():
+        tiny_hyperparams(hyperparams)
+    return ["--envs", "SoftArm/OctArmReach-v0", "--algos", "sac", "--seeds", seeds, "--timesteps",
+            str(timesteps), "--hyperparams-dir", str(hyperparams), "--out", str(tmp_path / "out"),
+            "--checkpoint-freq", "100", "--no-progress", *extra]
+
+
+def _sweep(argv, **kwargs):
+    """``python -m baselines.sweep`` in a child process (to be interrupted, or its worker killed)."""
+    return subprocess.Popen([sys.executable, "-m", "baselines.sweep", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, **NO_AUTH}, **kwargs)
+
+
+def _checkpoints(run: Path) -> dict[int, dict]:
+    """Steps → metadata of the run's complete checkpoints."""
+    found = {}
+    for meta in (run / "checkpoints").glob("model_*_steps.json"):
+        with contextlib.suppress(ValueError):  # being replaced at this moment
+            found[int(meta.name.split("_")[1])] = json.loads(meta.read_text())
+    return found
+
+
+def _wait_for_checkpoint(proc, run: Path, steps: int, timeout=180.0) -> None:
+    deadline = time.monotonic() + timeout
+    while max(_checkpoints(run), default=0) < steps:
+        assert proc.poll() is None, f"the sweep ended before step {steps}: {proc.communicate()}"
+        assert time.monotonic() < deadline, f"no checkpoint at step {steps} in {timeout} s"
+        time.sleep(0.05)
+
+
+def _weights(model: Path) -> dict:
+    import torch
+
+    with zipfile.ZipFile(model) as archive:
+        return torch.load(io.BytesIO(archive.read("policy.pth")), weights_only=True)
+
+
+def test_rl_sweep_on_ray_trains_the_same_runs_as_the_local_backend(tmp_path, cluster, capsys):
+    """Two tiny SAC runs as Ray tasks: run folders with their logs, models and metadata, the
+    evaluations and RESULTS.md; every run is the one the local backend trains, bit for bit."""
+    local, remote = tmp_path / "local", tmp_path / "ray"
+    argv = ["--eval-freq", "100", "--eval-episodes", "1", "--evaluate-episodes", "1"]
+    assert sweep_main(_rl_sweep_args(local, *argv)) == 0
+    assert sweep_main(_rl_sweep_args(remote, *argv, "--backend", "ray", "--address", cluster.address)) == 0
+    capsys.readouterr()
+    for name in RL_RUNS:
+        runs = [where / "out" / "runs" / name for where in (local, remote)]
+        summaries = [json.loads((run / "summary.json").read_text()) for run in runs]
+        assert [s["timesteps_done"] for s in summaries] == [200, 200]
+        for file in ("config.json", "monitor.csv", "progress.csv", "evaluations.npz", "best_model.json",
+                     "final_model_vecnormalize.json", "checkpoints/model_200_steps.json"):
+            assert (runs[1] / file).is_file(), file
+        episodes = [pd.read_csv(run / "monitor.csv", skiprows=1)[["r", "l"]] for run in runs]
+        pd.testing.assert_frame_equal(*episodes)
+        weights = [_weights(run / "final_model.zip") for run in runs]
+        assert all(np.array_equal(weights[0][k], weights[1][k]) for k in weights[0])
+        cells = [json.loads((where / "out" / "results" / "eval" / f"{name}__main.json").read_text())
+                 for where in (local, remote)]
+        local_cell, ray_cell = ({k: v for k, v in cell.items() if k != "wall_time_s"} for cell in cells)
+        assert local_cell == ray_cell
+    text = (remote / "out" / "RESULTS.md").read_text()
+    assert "(ray backend)" in text and (remote / "out" / "results" / "learning_curves.png").is_file()
+    for name in RL_RUNS:
+        assert f"| {name} | SoftArm/OctArmReach-v0 | sac | true |" in text
+    import ray
+
+    assert not ray.is_initialized()  # the sweep disconnected again
+
+
+def test_rl_sweep_retries_a_killed_training_from_its_last_checkpoint(tmp_path, cluster):
+    run = tmp_path / "out" / "runs" / "sac_OctArmReach-v0_s0"
+    argv = _rl_sweep_args(tmp_path, "--eval-freq", "0", "--evaluate", "none", "--backend", "ray",
+                          "--address", cluster.address, seeds="0", timesteps=400)
+    proc = _sweep(argv)
+    _wait_for_checkpoint(proc, run, 100)
+    busy = cluster.workers_running("train_run")
+    assert len(busy) == 1, busy
+    kept = max(_checkpoints(run))
+    os.kill(busy[0], signal.SIGKILL)
+    out, err = proc.communicate(timeout=180)
+    assert proc.returncode == 0, err
+    assert "sac_OctArmReach-v0_s0 failed (WorkerCrashedError: " in err and "attempt 2 of 4" in err
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["timesteps_done"] == 400  # the planned budget, not 400 more
+    # The retry resumed from the newest complete checkpoint at the kill (or one written in between).
+    assert kept <= summary["resumed_from"] < 400 and summary["resumed_from"] % 100 == 0
+    assert (run / "progress_0.csv").is_file()  # the killed session's log, kept
+    state = json.loads((tmp_path / "out" / PLAN_FILE).read_text())["runs"][0]
+    assert state["state"] == "finished" and state["attempts"] == 2 and state["node"] == socket.gethostname()
+
+
+def test_rl_sweep_worker_dying_without_retries_is_one_line_and_keeps_the_finished_run(tmp_path, cluster):
+    """Two runs share the 2 CPUs; one's worker is killed and --retries 0 gives it up: the other
+    run finishes, the results are written from it, one error line (exit 2); --resume continues
+    the killed run from its checkpoint (here, in this process)."""
+    runs = tmp_path / "out" / "runs"
+    argv = _rl_sweep_args(tmp_path, "--eval-freq", "0", "--evaluate", "none", timesteps=400)
+    proc = _sweep(argv + ["--backend", "ray", "--address", cluster.address, "--retries", "0"])
+    for name in RL_RUNS:
+        _wait_for_checkpoint(proc, runs / name, 100)
+    busy = cluster.workers_running("train_run")
+    assert busy, "both runs finished before a worker could be killed"
+    os.kill(busy[0], signal.SIGKILL)
+    out, err = proc.communicate(timeout=180)
+    assert proc.returncode == 2 and out == "" and "Traceback" not in err
+    error = err.strip().splitlines()[-1]
+    assert error.startswith("baselines.sweep: error: 1 of 2 runs and 0 evaluation cells failed after 0 "
+                            "retries (first: ") and "WorkerCrashedError" in error and "--resume" in error
+    states = {r["name"]: r["state"] for r in json.loads((tmp_path / "out" / PLAN_FILE).read_text())["runs"]}
+    assert sorted(states.values()) == ["failed", "finished"]
+    killed = next(name for name, state in states.items() if state == "failed")
+    text = (tmp_path / "out" / "RESULTS.md").read_text()
+    assert f"| {killed} | SoftArm/OctArmReach-v0 | sac | true |" in text
+    assert "failed: WorkerCrashedError" in text
+    assert all(line.startswith(f"{killed} failed") for line in err.strip().splitlines()[:-1])  # its note
+    assert (tmp_path / "out" / "results" / "training" / next(n for n in RL_RUNS if n != killed)).is_dir()
+    stopped = max(_checkpoints(runs / killed))
+    assert sweep_main(argv + ["--resume"]) == 0
+    summary = json.loads((runs / killed / "summary.json").read_text())
+    assert summary["timesteps_done"] == 400 and summary["resumed_from"] >= stopped
+
+
+def test_rl_sweep_ctrl_c_saves_the_running_training_then_resume_finishes_it(tmp_path, cluster):
+    """Ctrl-C cancels the Ray task gently: the training saves a checkpoint where it is; the
+    sweep continues on any backend (here this process)."""
+    run = tmp_path / "out" / "runs" / RL_RUNS[0]
+    argv = _rl_sweep_args(tmp_path, "--eval-freq", "0", "--evaluate", "none", seeds="0", timesteps=400)
+    proc = _sweep(argv + ["--backend", "ray", "--address", cluster.address])
+    _wait_for_checkpoint(proc, run, 100)
+    start = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=CANCEL_GRACE_S + 60)
+    assert time.monotonic() - start < CANCEL_GRACE_S  # the task stopped; nobody waited for the grace
+    assert proc.returncode == 2 and out == "" and "Traceback" not in err
+    assert err.strip().splitlines() == [
+        f"baselines.sweep: error: interrupted; 0 of 1 runs finished and kept in {run.parent} (unfinished "
+        "runs continue from their newest checkpoint); rerun the same command with --resume to continue"]
+    stopped, meta = max(_checkpoints(run).items())
+    assert meta["kind"] == "interrupted" and 100 <= stopped < 400
+    assert sweep_main(argv + ["--resume"]) == 0
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["timesteps_done"] == 400 and summary["resumed_from"] == stopped

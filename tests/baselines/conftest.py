@@ -1,6 +1,9 @@
 """Shared fixtures of the baseline tests: tiny hyperparameters and one tiny trained model."""
 
+from pathlib import Path
+
 import pytest
+import yaml
 
 from baselines.train import train
 
@@ -16,6 +19,14 @@ TINY = {
             "n_epochs": 1, "policy_kwargs": {"net_arch": [8]}},
 }
 """A few hundred steps with 8-unit networks: exercises every code path in seconds."""
+
+
+def tiny_hyperparams(directory: Path, env_ids=("SoftArm/OctArmReach-v0",), **entries) -> Path:
+    """``directory`` holding ``<algo>.yml`` with the :data:`TINY` entry (or ``entries[algo]``) per env."""
+    directory.mkdir(parents=True, exist_ok=True)
+    for algo, entry in {**TINY, **entries}.items():
+        (directory / f"{algo}.yml").write_text(yaml.safe_dump({env_id: entry for env_id in env_ids}))
+    return directory
 
 
 @pytest.fixture(scope="session")

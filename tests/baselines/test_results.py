@@ -16,7 +16,7 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
     monitor = pd.read_csv(training / "monitor.csv")
     assert monitor["timesteps"].iloc[-1] == monitor["l"].sum()
     assert list(pd.read_csv(training / "evaluations.csv").columns) == ["timesteps", "success_rate",
-                                                                       "mean_return"]
+                                                                       "mean_return", "episodes"]
     jobs = results.evaluation_jobs(runs_dir, out)
     n_cells = 1 + len(results.CONDITIONS) * 6
     assert len(jobs) == 3 * n_cells  # the run and the controller on both envs
@@ -38,3 +38,5 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
     assert (out / "learning_curves.png").is_file()
     assert f"| SoftArm/OctArmReach-v0 | {tiny_sac_run.name} | " in text
     assert "| cable_encoder | noisy |" in text
+    assert "1 episode each" in text and "periodic deterministic evaluations, 1 episode)" in text
+    assert "![learning curves](results/learning_curves.png)" in text

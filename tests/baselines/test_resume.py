@@ -16,22 +16,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from baselines import train as train_module
 from baselines.config import load_policy, sidecar_paths
 from baselines.evaluate import evaluate
 from baselines.train import TrainingInterrupted, latest_checkpoint, resume, train
-from tests.baselines.conftest import TINY
+from tests.baselines.conftest import TINY, tiny_hyperparams
 
 ENV_ID = "SoftArm/OctArmReach-v0"
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def _start(tmp_path, *extra):
-    hyperparams = tmp_path / "hyperparams"
-    hyperparams.mkdir()
-    (hyperparams / "sac.yml").write_text(yaml.safe_dump({ENV_ID: TINY["sac"]}))
+    hyperparams = tiny_hyperparams(tmp_path / "hyperparams")
     argv = [sys.executable, "-m", "baselines.train", "--env", ENV_ID, "--algo", "sac", "--seed", "5",
             "--timesteps", "1000000", "--log-dir", str(tmp_path / "runs"), "--hyperparams-dir",
             str(hyperparams), "--checkpoint-freq", "100", "--eval-freq", "100", "--eval-episodes", "1",

@@ -69,7 +69,10 @@ def test_bad_hyperparameters_are_named(tmp_path):
         load_hyperparams("td3", ENV_IDS[0], tmp_path)
     with pytest.raises(ValueError, match="time_limit_min"):
         train(ENV_IDS[0], "sac", log_dir=tmp_path, hyperparams=TINY["sac"], time_limit_min=0)
-    assert HYPERPARAMS_DIR.is_dir()
+    for name in ("", "..", "a/b"):
+        with pytest.raises(ValueError, match="run_name must be a plain folder name"):
+            train(ENV_IDS[0], "sac", log_dir=tmp_path, hyperparams=TINY["sac"], run_name=name)
+    assert HYPERPARAMS_DIR.is_dir() and not list(tmp_path.glob("*/config.json"))
 
 
 @pytest.mark.parametrize(("env_id", "message"), [
