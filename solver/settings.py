@@ -19,7 +19,9 @@ class Settings:
 
     Attributes:
         steps_per_section: fixed RK4 steps per section (error ∝ steps⁻⁴).
-        tol: Newton tolerance on the tip-moment residual, relative to EI_max / L.
+        tol: Newton tolerance on the moment residuals, relative to the arm's moment scale
+            (Σ L_i/EI_i)⁻¹ (in 3D with torsion: L_i/min(EI_i, GJ_i)), or to the loads'
+            moment N·L where that is larger (round-off grows with it).
         max_iter: Newton iterations per continuation step.
         dt0, dt_min: first and smallest continuation step (fraction of the ramp).
         contact_dt_min: smallest continuation step of solves with obstacles: a stiff
