@@ -312,6 +312,14 @@ def contact_layout(arm, packed, scene):
     return arm._solver_cache.get(key, build)
 
 
+def refined(arm, packed, steps):
+    """``packed`` with ``steps`` (ns,) RK4 steps per section (cached): the finer grid a solve
+    takes where the step-size check fails (:mod:`solver._grid`)."""
+    steps = tuple(int(v) for v in steps)
+    key = (*packed.key, "steps", steps)
+    return arm._solver_cache.get(key, lambda: packed.with_steps(np.array(steps), key))
+
+
 def shooting_layout(arm, packed):
     """Multiple-shooting segments at the settings' resolution (cached per packed design)."""
     return arm._solver_cache.get(("multiple", packed.key), lambda: _segments(packed))

@@ -112,7 +112,7 @@ def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False,
     return arm._solver_cache.get(key, build)
 
 
-def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Planar dead-load solve: single shooting, or multiple shooting where that is
     ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``)."""
     fallbacks = settings.n_scan > 0 and model != "constant_curvature"
@@ -120,7 +120,7 @@ def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, rec
     methods = (solve_single, solve_multiple)
     if fallbacks and ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
         methods = methods[::-1]
-    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings)
+    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     eq = methods[0](*args)
     if fallbacks and not (eq.converged and eq.stable):
         # Each method covers the other's failures: multiple shooting the ill-conditioned
@@ -131,7 +131,7 @@ def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, rec
     return eq
 
 
-def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings,
+def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
                  guard_3d=False, guard_discs=NO_DISCS):
     """Planar dead-load solve by single shooting on m0 (:func:`solver._planar._follow`).
 
@@ -156,15 +156,13 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, rec
             return Equilibrium(tip=np.full(2, np.nan), converged=False, stable=False,
                                iterations=iterations, residual=math.inf)
         start_ctx, p_start = ctx, np.zeros_like(p_target)
-    out = np.empty((packed.n_rows, L.N_COLUMNS)) if record else None
+    out = np.empty((packed.n_rows, L.N_COLUMNS))
     state, ok, stable, snap, its, res, rest, loads_now = follow(
         packed, scene, p_start, p_target, start_ctx, ctx, m0, out, guard_3d, guard_discs)
     common = dict(converged=bool(ok), stable=bool(stable), iterations=int(iterations + its),
                   residual=float(res), snapped=bool(snapped or snap), model=model, planar=True,
                   scene=scene, pressures=p_inputs, channel_pressures=p_channel,
                   base_moment=state[:1].copy(), base_force=ctx.base_force)
-    if not record:
-        return Equilibrium(tip=state[1:3].copy(), **common)
     if not ok:  # the returned (last good) state was not recorded by a final Newton pass
         integrate_planar(state[0], scene.base_theta, packed.secf, packed.sec_steps, rest,
                          loads_now, True, out)

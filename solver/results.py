@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -82,6 +82,22 @@ class Equilibrium:
     def tip_angle(self) -> float:
         """Planar tip orientation θ(L) (rad); NaN if not recorded or spatial."""
         return float(self.angles[-1]) if self.angles.size else math.nan
+
+
+SAMPLED = {f.name: f.default_factory for f in fields(Equilibrium) if f.name in (
+    "s", "positions", "angles", "orientations", "shear_stretch", "curvature", "internal_force",
+    "internal_moment", "contact_force", "penetration")}
+"""The per-sample fields of an :class:`Equilibrium` (first axis: the samples), with their
+empty defaults."""
+
+
+_UNSAMPLED = tuple(f.name for f in fields(Equilibrium)
+                   if f.name not in SAMPLED and f.name != "section_ends")
+
+
+def tip_only(eq: Equilibrium) -> Equilibrium:
+    """``eq`` without its samples (what a solve with ``record=False`` returns)."""
+    return Equilibrium(**{name: getattr(eq, name) for name in _UNSAMPLED})
 
 
 # ----------------------------------------------------------------------------- packing

@@ -10,24 +10,35 @@ does not need is skipped:
 * obstacles out of reach, or a path that stays clear of them → the contact-free solve;
 * ``record=False`` → no backbone samples, just the tip.
 
+Every result is checked before it is called converged: Newton's residual against the arm's
+moment scale (each section's EI/L in series), and the RK4 grid against the result's own
+curvature and loads (:mod:`solver._grid`); where the grid is too coarse the solve is repeated
+on a finer one, up to ``Settings.max_refinement``, and sampled back on the settings' grid.
+
 Policy for an unconverged solve: :func:`solve` returns an :class:`Equilibrium` with
-``converged=False`` and the residual of the last iterate; its shape is that iterate's
-(always finite for finite inputs). Pass ``strict=True`` to raise :class:`SolverError`
-instead. Bad input raises ``ValueError`` naming the problem before any kernel runs.
+``converged=False`` and the residual of the last iterate; its shape is that iterate's.
+Where the kernels give no finite iterate (or fail outright) the result is the unloaded shape
+at the requested pressures with ``converged=False``, ``stable=False`` and an infinite
+residual: never NaN, never an exception. Pass ``strict=True`` to raise :class:`SolverError`
+instead. Bad input raises ``ValueError`` naming the problem before any kernel runs
+(docs/design.md §11).
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
+
 import numpy as np
 
-from solver import _planar
+from solver import _grid, _planar
 from solver import layout as L
-from solver._model import PackedArm, context, has_load, pack
+from solver._model import PackedArm, context, has_load, pack, refined
 from solver._paths_contact import solve_contact, solve_rigid
 from solver._paths_planar import closed_form, loaded_base_moment, solve_planar
 from solver._paths_spatial import in_plane, in_plane_shortcut, in_plane_state, solve_spatial
 from solver.designs import ArmDesign
-from solver.results import BatchState, Equilibrium
+from solver.results import BatchState, Equilibrium, tip_only
 from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings, SolverError
 
@@ -147,24 +158,55 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
 
 def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, record,
               settings) -> Equilibrium:
-    """The solve of validated inputs by the path the scene needs."""
-    if scene.obstacles and model != "constant_curvature":
-        contact = solve_rigid if scene.has_rigid_obstacles else solve_contact
-        return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                       settings)
-    if model == "constant_curvature" or (settings.shortcuts and not has_load(arm, scene)):
+    """The solve of validated inputs by the path the scene needs (:func:`_path`), on an RK4
+    grid fine enough for its result, returned on the settings' grid (the finer grid's nodes
+    include it). Never raises (module docstring)."""
+    if model == "constant_curvature" or (
+            not scene.obstacles and settings.shortcuts and not has_load(arm, scene)):
         return closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
+    q = packed.mass_per_length * scene.gravity
+    layout = packed
+    while True:
+        try:
+            eq = _path(arm, layout, p_inputs, p_channel, scene, model, planar, warm_start,
+                       settings)
+            need = _grid.needs(eq, layout.secf, q)  # infinite at a sample that is not finite
+            worst = float(need.max())
+        except (ArithmeticError, np.linalg.LinAlgError):
+            eq = None
+        if eq is None or not (math.isfinite(worst) and all(map(math.isfinite, eq.tip))):
+            # No finite state: the unloaded shape at these pressures, flagged (finite, so that
+            # a stepper can keep it).
+            eq = closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
+            return replace(eq, converged=False, stable=False, residual=np.inf)
+        if worst <= 1.0:
+            break
+        steps = _grid.refined_steps(eq, packed.sec_steps, layout.sec_steps, need,
+                                    settings.max_refinement)
+        if steps is None:  # the finest grid allowed does not resolve this state
+            eq = replace(eq, converged=False)
+            break
+        layout = refined(arm, packed, steps)
+    if layout is not packed and not scene.obstacles:  # (contact keeps its own finer layout)
+        eq = _grid.on_grid(eq, layout.sec_steps, packed.sec_steps)
+    return eq if record else tip_only(eq)
+
+
+def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, settings):
+    """The recorded solve by the path the scene needs (contact, planar, the in-plane
+    shortcut of a spatial solve, spatial)."""
+    if scene.obstacles:
+        contact = solve_rigid if scene.has_rigid_obstacles else solve_contact
+        return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     if planar:
-        return solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                            settings)
+        return solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     if settings.shortcuts and scene.is_planar and in_plane(arm, packed, p_channel) and (
             warm_start is None or in_plane_state(warm_start)):
         eq = in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start,
-                               record, settings)
+                               settings)
         if eq is not None:
             return eq
-    return solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                         settings)
+    return solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
 
 
 def _check_warm_start(warm_start, scene, model, planar, p_channel):
@@ -231,10 +273,18 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
     m0 = loaded_base_moment(arm, packed, scene, ctx)[0]
     n = p.shape[0]
     tips, ok = np.empty((n, 2)), np.empty(n, dtype=bool)
+    stable = np.empty(n, dtype=bool)
     _planar._batch(np.full(n, m0), np.zeros_like(channel), scene.base_theta, packed.secf,
                    packed.sec_steps, packed.tubes_i, packed.tubes_f, channel, ctx.loads, ctx.m_tip,
-                   ctx.params, False, tips, ok, np.empty(n, dtype=bool), np.empty(n),
-                   np.empty((n, 1, L.N_COLUMNS)))
+                   ctx.params, False, tips, ok, stable, np.empty(n), np.empty((n, 1, L.N_COLUMNS)))
+    for k in np.flatnonzero(~(ok & stable)):
+        # What solve() does where single shooting fails or its grid is too coarse: the other
+        # method, a finer grid.
+        p_channel = channel[k] if arm.n_channels else np.zeros(0)
+        eq = _dispatch(arm, packed, p[k].copy(), p_channel.copy(), scene, model, planar, None,
+                       False, settings)
+        tips[k] = eq.tip
+        ok[k] = eq.converged
     return tips, ok
 
 

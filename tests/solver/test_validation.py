@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -102,3 +103,33 @@ def test_unconverged_solves_stay_finite_and_consistent():
         np.testing.assert_allclose(eq.tip, tip, atol=1e-12)
         if not eq.converged:
             assert eq.residual > 0
+
+
+@pytest.mark.parametrize("failure", ["raise", "nan"])
+def test_no_exception_and_no_nan_escapes_a_solve(monkeypatch, failure):
+    """A kernel that fails outright (issue #19: LinAlgError from a singular matrix) or gives a
+    NaN state: an unconverged, unstable, finite result (the unloaded shape), SolverError with
+    strict=True, and the same from a stepper (which keeps the state)."""
+    import importlib
+
+    api = importlib.import_module("solver.solve")  # the module (solver.solve is the function)
+    path = api._path
+
+    def broken(*args):
+        if failure == "raise":
+            raise np.linalg.LinAlgError("Singular matrix")
+        eq = path(*args)
+        return replace(eq, tip=np.full_like(eq.tip, np.nan))
+
+    monkeypatch.setattr(api, "_path", broken)
+    scene = solver.Scene(base_angle_deg=90, payload_kg=0.2)
+    p = np.array([30, 0, 0, 0, 0, 0]) * PSI
+    for planar in (True, False):
+        pressures = p if planar else np.zeros(9)
+        eq = solver.solve(ARM, pressures, scene, planar=planar)
+        assert not eq.converged and not eq.stable and eq.residual == np.inf
+        assert np.all(np.isfinite(eq.tip)) and np.all(np.isfinite(eq.positions))
+        with pytest.raises(solver.SolverError):
+            solver.solve(ARM, pressures, scene, planar=planar, strict=True)
+    report = solver.Stepper(ARM, scene, planar=False).reset(np.zeros(9))
+    assert not report.converged
