@@ -37,7 +37,7 @@ def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
                         zip(packed.sec_len, packed.sec_steps, starts)]) if record else np.empty(0)
     n = s.size
     common = dict(converged=True, stable=True, iterations=0, residual=0.0, model=model,
-                  planar=planar, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
+                  planar=planar, scene=scene, arm=arm, pressures=p_inputs, channel_pressures=p_channel,
                   base_moment=np.zeros(1 if planar else 3), base_force=np.zeros(2 if planar else 3))
     ends = np.empty((ns, 3))
     if planar:
@@ -162,7 +162,7 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, set
     common = dict(converged=bool(ok), stable=bool(stable), iterations=int(iterations + its),
                   residual=float(res), snapped=bool(snapped or snap), model=model, planar=True,
                   scene=scene, pressures=p_inputs, channel_pressures=p_channel,
-                  base_moment=state[:1].copy(), base_force=ctx.base_force)
+                  base_moment=state[:1].copy(), base_force=ctx.base_force, arm=arm)
     if not ok:  # the returned (last good) state was not recorded by a final Newton pass
         integrate_planar(state[0], scene.base_theta, packed.secf, packed.sec_steps, rest,
                          loads_now, True, out)

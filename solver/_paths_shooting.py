@@ -93,7 +93,7 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
             return _shooting_result(nodes, scene, grid, layout, start,
                                     converged=False, stable=False, iterations=iterations,
                                     residual=math.inf, model=model, pressures=p_inputs,
-                                    channel_pressures=p_channel)
+                                    channel_pressures=p_channel, arm=arm)
     now = _contact._new_level(goal)
     rest = np.empty((3, len(arm.sections)))
     grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
@@ -122,7 +122,7 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
     return _shooting_result(nodes, scene, grid, layout, now,
                             converged=bool(ok), stable=bool(stable), snapped=snapped,
                             iterations=int(iterations), residual=float(res), model=model,
-                            pressures=p_inputs, channel_pressures=p_channel)
+                            pressures=p_inputs, channel_pressures=p_channel, arm=arm)
 
 
 def _resolved(nodes, grid, layout, level):

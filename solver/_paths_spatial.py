@@ -108,7 +108,8 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
                   converged=bool(ok and res <= 10 * ctx.tol), stable=bool(stable),
                   iterations=int(iterations), residual=res, snapped=bool(snapped or snap_load),
                   model=model, planar=False, scene=scene, pressures=p_inputs,
-                  channel_pressures=p_channel, base_moment=m0.copy(), base_force=ctx.base_force)
+                  channel_pressures=p_channel, base_moment=m0.copy(), base_force=ctx.base_force,
+                  arm=arm)
     seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
     starts = np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])
     s = np.concatenate([np.linspace(0.0, length, k + 1) + off for length, k, off in

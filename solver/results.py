@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from solver.designs import ArmDesign
 from solver.scene import Scene
 
 __all__ = ["Equilibrium", "BatchState"]
@@ -48,6 +49,8 @@ class Equilibrium:
         penalty_stiffness: with rigid obstacles, the penalty stiffness (N/m²) that met
             ``Settings.gap_tol`` (NaN otherwise).
         model, planar: what was solved.
+        arm, scene: the design and scene it was solved for (a warm start is checked
+            against them).
     """
 
     tip: np.ndarray
@@ -77,6 +80,7 @@ class Equilibrium:
     scene: Scene | None = field(default=None, repr=False)
     channel_pressures: np.ndarray = field(default_factory=_empty(0), repr=False)
     penalty_stiffness: float = math.nan
+    arm: ArmDesign | None = field(default=None, repr=False, compare=False)
 
     @property
     def tip_angle(self) -> float:

@@ -134,7 +134,9 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
         scene: mounting and loads (default: hanging, gravity, no payload).
         model: ``"full"``, ``"unshearable"`` (GA → ∞) or ``"constant_curvature"``.
         planar: solve in the x–y plane (inputs are planar channels) or in 3D.
-        warm_start: a previous equilibrium of the same arm, model and mode.
+        warm_start: a previous equilibrium of the same arm, model and mode, solved at the
+            same base angle (its loads and pressures are ramped to this scene's; obstacles it
+            was not solved with must not lie across its backbone).
         record: return backbone samples (False: tip only, faster).
         settings: numerical settings.
         strict: raise :class:`SolverError` instead of returning an unconverged result.
@@ -147,7 +149,7 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
     packed = pack(arm, model, settings)
     p_inputs, p_channel = _channel_pressures(arm, pressures, planar, packed)
     if warm_start is not None:
-        _check_warm_start(warm_start, scene, model, planar, p_channel)
+        _check_warm_start(warm_start, arm, scene, model, planar)
     eq = _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, record,
                    settings)
     if strict and not eq.converged:
@@ -209,14 +211,32 @@ def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, se
     return solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
 
 
-def _check_warm_start(warm_start, scene, model, planar, p_channel):
+def _check_warm_start(warm_start, arm, scene, model, planar):
+    """A warm start must be a result of this arm, model and mode, solved in a scene the path
+    can ramp from: the same mounting, and no obstacle it was not solved with lying across
+    its backbone (loads and pressures ramp; a base or an obstacle cannot)."""
     if not isinstance(warm_start, Equilibrium):
         raise ValueError("warm_start must be an Equilibrium returned by solve()")
-    if warm_start.planar != planar or warm_start.model != model or \
-            warm_start.channel_pressures.shape != p_channel.shape:
-        raise ValueError("warm_start comes from a different arm, model or planar mode")
-    if warm_start.scene is not None and warm_start.scene.base_angle_deg != scene.base_angle_deg:
-        raise ValueError("warm_start was solved at a different base angle")
+    if warm_start.arm is None or warm_start.scene is None:
+        raise ValueError("warm_start does not say which arm and scene it was solved for; pass "
+                         "an Equilibrium returned by solve() or a Stepper")
+    if warm_start.arm is not arm and warm_start.arm != arm:
+        raise ValueError(f"warm_start was solved for design {warm_start.arm.name!r}, not for "
+                         f"this {arm.name!r} design (or for another variant of it)")
+    if warm_start.planar != planar or warm_start.model != model:
+        raise ValueError(f"warm_start comes from a {'planar' if warm_start.planar else 'spatial'} "
+                         f"{warm_start.model!r} solve, not a {'planar' if planar else 'spatial'} "
+                         f"{model!r} one")
+    if warm_start.scene.base_angle_deg != scene.base_angle_deg:
+        raise ValueError(f"warm_start was solved at a different base angle "
+                         f"({warm_start.scene.base_angle_deg:g} deg, not {scene.base_angle_deg:g})")
+    new = [k for k, d in enumerate(scene.obstacles) if d not in warm_start.scene.obstacles]
+    points = warm_start.positions if warm_start.positions.shape[0] else warm_start.tip[None, :]
+    for k in new:
+        d = scene.obstacles[k]
+        if np.min(np.hypot(points[:, 0] - d.center[0], points[:, 1] - d.center[1])) < d.radius:
+            raise ValueError(f"warm_start's backbone lies inside obstacle {k} ({d}), which it "
+                             "was not solved with: an obstacle cannot be ramped in; solve cold")
 
 
 def _batch_inputs(arm, pressures, scene, model, planar, settings):

@@ -60,11 +60,32 @@ def test_bad_warm_start():
     eq = solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=30))
     with pytest.raises(ValueError, match="base angle"):
         solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=60), warm_start=eq)
-    with pytest.raises(ValueError, match="different arm, model or planar"):
+    with pytest.raises(ValueError, match="planar 'full' solve, not a planar 'unshearable'"):
         solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=30), model="unshearable",
                      warm_start=eq)
     with pytest.raises(ValueError, match="Equilibrium"):
         solver.solve(ARM, np.zeros(6), warm_start={"tip": [0, 0]})
+
+
+def test_warm_start_from_another_arm_or_scene_is_refused():
+    """Same channel count, another design (or a variant of this one): refused by name. A
+    scene may differ in its loads (they are ramped), not in an obstacle across the arm."""
+    scene = solver.Scene(base_angle_deg=90)
+    eq = solver.solve(ARM, np.zeros(6), scene)
+    for other in (designs.octarm_vi(), designs.octarm_v(endplate_mass=0.1)):
+        with pytest.raises(ValueError, match="solved for design 'octarm_v?i?', not for this"):
+            solver.solve(other, np.zeros(6), scene, warm_start=eq)
+    with pytest.raises(ValueError, match="which arm and scene"):
+        solver.solve(ARM, np.zeros(6), scene, warm_start=replace(eq, scene=None))
+    across = solver.Disc(center=tuple(eq.positions[20]), radius=0.05)
+    with pytest.raises(ValueError, match="inside obstacle 0"):
+        solver.solve(ARM, np.zeros(6), replace(scene, obstacles=(across,)), warm_start=eq)
+    clear = solver.Disc(center=(0.4, 0.3), radius=0.05)
+    heavier = replace(scene, payload_kg=0.3, obstacles=(clear,))
+    assert solver.solve(ARM, np.zeros(6), heavier, warm_start=eq).converged
+    stepper = solver.Stepper(designs.octarm_vi(), scene)
+    with pytest.raises(ValueError, match="solved for design 'octarm_v'"):
+        stepper.reset(np.zeros(6), warm_start=eq)
 
 
 def test_bad_batch():
