@@ -119,6 +119,8 @@ class BatchState:
         shapes: (n, N, 10) recorded backbones when stepped with ``record=True``: columns s, x,
             y, θ, m, n_x, n_y, v1, v3, u (see :mod:`solver._planar`); else (n, 1, 10) scratch.
         section_ends: sample indices of the section ends in ``shapes``.
+        arm, scene: the design and scene they were stepped for (a next step is checked
+            against them).
     """
 
     pressures: np.ndarray
@@ -128,3 +130,5 @@ class BatchState:
     section_ends: tuple
     base_moment: np.ndarray = field(repr=False, default=None)
     channel_pressures: np.ndarray = field(repr=False, default=None)
+    arm: ArmDesign | None = field(repr=False, default=None)
+    scene: Scene | None = field(repr=False, default=None)

@@ -290,14 +290,14 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
             ok[k] = eq.converged
         return tips, ok
     ctx = context(arm, packed, scene, 2, settings)
-    m0 = loaded_base_moment(arm, packed, scene, ctx)[0]
+    loaded = loaded_base_moment(arm, packed, scene, ctx)
     n = p.shape[0]
     tips, ok = np.empty((n, 2)), np.empty(n, dtype=bool)
     stable = np.empty(n, dtype=bool)
-    _planar._batch(np.full(n, m0), np.zeros_like(channel), scene.base_theta, packed.secf,
+    _planar._batch(np.full(n, loaded.m0), np.zeros_like(channel), scene.base_theta, packed.secf,
                    packed.sec_steps, packed.tubes_i, packed.tubes_f, channel, ctx.loads, ctx.m_tip,
                    ctx.params, False, tips, ok, stable, np.empty(n), np.empty((n, 1, L.N_COLUMNS)))
-    for k in np.flatnonzero(~(ok & stable)):
+    for k in np.flatnonzero(~(ok & stable & loaded.resolved)):
         # What solve() does where single shooting fails or its grid is too coarse: the other
         # method, a finer grid.
         p_channel = channel[k] if arm.n_channels else np.zeros(0)
@@ -332,19 +332,37 @@ def step_batch(arm: ArmDesign, pressures, scene: Scene | None = None,
         raise ValueError("step_batch does not model contact; use solve() for scenes with obstacles")
     ctx = context(arm, packed, scene, 2, settings)
     n = p.shape[0]
+    moving = True
     if state is None:
-        m0 = loaded_base_moment(arm, packed, scene, ctx)[0]
-        m_start, p_start, p_prev = np.full(n, m0), np.zeros_like(channel), np.zeros_like(p)
+        loaded = loaded_base_moment(arm, packed, scene, ctx)
+        m_start, p_start, p_prev = np.full(n, loaded.m0), np.zeros_like(channel), np.zeros_like(p)
+        # A loaded arm beyond the grid (solve() refines it): no copy moves from it.
+        moving = loaded.resolved
     else:
-        if state.base_moment.shape != (n,):
-            raise ValueError(f"state holds {state.base_moment.shape[0]} arms; pressures has {n} rows")
+        _check_batch_state(state, arm, scene, n)
         m_start, p_start, p_prev = state.base_moment, state.channel_pressures, state.pressures
     tips, ok, m0_out = np.empty((n, 2)), np.empty(n, dtype=bool), np.empty(n)
     shapes = np.empty((n, packed.n_rows if record else 1, L.N_COLUMNS))
     _planar._batch(m_start, p_start, scene.base_theta, packed.secf, packed.sec_steps,
-                   packed.tubes_i, packed.tubes_f, channel, ctx.loads, ctx.m_tip, ctx.params,
-                   record, tips, ok, np.empty(n, dtype=bool), m0_out, shapes)
+                   packed.tubes_i, packed.tubes_f, channel if moving else p_start, ctx.loads,
+                   ctx.m_tip, ctx.params, record, tips, ok, np.empty(n, dtype=bool), m0_out, shapes)
+    ok &= moving
     keep = ~ok[:, None]
     return BatchState(pressures=np.where(keep, p_prev, p), tips=tips, converged=ok, shapes=shapes,
                       section_ends=packed.section_ends, base_moment=m0_out,
-                      channel_pressures=np.where(keep, p_start, channel))
+                      channel_pressures=np.where(keep, p_start, channel), arm=arm, scene=scene)
+
+
+def _check_batch_state(state, arm, scene, n):
+    """A step_batch state must come from step_batch with this arm, in this scene (the copies
+    are stepped under the same loads), with n copies."""
+    if not isinstance(state, BatchState) or state.arm is None:
+        raise ValueError("state must be the BatchState a previous step_batch call returned")
+    if state.arm is not arm and state.arm != arm:
+        raise ValueError(f"state was stepped for design {state.arm.name!r}, not for this "
+                         f"{arm.name!r} design (or for another variant of it)")
+    if state.scene != scene:
+        raise ValueError(f"state was stepped in {state.scene}, not in {scene}: step_batch keeps "
+                         "the loads; solve() ramps from one scene to another")
+    if state.base_moment.shape != (n,):
+        raise ValueError(f"state holds {state.base_moment.shape[0]} arms; pressures has {n} rows")

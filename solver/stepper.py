@@ -348,8 +348,7 @@ class BatchStepper:
         if reason is not None:
             raise ValueError(f"BatchStepper steps the lean planar path only, not {reason}; use "
                              "a Stepper (or solve()) per copy")
-        m0, its0, snapped0, _ = loaded_base_moment(arm, packed, scene, ctx)
-        self._loaded = (m0, its0, snapped0)  # a cold solve's first stage (solve_single)
+        self._loaded = loaded_base_moment(arm, packed, scene, ctx)  # as solve_single's stage 1
         ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
         n_inputs = arm.n_inputs(True)
         self.n_inputs = n_inputs
@@ -402,15 +401,18 @@ class BatchStepper:
 
     def _cold(self, p_channel, states, records, record, rest_a, grad) -> np.ndarray:
         m = p_channel.shape[0]
-        states[:, 0] = self._loaded[0]
+        states[:, 0] = self._loaded.m0
         report = np.zeros((m, 5))
         work = tuple(w[:m] if w.shape[0] >= m else np.empty((m, *w.shape[1:])) for w in self._work[:3])
         kernel = self._rows_kernel(_planar._cold_rows_parallel, _planar._cold_rows_serial, m)
         kernel(self._grid, self._tubes, self._p_zero, p_channel, self._ctx.loads, self._ctx.m_tip,
                self._ctx.params, work, states, records, record, rest_a, grad, report)
-        # As solve_single: the loaded stage's iterations count, and a snap there is a snap.
-        report[:, 3] += self._loaded[1]
-        report[:, 2] = np.maximum(report[:, 2], float(self._loaded[2]))
+        # As solve_single: the loaded stage's iterations count, and a snap there is a snap; a
+        # loaded state beyond the grid leaves every row to the general path (which refines).
+        report[:, 3] += self._loaded.iterations
+        report[:, 2] = np.maximum(report[:, 2], float(self._loaded.snapped))
+        if not self._loaded.resolved:
+            report[:, 0] = 0.0
         return report
 
     def _solve_row(self, p_inputs, p_channel, warm_start, record) -> Equilibrium:

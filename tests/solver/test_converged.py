@@ -66,6 +66,9 @@ def test_a_grid_too_coarse_for_the_load_is_refined():
     np.testing.assert_allclose(eq.positions[-1], eq.tip)
     tips, ok = solver.solve_batch(ARM, np.zeros((2, 6)), scene)
     assert ok.all() and tips[0].tolist() == eq.tip.tolist()
+    # step_batch has no finer grid: its copies stay at the loaded arm, unconverged.
+    state = solver.step_batch(ARM, np.full((2, 6), 1e4), scene)
+    assert not state.converged.any() and not state.pressures.any()
     # Without room to refine, the same solve says it did not converge.
     pinned = solver.solve(ARM, np.zeros(6), scene, settings=solver.Settings(max_refinement=1))
     assert not pinned.converged and pinned.residual < 1e-9

@@ -88,6 +88,18 @@ def test_warm_start_from_another_arm_or_scene_is_refused():
         stepper.reset(np.zeros(6), warm_start=eq)
 
 
+def test_step_batch_state_from_another_arm_or_scene_is_refused():
+    scene = solver.Scene(base_angle_deg=90)
+    state = solver.step_batch(ARM, np.zeros((2, 6)), scene)
+    with pytest.raises(ValueError, match="stepped for design 'octarm_v', not for this 'octarm_vi'"):
+        solver.step_batch(designs.octarm_vi(), np.zeros((2, 6)), scene, state=state)
+    with pytest.raises(ValueError, match="stepped in .* keeps the loads"):
+        solver.step_batch(ARM, np.zeros((2, 6)), replace(scene, payload_kg=0.1), state=state)
+    with pytest.raises(ValueError, match="BatchState"):
+        solver.step_batch(ARM, np.zeros((2, 6)), scene, state=replace(state, arm=None))
+    assert solver.step_batch(ARM, np.zeros((2, 6)), scene, state=state).converged.all()
+
+
 def test_bad_batch():
     with pytest.raises(ValueError, match="shape"):
         solver.solve_batch(ARM, np.zeros(6))
