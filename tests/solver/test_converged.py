@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import solver
-from solver import PSI, designs
-from solver._model import pack
+from solver import PSI, _planar, designs
+from solver._model import context, pack
 from tests.solver import naive
 
 ARM = designs.octarm_v()
@@ -83,6 +83,19 @@ def test_a_load_beyond_the_finest_grid_is_unconverged():
     with pytest.raises(solver.SolverError):
         solver.solve(ARM, np.zeros(6), scene, strict=True)
     assert not solver.solve_batch(ARM, np.zeros((1, 6)), scene)[1][0]
+
+
+def test_no_snap_from_a_state_the_grid_does_not_resolve():
+    """The fold guard of the planar path: the last state before a fold must be resolved for
+    the snap to count (a coarse grid can make folds of its own)."""
+    packed = pack(ARM, "full", solver.Settings())
+    zeros = np.zeros(ARM.n_channels)
+    for moment, resolved in ((5.0, True), (100.0, False)):
+        ctx = context(ARM, packed, solver.Scene(tip_moment=moment), 2, solver.Settings())
+        m0 = solver.solve(ARM, np.zeros(6), solver.Scene(tip_moment=moment)).base_moment[0]
+        assert _planar._resolved(m0, 1.0, -np.pi / 2, packed.secf, packed.sec_steps,
+                                 packed.tubes_i, packed.tubes_f, zeros, zeros, ctx.loads,
+                                 ctx.loads, ctx.m_tip, ctx.m_tip) == resolved
 
 
 def test_steppers_refine_as_solve_does():
