@@ -161,6 +161,12 @@ class BatchedReachVectorEnv(VectorEnv):
         return self._template.observation_slices
 
     @property
+    def template(self) -> ReachEnv:
+        """The single env whose configuration every copy shares (spaces, weights, ``p_max``);
+        never stepped: per-copy state is in the batched arrays and the infos."""
+        return self._template
+
+    @property
     def np_random_seed(self):
         """The seed of each copy's generator (as ``SyncVectorEnv`` reports them)."""
         return None if self._rngs is None else tuple(self._seeds)
