@@ -344,6 +344,9 @@ def load_normalization(path: Path | str, obs_size: int | dict[str, int]) -> dict
                              f"{', '.join(obs_size)}")
         data["obs_rms"] = {k: _stats(obs_rms[k], n, path.name, f"obs_rms[{k!r}]")
                            for k, n in obs_size.items()}
+    elif isinstance(obs_rms, dict) and "mean" not in obs_rms:
+        raise ValueError(f"{path.name}: obs_rms holds statistics per observation key ({', '.join(obs_rms)}), "
+                         "but the observation is flat")
     else:
         data["obs_rms"] = _stats(obs_rms, obs_size, path.name, "obs_rms")
     return data

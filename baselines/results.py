@@ -14,7 +14,9 @@ CSVs, evaluation JSONs), so the document and its plots can be regenerated withou
 * estimator-in-the-loop — every estimator × :data:`CONDITIONS` (``clean``: no noise, no
   payload; ``noisy``: the thesis's Table 4.3 sensor resolutions; ``noisy+payload``: the same
   plus a tip payload drawn per episode from :data:`PAYLOAD_RANGE_KG`, unknown to the agent and
-  to the ``model`` estimator), :data:`GRID_EPISODES` episodes each.
+  to the ``model`` estimator), :data:`GRID_EPISODES` episodes each; not for agents trained on
+  the goal format (``sac_her``), which see the true tip as ``achieved_goal``: the goal format
+  refuses estimators.
 
 Episode ``i`` of every cell is reset with seed ``i``, so all agents face the same targets.
 """
@@ -85,15 +87,15 @@ def collect(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list
 
 def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list[tuple[Path, dict]]:
     """(output JSON path, :func:`baselines.evaluate.evaluate` kwargs) of every grid cell not yet done."""
-    agents = [(run.name, {"model": run / "best_model.zip"}) for run in _runs(Path(runs_dir))
-              if (run / "best_model.zip").is_file()]
-    agents += [(f"jacobian_{env_id.split('/')[-1]}", {"controller": "jacobian", "env_id": env_id})
+    agents = [(run.name, {"model": run / "best_model.zip"}, _goal_format(run))
+              for run in _runs(Path(runs_dir)) if (run / "best_model.zip").is_file()]
+    agents += [(f"jacobian_{env_id.split('/')[-1]}", {"controller": "jacobian", "env_id": env_id}, False)
                for env_id in ENV_IDS]
     jobs = []
     out_dir = Path(results_dir) / "eval"
-    for name, who in agents:
+    for name, who, goal_format in agents:
         cells = [("main", {"episodes": MAIN_EPISODES})]
-        for observation in ESTIMATORS:
+        for observation in () if goal_format else ESTIMATORS:
             for condition, (noise, payload) in CONDITIONS.items():
                 cells.append((f"{observation}__{condition}",
                               {"episodes": GRID_EPISODES, "observation": observation, "sensor_noise": noise,
@@ -103,6 +105,12 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR)
             if not path.is_file():
                 jobs.append((path, {**who, **kwargs, "seed": 0}))
     return jobs
+
+
+def _goal_format(run: Path) -> bool:
+    """Whether the run trained on ``observation_format="goal"`` (its best model's metadata)."""
+    meta = json.loads(sidecar_paths(run / "best_model.zip")[0].read_text())
+    return meta.get("env_kwargs", {}).get("observation_format") == "goal"
 
 
 def _run_job(job: tuple[Path, dict]) -> str:
@@ -231,9 +239,12 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "`softarm_gym.controllers.JacobianController` on the registered env (absolute actions): "
              "box-constrained damped least squares on the nominal model's finite-difference "
              "Jacobian, fed the same observation vector (estimated tip, commanded pressures, goal); "
-             "it assumes no payload and never sees the true tip. Algorithms without a row here are "
-             "configured in `baselines/hyperparams/` and smoke-tested, but were not trained (machine "
-             "time).", "",
+             "it assumes no payload and never sees the true tip. `sac_her_*` is SAC with hindsight "
+             "experience replay (`baselines/hyperparams/sac_her.yml`: the same SAC settings, "
+             "`observation_format=\"goal\"`, 4 relabelled goals per transition from later in the "
+             "episode); it sees the true tip as `achieved_goal`, so it is evaluated on true observations "
+             "only (no estimator grid). Algorithms without a row here are configured in "
+             "`baselines/hyperparams/` and smoke-tested, but were not trained (machine time).", "",
              "Produced with: `python -m baselines.train --env ID --algo sac --seed S --timesteps 150000` "
              "per run (runs in `runs/`, two at a time), then `python -m baselines.results collect`, "
              "`python -m baselines.results evaluate --workers W`, `python -m baselines.results ship` "
@@ -245,6 +256,9 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
               "| median err (mm) | p95 err (mm) | median steps to success |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     by_run = {r["run"]: r for r in runs}
+
+    def kind(name: str) -> str:  # the algorithm of a run (sac_her is not sac), else the name's prefix
+        return by_run[name]["algo"] if name in by_run else name.split("_")[0]
     for env_id in ENV_IDS:
         rows = main[main["env_id"] == env_id] if len(main) else main
         for _, row in rows.sort_values("agent_name").iterrows():
@@ -257,7 +271,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                          f"{100 * row['success_rate']:.0f} % | {_mm(row['median_final_error_m'])} | "
                          f"{_mm(row['p95_final_error_m'])} | {_steps(row['median_steps_to_success'])} |")
         for algo in ALGOS:
-            learned = rows[rows["agent_name"].str.startswith(f"{algo}_")] if len(rows) else rows
+            learned = rows[rows["agent_name"].map(kind) == algo] if len(rows) else rows
             if len(learned) > 1:
                 rates = 100 * learned["success_rate"]
                 lines.append(f"| {env_id} | **{algo} mean ± std over {len(learned)} seeds** | | | | | "
@@ -266,7 +280,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                              f"{_mm(learned['p95_final_error_m'].mean())} | |")
     lines += ["", "Targets of the issue, as measured:", ""]
     for env_id, agent, goal in TARGETS:
-        rows = main[(main["env_id"] == env_id) & main["agent_name"].str.startswith(agent)] \
+        rows = main[(main["env_id"] == env_id) & (main["agent_name"].map(kind) == agent)] \
             if len(main) else main
         if len(rows):
             best = rows["success_rate"].max()

@@ -381,7 +381,9 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
     torch.set_num_threads(config["threads"])
     model, venv = build(env_id, algo, params, seed, batched=config.get("batched", False), monitor_dir=run_dir,
                         append=resumed)
-    eval_venv = _vec_env(env_id, env_kwargs, 1, seed + 10_000, None) if config["eval_freq"] else None
+    # The evaluation env is wrapped as the training env is (SB3 syncs VecNormalize through the wrappers).
+    make_eval = _batched_env if config.get("batched", False) else _vec_env
+    eval_venv = make_eval(env_id, env_kwargs, 1, seed + 10_000, None) if config["eval_freq"] else None
     if normalize:
         if resumed:
             restore_normalization(venv, load_normalization(sidecar_paths(checkpoint)[1],
