@@ -115,3 +115,16 @@ def test_ppo_and_sac_learn_on_the_adapter(algo, kwargs):
     assert model.num_timesteps == 256
     assert len(model.ep_info_buffer) == 8 * (256 // 8 // 20)  # every finished episode was seen
     assert np.all(np.isfinite(venv.obs_rms.mean)) and venv.obs_rms.count > 256
+
+
+def test_adapter_benchmark_rows_and_thread_count_restored():
+    import numba
+
+    from softarm_gym.benchmarks.vector_bench import format_sb3_table, sb3_adapter
+
+    before = numba.get_num_threads()
+    rows = sb3_adapter(sizes=(2, 3), threads=(1,), steps=3)
+    assert numba.get_num_threads() == before
+    assert [(r["num_envs"], r["numba_threads"]) for r in rows] == [(2, 1), (3, 1)]
+    assert all(r["env_steps_per_s"] > 0 and r["env_steps_per_cpu_s"] > 0 for r in rows)
+    assert format_sb3_table(rows).count("\n") == 3
