@@ -242,13 +242,17 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "it assumes no payload and never sees the true tip. `sac_her_*` is SAC with hindsight "
              "experience replay (`baselines/hyperparams/sac_her.yml`: the same SAC settings, "
              "`observation_format=\"goal\"`, 4 relabelled goals per transition from later in the "
-             "episode); it sees the true tip as `achieved_goal`, so it is evaluated on true observations "
-             "only (no estimator grid). Algorithms without a row here are configured in "
+             "episode, `copy_info_dict` keeps the infos its `compute_reward` needs); it sees the true "
+             "tip as `achieved_goal`, so it is evaluated on true observations only (no estimator grid). "
+             "Algorithms without a row here are configured in "
              "`baselines/hyperparams/` and smoke-tested, but were not trained (machine time).", "",
              "Produced with: `python -m baselines.train --env ID --algo sac --seed S --timesteps 150000` "
              "per run (runs in `runs/`, two at a time), then `python -m baselines.results collect`, "
              "`python -m baselines.results evaluate --workers W`, `python -m baselines.results ship` "
-             "(best policy per env → `baselines/trained/`) and `python -m baselines.results report`.", ""]
+             "(best policy per env → `baselines/trained/`) and `python -m baselines.results report`. "
+             "SAC+HER: `python -m baselines.train --env SoftArm/OctArmReach-v0 --algo sac_her --seed 0` "
+             "(the YAML's 100,000 steps), collected and evaluated the same way "
+             "(`evaluate --only sac_her`).", ""]
     main = table[table["cell"] == "main"] if len(table) else table
     lines += ["## Reach with true observations", "",
               f"{MAIN_EPISODES} episodes each, no sensor noise, no payload.", "",
