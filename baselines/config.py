@@ -8,7 +8,15 @@ nothing is ``eval``-ed). Keys other than the ones below go to the SB3 algorithm 
 * ``n_envs`` (int, default 1): parallel copies of the environment (``DummyVecEnv``);
 * ``normalize`` (bool or mapping of ``VecNormalize`` arguments, default false);
 * ``env_kwargs`` (mapping, default empty): keyword arguments of ``gym.make``;
-* ``noise_type`` / ``noise_std`` (off-policy only): ``"normal"`` action noise of that std.
+* ``noise_type`` / ``noise_std`` (off-policy only): ``"normal"`` action noise of that std;
+* ``replay_buffer_class`` (off-policy only): a name from :data:`REPLAY_BUFFERS`
+  (``HerReplayBuffer``, with ``replay_buffer_kwargs`` a mapping), as rl-zoo3 writes it.
+
+``sac_her`` is SAC with its own file, ``hyperparams/sac_her.yml``: hindsight experience
+replay on the goal format (``env_kwargs: {observation_format: goal}``). Files under
+``hyperparams/batched/`` have the same layout for training on the batched env
+(``python -m baselines.train --batched``: ``n_envs`` arms in one
+:class:`softarm_gym.sb3.BatchedVecEnv`).
 
 A trained model ``FILE.zip`` is accompanied by ``FILE.json`` (env id, algorithm, env_kwargs,
 policy class and ``policy_kwargs``, seed, training summary) and, when observations were
@@ -44,20 +52,23 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import yaml
-from stable_baselines3 import PPO, SAC, TD3
+from gymnasium import spaces
+from stable_baselines3 import PPO, SAC, TD3, HerReplayBuffer
 from stable_baselines3.common.noise import NormalActionNoise
 
 import softarm_gym  # noqa: F401  (registers the SoftArm/* environments)
 from softarm_gym.files import write_json
 
-__all__ = ["ALGOS", "HYPERPARAMS_DIR", "load_hyperparams", "split_hyperparams", "make_env",
+__all__ = ["ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams", "split_hyperparams", "make_env",
            "check_env_id", "sidecar_paths", "legacy_normalization_path", "policy_metadata",
            "save_normalization", "load_normalization", "restore_normalization", "read_metadata",
-           "load_policy", "action_noise"]
+           "load_policy", "action_noise", "observation_sizes"]
 
-ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
-"""Algorithm names accepted by ``--algo``."""
+ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3, "sac_her": SAC}
+"""Algorithm names accepted by ``--algo`` (``sac_her``: SAC with the settings of ``sac_her.yml``)."""
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
+REPLAY_BUFFERS = {"HerReplayBuffer": HerReplayBuffer}
+"""Replay buffers a ``replay_buffer_class`` entry may name."""
 _SPECIAL_KEYS = ("policy", "n_timesteps", "n_envs", "normalize", "env_kwargs", "noise_type", "noise_std")
 
 
@@ -92,9 +103,15 @@ def load_hyperparams(algo: str, env_id: str, directory: Path | str = HYPERPARAMS
 
 
 def split_hyperparams(params: dict) -> tuple[dict, dict]:
-    """Split a hyperparameter dict into (the zoo-style special keys, SB3 constructor kwargs)."""
+    """Split a hyperparameter dict into (the zoo-style special keys, SB3 constructor kwargs);
+    a ``replay_buffer_class`` name becomes the class (:data:`REPLAY_BUFFERS`)."""
     special = {k: params[k] for k in _SPECIAL_KEYS if k in params}
     algo_kwargs = {k: v for k, v in params.items() if k not in _SPECIAL_KEYS}
+    if "replay_buffer_class" in algo_kwargs:
+        name = algo_kwargs["replay_buffer_class"]
+        if name not in REPLAY_BUFFERS:
+            raise ValueError(f"replay_buffer_class must be one of {', '.join(REPLAY_BUFFERS)}; got {name!r}")
+        algo_kwargs["replay_buffer_class"] = REPLAY_BUFFERS[name]
     return special, algo_kwargs
 
 
@@ -250,29 +267,54 @@ def read_metadata(meta_path: Path | str) -> dict:
 
 # ----------------------------------------------------------------- normalisation statistics
 
+def observation_sizes(space) -> int | dict[str, int]:
+    """The size of a flat observation space, or of each part of a ``Dict`` one (as
+    ``VecNormalize`` keeps statistics: one running mean per ``Dict`` key)."""
+    if isinstance(space, spaces.Dict):
+        return {key: int(np.prod(sub.shape)) for key, sub in space.spaces.items()}
+    return int(np.prod(space.shape))
+
+
 def save_normalization(vecnorm, path: Path | str) -> None:
-    """Write a ``VecNormalize``'s settings and running statistics to ``path`` as JSON, atomically."""
-    if isinstance(vecnorm.obs_rms, dict):
-        raise ValueError("saving normalisation statistics of Dict observations is not supported; "
-                         "use observation_format='flat'")
+    """Write a ``VecNormalize``'s settings and running statistics to ``path`` as JSON, atomically
+    (``obs_rms`` holds one set of statistics per key for ``Dict`` observations)."""
 
     def stats(rms):
         return {"mean": np.asarray(rms.mean, dtype=float).ravel().tolist(),
                 "var": np.asarray(rms.var, dtype=float).ravel().tolist(), "count": float(rms.count)}
 
+    obs_rms = vecnorm.obs_rms
     write_json(path, {"format": "vecnormalize-1", "norm_obs": bool(vecnorm.norm_obs),
                       "norm_reward": bool(vecnorm.norm_reward), "clip_obs": float(vecnorm.clip_obs),
                       "clip_reward": float(vecnorm.clip_reward), "gamma": float(vecnorm.gamma),
-                      "epsilon": float(vecnorm.epsilon), "obs_rms": stats(vecnorm.obs_rms),
+                      "epsilon": float(vecnorm.epsilon),
+                      "obs_rms": {k: stats(v) for k, v in obs_rms.items()} if isinstance(obs_rms, dict)
+                      else stats(obs_rms),
                       "ret_rms": stats(vecnorm.ret_rms)}, indent=1)
 
 
-def load_normalization(path: Path | str, obs_size: int) -> dict:
+def _stats(rms, size: int, where: str, name: str) -> dict:
+    """One mean/var/count entry of a statistics file, checked against ``size``."""
+    try:
+        mean, var = (np.asarray(rms[k], dtype=float) for k in ("mean", "var"))
+        count = float(rms["count"])
+    except (TypeError, KeyError, ValueError):
+        raise ValueError(f"{where}: {name} must hold mean, var (lists of numbers) and count") from None
+    if mean.shape != (size,) or var.shape != (size,) or not (
+            np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)
+            and math.isfinite(count) and count > 0):
+        raise ValueError(f"{where}: {name} must have {size} finite means, {size} finite variances "
+                         f">= 0 and a count > 0")
+    return {"mean": mean, "var": var, "count": count}
+
+
+def load_normalization(path: Path | str, obs_size: int | dict[str, int]) -> dict:
     """The statistics written by :func:`save_normalization`, checked (sizes, finite, var >= 0).
 
     Args:
         path: the JSON file.
-        obs_size: the flat observation size they must match.
+        obs_size: the flat observation size they must match, or the size per key of a
+            ``Dict`` observation (:func:`observation_sizes`).
 
     Raises:
         ValueError: unreadable or inconsistent statistics (one line).
@@ -294,19 +336,19 @@ def load_normalization(path: Path | str, obs_size: int) -> dict:
         v = data.get(key)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
             raise ValueError(f"{path.name}: {key} must be a finite number > 0; got {v!r:.40}")
-    for key, size in (("obs_rms", obs_size), ("ret_rms", 1)):
-        rms = data.get(key)
-        try:
-            mean, var = (np.asarray(rms[k], dtype=float) for k in ("mean", "var"))
-            count = float(rms["count"])
-        except (TypeError, KeyError, ValueError):
-            raise ValueError(f"{path.name}: {key} must hold mean, var (lists of numbers) and count") from None
-        if mean.shape != (size,) or var.shape != (size,) or not (
-                np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)
-                and math.isfinite(count) and count > 0):
-            raise ValueError(f"{path.name}: {key} must have {size} finite means, {size} finite variances "
-                             f">= 0 and a count > 0")
-        data[key] = {"mean": mean, "var": var, "count": count}
+    data["ret_rms"] = _stats(data.get("ret_rms"), 1, path.name, "ret_rms")
+    obs_rms = data.get("obs_rms")
+    if isinstance(obs_size, dict):
+        if not isinstance(obs_rms, dict) or set(obs_rms) != set(obs_size):
+            raise ValueError(f"{path.name}: obs_rms must hold statistics for the observation keys "
+                             f"{', '.join(obs_size)}")
+        data["obs_rms"] = {k: _stats(obs_rms[k], n, path.name, f"obs_rms[{k!r}]")
+                           for k, n in obs_size.items()}
+    elif isinstance(obs_rms, dict) and "mean" not in obs_rms:
+        raise ValueError(f"{path.name}: obs_rms holds statistics per observation key ({', '.join(obs_rms)}), "
+                         "but the observation is flat")
+    else:
+        data["obs_rms"] = _stats(obs_rms, obs_size, path.name, "obs_rms")
     return data
 
 
@@ -314,11 +356,15 @@ def restore_normalization(vecnorm, stats: dict) -> None:
     """Put :func:`load_normalization` statistics into a ``VecNormalize`` (settings and running stats)."""
     for key in ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon"):
         setattr(vecnorm, key, stats[key])
-    for key in ("obs_rms", "ret_rms"):
-        rms = getattr(vecnorm, key)
-        rms.mean = stats[key]["mean"].reshape(np.shape(rms.mean)).copy()
-        rms.var = stats[key]["var"].reshape(np.shape(rms.var)).copy()
-        rms.count = stats[key]["count"]
+    pairs = [(vecnorm.ret_rms, stats["ret_rms"])]
+    if isinstance(vecnorm.obs_rms, dict):
+        pairs += [(vecnorm.obs_rms[k], stats["obs_rms"][k]) for k in vecnorm.obs_rms]
+    else:
+        pairs.append((vecnorm.obs_rms, stats["obs_rms"]))
+    for rms, saved in pairs:
+        rms.mean = saved["mean"].reshape(np.shape(rms.mean)).copy()
+        rms.var = saved["var"].reshape(np.shape(rms.var)).copy()
+        rms.count = saved["count"]
 
 
 # ----------------------------------------------------------------- loading a trained policy
@@ -411,8 +457,8 @@ def load_policy(model_path: Path | str, *, trust_pickle: bool = False):
             policy = _rebuilt_policy(meta, model_path, venv.observation_space, venv.action_space)
         if norm_path.is_file():
             vecnorm = VecNormalize(venv, training=False)
-            size = int(np.prod(venv.observation_space.shape))
-            restore_normalization(vecnorm, load_normalization(norm_path, size))
+            sizes = observation_sizes(venv.observation_space)
+            restore_normalization(vecnorm, load_normalization(norm_path, sizes))
         elif pickled.is_file():
             vecnorm = VecNormalize.load(str(pickled), venv)
         else:

@@ -14,7 +14,9 @@ CSVs, evaluation JSONs), so the document and its plots can be regenerated withou
 * estimator-in-the-loop — every estimator × :data:`CONDITIONS` (``clean``: no noise, no
   payload; ``noisy``: the thesis's Table 4.3 sensor resolutions; ``noisy+payload``: the same
   plus a tip payload drawn per episode from :data:`PAYLOAD_RANGE_KG`, unknown to the agent and
-  to the ``model`` estimator), :data:`GRID_EPISODES` episodes each.
+  to the ``model`` estimator), :data:`GRID_EPISODES` episodes each; not for agents trained on
+  the goal format (``sac_her``), which see the true tip as ``achieved_goal``: the goal format
+  refuses estimators.
 
 Episode ``i`` of every cell is reset with seed ``i``, so all agents face the same targets.
 """
@@ -99,20 +101,21 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
     Args:
         runs_dir: folder of run folders; each one with a ``best_model.zip`` is an agent.
         results_dir: the cells go to ``results_dir/eval/<agent>__<cell>.json``.
-        grid: the estimator-in-the-loop cells too, not only ``main``.
+        grid: the estimator-in-the-loop cells too, not only ``main`` (never for agents
+            trained on the goal format, whose observation has no estimator blocks to swap).
         env_ids: environments the Jacobian controller is evaluated on, as a reference.
         episodes: episodes of every cell (default :data:`MAIN_EPISODES` for ``main``,
             :data:`GRID_EPISODES` for the others).
     """
-    agents = [(run.name, {"model": run / "best_model.zip"}) for run in _runs(Path(runs_dir))
-              if (run / "best_model.zip").is_file()]
-    agents += [(f"jacobian_{env_id.split('/')[-1]}", {"controller": "jacobian", "env_id": env_id})
+    agents = [(run.name, {"model": run / "best_model.zip"}, _goal_format(run))
+              for run in _runs(Path(runs_dir)) if (run / "best_model.zip").is_file()]
+    agents += [(f"jacobian_{env_id.split('/')[-1]}", {"controller": "jacobian", "env_id": env_id}, False)
                for env_id in env_ids]
     jobs = []
     out_dir = Path(results_dir) / "eval"
-    for name, who in agents:
+    for name, who, goal_format in agents:
         cells = [("main", {"episodes": episodes or MAIN_EPISODES})]
-        for observation in ESTIMATORS if grid else ():
+        for observation in ESTIMATORS if grid and not goal_format else ():
             for condition, (noise, payload) in CONDITIONS.items():
                 cells.append((f"{observation}__{condition}",
                               {"episodes": episodes or GRID_EPISODES, "observation": observation,
@@ -122,6 +125,12 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
             if not path.is_file():
                 jobs.append((path, {**who, **kwargs, "seed": 0}))
     return jobs
+
+
+def _goal_format(run: Path) -> bool:
+    """Whether the run trained on ``observation_format="goal"`` (its best model's metadata)."""
+    meta = json.loads(sidecar_paths(run / "best_model.zip")[0].read_text())
+    return meta.get("env_kwargs", {}).get("observation_format") == "goal"
 
 
 def run_evaluation_job(job: tuple[Path, dict]) -> str:
@@ -279,17 +288,28 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "`softarm_gym.controllers.JacobianController` on the registered env (absolute actions): "
              "box-constrained damped least squares on the nominal model's finite-difference "
              "Jacobian, fed the same observation vector (estimated tip, commanded pressures, goal); "
-             "it assumes no payload and never sees the true tip. Algorithms without a row here are "
-             "configured in `baselines/hyperparams/` and smoke-tested, but were not trained (machine "
-             "time).", "",
+             "it assumes no payload and never sees the true tip. `sac_her_*` is SAC with hindsight "
+             "experience replay (`baselines/hyperparams/sac_her.yml`: the same SAC settings, "
+             "`observation_format=\"goal\"`, 4 relabelled goals per transition from later in the "
+             "episode, `copy_info_dict` keeps the infos its `compute_reward` needs); it sees the true "
+             "tip as `achieved_goal`, so it is evaluated on true observations only (no estimator grid). "
+             "Algorithms without a row here are configured in "
+             "`baselines/hyperparams/` and smoke-tested, but were not trained (machine time).", "",
              "Produced with: `python -m baselines.train --env ID --algo sac --seed S --timesteps 150000` "
              "per run (runs in `runs/`, two at a time), then `python -m baselines.results collect`, "
              "`python -m baselines.results evaluate --workers W`, `python -m baselines.results ship` "
-             "(best policy per env → `baselines/trained/`) and `python -m baselines.results report`.", ""]
+             "(best policy per env → `baselines/trained/`) and `python -m baselines.results report`. "
+             "SAC+HER: `python -m baselines.train --env SoftArm/OctArmReach-v0 --algo sac_her --seed 0` "
+             "(the YAML's 100,000 steps), collected and evaluated the same way "
+             "(`evaluate --only sac_her`).", ""]
     by_run = {r["run"]: r for r in runs}
     if len(table):  # the observation mode each agent was trained on (the controller: true)
         table["trained_on"] = [training_observation(by_run[name]) if name in by_run else "true"
                                for name in table["agent_name"]]
+
+    def kind(name: str) -> str:  # the algorithm of a run (sac_her is not sac), else the name's prefix
+        return by_run[name]["algo"] if name in by_run else name.split("_")[0]
+
     main = table[table["cell"] == "main"] if len(table) else table
     lines += ["## Reach with true observations", "",
               f"{_episodes(main['episodes'])} each, no sensor noise, no payload." if len(main)
@@ -312,7 +332,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                          f"{_mm(row['p95_final_error_m'])} | {_steps(row['median_steps_to_success'])} |")
         for algo in ALGOS:
             for observation in ESTIMATORS:
-                learned = rows[rows["agent_name"].str.startswith(f"{algo}_")
+                learned = rows[(rows["agent_name"].map(kind) == algo)
                                & (rows["trained_on"] == observation)]
                 if len(learned) < 2:
                     continue
@@ -324,7 +344,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                              f"{_mm(learned['p95_final_error_m'].mean())} | |")
     lines += ["", "Targets of the issue, as measured:", ""]
     for env_id, agent, goal in TARGETS:  # the targets are for policies trained on true observations
-        rows = main[(main["env_id"] == env_id) & main["agent_name"].str.startswith(agent)
+        rows = main[(main["env_id"] == env_id) & (main["agent_name"].map(kind) == agent)
                     & (main["trained_on"] == "true")] if len(main) else main
         if len(rows):
             best = rows["success_rate"].max()

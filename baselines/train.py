@@ -2,12 +2,16 @@
 
     python -m baselines.train --env SoftArm/OctArmReach-v0 --algo sac --timesteps 300000 --seed 0
     python -m baselines.train --resume runs/sac_OctArmReach-v0_s0      # after Ctrl-C or a crash
+    python -m baselines.train --env SoftArm/OctArmReach-v0 --algo ppo --batched   # N arms per call
 
-writes into ``<log-dir>/<algo>_<env>_s<seed>/``:
+writes into ``<log-dir>/<algo>_<env>_s<seed>/`` (``<algo>_<env>_batched_s<seed>/`` with
+``--batched``, which trains on one :class:`softarm_gym.sb3.BatchedVecEnv` of ``n_envs`` arms
+with the hyperparameters of ``baselines/hyperparams/batched/``):
 
 * ``config.json`` — everything needed to continue the run (``--resume``);
 * ``monitor.csv`` — one row per training episode (return, length, wall time, final
-  ``is_success`` and ``distance``), the learning curve;
+  ``is_success`` and ``distance``), the learning curve (with ``--batched``, one file for
+  all arms, written by ``VecMonitor``);
 * ``progress.csv`` and TensorBoard event files — SB3's logger (a resumed run moves the
   previous ``progress.csv`` to ``progress_<k>.csv``);
 * ``checkpoints/model_<steps>_steps.zip`` every ``--checkpoint-freq`` steps, each with its
@@ -58,9 +62,9 @@ import numpy as np
 import torch
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, EvalCallback
 from stable_baselines3.common.logger import configure
-from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.monitor import Monitor, ResultsWriter
 from stable_baselines3.common.save_util import load_from_zip_file, recursive_setattr
-from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 from tqdm import tqdm
 
 from baselines.config import (
@@ -71,6 +75,7 @@ from baselines.config import (
     load_hyperparams,
     load_normalization,
     make_env,
+    observation_sizes,
     policy_metadata,
     restore_normalization,
     save_normalization,
@@ -78,8 +83,9 @@ from baselines.config import (
     split_hyperparams,
 )
 from softarm_gym.files import atomic_write, write_json
+from softarm_gym.sb3 import BatchedVecEnv
 
-__all__ = ["train", "resume", "TrainingInterrupted", "latest_checkpoint", "save_checkpoint", "main"]
+__all__ = ["train", "resume", "build", "TrainingInterrupted", "latest_checkpoint", "save_checkpoint", "main"]
 
 MONITOR_KEYS = ("is_success", "distance")
 """Final-step info entries written to ``monitor.csv`` for every training episode."""
@@ -271,6 +277,21 @@ class _Evaluation(EvalCallback):
 
 # --------------------------------------------------------------------------- the run
 
+def _batched_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir: Path | None,
+                 append: bool = False):
+    """``n_envs`` arms in one :class:`BatchedVecEnv`, in a ``VecMonitor`` (``monitor.csv``)."""
+    venv = VecMonitor(BatchedVecEnv(env_id, n_envs, **env_kwargs), info_keywords=MONITOR_KEYS)
+    if monitor_dir is not None:
+        path = monitor_dir / "monitor.csv"
+        t_start = _monitor_start(path) if append else None
+        if t_start is not None:  # times stay relative to the run's first start
+            venv.t_start = t_start
+        venv.results_writer = ResultsWriter(str(path), header={"t_start": venv.t_start, "env_id": env_id},
+                                            extra_keys=MONITOR_KEYS, override_existing=t_start is None)
+    venv.seed(seed)
+    return venv
+
+
 def _vec_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir: Path | None,
              append: bool = False):
     def factory(rank: int):
@@ -313,11 +334,40 @@ def _rotate(path: Path) -> None:
         os.replace(path, path.with_name(f"{path.stem}_{k}{path.suffix}"))
 
 
+def build(env_id: str, algo: str, params: dict, seed: int, *, batched: bool = False,
+          monitor_dir: Path | None = None, append: bool = False):
+    """A fresh model of ``algo`` with hyperparameters ``params`` on its training environment.
+
+    Args:
+        env_id, algo: as :func:`train`.
+        params: a hyperparameter entry (:func:`baselines.config.load_hyperparams`).
+        seed: seeds the model; env copy i is seeded ``seed + i``.
+        batched: the ``n_envs`` copies are arms of one :class:`BatchedVecEnv` (in a
+            ``VecMonitor``), not single envs in a ``DummyVecEnv`` (each in a ``Monitor``).
+        monitor_dir: where the monitor files go (None: none are written).
+        append: continue existing monitor files (a resumed run).
+
+    Returns:
+        (model, its VecEnv: a ``VecNormalize`` when ``normalize`` is set).
+    """
+    special, algo_kwargs = split_hyperparams(copy.deepcopy(params))  # SB3 edits policy_kwargs in place
+    make = _batched_env if batched else _vec_env
+    venv = make(env_id, dict(special.get("env_kwargs", {})), int(special.get("n_envs", 1)), seed, monitor_dir,
+                append=append)
+    normalize = special.get("normalize", False)
+    if normalize:
+        venv = VecNormalize(venv, **(normalize if isinstance(normalize, dict) else {}))
+    noise = action_noise(special, venv.action_space.shape[0])
+    if noise is not None:
+        algo_kwargs["action_noise"] = noise
+    return ALGOS[algo](special["policy"], venv, seed=seed, device="cpu", verbose=0, **algo_kwargs), venv
+
+
 def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bool,
            time_limit_min: float | None) -> Path:
     """Build the model (fresh, or from ``checkpoint``), train to ``config['timesteps']``, save."""
     params = config["hyperparams"]
-    special, algo_kwargs = split_hyperparams(copy.deepcopy(params))  # SB3 edits policy_kwargs in place
+    special, _ = split_hyperparams(params)
     env_id, algo = config["env_id"], config["algo"]
     n_envs = int(special.get("n_envs", 1))
     env_kwargs = dict(special.get("env_kwargs", {}))
@@ -329,27 +379,25 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
     seed = config["seed"] + int(prior.get("timesteps_done", 0))
 
     torch.set_num_threads(config["threads"])
-    venv = _vec_env(env_id, env_kwargs, n_envs, seed, run_dir, append=resumed)
-    eval_venv = _vec_env(env_id, env_kwargs, 1, seed + 10_000, None) if config["eval_freq"] else None
+    model, venv = build(env_id, algo, params, seed, batched=config.get("batched", False), monitor_dir=run_dir,
+                        append=resumed)
+    # The evaluation env is wrapped as the training env is (SB3 syncs VecNormalize through the wrappers).
+    make_eval = _batched_env if config.get("batched", False) else _vec_env
+    eval_venv = make_eval(env_id, env_kwargs, 1, seed + 10_000, None) if config["eval_freq"] else None
     if normalize:
-        venv = VecNormalize(venv, **norm_kwargs)
         if resumed:
             restore_normalization(venv, load_normalization(sidecar_paths(checkpoint)[1],
-                                                           int(np.prod(venv.observation_space.shape))))
+                                                           observation_sizes(venv.observation_space)))
         if eval_venv is not None:
             eval_venv = VecNormalize(eval_venv, training=False, norm_reward=False,
                                      **{k: v for k, v in norm_kwargs.items() if k != "norm_reward"})
-    noise = action_noise(special, venv.action_space.shape[0])
-    if noise is not None:
-        algo_kwargs["action_noise"] = noise
-    model = ALGOS[algo](special["policy"], venv, seed=seed, device="cpu", verbose=0, **algo_kwargs)
     note = _restore(model, checkpoint, prior) if resumed else ""
     if resumed:
         _rotate(run_dir / "progress.csv")
     model.set_logger(configure(str(run_dir), ["csv", "tensorboard"] if config["tensorboard"] else ["csv"]))
 
     meta = {"env_id": env_id, "algo": algo, "seed": config["seed"], "env_kwargs": env_kwargs,
-            "hyperparams": params, "timesteps": config["timesteps"]}
+            "hyperparams": params, "timesteps": config["timesteps"], "batched": config.get("batched", False)}
     wall0, cpu0 = float(prior.get("wall_time_s", 0.0)), float(prior.get("cpu_time_s", 0.0))
     start, cpu_start = time.perf_counter(), time.process_time()
 
@@ -423,10 +471,11 @@ def _check_time_limit(time_limit_min) -> None:
 
 def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0,
           log_dir: Path | str = "runs", hyperparams: dict | None = None,
-          hyperparams_dir: Path | str = HYPERPARAMS_DIR, eval_freq: int = 10_000, eval_episodes: int = 20,
+          hyperparams_dir: Path | str | None = None, eval_freq: int = 10_000, eval_episodes: int = 20,
           checkpoint_freq: int = 50_000, threads: int = 1, progress: bool = True,
           tensorboard: bool = True, time_limit_min: float | None = None,
-          save_replay_buffer: bool = False, run_name: str | None = None) -> Path:
+          save_replay_buffer: bool = False, run_name: str | None = None,
+          batched: bool = False) -> Path:
     """Train ``algo`` on ``env_id`` and save everything under ``log_dir`` (module docstring).
 
     Args:
@@ -437,7 +486,8 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
         log_dir: parent folder of the run folder (``run_name``), which must not hold a run
             already (continue one with :func:`resume`).
         hyperparams: replaces the YAML entry entirely (tests use tiny networks this way).
-        hyperparams_dir: folder of the YAML files.
+        hyperparams_dir: folder of the YAML files (default ``baselines/hyperparams``, or its
+            ``batched`` subfolder with ``batched``).
         eval_freq: steps between deterministic evaluations (0 disables them).
         eval_episodes: episodes per evaluation.
         checkpoint_freq: steps between checkpoints (0 disables them).
@@ -447,9 +497,11 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
         time_limit_min: stop after this many minutes of training even if ``timesteps`` are not
             done (``summary.json`` records the steps actually taken).
         save_replay_buffer: off-policy algorithms: save the replay buffer with each checkpoint
-            (and at an interruption), so a resumed run continues with it.
-        run_name: name of the run folder; default ``<algo>_<env>_s<seed>`` (``<env>`` without
-            the ``SoftArm/`` prefix). :mod:`baselines.sweep` adds the observation mode.
+            (and at an interruption), so a resumed run continues with it (not HER's, whose
+            infos and episode bookkeeping are not plain arrays).
+        run_name: name of the run folder; default ``<algo>_<env>[_batched]_s<seed>`` (``<env>``
+            without the ``SoftArm/`` prefix). :mod:`baselines.sweep` adds the observation mode.
+        batched: train on one :class:`softarm_gym.sb3.BatchedVecEnv` of ``n_envs`` arms.
 
     Returns:
         The run folder.
@@ -462,15 +514,20 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
     if algo not in ALGOS:
         raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
     check_env_id(env_id)
+    if hyperparams_dir is None:
+        hyperparams_dir = HYPERPARAMS_DIR / "batched" if batched else HYPERPARAMS_DIR
     params = load_hyperparams(algo, env_id, hyperparams_dir) if hyperparams is None else dict(hyperparams)
-    special, _ = split_hyperparams(params)
+    special, algo_kwargs = split_hyperparams(params)
+    if save_replay_buffer and algo_kwargs.get("replay_buffer_class") is not None:
+        raise ValueError("--save-replay-buffer does not support HerReplayBuffer (its infos are Python "
+                         "objects); resume such a run without it")
     total = int(special["n_timesteps"] if timesteps is None else timesteps)
     if total < 1:
         raise ValueError(f"timesteps must be >= 1; got {total}")
     _check_counts(eval_freq, checkpoint_freq, threads)
     _check_time_limit(time_limit_min)
     if run_name is None:
-        run_name = f"{algo}_{env_id.split('/')[-1]}_s{seed}"
+        run_name = f"{algo}_{env_id.split('/')[-1]}{'_batched' if batched else ''}_s{seed}"
     elif not isinstance(run_name, str) or run_name in ("", ".", "..") or any(c in run_name for c in "/\\\0"):
         raise ValueError(f"run_name must be a plain folder name; got {run_name!r}")
     run_dir = Path(log_dir) / run_name
@@ -480,7 +537,8 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
     run_dir.mkdir(parents=True, exist_ok=True)
     config = {"env_id": env_id, "algo": algo, "seed": seed, "hyperparams": params, "timesteps": total,
               "eval_freq": eval_freq, "eval_episodes": eval_episodes, "checkpoint_freq": checkpoint_freq,
-              "threads": threads, "tensorboard": tensorboard, "save_replay_buffer": save_replay_buffer}
+              "threads": threads, "tensorboard": tensorboard, "save_replay_buffer": save_replay_buffer,
+              "batched": bool(batched)}
     try:
         write_json(run_dir / CONFIG_FILE, config)
     except TypeError as exc:
@@ -542,7 +600,11 @@ def main(argv=None) -> int:
                         help="total steps (default: n_timesteps of the YAML, or the resumed run's)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--log-dir", default="runs", help="parent of the run folder (default %(default)s)")
-    parser.add_argument("--hyperparams-dir", default=str(HYPERPARAMS_DIR))
+    parser.add_argument("--hyperparams-dir", default=None,
+                        help=f"folder of the YAML files (default {HYPERPARAMS_DIR}, with --batched its "
+                             "batched/ subfolder)")
+    parser.add_argument("--batched", action="store_true",
+                        help="train on n_envs arms of one batched env (softarm_gym.sb3.BatchedVecEnv)")
     parser.add_argument("--eval-freq", type=int, default=10_000, help="0 disables periodic evaluation")
     parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--checkpoint-freq", type=int, default=50_000, help="0 disables checkpoints")
@@ -572,7 +634,7 @@ def main(argv=None) -> int:
                             eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                             checkpoint_freq=args.checkpoint_freq, threads=args.threads or 1,
                             progress=not args.no_progress, time_limit_min=args.time_limit_min,
-                            save_replay_buffer=args.save_replay_buffer)
+                            save_replay_buffer=args.save_replay_buffer, batched=args.batched)
     except ValueError as exc:
         print(f"baselines.train: error: {exc}", file=sys.stderr)
         return 2

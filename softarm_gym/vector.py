@@ -10,9 +10,13 @@ reset with ``seed=s + i`` (observations, rewards, flags and infos, as
 ``gym.make_vec(..., vectorization_mode="sync")`` gives them), so a policy trained on one
 runs on the other.
 
-It follows Gymnasium's vector API: ``NEXT_STEP`` autoreset (the step after an episode
-ends resets that copy, returning its first observation, reward 0 and no termination), the
-single env's ``info`` keys as arrays with ``_key`` masks. What needs per-copy machinery —
+It follows Gymnasium's vector API: ``NEXT_STEP`` autoreset by default (the step after an
+episode ends resets that copy, returning its first observation, reward 0 and no
+termination) or ``SAME_STEP`` (``autoreset_mode=AutoresetMode.SAME_STEP``: the step that
+ends an episode resets the copy at once and returns its first observation, with the last
+one in ``info["final_obs"]`` and that step's info in ``info["final_info"]`` — what SB3's
+``VecEnv`` API needs, see :mod:`softarm_gym.sb3`), the single env's ``info`` keys as arrays
+with ``_key`` masks. What needs per-copy machinery —
 estimator observations, payload ranges, parameter randomisation, the wrap task, 3D — is
 refused with a ``ValueError`` naming it: use ``vectorization_mode="sync"`` or ``"async"``.
 """
@@ -85,11 +89,15 @@ class BatchedReachVectorEnv(VectorEnv):
     states, failure policy and ``info`` as :class:`~softarm_gym.envs.ReachEnv` — see its env
     card. Episodes end by truncation after ``max_episode_steps`` or ``max_solver_failures``
     consecutive unconverged steps (or on success with ``terminate_on_success``); a finished
-    copy is reset at its next step (``AutoresetMode.NEXT_STEP``, its action ignored).
+    copy is reset at its next step (``AutoresetMode.NEXT_STEP``, its action ignored), or in
+    the step that finished it (``AutoresetMode.SAME_STEP``). In either mode copy i equals
+    ``SyncVectorEnv`` in the same mode over single envs, bit for bit.
 
     Args:
         num_envs: number of arms.
         max_episode_steps: truncation length (default 100, as registered).
+        autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP`` (or their
+            string values).
         **kwargs: ReachEnv arguments. Refused with a ``ValueError`` naming them: estimator
             observations, ``planar=False``, payload ranges, randomisation, the Dict format,
             sensor synthesis, rendering, and arms the lean planar solver does not step.
@@ -97,9 +105,16 @@ class BatchedReachVectorEnv(VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
-    def __init__(self, num_envs: int = 64, max_episode_steps: int = 100, **kwargs):
+    def __init__(self, num_envs: int = 64, max_episode_steps: int = 100,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1; got {num_envs!r}")
+        modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+        if autoreset_mode not in modes and autoreset_mode not in [m.value for m in modes]:
+            raise ValueError(f"autoreset_mode must be one of {', '.join(m.value for m in modes)}; "
+                             f"got {autoreset_mode!r}")
+        self.metadata = {**self.metadata, "autoreset_mode": AutoresetMode(autoreset_mode)}
+        self._same_step = self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
         if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
                 or max_episode_steps < 1:
             raise ValueError(f"max_episode_steps must be an integer >= 1; got {max_episode_steps!r}")
@@ -146,6 +161,12 @@ class BatchedReachVectorEnv(VectorEnv):
     def observation_slices(self) -> dict[str, slice]:
         """Where each block sits in one copy's flat observation (as the single env's)."""
         return self._template.observation_slices
+
+    @property
+    def template(self) -> ReachEnv:
+        """The single env whose configuration every copy shares (spaces, weights, ``p_max``);
+        never stepped: per-copy state is in the batched arrays and the infos."""
+        return self._template
 
     @property
     def np_random_seed(self):
@@ -284,12 +305,8 @@ class BatchedReachVectorEnv(VectorEnv):
         self._fraction = np.where(ok[:, None], fraction, self._fraction)
         self._failures = np.where(ok, 0, self._failures + 1)
         self._steps += stepping
-        resetting = np.flatnonzero(self._autoreset)
-        if resetting.size:
-            reset_report = self._reset_rows(resetting)
-            spread = _scatter(reset_report, self._autoreset)
-            report = solver.BatchReport(*(np.where(self._autoreset, r_reset, r_step)
-                                          for r_reset, r_step in zip(spread, report)))
+        if self._autoreset.any():
+            report = self._reset_into(report, self._autoreset)
         obs = self._observe()
         reward = self._rewards(ok)
         reward[~stepping] = 0.0
@@ -297,11 +314,53 @@ class BatchedReachVectorEnv(VectorEnv):
         truncated = ((self._steps >= self.max_episode_steps) | (self._failures >= t.max_solver_failures)) \
             & stepping
         infos = self._infos(report)
-        self._autoreset = terminated | truncated
+        done = terminated | truncated
+        if not self._same_step:
+            self._autoreset = done
+        elif done.any():
+            obs, infos = self._reset_finished(done, obs, infos, report, ok)
         return obs, reward, terminated, truncated, infos
+
+    def _reset_into(self, report: solver.BatchReport, rows: np.ndarray) -> solver.BatchReport:
+        """Reset the copies of the mask ``rows``; ``report`` with their rows replaced by the resets'."""
+        spread = _scatter(self._reset_rows(np.flatnonzero(rows)), rows)
+        return solver.BatchReport(*(np.where(rows, r_reset, r_step)
+                                    for r_reset, r_step in zip(spread, report)))
+
+    def _reset_finished(self, done, obs, infos, report, ok) -> tuple[np.ndarray, dict]:
+        """SAME_STEP: reset the copies whose episode ended in this step; their last observation
+        and info go to ``final_obs`` and ``final_info``, as ``SyncVectorEnv`` puts them."""
+        final_obs = np.full(self.num_envs, None, dtype=object)
+        for i in np.flatnonzero(done):
+            final_obs[i] = obs[i].copy()
+        final = {"final_obs": final_obs, "_final_obs": done.copy(),
+                 "final_info": _masked(infos, done), "_final_info": done.copy()}
+        report = self._reset_into(report, done)
+        obs = self._observe()
+        self._rewards(ok | done)  # a reset copy's info holds the terms of its first state
+        infos = self._infos(report)
+        # SyncVectorEnv adds keys as it meets them: the final ones first if copy 0 finished.
+        return obs, ({**final, **infos} if done[0] else {**infos, **final})
 
     def close_extras(self, **kwargs):
         self._template.close()
+
+
+def _masked(infos: dict, mask: np.ndarray) -> dict:
+    """Vector infos of the copies ``mask`` selects, as ``SyncVectorEnv`` gathers them: other
+    rows zero, every ``_key`` mask equal to ``mask``."""
+    out = {}
+    for key, value in infos.items():
+        if key.startswith("_"):
+            continue
+        if isinstance(value, dict):
+            out[key] = _masked(value, mask)
+        else:
+            kept = np.zeros_like(value)
+            kept[mask] = value[mask]
+            out[key] = kept
+        out[f"_{key}"] = mask.copy()
+    return out
 
 
 def _scatter(report: solver.BatchReport, mask: np.ndarray) -> list[np.ndarray]:

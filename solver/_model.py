@@ -43,7 +43,10 @@ class PackedArm:
             penalty stiffness): the cache key of everything derived from them.
         secf: (6, ns) section array. sec_steps: (ns,) RK4 steps per section.
         tubes_i, tubes_f: the tube arrays. c_j: (ns,) 1/GJ.
-        mass_per_length, endplate: (ns,) kg/m, kg. moment_scale: EI_max/L (N m).
+        mass_per_length, endplate: (ns,) kg/m, kg.
+        moment_scale: the bending moment scale (N m) of the arm's residual tolerances,
+            (Σ L_i/EI_i)⁻¹: each section's moment scale EI_i/L_i combined in series
+            (:func:`series_moment_scale`).
         n_rows: recorded samples (Σ(steps + 1)); section_ends: their indices at section ends.
         spatial_of_planar: (n_channels,) the planar input feeding each spatial channel.
     """
@@ -128,11 +131,24 @@ def _build_pack(arm: ArmDesign, model: str, settings: Settings) -> PackedArm:
         endplate=np.array([s.endplate_mass for s in secs]),
         tubes_i=tubes_i,
         tubes_f=tubes_f,
-        moment_scale=float(ei.max() / arm.length),
+        moment_scale=series_moment_scale(secf[L.LEN], ei),
         n_rows=int(steps.sum() + ns),
         spatial_of_planar=np.array(in_plane, dtype=np.int64),
         section_ends=tuple(int(v) for v in np.cumsum(steps + 1) - 1),
     )
+
+
+def series_moment_scale(lengths, stiffness) -> float:
+    """(Σ L_i/K_i)⁻¹ (N m): the section moment scales K_i/L_i (K_i a bending or torsional
+    stiffness, N m²) combined in series, as a moment applied at the tip loads every section.
+
+    A residual moment r left at the tip by the shooting solve (or between two shooting nodes)
+    turns the tip by r·Σ L_i/K_i: measured against this scale, a tolerance bounds that turn
+    however the stiffnesses differ. The largest section's EI/L (the scale used before) let a
+    stiff base section hide residuals that bend a soft distal one by radians (docs/design.md
+    §11).
+    """
+    return float(1.0 / np.sum(np.asarray(lengths) / np.asarray(stiffness)))
 
 
 def dead_loads(arm: ArmDesign, packed: PackedArm, scene: Scene, dim: int):
@@ -211,10 +227,13 @@ def context(arm: ArmDesign, packed: PackedArm, scene: Scene, dim: int,
 
 def _build_context(arm, packed, scene, dim, settings) -> SceneContext:
     n_end, q, m_tip = dead_loads(arm, packed, scene, dim)
-    scale = float(np.abs(n_end).max() * arm.length / packed.moment_scale) if n_end.size else 0.0
+    # In 3D a residual also twists the sections: torsion enters the series too.
+    moment = packed.moment_scale if dim == 2 else series_moment_scale(
+        packed.sec_len, np.minimum(packed.sec_ei, 1.0 / packed.c_j))
+    scale = float(np.abs(n_end).max() * arm.length / moment) if n_end.size else 0.0
     grow = max(1.0, scale)
-    tol = settings.tol * packed.moment_scale * grow
-    max_step = 2.0 * packed.moment_scale * grow
+    tol = settings.tol * moment * grow
+    max_step = 2.0 * moment * grow
     params = np.empty(L.N_PARAMS)
     params[L.TOL] = tol
     params[L.MAX_STEP] = max_step
@@ -223,7 +242,7 @@ def _build_context(arm, packed, scene, dim, settings) -> SceneContext:
     params[L.DT_MIN] = settings.dt_min
     params[L.MAX_ITER] = settings.max_iter
     params[L.N_SCAN] = settings.n_scan
-    params[L.JUMP] = 0.25 * packed.moment_scale
+    params[L.JUMP] = 0.25 * moment
     params[L.PREDICT_CAP] = math.inf
     ctx = SceneContext(n_end=n_end, q=q, loads=np.ascontiguousarray(np.hstack([n_end, q])),
                        m_tip=m_tip, tol=tol, max_step=max_step, params=params,
@@ -291,6 +310,14 @@ def contact_layout(arm, packed, scene):
         return _segments(packed.with_steps(steps, key))
 
     return arm._solver_cache.get(key, build)
+
+
+def refined(arm, packed, steps):
+    """``packed`` with ``steps`` (ns,) RK4 steps per section (cached): the finer grid a solve
+    takes where the step-size check fails (:mod:`solver._grid`)."""
+    steps = tuple(int(v) for v in steps)
+    key = (*packed.key, "steps", steps)
+    return arm._solver_cache.get(key, lambda: packed.with_steps(np.array(steps), key))
 
 
 def shooting_layout(arm, packed):

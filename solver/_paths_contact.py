@@ -12,7 +12,6 @@ from solver import layout as L
 from solver._model import contact_layout, reach
 from solver._paths_planar import solve_planar, solve_single
 from solver._paths_shooting import solve_shooting
-from solver.results import Equilibrium
 
 # Penalty continuation for rigid obstacles (Disc(stiffness=math.inf)): the first penalty
 # makes the decay length (EI/k)^¼ a twentieth of the arm; each stage stiffens it tenfold, up
@@ -22,7 +21,7 @@ RIGID_GROWTH = 10.0
 RIGID_MAX_STIFFNESS = 1e11
 
 
-def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """A solve with rigid obstacles (hard contact) by penalty continuation.
 
     The rigid discs get a finite penalty k: from a warm start its final one, else the k
@@ -44,8 +43,7 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, reco
         stage = replace(scene, obstacles=tuple(
             replace(d, stiffness=stiffness) if d.stiffness == math.inf else d
             for d in scene.obstacles))
-        attempt = solve_contact(arm, packed, p_inputs, p_channel, stage, model, eq, True,
-                                 settings)
+        attempt = solve_contact(arm, packed, p_inputs, p_channel, stage, model, eq, settings)
         iterations += attempt.iterations
         if not attempt.converged:
             # Keep the last stage that converged (stiffness one step back), reported as not
@@ -62,20 +60,11 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, reco
         if met or stiffness * RIGID_GROWTH > RIGID_MAX_STIFFNESS:
             break
         stiffness *= RIGID_GROWTH
-    eq = replace(eq, scene=scene, penalty_stiffness=stiffness, iterations=iterations,
-                 converged=bool(eq.converged and met))
-    return eq if record else _unrecorded(eq)
+    return replace(eq, scene=scene, penalty_stiffness=stiffness, iterations=iterations,
+                   converged=bool(eq.converged and met))
 
 
-def _unrecorded(eq):
-    """``eq`` without its backbone samples (a solve with ``record=False``)."""
-    return Equilibrium(**{f: getattr(eq, f) for f in (
-        "tip", "converged", "stable", "iterations", "residual", "snapped", "in_contact",
-        "base_force", "pressures", "model", "planar", "base_moment", "shooting_nodes", "scene",
-        "channel_pressures", "penalty_stiffness")})
-
-
-def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Planar solve with penalty contact against the scene's discs (:mod:`solver._contact`).
 
     Multiple shooting at the contact resolution (:func:`solver._model.contact_layout`),
@@ -100,16 +89,16 @@ def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
         if np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]
                   > reach(arm, packed, scene)):
             free = solve_planar(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
-                                 record, settings)
+                                settings)
             return _free_contact_result(free, scene)
         if warm_start is None or not warm_start.in_contact:
             free = solve_single(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
-                                 True, settings, guard_discs=discs)
+                                settings, guard_discs=discs)
             if free.converged and free.stable:
                 return _free_contact_result(free, scene)
     layout, segs, sec_start = contact_layout(arm, packed, scene)
     return solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
-                           warm_start, record, settings, load_moments=False)
+                          warm_start, settings, load_moments=False)
 
 
 def _free_contact_result(eq, scene):

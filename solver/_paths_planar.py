@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
 from solver import _planar
 from solver import layout as L
+from solver._grid import planar_fine
 from solver._model import MULTIPLE_SHOOTING_INDEX, SceneContext, context, rest_strains
 from solver._paths_shooting import solve_multiple
 from solver.results import Equilibrium
@@ -37,7 +39,7 @@ def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
                         zip(packed.sec_len, packed.sec_steps, starts)]) if record else np.empty(0)
     n = s.size
     common = dict(converged=True, stable=True, iterations=0, residual=0.0, model=model,
-                  planar=planar, scene=scene, pressures=p_inputs, channel_pressures=p_channel,
+                  planar=planar, scene=scene, arm=arm, pressures=p_inputs, channel_pressures=p_channel,
                   base_moment=np.zeros(1 if planar else 3), base_force=np.zeros(2 if planar else 3))
     ends = np.empty((ns, 3))
     if planar:
@@ -90,12 +92,27 @@ def follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None, guard
     return state, ok, stable, snapped, its, res, rest, loads_now
 
 
-def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False,
-                       guard_discs=NO_DISCS) -> tuple[float, int, bool, bool]:
+class Loaded(NamedTuple):
+    """Stage 1 of a cold solve (:func:`loaded_base_moment`).
+
+    Attributes:
+        m0: the base moment reached (N m). iterations, snapped: as an Equilibrium's.
+        converged: the loads were ramped in (with a guard: and the guard held all along).
+        resolved: the RK4 grid resolves that state (:func:`solver._grid.planar_fine`); a
+            cold path that starts from a state it does not resolve is not trusted.
+    """
+
+    m0: float
+    iterations: int
+    snapped: bool
+    converged: bool
+    resolved: bool
+
+
+def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False, guard_discs=NO_DISCS) -> Loaded:
     """Stage 1 of a cold solve: the unactuated arm under its loads ramped from zero (cached).
 
-    Returns (m0, iterations, snapped, converged); with a guard (see :func:`follow`)
-    converged means also that the guard held all along.
+    With a guard (see :func:`follow`) converged means also that the guard held all along.
     """
     def build():
         zeros = np.zeros(max(arm.n_channels, 1))
@@ -106,13 +123,25 @@ def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False,
         state, ok, _, snapped, its, _, _, _ = follow(packed, scene, zeros, zeros, unloaded, ctx,
                                                      0.0, guard_3d=guard_3d,
                                                      guard_discs=guard_discs)
-        return float(state[0]), int(its), bool(snapped), bool(ok)
+        record = _loaded_record(arm, packed, scene, ctx, float(state[0]))[0]
+        return Loaded(float(state[0]), int(its), bool(snapped), bool(ok),
+                      bool(planar_fine(record, packed.secf, packed.sec_steps, ctx.loads)))
 
     key = ("loaded", packed.key, scene, guard_3d, guard_discs.tobytes())
     return arm._solver_cache.get(key, build)
 
 
-def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+def _loaded_record(arm, packed, scene, ctx, m0):
+    """The backbone record of base moment ``m0`` under the scene's full loads at zero
+    pressure, and its pass's ∂m/∂m0 minimum (the stage-1 state's stability)."""
+    rest = np.vstack(rest_strains(arm, np.zeros(max(arm.n_channels, 1)), packed))
+    out = np.empty((packed.n_rows, L.N_COLUMNS))
+    bmin = integrate_planar(m0, scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads,
+                            True, out)[5]
+    return out, bmin
+
+
+def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Planar dead-load solve: single shooting, or multiple shooting where that is
     ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``)."""
     fallbacks = settings.n_scan > 0 and model != "constant_curvature"
@@ -120,7 +149,7 @@ def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, rec
     methods = (solve_single, solve_multiple)
     if fallbacks and ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
         methods = methods[::-1]
-    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings)
+    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     eq = methods[0](*args)
     if fallbacks and not (eq.converged and eq.stable):
         # Each method covers the other's failures: multiple shooting the ill-conditioned
@@ -131,7 +160,7 @@ def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, rec
     return eq
 
 
-def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings,
+def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
                  guard_3d=False, guard_discs=NO_DISCS):
     """Planar dead-load solve by single shooting on m0 (:func:`solver._planar._follow`).
 
@@ -150,25 +179,36 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, rec
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         m0 = float(warm_start.base_moment[-1])  # planar m_z, or z of a spatial m0
     else:
-        m0, iterations, snapped, loaded = loaded_base_moment(arm, packed, scene, ctx, guard_3d,
-                                                             guard_discs)
+        m0, iterations, snapped, loaded, resolved = loaded_base_moment(
+            arm, packed, scene, ctx, guard_3d, guard_discs)
         if (guard_3d or guard_discs.size) and not loaded:
             return Equilibrium(tip=np.full(2, np.nan), converged=False, stable=False,
                                iterations=iterations, residual=math.inf)
+        if not resolved:
+            # The loaded arm is beyond this grid: the ramp from it is not trusted. Its state,
+            # unconverged (the caller refines the grid).
+            out, bmin = _loaded_record(arm, packed, scene, ctx, m0)
+            return _single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx,
+                                  m0, converged=False, stable=bool(bmin > 0.0),
+                                  iterations=iterations, snapped=snapped,
+                                  residual=float(abs(out[-1, L.M] - ctx.m_tip)))
         start_ctx, p_start = ctx, np.zeros_like(p_target)
-    out = np.empty((packed.n_rows, L.N_COLUMNS)) if record else None
+    out = np.empty((packed.n_rows, L.N_COLUMNS))
     state, ok, stable, snap, its, res, rest, loads_now = follow(
         packed, scene, p_start, p_target, start_ctx, ctx, m0, out, guard_3d, guard_discs)
-    common = dict(converged=bool(ok), stable=bool(stable), iterations=int(iterations + its),
-                  residual=float(res), snapped=bool(snapped or snap), model=model, planar=True,
-                  scene=scene, pressures=p_inputs, channel_pressures=p_channel,
-                  base_moment=state[:1].copy(), base_force=ctx.base_force)
-    if not record:
-        return Equilibrium(tip=state[1:3].copy(), **common)
     if not ok:  # the returned (last good) state was not recorded by a final Newton pass
         integrate_planar(state[0], scene.base_theta, packed.secf, packed.sec_steps, rest,
                          loads_now, True, out)
-    # The result's arrays are views into this one record.
+    return _single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, state[0],
+                          converged=bool(ok), stable=bool(stable), iterations=int(iterations + its),
+                          residual=float(res), snapped=bool(snapped or snap))
+
+
+def _single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, m0, **flags):
+    """The planar Equilibrium of a backbone record ``out`` (its arrays views into it)."""
+    common = dict(model=model, planar=True, scene=scene, pressures=p_inputs,
+                  channel_pressures=p_channel, base_moment=np.array([float(m0)]),
+                  base_force=ctx.base_force, arm=arm, **flags)
     return Equilibrium(
         tip=out[-1, L.X:L.Y + 1].copy(), s=out[:, L.S], positions=out[:, L.X:L.Y + 1],
         angles=out[:, L.THETA], shear_stretch=out[:, L.V1:L.V3 + 1], curvature=out[:, L.U],

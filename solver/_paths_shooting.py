@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from solver import _contact, _planar, _relax
+from solver import _contact, _grid, _planar, _relax
 from solver import layout as L
 from solver._model import context, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
@@ -30,7 +30,7 @@ _NO_RECORD = np.empty((1, L.N_COLUMNS))
 _NO_GUARD = (np.empty(0), np.empty((0, 4)))
 
 
-def solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+def solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Planar dead-load solve by multiple shooting (the contact kernels, with no discs).
 
     For arms whose single shooting is ill-conditioned (:func:`solver._model.shooting_index`), and
@@ -38,11 +38,11 @@ def solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, r
     """
     layout, segs, sec_start = shooting_layout(arm, packed)
     return solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
-                           warm_start, record, settings, load_moments=True)
+                          warm_start, settings, load_moments=True)
 
 
 def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model, warm_start,
-                    record, settings, load_moments):
+                   settings, load_moments):
     """Planar multiple-shooting solve along the quasi-static path, the scene's obstacles (if
     any) present all along it.
 
@@ -90,10 +90,10 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
         start = (np.zeros_like(p_target), *goal[1:])
         if not loaded:
             grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
-            return _shooting_result(nodes, scene, grid, layout, start, record,
+            return _shooting_result(nodes, scene, grid, layout, start,
                                     converged=False, stable=False, iterations=iterations,
                                     residual=math.inf, model=model, pressures=p_inputs,
-                                    channel_pressures=p_channel)
+                                    channel_pressures=p_channel, arm=arm)
     now = _contact._new_level(goal)
     rest = np.empty((3, len(arm.sections)))
     grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
@@ -107,7 +107,11 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
         if ok or settings.n_scan == 0 or t >= 1.0:
             break
         # The path cannot go on past level t (a fold): the arm snaps. Find the stable
-        # equilibrium it lands on a little further on and continue from there.
+        # equilibrium it lands on a little further on and continue from there — if the grid
+        # resolves the state the fold was met from: a fold met from a state it does not
+        # resolve may be the grid's, and the caller refines the grid (solver._grid).
+        if not _resolved(nodes, grid, layout, now):
+            break
         landed, level = _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, weights,
                                     res_weights, settings, ctx.params)
         if landed is None:
@@ -115,10 +119,22 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
         nodes[:] = landed
         start = level
         snapped = True
-    return _shooting_result(nodes, scene, grid, layout, now, record,
+    return _shooting_result(nodes, scene, grid, layout, now,
                             converged=bool(ok), stable=bool(stable), snapped=snapped,
                             iterations=int(iterations), residual=float(res), model=model,
-                            pressures=p_inputs, channel_pressures=p_channel)
+                            pressures=p_inputs, channel_pressures=p_channel, arm=arm)
+
+
+def _resolved(nodes, grid, layout, level):
+    """Whether the RK4 grid of ``layout`` resolves the multiple-shooting state ``nodes`` at
+    ``level`` (:func:`solver._grid.section_needs` of its record)."""
+    out = np.zeros((layout.n_rows, L.C_COLUMNS))
+    _contact._record(nodes, grid, _level_rest(layout, level), level, out)
+    need = np.empty(layout.secf.shape[1])
+    _grid.section_needs(out[:, L.C_U:L.C_U + 1], out[:, L.C_NX:L.C_NY + 1],
+                        out[:, L.C_V1:L.C_V3 + 1], np.hypot(*level[L.L_Q].T), layout.secf,
+                        np.asarray(layout.section_ends, dtype=np.int64), need)
+    return bool(need.max() <= 1.0)
 
 
 def _level_span(start, goal, p_max):
@@ -310,11 +326,10 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
     return nodes.copy(), its, ok
 
 
-def _shooting_result(nodes, scene, grid, layout, level, record, **fields):
+def _shooting_result(nodes, scene, grid, layout, level, **fields):
     """The Equilibrium of a multiple-shooting state ``nodes`` at ``level`` (a level tuple,
-    ``L_*``; ``grid`` its layout tuple): the backbone is integrated from the nodes (contact
-    needs it for the wrap measures even when ``record`` is False; ``record`` decides whether
-    it is returned), with the contact fields if the scene has obstacles."""
+    ``L_*``; ``grid`` its layout tuple): the backbone integrated from the nodes, with the
+    contact fields if the scene has obstacles."""
     contact = bool(scene.obstacles)
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
     _contact._record(nodes, grid, _level_rest(layout, level), level, out)
@@ -322,8 +337,6 @@ def _shooting_result(nodes, scene, grid, layout, level, record, **fields):
                   base_moment=np.array([nodes[2]]), base_force=nodes[:2].copy(),
                   shooting_nodes=nodes, in_contact=bool(contact and out[:, L.C_PEN].max() > 0.0),
                   **fields)
-    if not record:
-        return Equilibrium(**common)
     extra = dict(contact_force=out[:, [L.C_FX, L.C_FY]].copy(),
                  penetration=out[:, L.C_PEN].copy()) if contact else {}
     return Equilibrium(

@@ -15,8 +15,7 @@ from solver.results import Equilibrium
 from solver.rod import base_rotation, integrate_spatial, rotation_to_quaternion
 
 
-def in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                      settings):
+def in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """A spatial solve of an in-plane scene by the planar kernel, or None where that could
     differ from the spatial path: the planar path must stay stable in 3D at every accepted
     state (an arm curled in a vertical plane may buckle sideways), pass no fold, and single
@@ -24,8 +23,8 @@ def in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start
     ctx = context(arm, packed, scene, 2, settings)
     if ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
         return None
-    eq = solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                      settings, guard_3d=True)
+    eq = solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                      guard_3d=True)
     return _embed(eq) if eq.converged and eq.stable else None
 
 
@@ -62,7 +61,7 @@ def _embed(eq: Equilibrium) -> Equilibrium:
         base_moment=np.array([0.0, 0.0, eq.base_moment[-1]]))
 
 
-def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record, settings):
+def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Spatial dead-load solve by single shooting on m0 (:func:`solver._spatial._follow`):
     the loading stage of a cold solve, then the pressure ramp."""
     ctx = context(arm, packed, scene, 3, settings)
@@ -96,11 +95,11 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
     ok, stable, snapped, its, _, _, _ = _spatial._follow(
         m0, grid, tubes, start, (p_target, ctx.loads, ctx.m_tip), ctx.params, work, guard)
     iterations += its
-    rows = packed.n_rows if record else 1
+    rows = packed.n_rows
     pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
     state = np.empty((6, L.NSTATE))
     integrate_spatial(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, loads_now,
-                      record, pos, rot, mom, state)
+                      True, pos, rot, mom, state)
     tip_state = state[0]
     res = float(np.linalg.norm(tip_state[L.SP_M:L.SP_M + 3] - m_tip))
     # ``stable`` is the stability of the returned state, from the Newton pass that converged
@@ -109,9 +108,8 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, re
                   converged=bool(ok and res <= 10 * ctx.tol), stable=bool(stable),
                   iterations=int(iterations), residual=res, snapped=bool(snapped or snap_load),
                   model=model, planar=False, scene=scene, pressures=p_inputs,
-                  channel_pressures=p_channel, base_moment=m0.copy(), base_force=ctx.base_force)
-    if not record:
-        return Equilibrium(**common)
+                  channel_pressures=p_channel, base_moment=m0.copy(), base_force=ctx.base_force,
+                  arm=arm)
     seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
     starts = np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])
     s = np.concatenate([np.linspace(0.0, length, k + 1) + off for length, k, off in

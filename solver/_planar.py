@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from solver._grid import planar_fine
 from solver._homotopy import _big_change
 from solver._obstacles import _clearance, _tunnels
 from solver._spatial import _planar_state_stable
@@ -243,7 +244,9 @@ def _step(state, grid, tubes, a, b, params, work, memo):
             converged; the gradient is computed only if ``work`` records.
 
     Returns:
-        As :func:`_follow`.
+        As :func:`_follow`; with ``record`` (as the steppers call it), a state the RK4 grid
+        does not resolve (:func:`solver._grid.planar_fine`) is not converged: the caller's
+        general path solves it on a finer grid.
     """
     theta0, secf, steps = grid
     rest, p_now, loads_now, out, record = work
@@ -280,6 +283,8 @@ def _step(state, grid, tubes, a, b, params, work, memo):
         state[2] = y
         state[3] = th
         its += more
+    if ok and record and not planar_fine(out, secf, steps, loads):
+        ok = False
     if ok:
         rest_a[:, :] = rest
         if record:
@@ -397,7 +402,13 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         if ok and stab and (abs(root - guess) <= jump or (dt <= dt_min and not guard)):
             if abs(root - guess) > jump:
                 # Converged far from the prediction at the smallest step: the branch ended
-                # (a fold) and Newton fell onto another stable one — a snap.
+                # (a fold) and Newton fell onto another stable one — a snap, if the grid
+                # resolves the state the branch ended at (else the caller refines it).
+                if not _resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b,
+                                 loads_a, loads_b, mtip_a, mtip_b):
+                    return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b,
+                                      loads_a, loads_b, mtip_a, mtip_b, rest, p_now, loads_now,
+                                      out, total, snapped, res)
                 snapped = True
             slope = (root - m0) / (t_new - t)
             m0 = root
@@ -416,7 +427,14 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
             return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
                               loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out, total,
                               snapped, res)
-        # A fold or bifurcation lies between t and t_new: snap to the nearest stable state.
+        # A fold or bifurcation lies between t and t_new: snap to the nearest stable state —
+        # if the grid resolves the last state before it; a fold met from a state it does not
+        # resolve may be the grid's, not the rod's, and the caller refines the grid.
+        if not _resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
+                         loads_b, mtip_a, mtip_b):
+            return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
+                              loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out, total,
+                              snapped, res)
         snap_to, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params,
                                     int(params[N_SCAN]), guess, out)
         total += its
@@ -446,6 +464,21 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         t = t_new
         dt = dt0
     return m0, ok, total, snapped, stable, res, x, y, th
+
+
+@njit
+def _resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+              mtip_b):
+    """Whether the RK4 grid resolves the state ``m0`` at level ``t`` of the homotopy
+    (:func:`solver._grid.planar_fine` of its record; one recorded pass)."""
+    p_now = np.empty(p_a.shape[0])
+    loads_now = np.empty(loads_a.shape)
+    rest = np.empty((3, secf.shape[1]))
+    _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
+    rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+    rec = np.empty(((steps + 1).sum(), N_COLUMNS))
+    integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec)
+    return planar_fine(rec, secf, steps, loads_now)
 
 
 @njit
@@ -480,7 +513,8 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
     (cold solves: the loaded, unactuated state at zero pressure for every row, as
     :func:`solver.solve` does, so a sweep's result does not depend on its order). Writes the
     tips (n, 2), convergence and stability flags and the new base moments. A row that does
-    not converge keeps its start state (``m0_out[k] = m0_start[k]``, its tip and shape).
+    not converge, or whose state the RK4 grid does not resolve (:func:`solver._grid.planar_fine`),
+    keeps its start state (``m0_out[k] = m0_start[k]``, its tip and shape).
     With ``record`` each row's backbone is written to ``shapes[k]`` ((rows, N_COLUMNS));
     otherwise ``shapes`` is an (n, 1, N_COLUMNS) scratch.
     """
@@ -491,18 +525,24 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
     tubes = (tubes_i, tubes_f)
     no_guard = np.empty(0)
     no_discs = np.empty((0, 4))
+    rows = 0
+    for i in range(ns):
+        rows += steps[i] + 1
     for k in prange(n):
         rest = np.empty((3, ns))
         p_now = np.empty(nc)
         loads_now = np.empty((ns, 4))
-        # A converged row's backbone is recorded by its final Newton pass.
+        # A converged row's backbone is recorded by its final Newton pass (for the grid check
+        # even where the caller does not keep it).
+        out = shapes[k] if record else np.empty((rows, N_COLUMNS))
         state = np.empty(4)
         state[0] = m0_start[k]
         conv, stab, snapped, its, res, t, dt = _follow(
             state, grid, tubes, (p_start[k], loads, mtip), (p_targets[k], loads, mtip), params,
-            (rest, p_now, loads_now, shapes[k], record), (no_guard, no_discs))
+            (rest, p_now, loads_now, out, True), (no_guard, no_discs))
         root, x, y = state[0], state[1], state[2]
-        conv = conv and math.isfinite(x) and math.isfinite(y)
+        conv = conv and math.isfinite(x) and math.isfinite(y) and planar_fine(out, secf, steps,
+                                                                               loads)
         if not conv:
             # Keep the last good state: its rest strains, shape and tip.
             root = m0_start[k]
@@ -519,20 +559,24 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
 @njit(inline="always")
 def _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
               rest_a, grad, report):
-    """Row k of :func:`_cold_rows`: a cold solve, as :func:`solver.solve`'s single shooting."""
+    """Row k of :func:`_cold_rows`: a cold solve, as :func:`solver.solve`'s single shooting
+    (not converged, too, where the grid does not resolve the state: the caller's general path
+    refines it)."""
     rest, p_now, loads_now = work
-    out = records[k]
+    secf, steps = grid[1], grid[2]
+    out = records[k] if record else np.empty(((steps + 1).sum(), N_COLUMNS))
     ok, stable, snapped, its, res, _, _ = _follow(
         states[k], grid, tubes, (p_zero, loads, mtip), (p[k], loads, mtip), params,
-        (rest[k], p_now[k], loads_now[k], out, record), (np.empty(0), np.empty((0, 4))))
+        (rest[k], p_now[k], loads_now[k], out, True), (np.empty(0), np.empty((0, 4))))
+    ok = ok and planar_fine(out, secf, steps, loads)
     report[k, 0] = ok
     report[k, 1] = stable
     report[k, 2] = snapped
     report[k, 3] = its
     report[k, 4] = res
     if ok and record:
-        rest_strains_into(p[k], tubes[0], tubes[1], grid[1], rest_a[k])
-        planar_rest_gradient(out, grid[1], grid[2], rest_a[k], grad[k])
+        rest_strains_into(p[k], tubes[0], tubes[1], secf, rest_a[k])
+        planar_rest_gradient(out, secf, steps, rest_a[k], grad[k])
 
 
 @njit(parallel=True)

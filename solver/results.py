@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from solver.designs import ArmDesign
 from solver.scene import Scene
 
 __all__ = ["Equilibrium", "BatchState"]
@@ -48,6 +49,8 @@ class Equilibrium:
         penalty_stiffness: with rigid obstacles, the penalty stiffness (N/m²) that met
             ``Settings.gap_tol`` (NaN otherwise).
         model, planar: what was solved.
+        arm, scene: the design and scene it was solved for (a warm start is checked
+            against them).
     """
 
     tip: np.ndarray
@@ -77,11 +80,28 @@ class Equilibrium:
     scene: Scene | None = field(default=None, repr=False)
     channel_pressures: np.ndarray = field(default_factory=_empty(0), repr=False)
     penalty_stiffness: float = math.nan
+    arm: ArmDesign | None = field(default=None, repr=False, compare=False)
 
     @property
     def tip_angle(self) -> float:
         """Planar tip orientation θ(L) (rad); NaN if not recorded or spatial."""
         return float(self.angles[-1]) if self.angles.size else math.nan
+
+
+SAMPLED = {f.name: f.default_factory for f in fields(Equilibrium) if f.name in (
+    "s", "positions", "angles", "orientations", "shear_stretch", "curvature", "internal_force",
+    "internal_moment", "contact_force", "penetration")}
+"""The per-sample fields of an :class:`Equilibrium` (first axis: the samples), with their
+empty defaults."""
+
+
+_UNSAMPLED = tuple(f.name for f in fields(Equilibrium)
+                   if f.name not in SAMPLED and f.name != "section_ends")
+
+
+def tip_only(eq: Equilibrium) -> Equilibrium:
+    """``eq`` without its samples (what a solve with ``record=False`` returns)."""
+    return Equilibrium(**{name: getattr(eq, name) for name in _UNSAMPLED})
 
 
 # ----------------------------------------------------------------------------- packing
@@ -99,6 +119,8 @@ class BatchState:
         shapes: (n, N, 10) recorded backbones when stepped with ``record=True``: columns s, x,
             y, θ, m, n_x, n_y, v1, v3, u (see :mod:`solver._planar`); else (n, 1, 10) scratch.
         section_ends: sample indices of the section ends in ``shapes``.
+        arm, scene: the design and scene they were stepped for (a next step is checked
+            against them).
     """
 
     pressures: np.ndarray
@@ -108,3 +130,5 @@ class BatchState:
     section_ends: tuple
     base_moment: np.ndarray = field(repr=False, default=None)
     channel_pressures: np.ndarray = field(repr=False, default=None)
+    arm: ArmDesign | None = field(repr=False, default=None)
+    scene: Scene | None = field(repr=False, default=None)

@@ -9,6 +9,10 @@ import numpy as np
 
 __all__ = ["Scene", "Disc"]
 
+MAX_EXTENT = 1e4
+"""Largest disc radius and centre coordinate (m): far beyond any arm (a design is at most
+3.2 km long only on paper), and far from overflow in the contact arithmetic."""
+
 
 @dataclass(frozen=True)
 class Disc:
@@ -31,17 +35,22 @@ class Disc:
     stiffness: float = 2.0e4
 
     def __post_init__(self):
-        c = np.asarray(self.center, dtype=float).ravel()
-        if c.size != 2 or not np.all(np.isfinite(c)):
-            raise ValueError(f"Disc.center must be two finite numbers (m); got {self.center!r}")
+        try:
+            c = np.asarray(self.center, dtype=float).ravel()
+        except (TypeError, ValueError):
+            c = np.empty(0)
+        if c.size != 2 or not np.all(np.abs(c) <= MAX_EXTENT):
+            raise ValueError(f"Disc.center must be two finite numbers within ±{MAX_EXTENT:g} m; "
+                             f"got {self.center!r}")
         object.__setattr__(self, "center", (float(c[0]), float(c[1])))
         for name in ("radius", "stiffness"):
             v = getattr(self, name)
             rigid_ok = name == "stiffness" and v == math.inf
+            high = math.inf if name == "stiffness" else MAX_EXTENT
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
-                    or not (math.isfinite(v) or rigid_ok) or v <= 0:
+                    or not (math.isfinite(v) or rigid_ok) or not 0 < v <= high:
                 what = "a number > 0 or math.inf (rigid)" if name == "stiffness" else \
-                    "a finite number > 0"
+                    f"a finite number > 0 and <= {MAX_EXTENT:g} m"
                 raise ValueError(f"Disc.{name} must be {what}; got {v!r}")
             object.__setattr__(self, name, float(v))
 
@@ -91,6 +100,10 @@ class Scene:
         obstacles = tuple(self.obstacles) if isinstance(self.obstacles, (tuple, list)) else None
         if obstacles is None or not all(isinstance(o, Disc) for o in obstacles):
             raise ValueError(f"Scene.obstacles must be a tuple of solver.Disc; got {self.obstacles!r}")
+        for k, d in enumerate(obstacles):
+            if math.hypot(*d.center) <= d.radius:
+                raise ValueError(f"Scene.obstacles[{k}] ({d}) covers the arm's base at the origin: "
+                                 "the clamp cannot sit inside an obstacle")
         object.__setattr__(self, "obstacles", obstacles)
         object.__setattr__(self, "tip_force", tuple(float(f) for f in force))
         object.__setattr__(self, "tip_moment",

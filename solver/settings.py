@@ -18,8 +18,15 @@ class Settings:
     """Numerical settings of the shooting solver.
 
     Attributes:
-        steps_per_section: fixed RK4 steps per section (error ∝ steps⁻⁴).
-        tol: Newton tolerance on the tip-moment residual, relative to EI_max / L.
+        steps_per_section: RK4 steps per section (error ∝ steps⁻⁴): the grid every solve
+            starts on, and the one its samples are returned on.
+        max_refinement: how far a solve may refine that grid where the step-size check
+            fails (a power of two: up to ``max_refinement·steps_per_section`` steps in a
+            section; 1 never refines). A result the finest allowed grid cannot resolve is
+            unconverged (docs/design.md §11).
+        tol: Newton tolerance on the moment residuals, relative to the arm's moment scale
+            (Σ L_i/EI_i)⁻¹ (in 3D with torsion: L_i/min(EI_i, GJ_i)), or to the loads'
+            moment N·L where that is larger (round-off grows with it).
         max_iter: Newton iterations per continuation step.
         dt0, dt_min: first and smallest continuation step (fraction of the ramp).
         contact_dt_min: smallest continuation step of solves with obstacles: a stiff
@@ -35,6 +42,7 @@ class Settings:
     """
 
     steps_per_section: int = 16
+    max_refinement: int = 64
     tol: float = 1e-10
     max_iter: int = 12
     dt0: float = 1.0
@@ -47,6 +55,9 @@ class Settings:
     def __post_init__(self):
         if int(self.steps_per_section) != self.steps_per_section or self.steps_per_section < 1:
             raise ValueError(f"steps_per_section must be an integer >= 1; got {self.steps_per_section}")
+        k = self.max_refinement
+        if isinstance(k, bool) or int(k) != k or k < 1 or int(k) & (int(k) - 1):
+            raise ValueError(f"max_refinement must be a power of two >= 1; got {k}")
         if not (self.tol > 0 and self.max_iter >= 1 and 0 < self.dt_min <= self.dt0 <= 1
                 and 0 < self.contact_dt_min <= self.dt0 and 0 < self.gap_tol
                 and (self.n_scan == 0 or self.n_scan >= 4)):

@@ -10,24 +10,35 @@ does not need is skipped:
 * obstacles out of reach, or a path that stays clear of them → the contact-free solve;
 * ``record=False`` → no backbone samples, just the tip.
 
+Every result is checked before it is called converged: Newton's residual against the arm's
+moment scale (each section's EI/L in series), and the RK4 grid against the result's own
+curvature and loads (:mod:`solver._grid`); where the grid is too coarse the solve is repeated
+on a finer one, up to ``Settings.max_refinement``, and sampled back on the settings' grid.
+
 Policy for an unconverged solve: :func:`solve` returns an :class:`Equilibrium` with
-``converged=False`` and the residual of the last iterate; its shape is that iterate's
-(always finite for finite inputs). Pass ``strict=True`` to raise :class:`SolverError`
-instead. Bad input raises ``ValueError`` naming the problem before any kernel runs.
+``converged=False`` and the residual of the last iterate; its shape is that iterate's.
+Where the kernels give no finite iterate (or fail outright) the result is the unloaded shape
+at the requested pressures with ``converged=False``, ``stable=False`` and an infinite
+residual: never NaN, never an exception. Pass ``strict=True`` to raise :class:`SolverError`
+instead. Bad input raises ``ValueError`` naming the problem before any kernel runs
+(docs/design.md §11).
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
+
 import numpy as np
 
-from solver import _planar
+from solver import _grid, _planar
 from solver import layout as L
-from solver._model import PackedArm, context, has_load, pack
+from solver._model import PackedArm, context, has_load, pack, refined
 from solver._paths_contact import solve_contact, solve_rigid
 from solver._paths_planar import closed_form, loaded_base_moment, solve_planar
 from solver._paths_spatial import in_plane, in_plane_shortcut, in_plane_state, solve_spatial
 from solver.designs import ArmDesign
-from solver.results import BatchState, Equilibrium
+from solver.results import BatchState, Equilibrium, tip_only
 from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings, SolverError
 
@@ -123,7 +134,9 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
         scene: mounting and loads (default: hanging, gravity, no payload).
         model: ``"full"``, ``"unshearable"`` (GA → ∞) or ``"constant_curvature"``.
         planar: solve in the x–y plane (inputs are planar channels) or in 3D.
-        warm_start: a previous equilibrium of the same arm, model and mode.
+        warm_start: a previous equilibrium of the same arm, model and mode, solved at the
+            same base angle (its loads and pressures are ramped to this scene's; obstacles it
+            was not solved with must not lie across its backbone).
         record: return backbone samples (False: tip only, faster).
         settings: numerical settings.
         strict: raise :class:`SolverError` instead of returning an unconverged result.
@@ -136,7 +149,7 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
     packed = pack(arm, model, settings)
     p_inputs, p_channel = _channel_pressures(arm, pressures, planar, packed)
     if warm_start is not None:
-        _check_warm_start(warm_start, scene, model, planar, p_channel)
+        _check_warm_start(warm_start, arm, scene, model, planar)
     eq = _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, record,
                    settings)
     if strict and not eq.converged:
@@ -147,34 +160,83 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
 
 def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, record,
               settings) -> Equilibrium:
-    """The solve of validated inputs by the path the scene needs."""
-    if scene.obstacles and model != "constant_curvature":
-        contact = solve_rigid if scene.has_rigid_obstacles else solve_contact
-        return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                       settings)
-    if model == "constant_curvature" or (settings.shortcuts and not has_load(arm, scene)):
+    """The solve of validated inputs by the path the scene needs (:func:`_path`), on an RK4
+    grid fine enough for its result, returned on the settings' grid (the finer grid's nodes
+    include it). Never raises (module docstring)."""
+    if model == "constant_curvature" or (
+            not scene.obstacles and settings.shortcuts and not has_load(arm, scene)):
         return closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
+    q = packed.mass_per_length * scene.gravity
+    layout = packed
+    while True:
+        try:
+            eq = _path(arm, layout, p_inputs, p_channel, scene, model, planar, warm_start,
+                       settings)
+            need = _grid.needs(eq, layout.secf, q)  # infinite at a sample that is not finite
+            worst = float(need.max())
+        except (ArithmeticError, np.linalg.LinAlgError):
+            eq = None
+        if eq is None or not (math.isfinite(worst) and all(map(math.isfinite, eq.tip))):
+            # No finite state: the unloaded shape at these pressures, flagged (finite, so that
+            # a stepper can keep it).
+            eq = closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
+            return replace(eq, converged=False, stable=False, residual=np.inf)
+        if worst <= 1.0:
+            break
+        steps = _grid.refined_steps(eq, packed.sec_steps, layout.sec_steps, need,
+                                    settings.max_refinement)
+        if steps is None:  # the finest grid allowed does not resolve this state
+            eq = replace(eq, converged=False)
+            break
+        layout = refined(arm, packed, steps)
+    if layout is not packed and not scene.obstacles:  # (contact keeps its own finer layout)
+        eq = _grid.on_grid(eq, layout.sec_steps, packed.sec_steps)
+    return eq if record else tip_only(eq)
+
+
+def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, settings):
+    """The recorded solve by the path the scene needs (contact, planar, the in-plane
+    shortcut of a spatial solve, spatial)."""
+    if scene.obstacles:
+        contact = solve_rigid if scene.has_rigid_obstacles else solve_contact
+        return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     if planar:
-        return solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                            settings)
+        return solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     if settings.shortcuts and scene.is_planar and in_plane(arm, packed, p_channel) and (
             warm_start is None or in_plane_state(warm_start)):
         eq = in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start,
-                               record, settings)
+                               settings)
         if eq is not None:
             return eq
-    return solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, record,
-                         settings)
+    return solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
 
 
-def _check_warm_start(warm_start, scene, model, planar, p_channel):
+def _check_warm_start(warm_start, arm, scene, model, planar):
+    """A warm start must be a result of this arm, model and mode, solved in a scene the path
+    can ramp from: the same mounting, and no obstacle it was not solved with lying across
+    its backbone (loads and pressures ramp; a base or an obstacle cannot)."""
     if not isinstance(warm_start, Equilibrium):
         raise ValueError("warm_start must be an Equilibrium returned by solve()")
-    if warm_start.planar != planar or warm_start.model != model or \
-            warm_start.channel_pressures.shape != p_channel.shape:
-        raise ValueError("warm_start comes from a different arm, model or planar mode")
-    if warm_start.scene is not None and warm_start.scene.base_angle_deg != scene.base_angle_deg:
-        raise ValueError("warm_start was solved at a different base angle")
+    if warm_start.arm is None or warm_start.scene is None:
+        raise ValueError("warm_start does not say which arm and scene it was solved for; pass "
+                         "an Equilibrium returned by solve() or a Stepper")
+    if warm_start.arm is not arm and warm_start.arm != arm:
+        raise ValueError(f"warm_start was solved for design {warm_start.arm.name!r}, not for "
+                         f"this {arm.name!r} design (or for another variant of it)")
+    if warm_start.planar != planar or warm_start.model != model:
+        raise ValueError(f"warm_start comes from a {'planar' if warm_start.planar else 'spatial'} "
+                         f"{warm_start.model!r} solve, not a {'planar' if planar else 'spatial'} "
+                         f"{model!r} one")
+    if warm_start.scene.base_angle_deg != scene.base_angle_deg:
+        raise ValueError(f"warm_start was solved at a different base angle "
+                         f"({warm_start.scene.base_angle_deg:g} deg, not {scene.base_angle_deg:g})")
+    new = [k for k, d in enumerate(scene.obstacles) if d not in warm_start.scene.obstacles]
+    points = warm_start.positions if warm_start.positions.shape[0] else warm_start.tip[None, :]
+    for k in new:
+        d = scene.obstacles[k]
+        if np.min(np.hypot(points[:, 0] - d.center[0], points[:, 1] - d.center[1])) < d.radius:
+            raise ValueError(f"warm_start's backbone lies inside obstacle {k} ({d}), which it "
+                             "was not solved with: an obstacle cannot be ramped in; solve cold")
 
 
 def _batch_inputs(arm, pressures, scene, model, planar, settings):
@@ -228,13 +290,21 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
             ok[k] = eq.converged
         return tips, ok
     ctx = context(arm, packed, scene, 2, settings)
-    m0 = loaded_base_moment(arm, packed, scene, ctx)[0]
+    loaded = loaded_base_moment(arm, packed, scene, ctx)
     n = p.shape[0]
     tips, ok = np.empty((n, 2)), np.empty(n, dtype=bool)
-    _planar._batch(np.full(n, m0), np.zeros_like(channel), scene.base_theta, packed.secf,
+    stable = np.empty(n, dtype=bool)
+    _planar._batch(np.full(n, loaded.m0), np.zeros_like(channel), scene.base_theta, packed.secf,
                    packed.sec_steps, packed.tubes_i, packed.tubes_f, channel, ctx.loads, ctx.m_tip,
-                   ctx.params, False, tips, ok, np.empty(n, dtype=bool), np.empty(n),
-                   np.empty((n, 1, L.N_COLUMNS)))
+                   ctx.params, False, tips, ok, stable, np.empty(n), np.empty((n, 1, L.N_COLUMNS)))
+    for k in np.flatnonzero(~(ok & stable & loaded.resolved)):
+        # What solve() does where single shooting fails or its grid is too coarse: the other
+        # method, a finer grid.
+        p_channel = channel[k] if arm.n_channels else np.zeros(0)
+        eq = _dispatch(arm, packed, p[k].copy(), p_channel.copy(), scene, model, planar, None,
+                       False, settings)
+        tips[k] = eq.tip
+        ok[k] = eq.converged
     return tips, ok
 
 
@@ -262,19 +332,37 @@ def step_batch(arm: ArmDesign, pressures, scene: Scene | None = None,
         raise ValueError("step_batch does not model contact; use solve() for scenes with obstacles")
     ctx = context(arm, packed, scene, 2, settings)
     n = p.shape[0]
+    moving = True
     if state is None:
-        m0 = loaded_base_moment(arm, packed, scene, ctx)[0]
-        m_start, p_start, p_prev = np.full(n, m0), np.zeros_like(channel), np.zeros_like(p)
+        loaded = loaded_base_moment(arm, packed, scene, ctx)
+        m_start, p_start, p_prev = np.full(n, loaded.m0), np.zeros_like(channel), np.zeros_like(p)
+        # A loaded arm beyond the grid (solve() refines it): no copy moves from it.
+        moving = loaded.resolved
     else:
-        if state.base_moment.shape != (n,):
-            raise ValueError(f"state holds {state.base_moment.shape[0]} arms; pressures has {n} rows")
+        _check_batch_state(state, arm, scene, n)
         m_start, p_start, p_prev = state.base_moment, state.channel_pressures, state.pressures
     tips, ok, m0_out = np.empty((n, 2)), np.empty(n, dtype=bool), np.empty(n)
     shapes = np.empty((n, packed.n_rows if record else 1, L.N_COLUMNS))
     _planar._batch(m_start, p_start, scene.base_theta, packed.secf, packed.sec_steps,
-                   packed.tubes_i, packed.tubes_f, channel, ctx.loads, ctx.m_tip, ctx.params,
-                   record, tips, ok, np.empty(n, dtype=bool), m0_out, shapes)
+                   packed.tubes_i, packed.tubes_f, channel if moving else p_start, ctx.loads,
+                   ctx.m_tip, ctx.params, record, tips, ok, np.empty(n, dtype=bool), m0_out, shapes)
+    ok &= moving
     keep = ~ok[:, None]
     return BatchState(pressures=np.where(keep, p_prev, p), tips=tips, converged=ok, shapes=shapes,
                       section_ends=packed.section_ends, base_moment=m0_out,
-                      channel_pressures=np.where(keep, p_start, channel))
+                      channel_pressures=np.where(keep, p_start, channel), arm=arm, scene=scene)
+
+
+def _check_batch_state(state, arm, scene, n):
+    """A step_batch state must come from step_batch with this arm, in this scene (the copies
+    are stepped under the same loads), with n copies."""
+    if not isinstance(state, BatchState) or state.arm is None:
+        raise ValueError("state must be the BatchState a previous step_batch call returned")
+    if state.arm is not arm and state.arm != arm:
+        raise ValueError(f"state was stepped for design {state.arm.name!r}, not for this "
+                         f"{arm.name!r} design (or for another variant of it)")
+    if state.scene != scene:
+        raise ValueError(f"state was stepped in {state.scene}, not in {scene}: step_batch keeps "
+                         "the loads; solve() ramps from one scene to another")
+    if state.base_moment.shape != (n,):
+        raise ValueError(f"state holds {state.base_moment.shape[0]} arms; pressures has {n} rows")

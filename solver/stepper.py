@@ -83,8 +83,8 @@ def _not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
     return None
 
 
-def _record_equilibrium(record, flags, m0, pressures, channel_pressures, model, scene, packed,
-                        ctx) -> Equilibrium:
+def _record_equilibrium(record, flags, m0, pressures, channel_pressures, arm, model, scene,
+                        packed, ctx) -> Equilibrium:
     """The planar :class:`Equilibrium` of a lean-path backbone record (arrays copied)."""
     rec = record.copy()
     converged, stable, snapped, iterations, residual = flags
@@ -97,7 +97,7 @@ def _record_equilibrium(record, flags, m0, pressures, channel_pressures, model, 
         section_ends=packed.section_ends, model=model, planar=True, scene=scene,
         pressures=np.array(pressures, dtype=float),
         channel_pressures=np.array(channel_pressures, dtype=float),
-        base_moment=np.array([float(m0)]), base_force=ctx.base_force)
+        base_moment=np.array([float(m0)]), base_force=ctx.base_force, arm=arm)
 
 
 def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
@@ -184,8 +184,8 @@ class Stepper:
         copies, unaffected by later steps)."""
         if self._eq is None and self.record is not None:
             self._eq = _record_equilibrium(self.record, self._flags, self._state[0], self.pressures,
-                                           self.channel_pressures, self.model, self.scene,
-                                           self._packed, self._ctx)
+                                           self.channel_pressures, self.arm, self.model,
+                                           self.scene, self._packed, self._ctx)
         if self._eq is None:
             raise RuntimeError("call reset() before reading the stepper's equilibrium")
         return self._eq
@@ -200,7 +200,7 @@ class Stepper:
         solve did not converge (the report says so)."""
         p_inputs, p_channel = _channel_pressures(self.arm, pressures, self.planar, self._packed)
         if warm_start is not None:
-            _check_warm_start(warm_start, self.scene, self.model, self.planar, p_channel)
+            _check_warm_start(warm_start, self.arm, self.scene, self.model, self.planar)
         eq = _dispatch(self.arm, self._packed, p_inputs, p_channel, self.scene, self.model,
                        self.planar, warm_start, True, self.settings)
         self._adopt(eq)
@@ -258,7 +258,7 @@ class Stepper:
         ``record=True``), the current state."""
         if not isinstance(eq, Equilibrium):
             raise ValueError("adopt() takes an Equilibrium returned by solve()")
-        _check_warm_start(eq, self.scene, self.model, self.planar, self.channel_pressures)
+        _check_warm_start(eq, self.arm, self.scene, self.model, self.planar)
         if eq.scene != self.scene:
             raise ValueError(f"the equilibrium was solved in {eq.scene}, not in this stepper's "
                              f"scene {self.scene}")
@@ -348,8 +348,7 @@ class BatchStepper:
         if reason is not None:
             raise ValueError(f"BatchStepper steps the lean planar path only, not {reason}; use "
                              "a Stepper (or solve()) per copy")
-        m0, its0, snapped0, _ = loaded_base_moment(arm, packed, scene, ctx)
-        self._loaded = (m0, its0, snapped0)  # a cold solve's first stage (solve_single)
+        self._loaded = loaded_base_moment(arm, packed, scene, ctx)  # as solve_single's stage 1
         ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
         n_inputs = arm.n_inputs(True)
         self.n_inputs = n_inputs
@@ -402,15 +401,18 @@ class BatchStepper:
 
     def _cold(self, p_channel, states, records, record, rest_a, grad) -> np.ndarray:
         m = p_channel.shape[0]
-        states[:, 0] = self._loaded[0]
+        states[:, 0] = self._loaded.m0
         report = np.zeros((m, 5))
         work = tuple(w[:m] if w.shape[0] >= m else np.empty((m, *w.shape[1:])) for w in self._work[:3])
         kernel = self._rows_kernel(_planar._cold_rows_parallel, _planar._cold_rows_serial, m)
         kernel(self._grid, self._tubes, self._p_zero, p_channel, self._ctx.loads, self._ctx.m_tip,
                self._ctx.params, work, states, records, record, rest_a, grad, report)
-        # As solve_single: the loaded stage's iterations count, and a snap there is a snap.
-        report[:, 3] += self._loaded[1]
-        report[:, 2] = np.maximum(report[:, 2], float(self._loaded[2]))
+        # As solve_single: the loaded stage's iterations count, and a snap there is a snap; a
+        # loaded state beyond the grid leaves every row to the general path (which refines).
+        report[:, 3] += self._loaded.iterations
+        report[:, 2] = np.maximum(report[:, 2], float(self._loaded.snapped))
+        if not self._loaded.resolved:
+            report[:, 0] = 0.0
         return report
 
     def _solve_row(self, p_inputs, p_channel, warm_start, record) -> Equilibrium:
@@ -472,7 +474,7 @@ class BatchStepper:
         candidate steps out from one state."""
         if not isinstance(eq, Equilibrium):
             raise ValueError("adopt() takes an Equilibrium returned by solve()")
-        _check_warm_start(eq, self.scene, self.model, True, self.channel_pressures[0])
+        _check_warm_start(eq, self.arm, self.scene, self.model, True)
         if eq.scene != self.scene:
             raise ValueError(f"the equilibrium was solved in {eq.scene}, not in {self.scene}")
         if not eq.s.size:
@@ -545,8 +547,8 @@ class BatchStepper:
         if not self._ready[k]:
             raise RuntimeError(f"copy {k} was never reset")
         return _record_equilibrium(self.records[k], self._flags[k], self._states[k, 0],
-                                   self.pressures[k], self.channel_pressures[k], self.model,
-                                   self.scene, self._packed, self._ctx)
+                                   self.pressures[k], self.channel_pressures[k], self.arm,
+                                   self.model, self.scene, self._packed, self._ctx)
 
     def __repr__(self) -> str:
         return f"BatchStepper({self.arm.name!r}, {self.scene}, n={self.n}, model={self.model!r})"

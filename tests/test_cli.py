@@ -207,3 +207,14 @@ def test_json_output_is_strict_json(capsys):
     out = capsys.readouterr().out
     assert json.loads(out, parse_constant=lambda c: pytest.fail(f"{c} in JSON output")) == {
         "tip": [None, 0.5], "residual": None}
+
+
+@pytest.mark.parametrize("argv", [["--gravity", "1000", "--payload", "100", "--base-angle", "90"],
+                                  ["--gravity", "1000", "--payload", "50", "--base-angle", "90"]])
+def test_solve_beyond_the_solver_is_unconverged_not_a_traceback(capsys, argv):
+    """Issue #19: 50-100 kg at g = 1000 raised LinAlgError out of solve(). Now: strict JSON
+    saying converged false, a finite tip, exit status 1."""
+    assert main(["solve", "--json", *argv]) == 1
+    out = json.loads(capsys.readouterr().out,
+                     parse_constant=lambda c: pytest.fail(f"{c} in JSON output"))
+    assert out["converged"] is False and all(np.isfinite(out["tip"]))

@@ -9,8 +9,15 @@ from softarm_gym.vector import BatchedReachVectorEnv
 
 
 def _assert_same(a, b, where):
-    """Recursive exact equality of vector-env outputs (arrays, dicts of arrays)."""
-    if isinstance(a, dict):
+    """Recursive exact equality of vector-env outputs (arrays, dicts of arrays, object arrays
+    of arrays or None)."""
+    if isinstance(a, np.ndarray) and a.dtype == object:
+        assert isinstance(b, np.ndarray) and b.dtype == object and a.shape == b.shape, where
+        for i, (x, y) in enumerate(zip(a, b)):
+            assert (x is None) == (y is None), f"{where}[{i}]"
+            if x is not None:
+                _assert_same(x, y, f"{where}[{i}]")
+    elif isinstance(a, dict):
         assert list(a) == list(b), f"{where}: keys {list(a)} != {list(b)}"
         for key in a:
             _assert_same(a[key], b[key], f"{where}[{key!r}]")
@@ -24,22 +31,22 @@ def _assert_same(a, b, where):
         np.testing.assert_array_equal(a, b, err_msg=where)
 
 
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
 @pytest.mark.parametrize("env_id, kwargs", [
     ("SoftArm/OctArmReach-v0", {}),
     ("SoftArm/OctArmReach-v0", {"action_mode": "delta", "terminate_on_success": True,
                                 "success_tolerance": 0.15}),
     ("SoftArm/CTReach-v0", {"payload_kg": 0.05, "base_angle_deg": 45.0}),
 ])
-def test_copy_i_seeded_s_is_the_single_env_seeded_s_plus_i(env_id, kwargs):
-    """Observations, rewards, flags and infos equal SyncVectorEnv's over the single env, bit
-    for bit, across autoresets (NEXT_STEP)."""
+def test_copy_i_seeded_s_is_the_single_env_seeded_s_plus_i(env_id, kwargs, mode):
+    """Observations, rewards, flags and infos (with SAME_STEP's final_obs and final_info)
+    equal SyncVectorEnv's over the single env, bit for bit, across autoresets."""
     n, steps = 3, 9
     batched = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
-                           max_episode_steps=4, **kwargs)
+                           max_episode_steps=4, autoreset_mode=mode.value, **kwargs)
     sync = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync",
-                        vector_kwargs={"autoreset_mode": AutoresetMode.NEXT_STEP},
-                        max_episode_steps=4, **kwargs)
-    assert batched.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+                        vector_kwargs={"autoreset_mode": mode}, max_episode_steps=4, **kwargs)
+    assert batched.metadata["autoreset_mode"] == mode
     _assert_same(batched.reset(seed=11), sync.reset(seed=11), "reset")
     rng = np.random.default_rng(5)
     ended = 0
@@ -90,6 +97,8 @@ def test_step_before_reset_and_bad_input():
         BatchedReachVectorEnv(num_envs=2, model="constant_curvature")
     with pytest.raises(ValueError, match="num_envs"):
         BatchedReachVectorEnv(num_envs=0)
+    with pytest.raises(ValueError, match="autoreset_mode must be one of NextStep, SameStep"):
+        BatchedReachVectorEnv(num_envs=2, autoreset_mode=AutoresetMode.DISABLED)
     env = BatchedReachVectorEnv(num_envs=2)
     with pytest.raises(RuntimeError, match="reset"):
         env.step(np.zeros((2, 6)))

@@ -59,3 +59,63 @@ def format_table(rows: list[dict]) -> str:
         lines.append(f"| {r['num_envs']} arms | {r['env_steps_per_s']:,.0f} ({r['threads']} threads) | "
                      f"{r['one_thread_env_steps_per_s']:,.0f} | {100 * r['converged_fraction']:.2f} % |")
     return "\n".join(lines)
+
+
+def sb3_adapter(sizes=(8, 16, 64), threads=(1, 2), steps: int = 100) -> list[dict]:
+    """Steps per second of :class:`softarm_gym.sb3.BatchedVecEnv` (batched step plus the
+    per-copy SB3 infos), per number of arms and of numba threads, wall and CPU time.
+
+    Random delta actions; the first step after reset is not timed. numba's thread count is
+    restored afterwards.
+    """
+    import numba
+
+    from softarm_gym.sb3 import BatchedVecEnv
+
+    before = numba.get_num_threads()
+    rows = []
+    try:
+        for k in threads:
+            numba.set_num_threads(k)
+            for n in sizes:
+                venv = BatchedVecEnv("SoftArm/OctArmReach-v0", n, action_mode="delta")
+                venv.seed(0)
+                venv.reset()
+                actions = np.random.default_rng(0).uniform(-1, 1, (steps + 1, n, 6)).astype(np.float32)
+                venv.step(actions[0])
+                wall, cpu = time.perf_counter(), time.process_time()
+                for a in actions[1:]:
+                    venv.step(a)
+                wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+                rows.append({"num_envs": n, "numba_threads": k, "steps": steps,
+                             "env_steps_per_s": n * steps / wall, "env_steps_per_cpu_s": n * steps / cpu})
+                venv.close()
+    finally:
+        numba.set_num_threads(before)
+    return rows
+
+
+def format_sb3_table(rows: list[dict]) -> str:
+    lines = ["| SB3 adapter (BatchedVecEnv, delta actions) | numba threads | env-steps/s | per CPU-second |",
+             "|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['num_envs']} arms | {r['numba_threads']} | {r['env_steps_per_s']:,.0f} | "
+                     f"{r['env_steps_per_cpu_s']:,.0f} |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    import argparse
+    import os
+
+    from softarm_gym.files import write_json
+
+    parser = argparse.ArgumentParser(prog="python -m softarm_gym.benchmarks.vector_bench",
+                                     description="SB3 adapter steps per second by arms and numba threads")
+    parser.add_argument("--json", default=None, help="also write the rows and the load average to this file")
+    args = parser.parse_args()
+    result = {"load_before": os.getloadavg(), "rows": sb3_adapter()}
+    result["load_after"] = os.getloadavg()
+    print(format_sb3_table(result["rows"]))
+    if args.json:
+        write_json(args.json, result)

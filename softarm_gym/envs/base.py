@@ -25,7 +25,7 @@ from solver import layout as L
 __all__ = ["SoftArmEnv", "ACTION_MODES", "OBSERVATION_FORMATS", "ACTUATIONS"]
 
 ACTION_MODES = ("absolute", "delta")
-OBSERVATION_FORMATS = ("flat", "dict")
+OBSERVATION_FORMATS = ("flat", "dict", "goal")
 ACTUATIONS = ("ideal", "lag")
 """How channel pressures follow the command: at once, or through a first-order lag."""
 MIN_RENDER_SIZE, MAX_RENDER_SIZE = 16, 4096
@@ -202,6 +202,13 @@ class SoftArmEnv(gym.Env):
         self._low64, self._high64 = low.astype(np.float64), high.astype(np.float64)
         if observation_format == "flat":
             self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        elif observation_format == "goal":
+            # Gymnasium-Robotics' goal layout: everything but the goal block, then the goals.
+            achieved, desired = self._goal_spaces()
+            end = self._slices["goal"].start
+            self.observation_space = spaces.Dict([
+                ("observation", spaces.Box(low[:end], high[:end], dtype=np.float32)),
+                ("achieved_goal", achieved), ("desired_goal", desired)])
         else:
             # A sequence of pairs keeps the flat order (a plain dict would be sorted by key), so
             # FlattenObservation of the Dict format is the flat format and observation_slices apply.
@@ -242,6 +249,15 @@ class SoftArmEnv(gym.Env):
     # ------------------------------------------------------------------ task hooks
 
     def _goal_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _goal_spaces(self) -> tuple[spaces.Box, spaces.Box]:
+        """The ``achieved_goal`` and ``desired_goal`` spaces of ``observation_format="goal"``."""
+        raise ValueError(f"{type(self).__name__} has no goal point to relabel: observation_format='goal' "
+                         "is for the reach environments; use 'flat' or 'dict'")
+
+    def _goals(self) -> tuple[np.ndarray, np.ndarray]:
+        """The current achieved and desired goals (``observation_format="goal"``)."""
         raise NotImplementedError
 
     def _reset_task(self, options: dict | None, start: solver.Equilibrium
@@ -414,6 +430,10 @@ class SoftArmEnv(gym.Env):
         clip_observations(self._obs.reshape(1, -1), self._low64, self._high64, flat.reshape(1, -1))
         if self.observation_format == "flat":
             return flat
+        if self.observation_format == "goal":
+            achieved, desired = self._goals()
+            return {"observation": flat[:self._slices["goal"].start], "achieved_goal": achieved,
+                    "desired_goal": desired}
         return {name: flat[sl] for name, sl in self._slices.items()}
 
     def _info(self, terms: dict, success: bool, task_info: dict, attempt: solver.StepReport) -> dict:

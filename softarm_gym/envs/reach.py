@@ -5,10 +5,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from gymnasium import spaces
 
 import solver
 from softarm_gym.envs.base import SoftArmEnv, _check_options, _finite_number
-from softarm_gym.envs.terms import REACH_TERMS, fill_reach_goals, reach_rewards
+from softarm_gym.envs.terms import (
+    REACH_TERMS,
+    fill_reach_goals,
+    goal_rewards,
+    reach_reward_sum,
+    reach_rewards,
+)
 
 __all__ = ["ReachEnv"]
 
@@ -53,6 +60,15 @@ class ReachEnv(SoftArmEnv):
     | ``pressures`` | n_inputs | current channel pressures on the action scale, 2p/p_max − 1 | – |
     | ``goal`` | 4 | target (x, y), then target − estimated tip | m |
 
+    ``observation_format="goal"`` gives the goal-conditioned layout of Gymnasium-Robotics
+    (SB3 ``MultiInputPolicy``, ``HerReplayBuffer``): ``Dict(observation, achieved_goal,
+    desired_goal)``, where ``observation`` is the flat observation without its ``goal`` block
+    (``tip`` … ``pressures``, float32), ``achieved_goal`` the true tip and ``desired_goal`` the
+    target (``Box(−2L, 2L, (dim,), float64)``, m, unclipped: the very numbers the reward
+    uses). It needs ``observation="true"`` (``ValueError`` otherwise): ``achieved_goal`` is
+    the true tip, which an agent under test with an estimator must not see.
+    :meth:`compute_reward` gives the reward of any (achieved, desired) pair.
+
     With ``planar=False`` positions are (x, y, z), section ends (x, y, z, d3x, d3y, d3z) and the
     goal (target, target − tip) 6 values. Positions are bounded by ±2L (L the arm's length)
     and clipped to it. Estimates come from
@@ -69,6 +85,8 @@ class ReachEnv(SoftArmEnv):
     in both action modes); ``reward_success = success_bonus`` while the true tip is within
     ``success_tolerance`` (default 2 cm ≈ L/40 for OctArm V), else 0; ``reward_solver =
     −solver_failure_penalty`` on a step whose equilibrium did not converge, else 0.
+    ``compute_reward(achieved_goal, desired_goal, info)`` recomputes the two goal terms and
+    reproduces the reward exactly (see its docstring), for hindsight relabelling.
 
     ## Starting State
 
@@ -108,7 +126,7 @@ class ReachEnv(SoftArmEnv):
       α ± 2° and E ± 10 % per episode for the simulated arm (``ArmRandomization``).
     * ``action_mode`` (``"absolute"``) and ``delta_scale`` (0.1 of p_max per step).
     * ``n_backbone`` (8): backbone samples in the observation.
-    * ``observation_format`` (``"flat"``) or ``"dict"``.
+    * ``observation_format`` (``"flat"``), ``"dict"`` or ``"goal"`` (``observation="true"`` only).
     * ``distance_weight`` (1), ``control_weight`` (0.01), ``success_bonus`` (1),
       ``success_tolerance`` (0.02 m), ``solver_failure_penalty`` (1), ``max_solver_failures`` (5),
       ``terminate_on_success`` (False).
@@ -157,6 +175,10 @@ class ReachEnv(SoftArmEnv):
             raise ValueError(f"success_tolerance must be > 0 (m); got {success_tolerance}")
         self.terminate_on_success = bool(terminate_on_success)
         self.target_pressures_pa = None
+        observation = kwargs.get("observation", "true")
+        if kwargs.get("observation_format") == "goal" and observation != "true":
+            raise ValueError(f"observation_format='goal' needs observation='true' (got {observation!r}): "
+                             "its achieved_goal is the true tip, which would bypass the estimator")
         super().__init__(design, **kwargs)
         self._target = np.zeros(self.dim)
         # One-row buffers of the batch-first reward (softarm_gym.envs.terms.reach_rewards).
@@ -169,6 +191,65 @@ class ReachEnv(SoftArmEnv):
         r = self.reach
         high = np.concatenate([np.full(self.dim, r), np.full(self.dim, 2 * r)])
         return -high, high
+
+    def _goal_spaces(self):
+        r = self.reach
+        box = spaces.Box(-r, r, shape=(self.dim,), dtype=np.float64)
+        return box, box
+
+    def _goals(self):
+        return self._stepper.tip.copy(), self._target.copy()
+
+    @property
+    def compute_reward(self):
+        """``compute_reward(achieved_goal, desired_goal, info)``: the goal-conditioned reward
+        (:meth:`_compute_reward`), only with ``observation_format="goal"``. SB3 and
+        Gymnasium-Robotics take an env with this attribute for a goal env, so in the other
+        formats it does not exist (``AttributeError``)."""
+        if self.observation_format != "goal":
+            raise AttributeError("compute_reward exists only with observation_format='goal'")
+        return self._compute_reward
+
+    def _compute_reward(self, achieved_goal, desired_goal, info):
+        """The reward of reaching ``desired_goal`` with the tip at ``achieved_goal``, vectorised.
+
+        For hindsight relabelling (SB3 ``HerReplayBuffer``). It recomputes the two terms that
+        depend on the goal — ``reward_distance = −distance_weight · |achieved − desired|`` and
+        ``reward_success = success_bonus`` if that distance is within ``success_tolerance``,
+        else 0 — with the kernel the step uses, and takes the two that do not from ``info``:
+        ``reward_control`` (the pressures) and ``reward_solver`` (the solve). The terms are
+        summed in the step's order, so for a step's own goals and info the result equals the
+        step's reward bit for bit.
+
+        Args:
+            achieved_goal, desired_goal: (..., dim) true tips and targets (m).
+            info: one step's info dict (its two terms scalars, or arrays of the batch shape, as
+                a vector env gives them), or an array or sequence of info dicts of the batch
+                shape, one per transition — what ``HerReplayBuffer(copy_info_dict=True)``
+                passes (without ``copy_info_dict`` it passes empty dicts).
+
+        Returns:
+            A float for goals of shape (dim,), else an array of the batch shape (...).
+
+        Raises:
+            ValueError: goals of different shapes or not ending in ``dim``; infos missing a
+                term or not matching the batch shape.
+        """
+        achieved = np.asarray(achieved_goal, dtype=np.float64)
+        desired = np.asarray(desired_goal, dtype=np.float64)
+        if achieved.shape != desired.shape or achieved.ndim == 0 or achieved.shape[-1] != self.dim:
+            raise ValueError(f"achieved_goal and desired_goal must both have shape (..., {self.dim}); got "
+                             f"{achieved.shape} and {desired.shape}")
+        batch = achieved.shape[:-1]
+        n = math.prod(batch)
+        terms = np.empty((n, len(REACH_TERMS)))
+        goal_rewards(np.ascontiguousarray(achieved.reshape(n, self.dim)),
+                     np.ascontiguousarray(desired.reshape(n, self.dim)), self.distance_weight,
+                     self.success_bonus, self.success_tolerance, terms, np.empty(n),
+                     np.empty(n, dtype=np.bool_))
+        terms[:, 1], terms[:, 3] = _goal_free_terms(info, batch)
+        reward = reach_reward_sum(terms).reshape(batch)
+        return float(reward) if not batch else reward
 
     def _reset_task(self, options, start):
         options = _check_options(options, ("target",))
@@ -233,3 +314,32 @@ class ReachEnv(SoftArmEnv):
 
     def _caption(self):
         return super()._caption() + f"\ndistance {1000 * math.dist(self._stepper.tip, self._target):.1f} mm"
+
+
+_GOAL_FREE = (REACH_TERMS[1], REACH_TERMS[3])
+"""The reward terms that do not depend on the goal (``reward_control``, ``reward_solver``)."""
+
+
+def _goal_free_terms(info, batch: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``reward_control`` and ``reward_solver`` of ``info`` as flat arrays of ``prod(batch)`` values."""
+    n = math.prod(batch)
+    missing = ("compute_reward needs info['reward_control'] and info['reward_solver'] (the terms that "
+               "do not depend on the goal); SB3's HerReplayBuffer passes them only with "
+               "replay_buffer_kwargs={'copy_info_dict': True}")
+    if isinstance(info, dict):
+        try:
+            return tuple(np.broadcast_to(np.asarray(info[key], dtype=np.float64), batch).reshape(n)
+                         for key in _GOAL_FREE)
+        except KeyError:
+            raise ValueError(missing) from None
+        except ValueError:
+            raise ValueError(f"info's reward terms do not fit the goals' batch shape {batch}") from None
+    infos = np.asarray(info, dtype=object)
+    if infos.shape != batch:
+        raise ValueError(f"info must be one dict or one dict per transition, shape {batch}; got shape "
+                         f"{infos.shape}")
+    try:
+        return tuple(np.fromiter((i[key] for i in infos.reshape(n)), dtype=np.float64, count=n)
+                     for key in _GOAL_FREE)
+    except (KeyError, TypeError):
+        raise ValueError(missing) from None

@@ -20,7 +20,7 @@ from solver.layout import THETA, V1, V3, S, X, Y
 from solver.rod import hermite_resample
 
 __all__ = ["fractions_from_actions", "fill_true_shapes", "fill_pressures", "clip_observations",
-           "fill_reach_goals", "reach_rewards", "reach_reward_sum", "REACH_TERMS"]
+           "fill_reach_goals", "goal_rewards", "reach_rewards", "reach_reward_sum", "REACH_TERMS"]
 
 REACH_TERMS = ("reward_distance", "reward_control", "reward_success", "reward_solver")
 """The reward terms of the reach task, in the column order of :func:`reach_rewards`."""
@@ -126,29 +126,44 @@ def fill_reach_goals(targets, tips, start, obs):
 
 
 @njit
-def reach_rewards(tips, targets, fractions, converged, distance_weight, control_weight,
-                  success_bonus, success_tolerance, failure_penalty, terms, distance, success):
-    """Reach rewards: −w_d·|tip − target| − w_c·mean(fraction²) + bonus on success − the
-    solver-failure penalty on an unconverged step.
+def goal_rewards(tips, targets, distance_weight, success_bonus, success_tolerance, terms, distance,
+                 success):
+    """The goal-dependent reach terms: −w_d·|tip − target| and the bonus on success.
 
     Args:
-        tips, targets: (n, dim) (m). fractions: (n, k) pressures / p_max. converged: (n,).
-        terms: (n, 4) written, columns :data:`REACH_TERMS`. distance: (n,) written (m).
-        success: (n,) written: distance <= ``success_tolerance``.
+        tips, targets: (n, dim) (m): the achieved and desired goals.
+        terms: (n, 4) columns 0 (``reward_distance``) and 2 (``reward_success``) written.
+        distance: (n,) written (m). success: (n,) written: distance <= ``success_tolerance``.
     """
     for e in range(tips.shape[0]):
         d2 = 0.0
         for c in range(tips.shape[1]):
             d2 += (tips[e, c] - targets[e, c]) ** 2
         dist = math.sqrt(d2)
-        effort = 0.0
-        for c in range(fractions.shape[1]):
-            effort += fractions[e, c] * fractions[e, c]
         distance[e] = dist
         success[e] = dist <= success_tolerance
         terms[e, 0] = -distance_weight * dist
-        terms[e, 1] = -control_weight * effort / fractions.shape[1]
         terms[e, 2] = success_bonus if success[e] else 0.0
+
+
+@njit
+def reach_rewards(tips, targets, fractions, converged, distance_weight, control_weight,
+                  success_bonus, success_tolerance, failure_penalty, terms, distance, success):
+    """Reach rewards: −w_d·|tip − target| − w_c·mean(fraction²) + bonus on success − the
+    solver-failure penalty on an unconverged step (the goal terms by :func:`goal_rewards`).
+
+    Args:
+        tips, targets: (n, dim) (m). fractions: (n, k) pressures / p_max. converged: (n,).
+        terms: (n, 4) written, columns :data:`REACH_TERMS`. distance: (n,) written (m).
+        success: (n,) written: distance <= ``success_tolerance``.
+    """
+    goal_rewards(tips, targets, distance_weight, success_bonus, success_tolerance, terms, distance,
+                 success)
+    for e in range(tips.shape[0]):
+        effort = 0.0
+        for c in range(fractions.shape[1]):
+            effort += fractions[e, c] * fractions[e, c]
+        terms[e, 1] = -control_weight * effort / fractions.shape[1]
         terms[e, 3] = 0.0 if converged[e] else -failure_penalty
 
 

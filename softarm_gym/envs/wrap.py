@@ -73,7 +73,8 @@ class WrapEnv(SoftArmEnv):
     The ReachEnv blocks ``tip`` (2, m), ``section_ends`` (4·n_sections: x, y, cos θ, sin θ),
     ``backbone`` (2·n_backbone, m), ``pressures`` (n_inputs, 2p/p_max − 1), then ``goal`` (3):
     the disc centre (x, y) and its contact radius object_radius + h (m). Flat ``Box`` or
-    ``Dict`` (``observation_format``).
+    ``Dict`` (``observation_format``); ``"goal"`` is refused (``ValueError``): the wrap
+    reward has no goal point that hindsight relabelling could substitute.
 
     ## Rewards
 

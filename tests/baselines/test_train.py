@@ -4,9 +4,18 @@ import json
 
 import pandas as pd
 import pytest
+from stable_baselines3 import HerReplayBuffer
 
-from baselines.config import ALGOS, HYPERPARAMS_DIR, load_hyperparams, sidecar_paths, split_hyperparams
-from baselines.train import main, train
+from baselines.config import (
+    ALGOS,
+    HYPERPARAMS_DIR,
+    load_hyperparams,
+    make_env,
+    sidecar_paths,
+    split_hyperparams,
+)
+from baselines.train import build, main, resume, train
+from softarm_gym.sb3 import BatchedVecEnv
 from tests.baselines.conftest import TINY
 
 ENV_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
@@ -52,9 +61,42 @@ def test_smoke_training(algo, tmp_path):
 def test_every_algorithm_has_hyperparameters_for_both_reach_envs(algo, env_id):
     params = load_hyperparams(algo, env_id)
     special, algo_kwargs = split_hyperparams(params)
-    assert special["n_timesteps"] > 0 and special["policy"] == "MlpPolicy"
+    assert special["n_timesteps"] > 0
     assert "n_timesteps" not in algo_kwargs and "env_kwargs" not in algo_kwargs
-    ALGOS[algo]("MlpPolicy", "Pendulum-v1", device="cpu", **algo_kwargs)  # keys the constructor accepts
+    if algo == "sac_her":  # the goal format, relabelled through the env's compute_reward
+        assert special["policy"] == "MultiInputPolicy"
+        assert algo_kwargs["replay_buffer_class"] is HerReplayBuffer
+        env = make_env(env_id, special["env_kwargs"])
+    else:
+        assert special["policy"] == "MlpPolicy"
+        env = "Pendulum-v1"
+    ALGOS[algo](special["policy"], env, device="cpu", **algo_kwargs)  # keys the constructor accepts
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_batched_hyperparameters_build_on_the_batched_env(algo, env_id):
+    params = load_hyperparams(algo, env_id, HYPERPARAMS_DIR / "batched")
+    model, venv = build(env_id, algo, params, seed=0, batched=True)
+    assert isinstance(venv.unwrapped, BatchedVecEnv) and venv.num_envs == params["n_envs"] > 1
+    venv.close()
+
+
+def test_batched_run_and_its_resume_write_one_monitor_file(tmp_path):
+    tiny = {**TINY["ppo"], "n_envs": 4, "n_steps": 16, "n_timesteps": 128,
+            "env_kwargs": {"action_mode": "delta", "max_episode_steps": 8}}
+    run = train(ENV_IDS[0], "ppo", seed=2, log_dir=tmp_path, hyperparams=tiny, eval_freq=64, eval_episodes=1,
+                checkpoint_freq=64, progress=False, tensorboard=False, batched=True)
+    assert run.name == "ppo_OctArmReach-v0_batched_s2"
+    assert json.loads((run / "config.json").read_text())["batched"] is True
+    assert json.loads((run / "summary.json").read_text())["batched"] is True
+    monitor = pd.read_csv(run / "monitor.csv", skiprows=1)
+    assert {"r", "l", "t", "is_success", "distance"} <= set(monitor.columns)
+    assert list(monitor["l"]) == [8] * (128 // 8) and not list(run.glob("[0-9]*.monitor.csv"))
+    header = (run / "monitor.csv").read_text().splitlines()[0]
+    resume(run, timesteps=256, progress=False)
+    assert (run / "monitor.csv").read_text().splitlines()[0] == header  # appended, not restarted
+    assert len(pd.read_csv(run / "monitor.csv", skiprows=1)) == 256 // 8
 
 
 def test_bad_hyperparameters_are_named(tmp_path):

@@ -8,7 +8,9 @@ import pytest
 
 import solver
 from softarm_gym.benchmarks import stress
+from softarm_gym.benchmarks.envs import env_ids
 from softarm_gym.cli import main
+from softarm_gym.sensing import ESTIMATORS
 from tests.timings import without_timings
 
 FIELDS = {"n", "converged_fraction", "flagged_unconverged_fraction", "nan_count", "exceptions",
@@ -31,7 +33,9 @@ def test_report_has_every_class_both_columns_and_the_env_part(smoke):
     # a wrap_press trial is an 8-step warm-started ramp: every step is counted
     assert smoke["classes"]["wrap_press"]["n"] == 2 * 8
     env = smoke["env"]
-    assert env["cases"] == 24 and env["steps"] == 24
+    # one case per registered ID and observation mode, at least one step each
+    cases = len(env_ids()) * len(ESTIMATORS)
+    assert env["cases"] == cases and env["steps"] == cases * -(-24 // cases)
     assert env["exceptions"] == env["nan_observations"] == env["nan_rewards"] == 0
     assert smoke["targets"]["zero_nan"]
     json.dumps(smoke)  # the CLI prints it as JSON

@@ -212,3 +212,49 @@ def elastica_cantilever(alpha):
     w = integral(psi, math.sin) / math.sqrt(2.0 * alpha)
     u = 1.0 - math.sqrt(2.0 * math.sin(psi) / alpha)
     return w, u, psi
+
+
+def moment_balance(arm, scene, eq):
+    """The planar moment balance of every recorded sample of ``eq``, from its positions and
+    tangents and the scene's loads only (no shooting, no integration of the rod equations):
+
+        m(s_k) = M_tip + (r(L) − r_k) × F + Σ_{endplates distal} (r_j − r_k) × W_j
+                 + ∫_{s_k}^L (r(σ) − r_k) × q dσ,
+
+    F the tip force plus payload weight, W_j the endplate weights, q each section's weight per
+    length; ∫ r dσ by the trapezoid rule with the end correction h²/12·(r'_a − r'_b) (cubic
+    Hermite, O(h⁵) per step), r' = v3 d3 + v1 d1 from the recorded angles and strains.
+
+    Returns:
+        (N,) m_recorded − m_balance (N m).
+    """
+    g = np.array([0.0, -scene.gravity])
+    force = np.asarray(scene.tip_force[:2]) + scene.payload_kg * g
+    r, th = eq.positions, eq.angles
+    v1, v3 = eq.shear_stretch[:, 0], eq.shear_stretch[:, 1]
+    tangent = np.column_stack([v3 * np.cos(th) - v1 * np.sin(th), v3 * np.sin(th) + v1 * np.cos(th)])
+
+    def cross(a, b):
+        return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+    n = eq.s.size
+    moment_q = np.zeros(n)  # ∫_{s_k}^L r × q dσ
+    weight_q = np.zeros((n, 2))  # ∫_{s_k}^L q dσ
+    start = 0
+    sections = []
+    for section, end in zip(arm.sections, eq.section_ends):
+        sections.append((start, end, section.mass_per_length * g))
+        start = end + 1
+    acc_m, acc_w = 0.0, np.zeros(2)
+    for first, end, q in reversed(sections):
+        moment_q[end], weight_q[end] = acc_m, acc_w
+        for k in range(end - 1, first - 1, -1):
+            h = eq.s[k + 1] - eq.s[k]
+            chord = 0.5 * h * (r[k] + r[k + 1]) + h * h / 12.0 * (tangent[k] - tangent[k + 1])
+            acc_m, acc_w = acc_m + cross(chord, q), acc_w + q * h
+            moment_q[k], weight_q[k] = acc_m, acc_w
+    balance = scene.tip_moment_3d()[2] + cross(r[-1] - r, force) + moment_q - cross(r, weight_q)
+    for section, end in zip(arm.sections, eq.section_ends):
+        distal = np.arange(n) <= end
+        balance[distal] += cross(r[end] - r[distal], section.endplate_mass * g)
+    return eq.internal_moment - balance

@@ -87,14 +87,16 @@ def test_cold_contact_solve_matches_ramp():
 
 def test_contact_is_planar_only():
     arm = designs.octarm_v()
-    scene = solver.Scene(obstacles=(solver.Disc(),))
+    scene = solver.Scene(obstacles=(solver.Disc(center=(0.1, -0.4)),))
     with pytest.raises(ValueError, match="planar"):
         solver.solve(arm, np.zeros(9), scene, planar=False)
 
 
 @pytest.mark.parametrize("kwargs, match", [
     (dict(center=(0, np.nan)), "center"), (dict(radius=0), "radius"),
-    (dict(stiffness=-1), "stiffness"), (dict(center=(1, 2, 3)), "center")])
+    (dict(stiffness=-1), "stiffness"), (dict(center=(1, 2, 3)), "center"),
+    (dict(radius=1e300), "radius.*<= 10000 m"), (dict(center=(1e300, 0)), "center.*10000 m"),
+    (dict(center="far"), "center")])
 def test_bad_disc(kwargs, match):
     with pytest.raises(ValueError, match=match):
         solver.Disc(**kwargs)
@@ -103,6 +105,10 @@ def test_bad_disc(kwargs, match):
 def test_bad_obstacles():
     with pytest.raises(ValueError, match="obstacles"):
         solver.Scene(obstacles=((0, 0, 1),))
+    # Issue #19: a disc over the clamp gave a NaN tip; it is no scene.
+    with pytest.raises(ValueError, match=r"obstacles\[1\].*covers the arm's base"):
+        solver.Scene(obstacles=(solver.Disc(center=(0.3, 0.0)), solver.Disc(center=(0, 0),
+                                                                          radius=1e3)))
 
 
 def test_deep_wrap_converges_with_a_stiff_penalty():

@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -59,11 +60,44 @@ def test_bad_warm_start():
     eq = solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=30))
     with pytest.raises(ValueError, match="base angle"):
         solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=60), warm_start=eq)
-    with pytest.raises(ValueError, match="different arm, model or planar"):
+    with pytest.raises(ValueError, match="planar 'full' solve, not a planar 'unshearable'"):
         solver.solve(ARM, np.zeros(6), solver.Scene(base_angle_deg=30), model="unshearable",
                      warm_start=eq)
     with pytest.raises(ValueError, match="Equilibrium"):
         solver.solve(ARM, np.zeros(6), warm_start={"tip": [0, 0]})
+
+
+def test_warm_start_from_another_arm_or_scene_is_refused():
+    """Same channel count, another design (or a variant of this one): refused by name. A
+    scene may differ in its loads (they are ramped), not in an obstacle across the arm."""
+    scene = solver.Scene(base_angle_deg=90)
+    eq = solver.solve(ARM, np.zeros(6), scene)
+    for other in (designs.octarm_vi(), designs.octarm_v(endplate_mass=0.1)):
+        with pytest.raises(ValueError, match="solved for design 'octarm_v?i?', not for this"):
+            solver.solve(other, np.zeros(6), scene, warm_start=eq)
+    with pytest.raises(ValueError, match="which arm and scene"):
+        solver.solve(ARM, np.zeros(6), scene, warm_start=replace(eq, scene=None))
+    across = solver.Disc(center=tuple(eq.positions[20]), radius=0.05)
+    with pytest.raises(ValueError, match="inside obstacle 0"):
+        solver.solve(ARM, np.zeros(6), replace(scene, obstacles=(across,)), warm_start=eq)
+    clear = solver.Disc(center=(0.4, 0.3), radius=0.05)
+    heavier = replace(scene, payload_kg=0.3, obstacles=(clear,))
+    assert solver.solve(ARM, np.zeros(6), heavier, warm_start=eq).converged
+    stepper = solver.Stepper(designs.octarm_vi(), scene)
+    with pytest.raises(ValueError, match="solved for design 'octarm_v'"):
+        stepper.reset(np.zeros(6), warm_start=eq)
+
+
+def test_step_batch_state_from_another_arm_or_scene_is_refused():
+    scene = solver.Scene(base_angle_deg=90)
+    state = solver.step_batch(ARM, np.zeros((2, 6)), scene)
+    with pytest.raises(ValueError, match="stepped for design 'octarm_v', not for this 'octarm_vi'"):
+        solver.step_batch(designs.octarm_vi(), np.zeros((2, 6)), scene, state=state)
+    with pytest.raises(ValueError, match="stepped in .* keeps the loads"):
+        solver.step_batch(ARM, np.zeros((2, 6)), replace(scene, payload_kg=0.1), state=state)
+    with pytest.raises(ValueError, match="BatchState"):
+        solver.step_batch(ARM, np.zeros((2, 6)), scene, state=replace(state, arm=None))
+    assert solver.step_batch(ARM, np.zeros((2, 6)), scene, state=state).converged.all()
 
 
 def test_bad_batch():
@@ -102,3 +136,33 @@ def test_unconverged_solves_stay_finite_and_consistent():
         np.testing.assert_allclose(eq.tip, tip, atol=1e-12)
         if not eq.converged:
             assert eq.residual > 0
+
+
+@pytest.mark.parametrize("failure", ["raise", "nan"])
+def test_no_exception_and_no_nan_escapes_a_solve(monkeypatch, failure):
+    """A kernel that fails outright (issue #19: LinAlgError from a singular matrix) or gives a
+    NaN state: an unconverged, unstable, finite result (the unloaded shape), SolverError with
+    strict=True, and the same from a stepper (which keeps the state)."""
+    import importlib
+
+    api = importlib.import_module("solver.solve")  # the module (solver.solve is the function)
+    path = api._path
+
+    def broken(*args):
+        if failure == "raise":
+            raise np.linalg.LinAlgError("Singular matrix")
+        eq = path(*args)
+        return replace(eq, tip=np.full_like(eq.tip, np.nan))
+
+    monkeypatch.setattr(api, "_path", broken)
+    scene = solver.Scene(base_angle_deg=90, payload_kg=0.2)
+    p = np.array([30, 0, 0, 0, 0, 0]) * PSI
+    for planar in (True, False):
+        pressures = p if planar else np.zeros(9)
+        eq = solver.solve(ARM, pressures, scene, planar=planar)
+        assert not eq.converged and not eq.stable and eq.residual == np.inf
+        assert np.all(np.isfinite(eq.tip)) and np.all(np.isfinite(eq.positions))
+        with pytest.raises(solver.SolverError):
+            solver.solve(ARM, pressures, scene, planar=planar, strict=True)
+    report = solver.Stepper(ARM, scene, planar=False).reset(np.zeros(9))
+    assert not report.converged

@@ -1,0 +1,158 @@
+"""The step-size check: is an RK4 grid fine enough for the equilibrium solved on it?
+
+The shooting and multiple-shooting kernels integrate with a fixed number of RK4 steps per
+section. Newton's residual says the discrete equations are met, not that their solution is
+near the rod's: a 100 N m tip moment on OctArm V turns the backbone by 5 rad per default
+step, and the converged tip is metres off. So a result is checked on its own samples, step
+by step (docs/design.md §11). Over a step of length h in section i the solution varies on
+the shortest of three lengths, each a rate ω:
+
+* the turn of the backbone, |u| (rad/m);
+* the load's turn of it, √(|r'|·|n|/EI): m' = r' × n changes the curvature across a step
+  by h·|m'|/EI, and the elastica bends over EI/|n|;
+* the distributed load's, ∛(|r'|·|q|/EI) (the third derivative of θ).
+
+RK4's local error is O((h·ω)⁵), so the check bounds h·ω ≤ :data:`STEP_TURN` at every sample.
+Where it fails, the solve is repeated on a grid refined by powers of two in the sections that
+need it (:func:`refined_steps`); where the refinement limit is reached first the result is
+reported unconverged.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from solver.jit import njit
+from solver.layout import CI, LEN, NX, NY, QX, QY, V1, V3, U
+from solver.results import SAMPLED
+
+# Largest h·ω (rad) a step may take. Measured on OctArm V (`docs/design.md` §11): the tip
+# error is 2e-6·L at h·ω = 0.54 under a pure tip moment and 5e-6·L at 0.55 under a tip
+# force, and falls as (h·ω)⁴; the thesis's arms reach 0.31 at their rated pressures on the
+# default grid, so the check refines nothing they do.
+STEP_TURN = 0.5
+
+
+@njit
+def section_needs(curv, force, strain, q, secf, ends, need):
+    """The largest h·ω / :data:`STEP_TURN` over every section's samples (> 1: too coarse).
+
+    Args:
+        curv: (N, 1|3) curvature (rad/m) at the samples (junctions repeated). force: (N, 2|3)
+            internal force (N). strain: (N, 2|3) strain vector v (|r'| = |v|).
+        q: (ns,) |distributed load| per reference length of each section (N/m).
+        secf: (6, ns) section array. ends: (ns,) the samples' rows at the section ends.
+        need: (ns,) written; infinite where a sample is not finite.
+    """
+    row = 0
+    for i in range(secf.shape[1]):
+        h = secf[LEN, i] / (ends[i] - row)
+        ci = secf[CI, i]
+        worst = 0.0
+        while row <= ends[i]:
+            turn = _norm(curv[row])
+            stretch = _norm(strain[row])
+            load = math.sqrt(stretch * _norm(force[row]) * ci)
+            spread = (stretch * q[i] * ci) ** (1.0 / 3.0)
+            if not (turn <= math.inf and load <= math.inf and spread <= math.inf):
+                worst = math.inf
+            worst = max(worst, h * max(turn, load, spread))
+            row += 1
+        need[i] = worst / STEP_TURN
+
+
+@njit(inline="always")
+def _norm(v):
+    acc = 0.0
+    for x in v:
+        acc += x * x
+    return math.sqrt(acc)
+
+
+@njit
+def planar_fine(record, secf, steps, loads):
+    """True when the grid resolves a planar dead-load record (every need ≤ 1).
+
+    Args:
+        record: (Σ(steps + 1), N_COLUMNS) a backbone record (:func:`solver.rod.integrate_planar`).
+        secf, steps: its section array and RK4 steps. loads: (ns, 4) its dead loads.
+    """
+    ns = secf.shape[1]
+    q = np.empty(ns)
+    ends = np.empty(ns, dtype=np.int64)
+    row = -1
+    for i in range(ns):
+        q[i] = math.hypot(loads[i, QX], loads[i, QY])
+        row += steps[i] + 1
+        ends[i] = row
+    need = np.empty(ns)
+    section_needs(record[:, U:U + 1], record[:, NX:NY + 1], record[:, V1:V3 + 1], q, secf, ends,
+                  need)
+    for i in range(ns):
+        if not need[i] <= 1.0:
+            return False
+    return True
+
+
+def needs(eq, secf, q) -> np.ndarray:
+    """:func:`section_needs` of a recorded :class:`~solver.results.Equilibrium` (planar or
+    spatial, dead loads or contact).
+
+    Args:
+        secf: (6, ns) the section array. q: (ns,) |distributed load| (N/m).
+
+    Returns:
+        (ns,) need per section.
+    """
+    curv = eq.curvature if eq.curvature.ndim == 2 else eq.curvature[:, None]
+    need = np.empty(secf.shape[1])
+    section_needs(curv, eq.internal_force, eq.shear_stretch, q, secf,
+                  np.asarray(eq.section_ends, dtype=np.int64), need)
+    return need
+
+
+def refined_steps(eq, base_steps, current, need, limit):
+    """The grid to solve on next, or None where no finer one is allowed.
+
+    Each section that needs it gets base_steps·2^k steps, the least k at which the steps
+    ``eq`` was solved with (read from its section ends) times ``need`` are met; never
+    fewer than ``current`` (the grid ``eq`` came from) and never more than
+    ``limit``·base_steps.
+
+    Args:
+        eq: the result. base_steps: (ns,) the settings' grid. current: (ns,) the grid solved
+            on. need: (ns,) :func:`needs` of ``eq``. limit: the largest refinement factor.
+
+    Returns:
+        (ns,) int steps, or None when the grid cannot be refined where it needs to be.
+    """
+    used = _steps_of(eq)
+    wanted = np.where(need > 1.0, np.ceil(used * np.minimum(need, 1e9)), 0.0)
+    factor = np.minimum(2.0 ** np.ceil(np.log2(np.maximum(wanted / base_steps, 1.0))), limit)
+    steps = np.maximum(current, base_steps * factor).astype(np.int64)
+    if np.any((need > 1.0) & (steps <= used)):
+        return None
+    return steps
+
+
+def _steps_of(eq) -> np.ndarray:
+    """(ns,) RK4 steps per section of a recorded result, from its section ends."""
+    return np.diff(np.concatenate([[-1], np.asarray(eq.section_ends, dtype=np.int64)])) - 1
+
+
+def on_grid(eq, fine_steps, steps):
+    """The samples of ``eq`` (solved with ``fine_steps`` per section) at the nodes of the
+    coarser grid ``steps``, each a power-of-two divisor of its fine count: a subset of the
+    fine grid's nodes, so nothing is interpolated."""
+    rows = []
+    start = 0
+    for fine, coarse in zip(fine_steps, steps):
+        rows.append(start + np.arange(coarse + 1) * (fine // coarse))
+        start += fine + 1
+    rows = np.concatenate(rows)
+    sampled = {name: getattr(eq, name)[rows] for name in SAMPLED if getattr(eq, name).shape[0]}
+    ends = tuple(int(v) for v in np.cumsum(np.asarray(steps) + 1) - 1)
+    return replace(eq, section_ends=ends, **sampled)
