@@ -152,6 +152,17 @@ def _names(text: str, choices, what: str) -> list[str]:
     return names
 
 
+def _check_env_kwargs(env_id: str, env_kwargs: dict, where: str) -> None:
+    """Build the env once, so that settings it refuses (``observation_format="goal"`` with an
+    estimator, say) are one line before the sweep rather than a failure in every run."""
+    import gymnasium as gym
+
+    try:
+        gym.make(env_id, **env_kwargs).close()
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {first_line(exc)}") from None
+
+
 def plan_runs(env_ids, algos, seeds, observations=("true",), *, timesteps: int | None = None,
               hyperparams_dir: Path | str = HYPERPARAMS_DIR) -> list[RunSpec]:
     """Every (env, algo, observation, seed) run, with its hyperparameters and budget, checked.
@@ -165,7 +176,8 @@ def plan_runs(env_ids, algos, seeds, observations=("true",), *, timesteps: int |
         hyperparams_dir: folder of the YAML files.
 
     Raises:
-        ValueError: anything unknown or missing, named on one line.
+        ValueError: anything unknown or missing, or env settings the env refuses, named on one
+            line.
     """
     if timesteps is not None and (isinstance(timesteps, bool) or int(timesteps) != timesteps
                                   or timesteps < 1):
@@ -192,6 +204,8 @@ def plan_runs(env_ids, algos, seeds, observations=("true",), *, timesteps: int |
                 if params.get("env_kwargs", {}).get("observation", "true") != observation:
                     run_params = {**params, "env_kwargs": {**params.get("env_kwargs", {}),
                                                            "observation": observation}}
+                _check_env_kwargs(env_id, run_params.get("env_kwargs", {}),
+                                  f"{algo}.yml[{env_id!r}] with observation {observation!r}")
                 runs += [RunSpec(env_id, algo, int(seed), observation, budget, run_params) for seed in seeds]
     if not runs:
         raise ValueError("the sweep has no runs: give at least one env, algo, seed and observation")

@@ -43,6 +43,9 @@ def test_seeds_and_the_plan():
     for args, kwargs, message in (
             (([ENV_ID], ["dqn"], [0]), {}, "unknown algo 'dqn'"),
             (([ENV_ID], ["sac"], [0], ["truth"]), {}, "unknown observation 'truth'"),
+            (([ENV_ID], ["sac_her"], [0], ["cable_encoder"]), {},
+             "sac_her.yml\\['SoftArm/OctArmReach-v0'\\] with observation 'cable_encoder': "
+             "observation_format='goal' needs observation='true'"),
             ((["SoftArm/OctArmWrap-v0"], ["sac"], [0]), {}, "no entry for 'SoftArm/OctArmWrap-v0'"),
             (([ENV_ID], ["sac"], [0]), {"timesteps": 0}, "timesteps must be an integer >= 1"),
             (([ENV_ID], ["sac"], []), {}, "the sweep has no runs")):
@@ -58,6 +61,8 @@ def test_seeds_and_the_plan():
     (["--address", "127.0.0.1:1"], "--address needs --backend ray"),
     (["--results", "/nonexistent/R.md"], "directory '/nonexistent' does not exist"),
     (["--cpus-per-run", "0"], "cpus_per_run must be an integer >= 1"),
+    (["--algos", "sac_her", "--observations", "true,load_cell"], "with observation 'load_cell': "
+     "observation_format='goal' needs observation='true'"),
     (["--backend", "ray", "--address", "nowhere"], "is not 'auto', HOST:PORT"),
 ])
 def test_bad_input_is_one_line_before_any_training(tmp_path, capsys, argv, message):
