@@ -13,8 +13,11 @@ class DesignCache:
 
     MAX_ENTRIES = 256
 
-    def __init__(self):
+    def __init__(self, scaled_from: tuple | None = None):
         self._store = {}
+        # (nominal design, modulus factor) of a design made by ArmDesign.scaled: its kernel
+        # arrays are derived from the nominal's (solver._model.pack).
+        self.scaled_from = scaled_from
 
     def get(self, key, build):
         """The entry for ``key``, built by ``build()`` the first time."""

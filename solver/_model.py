@@ -92,8 +92,32 @@ class PackedArm:
 
 
 def pack(arm: ArmDesign, model: str, settings: Settings) -> PackedArm:
-    """Kernel arrays of ``arm`` for ``model`` and ``settings`` (cached on the design)."""
-    return arm._solver_cache.get(("pack", model, settings), lambda: _build_pack(arm, model, settings))
+    """Kernel arrays of ``arm`` for ``model`` and ``settings`` (cached on the design); a
+    design made by :meth:`ArmDesign.scaled` gets its nominal's, rescaled."""
+    scaled_from = arm._solver_cache.scaled_from
+    if scaled_from is None:
+        build = lambda: _build_pack(arm, model, settings)  # noqa: E731
+    else:
+        build = lambda: _scaled_pack(arm, pack(scaled_from[0], model, settings), scaled_from[1])  # noqa: E731
+    return arm._solver_cache.get(("pack", model, settings), build)
+
+
+def _scaled_pack(arm: ArmDesign, nominal: PackedArm, factor: float) -> PackedArm:
+    """The kernel arrays of ``arm`` = ``nominal``'s design scaled by :meth:`ArmDesign.scaled`:
+    stiffness columns times ``factor``, compliances divided by it, the braid cosines of
+    ``arm``'s tubes (equal to :func:`_build_pack` of ``arm`` to rounding)."""
+    secf = nominal.secf.copy()
+    secf[L.EA] *= factor
+    secf[L.EI] *= factor
+    secf[L.CA] = 1.0 / secf[L.EA]
+    secf[L.CI] = 1.0 / secf[L.EI]
+    secf[L.CG] /= factor
+    tubes_f = nominal.tubes_f.copy()
+    tubes_f[:, L.TF_EAT] *= factor
+    tubes_f[:, L.TF_E] *= factor
+    tubes_f[:, L.TF_COS_ALPHA] = [math.cos(math.radians(t.material.wind_angle_deg)) for t in arm.tubes]
+    return replace(nominal, secf=secf, tubes_f=tubes_f, c_j=nominal.c_j / factor,
+                   moment_scale=nominal.moment_scale * factor)
 
 
 def _build_pack(arm: ArmDesign, model: str, settings: Settings) -> PackedArm:
@@ -203,6 +227,8 @@ class SceneContext:
 
     ``loads`` (ns, 4|6) packs ``n_end`` and ``q`` (``NEX``… or ``SL_*``); ``params`` is the
     numeric parameter array of the path-following kernels (:mod:`solver.layout`).
+    ``shooting_index`` is L·√(N/EI_min), N the largest internal force: single shooting
+    amplifies an error in the base moment by up to e^index along a rod in tension.
     """
 
     n_end: np.ndarray
@@ -220,13 +246,31 @@ class SceneContext:
 def context(arm: ArmDesign, packed: PackedArm, scene: Scene, dim: int,
             settings: Settings) -> SceneContext:
     """The :class:`SceneContext` of ``scene`` for ``packed`` (cached). ``settings`` must be
-    the ones ``packed`` was built with (they are part of its key)."""
-    return arm._solver_cache.get(("scene", packed.key, scene, dim),
-                                 lambda: _build_context(arm, packed, scene, dim, settings))
+    the ones ``packed`` was built with (they are part of its key). A design made by
+    :meth:`ArmDesign.scaled` shares its nominal's loads (the masses are unchanged)."""
+    def build():
+        scaled_from = arm._solver_cache.scaled_from
+        if scaled_from is not None and packed.key[0] == "pack":
+            nominal = scaled_from[0]
+            loads = context(nominal, pack(nominal, *packed.key[1:]), scene, dim, settings)
+            return _build_context(arm, packed, scene, dim, settings, loads)
+        return _build_context(arm, packed, scene, dim, settings)
+
+    return arm._solver_cache.get(("scene", packed.key, scene, dim), build)
 
 
-def _build_context(arm, packed, scene, dim, settings) -> SceneContext:
-    n_end, q, m_tip = dead_loads(arm, packed, scene, dim)
+def _build_context(arm, packed, scene, dim, settings, loads: SceneContext | None = None) -> SceneContext:
+    """The context of ``scene``; with ``loads``, the context of a design of the same masses
+    in the same scene, its dead loads are reused."""
+    if loads is None:
+        n_end, q, m_tip = dead_loads(arm, packed, scene, dim)
+        load_array = np.ascontiguousarray(np.hstack([n_end, q]))
+        base_force = n_end[0] + q[0] * packed.sec_len[0]
+        base_force.flags.writeable = False  # shared by every Equilibrium of this scene
+        loaded = has_load(arm, scene)
+    else:
+        n_end, q, m_tip, load_array = loads.n_end, loads.q, loads.m_tip, loads.loads
+        base_force, loaded = loads.base_force, loads.has_load
     # In 3D a residual also twists the sections: torsion enters the series too.
     moment = packed.moment_scale if dim == 2 else series_moment_scale(
         packed.sec_len, np.minimum(packed.sec_ei, 1.0 / packed.c_j))
@@ -234,61 +278,50 @@ def _build_context(arm, packed, scene, dim, settings) -> SceneContext:
     grow = max(1.0, scale)
     tol = settings.tol * moment * grow
     max_step = 2.0 * moment * grow
+    n_norm, q_norm = _row_norms(n_end), _row_norms(q)
     params = np.empty(L.N_PARAMS)
     params[L.TOL] = tol
     params[L.MAX_STEP] = max_step
-    params[L.M_BOUND] = _moment_bound(arm, packed, scene, n_end, q)
+    params[L.M_BOUND] = _moment_bound(arm, packed, scene, float(np.max(n_norm + q_norm * packed.sec_len)))
     params[L.DT0] = settings.dt0
     params[L.DT_MIN] = settings.dt_min
     params[L.MAX_ITER] = settings.max_iter
     params[L.N_SCAN] = settings.n_scan
     params[L.JUMP] = 0.25 * moment
     params[L.PREDICT_CAP] = math.inf
-    ctx = SceneContext(n_end=n_end, q=q, loads=np.ascontiguousarray(np.hstack([n_end, q])),
-                       m_tip=m_tip, tol=tol, max_step=max_step, params=params,
-                       has_load=has_load(arm, scene),
-                       base_force=n_end[0] + q[0] * packed.sec_len[0],
-                       shooting_index=shooting_index(arm, n_end, q))
-    ctx.base_force.flags.writeable = False  # shared by every Equilibrium of this scene
-    return ctx
+    n_max = float(np.max(n_norm + q_norm * arm.length))
+    return SceneContext(n_end=n_end, q=q, loads=load_array, m_tip=m_tip, tol=tol,
+                        max_step=max_step, params=params, has_load=loaded, base_force=base_force,
+                        shooting_index=arm.length * math.sqrt(n_max / float(packed.sec_ei.min())))
 
 
-def _moment_bound(arm, packed, scene, n_end, q):
-    """A bound on |m0| for the fold scan: |M_tip| + ∫|r'||n| ds over any pressures."""
-    nmax = _force_bound(packed, n_end, q)
-    bound = float(np.linalg.norm(scene.tip_moment_3d())) + nmax * _stretch_bound(
-        arm, packed, n_end, q) * arm.length
+def _row_norms(a: np.ndarray) -> np.ndarray:
+    """Euclidean norms of the rows of ``a`` (k, 2|3)."""
+    return np.sqrt(np.einsum("ij,ij->i", a, a))
+
+
+def _moment_bound(arm, packed, scene, force_bound: float) -> float:
+    """A bound on |m0| for the fold scan: |M_tip| + ∫|r'||n| ds over any pressures, with
+    ``force_bound`` the largest internal force |n| (N) of the dead loads."""
+    bound = float(np.linalg.norm(scene.tip_moment_3d())) + force_bound * _stretch_bound(
+        arm, packed, force_bound) * arm.length
     return 1.05 * bound + packed.moment_scale * 1e-6
 
 
-def _force_bound(packed, n_end, q) -> float:
-    """The largest internal force |n| (N) of dead loads ``n_end``, ``q`` (ns, 2|3)."""
-    return float(np.max(np.linalg.norm(n_end, axis=1)
-                        + np.linalg.norm(q, axis=1) * packed.sec_len))
-
-
-def _stretch_bound(arm, packed, n_end, q) -> float:
+def _stretch_bound(arm, packed, force_bound: float) -> float:
     """A bound on |r'| over any pressures: v*max + |n|max/min(EA, GA), v*max the stretch at
-    the rated pressure."""
+    the rated pressure and |n|max ``force_bound``."""
     full = np.full(max(arm.n_channels, 1), arm.max_pressure) if arm.n_channels else np.zeros(1)
     v3 = rest_strains(arm, full, packed)[2] if arm.n_channels else np.ones(1)
-    return float(v3.max()) + _force_bound(packed, n_end, q) * float(
-        max(packed.c_a.max(), packed.c_g.max()))
-
-
-def shooting_index(arm, n_end, q) -> float:
-    """L·√(N/EI_min), N the largest internal force (section-end forces ``n_end`` and
-    distributed loads ``q``, (ns, 2|3)): single shooting amplifies an error in the base
-    moment by up to e^index along a rod in tension."""
-    n_max = float(np.max(np.linalg.norm(n_end, axis=1) + np.linalg.norm(q, axis=1) * arm.length))
-    return arm.length * math.sqrt(n_max / min(s.EI for s in arm.sections))
+    return float(v3.max()) + force_bound * float(max(packed.c_a.max(), packed.c_g.max()))
 
 
 def reach(arm, packed, scene) -> float:
     """A bound (m) on the distance of any backbone point from the base, over all pressures:
     ∫|r'| ds with |r'| ≤ the stretch bound."""
     n_end, q, _ = dead_loads(arm, packed, scene, 2)
-    return _stretch_bound(arm, packed, n_end, q) * arm.length
+    return _stretch_bound(arm, packed, float(np.max(_row_norms(n_end) + _row_norms(q) * packed.sec_len))) \
+        * arm.length
 
 
 def contact_layout(arm, packed, scene):

@@ -12,7 +12,7 @@ import numpy as np
 from solver import _planar
 from solver import layout as L
 from solver._grid import planar_fine
-from solver._model import MULTIPLE_SHOOTING_INDEX, SceneContext, context, rest_strains
+from solver._model import MULTIPLE_SHOOTING_INDEX, SceneContext, context, pack, rest_strains
 from solver._paths_shooting import solve_multiple
 from solver.results import Equilibrium
 from solver.rod import arc_chain_planar, arc_chain_spatial, base_rotation, integrate_planar
@@ -116,6 +116,10 @@ def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False, guard_discs=NO_D
     """
     def build():
         zeros = np.zeros(max(arm.n_channels, 1))
+        if not guard_3d and not guard_discs.size:
+            scaled = _scaled_loaded(arm, packed, scene, ctx)
+            if scaled is not None:
+                return scaled
         unloaded = SceneContext(n_end=ctx.n_end * 0, q=ctx.q * 0, loads=ctx.loads * 0,
                                 m_tip=0.0, tol=ctx.tol, max_step=ctx.max_step,
                                 params=ctx.params, has_load=False, base_force=ctx.base_force * 0,
@@ -129,6 +133,40 @@ def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False, guard_discs=NO_D
 
     key = ("loaded", packed.key, scene, guard_3d, guard_discs.tobytes())
     return arm._solver_cache.get(key, build)
+
+
+def _scaled_loaded(arm, packed, scene, ctx) -> Loaded | None:
+    """Stage 1 of a design made by ``ArmDesign.scaled`` from its nominal's (None: not one,
+    or the similarity does not apply).
+
+    With every stiffness times f and zero pressure (zero rest strains whatever E and α), the
+    arm under loads F has the shape of the nominal arm under F/f, with internal forces and
+    moments times f (the constitutive law is linear in the stiffnesses). So the stage is the
+    nominal's loaded state followed from F to F/f — the same one-parameter family of load
+    levels the cold ramp of the scaled arm traces, entered at F instead of at zero, a few
+    Newton steps instead of a whole ramp (docs/design.md §10). Applies when the nominal
+    ramp did not snap (no fold, so the family is one branch) and the load change converges.
+    """
+    scaled_from = arm._solver_cache.scaled_from
+    if scaled_from is None or packed.key[0] != "pack":
+        return None
+    nominal, f = scaled_from
+    _, model, settings = packed.key
+    npacked = pack(nominal, model, settings)
+    nctx = context(nominal, npacked, scene, 2, settings)
+    base = loaded_base_moment(nominal, npacked, scene, nctx)
+    if not (base.converged and base.resolved) or base.snapped:
+        return None
+    target = replace(nctx, n_end=nctx.n_end / f, q=nctx.q / f, loads=nctx.loads / f,
+                     m_tip=nctx.m_tip / f)
+    zeros = np.zeros(max(arm.n_channels, 1))
+    state, ok, _, snapped, its, _, _, _ = follow(npacked, scene, zeros, zeros, nctx, target, base.m0)
+    if not ok or snapped:
+        return None
+    m0 = f * float(state[0])
+    record = _loaded_record(arm, packed, scene, ctx, m0)[0]
+    return Loaded(m0, int(its), False, True, bool(planar_fine(record, packed.secf, packed.sec_steps,
+                                                              ctx.loads)))
 
 
 def _loaded_record(arm, packed, scene, ctx, m0):

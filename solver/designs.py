@@ -118,6 +118,14 @@ def _integer(obj, name: str, low: int, high: int, limit: str = "") -> None:
     object.__setattr__(obj, name, int(v))
 
 
+def _unchecked(obj, **changes):
+    """A copy of the frozen dataclass ``obj`` with ``changes``, not validated again: for
+    changes the caller has checked (:meth:`ArmDesign.scaled`)."""
+    new = object.__new__(type(obj))
+    new.__dict__.update(obj.__dict__, **changes)
+    return new
+
+
 def _text(value, what: str, max_length: int, allow_empty: bool = False) -> str:
     if not isinstance(value, str) or len(value) > max_length or (not value and not allow_empty):
         size = f"at most {max_length}" if allow_empty else f"1 to {max_length}"
@@ -412,6 +420,56 @@ class ArmDesign:
     def mass(self) -> float:
         """Total mass of rod and endplates (kg)."""
         return float(sum(s.mass_per_length * s.length + s.endplate_mass for s in self.sections))
+
+    def scaled(self, modulus_factor: float = 1.0, wind_angle_delta_deg: float = 0.0) -> ArmDesign:
+        """This design with stiffer or softer rubber and another braid angle, built fast.
+
+        Every tube's rubber moduli E, G and every section's EA, GA, EI, GJ are multiplied by
+        ``modulus_factor``; every tube's braid angle is shifted by ``wind_angle_delta_deg``
+        (one production batch of tubes: the perturbation of domain randomisation). Only what
+        the change can break is checked (the factor, the new angles and the moduli caps), and
+        the solver derives the new design's kernel arrays from this design's (see
+        :func:`solver._model.pack`) instead of packing it afresh: a per-episode perturbed arm
+        costs microseconds, not a validated rebuild.
+
+        Args:
+            modulus_factor: a finite number > 0.
+            wind_angle_delta_deg: added to every tube's α (deg); the results must stay in the
+                extensor range (54.74°, 90°).
+
+        Returns:
+            The new design (equal to one built by ``dataclasses.replace`` with the same values).
+
+        Raises:
+            ValueError: a bad factor or angle shift, or a result outside a field's range.
+        """
+        f, d = modulus_factor, wind_angle_delta_deg
+        for name, v, ok in (("modulus_factor", f, lambda x: x > 0), ("wind_angle_delta_deg", d, lambda x: True)):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or not ok(v):
+                raise ValueError(f"ArmDesign.scaled: {name} must be a finite number"
+                                 f"{' > 0' if name == 'modulus_factor' else ''}; got {_short(v)}")
+        f, d = float(f), float(d)
+        lock = math.degrees(math.acos(1.0 / math.sqrt(3.0)))
+        materials = {}
+        for t in self.tubes:
+            mat = t.material
+            if id(mat) in materials:
+                continue
+            alpha, e, g = mat.wind_angle_deg + d, mat.youngs_modulus * f, mat.shear_modulus * f
+            if not lock < alpha < 90.0 or max(e, g) > _MAX_MODULUS:
+                raise ValueError(f"ArmDesign.scaled({f:g}, {d:g}) takes a tube of {self.name!r} to "
+                                 f"α = {alpha:g}° (need ({lock:.2f}, 90)), E = {e:g} Pa, G = {g:g} Pa "
+                                 f"(at most {_MAX_MODULUS:g})")
+            materials[id(mat)] = _unchecked(mat, youngs_modulus=e, shear_modulus=g, wind_angle_deg=alpha)
+        if max(max(s.EA, s.GA, s.EI, s.GJ) for s in self.sections) * f > _MAX_STIFFNESS:
+            raise ValueError(f"ArmDesign.scaled({f:g}): a section stiffness of {self.name!r} exceeds "
+                             f"{_MAX_STIFFNESS:g}")
+        arm = _unchecked(
+            self, sections=tuple(_unchecked(s, EA=s.EA * f, GA=s.GA * f, EI=s.EI * f, GJ=s.GJ * f)
+                                 for s in self.sections),
+            tubes=tuple(_unchecked(t, material=materials[id(t.material)]) for t in self.tubes),
+            _solver_cache=DesignCache(scaled_from=(self, f)))
+        return arm
 
     def to_json(self) -> str:
         """Serialise to JSON (round-trips through :func:`from_json`)."""

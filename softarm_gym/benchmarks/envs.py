@@ -94,7 +94,34 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
             cases.append({"env_id": env_id, "observation": obs, "single_steps_per_s": single,
                           "vector_steps_per_s": vector, "n_envs": n_envs,
                           "target_steps_per_s": target_for(env_id, obs)})
-    return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs}
+    resets = [reset_times(env_id) for env_id in ids if env_id in RESET_IDS]
+    return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs, "resets": resets}
+
+
+RESET_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
+"""IDs whose resets are timed with and without domain randomisation."""
+RANDOMIZATION = {"wind_angle_deg": 2.0, "youngs_modulus_rel": 0.1}
+"""The randomisation of the reset benchmark (braid angle ± 2°, moduli ± 10 %)."""
+
+
+def reset_times(env_id: str, n_resets: int = 200) -> dict:
+    """Median reset time (s) of ``gym.make(env_id)`` without and with :data:`RANDOMIZATION`,
+    the two envs reset alternately (seeds 0, 1, ...) so both see the same machine load.
+
+    Returns:
+        ``{"env_id", "plain_s", "randomized_s", "ratio", "n_resets"}``.
+    """
+    envs = [gym.make(env_id), gym.make(env_id, randomization=RANDOMIZATION)]
+    times = [[], []]
+    for seed in range(-20, n_resets):  # 20 warm-up resets (kernels, nominal caches)
+        for k, env in enumerate(envs):
+            start = time.perf_counter()
+            env.reset(seed=seed + 20)
+            if seed >= 0:
+                times[k].append(time.perf_counter() - start)
+    plain, randomized = (float(np.median(t)) for t in times)
+    return {"env_id": env_id, "plain_s": plain, "randomized_s": randomized,
+            "ratio": randomized / plain, "n_resets": n_resets}
 
 
 def format_table(result: dict) -> str:
@@ -106,4 +133,10 @@ def format_table(result: dict) -> str:
         met = "ok" if c["single_steps_per_s"] >= c["target_steps_per_s"] else "below"
         lines.append(f"{c['env_id']:24s} {c['observation']:20s} {c['single_steps_per_s']:9.0f} "
                      f"{c['vector_steps_per_s']:9.0f} {c['target_steps_per_s']:9.0f}  {met}")
+    if result.get("resets"):
+        lines += ["", f"reset (median of {result['resets'][0]['n_resets']}, alternating)   "
+                      "plain ms  randomized ms  ratio (target <= 2)"]
+        for r in result["resets"]:
+            lines.append(f"{r['env_id']:34s} {r['plain_s'] * 1e3:8.3f} {r['randomized_s'] * 1e3:14.3f} "
+                         f"{r['ratio']:6.2f}")
     return "\n".join(lines)

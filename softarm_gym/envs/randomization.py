@@ -7,7 +7,7 @@ estimators keep the nominal design, so the randomisation is a model error they d
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -91,16 +91,6 @@ class ArmRandomization:
             return arm
         d_alpha = rng.uniform(-self.wind_angle_deg, self.wind_angle_deg)
         factor = 1.0 + rng.uniform(-self.youngs_modulus_rel, self.youngs_modulus_rel)
-        materials = {}
-        tubes = []
-        for tube in arm.tubes:
-            mat = tube.material
-            if id(mat) not in materials:
-                materials[id(mat)] = replace(
-                    mat, youngs_modulus=mat.youngs_modulus * factor,
-                    shear_modulus=mat.shear_modulus * factor,
-                    wind_angle_deg=mat.wind_angle_deg + d_alpha)
-            tubes.append(replace(tube, material=materials[id(mat)]))
-        sections = tuple(replace(s, EA=s.EA * factor, GA=s.GA * factor, EI=s.EI * factor,
-                                 GJ=s.GJ * factor) for s in arm.sections)
-        return replace(arm, sections=sections, tubes=tuple(tubes))
+        # check() bounded the widths, so the scaled design is valid; scaling derives its
+        # kernel arrays from the nominal's instead of validating and packing a new design.
+        return arm.scaled(factor, d_alpha)
