@@ -444,10 +444,11 @@ class ArmDesign:
             ValueError: a bad factor or angle shift, or a result outside a field's range.
         """
         f, d = modulus_factor, wind_angle_delta_deg
-        for name, v, ok in (("modulus_factor", f, lambda x: x > 0), ("wind_angle_delta_deg", d, lambda x: True)):
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or not ok(v):
+        for name, v, positive in (("modulus_factor", f, True), ("wind_angle_delta_deg", d, False)):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) \
+                    or (positive and not v > 0):
                 raise ValueError(f"ArmDesign.scaled: {name} must be a finite number"
-                                 f"{' > 0' if name == 'modulus_factor' else ''}; got {_short(v)}")
+                                 f"{' > 0' if positive else ''}; got {_short(v)}")
         f, d = float(f), float(d)
         lock = math.degrees(math.acos(1.0 / math.sqrt(3.0)))
         materials = {}

@@ -25,7 +25,8 @@ def _rebuilt(arm, f, d):
     for t in arm.tubes:
         m = t.material
         mats.setdefault(id(m), replace(m, youngs_modulus=m.youngs_modulus * f,
-                                       shear_modulus=m.shear_modulus * f, wind_angle_deg=m.wind_angle_deg + d))
+                                       shear_modulus=m.shear_modulus * f,
+                                       wind_angle_deg=m.wind_angle_deg + d))
     return replace(arm, sections=tuple(replace(s, EA=s.EA * f, GA=s.GA * f, EI=s.EI * f, GJ=s.GJ * f)
                                        for s in arm.sections),
                    tubes=tuple(replace(t, material=mats[id(t.material)]) for t in arm.tubes))
