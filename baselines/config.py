@@ -60,7 +60,8 @@ import softarm_gym  # noqa: F401  (registers the SoftArm/* environments)
 from softarm_gym.files import write_json
 
 __all__ = ["ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams", "split_hyperparams", "make_env",
-           "check_env_id", "sidecar_paths", "legacy_normalization_path", "policy_metadata",
+           "check_env_id", "registered_equivalent", "sidecar_paths", "legacy_normalization_path",
+           "policy_metadata",
            "save_normalization", "load_normalization", "restore_normalization", "read_metadata",
            "load_policy", "action_noise", "observation_sizes"]
 
@@ -147,6 +148,31 @@ def make_env(env_id: str, env_kwargs: dict | None = None, **overrides) -> gym.En
     kwargs = dict(env_kwargs or {})
     kwargs.update(overrides)
     return gym.make(check_env_id(env_id), **kwargs)
+
+
+def registered_equivalent(env_id: str, env_kwargs: dict | None = None) -> tuple[str, dict]:
+    """The newest registered version of ``env_id``'s family whose defaults include
+    ``env_kwargs``, with the kwargs left over: ``("SoftArm/OctArmReach-v1", {})`` for
+    ``("SoftArm/OctArmReach-v0", {"action_mode": "delta", "delta_scale": 0.1})``.
+
+    The two are the same environment (same entry point, time limit and effective kwargs), so a
+    policy trained on one runs unchanged on ``gym.make`` of the other; ``(env_id, env_kwargs)``
+    itself when no other version matches.
+    """
+    spec = gym.spec(check_env_id(env_id))
+    effective = {**spec.kwargs, **(env_kwargs or {})}
+    best = (spec.version or 0, env_id, dict(env_kwargs or {}))
+    for other in gym.registry.values():
+        if (other.namespace, other.name) != (spec.namespace, spec.name) or other.id == env_id:
+            continue
+        if (other.entry_point, other.max_episode_steps) != (spec.entry_point, spec.max_episode_steps):
+            continue
+        if not all(k in effective and effective[k] == v for k, v in other.kwargs.items()):
+            continue
+        left = {k: v for k, v in effective.items() if k not in other.kwargs}
+        if (other.version or 0) > best[0]:
+            best = (other.version or 0, other.id, left)
+    return best[1], best[2]
 
 
 def sidecar_paths(model_path: Path | str) -> tuple[Path, Path]:

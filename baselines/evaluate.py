@@ -1,6 +1,6 @@
 """Evaluate a trained policy or the Jacobian controller, optionally with an estimator in the loop.
 
-    python -m baselines.evaluate --model baselines/trained/sac_OctArmReach-v0.zip --episodes 100 --json
+    python -m baselines.evaluate --model baselines/trained/sac_OctArmReach-v1.zip --episodes 100 --json
     python -m baselines.evaluate --model FILE.zip --observation cable_encoder --sensor-noise thesis \\
         --payload-kg 0,0.5 --json
     python -m baselines.evaluate --controller jacobian --env SoftArm/OctArmReach-v0 --json

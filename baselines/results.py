@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from baselines.config import ALGOS, sidecar_paths
+from baselines.config import ALGOS, registered_equivalent, sidecar_paths
 from baselines.evaluate import evaluate
 from softarm_gym.files import write_json
 from softarm_gym.sensing import ESTIMATORS
@@ -171,22 +171,31 @@ def ship(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
     table = _load_evaluations(Path(results_dir))
     main_rows = table[(table["cell"] == "main") & ~table["agent_name"].str.startswith("jacobian")]
     shipped = []
-    for env_id, rows in main_rows.groupby("env_id"):
+    for _, rows in main_rows.groupby("env_id"):
         best = rows.sort_values(["success_rate", "median_final_error_m"], ascending=[False, True]).iloc[0]
         src = Path(runs_dir) / best["agent_name"] / "best_model.zip"
         algo = best["agent"].split(":")[0]
-        dst = Path(trained_dir) / f"{algo}_{env_id.split('/')[-1]}.zip"
+        meta = json.loads(sidecar_paths(src)[0].read_text())
+        ship_id, ship_kwargs = registered_equivalent(meta["env_id"], meta.get("env_kwargs", {}))
+        dst = Path(trained_dir) / f"{algo}_{ship_id.split('/')[-1]}.zip"
         dst.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(src, dst)
         for a, b in zip(sidecar_paths(src), sidecar_paths(dst)):
             if a.is_file():
                 shutil.copy(a, b)
-        meta_path = sidecar_paths(dst)[0]
-        meta = json.loads(meta_path.read_text())
-        meta["selected_from"] = best["agent_name"]
-        write_json(meta_path, meta)
+        write_json(sidecar_paths(dst)[0], shipped_metadata(meta, best["agent_name"], ship_id, ship_kwargs))
         shipped.append(dst)
     return shipped
+
+
+def shipped_metadata(meta: dict, selected_from: str, env_id: str, env_kwargs: dict) -> dict:
+    """A run's metadata for its shipped copy: ``env_id``/``env_kwargs`` become the registered
+    equivalent (:func:`baselines.config.registered_equivalent`), so the model runs on
+    ``gym.make(env_id)``; what it was trained on stays in ``trained_on``."""
+    out = dict(meta, selected_from=selected_from, env_id=env_id, env_kwargs=env_kwargs)
+    if env_id != meta["env_id"]:
+        out["trained_on"] = {"env_id": meta["env_id"], "env_kwargs": meta.get("env_kwargs", {})}
+    return out
 
 
 def _mm(x) -> str:

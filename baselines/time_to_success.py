@@ -1,6 +1,6 @@
 """Wall time to a success rate: agents on single envs against agents on the batched env, in one run.
 
-    python -m baselines.time_to_success --env SoftArm/OctArmReach-v0 --budget-min 20 \\
+    python -m baselines.time_to_success --env SoftArm/OctArmReach-v1 --budget-min 20 \\
         --json docs/bench/time_to_success.json --plot docs/bench/time_to_success.png
 
 Each agent of :data:`AGENTS` — ``sac`` and ``ppo`` with the hyperparameters of the reported
@@ -264,7 +264,7 @@ def plot(result: dict, path: Path | str) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m baselines.time_to_success",
                                      description=__doc__.splitlines()[0])
-    parser.add_argument("--env", default="SoftArm/OctArmReach-v0")
+    parser.add_argument("--env", default="SoftArm/OctArmReach-v1")
     parser.add_argument("--agents", nargs="+", default=list(AGENTS), choices=list(AGENTS))
     parser.add_argument("--seeds", nargs="+", type=int, default=[0])
     parser.add_argument("--target", type=float, default=0.9, help="success rate to reach (default 0.9)")

@@ -30,6 +30,26 @@ register(
     kwargs={"design": "ct", "base_angle_deg": 90.0},
 )
 
+# v1: delta pressure actions by default (each step moves every pressure by at most 10 % of
+# p_max), the configuration the shipped SAC models were trained in (docs/environments.md).
+register(
+    id="SoftArm/OctArmReach-v1",
+    entry_point="softarm_gym.envs:ReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
+    max_episode_steps=100,
+    reward_threshold=None,
+    kwargs={"design": "octarm_v", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
+)
+
+register(
+    id="SoftArm/CTReach-v1",
+    entry_point="softarm_gym.envs:ReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
+    max_episode_steps=100,
+    reward_threshold=None,
+    kwargs={"design": "ct", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
+)
+
 register(
     id="SoftArm/OctArmTrack-v0",
     entry_point="softarm_gym.envs:TrackEnv",

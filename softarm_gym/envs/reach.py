@@ -124,7 +124,8 @@ class ReachEnv(SoftArmEnv):
       episode; unknown to the ``model`` estimator.
     * ``randomization`` (None): ``{"wind_angle_deg": 2.0, "youngs_modulus_rel": 0.1}`` draws
       α ± 2° and E ± 10 % per episode for the simulated arm (``ArmRandomization``).
-    * ``action_mode`` (``"absolute"``) and ``delta_scale`` (0.1 of p_max per step).
+    * ``action_mode`` (``"absolute"``; the ``-v1`` ids ``"delta"``) and ``delta_scale`` (0.1
+      of p_max per step).
     * ``n_backbone`` (8): backbone samples in the observation.
     * ``observation_format`` (``"flat"``), ``"dict"`` or ``"goal"`` (``observation="true"`` only).
     * ``distance_weight`` (1), ``control_weight`` (0.01), ``success_bonus`` (1),
@@ -162,6 +163,8 @@ class ReachEnv(SoftArmEnv):
     ## Version History
 
     * v0: initial version.
+    * v1: delta actions by default (``action_mode="delta"``, ``delta_scale=0.1``), the
+      configuration the shipped SAC models were trained in; otherwise equal to v0.
     """
 
     def __init__(self, design="octarm_v", *, distance_weight: float = 1.0, control_weight: float = 0.01,

@@ -40,3 +40,21 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
     assert "| cable_encoder | noisy |" in text
     assert "1 episode each" in text and "periodic deterministic evaluations, 1 episode)" in text
     assert "![learning curves](results/learning_curves.png)" in text
+
+
+def test_a_run_ships_under_the_registered_id_whose_defaults_it_trained_in():
+    from baselines.config import registered_equivalent
+
+    delta = {"action_mode": "delta", "delta_scale": 0.1}
+    assert registered_equivalent("SoftArm/OctArmReach-v0", delta) == ("SoftArm/OctArmReach-v1", {})
+    assert registered_equivalent("SoftArm/CTReach-v0", {**delta, "observation_format": "goal"}) == \
+        ("SoftArm/CTReach-v1", {"observation_format": "goal"})
+    # Other kwargs than a registered version's defaults keep the run's own id.
+    for kwargs in ({}, {"action_mode": "delta", "delta_scale": 0.2}, {"action_mode": "delta"}):
+        assert registered_equivalent("SoftArm/OctArmReach-v0", kwargs) == ("SoftArm/OctArmReach-v0", kwargs)
+    assert registered_equivalent("SoftArm/OctArmWrap-v0", {}) == ("SoftArm/OctArmWrap-v0", {})
+    meta = {"env_id": "SoftArm/OctArmReach-v0", "env_kwargs": delta, "algo": "sac"}
+    shipped = results.shipped_metadata(meta, "sac_OctArmReach-v0_s1", "SoftArm/OctArmReach-v1", {})
+    assert shipped["env_id"] == "SoftArm/OctArmReach-v1" and shipped["env_kwargs"] == {}
+    assert shipped["trained_on"] == {"env_id": "SoftArm/OctArmReach-v0", "env_kwargs": delta}
+    assert shipped["selected_from"] == "sac_OctArmReach-v0_s1"
