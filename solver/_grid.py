@@ -51,25 +51,31 @@ def section_needs(curv, force, strain, q, secf, ends, need):
     for i in range(secf.shape[1]):
         h = secf[LEN, i] / (ends[i] - row)
         ci = secf[CI, i]
-        worst = 0.0
+        qc2 = (q[i] * ci) ** 2
+        # The rates' powers free of roots, maximised over the samples; the roots (monotonic)
+        # are taken once per section: turn², load⁴ = |v|²|n|²/EI², spread⁶ = |v|²(|q|/EI)².
+        turn2 = load4 = spread6 = 0.0
+        finite = True
         while row <= ends[i]:
-            turn = _norm(curv[row])
-            stretch = _norm(strain[row])
-            load = math.sqrt(stretch * _norm(force[row]) * ci)
-            spread = (stretch * q[i] * ci) ** (1.0 / 3.0)
-            if not (turn <= math.inf and load <= math.inf and spread <= math.inf):
-                worst = math.inf
-            worst = max(worst, h * max(turn, load, spread))
+            u2 = _square(curv[row])
+            v2 = _square(strain[row])
+            l4 = v2 * _square(force[row]) * ci * ci
+            s6 = v2 * qc2
+            finite = finite and u2 <= math.inf and l4 <= math.inf and s6 <= math.inf
+            turn2 = max(turn2, u2)
+            load4 = max(load4, l4)
+            spread6 = max(spread6, s6)
             row += 1
-        need[i] = worst / STEP_TURN
+        worst = h * max(math.sqrt(turn2), math.sqrt(math.sqrt(load4)), spread6 ** (1.0 / 6.0))
+        need[i] = worst / STEP_TURN if finite else math.inf
 
 
 @njit(inline="always")
-def _norm(v):
+def _square(v):
     acc = 0.0
     for x in v:
         acc += x * x
-    return math.sqrt(acc)
+    return acc
 
 
 @njit

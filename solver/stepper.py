@@ -18,8 +18,11 @@ solver's tolerance.
 
 from __future__ import annotations
 
+import math
+import time
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from solver import _planar
@@ -34,7 +37,7 @@ from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
 from solver.solve import _channel_pressures, _check, _check_warm_start, _dispatch, _explain_bad_pressures
 
-__all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport"]
+__all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy"]
 
 
 class StepReport(NamedTuple):
@@ -174,6 +177,10 @@ class Stepper:
         self._memo = (np.full(n_tubes, np.nan), np.empty(n_tubes), np.empty((3, ns)),
                       np.full((2, ns), np.nan))
         self._p_new = np.empty(arm.n_channels)
+        self._target = (self._p_new, ctx.loads, ctx.m_tip)  # the kernel's goal levels
+        self._tips = [buf[-1, L.X:L.Y + 1] for buf in self._buffers]  # read-only tip views
+        for tip in self._tips:
+            tip.flags.writeable = False
         self._flags = (True, True, False, 0, 0.0)  # of the current equilibrium
 
     # ------------------------------------------------------------------ state
@@ -228,7 +235,7 @@ class Stepper:
         m_start = self._state[0]
         ok, stable, snapped, its, res, _, _ = _planar._step(
             self._state, self._grid, self._tubes, (self.channel_pressures, ctx.loads, ctx.m_tip),
-            (self._p_new, ctx.loads, ctx.m_tip), ctx.params, work, self._memo)
+            self._target, ctx.params, work, self._memo)
         if not ok:
             # The lean path failed (rare: see softarm stress); the general one has fallbacks
             # (multiple shooting) the single-shooting kernel does not.
@@ -239,10 +246,10 @@ class Stepper:
         self._spare ^= 1
         self.pressures = p.copy()
         self.channel_pressures = self._p_new.copy()
-        self.tip = self.record[-1, L.X:L.Y + 1]
-        self._flags = (True, bool(stable), bool(snapped), int(its), float(res))
+        self.tip = self._tips[self._spare ^ 1]
+        self._flags = report = StepReport(True, stable, snapped, its, res)
         self._eq = None
-        return StepReport(True, bool(stable), bool(snapped), int(its), float(res))
+        return report
 
     def _step_general(self, pressures) -> StepReport:
         p_inputs, p_channel = _channel_pressures(self.arm, pressures, self.planar, self._packed)
@@ -291,6 +298,71 @@ class Stepper:
                 f"planar={self.planar}, lean={self.lean})")
 
 
+class ThreadPolicy:
+    """Whether a batch of ``rows`` copies runs on numba's threads or on one thread.
+
+    Threads pay off only when the machine has idle cores: on a shared machine a parallel
+    region waits at its barrier for a thread the OS has descheduled, and a batch can take
+    ten times longer on two threads than on one. So the choice is measured, not assumed:
+    the first batches run once each way (the very first run of each only loads its kernel
+    and is not counted), then the faster per-row time wins, and the other way is tried
+    again after ``interval`` batches — an interval that doubles (up to ``MAX_INTERVAL``)
+    each time the other way loses again, so a losing probe costs little, and resets when
+    it wins. Batches below ``min_rows`` and single-thread configurations run serially.
+
+    Args:
+        min_rows: the smallest batch that may run threaded.
+
+    Attributes:
+        per_row_s: [serial, threaded] smoothed seconds per row (NaN: not measured yet).
+    """
+
+    START_INTERVAL = 16
+    MAX_INTERVAL = 1024
+    SMOOTHING = 0.3
+
+    def __init__(self, min_rows: int):
+        self.min_rows = min_rows
+        self.per_row_s = [math.nan, math.nan]
+        self._seen = [False, False]
+        self._interval = self.START_INTERVAL
+        self._countdown = self.START_INTERVAL
+        self._probing = False
+
+    def choose(self, rows: int) -> bool:
+        """True: run this batch of ``rows`` copies on the threads."""
+        if rows < self.min_rows or numba.get_num_threads() < 2:
+            return False
+        serial, threaded = self.per_row_s
+        if math.isnan(serial) or math.isnan(threaded):
+            self._probing = False
+            return math.isnan(threaded) and not math.isnan(serial)
+        best = threaded < serial
+        self._countdown -= 1
+        self._probing = self._countdown <= 0
+        return best != self._probing
+
+    def record(self, threaded: bool, rows: int, seconds: float) -> None:
+        """The batch ``choose`` allowed ran ``seconds`` on ``rows`` copies."""
+        if rows < self.min_rows or not rows:
+            return
+        k = int(threaded)
+        if not self._seen[k]:  # the first run loads the kernel: not a measurement
+            self._seen[k] = True
+            return
+        per_row = seconds / rows
+        old = self.per_row_s[k]
+        # A probe's estimate is stale (the machine's load may have changed since): replaced.
+        fresh = self._probing or math.isnan(old)
+        self.per_row_s[k] = per_row if fresh else old + self.SMOOTHING * (per_row - old)
+        if self._probing:
+            serial, par = self.per_row_s
+            won = (par < serial) == threaded
+            self._interval = self.START_INTERVAL if won else min(2 * self._interval, self.MAX_INTERVAL)
+            self._countdown = self._interval
+            self._probing = False
+
+
 class BatchReport(NamedTuple):
     """What became of a batch of steps (or resets), one entry per copy: the fields of
     :class:`StepReport` as (n,) arrays."""
@@ -331,7 +403,8 @@ class BatchStepper:
 
     PARALLEL_MIN = 8
     """Batches smaller than this run on one thread: starting the thread pool costs more
-    than the work it shares (see ``softarm bench --env``)."""
+    than the work it shares (see ``softarm bench --env``). Larger ones run on the threads
+    or on one, whichever :class:`ThreadPolicy` has measured faster."""
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, n: int = 1, *,
                  model: str = "full", settings: Settings = DEFAULT_SETTINGS):
@@ -370,6 +443,9 @@ class BatchStepper:
         self._memo = (np.full((n, n_tubes), np.nan), np.empty((n, n_tubes)), np.empty((n, 3, ns)),
                       np.full((n, 2, ns), np.nan))
         self._ready = np.zeros(n, dtype=bool)
+        # Cold solves and warm steps cost very different times per row: one policy each.
+        self.thread_policies = {"cold": ThreadPolicy(self.PARALLEL_MIN),
+                                "step": ThreadPolicy(self.PARALLEL_MIN)}
 
     # ------------------------------------------------------------------ inputs
 
@@ -394,8 +470,15 @@ class BatchStepper:
         return BatchReport(report[:, 0] != 0, report[:, 1] != 0, report[:, 2] != 0,
                            report[:, 3].astype(np.int64), report[:, 4].copy())
 
-    def _rows_kernel(self, parallel, serial, rows: int):
-        return parallel if rows >= self.PARALLEL_MIN else serial
+    def _run_rows(self, kind: str, parallel, serial, rows: int, *args) -> None:
+        """Run a rows kernel on the threads or on one, as the ``kind`` ("cold" or "step")
+        policy of :attr:`thread_policies` decides, and tell it how long that took (both
+        kernels give the same bits)."""
+        policy = self.thread_policies[kind]
+        threaded = policy.choose(rows)
+        start = time.perf_counter()
+        (parallel if threaded else serial)(*args)
+        policy.record(threaded, rows, time.perf_counter() - start)
 
     # ------------------------------------------------------------------ cold solves
 
@@ -404,9 +487,10 @@ class BatchStepper:
         states[:, 0] = self._loaded.m0
         report = np.zeros((m, 5))
         work = tuple(w[:m] if w.shape[0] >= m else np.empty((m, *w.shape[1:])) for w in self._work[:3])
-        kernel = self._rows_kernel(_planar._cold_rows_parallel, _planar._cold_rows_serial, m)
-        kernel(self._grid, self._tubes, self._p_zero, p_channel, self._ctx.loads, self._ctx.m_tip,
-               self._ctx.params, work, states, records, record, rest_a, grad, report)
+        self._run_rows("cold", _planar._cold_rows_parallel, _planar._cold_rows_serial, m,
+                       self._grid, self._tubes, self._p_zero, p_channel, self._ctx.loads,
+                       self._ctx.m_tip, self._ctx.params, work, states, records, record, rest_a,
+                       grad, report)
         # As solve_single: the loaded stage's iterations count, and a snap there is a snap; a
         # loaded state beyond the grid leaves every row to the general path (which refines).
         report[:, 3] += self._loaded.iterations
@@ -519,11 +603,10 @@ class BatchStepper:
         p, channel = self._inputs(p, self.n)
         report = np.zeros((self.n, 5))
         report[~active, :2] = 1.0
-        kernel = self._rows_kernel(_planar._step_rows_parallel, _planar._step_rows_serial,
-                                   int(active.sum()))
-        kernel(self._grid, self._tubes, self.channel_pressures, channel, self._ctx.loads,
-               self._ctx.m_tip, self._ctx.params, self._work, self._states, self.records,
-               self._memo, active, report)
+        self._run_rows("step", _planar._step_rows_parallel, _planar._step_rows_serial, int(active.sum()),
+                       self._grid, self._tubes, self.channel_pressures, channel, self._ctx.loads,
+                       self._ctx.m_tip, self._ctx.params, self._work, self._states, self.records,
+                       self._memo, active, report)
         ok = report[:, 0] != 0
         for k in np.flatnonzero(~ok):
             # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.

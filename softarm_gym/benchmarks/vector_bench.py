@@ -25,11 +25,12 @@ def _time(n: int, steps: int, action_mode: str) -> tuple[float, float]:
     return time.perf_counter() - start, converged / (n * steps)
 
 
-def run(sizes=(4, 16, 256, 1024, 4096), steps: int = 30, action_mode: str = "delta",
+def run(sizes=(4, 16, 256, 1024, 4096), steps: int = 100, action_mode: str = "delta",
         progress=None) -> list[dict]:
     """Time ``steps`` steps of :class:`~softarm_gym.vector.BatchedReachVectorEnv` per size,
-    with numba's full thread pool and with one thread, side by side (the thread policy:
-    :attr:`solver.BatchStepper.PARALLEL_MIN`).
+    with numba's full thread pool and with one thread, side by side (the thread policy,
+    :class:`solver.ThreadPolicy`, measures both ways in its first steps and runs the faster:
+    those steps are timed too).
 
     Random actions in ``delta`` mode (each step changes every pressure by up to 10 % of
     p_max, as a policy exploring does); the first step after reset is not timed.

@@ -211,3 +211,31 @@ def test_batch_refuses_what_it_cannot_step():
         batch.step(np.zeros((3, 6)))
     with pytest.raises(ValueError, match="rows"):
         batch.reset(np.zeros((1, 6)), rows=[5])
+
+
+def _drive(policy, threaded_cost, serial_cost, calls, rows=64):
+    """Run ``calls`` batches through ``policy`` with the given seconds per row; the choices."""
+    choices = []
+    for k in range(calls):
+        threaded = policy.choose(rows)
+        choices.append(threaded)
+        policy.record(threaded, rows, rows * (threaded_cost(k) if threaded else serial_cost(k)))
+    return choices
+
+
+def test_thread_policy_picks_the_faster_way_and_probes_rarely_when_threads_lose(monkeypatch):
+    monkeypatch.setattr(solver.stepper.numba, "get_num_threads", lambda: 2)
+    policy = solver.ThreadPolicy(min_rows=8)
+    # Threads ten times slower (a busy machine): after calibrating, serial, with probes
+    # whose interval doubles each time they lose.
+    choices = _drive(policy, lambda k: 1e-4, lambda k: 1e-5, 2000)
+    assert choices[:4] == [False, False, True, True]  # first of each is the kernel's load
+    assert sum(choices[4:]) <= 8  # probes at 16, 32, 64, ... 1024 batches apart
+    assert policy.per_row_s[0] == pytest.approx(1e-5) and policy.per_row_s[1] == pytest.approx(1e-4)
+    # The machine frees up: threads twice as fast. The next probe wins and threads stay.
+    choices = _drive(policy, lambda k: 0.5e-5, lambda k: 1e-5, 3000)
+    assert all(choices[-500:])
+    # Small batches and a single-thread configuration always run serially.
+    assert not policy.choose(7)
+    monkeypatch.setattr(solver.stepper.numba, "get_num_threads", lambda: 1)
+    assert not policy.choose(1000)
