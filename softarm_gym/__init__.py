@@ -37,7 +37,7 @@ register(
     entry_point="softarm_gym.envs:ReachEnv",
     vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
     max_episode_steps=100,
-    reward_threshold=None,
+    reward_threshold=86.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
 )
 
@@ -46,7 +46,7 @@ register(
     entry_point="softarm_gym.envs:ReachEnv",
     vector_entry_point="softarm_gym.vector:BatchedReachVectorEnv",
     max_episode_steps=100,
-    reward_threshold=None,
+    reward_threshold=87.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
 )
 
