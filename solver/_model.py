@@ -271,13 +271,16 @@ def _build_context(arm, packed, scene, dim, settings, loads: SceneContext | None
     else:
         n_end, q, m_tip, load_array = loads.n_end, loads.q, loads.m_tip, loads.loads
         base_force, loaded = loads.base_force, loads.has_load
-    # In 3D a residual also twists the sections: torsion enters the series too.
+    # In 3D a residual also twists the sections: torsion enters the tolerance's series too.
+    # The Newton step limit and the branch-jump floor stay on the bending series: they size
+    # changes of the bending response (a jump to another branch is a fold or buckle), and on
+    # the torsional scale (GJ < EI on the thesis's arms) every small warm step "jumped".
     moment = packed.moment_scale if dim == 2 else series_moment_scale(
         packed.sec_len, np.minimum(packed.sec_ei, 1.0 / packed.c_j))
-    scale = float(np.abs(n_end).max() * arm.length / moment) if n_end.size else 0.0
-    grow = max(1.0, scale)
-    tol = settings.tol * moment * grow
-    max_step = 2.0 * moment * grow
+    load_moment = float(np.abs(n_end).max() * arm.length) if n_end.size else 0.0
+    tol = settings.tol * moment * max(1.0, load_moment / moment)
+    bending = packed.moment_scale
+    max_step = 2.0 * bending * max(1.0, load_moment / bending)
     n_norm, q_norm = _row_norms(n_end), _row_norms(q)
     params = np.empty(L.N_PARAMS)
     params[L.TOL] = tol
@@ -287,7 +290,7 @@ def _build_context(arm, packed, scene, dim, settings, loads: SceneContext | None
     params[L.DT_MIN] = settings.dt_min
     params[L.MAX_ITER] = settings.max_iter
     params[L.N_SCAN] = settings.n_scan
-    params[L.JUMP] = 0.25 * moment
+    params[L.JUMP] = 0.25 * packed.moment_scale
     params[L.PREDICT_CAP] = math.inf
     n_max = float(np.max(n_norm + q_norm * arm.length))
     return SceneContext(n_end=n_end, q=q, loads=load_array, m_tip=m_tip, tol=tol,

@@ -47,8 +47,8 @@ def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
         arc_chain_planar(scene.base_theta, packed.sec_len, u2, v3, s, positions, angles, ends)
         tip = ends[-1, :2].copy()
         if not record:
-            return Equilibrium(tip=tip, **common)
-        return Equilibrium(
+            return Equilibrium._make(tip=tip, **common)
+        return Equilibrium._make(
             tip=tip, s=s, positions=positions, angles=angles,
             shear_stretch=np.column_stack([np.zeros(n), v3[seg]]), curvature=u2[seg].copy(),
             internal_force=np.zeros((n, 2)), internal_moment=np.zeros(n),
@@ -59,8 +59,8 @@ def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
                       np.empty((4, 3, 3)), positions, frames, ends, np.empty((ns, 3, 3)))
     tip = ends[-1].copy()
     if not record:
-        return Equilibrium(tip=tip, **common)
-    return Equilibrium(
+        return Equilibrium._make(tip=tip, **common)
+    return Equilibrium._make(
         tip=tip, s=s, positions=positions, orientations=frames,
         shear_stretch=np.column_stack([np.zeros(n), np.zeros(n), v3[seg]]),
         curvature=np.column_stack([u1[seg], u2[seg], np.zeros(n)]),
@@ -220,7 +220,7 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, set
         m0, iterations, snapped, loaded, resolved = loaded_base_moment(
             arm, packed, scene, ctx, guard_3d, guard_discs)
         if (guard_3d or guard_discs.size) and not loaded:
-            return Equilibrium(tip=np.full(2, np.nan), converged=False, stable=False,
+            return Equilibrium._make(tip=np.full(2, np.nan), converged=False, stable=False,
                                iterations=iterations, residual=math.inf)
         if not resolved:
             # The loaded arm is beyond this grid: the ramp from it is not trusted. Its state,
@@ -247,7 +247,7 @@ def _single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, m0,
     common = dict(model=model, planar=True, scene=scene, pressures=p_inputs,
                   channel_pressures=p_channel, base_moment=np.array([float(m0)]),
                   base_force=ctx.base_force, arm=arm, **flags)
-    return Equilibrium(
+    return Equilibrium._make(
         tip=out[-1, L.X:L.Y + 1].copy(), s=out[:, L.S], positions=out[:, L.X:L.Y + 1],
         angles=out[:, L.THETA], shear_stretch=out[:, L.V1:L.V3 + 1], curvature=out[:, L.U],
         internal_force=out[:, L.NX:L.NY + 1], internal_moment=out[:, L.M],

@@ -339,7 +339,7 @@ def _shooting_result(nodes, scene, grid, layout, level, **fields):
                   **fields)
     extra = dict(contact_force=out[:, [L.C_FX, L.C_FY]].copy(),
                  penetration=out[:, L.C_PEN].copy()) if contact else {}
-    return Equilibrium(
+    return Equilibrium._make(
         s=out[:, L.C_S].copy(), positions=out[:, [L.C_X, L.C_Y]].copy(),
         angles=out[:, L.C_TH].copy(), shear_stretch=out[:, [L.C_V1, L.C_V3]].copy(),
         curvature=out[:, L.C_U].copy(), internal_force=out[:, [L.C_NX, L.C_NY]].copy(),

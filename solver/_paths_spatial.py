@@ -61,6 +61,24 @@ def _embed(eq: Equilibrium) -> Equilibrium:
         base_moment=np.array([0.0, 0.0, eq.base_moment[-1]]))
 
 
+def _samples(arm, packed, scene, ctx):
+    """(section of each sample, arc length s (m), internal force n (N, world frame)) of a
+    spatial dead-load record: they depend on the layout and the scene only (cached;
+    read-only, shared by every result of the scene)."""
+    def build():
+        ns = packed.secf.shape[1]
+        seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
+        starts = np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])
+        s = np.concatenate([np.linspace(0.0, length, k + 1) + off for length, k, off in
+                            zip(packed.sec_len, packed.sec_steps, starts)])
+        force = ctx.n_end[seg] + ctx.q[seg] * (packed.sec_len[seg] - (s - starts[seg]))[:, None]
+        for a in (seg, s, force):
+            a.flags.writeable = False
+        return seg, s, force
+
+    return arm._solver_cache.get(("spatial samples", packed.key, scene), build)
+
+
 def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Spatial dead-load solve by single shooting on m0 (:func:`solver._spatial._follow`):
     the loading stage of a cold solve, then the pressure ramp."""
@@ -110,12 +128,7 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
                   model=model, planar=False, scene=scene, pressures=p_inputs,
                   channel_pressures=p_channel, base_moment=m0.copy(), base_force=ctx.base_force,
                   arm=arm)
-    seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
-    starts = np.concatenate([[0.0], np.cumsum(packed.sec_len)[:-1]])
-    s = np.concatenate([np.linspace(0.0, length, k + 1) + off for length, k, off in
-                        zip(packed.sec_len, packed.sec_steps, starts)])
-    local = s - starts[seg]
-    force = ctx.n_end[seg] + ctx.q[seg] * (packed.sec_len[seg] - local)[:, None]
+    seg, s, force = _samples(arm, packed, scene, ctx)
     nb = np.einsum("nji,nj->ni", rot, force)
     mb = np.einsum("nji,nj->ni", rot, mom)
     u1, u2, v3 = rest
@@ -123,6 +136,6 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
                                 v3[seg] + nb[:, 2] * packed.c_a[seg]])
     strain_u = np.column_stack([u1[seg] + mb[:, 0] * packed.c_i[seg],
                                 u2[seg] + mb[:, 1] * packed.c_i[seg], mb[:, 2] * packed.c_j[seg]])
-    return Equilibrium(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
-                       curvature=strain_u, internal_force=force, internal_moment=mom,
-                       section_ends=packed.section_ends, **common)
+    return Equilibrium._make(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
+                             curvature=strain_u, internal_force=force, internal_moment=mom,
+                             section_ends=packed.section_ends, **common)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 
 import numpy as np
 
@@ -82,11 +82,29 @@ class Equilibrium:
     penalty_stiffness: float = math.nan
     arm: ArmDesign | None = field(default=None, repr=False, compare=False)
 
+    @classmethod
+    def _make(cls, **values) -> Equilibrium:
+        """An Equilibrium of ``values`` (fields by name; the others default), built without
+        the dataclass ``__init__`` — which costs more than a warm solve's kernel — for the
+        solver's own results (nothing to validate: every field is set as given)."""
+        if not (_FIELDS.issuperset(values) and _REQUIRED.issubset(values)):
+            raise TypeError(f"Equilibrium fields: unknown {sorted(set(values) - _FIELDS)}, "
+                            f"missing {sorted(_REQUIRED - set(values))}")
+        eq = object.__new__(cls)
+        eq.__dict__.update(_DEFAULTS, **values)
+        return eq
+
     @property
     def tip_angle(self) -> float:
         """Planar tip orientation θ(L) (rad); NaN if not recorded or spatial."""
         return float(self.angles[-1]) if self.angles.size else math.nan
 
+
+_FIELDS = frozenset(f.name for f in fields(Equilibrium))
+_DEFAULTS = {f.name: f.default if f.default_factory is MISSING else f.default_factory()
+             for f in fields(Equilibrium) if f.default is not MISSING or f.default_factory is not MISSING}
+
+_REQUIRED = _FIELDS - set(_DEFAULTS)
 
 SAMPLED = {f.name: f.default_factory for f in fields(Equilibrium) if f.name in (
     "s", "positions", "angles", "orientations", "shear_stretch", "curvature", "internal_force",
@@ -95,13 +113,14 @@ SAMPLED = {f.name: f.default_factory for f in fields(Equilibrium) if f.name in (
 empty defaults."""
 
 
-_UNSAMPLED = tuple(f.name for f in fields(Equilibrium)
-                   if f.name not in SAMPLED and f.name != "section_ends")
+_NOT_RECORDED = {name: _DEFAULTS[name] for name in (*SAMPLED, "section_ends")}
 
 
 def tip_only(eq: Equilibrium) -> Equilibrium:
     """``eq`` without its samples (what a solve with ``record=False`` returns)."""
-    return Equilibrium(**{name: getattr(eq, name) for name in _UNSAMPLED})
+    out = object.__new__(Equilibrium)
+    out.__dict__.update(eq.__dict__, **_NOT_RECORDED)
+    return out
 
 
 # ----------------------------------------------------------------------------- packing

@@ -164,7 +164,7 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
     grid fine enough for its result, returned on the settings' grid (the finer grid's nodes
     include it). Never raises (module docstring)."""
     if model == "constant_curvature" or (
-            not scene.obstacles and settings.shortcuts and not has_load(arm, scene)):
+            not scene.obstacles and settings.shortcuts and not _has_load(arm, scene)):
         return closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     q = packed.mass_per_length * scene.gravity
     layout = packed
@@ -192,6 +192,11 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
     if layout is not packed and not scene.obstacles:  # (contact keeps its own finer layout)
         eq = _grid.on_grid(eq, layout.sec_steps, packed.sec_steps)
     return eq if record else tip_only(eq)
+
+
+def _has_load(arm, scene) -> bool:
+    """:func:`solver._model.has_load`, memoised per design and scene."""
+    return arm._solver_cache.get(("has_load", scene), lambda: has_load(arm, scene))
 
 
 def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, settings):
@@ -231,6 +236,8 @@ def _check_warm_start(warm_start, arm, scene, model, planar):
         raise ValueError(f"warm_start was solved at a different base angle "
                          f"({warm_start.scene.base_angle_deg:g} deg, not {scene.base_angle_deg:g})")
     new = [k for k, d in enumerate(scene.obstacles) if d not in warm_start.scene.obstacles]
+    if not new:
+        return
     points = warm_start.positions if warm_start.positions.shape[0] else warm_start.tip[None, :]
     for k in new:
         d = scene.obstacles[k]

@@ -91,7 +91,7 @@ def _record_equilibrium(record, flags, m0, pressures, channel_pressures, arm, mo
     """The planar :class:`Equilibrium` of a lean-path backbone record (arrays copied)."""
     rec = record.copy()
     converged, stable, snapped, iterations, residual = flags
-    return Equilibrium(
+    return Equilibrium._make(
         tip=rec[-1, L.X:L.Y + 1].copy(), converged=bool(converged), stable=bool(stable),
         iterations=int(iterations), residual=float(residual), snapped=bool(snapped),
         s=rec[:, L.S], positions=rec[:, L.X:L.Y + 1], angles=rec[:, L.THETA],
