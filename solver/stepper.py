@@ -178,9 +178,7 @@ class Stepper:
                       np.full((2, ns), np.nan))
         self._p_new = np.empty(arm.n_channels)
         self._target = (self._p_new, ctx.loads, ctx.m_tip)  # the kernel's goal levels
-        self._tips = [buf[-1, L.X:L.Y + 1] for buf in self._buffers]  # read-only tip views
-        for tip in self._tips:
-            tip.flags.writeable = False
+        self._bind_tips()
         self._flags = (True, True, False, 0, 0.0)  # of the current equilibrium
 
     # ------------------------------------------------------------------ state
@@ -288,6 +286,21 @@ class Stepper:
         self._spare ^= 1
         self._state[0] = eq.base_moment[-1]
         self._flags = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
+
+    def _bind_tips(self) -> None:
+        """Read-only tip views into the two record buffers (a pickle copies views apart:
+        unpickling binds them again)."""
+        self._tips = [buf[-1, L.X:L.Y + 1] for buf in self._buffers]
+        for tip in self._tips:
+            tip.flags.writeable = False
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        if self.lean:
+            self._target = (self._p_new, self._ctx.loads, self._ctx.m_tip)
+            self._bind_tips()
+            if self.record is not None:
+                self.tip = self._tips[next(k for k, b in enumerate(self._buffers) if b is self.record)]
 
     def with_scene(self, scene: Scene) -> Stepper:
         """A stepper of the same arm, model, mode and settings in another scene."""
@@ -433,7 +446,7 @@ class BatchStepper:
         self._p_zero = np.zeros(nc)
         n = self.n
         self.records = np.zeros((n, packed.n_rows, L.N_COLUMNS))
-        self.tips = self.records[:, -1, L.X:L.Y + 1]
+        self.tips = self.records[:, -1, L.X:L.Y + 1]  # a view (rebound on unpickling)
         self.pressures = np.zeros((n, n_inputs))
         self.channel_pressures = np.zeros((n, nc))
         self._states = np.zeros((n, 4))
@@ -632,6 +645,10 @@ class BatchStepper:
         return _record_equilibrium(self.records[k], self._flags[k], self._states[k, 0],
                                    self.pressures[k], self.channel_pressures[k], self.arm,
                                    self.model, self.scene, self._packed, self._ctx)
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.tips = self.records[:, -1, L.X:L.Y + 1]
 
     def __repr__(self) -> str:
         return f"BatchStepper({self.arm.name!r}, {self.scene}, n={self.n}, model={self.model!r})"

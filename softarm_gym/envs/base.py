@@ -225,7 +225,8 @@ class SoftArmEnv(gym.Env):
         self._failures = 0
         self._readings = None
         self._shape_estimate = None
-        self._estimated_tip = np.zeros(self.dim)
+        self._estimated_tip = np.zeros(self.dim)  # written in place (see _bind_rows)
+        self._bind_rows()
         self._renderer = None
         self._window = None
 
@@ -382,9 +383,9 @@ class SoftArmEnv(gym.Env):
             raise ValueError(f"action must have shape ({self.n_inputs},) for channels "
                              f"{', '.join(self.input_names)}; got shape {a.shape}")
         fraction = np.empty(self.n_inputs)
-        bad = fractions_from_actions(a.reshape(1, -1), self._command.reshape(1, -1),
+        bad = fractions_from_actions(a[None], self._command[None],
                                      self.action_mode == "delta", self.delta_scale,
-                                     fraction.reshape(1, -1))
+                                     fraction[None])
         if bad >= 0:
             raise ValueError(f"action for channel {self.input_names[bad]!r} is not finite: {a[bad]}")
         return fraction
@@ -398,16 +399,15 @@ class SoftArmEnv(gym.Env):
             # The lean path: the true shape straight from the solver's record.
             self._readings = None
             self._shape_estimate = None
-            tip = self._estimated_tip.reshape(1, -1)
-            fill_true_shapes(stepper.record.reshape(1, *stepper.record.shape), self._section_rows,
-                             self._s_query, self._shape_starts, self._obs.reshape(1, -1), tip,
+            fill_true_shapes(stepper.record[None], self._section_rows,
+                             self._s_query, self._shape_starts, self._obs_row, self._tip_row,
                              self._tangent, self._backbone)
             return
         eq = self._eq
         self._readings = synthesize(eq, self._sim_arm, self.sensor_noise, self.np_random) \
             if self.synthesize_sensors else None
         shape = self._shape_estimate = self.estimator.estimate(self._readings, eq.pressures, truth=eq)
-        self._estimated_tip = np.array(shape.tip, dtype=float)
+        self._estimated_tip[:] = shape.tip
         obs = self._obs
         obs[self._slices["tip"]] = shape.tip
         ends = obs[self._slices["section_ends"]].reshape(self.n_sections, 2 * self.dim)
@@ -422,12 +422,12 @@ class SoftArmEnv(gym.Env):
 
     def _observation(self):
         obs = self._obs
-        fill_pressures(self._fraction.reshape(1, -1), self._slices["pressures"].start, obs.reshape(1, -1))
+        fill_pressures(self._fraction[None], self._slices["pressures"].start, self._obs_row)
         if self.actuation == "lag":
-            fill_pressures(self._command.reshape(1, -1), self._slices["commanded"].start, obs.reshape(1, -1))
+            fill_pressures(self._command[None], self._slices["commanded"].start, self._obs_row)
         self._fill_goal(obs)
         flat = np.empty(obs.size, dtype=np.float32)
-        clip_observations(self._obs.reshape(1, -1), self._low64, self._high64, flat.reshape(1, -1))
+        clip_observations(self._obs_row, self._low64, self._high64, flat[None])
         if self.observation_format == "flat":
             return flat
         if self.observation_format == "goal":
@@ -501,8 +501,19 @@ class SoftArmEnv(gym.Env):
             self._window = None
         self._renderer = None
 
+    def _bind_rows(self) -> None:
+        """Batch-of-one views of the arrays the shared batch-first rules
+        (:mod:`softarm_gym.envs.terms`) write or read every step, made once (the arrays are
+        written in place; a pickle copies views apart, so unpickling binds them again)."""
+        self._obs_row = self._obs.reshape(1, -1)
+        self._tip_row = self._estimated_tip.reshape(1, -1)
+
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_renderer"] = None
         state["_window"] = None
         return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._bind_rows()

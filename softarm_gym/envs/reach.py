@@ -183,7 +183,8 @@ class ReachEnv(SoftArmEnv):
             raise ValueError(f"observation_format='goal' needs observation='true' (got {observation!r}): "
                              "its achieved_goal is the true tip, which would bypass the estimator")
         super().__init__(design, **kwargs)
-        self._target = np.zeros(self.dim)
+        self._target = np.zeros(self.dim)  # written in place (see _bind_rows)
+        self._target_row = self._target.reshape(1, -1)
         # One-row buffers of the batch-first reward (softarm_gym.envs.terms.reach_rewards).
         self._terms = np.zeros((1, len(REACH_TERMS)))
         self._distance = np.zeros(1)
@@ -275,7 +276,7 @@ class ReachEnv(SoftArmEnv):
                 raise ValueError(f"options['target'] {tuple(target.tolist())} is {distance:.3g} m from the "
                                  f"base; {self.arm.name} reaches at most {limit:.3f} m (every section "
                                  "fully stretched at the rated pressure)")
-            self._target = target.copy()
+            self._target[:] = target
             self.target_pressures_pa = None
             return self._scene, start
         for _ in range(TARGET_ATTEMPTS):
@@ -283,19 +284,23 @@ class ReachEnv(SoftArmEnv):
             eq = solver.solve(self._sim_arm, fraction * self.p_max, self._scene, model=self.model,
                               planar=self.planar, record=False)
             if eq.converged:
-                self._target = eq.tip.copy()
+                self._target[:] = eq.tip
                 self.target_pressures_pa = eq.pressures.copy()
                 return self._scene, start
         raise RuntimeError(f"no converged target in {TARGET_ATTEMPTS} random pressure draws for "
                            f"{self.arm.name} in {self._scene}")
 
+    def _bind_rows(self) -> None:
+        super()._bind_rows()
+        if hasattr(self, "_target"):  # (the base binds its rows before this class's arrays exist)
+            self._target_row = self._target.reshape(1, -1)
+
     def _fill_goal(self, obs):
-        fill_reach_goals(self._target.reshape(1, -1), self._estimated_tip.reshape(1, -1),
-                         self._slices["goal"].start, obs.reshape(1, -1))
+        fill_reach_goals(self._target_row, self._tip_row, self._slices["goal"].start, obs[None])
 
     def _task_reward(self, converged):
-        reach_rewards(self._stepper.tip.reshape(1, -1), self._target.reshape(1, -1),
-                      self._fraction.reshape(1, -1), self._converged_row(converged),
+        reach_rewards(self._stepper.tip[None], self._target_row,
+                      self._fraction[None], self._converged_row(converged),
                       self.distance_weight, self.control_weight, self.success_bonus,
                       self.success_tolerance, self.solver_failure_penalty, self._terms,
                       self._distance, self._success)

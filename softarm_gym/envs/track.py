@@ -90,7 +90,7 @@ class TrackEnv(ReachEnv):
         if not report.converged:
             raise RuntimeError(f"the trajectory's first waypoint has no converged equilibrium for "
                                f"{self.arm.name} in {self._scene}")
-        self._target = self._path.tip.copy()
+        self._target[:] = self._path.tip
         self.target_pressures_pa = self._path.pressures.copy()
         self._velocity = np.zeros(self.dim)
         self._errors = []
@@ -117,7 +117,7 @@ class TrackEnv(ReachEnv):
         previous = self._target.copy()
         # An unconverged path step keeps the path's last state: the target pauses, still reachable.
         self._path.step(fraction * self.p_max)
-        self._target = self._path.tip.copy()
+        self._target[:] = self._path.tip
         self.target_pressures_pa = self._path.pressures.copy()
         self._velocity = self._target - previous
 

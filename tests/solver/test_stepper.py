@@ -239,3 +239,26 @@ def test_thread_policy_picks_the_faster_way_and_probes_rarely_when_threads_lose(
     assert not policy.choose(7)
     monkeypatch.setattr(solver.stepper.numba, "get_num_threads", lambda: 1)
     assert not policy.choose(1000)
+
+
+def test_pickled_steppers_continue_identically():
+    import pickle
+
+    arm, scene = designs.octarm_v(), solver.Scene(base_angle_deg=90.0)
+    p = np.full(6, 0.2 * arm.max_pressure)
+    stepper, batch = solver.Stepper(arm, scene), solver.BatchStepper(arm, scene, 2)
+    stepper.reset(p)
+    batch.reset(np.stack([p, p]))
+    for original in (stepper, batch):
+        clone = pickle.loads(pickle.dumps(original))
+        for k in range(3):
+            q = p * (1.0 + 0.1 * (k + 1))
+            if original is stepper:
+                assert clone.step(q) == original.step(q)
+                np.testing.assert_array_equal(clone.tip, original.tip)
+                np.testing.assert_array_equal(clone.tip, clone.record[-1, L.X:L.Y + 1])
+            else:
+                clone.step(np.stack([q, q]))
+                original.step(np.stack([q, q]))
+                np.testing.assert_array_equal(clone.tips, original.tips)
+                np.testing.assert_array_equal(clone.tips, clone.records[:, -1, L.X:L.Y + 1])
