@@ -447,7 +447,8 @@ class SoftArmEnv(gym.Env):
             "sensors": {} if readings is None else {
                 "encoder_lengths": readings.encoder_lengths,
                 "inclinometers": readings.inclinometers,
-                "base_wrench": readings.base_wrench},
+                "base_wrench": readings.base_wrench,
+                **({} if self.planar else {"imu": readings.imu})},
             "converged": attempt.converged,
             "solver": attempt._asdict(),
             "solver_failures": self._failures,

@@ -114,7 +114,8 @@ class ReachEnv(SoftArmEnv):
     * ``planar`` (True): the planar model. ``False``: the spatial arm — one pressure per
       spatial channel (OctArm ``s1_I, s1_II, s1_III, ...``, CT ``inner_I, ..., outer_III``),
       3-D positions, section ends as (x, y, z, d3) and a 3-D target; the ``inclinometer``
-      estimator is planar only (``ValueError``); rendering shows the arm in 3D (see ``render_mode``).
+      estimator reads IMUs at the base and section ends (tilt and heading; ``info["sensors"]``
+      adds ``imu``); rendering shows the arm in 3D (see ``render_mode``).
     * ``observation`` (``"true"``): the shape estimator, one of ``softarm_gym.sensing.ESTIMATORS``.
     * ``sensor_noise`` (``"off"``): ``"off"``, ``"thesis"`` (Table 4.3 resolutions), a dict of
       ``SensorNoise`` fields or a ``SensorNoise``.

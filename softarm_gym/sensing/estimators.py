@@ -28,7 +28,7 @@ from softarm_gym.sensing._kernels import (
     _reduced_residual,
     _reduced_spatial,
 )
-from softarm_gym.sensing.sensors import SensorReadings, cable_angles, cable_radius
+from softarm_gym.sensing.sensors import SensorReadings, cable_angles, cable_radius, imu_frames
 from solver.layout import NSTATE
 from solver.rod import (
     arc_chain_planar,
@@ -443,9 +443,10 @@ class _ReducedModel(_Integrating):
     subclass close the system. Solved by damped Newton on the RK4 shooting map (the thesis
     used bvp4c), warm-started from the previous estimate until :meth:`reset`.
 
-    Spatial (cable encoders only): body shear (n1, n2) per section with
-    (n1, n2)' = −(Rᵀq)₁,₂ ± u3·(n2, n1), m' = −v·d3 × n, u = u* + C⁻¹Rᵀm (torsion kept);
-    unknowns m0 (3) and (n1, n2) per section; data ∫u1, ∫u2 per section and m(L) = 0.
+    Spatial: body shear (n1, n2) per section with (n1, n2)' = −(Rᵀq)₁,₂ ± u3·(n2, n1),
+    m' = −v·d3 × n, u = u* + C⁻¹Rᵀm (torsion kept); unknowns m0 (3) and (n1, n2) per
+    section; data two numbers per section (cable encoders ∫u1, ∫u2; IMUs the section-end
+    axis d3) and m(L) = 0.
 
     Options:
         steps_per_section: RK4 steps per section (default: the solver's 16).
@@ -479,9 +480,19 @@ class _ReducedModel(_Integrating):
         self._z[:] = 0.0
 
     def _boundary_data(self, readings, v_rest):
-        """(stretch (ns,), targets: planar section-end θ (ns,), spatial (∫u1, ∫u2) (ns, 2),
-        number of planar θ targets used)."""
+        """(stretch (ns,), targets: planar section-end θ (ns,), spatial as
+        :meth:`_spatial_misfit` takes them, number of planar θ targets used)."""
         raise NotImplementedError
+
+    def _base_frame(self, readings) -> np.ndarray:
+        """Spatial: the base directors (3, 3) the readings give (the base tilt sensor's
+        elevation of d3, the mount's heading)."""
+        return base_rotation(float(readings.inclinometers[0, 0]))
+
+    def _spatial_misfit(self, target) -> np.ndarray:
+        """Spatial: the (ns, 2) misfit of the last pass to the boundary data (rad): here the
+        sections' integrated curvatures (∫u1, ∫u2) against ``target`` (ns, 2)."""
+        return self._curv - target
 
     def _estimate(self, readings, pressures, truth):
         u1_rest, u2_rest, v_rest = self._rest(pressures)
@@ -495,7 +506,7 @@ class _ReducedModel(_Integrating):
                 _reduced_residual(z, *fixed, self._res)
                 return self._res.copy()
         else:
-            rot0 = base_rotation(float(readings.inclinometers[0, 0]))
+            rot0 = self._base_frame(readings)
             ns = len(self.sec_len)
 
             def run(z, record):
@@ -506,12 +517,15 @@ class _ReducedModel(_Integrating):
 
             def residual(z):
                 run(z, False)
-                return np.concatenate([(self._curv - target).ravel(),
+                return np.concatenate([self._spatial_misfit(target).ravel(),
                                        self._kernel_work[0, 12:15] * self.moment_scale])
         ok = False
-        for attempt in range(2):
-            if attempt:
+        seeds = (None, "zero") if self.planar else (None, "zero", "model")
+        for seed in seeds:
+            if seed == "zero":
                 self._z[:] = 0.0  # the warm start led astray: retry from the unloaded guess
+            elif seed == "model":
+                self._z[:] = self._model_seed(pressures)
             ok, _ = damped_newton(residual, self._z, self.unknown_scale, self.tol, self.max_iter)
             if ok:
                 break
@@ -523,6 +537,16 @@ class _ReducedModel(_Integrating):
         else:
             run(self._z, True)
         return self._shape(converged=bool(ok))
+
+
+    def _model_seed(self, pressures) -> np.ndarray:
+        """Spatial unknowns (m0, (n1, n2) at every section start) of the nominal model's
+        equilibrium at ``pressures``: a start for Newton near the measured state when the
+        previous estimate and the unloaded guess both fail (curled spatial arms)."""
+        eq = solver.solve(self.arm, pressures, self.scene, planar=False)
+        rows = [0, *eq.section_ends[:-1]]
+        body = np.einsum("kji,kj->ki", eq.orientations[rows], eq.internal_force[rows])
+        return np.concatenate([eq.base_moment, body[:, :2].ravel()])
 
 
 class CableEncoderShape(_ReducedModel):
@@ -548,24 +572,30 @@ class CableEncoderShape(_ReducedModel):
 
 
 class InclinometerShape(_ReducedModel):
-    """Inclinometers at the base and every section end (§4.2.3, Eqs. 4.34–4.41); planar.
+    """Inclinometers at the base and every section end (§4.2.3, Eqs. 4.34–4.41); in space,
+    IMUs in their place.
 
     Stretch from the actuator model at the commanded pressures. Without ``known_payload_kg``
     all n_sections + 1 inclinometers are used (the payload may be unknown); with it, the tip
     inclinometer is not needed: the tip shear n1(L) = −W·cos θ(L) (Eq. 4.41; W the known
-    payload plus tip endplate weight) replaces it.
+    payload plus tip endplate weight) replaces it (planar only).
+
+    Spatial: a tilt sensor cannot see heading, so the sensors are IMUs
+    (:class:`~softarm_gym.sensing.sensors.SensorReadings` ``imu``): the base IMU gives the
+    base frame and each section-end IMU its axis d3, matched by the reduced model through
+    the two angles of the estimated d3 off the measured one (atan2 of its components along the
+    measured d1 and d2 over the one along d3), with m(L) = 0.
 
     Options:
-        known_payload_kg: the tip payload, if known (kg); ``None``: unknown.
+        known_payload_kg: the tip payload, if known (kg); ``None``: unknown (planar only).
     """
 
     name = "inclinometer"
 
     def __init__(self, arm, planar, scene, n_samples, known_payload_kg: float | None = None,
                  **options):
-        if not planar:
-            raise ValueError("the inclinometer estimator is planar only (a spatial tilt sensor does "
-                             "not measure heading)")
+        if not planar and known_payload_kg is not None:
+            raise ValueError("known_payload_kg applies to the planar inclinometer estimator only")
         super().__init__(arm, planar, scene, n_samples, **options)
         if known_payload_kg is not None:
             bad = isinstance(known_payload_kg, bool) or not isinstance(known_payload_kg, (int, float))
@@ -577,8 +607,27 @@ class InclinometerShape(_ReducedModel):
 
     def _boundary_data(self, readings, v_rest):
         ns = len(self.sec_len)
+        if not self.planar:
+            return v_rest, self._imu(readings)[1:], 0
         n_angles = ns if self.known_payload_kg is None else ns - 1
         return v_rest, np.asarray(readings.inclinometers[1:], dtype=float), n_angles
+
+    def _imu(self, readings) -> np.ndarray:
+        """The IMU frames (ns + 1, 3, 3) of spatial readings."""
+        if readings.imu.shape[0] != len(self.sec_len) + 1:
+            raise ValueError("the spatial inclinometer estimator reads IMUs: readings.imu must "
+                             f"hold {len(self.sec_len) + 1} sensors (synthesize() of a spatial "
+                             f"equilibrium); got {readings.imu.shape[0]}")
+        return imu_frames(readings.imu)
+
+    def _base_frame(self, readings) -> np.ndarray:
+        return self._imu(readings)[0]
+
+    def _spatial_misfit(self, target) -> np.ndarray:
+        # The estimated axis d3 in the measured frame, as its two angles off the measured
+        # axis (atan2, so that the axis turned back on itself is no root).
+        x, y, z = np.einsum("ki,kij->jk", self._frames[:, :, 2], target)
+        return np.column_stack([np.arctan2(x, z), np.arctan2(y, z)])
 
 
 _CLASSES = {"true": TrueShape, "model": ModelShape, "constant_curvature": ConstantCurvatureShape,

@@ -18,6 +18,14 @@ Three kinds of sensor, as in Figs. 4.1–4.3:
 * **Inclinometers** at the base and at each section end. Planar: θ of d3 from +x (rad).
   Spatial: a two-axis tilt sensor, (asin(d3·ŷ), asin(d1·ŷ)) — the elevation of the axis
   and of d1 above the horizontal (rad); heading about gravity is not observable.
+* **IMUs** (spatial only) at the base and at each section end: an accelerometer and a
+  magnetometer, which report the world's up direction ŷ and magnetic north (taken as +x)
+  in the sensor's body frame [d1 d2 d3]: a = Rᵀŷ, b = Rᵀx̂ (six numbers per sensor). The
+  pair fixes the whole orientation (:func:`imu_frames`, the TRIAD construction), heading
+  included, which a tilt sensor cannot see; gravity and north are never parallel, so there
+  is no gimbal lock. The thesis has no IMU: the noise (per component, in radians of the
+  unit vectors) is an assumption, set in :meth:`SensorNoise.thesis` to the class of the
+  Table 4.3 inclinometer (2.5°) for both.
 * **A 6-axis load cell** at the base: the wrench (n(0), m(0)) the arm applies to its mount,
   i.e. the internal force and moment at s = 0, reported in the world frame. Planar
   (n_x, n_y, m_z); spatial (n_x, n_y, n_z, m_x, m_y, m_z). Its noise acts in the sensor's
@@ -39,7 +47,7 @@ import numpy as np
 import solver
 from softarm_gym.sensing._kernels import _planar_cable_integrand, _section_integrals
 
-__all__ = ["SensorNoise", "SensorReadings", "synthesize", "cable_angles", "cable_radius"]
+__all__ = ["SensorNoise", "SensorReadings", "synthesize", "cable_angles", "cable_radius", "imu_frames"]
 
 DEFAULT_CABLE_RADIUS = 42.9e-3
 """Table 4.2 cable radius R (m), used when a design carries no ``extra["cable_radius"]``."""
@@ -57,6 +65,10 @@ class SensorNoise:
         force_resolution: load-cell shear-force resolution, along d1 and d2 (N).
         axial_force_resolution: load-cell axial-force resolution, along d3 (N).
         moment_resolution: load-cell moment resolution (N m).
+        imu_tilt_resolution_deg: IMU accelerometer resolution, per component of the measured
+            up direction, as an angle (deg); spatial only.
+        imu_heading_resolution_deg: IMU magnetometer resolution, per component of the
+            measured north direction, as an angle (deg); spatial only.
         gaussian_std: standard deviation of additive Gaussian noise, in units of each
             sensor's resolution (dimensionless), added before quantisation.
         quantize: round each reading to its resolution. With ``quantize=False`` the
@@ -71,6 +83,8 @@ class SensorNoise:
     moment_resolution: float = 0.0
     gaussian_std: float = 0.0
     quantize: bool = True
+    imu_tilt_resolution_deg: float = 0.0
+    imu_heading_resolution_deg: float = 0.0
 
     def __post_init__(self):
         for f in fields(self):
@@ -93,11 +107,13 @@ class SensorNoise:
 
     @classmethod
     def thesis(cls, **overrides) -> SensorNoise:
-        """Table 4.3 resolutions (and the §4.3 USD-T2 base inclinometer), quantised."""
+        """Table 4.3 resolutions (and the §4.3 USD-T2 base inclinometer), quantised; the
+        IMUs (no thesis figure) at the inclinometer's 2.5°."""
         values = dict(encoder_resolution=0.03, inclinometer_resolution_deg=2.5,
                       base_inclinometer_resolution_deg=math.degrees(8.7e-4),
                       force_resolution=1.0 / 200.0, axial_force_resolution=1.0 / 100.0,
-                      moment_resolution=1.0 / 800.0)
+                      moment_resolution=1.0 / 800.0, imu_tilt_resolution_deg=2.5,
+                      imu_heading_resolution_deg=2.5)
         values.update(overrides)
         return cls(**values)
 
@@ -106,7 +122,8 @@ class SensorNoise:
         """True when every reading is exact."""
         resolutions = (self.encoder_resolution, self.inclinometer_resolution_deg,
                        self.base_inclinometer_deg, self.force_resolution,
-                       self.axial_force_resolution, self.moment_resolution)
+                       self.axial_force_resolution, self.moment_resolution,
+                       self.imu_tilt_resolution_deg, self.imu_heading_resolution_deg)
         return not any(resolutions) or (not self.quantize and self.gaussian_std == 0.0)
 
     @property
@@ -143,12 +160,17 @@ class SensorReadings:
         base_wrench: planar (3,) (n_x, n_y, m_z); spatial (6,) (n, m) at the base, world
             frame (N, N m).
         planar: which mode the readings are for.
+        imu: spatial (n_sections + 1, 6): per IMU (base, then each section end) the up
+            direction and north in its body frame, (a, b) = (Rᵀŷ, Rᵀx̂) (unit vectors up to
+            noise; :func:`imu_frames` turns them into orientations); planar, or readings
+            made without IMUs: (0, 6).
     """
 
     encoder_lengths: np.ndarray
     inclinometers: np.ndarray
     base_wrench: np.ndarray
     planar: bool = True
+    imu: np.ndarray | None = None
 
     def __post_init__(self):
         enc = np.array(self.encoder_lengths, dtype=float)
@@ -162,18 +184,52 @@ class SensorReadings:
             raise ValueError(f"inclinometers must have shape {want_inc}; got {inc.shape}")
         if wrench.shape != (n_wrench,):
             raise ValueError(f"base_wrench must have shape ({n_wrench},); got {wrench.shape}")
-        for name, arr in (("encoder_lengths", enc), ("inclinometers", inc), ("base_wrench", wrench)):
+        imu = np.zeros((0, 6)) if self.imu is None else np.array(self.imu, dtype=float)
+        if imu.size and (self.planar or imu.shape != (enc.shape[0] + 1, 6)):
+            raise ValueError(f"imu must have shape ({enc.shape[0] + 1}, 6) for spatial readings (none "
+                             f"for planar ones); got {imu.shape}")
+        imu = imu.reshape(-1, 6)
+        for name, arr in (("encoder_lengths", enc), ("inclinometers", inc), ("base_wrench", wrench),
+                          ("imu", imu)):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"SensorReadings.{name} contains non-finite values")
             arr.setflags(write=False)
         object.__setattr__(self, "encoder_lengths", enc)
         object.__setattr__(self, "inclinometers", inc)
         object.__setattr__(self, "base_wrench", wrench)
+        object.__setattr__(self, "imu", imu)
 
     def as_vector(self) -> np.ndarray:
-        """All readings as one flat float array: encoders, inclinometers, base wrench."""
+        """All readings as one flat float array: encoders, inclinometers, base wrench, IMUs."""
         return np.concatenate([self.encoder_lengths.ravel(), self.inclinometers.ravel(),
-                               self.base_wrench])
+                               self.base_wrench, self.imu.ravel()])
+
+
+def imu_frames(imu: np.ndarray) -> np.ndarray:
+    """Orientations [d1 d2 d3] (world frame, columns) from IMU readings (TRIAD).
+
+    Args:
+        imu: (k, 6) per sensor the up direction a = Rᵀŷ and north b = Rᵀx̂ in the body frame
+            (noisy: not exactly unit or orthogonal).
+
+    Returns:
+        (k, 3, 3) proper rotations R: up is matched exactly (the accelerometer fixes the
+        tilt), north as closely as orthogonality allows (it fixes the heading).
+
+    Raises:
+        ValueError: a reading whose up and north directions are (nearly) parallel.
+    """
+    imu = np.asarray(imu, dtype=float).reshape(-1, 6)
+    up = imu[:, :3] / np.linalg.norm(imu[:, :3], axis=1, keepdims=True)
+    north = imu[:, 3:] - np.sum(imu[:, 3:] * up, axis=1, keepdims=True) * up
+    size = np.linalg.norm(north, axis=1, keepdims=True)
+    if not np.all(size > 1e-6):
+        raise ValueError("IMU reading with parallel up and north directions: no heading")
+    north /= size
+    # Body triad (up, north, up × north) ↦ world triad (ŷ, x̂, ŷ × x̂ = −ẑ): R = W·Bᵀ.
+    body = np.stack([up, north, np.cross(up, north)], axis=2)  # columns B1 B2 B3
+    world = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # columns W1 W2 W3
+    return world @ np.transpose(body, (0, 2, 1))
 
 
 def cable_radius(arm: solver.designs.ArmDesign) -> float:
@@ -247,8 +303,16 @@ def synthesize(eq: solver.Equilibrium, arm: solver.designs.ArmDesign,
     if rng is not None and not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator; got {type(rng).__name__}")
     lengths, incl, wrench = exact_readings(eq, arm)
+    imu = None
+    if not eq.planar:
+        frames = eq.orientations[[0, *eq.section_ends]]
+        imu = np.concatenate([frames[:, 1, :], frames[:, 0, :]], axis=1)  # (Rᵀŷ, Rᵀx̂)
     if noise.is_off:
-        return SensorReadings(lengths, incl, wrench, planar=eq.planar)
+        return SensorReadings(lengths, incl, wrench, planar=eq.planar, imu=imu)
+    if imu is not None:
+        tilt = math.radians(noise.imu_tilt_resolution_deg)
+        heading = math.radians(noise.imu_heading_resolution_deg)
+        imu = noise.apply(imu, np.tile(np.repeat([tilt, heading], 3), (imu.shape[0], 1)), rng)
     # The load cell reads in its own frame (the base directors): shear along d1 (d2), axial d3.
     if eq.planar:
         th = eq.angles[0]
@@ -270,4 +334,4 @@ def synthesize(eq: solver.Equilibrium, arm: solver.designs.ArmDesign,
     dim = frame.shape[0]
     wrench = np.concatenate([frame @ body[:dim], body[dim:] if eq.planar else frame @ body[dim:]])
     return SensorReadings(flat[:n_len].reshape(lengths.shape), flat[n_len:n_len + n_inc].reshape(incl.shape),
-                          wrench, planar=eq.planar)
+                          wrench, planar=eq.planar, imu=imu)

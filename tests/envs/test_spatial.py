@@ -42,9 +42,16 @@ def test_spatial_layout_and_reachable_target():
     assert abs(info["target"][2]) > 1e-3
 
 
+def test_spatial_inclinometer_observation_reads_imus():
+    env = ReachEnv("octarm_v", planar=False, observation="inclinometer")
+    obs, info = env.reset(seed=3)
+    for _ in range(3):
+        obs, _, _, _, info = env.step(env.action_space.sample())
+    assert info["sensors"]["imu"].shape == (4, 6) and env.observation_space.contains(obs)
+    assert info["estimation_error"] < 0.02
+
+
 def test_spatial_unsupported_combinations_are_clear_errors():
-    with pytest.raises(ValueError, match="planar only"):
-        ReachEnv("octarm_v", planar=False, observation="inclinometer")
     with pytest.raises(ValueError, match="planar only"):
         WrapEnv("octarm_v", planar=False)
     with pytest.raises(ValueError, match="planar must be"):

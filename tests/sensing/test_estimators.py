@@ -304,5 +304,35 @@ def test_spatial_cable_encoder():
         assert shape.converged and shape.backbone.shape == (32, 3)
         error = np.linalg.norm(shape.tip - eq.tip)
         assert error < np.linalg.norm(arcs.tip - eq.tip) and error < 0.06 * L
-    with pytest.raises(ValueError, match="planar only"):
-        make_estimator("inclinometer", ARM, planar=False)
+    with pytest.raises(ValueError, match="planar inclinometer estimator only"):
+        make_estimator("inclinometer", ARM, planar=False, known_payload_kg=0.1)
+
+
+def test_spatial_inclinometer_estimator_reads_imus_out_of_plane():
+    """In space the inclinometers are IMUs (heading too): the reduced model fitted to the
+    section-end axes tracks curled, out-of-plane states within millimetres (its own model
+    error: no shear, no axial force), where arcs are decimetres off."""
+    arm = solver.designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90.0)
+    rng = np.random.default_rng(1)
+    imu = make_estimator("inclinometer", arm, planar=False, scene=scene)
+    arcs = make_estimator("constant_curvature", arm, planar=False, scene=scene)
+    for _ in range(6):
+        eq = solver.solve(arm, rng.uniform(0, 0.6, 9) * arm.max_pressure, scene, planar=False)
+        assert eq.converged and abs(eq.tip[2]) > 0.01  # out of the plane
+        readings = synthesize(eq, arm)
+        imu.reset()  # every estimate cold: no help from the previous one
+        shape = imu.estimate(readings, eq.pressures)
+        assert shape.converged
+        np.testing.assert_allclose(shape.section_frames[:, :, 2],
+                                   eq.orientations[list(eq.section_ends)][:, :, 2], atol=1e-5)
+        error = np.linalg.norm(shape.tip - eq.tip)
+        arcs_error = np.linalg.norm(arcs.estimate(readings, eq.pressures).tip - eq.tip)
+        assert error < 0.012 and error < 0.1 * arcs_error
+    with pytest.raises(ValueError, match="reads IMUs"):
+        imu.estimate(_without_imu(readings), eq.pressures)
+
+
+def _without_imu(readings):
+    return SensorReadings(readings.encoder_lengths, readings.inclinometers, readings.base_wrench,
+                          planar=False)

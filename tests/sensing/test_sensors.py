@@ -8,7 +8,7 @@ from scipy.integrate import simpson
 
 import solver
 from softarm_gym.sensing import SensorNoise, SensorReadings, synthesize
-from softarm_gym.sensing.sensors import cable_angles, cable_radius
+from softarm_gym.sensing.sensors import cable_angles, cable_radius, imu_frames
 
 ARM = solver.designs.octarm_vi()
 P = solver.PSI
@@ -155,3 +155,30 @@ def test_bad_input():
         SensorReadings(np.zeros((3, 2)), np.zeros(3), np.zeros(3))
     with pytest.raises(ValueError, match="non-finite"):
         SensorReadings(np.full((3, 2), np.nan), np.zeros(4), np.zeros(3))
+
+
+def test_imus_give_the_whole_orientation_heading_included():
+    arm = solver.designs.octarm_v()
+    p = np.zeros(9)
+    p[[1, 5]] = 0.6 * arm.max_pressure  # channels II: curls out of the x-y plane
+    for base_angle in (0.0, 90.0, 180.0):  # hanging (d3 along gravity), horizontal, upright
+        eq = solver.solve(arm, p, solver.Scene(base_angle_deg=base_angle), planar=False)
+        truth = eq.orientations[[0, *eq.section_ends]]
+        readings = synthesize(eq, arm)
+        assert readings.imu.shape == (4, 6)
+        np.testing.assert_allclose(imu_frames(readings.imu), truth, atol=1e-12)
+        noise = SensorNoise(imu_tilt_resolution_deg=0.5, imu_heading_resolution_deg=2.0, gaussian_std=1.0,
+                            quantize=False)
+        frames = imu_frames(synthesize(eq, arm, noise, np.random.default_rng(0)).imu)
+        np.testing.assert_allclose(np.einsum("kji,kjl->kil", frames, frames), np.tile(np.eye(3), (4, 1, 1)),
+                                   atol=1e-12)
+        np.testing.assert_allclose(np.linalg.det(frames), 1.0)
+        # The up direction is matched exactly: the tilt error is the accelerometer's alone.
+        angle = np.degrees(np.arccos(np.clip((np.einsum("kij,kij->k", frames, truth) - 1) / 2, -1, 1)))
+        assert 0 < angle.max() < 15
+    assert synthesize(solver.solve(ARM, PRESSURES), ARM).imu.shape == (0, 6)  # planar: no IMUs
+    with pytest.raises(ValueError, match="imu must have shape"):
+        SensorReadings(np.zeros((3, 3)), np.zeros((4, 2)), np.zeros(6), planar=False, imu=np.zeros((3, 6)))
+    with pytest.raises(ValueError, match="parallel"):
+        imu_frames(np.array([[0, 1, 0, 0, 1, 0]]))
+    assert SensorNoise.thesis().imu_heading_resolution_deg == 2.5 and not SensorNoise.thesis().is_off
