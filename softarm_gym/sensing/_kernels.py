@@ -392,6 +392,133 @@ def _reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_res
         s0 += sec_len[i]
 
 
+CABLE_DATA, IMU_DATA = 0, 1
+"""What the spatial reduced model is fitted to: the sections' ∫u1, ∫u2 (cable encoders) or
+their end axes d3 in measured frames (IMUs)."""
+
+
+@njit
+def _reduced_spatial_residual(z, model, data, out):
+    """Boundary residual (2·ns + 3,) of the spatial reduced model at unknowns ``z`` (3 + 2·ns:
+    m0, then (n1, n2) per section start), in rad: the misfit to the data per section, then
+    m(L) over the moment scale.
+
+    Args:
+        model: (rot0, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch, q, work, s, pos,
+            tan, ends, frames, curv, moment_scale) as :func:`_reduced_spatial` takes them.
+        data: (kind, target_curv (ns, 2), target_frames (ns, 3, 3)): ``CABLE_DATA`` matches
+            ∫u1, ∫u2; ``IMU_DATA`` the two angles of each estimated end axis d3 off the
+            measured frame's (atan2, so a reversed axis is no root).
+    """
+    (rot0, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch, q, work, s, pos, tan, ends,
+     frames, curv, moment_scale) = model
+    kind, target_curv, target_frames = data
+    ns = sec_len.shape[0]
+    _reduced_spatial(rot0, z[:3], z[3:].reshape((ns, 2)), sec_len, sec_steps, c_i, c_j, u1_rest,
+                     u2_rest, stretch, q, False, work, s, pos, tan, ends, frames, curv)
+    for i in range(ns):
+        if kind == CABLE_DATA:
+            out[2 * i] = curv[i, 0] - target_curv[i, 0]
+            out[2 * i + 1] = curv[i, 1] - target_curv[i, 1]
+        else:
+            x = y = w = 0.0
+            for r in range(3):
+                x += frames[i, r, 2] * target_frames[i, r, 0]
+                y += frames[i, r, 2] * target_frames[i, r, 1]
+                w += frames[i, r, 2] * target_frames[i, r, 2]
+            out[2 * i] = math.atan2(x, w)
+            out[2 * i + 1] = math.atan2(y, w)
+    for d in range(3):
+        out[2 * ns + d] = work[0, 12 + d] * moment_scale
+
+
+@njit
+def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, data, jac, jac_ok):
+    """:func:`softarm_gym.sensing.estimators.damped_newton` on
+    :func:`_reduced_spatial_residual`, compiled (the spatial reduced model's Python Newton
+    spent most of an estimate in calls): forward-difference Jacobian, steps clipped to
+    ``max_step`` units of ``unknown_scale`` then halved until the residual's 2-norm falls.
+
+    The Jacobian is kept between calls (``jac`` (n, n), valid while ``jac_ok[0]``): an
+    estimator warm-starts from its previous estimate, where the last Jacobian still holds,
+    so it is rebuilt only when a step with it does not cut the residual's 2-norm by 4×
+    (Newton's contraction): a modified Newton with refresh, converging to the same root.
+    In place on ``z``; returns (converged, max |residual|)."""
+    n = z.shape[0]
+    res = np.empty(n)
+    trial = np.empty(n)
+    probe = np.empty(n)
+    start = np.empty(n)
+    _reduced_spatial_residual(z, model, data, res)
+    merit = 0.0
+    for k in range(n):
+        merit += res[k] * res[k]
+    for it in range(max_iter + 1):
+        err = 0.0
+        for k in range(n):
+            err = max(err, abs(res[k]))
+        if not math.isfinite(err) or not (res == res).all():
+            return False, math.inf
+        if err <= tol:
+            return True, err
+        if it == max_iter:
+            break
+        if not jac_ok[0]:
+            for j in range(n):
+                h = 1e-6 * unknown_scale[j]
+                keep = z[j]
+                z[j] = keep + h
+                _reduced_spatial_residual(z, model, data, probe)
+                for k in range(n):
+                    jac[k, j] = (probe[k] - res[k]) / h
+                z[j] = keep
+            jac_ok[0] = True
+            fresh = True
+        else:
+            fresh = False
+        try:
+            step = np.linalg.solve(jac, -res)
+        except Exception:  # a singular Jacobian
+            jac_ok[0] = False
+            if fresh:
+                return False, err
+            continue
+        worst = 0.0
+        for k in range(n):
+            worst = max(worst, abs(step[k]) / unknown_scale[k])
+        shrink = min(1.0, max_step / worst) if worst > 0 else 1.0
+        for k in range(n):
+            step[k] *= shrink
+            start[k] = z[k]
+        scale = 1.0
+        trial_merit = merit
+        for _ in range(21):
+            for k in range(n):
+                z[k] = start[k] + scale * step[k]
+            _reduced_spatial_residual(z, model, data, trial)
+            trial_merit = 0.0
+            for k in range(n):
+                trial_merit += trial[k] * trial[k]
+            if trial_merit < merit and (fresh or scale == 1.0):
+                break
+            if not fresh:
+                break  # a kept Jacobian that needs halving is stale: rebuild it instead
+            scale *= 0.5
+        if not fresh and not trial_merit < 0.0625 * merit:
+            jac_ok[0] = False  # too slow a contraction: the kept Jacobian is stale
+            if not trial_merit < merit:
+                for k in range(n):
+                    z[k] = start[k]  # and the step is not taken
+                continue
+        for k in range(n):
+            res[k] = trial[k]
+        merit = trial_merit
+    err = 0.0
+    for k in range(n):
+        err = max(err, abs(res[k]))
+    return False, err
+
+
 @njit
 def _planar_shape(s, pos, theta, strain, ends, s_query, backbone, section_ends, tangent):
     """The ``true`` shape of a recorded planar equilibrium in one pass.

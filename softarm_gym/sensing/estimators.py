@@ -20,6 +20,8 @@ import numpy as np
 
 import solver
 from softarm_gym.sensing._kernels import (
+    CABLE_DATA,
+    IMU_DATA,
     REDUCED_STATE,
     _load_cell_planar,
     _load_cell_spatial,
@@ -27,6 +29,7 @@ from softarm_gym.sensing._kernels import (
     _reduced_planar,
     _reduced_residual,
     _reduced_spatial,
+    _reduced_spatial_newton,
 )
 from softarm_gym.sensing.sensors import SensorReadings, cable_angles, cable_radius, imu_frames
 from solver.layout import NSTATE
@@ -472,12 +475,16 @@ class _ReducedModel(_Integrating):
                                       + [ei_max / arm.length**2] * (n_shear * ns))
         self._z = np.zeros(self.unknown_scale.size)
         self._res = np.empty(self._z.size)
+        # The spatial Newton's Jacobian, kept between estimates (see _reduced_spatial_newton).
+        self._jac = np.empty((self._z.size, self._z.size))
+        self._jac_ok = np.zeros(1, dtype=np.bool_)
         self._curv = np.empty((ns, 2))
         self._kernel_work = np.zeros((6, REDUCED_STATE))
         self.tip_weight = 0.0
 
     def reset(self) -> None:
         self._z[:] = 0.0
+        self._jac_ok[0] = False
 
     def _boundary_data(self, readings, v_rest):
         """(stretch (ns,), targets: planar section-end θ (ns,), spatial as
@@ -489,10 +496,10 @@ class _ReducedModel(_Integrating):
         elevation of d3, the mount's heading)."""
         return base_rotation(float(readings.inclinometers[0, 0]))
 
-    def _spatial_misfit(self, target) -> np.ndarray:
-        """Spatial: the (ns, 2) misfit of the last pass to the boundary data (rad): here the
-        sections' integrated curvatures (∫u1, ∫u2) against ``target`` (ns, 2)."""
-        return self._curv - target
+    def _spatial_data(self, target) -> tuple:
+        """Spatial: the data argument of :func:`_reduced_spatial_residual`; here the
+        sections' integrated curvatures (∫u1, ∫u2), ``target`` (ns, 2)."""
+        return CABLE_DATA, np.ascontiguousarray(target, dtype=float), np.zeros((len(self.sec_len), 3, 3))
 
     def _estimate(self, readings, pressures, truth):
         u1_rest, u2_rest, v_rest = self._rest(pressures)
@@ -508,17 +515,10 @@ class _ReducedModel(_Integrating):
         else:
             rot0 = self._base_frame(readings)
             ns = len(self.sec_len)
-
-            def run(z, record):
-                _reduced_spatial(rot0, z[:3], z[3:].reshape(ns, 2), self.sec_len, self.sec_steps,
-                                 self.c_i, self.c_j, u1_rest, u2_rest, stretch, self.q, record,
-                                 self._kernel_work, self._s, self._pos, self._tan, self._ends,
-                                 self._frames, self._curv)
-
-            def residual(z):
-                run(z, False)
-                return np.concatenate([self._spatial_misfit(target).ravel(),
-                                       self._kernel_work[0, 12:15] * self.moment_scale])
+            model = (rot0, self.sec_len, self.sec_steps, self.c_i, self.c_j, u1_rest, u2_rest,
+                     np.asarray(stretch, dtype=float), self.q, self._kernel_work, self._s, self._pos,
+                     self._tan, self._ends, self._frames, self._curv, self.moment_scale)
+            data = self._spatial_data(target)
         ok = False
         seeds = (None, "zero") if self.planar else (None, "zero", "model")
         for seed in seeds:
@@ -526,7 +526,12 @@ class _ReducedModel(_Integrating):
                 self._z[:] = 0.0  # the warm start led astray: retry from the unloaded guess
             elif seed == "model":
                 self._z[:] = self._model_seed(pressures)
-            ok, _ = damped_newton(residual, self._z, self.unknown_scale, self.tol, self.max_iter)
+            if self.planar:
+                ok, _ = damped_newton(residual, self._z, self.unknown_scale, self.tol, self.max_iter)
+            else:
+                self._jac_ok[0] &= seed is None  # a new start: a new Jacobian
+                ok, _ = _reduced_spatial_newton(self._z, self.unknown_scale, self.tol, self.max_iter,
+                                                20.0, model, data, self._jac, self._jac_ok)
             if ok:
                 break
         if not np.all(np.isfinite(self._z)):
@@ -535,7 +540,10 @@ class _ReducedModel(_Integrating):
             _reduced_planar(theta0, self._z[0], self._z[1:], self.sec_len, self.sec_steps, self.c_i,
                             u2_rest, stretch, self.weight, True, self._s, self._pos, self._tan, self._ends)
         else:
-            run(self._z, True)
+            _reduced_spatial(rot0, self._z[:3], self._z[3:].reshape(ns, 2), self.sec_len, self.sec_steps,
+                             self.c_i, self.c_j, u1_rest, u2_rest, stretch, self.q, True,
+                             self._kernel_work, self._s, self._pos, self._tan, self._ends,
+                             self._frames, self._curv)
         return self._shape(converged=bool(ok))
 
 
@@ -623,11 +631,9 @@ class InclinometerShape(_ReducedModel):
     def _base_frame(self, readings) -> np.ndarray:
         return self._imu(readings)[0]
 
-    def _spatial_misfit(self, target) -> np.ndarray:
-        # The estimated axis d3 in the measured frame, as its two angles off the measured
-        # axis (atan2, so that the axis turned back on itself is no root).
-        x, y, z = np.einsum("ki,kij->jk", self._frames[:, :, 2], target)
-        return np.column_stack([np.arctan2(x, z), np.arctan2(y, z)])
+    def _spatial_data(self, target) -> tuple:
+        # The estimated end axes d3 against the measured frames (ns, 3, 3).
+        return IMU_DATA, np.zeros((len(self.sec_len), 2)), np.ascontiguousarray(target, dtype=float)
 
 
 _CLASSES = {"true": TrueShape, "model": ModelShape, "constant_curvature": ConstantCurvatureShape,
