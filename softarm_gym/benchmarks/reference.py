@@ -50,13 +50,13 @@ def reference_controller(env):
     return JacobianController(env)
 
 
-def episode(env_id: str, seed: int) -> dict:
-    """One reference episode of ``gym.make(env_id)`` seeded with ``seed``.
+def episode(env_id: str, seed: int, env_kwargs: dict | None = None) -> dict:
+    """One reference episode of ``gym.make(env_id, **env_kwargs)`` seeded with ``seed``.
 
     Returns:
         ``return`` (undiscounted), ``length``, ``success`` (``is_success`` of the last step).
     """
-    env = gym.make(env_id)
+    env = gym.make(env_id, **(env_kwargs or {}))
     controller = reference_controller(env)
     obs, _ = env.reset(seed=seed)
     controller.reset()
