@@ -84,3 +84,22 @@ register(
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.15, 0.20),
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
 )
+
+# v1 wrap: object radius calibrated so that the planner wraps it (docs/environments.md, "Wrap
+# calibration"); v0's 9-11 cm disc needs a tighter curl than OctArm V has on most seeds.
+register(
+    id="SoftArm/OctArmWrap-v1",
+    entry_point="softarm_gym.envs:WrapEnv",
+    max_episode_steps=200,
+    reward_threshold=None,
+    kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
+)
+
+register(
+    id="SoftArm/CTWrap-v1",
+    entry_point="softarm_gym.envs:WrapEnv",
+    max_episode_steps=200,
+    reward_threshold=None,
+    kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),
+            "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
+)

@@ -51,7 +51,8 @@ def episode(env_id: str, seed: int, **planner_kwargs) -> dict:
         done = terminated or truncated
     seconds = time.perf_counter() - start
     env.close()
-    measure = info.get("wrap_angle_deg", info.get("tracking_rms_m", info["distance"]))
+    key = next(k for k in ("wrap_angle_deg", "tracking_rms_m", "distance") if k in info)
+    measure = info[key]
     return {"success": bool(info["is_success"]), "measure": float(measure), "seconds": seconds,
             "decision_seconds": float(np.median(searched)) if searched else None}
 
