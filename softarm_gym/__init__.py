@@ -3,8 +3,9 @@
 Importing the package registers the environments (``gym.make("SoftArm/OctArmReach-v0")``);
 the classes live in :mod:`softarm_gym.envs`. Default kwargs below are the only difference
 between the OctArm and CT variants. Each ``reward_threshold`` is floor(0.9 × the mean return
-of the reference controller over 20 seeded episodes): the Jacobian controller on reach and track, the
-scripted curl on wrap (``python -m softarm_gym.benchmarks.reference``; measured values in
+of the reference controller over 20 seeded episodes): the Jacobian controller on reach,
+obstacle reach and track, the scripted curl on wrap; None where that mean is not positive (the
+reference fails the task) (``python -m softarm_gym.benchmarks.reference``; measured values in
 ``docs/bench/reference_returns.json``, explained in ``docs/environments.md``).
 """
 
@@ -83,4 +84,23 @@ register(
     # a half-turn placement and a 90 deg success threshold.
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.15, 0.20),
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
+)
+
+# Reach among obstacles: random discs between the base and a target reachable with them in
+# place; contact costs reward in proportion to the contact force (contact="forbid" rejects it).
+# No vector_entry_point: the batched env has no contact kernel (gym.make_vec steps copies).
+register(
+    id="SoftArm/OctArmObstacleReach-v0",
+    entry_point="softarm_gym.envs:ObstacleReachEnv",
+    max_episode_steps=100,
+    reward_threshold=None,
+    kwargs={"design": "octarm_v", "base_angle_deg": 90.0},
+)
+
+register(
+    id="SoftArm/CTObstacleReach-v0",
+    entry_point="softarm_gym.envs:ObstacleReachEnv",
+    max_episode_steps=100,
+    reward_threshold=None,
+    kwargs={"design": "ct", "base_angle_deg": 90.0},
 )
