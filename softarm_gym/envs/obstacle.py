@@ -9,7 +9,7 @@ import numpy as np
 
 import solver
 from softarm_gym.envs.base import _check_options, _finite_number, _range
-from softarm_gym.envs.reach import TARGET_ATTEMPTS, ReachEnv
+from softarm_gym.envs.reach import ReachEnv
 from softarm_gym.envs.wrap import arm_half_thickness, check_contact_stiffness, resolve_contact_stiffness
 
 __all__ = ["ObstacleReachEnv", "CONTACT_MODES", "total_contact_force"]
@@ -17,6 +17,10 @@ __all__ = ["ObstacleReachEnv", "CONTACT_MODES", "total_contact_force"]
 CONTACT_MODES = ("penalize", "forbid")
 """What touching an obstacle does: costs reward in proportion to the contact force, or is
 rejected (the step keeps the previous state and costs ``contact_penalty``)."""
+
+TASK_ATTEMPTS = 200
+"""Draws of target and discs tried before reset gives up (each a cold solve and placements:
+milliseconds; the CT arm, short and with targets near its start, needs tens at times)."""
 
 DISC_ATTEMPTS = 30
 """Random placements tried per disc before the episode's target is redrawn."""
@@ -91,7 +95,7 @@ class ObstacleReachEnv(ReachEnv):
 
     Per episode: the simulated arm, payload and start pressures as ReachEnv; then target and
     discs together: (1) target pressures uniform in [0, p_max], solved cold without discs;
-    (2) ``n`` discs, n uniform in ``n_obstacles``, each with an obstacle radius uniform in
+    (2) ``n`` discs (n uniform in ``n_obstacles``, drawn once per reset), each with an obstacle radius uniform in
     ``obstacle_radius``, its centre uniform along the middle of the base–target segment
     (fractions :data:`PLACEMENT_SPAN` of its length) and offset across it by up to its
     contact radius, so it stands in the straight way to the target; a disc is kept only if its
@@ -101,7 +105,7 @@ class ObstacleReachEnv(ReachEnv):
     quasi-static path from rest, contact included): the target is that tip, kept only if this
     equilibrium converges, touches no disc and its tip is ``clearance`` clear of every disc —
     so the target is reachable in both contact modes; (4) the start state re-solved in the
-    scene. A failure at any stage redraws everything (``TARGET_ATTEMPTS`` times, then
+    scene. A failure at any stage redraws everything (:data:`TASK_ATTEMPTS` times, then
     ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
     (obstacle radii, m; at most ``max_obstacles``) and ``options={"target": (x, y)}`` the
     target (checked as in ReachEnv); with a fixed target the discs are placed as above
@@ -199,9 +203,13 @@ class ObstacleReachEnv(ReachEnv):
         if fixed_target:
             super()._reset_task({"target": options["target"]}, start)
         self._rejected, self._rejected_force = False, 0.0
-        attempts = 1 if fixed_target and fixed_discs is not None else TARGET_ATTEMPTS
+        attempts = 1 if fixed_target and fixed_discs is not None else TASK_ATTEMPTS
+        # The count is drawn once: redrawing it with the target would favour one disc, which
+        # fits more often.
+        low, high = self.n_obstacles_range
+        n = int(self.np_random.integers(low, high + 1))
         for _ in range(attempts):
-            placed = self._draw_task(start, fixed_target, fixed_discs)
+            placed = self._draw_task(start, fixed_target, fixed_discs, n)
             if placed is not None:
                 return placed
         raise RuntimeError(f"no target and obstacle placement for {self.arm.name} in {attempts} draws "
@@ -226,8 +234,8 @@ class ObstacleReachEnv(ReachEnv):
                              f"{self.half_thickness:.4f} m) covers the base at the origin")
         return discs
 
-    def _draw_task(self, start: solver.Equilibrium, fixed_target: bool, fixed_discs):
-        """One draw of target and discs (Starting State); None if a stage fails."""
+    def _draw_task(self, start: solver.Equilibrium, fixed_target: bool, fixed_discs, n: int):
+        """One draw of the target and ``n`` discs (Starting State); None if a stage fails."""
         arm, scene = self._sim_arm, self._scene
         pressures, avoid = None, start.positions
         if not fixed_target:
@@ -238,7 +246,7 @@ class ObstacleReachEnv(ReachEnv):
             self._target = free.tip.copy()
             avoid = np.vstack([avoid, free.positions])
         discs = fixed_discs if fixed_discs is not None else \
-            self._place_discs(start.tip, self._target, avoid)
+            self._place_discs(n, start.tip, self._target, avoid)
         if discs is None:
             return None
         scene = replace(scene, obstacles=tuple(
@@ -262,13 +270,12 @@ class ObstacleReachEnv(ReachEnv):
         return float(np.min(np.hypot(discs[:, 0] - point[0], discs[:, 1] - point[1])
                             - discs[:, 2] - self.half_thickness))
 
-    def _place_discs(self, tip: np.ndarray, target: np.ndarray, avoid: np.ndarray) -> np.ndarray | None:
-        """Discs (n, 3) across the segment from the start ``tip`` to ``target``, clear of the
-        base, the target, ``avoid`` (backbone samples, m) and each other by ``clearance``;
+    def _place_discs(self, n: int, tip: np.ndarray, target: np.ndarray,
+                     avoid: np.ndarray) -> np.ndarray | None:
+        """``n`` discs (n, 3) across the segment from the start ``tip`` to ``target``, clear of
+        the base, the target, ``avoid`` (backbone samples, m) and each other by ``clearance``;
         None if one finds no place."""
         rng = self.np_random
-        low, high = self.n_obstacles_range
-        n = int(rng.integers(low, high + 1))
         way = target - tip
         length = float(np.hypot(*way))
         if length == 0.0:

@@ -1,0 +1,182 @@
+"""Reach among obstacles: reachable targets, disc placement, contact modes, rewards, arguments."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import solver
+import softarm_gym  # noqa: F401  (registers the IDs)
+from softarm_gym.controllers import CEMPlanner
+from softarm_gym.envs import ObstacleReachEnv
+from softarm_gym.envs.obstacle import total_contact_force
+from softarm_gym.render import OBJECT_COLOUR
+from tests.frames import has_colour
+
+IDS = ("SoftArm/OctArmObstacleReach-v0", "SoftArm/CTObstacleReach-v0")
+
+
+def _clearances(env, info):
+    """Gaps (m) from base, target and current backbone to every disc's contact circle."""
+    discs, contact = info["obstacles"], info["contact_radii"]
+    centres = discs[:, :2]
+    base = np.hypot(*centres.T) - contact
+    target = np.hypot(*(centres - info["target"]).T) - contact
+    backbone = np.array([np.hypot(*(env._eq.positions - c).T).min() for c in centres]) - contact
+    return base, target, backbone
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_targets_are_reachable_with_the_discs_in_place(env_id):
+    env = gym.make(env_id).unwrapped
+    for seed in range(3):
+        _, info = env.reset(seed=seed)
+        assert env._scene.obstacles and len(env._scene.obstacles) == len(info["obstacles"])
+        # The cold equilibrium at the target pressures, in the scene with the discs: the target.
+        eq = solver.solve(env._sim_arm, env.target_pressures_pa, env._scene, planar=True)
+        assert eq.converged and not eq.in_contact
+        assert math.dist(eq.tip, info["target"]) <= env.success_tolerance
+        np.testing.assert_allclose(eq.tip, info["target"], atol=1e-9)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_discs_stand_clear_of_base_target_and_start(env_id):
+    env = gym.make(env_id).unwrapped
+    lo, hi = env.n_obstacles_range
+    counts = set()
+    for seed in range(6):
+        obs, info = env.reset(seed=seed)
+        n = len(info["obstacles"])
+        counts.add(n)
+        assert lo <= n <= hi
+        r_lo, r_hi = env.obstacle_radius_range
+        assert np.all((r_lo <= info["obstacles"][:, 2]) & (info["obstacles"][:, 2] <= r_hi))
+        np.testing.assert_allclose(info["contact_radii"], info["obstacles"][:, 2] + env.half_thickness)
+        for gaps in _clearances(env, info):
+            assert np.all(gaps >= env.clearance - 1e-9)
+        assert not info["in_contact"] and info["contact_force"] == 0.0
+        block = obs[env.observation_slices["obstacles"]].reshape(env.max_obstacles, 3)
+        np.testing.assert_allclose(block[:n, :2], info["obstacles"][:, :2], atol=1e-6)
+        np.testing.assert_allclose(block[:n, 2], info["contact_radii"], atol=1e-6)
+        assert np.all(block[n:] == 0.0)
+    assert counts == {1, 2}
+
+
+def test_observation_has_an_obstacle_block_before_the_goal():
+    env = ObstacleReachEnv(n_obstacles=(1, 3))
+    names = list(env.observation_slices)
+    assert names == ["tip", "section_ends", "backbone", "pressures", "obstacles", "goal"]
+    assert env.observation_slices["obstacles"].stop - env.observation_slices["obstacles"].start == 9
+    assert env.observation_slices["goal"].stop == env.observation_space.shape[0]
+
+
+def _touching_episode(**kwargs):
+    """A seed and an absolute action (the target pressures at once) whose step touches a disc
+    in penalize mode, with that step's penalize info."""
+    env = ObstacleReachEnv(**kwargs)
+    for seed in range(10):
+        env.reset(seed=seed)
+        action = 2.0 * env.target_pressures_pa / env.p_max - 1.0
+        _, reward, _, _, info = env.step(action)
+        if info["in_contact"]:
+            return seed, action, reward, info
+    raise AssertionError("no seed in 0-9 whose jump to the target pressures touches a disc")
+
+
+def test_penalized_contact_costs_the_contact_force_and_terms_sum():
+    seed, action, reward, info = _touching_episode()
+    assert info["contact_force"] > 0.0 and info["penetration"] > 0.0
+    assert info["reward_contact"] == pytest.approx(-0.1 * info["contact_force"], rel=1e-12)
+    names = ["reward_distance", "reward_control", "reward_success", "reward_contact", "reward_solver"]
+    assert [k for k in info if k.startswith("reward_")] == names
+    assert sum(info[k] for k in names) == reward
+    env = ObstacleReachEnv(contact_weight=0.5)
+    env.reset(seed=seed)
+    rng = np.random.default_rng(0)
+    for a in [action, *rng.uniform(-1, 1, (4, env.n_inputs))]:
+        _, r, _, _, step_info = env.step(a)
+        assert sum(step_info[k] for k in names) == r
+        assert step_info["reward_contact"] == -0.5 * step_info["contact_force"]
+        assert step_info["contact_force"] == total_contact_force(env._eq)
+
+
+def test_forbidden_contact_rejects_the_step_and_keeps_the_state():
+    seed, action, _, touched = _touching_episode()
+    env = ObstacleReachEnv(contact="forbid", contact_penalty=2.0)
+    _, before = env.reset(seed=seed)
+    _, reward, terminated, truncated, info = env.step(action)
+    assert info["contact_rejected"] and info["converged"]
+    assert info["reward_contact"] == -2.0
+    assert info["contact_force"] == pytest.approx(touched["contact_force"])
+    np.testing.assert_array_equal(info["tip_true"], before["tip_true"])
+    np.testing.assert_array_equal(info["pressures_pa"], before["pressures_pa"])
+    assert not info["in_contact"] and not terminated and not truncated
+    assert info["solver_failures"] == 0
+    # The episode goes on: a step back to low pressures is accepted.
+    _, _, _, _, info = env.step(np.full(env.n_inputs, -0.9))
+    assert not info["contact_rejected"] and info["reward_contact"] == 0.0
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"n_obstacles": 0}, "n_obstacles must be .* got 0"),
+    ({"n_obstacles": (2, 1)}, r"n_obstacles .* got \(2, 1\)"),
+    ({"n_obstacles": 1.5}, "n_obstacles .* got 1.5"),
+    ({"obstacle_radius": 0.0}, "obstacle_radius must be > 0 .* got 0.0"),
+    ({"obstacle_radius": -0.1}, "obstacle_radius must be >= 0.0; got -0.1"),
+    ({"obstacle_radius": 0.5}, "obstacle_radius 0.5 m must be smaller"),
+    ({"clearance": math.nan}, "clearance must be a finite number; got nan"),
+    ({"contact": "avoid"}, "unknown contact 'avoid'"),
+    ({"contact_weight": -1.0}, "contact_weight must be >= 0.0; got -1.0"),
+    ({"contact_stiffness": 0.0}, "contact_stiffness must be > 0 .* got 0.0"),
+    ({"planar": False}, "planar only"),
+    ({"observation_format": "goal"}, "no goal-conditioned format"),
+])
+def test_bad_arguments_name_the_value(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ObstacleReachEnv(**kwargs)
+
+
+def test_reset_options_fix_target_and_discs():
+    env = ObstacleReachEnv()
+    _, drawn = env.reset(seed=0)
+    options = {"target": tuple(drawn["target"]), "obstacles": [tuple(d) for d in drawn["obstacles"]]}
+    _, info = env.reset(seed=5, options=options)
+    np.testing.assert_array_equal(info["target"], drawn["target"])
+    np.testing.assert_array_equal(info["obstacles"], drawn["obstacles"])
+    assert env.target_pressures_pa is None
+    with pytest.raises(ValueError, match=r"options\['obstacles'\] must be 1 to 2 .* got \[\(0.3, 0.2\)\]"):
+        env.reset(options={"obstacles": [(0.3, 0.2)]})
+    with pytest.raises(ValueError, match="covers the base"):
+        env.reset(options={"obstacles": [(0.01, 0.0, 0.05)]})
+    with pytest.raises(ValueError, match="unknown reset option"):
+        env.reset(options={"disc": (0.1, 0.1, 0.1)})
+
+
+def test_no_batched_vector_env_but_copies_vectorise():
+    for env_id in IDS:
+        assert gym.spec(env_id).vector_entry_point is None
+    vec = gym.make_vec(IDS[1], num_envs=2)
+    obs, _ = vec.reset(seed=[0, 1])
+    assert obs.shape == (2, *gym.make(IDS[1]).observation_space.shape)
+    vec.close()
+
+
+def test_planner_rolls_out_in_the_scene_with_the_discs():
+    env = gym.make(IDS[0])
+    obs, info = env.reset(seed=0)
+    planner = CEMPlanner(env, samples=8, elites=2, iterations=1, seed=0)
+    action = planner.act(obs)
+    assert env.action_space.contains(action)
+    discs = planner._nominal.scene.obstacles
+    assert len(discs) == len(info["obstacles"])
+    for disc, row, contact in zip(discs, info["obstacles"], info["contact_radii"]):
+        np.testing.assert_allclose(disc.center, row[:2], atol=1e-6)
+        assert disc.radius == pytest.approx(contact, abs=1e-6)
+        assert disc.stiffness == env.unwrapped.contact_stiffness
+
+
+def test_render_draws_the_discs():
+    env = ObstacleReachEnv(render_mode="rgb_array", render_size=128)
+    env.reset(seed=0)
+    assert has_colour(env.render(), OBJECT_COLOUR)
