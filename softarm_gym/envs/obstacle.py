@@ -95,18 +95,21 @@ class ObstacleReachEnv(ReachEnv):
 
     Per episode: the simulated arm, payload and start pressures as ReachEnv; then target and
     discs together: (1) target pressures uniform in [0, p_max], solved cold without discs;
-    (2) ``n`` discs (n uniform in ``n_obstacles``, drawn once per reset), each with an obstacle radius uniform in
-    ``obstacle_radius``, its centre uniform along the middle of the base–target segment
-    (fractions :data:`PLACEMENT_SPAN` of its length) and offset across it by up to its
-    contact radius, so it stands in the straight way to the target; a disc is kept only if its
-    contact circle is at least ``clearance`` from the base, the target, the start backbone, the
-    target pressures' backbone and the other discs (:data:`DISC_ATTEMPTS` tries per disc);
-    (3) the target pressures solved cold again *in the scene with the discs* (the
-    quasi-static path from rest, contact included): the target is that tip, kept only if this
-    equilibrium converges, touches no disc and its tip is ``clearance`` clear of every disc —
-    so the target is reachable in both contact modes; (4) the start state re-solved in the
-    scene. A failure at any stage redraws everything (:data:`TASK_ATTEMPTS` times, then
-    ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
+    (2) ``n`` discs (n uniform in ``n_obstacles``, drawn once per reset), each with an
+    obstacle radius uniform in ``obstacle_radius``, its centre uniform along the middle of the
+    segment from the start tip to the target (fractions :data:`PLACEMENT_SPAN` of its length)
+    and offset across it by up to its contact radius, so it stands in the tip's straight way
+    to the target; a disc is kept only if its contact circle is at least ``clearance`` from
+    the base, the target, the start backbone, the target pressures' backbone (without discs)
+    and the other discs (:data:`DISC_ATTEMPTS` tries per disc); (3) the target pressures
+    solved cold again *in the scene with the discs* (the quasi-static path from rest, contact
+    included, which may catch on a disc): the target is that tip, kept only if this
+    equilibrium converges and its tip is ``clearance`` clear of every disc — and, with
+    ``contact="forbid"``, only if it touches no disc — so the target is reachable in either
+    contact mode (with ``"penalize"`` possibly leaning on a disc); (4) the start state
+    re-solved in the scene. A failure at any stage redraws target and discs
+    (:data:`TASK_ATTEMPTS` times; if none fits, the same again with one disc fewer, down to the
+    lower end of ``n_obstacles``; then ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
     (obstacle radii, m; at most ``max_obstacles``) and ``options={"target": (x, y)}`` the
     target (checked as in ReachEnv); with a fixed target the discs are placed as above
     without the target-backbone clearance (its pressures are unknown), and
@@ -133,8 +136,10 @@ class ObstacleReachEnv(ReachEnv):
 
     ReachEnv's keys (``tip_true``, ``tip_estimated``, ``estimation_error``, ``sensors``,
     ``converged``, ``solver``, ``solver_failures``, ``pressures_pa``, ``payload_kg``,
-    ``target``, ``distance``, ``is_success``), plus ``obstacles`` ((n, 3): centre x, y and
-    obstacle radius, m), ``contact_radii`` ((n,), m), ``contact_force`` (N, total, of the
+    ``target``, ``distance``, ``is_success``), plus ``n_obstacles`` (n), ``obstacles``
+    ((max_obstacles, 3): centre x, y and obstacle radius, m, rows after the n-th zero, as in the
+    observation, so vector envs can stack them), ``contact_radii`` ((max_obstacles,), m, zero
+    after the n-th), ``contact_force`` (N, total, of the
     current state — of the rejected attempt on a rejected step), ``penetration`` (m, deepest,
     current state), ``in_contact``, ``contact_rejected`` and the ``reward_*`` terms.
 
@@ -205,13 +210,16 @@ class ObstacleReachEnv(ReachEnv):
         self._rejected, self._rejected_force = False, 0.0
         attempts = 1 if fixed_target and fixed_discs is not None else TASK_ATTEMPTS
         # The count is drawn once: redrawing it with the target would favour one disc, which
-        # fits more often.
+        # fits more often. Only where n discs find no place in all attempts (a start state
+        # that leaves little room) are fewer tried.
         low, high = self.n_obstacles_range
         n = int(self.np_random.integers(low, high + 1))
-        for _ in range(attempts):
-            placed = self._draw_task(start, fixed_target, fixed_discs, n)
-            if placed is not None:
-                return placed
+        counts = range(n, low - 1, -1) if fixed_discs is None else (len(fixed_discs),)
+        for count in counts:
+            for _ in range(attempts):
+                placed = self._draw_task(start, fixed_target, fixed_discs, count)
+                if placed is not None:
+                    return placed
         raise RuntimeError(f"no target and obstacle placement for {self.arm.name} in {attempts} draws "
                            f"(n_obstacles {self.n_obstacles_range}, obstacle_radius "
                            f"{self.obstacle_radius_range} m, clearance {self.clearance} m"
@@ -254,7 +262,7 @@ class ObstacleReachEnv(ReachEnv):
                         stiffness=self.contact_stiffness) for x, y, r in discs))
         if not fixed_target:
             target = solver.solve(arm, pressures, scene, model=self.model, planar=True, record=False)
-            if not target.converged or target.in_contact \
+            if not target.converged or (target.in_contact and self.contact == "forbid") \
                     or self._gap(target.tip, discs) < self.clearance:
                 return None
             self._target = target.tip.copy()
@@ -341,9 +349,15 @@ class ObstacleReachEnv(ReachEnv):
             contact, force = self.contact_reward(eq)
         terms["reward_contact"] = contact
         terms["reward_solver"] = solver_term
+        # Fixed shapes (one row per slot, unused rows zero, as in the observation) so that
+        # vector envs can stack the infos of episodes with different disc counts.
+        n = len(self._discs)
+        discs = np.zeros((self.max_obstacles, 3))
+        discs[:n] = self._discs
+        radii = np.zeros(self.max_obstacles)
+        radii[:n] = self._discs[:, 2] + self.half_thickness
         info.update({
-            "obstacles": self._discs.copy(), "contact_radii": self._discs[:, 2] + self.half_thickness,
-            "contact_force": force,
+            "obstacles": discs, "contact_radii": radii, "n_obstacles": n, "contact_force": force,
             "penetration": float(eq.penetration.max()) if eq.penetration.size else 0.0,
             "in_contact": bool(eq.in_contact), "contact_rejected": bool(self._rejected)})
         self._rejected = False

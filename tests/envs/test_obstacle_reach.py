@@ -19,7 +19,8 @@ IDS = ("SoftArm/OctArmObstacleReach-v0", "SoftArm/CTObstacleReach-v0")
 
 def _clearances(env, info):
     """Gaps (m) from base, target and current backbone to every disc's contact circle."""
-    discs, contact = info["obstacles"], info["contact_radii"]
+    n = info["n_obstacles"]
+    discs, contact = info["obstacles"][:n], info["contact_radii"][:n]
     centres = discs[:, :2]
     base = np.hypot(*centres.T) - contact
     target = np.hypot(*(centres - info["target"]).T) - contact
@@ -27,15 +28,19 @@ def _clearances(env, info):
     return base, target, backbone
 
 
+@pytest.mark.parametrize("contact", ["penalize", "forbid"])
 @pytest.mark.parametrize("env_id", IDS)
-def test_targets_are_reachable_with_the_discs_in_place(env_id):
-    env = gym.make(env_id).unwrapped
+def test_targets_are_reachable_with_the_discs_in_place(env_id, contact):
+    env = gym.make(env_id, contact=contact).unwrapped
     for seed in range(3):
         _, info = env.reset(seed=seed)
-        assert env._scene.obstacles and len(env._scene.obstacles) == len(info["obstacles"])
-        # The cold equilibrium at the target pressures, in the scene with the discs: the target.
+        assert env._scene.obstacles and len(env._scene.obstacles) == info["n_obstacles"]
+        # The cold equilibrium at the target pressures, in the scene with the discs: the target
+        # (leaning on a disc is allowed only where contact is).
         eq = solver.solve(env._sim_arm, env.target_pressures_pa, env._scene, planar=True)
-        assert eq.converged and not eq.in_contact
+        assert eq.converged
+        if contact == "forbid":
+            assert not eq.in_contact
         assert math.dist(eq.tip, info["target"]) <= env.success_tolerance
         np.testing.assert_allclose(eq.tip, info["target"], atol=1e-9)
 
@@ -47,19 +52,21 @@ def test_discs_stand_clear_of_base_target_and_start(env_id):
     counts = set()
     for seed in range(6):
         obs, info = env.reset(seed=seed)
-        n = len(info["obstacles"])
+        n = info["n_obstacles"]
         counts.add(n)
         assert lo <= n <= hi
+        assert info["obstacles"].shape == (hi, 3) and np.all(info["obstacles"][n:] == 0.0)
+        discs = info["obstacles"][:n]
         r_lo, r_hi = env.obstacle_radius_range
-        assert np.all((r_lo <= info["obstacles"][:, 2]) & (info["obstacles"][:, 2] <= r_hi))
-        np.testing.assert_allclose(info["contact_radii"], info["obstacles"][:, 2] + env.half_thickness)
+        assert np.all((r_lo <= discs[:, 2]) & (discs[:, 2] <= r_hi))
+        np.testing.assert_allclose(info["contact_radii"][:n], discs[:, 2] + env.half_thickness)
+        assert np.all(info["contact_radii"][n:] == 0.0)
         for gaps in _clearances(env, info):
             assert np.all(gaps >= env.clearance - 1e-9)
         assert not info["in_contact"] and info["contact_force"] == 0.0
         block = obs[env.observation_slices["obstacles"]].reshape(env.max_obstacles, 3)
-        np.testing.assert_allclose(block[:n, :2], info["obstacles"][:, :2], atol=1e-6)
-        np.testing.assert_allclose(block[:n, 2], info["contact_radii"], atol=1e-6)
-        assert np.all(block[n:] == 0.0)
+        np.testing.assert_allclose(block, np.column_stack([info["obstacles"][:, :2], info["contact_radii"]]),
+                                   atol=1e-6)
     assert counts == {1, 2}
 
 
@@ -140,7 +147,8 @@ def test_bad_arguments_name_the_value(kwargs, match):
 def test_reset_options_fix_target_and_discs():
     env = ObstacleReachEnv()
     _, drawn = env.reset(seed=0)
-    options = {"target": tuple(drawn["target"]), "obstacles": [tuple(d) for d in drawn["obstacles"]]}
+    n = drawn["n_obstacles"]
+    options = {"target": tuple(drawn["target"]), "obstacles": [tuple(d) for d in drawn["obstacles"][:n]]}
     _, info = env.reset(seed=5, options=options)
     np.testing.assert_array_equal(info["target"], drawn["target"])
     np.testing.assert_array_equal(info["obstacles"], drawn["obstacles"])
@@ -169,7 +177,7 @@ def test_planner_rolls_out_in_the_scene_with_the_discs():
     action = planner.act(obs)
     assert env.action_space.contains(action)
     discs = planner._nominal.scene.obstacles
-    assert len(discs) == len(info["obstacles"])
+    assert len(discs) == info["n_obstacles"]
     for disc, row, contact in zip(discs, info["obstacles"], info["contact_radii"]):
         np.testing.assert_allclose(disc.center, row[:2], atol=1e-6)
         assert disc.radius == pytest.approx(contact, abs=1e-6)
