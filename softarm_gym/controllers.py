@@ -1,5 +1,6 @@
 """Classical comparisons for the RL baselines: a damped-least-squares Jacobian controller
-(reach), a scripted curl (wrap) and a sampling-based model-predictive planner (both).
+(reach, obstacle reach, track), a scripted curl (wrap) and a sampling-based model-predictive
+planner (all of them).
 
 :class:`JacobianController` acts on exactly the observation vector a policy sees, and on
 nothing else of the episode. What it knows:
@@ -245,13 +246,17 @@ class CurlController(_PressureController):
 
 class CEMPlanner(_PressureController):
     """Sampling-based model-predictive control: the cross-entropy method over action sequences,
-    each candidate rolled out on the nominal model from the current state. Reach, track, wrap.
+    each candidate rolled out on the nominal model from the current state. Reach, obstacle
+    reach, track, wrap.
 
     What it knows, as :class:`JacobianController`: the nominal design, the base angle, p_max,
     the action mode and ``delta_scale``, the observation layout, and the task's reward rule
     with the env's weights (reach: :func:`softarm_gym.envs.terms.reach_rewards`; wrap:
     :meth:`~softarm_gym.envs.WrapEnv.wrap_terms`, the disc read from the observation and the
-    env's contact stiffness). Not the true state, the payload or a randomised arm.
+    env's contact stiffness; obstacle reach: the reach rule plus
+    :meth:`~softarm_gym.envs.ObstacleReachEnv.contact_reward`, the discs read from the
+    ``obstacles`` block, a touching step rejected as the env rejects it under
+    ``contact="forbid"``). Not the true state, the payload or a randomised arm.
 
     Each decision (:meth:`step_fraction`):
 
@@ -275,12 +280,13 @@ class CEMPlanner(_PressureController):
     does when the observation is the one from which its last search found nothing better
     than holding. Rollouts
     run on :class:`solver.BatchStepper` (all candidates in one parallel call) for reach; for
-    wrap, whose contact has no batched kernel, one :class:`solver.Stepper` steps them in
-    turn. Its randomness comes from its own generator (``seed``), so it is reproducible.
+    wrap and obstacle reach, whose contact has no batched kernel, one :class:`solver.Stepper`
+    in the scene with the discs steps them in turn. Its randomness comes from its own generator (``seed``), so it is reproducible.
 
     Args:
-        env: a (possibly wrapped) planar reach, track or wrap env with ``observation_format='flat'``
-            (on track it aims where the target's last displacement takes it).
+        env: a (possibly wrapped) planar reach, obstacle-reach, track or wrap env with
+            ``observation_format='flat'`` (on track it aims where the target's last
+            displacement takes it).
         samples: candidate sequences per round (>= 2). elites: best kept per round (>= 1,
             < samples). iterations: CEM rounds per decision (>= 1). horizon: steps per
             sequence (>= 1). init_std: first-round standard deviation (action units, > 0).
