@@ -281,7 +281,9 @@ class CEMPlanner(_PressureController):
     than holding. Rollouts
     run on :class:`solver.BatchStepper` (all candidates in one parallel call) for reach; for
     wrap and obstacle reach, whose contact has no batched kernel, one :class:`solver.Stepper`
-    in the scene with the discs steps them in turn. Its randomness comes from its own generator (``seed``), so it is reproducible.
+    in the scene with the discs steps them in turn (its start, like the envs', solved cold
+    without the discs and then in their scene). Its randomness comes from its own generator
+    (``seed``), so it is reproducible.
 
     Args:
         env: a (possibly wrapped) planar reach, obstacle-reach, track or wrap env with
@@ -352,7 +354,11 @@ class CEMPlanner(_PressureController):
                 slots = obs[self._slices["obstacles"]].reshape(-1, 3)
                 scene = replace(scene, obstacles=tuple(self._disc(d) for d in slots if d[2] > 0))
             self._nominal = solver.Stepper(self.arm, scene)
-            self._nominal.reset(fraction * self.p_max)
+            # As the envs start: cold without the discs, then into the scene. A cold solve in the
+            # scene loads the straight arm through the discs, which can catch it as it droops.
+            free = solver.solve(self.arm, fraction * self.p_max, self.scene, planar=True) \
+                if scene.obstacles else None
+            self._nominal.reset(fraction * self.p_max, warm_start=free)
             if self.contact:
                 self._rollout = solver.Stepper(self.arm, scene)
         elif np.any(self._nominal.pressures != fraction * self.p_max):

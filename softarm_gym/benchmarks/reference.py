@@ -29,7 +29,8 @@ import softarm_gym  # noqa: F401  (registers the IDs)
 from softarm_gym.benchmarks.envs import env_ids
 from softarm_gym.controllers import CurlController, JacobianController
 
-__all__ = ["THRESHOLD_FRACTION", "reward_threshold", "threshold_of", "reference_controller", "episode", "run", "main"]
+__all__ = ["THRESHOLD_FRACTION", "reward_threshold", "threshold_of", "reference_controller", "episode", "run",
+           "main"]
 
 THRESHOLD_FRACTION = 0.9
 """The threshold rule: this fraction of the reference's mean return (returns are positive)."""

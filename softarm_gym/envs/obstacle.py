@@ -101,15 +101,18 @@ class ObstacleReachEnv(ReachEnv):
     and offset across it by up to its contact radius, so it stands in the tip's straight way
     to the target; a disc is kept only if its contact circle is at least ``clearance`` from
     the base, the target, the start backbone, the target pressures' backbone (without discs)
-    and the other discs (:data:`DISC_ATTEMPTS` tries per disc); (3) the target pressures
-    solved cold again *in the scene with the discs* (the quasi-static path from rest, contact
-    included, which may catch on a disc): the target is that tip, kept only if this
-    equilibrium converges and its tip is ``clearance`` clear of every disc — and, with
-    ``contact="forbid"``, only if it touches no disc — so the target is reachable in either
-    contact mode (with ``"penalize"`` possibly leaning on a disc); (4) the start state
-    re-solved in the scene. A failure at any stage redraws target and discs
-    (:data:`TASK_ATTEMPTS` times; if none fits, the same again with one disc fewer, down to the
-    lower end of ``n_obstacles``; then ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
+    and the other discs (:data:`DISC_ATTEMPTS` tries per disc); (3) the start state
+    re-solved in the scene with the discs; (4) the target pressures solved *in the scene with
+    the discs, from the start state* (the quasi-static path of a step that commands them at
+    once, contact included, which may catch on a disc): the target is that tip, kept only if
+    this equilibrium converges and its tip is ``clearance`` clear of every disc — and, with
+    ``contact="forbid"``, only if it touches no disc. So every target is reached by one
+    absolute action (the target pressures) from the start, in either contact mode (with
+    ``"penalize"`` possibly leaning on a disc). With ``"forbid"`` that filter keeps mostly
+    discs that stand beside the direct path, and two discs rarely pass it (docs). A failure at
+    any stage redraws target and discs (:data:`TASK_ATTEMPTS` times; if none fits, the same
+    again with one disc fewer, down to the lower end of ``n_obstacles``; then
+    ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
     (obstacle radii, m; at most ``max_obstacles``) and ``options={"target": (x, y)}`` the
     target (checked as in ReachEnv); with a fixed target the discs are placed as above
     without the target-backbone clearance (its pressures are unknown), and
@@ -260,15 +263,19 @@ class ObstacleReachEnv(ReachEnv):
         scene = replace(scene, obstacles=tuple(
             solver.Disc(center=(float(x), float(y)), radius=float(r) + self.half_thickness,
                         stiffness=self.contact_stiffness) for x, y, r in discs))
+        eq = solver.solve(arm, start.pressures, scene, model=self.model, planar=True, warm_start=start)
+        if not eq.converged:
+            return None
         if not fixed_target:
-            target = solver.solve(arm, pressures, scene, model=self.model, planar=True, record=False)
+            # From the start state, not cold: the solver's cold path loads the straight arm
+            # with the discs in place, and a disc can catch it as it droops — a branch the
+            # episode's arm, which starts drooped and clear of the discs, may never reach.
+            target = solver.solve(arm, pressures, scene, model=self.model, planar=True, warm_start=eq,
+                                  record=False)
             if not target.converged or (target.in_contact and self.contact == "forbid") \
                     or self._gap(target.tip, discs) < self.clearance:
                 return None
             self._target = target.tip.copy()
-        eq = solver.solve(arm, start.pressures, scene, model=self.model, planar=True, warm_start=start)
-        if not eq.converged:
-            return None
         self.target_pressures_pa = None if fixed_target else pressures
         self._discs = np.array(discs, dtype=float)
         return scene, eq

@@ -38,7 +38,8 @@ def test_check_env_dict_observations(env_id):
     assert isinstance(env.observation_space, gym.spaces.Dict)
     # Obstacle reach adds the discs' block.
     extra = {"obstacles"} if "ObstacleReach" in env_id else set()
-    assert set(env.observation_space.spaces) == {"tip", "section_ends", "backbone", "pressures", "goal"} | extra
+    base = {"tip", "section_ends", "backbone", "pressures", "goal"}
+    assert set(env.observation_space.spaces) == base | extra
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped)

@@ -1,13 +1,14 @@
 """Reach among obstacles: reachable targets, disc placement, contact modes, rewards, arguments."""
 
+import copy
 import math
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
-import solver
 import softarm_gym  # noqa: F401  (registers the IDs)
+import solver
 from softarm_gym.controllers import CEMPlanner
 from softarm_gym.envs import ObstacleReachEnv
 from softarm_gym.envs.obstacle import total_contact_force
@@ -35,14 +36,18 @@ def test_targets_are_reachable_with_the_discs_in_place(env_id, contact):
     for seed in range(3):
         _, info = env.reset(seed=seed)
         assert env._scene.obstacles and len(env._scene.obstacles) == info["n_obstacles"]
-        # The cold equilibrium at the target pressures, in the scene with the discs: the target
-        # (leaning on a disc is allowed only where contact is).
-        eq = solver.solve(env._sim_arm, env.target_pressures_pa, env._scene, planar=True)
+        # The equilibrium at the target pressures in the scene with the discs, reached from the
+        # start state, is the target (leaning on a disc only where contact is allowed) ...
+        eq = solver.solve(env._sim_arm, env.target_pressures_pa, env._scene, planar=True,
+                          warm_start=env._eq)
         assert eq.converged
+        np.testing.assert_allclose(eq.tip, info["target"], atol=1e-9)
         if contact == "forbid":
             assert not eq.in_contact
-        assert math.dist(eq.tip, info["target"]) <= env.success_tolerance
-        np.testing.assert_allclose(eq.tip, info["target"], atol=1e-9)
+        # ... so one absolute action, the target pressures, reaches it.
+        _, _, _, _, info = env.step(2.0 * env.target_pressures_pa / env.p_max - 1.0)
+        assert info["is_success"] and info["distance"] < 1e-4
+        assert not info["contact_rejected"]
 
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -78,50 +83,47 @@ def test_observation_has_an_obstacle_block_before_the_goal():
     assert env.observation_slices["goal"].stop == env.observation_space.shape[0]
 
 
-def _touching_episode(**kwargs):
-    """A seed and an absolute action (the target pressures at once) whose step touches a disc
-    in penalize mode, with that step's penalize info."""
-    env = ObstacleReachEnv(**kwargs)
+def _touching_step(env_id=IDS[0], **kwargs):
+    """An env just reset and a random action whose step touches a disc (tried on a copy):
+    ``(env, obs, action, info of that step on the copy)``."""
+    env = gym.make(env_id, **kwargs).unwrapped
+    rng = np.random.default_rng(0)
     for seed in range(10):
-        env.reset(seed=seed)
-        action = 2.0 * env.target_pressures_pa / env.p_max - 1.0
-        _, reward, _, _, info = env.step(action)
-        if info["in_contact"]:
-            return seed, action, reward, info
-    raise AssertionError("no seed in 0-9 whose jump to the target pressures touches a disc")
+        obs, _ = env.reset(seed=seed)
+        for action in rng.uniform(-1.0, 1.0, (10, env.n_inputs)):
+            info = copy.deepcopy(env).step(action)[4]
+            if info["in_contact"] or info["contact_rejected"]:
+                return env, obs, action, info
+    raise AssertionError("no seed in 0-9 with a random action that touches a disc")
 
 
 def test_penalized_contact_costs_the_contact_force_and_terms_sum():
-    seed, action, reward, info = _touching_episode()
-    assert info["contact_force"] > 0.0 and info["penetration"] > 0.0
-    assert info["reward_contact"] == pytest.approx(-0.1 * info["contact_force"], rel=1e-12)
+    env, _, action, touched = _touching_step(contact_weight=0.5)
+    assert touched["contact_force"] > 0.0 and touched["penetration"] > 0.0
     names = ["reward_distance", "reward_control", "reward_success", "reward_contact", "reward_solver"]
-    assert [k for k in info if k.startswith("reward_")] == names
-    assert sum(info[k] for k in names) == reward
-    env = ObstacleReachEnv(contact_weight=0.5)
-    env.reset(seed=seed)
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(1)
     for a in [action, *rng.uniform(-1, 1, (4, env.n_inputs))]:
-        _, r, _, _, step_info = env.step(a)
-        assert sum(step_info[k] for k in names) == r
-        assert step_info["reward_contact"] == -0.5 * step_info["contact_force"]
-        assert step_info["contact_force"] == total_contact_force(env._eq)
+        _, r, _, _, info = env.step(a)
+        assert [k for k in info if k.startswith("reward_")] == names
+        assert sum(info[k] for k in names) == r
+        assert info["reward_contact"] == -0.5 * info["contact_force"]
+        assert info["contact_force"] == total_contact_force(env._eq)
+        assert (info["contact_force"] > 0) == info["in_contact"]
 
 
 def test_forbidden_contact_rejects_the_step_and_keeps_the_state():
-    seed, action, _, touched = _touching_episode()
-    env = ObstacleReachEnv(contact="forbid", contact_penalty=2.0)
-    _, before = env.reset(seed=seed)
+    env, _, action, touched = _touching_step(contact="forbid", contact_penalty=2.0)
+    before = env._eq
     _, reward, terminated, truncated, info = env.step(action)
     assert info["contact_rejected"] and info["converged"]
     assert info["reward_contact"] == -2.0
-    assert info["contact_force"] == pytest.approx(touched["contact_force"])
-    np.testing.assert_array_equal(info["tip_true"], before["tip_true"])
-    np.testing.assert_array_equal(info["pressures_pa"], before["pressures_pa"])
+    assert info["contact_force"] == touched["contact_force"] > 0.0
+    np.testing.assert_array_equal(info["tip_true"], before.tip)
+    np.testing.assert_array_equal(info["pressures_pa"], before.pressures)
     assert not info["in_contact"] and not terminated and not truncated
-    assert info["solver_failures"] == 0
-    # The episode goes on: a step back to low pressures is accepted.
-    _, _, _, _, info = env.step(np.full(env.n_inputs, -0.9))
+    assert info["solver_failures"] == 0 and info["reward_solver"] == 0.0
+    # The episode goes on: a step to the start's pressures is accepted.
+    _, _, _, _, info = env.step(2.0 * before.pressures / env.p_max - 1.0)
     assert not info["contact_rejected"] and info["reward_contact"] == 0.0
 
 
@@ -188,3 +190,18 @@ def test_render_draws_the_discs():
     env = ObstacleReachEnv(render_mode="rgb_array", render_size=128)
     env.reset(seed=0)
     assert has_colour(env.render(), OBJECT_COLOUR)
+
+
+@pytest.mark.parametrize("contact", ["penalize", "forbid"])
+def test_planner_scores_an_action_as_the_env_rewards_it(contact):
+    # Nominal arm, no payload: the planner's model is the simulated arm, so its rollout of a
+    # touching action earns the env's reward for it (to the float32 rounding of the discs).
+    env, obs, action, _ = _touching_step(contact=contact)
+    planner = CEMPlanner(env, seed=0)
+    fraction = 0.5 * (obs[env.observation_slices["pressures"]] + 1.0)
+    planner._track(obs, fraction)
+    np.testing.assert_allclose(planner._nominal.tip, env._eq.tip, atol=1e-6)
+    score = planner._score_contact(np.asarray(action, dtype=float)[None, None], fraction)[0]
+    _, reward, _, _, info = env.step(action)
+    assert info["in_contact"] or info["contact_rejected"]
+    assert score == pytest.approx(reward, rel=1e-3, abs=1e-4)
