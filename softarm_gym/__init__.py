@@ -101,7 +101,7 @@ register(
     id="SoftArm/CTObstacleReach-v0",
     entry_point="softarm_gym.envs:ObstacleReachEnv",
     max_episode_steps=100,
-    reward_threshold=None,
+    reward_threshold=19.0,
     # The CT arm is shorter (0.53 m) and as thick (h = 30.2 mm) as OctArm V: smaller discs and
     # clearance, or two discs rarely fit between its start tip and the target (docs/environments.md).
     kwargs={"design": "ct", "base_angle_deg": 90.0, "obstacle_radius": (0.02, 0.04), "clearance": 0.01},
