@@ -86,15 +86,17 @@ register(
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
 )
 
-# Reach among obstacles: random discs between the base and a target reachable with them in
+# Reach among obstacles: random discs between the start tip and a target reachable with them in
 # place; contact costs reward in proportion to the contact force (contact="forbid" rejects it).
+# Delta actions, as the -v1 reach ids: an absolute jump across the workspace drives the arm
+# through the discs, and a step that snaps off one costs the solver seconds (docs/environments.md).
 # No vector_entry_point: the batched env has no contact kernel (gym.make_vec steps copies).
 register(
     id="SoftArm/OctArmObstacleReach-v0",
     entry_point="softarm_gym.envs:ObstacleReachEnv",
     max_episode_steps=100,
     reward_threshold=None,
-    kwargs={"design": "octarm_v", "base_angle_deg": 90.0},
+    kwargs={"design": "octarm_v", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
 )
 
 register(
@@ -104,5 +106,6 @@ register(
     reward_threshold=19.0,
     # The CT arm is shorter (0.53 m) and as thick (h = 30.2 mm) as OctArm V: smaller discs and
     # clearance, or two discs rarely fit between its start tip and the target (docs/environments.md).
-    kwargs={"design": "ct", "base_angle_deg": 90.0, "obstacle_radius": (0.02, 0.04), "clearance": 0.01},
+    kwargs={"design": "ct", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1,
+            "obstacle_radius": (0.02, 0.04), "clearance": 0.01},
 )

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -102,12 +103,14 @@ class ObstacleReachEnv(ReachEnv):
     to the target; a disc is kept only if its contact circle is at least ``clearance`` from
     the base, the target, the start backbone, the target pressures' backbone (without discs)
     and the other discs (:data:`DISC_ATTEMPTS` tries per disc); (3) the start state
-    re-solved in the scene with the discs; (4) the target pressures solved *in the scene with
-    the discs, from the start state* (the quasi-static path of a step that commands them at
-    once, contact included, which may catch on a disc): the target is that tip, kept only if
-    this equilibrium converges and its tip is ``clearance`` clear of every disc — and, with
-    ``contact="forbid"``, only if it touches no disc. So every target is reached by one
-    absolute action (the target pressures) from the start, in either contact mode (with
+    re-solved in the scene with the discs; (4) the start pressures ramped straight to the target
+    pressures *in the scene with the discs, from the start state*, in the fewest equal steps
+    an action can take (one with ``action_mode="absolute"``; steps of at most
+    ``delta_scale``·p_max with ``"delta"``), each the quasi-static path of an env step,
+    contact included, which may catch on a disc: the target is the last tip, kept only if
+    every step converges and the tip is ``clearance`` clear of every disc — and, with
+    ``contact="forbid"``, only if no step's equilibrium touches a disc. So the actions of
+    that ramp reach every target from the start, in either contact mode (with
     ``"penalize"`` possibly leaning on a disc). With ``"forbid"`` that filter keeps mostly
     discs that stand beside the direct path, and two discs rarely pass it (docs). A failure at
     any stage redraws target and discs (:data:`TASK_ATTEMPTS` times; if none fits, the same
@@ -256,6 +259,16 @@ class ObstacleReachEnv(ReachEnv):
                 return None
             self._target = free.tip.copy()
             avoid = np.vstack([avoid, free.positions])
+            if self.contact == "forbid":
+                # The ramp's backbones without discs, in steps of at most delta_scale·p_max
+                # (whatever the action mode: the path one absolute step sweeps): discs clear
+                # of them leave the ramp untouched, so it stays a contact-free way in.
+                state = start
+                for p in self._ramp(start.pressures, pressures, self.delta_scale):
+                    state = solver.solve(arm, p, scene, model=self.model, planar=True, warm_start=state)
+                    if not state.converged:
+                        return None
+                    avoid = np.vstack([avoid, state.positions])
         discs = fixed_discs if fixed_discs is not None else \
             self._place_discs(n, start.tip, self._target, avoid)
         if discs is None:
@@ -270,15 +283,26 @@ class ObstacleReachEnv(ReachEnv):
             # From the start state, not cold: the solver's cold path loads the straight arm
             # with the discs in place, and a disc can catch it as it droops — a branch the
             # episode's arm, which starts drooped and clear of the discs, may never reach.
-            target = solver.solve(arm, pressures, scene, model=self.model, planar=True, warm_start=eq,
-                                  record=False)
-            if not target.converged or (target.in_contact and self.contact == "forbid") \
-                    or self._gap(target.tip, discs) < self.clearance:
+            target = eq
+            step = self.delta_scale if self.action_mode == "delta" else None
+            for p in self._ramp(start.pressures, pressures, step):
+                target = solver.solve(arm, p, scene, model=self.model, planar=True, warm_start=target)
+                if not target.converged or (target.in_contact and self.contact == "forbid"):
+                    return None
+            if self._gap(target.tip, discs) < self.clearance:
                 return None
             self._target = target.tip.copy()
         self.target_pressures_pa = None if fixed_target else pressures
         self._discs = np.array(discs, dtype=float)
         return scene, eq
+
+    def _ramp(self, start: np.ndarray, end: np.ndarray, step: float | None) -> list[np.ndarray]:
+        """Pressures (Pa) of the straight ramp from ``start`` to ``end`` in the fewest equal
+        steps of at most ``step``·p_max on every channel (one step for None)."""
+        n = 1
+        if step is not None:
+            n = max(1, math.ceil(float(np.max(np.abs(end - start))) / (step * self.p_max) - 1e-9))
+        return [start + (end - start) * (k / n) for k in range(1, n + 1)]
 
     def _gap(self, point: np.ndarray, discs: np.ndarray) -> float:
         """Smallest distance (m) from ``point`` to the contact circles of ``discs`` (n, 3)."""
@@ -296,12 +320,16 @@ class ObstacleReachEnv(ReachEnv):
         if length == 0.0:
             return None
         across = np.array([-way[1], way[0]]) / length
+        # Forbidden contact keeps the discs off the ramp's sweep, which covers the segment's
+        # middle: they may then stand up to half the segment's length aside.
+        spread = 0.5 * length if self.contact == "forbid" else 0.0
         discs = np.empty((0, 3))
         for _ in range(n):
             for _ in range(DISC_ATTEMPTS):
                 radius = float(rng.uniform(*self.obstacle_radius_range))
                 contact = radius + self.half_thickness
-                center = tip + rng.uniform(*PLACEMENT_SPAN) * way + rng.uniform(-1.0, 1.0) * contact * across
+                offset = rng.uniform(-1.0, 1.0) * (contact + spread)
+                center = tip + rng.uniform(*PLACEMENT_SPAN) * way + offset * across
                 disc = np.array([[center[0], center[1], radius]])
                 points = np.vstack([np.zeros((1, 2)), target[None], avoid])
                 if self._gap_of(points, disc[0]) < self.clearance:
