@@ -95,7 +95,7 @@ register(
     id="SoftArm/OctArmObstacleReach-v0",
     entry_point="softarm_gym.envs:ObstacleReachEnv",
     max_episode_steps=100,
-    reward_threshold=None,
+    reward_threshold=31.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
 )
 
@@ -103,7 +103,7 @@ register(
     id="SoftArm/CTObstacleReach-v0",
     entry_point="softarm_gym.envs:ObstacleReachEnv",
     max_episode_steps=100,
-    reward_threshold=19.0,
+    reward_threshold=37.0,
     # The CT arm is shorter (0.53 m) and as thick (h = 30.2 mm) as OctArm V: smaller discs and
     # clearance, or two discs rarely fit between its start tip and the target (docs/environments.md).
     kwargs={"design": "ct", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1,

@@ -131,10 +131,14 @@ class ObstacleReachEnv(ReachEnv):
     ## Arguments
 
     All ReachEnv arguments (``planar`` True only: contact is planar; ``observation_format``
-    ``"flat"`` or ``"dict"``), plus: ``n_obstacles`` ((1, 2): an integer or an inclusive
+    ``"flat"`` or ``"dict"``; the registered IDs set ``action_mode="delta"``,
+    ``delta_scale=0.1``: absolute jumps drive the arm through the discs, and a step that snaps
+    off one costs the solver seconds), plus: ``n_obstacles`` ((1, 2): an integer or an inclusive
     ``(low, high)`` range), ``obstacle_radius`` ((0.03, 0.06) m: a number or a range; the
     contact radius adds h = 30.2 mm for OctArm V and CT), ``clearance`` (0.02 m),
-    ``contact`` (``"penalize"`` or ``"forbid"``), ``contact_weight`` (0.1 per N),
+    ``contact`` (``"penalize"`` or ``"forbid"``; with ``"forbid"`` the discs keep
+    ``clearance`` from the backbones of the target ramp without discs, and may stand up to
+    half the start-tip–target distance aside), ``contact_weight`` (0.1 per N),
     ``contact_penalty`` (1), ``contact_stiffness`` (``"tube"``: the distal tubes' ring
     stiffness, as WrapEnv; a number in N/m²; or ``"rigid"``).
 
@@ -151,7 +155,7 @@ class ObstacleReachEnv(ReachEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version (registered with delta actions).
     """
 
     def __init__(self, design="octarm_v", *, n_obstacles=(1, 2), obstacle_radius=(0.03, 0.06),
