@@ -293,7 +293,7 @@ class ObstacleReachEnv(ReachEnv):
                 target = solver.solve(arm, p, scene, model=self.model, planar=True, warm_start=target)
                 if not target.converged or (target.in_contact and self.contact == "forbid"):
                     return None
-            if self._gap(target.tip, discs) < self.clearance:
+            if self._gap(target.tip[None], discs) < self.clearance:
                 return None
             self._target = target.tip.copy()
         self.target_pressures_pa = None if fixed_target else pressures
@@ -308,10 +308,11 @@ class ObstacleReachEnv(ReachEnv):
             n = max(1, math.ceil(float(np.max(np.abs(end - start))) / (step * self.p_max) - 1e-9))
         return [start + (end - start) * (k / n) for k in range(1, n + 1)]
 
-    def _gap(self, point: np.ndarray, discs: np.ndarray) -> float:
-        """Smallest distance (m) from ``point`` to the contact circles of ``discs`` (n, 3)."""
-        return float(np.min(np.hypot(discs[:, 0] - point[0], discs[:, 1] - point[1])
-                            - discs[:, 2] - self.half_thickness))
+    def _gap(self, points: np.ndarray, discs: np.ndarray) -> float:
+        """Smallest distance (m) from ``points`` (m, 2) to the contact circles of ``discs``
+        (n, 3: x, y, obstacle radius)."""
+        distance = np.hypot(points[:, None, 0] - discs[None, :, 0], points[:, None, 1] - discs[None, :, 1])
+        return float(np.min(distance - discs[None, :, 2] - self.half_thickness))
 
     def _place_discs(self, n: int, tip: np.ndarray, target: np.ndarray,
                      avoid: np.ndarray) -> np.ndarray | None:
@@ -336,21 +337,15 @@ class ObstacleReachEnv(ReachEnv):
                 center = tip + rng.uniform(*PLACEMENT_SPAN) * way + offset * across
                 disc = np.array([[center[0], center[1], radius]])
                 points = np.vstack([np.zeros((1, 2)), target[None], avoid])
-                if self._gap_of(points, disc[0]) < self.clearance:
+                if self._gap(points, disc) < self.clearance:
                     continue
-                if len(discs) and np.any(np.hypot(*(discs[:, :2] - center).T) - discs[:, 2]
-                                         - radius - 2 * self.half_thickness < self.clearance):
+                if len(discs) and self._gap(center[None], discs) - contact < self.clearance:
                     continue
                 discs = np.vstack([discs, disc])
                 break
             else:
                 return None
         return discs
-
-    def _gap_of(self, points: np.ndarray, disc: np.ndarray) -> float:
-        """Smallest distance (m) from ``points`` (n, 2) to the contact circle of one ``disc`` (3,)."""
-        return float(np.min(np.hypot(points[:, 0] - disc[0], points[:, 1] - disc[1]))
-                     - disc[2] - self.half_thickness)
 
     # ------------------------------------------------------------------ step
 
