@@ -56,8 +56,8 @@ class ObstacleReachEnv(ReachEnv):
     ## Description
 
     The reach task of :class:`~softarm_gym.envs.reach.ReachEnv` (same designs, mounting,
-    sensing, estimators, action and stepping) with one or more rigid discs between the base
-    and the target. Contact is the solver's penalty contact (``solver.Disc``, as in
+    sensing, estimators, action and stepping) with one or more rigid discs between the arm's
+    start tip and the target. Contact is the solver's penalty contact (``solver.Disc``, as in
     :class:`~softarm_gym.envs.wrap.WrapEnv`): the backbone is pushed out of a disc of contact
     radius ``obstacle radius + h`` (h the distal section's half-thickness,
     :func:`~softarm_gym.envs.wrap.arm_half_thickness`) with ``contact_stiffness`` N/m² per
@@ -111,9 +111,10 @@ class ObstacleReachEnv(ReachEnv):
     every step converges and the tip is ``clearance`` clear of every disc — and, with
     ``contact="forbid"``, only if no step's equilibrium touches a disc. So the actions of
     that ramp reach every target from the start, in either contact mode (with
-    ``"penalize"`` possibly leaning on a disc). With ``"forbid"`` that filter keeps mostly
-    discs that stand beside the direct path, and two discs rarely pass it (docs). A failure at
-    any stage redraws target and discs (:data:`TASK_ATTEMPTS` times; if none fits, the same
+    ``"penalize"`` possibly leaning on a disc). With ``"forbid"`` a disc in the direct way
+    would make the ramp touch, so there the discs also keep ``clearance`` from the ramp's
+    backbones without discs and may stand up to half the start-tip–target distance further
+    aside: they block other ways to the target, not the ramp. A failure at any stage redraws target and discs (:data:`TASK_ATTEMPTS` times; if none fits, the same
     again with one disc fewer, down to the lower end of ``n_obstacles``; then
     ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
     (obstacle radii, m; at most ``max_obstacles``) and ``options={"target": (x, y)}`` the
@@ -136,9 +137,8 @@ class ObstacleReachEnv(ReachEnv):
     off one costs the solver seconds), plus: ``n_obstacles`` ((1, 2): an integer or an inclusive
     ``(low, high)`` range), ``obstacle_radius`` ((0.03, 0.06) m: a number or a range; the
     contact radius adds h = 30.2 mm for OctArm V and CT), ``clearance`` (0.02 m),
-    ``contact`` (``"penalize"`` or ``"forbid"``; with ``"forbid"`` the discs keep
-    ``clearance`` from the backbones of the target ramp without discs, and may stand up to
-    half the start-tip–target distance aside), ``contact_weight`` (0.1 per N),
+    ``contact`` (``"penalize"`` or ``"forbid"``, which also changes the placement: Starting
+    State), ``contact_weight`` (0.1 per N),
     ``contact_penalty`` (1), ``contact_stiffness`` (``"tube"``: the distal tubes' ring
     stiffness, as WrapEnv; a number in N/m²; or ``"rigid"``).
 
@@ -149,9 +149,8 @@ class ObstacleReachEnv(ReachEnv):
     ``target``, ``distance``, ``is_success``), plus ``n_obstacles`` (n), ``obstacles``
     ((max_obstacles, 3): centre x, y and obstacle radius, m, rows after the n-th zero, as in the
     observation, so vector envs can stack them), ``contact_radii`` ((max_obstacles,), m, zero
-    after the n-th), ``contact_force`` (N, total, of the
-    current state — of the rejected attempt on a rejected step), ``penetration`` (m, deepest,
-    current state), ``in_contact``, ``contact_rejected`` and the ``reward_*`` terms.
+    after the n-th), ``contact_force`` (N, total, of the current state — of the rejected
+    attempt on a rejected step), ``penetration`` (m, deepest, current state), ``in_contact``, ``contact_rejected`` and the ``reward_*`` terms.
 
     ## Version History
 
