@@ -114,9 +114,9 @@ class ObstacleReachEnv(ReachEnv):
     ``"penalize"`` possibly leaning on a disc). With ``"forbid"`` a disc in the direct way
     would make the ramp touch, so there the discs also keep ``clearance`` from the ramp's
     backbones without discs and may stand up to half the start-tip–target distance further
-    aside: they block other ways to the target, not the ramp. A failure at any stage redraws target and discs (:data:`TASK_ATTEMPTS` times; if none fits, the same
-    again with one disc fewer, down to the lower end of ``n_obstacles``; then
-    ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
+    aside: they block other ways to the target, not the ramp. A failure at any stage
+    redraws target and discs (:data:`TASK_ATTEMPTS` times; if none fits, the same again with
+    one disc fewer, down to the lower end of ``n_obstacles``; then ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
     (obstacle radii, m; at most ``max_obstacles``) and ``options={"target": (x, y)}`` the
     target (checked as in ReachEnv); with a fixed target the discs are placed as above
     without the target-backbone clearance (its pressures are unknown), and
@@ -150,7 +150,8 @@ class ObstacleReachEnv(ReachEnv):
     ((max_obstacles, 3): centre x, y and obstacle radius, m, rows after the n-th zero, as in the
     observation, so vector envs can stack them), ``contact_radii`` ((max_obstacles,), m, zero
     after the n-th), ``contact_force`` (N, total, of the current state — of the rejected
-    attempt on a rejected step), ``penetration`` (m, deepest, current state), ``in_contact``, ``contact_rejected`` and the ``reward_*`` terms.
+    attempt on a rejected step), ``penetration`` (m, deepest, current state),
+    ``in_contact``, ``contact_rejected`` and the ``reward_*`` terms.
 
     ## Version History
 
