@@ -116,11 +116,11 @@ class ObstacleReachEnv(ReachEnv):
     backbones without discs and may stand up to half the start-tip–target distance further
     aside: they block other ways to the target, not the ramp. A failure at any stage
     redraws target and discs (:data:`TASK_ATTEMPTS` times; if none fits, the same again with
-    one disc fewer, down to the lower end of ``n_obstacles``; then ``RuntimeError``). ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs
-    (obstacle radii, m; at most ``max_obstacles``) and ``options={"target": (x, y)}`` the
-    target (checked as in ReachEnv); with a fixed target the discs are placed as above
-    without the target-backbone clearance (its pressures are unknown), and
-    ``target_pressures_pa`` is None.
+    one disc fewer, down to the lower end of ``n_obstacles``; then ``RuntimeError``).
+    ``options={"obstacles": [(x, y, radius), ...]}`` fixes the discs (obstacle radii, m; at
+    most ``max_obstacles``) and ``options={"target": (x, y)}`` the target (checked as in
+    ReachEnv); with a fixed target the discs are placed as above without the target-backbone
+    clearance (its pressures are unknown), and ``target_pressures_pa`` is None.
 
     ## Episode End
 
