@@ -3,8 +3,9 @@
 Importing the package registers the environments (``gym.make("SoftArm/OctArmReach-v0")``);
 the classes live in :mod:`softarm_gym.envs`. Default kwargs below are the only difference
 between the OctArm and CT variants. Each ``reward_threshold`` is floor(0.9 × the mean return
-of the reference controller over 20 seeded episodes): the Jacobian controller on reach and track, the
-scripted curl on wrap (``python -m softarm_gym.benchmarks.reference``; measured values in
+of the reference controller over 20 seeded episodes): the Jacobian controller on reach,
+obstacle reach and track, the scripted curl on wrap; None where that mean is not positive (the
+reference fails the task) (``python -m softarm_gym.benchmarks.reference``; measured values in
 ``docs/bench/reference_returns.json``, explained in ``docs/environments.md``).
 """
 
@@ -83,6 +84,30 @@ register(
     # a half-turn placement and a 90 deg success threshold.
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.15, 0.20),
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
+)
+
+# Reach among obstacles: random discs between the start tip and a target reachable with them in
+# place; contact costs reward in proportion to the contact force (contact="forbid" rejects it).
+# Delta actions, as the -v1 reach ids: an absolute jump across the workspace drives the arm
+# through the discs, and a step that snaps off one costs the solver seconds (docs/environments.md).
+# No vector_entry_point: the batched env has no contact kernel (gym.make_vec steps copies).
+register(
+    id="SoftArm/OctArmObstacleReach-v0",
+    entry_point="softarm_gym.envs:ObstacleReachEnv",
+    max_episode_steps=100,
+    reward_threshold=31.0,
+    kwargs={"design": "octarm_v", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
+)
+
+register(
+    id="SoftArm/CTObstacleReach-v0",
+    entry_point="softarm_gym.envs:ObstacleReachEnv",
+    max_episode_steps=100,
+    reward_threshold=37.0,
+    # The CT arm is shorter (0.53 m) and as thick (h = 30.2 mm) as OctArm V: smaller discs and
+    # clearance, or two discs rarely fit between its start tip and the target (docs/environments.md).
+    kwargs={"design": "ct", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1,
+            "obstacle_radius": (0.02, 0.04), "clearance": 0.01},
 )
 
 # v1 wrap: object radius calibrated so that the planner wraps it (docs/environments.md, "Wrap

@@ -1,5 +1,6 @@
 """Classical comparisons for the RL baselines: a damped-least-squares Jacobian controller
-(reach), a scripted curl (wrap) and a sampling-based model-predictive planner (both).
+(reach, obstacle reach, track), a scripted curl (wrap) and a sampling-based model-predictive
+planner (all of them).
 
 :class:`JacobianController` acts on exactly the observation vector a policy sees, and on
 nothing else of the episode. What it knows:
@@ -34,6 +35,8 @@ first step of an episode the controller then holds the pressures.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import lsq_linear
@@ -243,13 +246,17 @@ class CurlController(_PressureController):
 
 class CEMPlanner(_PressureController):
     """Sampling-based model-predictive control: the cross-entropy method over action sequences,
-    each candidate rolled out on the nominal model from the current state. Reach, track, wrap.
+    each candidate rolled out on the nominal model from the current state. Reach, obstacle
+    reach, track, wrap.
 
     What it knows, as :class:`JacobianController`: the nominal design, the base angle, p_max,
     the action mode and ``delta_scale``, the observation layout, and the task's reward rule
     with the env's weights (reach: :func:`softarm_gym.envs.terms.reach_rewards`; wrap:
     :meth:`~softarm_gym.envs.WrapEnv.wrap_terms`, the disc read from the observation and the
-    env's contact stiffness). Not the true state, the payload or a randomised arm.
+    env's contact stiffness; obstacle reach: the reach rule plus
+    :meth:`~softarm_gym.envs.ObstacleReachEnv.contact_reward`, the discs read from the
+    ``obstacles`` block, a touching step rejected as the env rejects it under
+    ``contact="forbid"``). Not the true state, the payload or a randomised arm.
 
     Each decision (:meth:`step_fraction`):
 
@@ -273,12 +280,15 @@ class CEMPlanner(_PressureController):
     does when the observation is the one from which its last search found nothing better
     than holding. Rollouts
     run on :class:`solver.BatchStepper` (all candidates in one parallel call) for reach; for
-    wrap, whose contact has no batched kernel, one :class:`solver.Stepper` steps them in
-    turn. Its randomness comes from its own generator (``seed``), so it is reproducible.
+    wrap and obstacle reach, whose contact has no batched kernel, one :class:`solver.Stepper`
+    in the scene with the discs steps them in turn (its start, like the envs', solved cold
+    without the discs and then in their scene). Its randomness comes from its own generator
+    (``seed``), so it is reproducible.
 
     Args:
-        env: a (possibly wrapped) planar reach, track or wrap env with ``observation_format='flat'``
-            (on track it aims where the target's last displacement takes it).
+        env: a (possibly wrapped) planar reach, obstacle-reach, track or wrap env with
+            ``observation_format='flat'`` (on track it aims where the target's last
+            displacement takes it).
         samples: candidate sequences per round (>= 2). elites: best kept per round (>= 1,
             < samples). iterations: CEM rounds per decision (>= 1). horizon: steps per
             sequence (>= 1). init_std: first-round standard deviation (action units, > 0).
@@ -302,6 +312,8 @@ class CEMPlanner(_PressureController):
         if getattr(base, "observation_format", None) != "flat" or not getattr(base, "planar", False):
             raise ValueError("CEMPlanner needs a planar env with observation_format='flat'")
         self.wrap = hasattr(base, "success_wrap_deg")
+        self.obstacles = hasattr(base, "contact_reward")
+        self.contact = self.wrap or self.obstacles
         self.tracking = hasattr(base, "segment_steps")
         if not self.wrap and not hasattr(base, "success_tolerance"):
             raise ValueError("CEMPlanner plans reach and wrap tasks only")
@@ -315,7 +327,7 @@ class CEMPlanner(_PressureController):
         self.horizon, self.init_std, self.seed = int(horizon), float(init_std), seed
         self._slices = observation_slices(env)
         self._n = base.n_inputs
-        self._batch = None if self.wrap else solver.BatchStepper(self.arm, self.scene, self.samples)
+        self._batch = None if self.contact else solver.BatchStepper(self.arm, self.scene, self.samples)
         self.rng = np.random.default_rng(seed)
         self.reset()
 
@@ -335,14 +347,19 @@ class CEMPlanner(_PressureController):
             scene = self.scene
             if self.wrap:
                 goal = obs[self._slices["goal"]]
-                disc = solver.Disc(center=(float(goal[0]), float(goal[1])), radius=float(goal[2]),
-                                   stiffness=self.task.contact_stiffness)
-                scene = solver.Scene(base_angle_deg=self.scene.base_angle_deg,
-                                     gravity=self.scene.gravity, obstacles=(disc,))
+                scene = replace(scene, obstacles=(self._disc(goal),))
                 self._goal = goal.copy()
+            elif self.obstacles:
+                # The obstacles block: (x, y, contact radius) per slot, radius 0 for no disc.
+                slots = obs[self._slices["obstacles"]].reshape(-1, 3)
+                scene = replace(scene, obstacles=tuple(self._disc(d) for d in slots if d[2] > 0))
             self._nominal = solver.Stepper(self.arm, scene)
-            self._nominal.reset(fraction * self.p_max)
-            if self.wrap:
+            # As the envs start: cold without the discs, then into the scene. A cold solve in the
+            # scene loads the straight arm through the discs, which can catch it as it droops.
+            free = solver.solve(self.arm, fraction * self.p_max, self.scene, planar=True) \
+                if scene.obstacles else None
+            self._nominal.reset(fraction * self.p_max, warm_start=free)
+            if self.contact:
                 self._rollout = solver.Stepper(self.arm, scene)
         elif np.any(self._nominal.pressures != fraction * self.p_max):
             self._nominal.step(fraction * self.p_max)
@@ -351,6 +368,11 @@ class CEMPlanner(_PressureController):
             # A tracking target moves first within a step: aim where its last displacement
             # (the goal block's third part) takes it.
             self._goal = goal[:2] + (goal[4:6] if self.tracking else 0.0)
+
+    def _disc(self, row: np.ndarray) -> solver.Disc:
+        """The disc of an observation's (x, y, contact radius) with the env's contact stiffness."""
+        return solver.Disc(center=(float(row[0]), float(row[1])), radius=float(row[2]),
+                           stiffness=self.task.contact_stiffness)
 
     def _score_reach(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
         """Summed reach rewards of (m, horizon, n) action sequences on the batched model."""
@@ -374,22 +396,43 @@ class CEMPlanner(_PressureController):
             total += reach_reward_sum(terms)
         return total
 
-    def _score_wrap(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
-        """Summed wrap rewards of (m, horizon, n) action sequences, rolled out one by one."""
+    def _score_contact(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+        """Summed wrap or obstacle-reach rewards of (m, horizon, n) action sequences in the
+        contact scene, rolled out one by one (a step that touches under ``contact="forbid"``
+        is rejected as the env rejects it)."""
         rollout, start = self._rollout, self._nominal.equilibrium
         new = np.empty((1, self._n))
         totals = np.zeros(actions.shape[0])
+        forbid = self.obstacles and self.task.contact == "forbid"
         for j, sequence in enumerate(actions):
             rollout.adopt(start)
             current = fraction.copy()
             for action in sequence:
                 fractions_from_actions(action[None], current[None], self.action_mode == "delta",
                                        self.delta_scale, new)
+                previous = rollout.equilibrium
                 report = rollout.step(new[0] * self.p_max)
+                contact = 0.0
                 if report.converged:
-                    current = new[0].copy()
-                totals[j] += self._wrap_reward(rollout.equilibrium, current, report.converged)
+                    reached = rollout.equilibrium
+                    if self.obstacles:
+                        contact = self.task.contact_reward(reached)[0]
+                    if forbid and reached.in_contact:
+                        rollout.adopt(previous)
+                    else:
+                        current = new[0].copy()
+                reward = self._wrap_reward if self.wrap else self._reach_reward
+                totals[j] += contact + reward(rollout.equilibrium, current, report.converged)
         return totals
+
+    def _reach_reward(self, eq: solver.Equilibrium, fraction: np.ndarray, converged: bool) -> float:
+        terms, distance = np.empty((1, 4)), np.empty(1)
+        task = self.task
+        reach_rewards(eq.tip[None], self._goal[None], fraction[None], np.array([converged]),
+                      task.distance_weight, task.control_weight, task.success_bonus,
+                      task.success_tolerance, task.solver_failure_penalty, terms, distance,
+                      np.empty(1, dtype=bool))
+        return float(reach_reward_sum(terms)[0])
 
     def _wrap_reward(self, eq: solver.Equilibrium, fraction: np.ndarray, converged: bool) -> float:
         penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
@@ -421,7 +464,7 @@ class CEMPlanner(_PressureController):
         self.last_searched = False
         if self._succeeds(fraction):
             return fraction
-        score = self._score_wrap if self.wrap else self._score_reach
+        score = self._score_contact if self.contact else self._score_reach
         hold = self._hold(fraction)
         mean = np.vstack([self._plan[1:], self._plan[-1:]]) if self._plan.any() else hold
         std = np.full_like(mean, self.init_std)

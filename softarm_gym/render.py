@@ -67,12 +67,14 @@ class ArmRenderer:
         self._target, = ax.plot([], [], "*", color=TARGET_COLOUR, ms=16, zorder=2)
         self._disc = Circle((0.0, 0.0), 0.0, color=OBJECT_COLOUR, alpha=0.5, visible=False, zorder=1)
         ax.add_patch(self._disc)
+        self._obstacles = []
         self._text = ax.text(0.02, 0.98, "", transform=ax.transAxes, va="top", ha="left",
                              fontsize=8, family="monospace", zorder=6)
 
     def frame(self, backbone: np.ndarray, section_ends: np.ndarray, estimate: np.ndarray,
               estimate_tip: np.ndarray, target: np.ndarray | None = None,
-              disc: tuple[np.ndarray, float] | None = None, caption: str = "") -> np.ndarray:
+              disc: tuple[np.ndarray, float] | None = None, obstacles=(),
+              caption: str = "") -> np.ndarray:
         """Draw one frame.
 
         Args:
@@ -82,6 +84,7 @@ class ArmRenderer:
             estimate_tip: (2,) estimated tip (m).
             target: (2,) reach target (m), or None.
             disc: ``(centre (2,), radius)`` of an object to wrap (m), or None.
+            obstacles: ``(centre (2,), radius)`` pairs of obstacle discs (m), drawn like ``disc``.
             caption: text in the top-left corner.
 
         Returns:
@@ -101,6 +104,14 @@ class ArmRenderer:
             self._disc.set_center((float(disc[0][0]), float(disc[0][1])))
             self._disc.set_radius(float(disc[1]))
             self._disc.set_visible(True)
+        while len(self._obstacles) < len(obstacles):
+            patch = Circle((0.0, 0.0), 0.0, color=OBJECT_COLOUR, alpha=0.5, zorder=1)
+            self._obstacles.append(self.axes.add_patch(patch))
+        for k, patch in enumerate(self._obstacles):
+            patch.set_visible(k < len(obstacles))
+            if k < len(obstacles):
+                patch.set_center((float(obstacles[k][0][0]), float(obstacles[k][0][1])))
+                patch.set_radius(float(obstacles[k][1]))
         self._text.set_text(caption)
         self.canvas.draw()
         return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()

@@ -18,7 +18,8 @@ import softarm_gym  # noqa: F401  (registers the IDs)
 from softarm_gym.sensing import ESTIMATORS
 
 TARGETS = {"reach_true": 5000.0, "estimator": 1000.0, "wrap": 500.0}
-"""Issue targets (steps/s): OctArmReach with ``true`` observations, any estimator, wrap."""
+"""Issue targets (steps/s): OctArmReach with ``true`` observations, any estimator, wrap (and
+obstacle reach, the other contact task)."""
 
 QUICK_OBSERVATIONS = ("true", "constant_curvature")
 
@@ -30,7 +31,7 @@ def env_ids() -> tuple[str, ...]:
 
 def target_for(env_id: str, observation: str) -> float:
     """The issue's steps/s target for a case."""
-    if "Wrap" in env_id:
+    if "Wrap" in env_id or "ObstacleReach" in env_id:
         return TARGETS["wrap"]
     return TARGETS["reach_true"] if observation == "true" and "OctArm" in env_id else TARGETS["estimator"]
 

@@ -335,16 +335,13 @@ class SoftArmEnv(gym.Env):
         fraction = command
         if self.actuation == "lag":
             fraction = self._fraction + self._lag_gain * (command - self._fraction)
-        report = self._stepper.step(fraction * self.p_max)
-        ok = report.converged
-        if ok:
+        report, accepted = self._advance(fraction * self.p_max)
+        if accepted:
             self._fraction = fraction
             self._command = command
-            self._failures = 0
-        else:
-            self._failures += 1
+        self._failures = 0 if report.converged else self._failures + 1
         self._sense()
-        terms, success, task_info = self._task_reward(ok)
+        terms, success, task_info = self._task_reward(report.converged)
         reward = 0.0
         for value in terms.values():
             reward += value
@@ -356,6 +353,14 @@ class SoftArmEnv(gym.Env):
 
     def _terminated(self, success: bool) -> bool:
         return False
+
+    def _advance(self, pressures: np.ndarray) -> tuple[solver.StepReport, bool]:
+        """Step the simulated arm towards ``pressures`` (Pa): the solver's report and whether
+        the new state stands (here: whenever the solve converged; an unconverged step keeps
+        the previous equilibrium). A task may reject a converged state by restoring the
+        previous one."""
+        report = self._stepper.step(pressures)
+        return report, report.converged
 
     # ------------------------------------------------------------------ internals
 

@@ -10,7 +10,8 @@ import numpy as np
 import solver
 from softarm_gym.envs.base import SoftArmEnv, _check_options, _finite_number, _range
 
-__all__ = ["WrapEnv", "wrap_angle", "arm_half_thickness"]
+__all__ = ["WrapEnv", "wrap_angle", "arm_half_thickness", "check_contact_stiffness",
+           "resolve_contact_stiffness"]
 
 _PLACEMENT_ATTEMPTS = 20
 
@@ -23,6 +24,28 @@ def arm_half_thickness(arm: solver.designs.ArmDesign) -> float:
     """
     last = len(arm.sections) - 1
     return max(t.radius + t.material.outer_radius for t in arm.tubes if t.last_section >= last)
+
+
+def check_contact_stiffness(value) -> None:
+    """Validate a ``contact_stiffness`` argument: ``"tube"``, ``"rigid"`` or a number > 0 (N/m²)."""
+    if isinstance(value, str) and value in ("tube", "rigid"):
+        return
+    _finite_number("contact_stiffness", value, 0.0)
+    if value <= 0:
+        raise ValueError(f"contact_stiffness must be > 0 (N/m²), 'tube' or 'rigid'; got {value}")
+
+
+def resolve_contact_stiffness(arm: solver.designs.ArmDesign, value) -> float:
+    """The penalty stiffness (N/m²) of a ``contact_stiffness`` argument for ``arm``.
+
+    ``"tube"``: the ring stiffness of the distal section's tubes (``TubeMaterial.ring_stiffness``,
+    the arm's own compliance); ``"rigid"``: ``math.inf`` (hard contact); a number: itself.
+    """
+    check_contact_stiffness(value)
+    if value == "tube":
+        last = len(arm.sections) - 1
+        return min(t.material.ring_stiffness for t in arm.tubes if t.last_section >= last)
+    return math.inf if value == "rigid" else float(value)
 
 
 def wrap_angle(positions: np.ndarray, center, contact_radius: float, margin: float) -> float:
@@ -148,11 +171,7 @@ class WrapEnv(SoftArmEnv):
         self.object_radius_range = _range("object_radius", object_radius)
         if self.object_radius_range[0] <= 0:
             raise ValueError(f"object_radius must be > 0 (m); got {object_radius!r}")
-        if contact_stiffness not in ("tube", "rigid"):
-            _finite_number("contact_stiffness", contact_stiffness, 0.0)
-            if contact_stiffness <= 0:
-                raise ValueError(f"contact_stiffness must be > 0 (N/m²), 'tube' or 'rigid'; got "
-                                 f"{contact_stiffness}")
+        check_contact_stiffness(contact_stiffness)
         self.contact_margin = _finite_number("contact_margin", contact_margin, 0.0)
         self.placement_gap = _finite_number("placement_gap", placement_gap, 0.0)
         self.placement_wrap_deg = _finite_number("placement_wrap_deg", placement_wrap_deg, 0.0)
@@ -180,11 +199,7 @@ class WrapEnv(SoftArmEnv):
             raise ValueError(f"object_radius {self.object_radius_range[1]} m must be smaller than "
                              f"the arm's length {self.arm.length:.3f} m")
         self.half_thickness = arm_half_thickness(self.arm)
-        if contact_stiffness == "tube":
-            last = len(self.arm.sections) - 1
-            contact_stiffness = min(t.material.ring_stiffness for t in self.arm.tubes
-                                    if t.last_section >= last)
-        self.contact_stiffness = math.inf if contact_stiffness == "rigid" else float(contact_stiffness)
+        self.contact_stiffness = resolve_contact_stiffness(self.arm, contact_stiffness)
 
     def _goal_bounds(self):
         r = self.reach

@@ -8,7 +8,7 @@ import gymnasium as gym
 import pytest
 
 from softarm_gym.benchmarks.envs import env_ids
-from softarm_gym.benchmarks.reference import episode, reward_threshold, run
+from softarm_gym.benchmarks.reference import episode, main, reward_threshold, run, threshold_of
 
 RECORD_PATH = Path(__file__).resolve().parents[2] / "docs" / "bench" / "reference_returns.json"
 RECORD = json.loads(RECORD_PATH.read_text())
@@ -19,7 +19,7 @@ def test_registered_threshold_is_the_rule_applied_to_the_recorded_mean(env_id):
     row = RECORD["ids"][env_id]
     assert len(row["returns"]) == 20
     assert math.isclose(row["mean"], sum(row["returns"]) / 20)
-    assert gym.spec(env_id).reward_threshold == reward_threshold(row["mean"]) == row["threshold"]
+    assert gym.spec(env_id).reward_threshold == threshold_of(row["mean"]) == row["threshold"]
 
 
 @pytest.mark.parametrize("env_id", env_ids())
@@ -37,3 +37,10 @@ def test_rule_and_arguments():
         reward_threshold(-3.0)
     with pytest.raises(ValueError, match="episodes"):
         run(0)
+    # A reference that fails the task on average gives no threshold.
+    assert threshold_of(-56.0) is None and threshold_of(96.6) == 86.0
+
+
+def test_cli_names_an_unknown_id(capsys):
+    assert main(["--ids", "SoftArm/NoSuchTask-v0", "--episodes", "1"]) == 2
+    assert "unknown ID(s) SoftArm/NoSuchTask-v0" in capsys.readouterr().err
