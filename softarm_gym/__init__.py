@@ -116,7 +116,7 @@ register(
     id="SoftArm/OctArmWrap-v1",
     entry_point="softarm_gym.envs:WrapEnv",
     max_episode_steps=200,
-    reward_threshold=None,
+    reward_threshold=324.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
 )
 
@@ -124,7 +124,7 @@ register(
     id="SoftArm/CTWrap-v1",
     entry_point="softarm_gym.envs:WrapEnv",
     max_episode_steps=200,
-    reward_threshold=None,
+    reward_threshold=214.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
 )

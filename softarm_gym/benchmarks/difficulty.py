@@ -109,8 +109,8 @@ def main(argv=None) -> int:
         print(f"difficulty: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        print(json.dumps({"command": f"python -m softarm_gym.benchmarks.difficulty --episodes {args.episodes} "
-                                     "--json", "date": time.strftime("%Y-%m-%d"), "ids": result}, indent=2))
+        command = f"python -m softarm_gym.benchmarks.difficulty --episodes {args.episodes} --json"
+        print(json.dumps({"command": command, "date": time.strftime("%Y-%m-%d"), "ids": result}, indent=2))
     else:
         print(format_table(result))
     return 0

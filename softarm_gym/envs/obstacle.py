@@ -261,7 +261,7 @@ class ObstacleReachEnv(ReachEnv):
             free = solver.solve(arm, pressures, scene, model=self.model, planar=True)
             if not free.converged:
                 return None
-            self._target = free.tip.copy()
+            self._target[:] = free.tip
             avoid = np.vstack([avoid, free.positions])
             if self.contact == "forbid":
                 # The ramp's backbones without discs, in steps of at most delta_scale·p_max
@@ -295,7 +295,7 @@ class ObstacleReachEnv(ReachEnv):
                     return None
             if self._gap(target.tip[None], discs) < self.clearance:
                 return None
-            self._target = target.tip.copy()
+            self._target[:] = target.tip
         self.target_pressures_pa = None if fixed_target else pressures
         self._discs = np.array(discs, dtype=float)
         return scene, eq

@@ -184,8 +184,7 @@ class ReachEnv(SoftArmEnv):
             raise ValueError(f"observation_format='goal' needs observation='true' (got {observation!r}): "
                              "its achieved_goal is the true tip, which would bypass the estimator")
         super().__init__(design, **kwargs)
-        self._target = np.zeros(self.dim)  # written in place (see _bind_rows)
-        self._target_row = self._target.reshape(1, -1)
+        self._target = np.zeros(self.dim)
         # One-row buffers of the batch-first reward (softarm_gym.envs.terms.reach_rewards).
         self._terms = np.zeros((1, len(REACH_TERMS)))
         self._distance = np.zeros(1)
@@ -291,16 +290,11 @@ class ReachEnv(SoftArmEnv):
         raise RuntimeError(f"no converged target in {TARGET_ATTEMPTS} random pressure draws for "
                            f"{self.arm.name} in {self._scene}")
 
-    def _bind_rows(self) -> None:
-        super()._bind_rows()
-        if hasattr(self, "_target"):  # (the base binds its rows before this class's arrays exist)
-            self._target_row = self._target.reshape(1, -1)
-
     def _fill_goal(self, obs):
-        fill_reach_goals(self._target_row, self._tip_row, self._slices["goal"].start, obs[None])
+        fill_reach_goals(self._target[None], self._tip_row, self._slices["goal"].start, obs[None])
 
     def _task_reward(self, converged):
-        reach_rewards(self._stepper.tip[None], self._target_row,
+        reach_rewards(self._stepper.tip[None], self._target[None],
                       self._fraction[None], self._converged_row(converged),
                       self.distance_weight, self.control_weight, self.success_bonus,
                       self.success_tolerance, self.solver_failure_penalty, self._terms,

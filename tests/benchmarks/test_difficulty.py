@@ -15,7 +15,8 @@ def test_every_level_makes_a_valid_env_and_includes_the_default():
             env.reset(seed=0)
             set_to = getattr(env.unwrapped, {"object_radius": "object_radius_range"}.get(knob, knob))
             if kwargs:
-                assert tuple(set_to) == tuple(kwargs[knob]) if knob == "object_radius" else set_to == kwargs[knob]
+                want = kwargs[knob]
+                assert (tuple(set_to) == tuple(want)) if knob == "object_radius" else set_to == want
             env.close()
 
 
