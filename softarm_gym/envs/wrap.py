@@ -158,7 +158,10 @@ class WrapEnv(SoftArmEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version (OctArm V disc 9–11 cm: beyond the arm's curl on most seeds;
+      CT 15–20 cm). Kept; ``gym.make`` notes that v1 exists.
+    * v1: object radius calibrated so that the planner wraps it (OctArm V 11–12.5 cm, CT
+      11–13 cm; docs/environments.md, "Wrap calibration"); otherwise equal to v0.
     """
 
     def __init__(self, design="octarm_v", *, object_radius=(0.09, 0.11),
