@@ -414,10 +414,12 @@ class BatchStepper:
         section_ends: the records' rows at the section ends.
     """
 
-    PARALLEL_MIN = 8
-    """Batches smaller than this run on one thread: starting the thread pool costs more
-    than the work it shares (see ``softarm bench --env``). Larger ones run on the threads
-    or on one, whichever :class:`ThreadPolicy` has measured faster."""
+    PARALLEL_MIN = 64
+    """Batches smaller than this run on one thread: sharing them never paid on the 2-core
+    machine (``softarm bench --env``: 16 arms, 21k env-steps/s on one thread, 10k with the
+    policy's threaded probes counted; 256 arms, 56k threaded against 37k), and a threaded
+    probe costs more than such a batch's whole step. Larger ones run on the threads or on
+    one, whichever :class:`ThreadPolicy` has measured faster."""
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, n: int = 1, *,
                  model: str = "full", settings: Settings = DEFAULT_SETTINGS):

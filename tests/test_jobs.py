@@ -456,15 +456,15 @@ def test_ray_version_mismatch_is_one_line(capsys, tmp_path, cluster, command):
 
 # ----------------------------------------------------------------------------- RL sweeps on the cluster
 
-RL_RUNS = ["sac_OctArmReach-v0_s0", "sac_OctArmReach-v0_s1"]
+RL_RUNS = ["sac_OctArmReach-v1_s0", "sac_OctArmReach-v1_s1"]
 
 
 def _rl_sweep_args(tmp_path: Path, *extra: str, seeds: str = "0,1", timesteps: int = 200) -> list[str]:
     """``baselines.sweep`` on tiny SAC runs (8-unit networks) into ``tmp_path/out``."""
     hyperparams = tmp_path / "hp"
     if not hyperparams.is_dir():
-        tiny_hyperparams(hyperparams)
-    return ["--envs", "SoftArm/OctArmReach-v0", "--algos", "sac", "--seeds", seeds, "--timesteps",
+        tiny_hyperparams(hyperparams, env_ids=("SoftArm/OctArmReach-v1",))
+    return ["--envs", "SoftArm/OctArmReach-v1", "--algos", "sac", "--seeds", seeds, "--timesteps",
             str(timesteps), "--hyperparams-dir", str(hyperparams), "--out", str(tmp_path / "out"),
             "--checkpoint-freq", "100", "--no-progress", *extra]
 
@@ -525,14 +525,14 @@ def test_rl_sweep_on_ray_trains_the_same_runs_as_the_local_backend(tmp_path, clu
     text = (remote / "out" / "RESULTS.md").read_text()
     assert "(ray backend)" in text and (remote / "out" / "results" / "learning_curves.png").is_file()
     for name in RL_RUNS:
-        assert f"| {name} | SoftArm/OctArmReach-v0 | sac | true |" in text
+        assert f"| {name} | SoftArm/OctArmReach-v1 | sac | true |" in text
     import ray
 
     assert not ray.is_initialized()  # the sweep disconnected again
 
 
 def test_rl_sweep_retries_a_killed_training_from_its_last_checkpoint(tmp_path, cluster):
-    run = tmp_path / "out" / "runs" / "sac_OctArmReach-v0_s0"
+    run = tmp_path / "out" / "runs" / "sac_OctArmReach-v1_s0"
     argv = _rl_sweep_args(tmp_path, "--eval-freq", "0", "--evaluate", "none", "--backend", "ray",
                           "--address", cluster.address, seeds="0", timesteps=400)
     proc = _sweep(argv)
@@ -543,7 +543,7 @@ def test_rl_sweep_retries_a_killed_training_from_its_last_checkpoint(tmp_path, c
     os.kill(busy[0], signal.SIGKILL)
     out, err = proc.communicate(timeout=180)
     assert proc.returncode == 0, err
-    assert "sac_OctArmReach-v0_s0 failed (WorkerCrashedError: " in err and "attempt 2 of 4" in err
+    assert "sac_OctArmReach-v1_s0 failed (WorkerCrashedError: " in err and "attempt 2 of 4" in err
     summary = json.loads((run / "summary.json").read_text())
     assert summary["timesteps_done"] == 400  # the planned budget, not 400 more
     # The retry resumed from the newest complete checkpoint at the kill (or one written in between).
@@ -574,7 +574,7 @@ def test_rl_sweep_worker_dying_without_retries_is_one_line_and_keeps_the_finishe
     assert sorted(states.values()) == ["failed", "finished"]
     killed = next(name for name, state in states.items() if state == "failed")
     text = (tmp_path / "out" / "RESULTS.md").read_text()
-    assert f"| {killed} | SoftArm/OctArmReach-v0 | sac | true |" in text
+    assert f"| {killed} | SoftArm/OctArmReach-v1 | sac | true |" in text
     assert "failed: WorkerCrashedError" in text
     assert all(line.startswith(f"{killed} failed") for line in err.strip().splitlines()[:-1])  # its note
     assert (tmp_path / "out" / "results" / "training" / next(n for n in RL_RUNS if n != killed)).is_dir()
