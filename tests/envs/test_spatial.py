@@ -43,10 +43,11 @@ def test_spatial_layout_and_reachable_target():
 
 
 def test_spatial_inclinometer_observation_reads_imus():
-    env = ReachEnv("octarm_v", planar=False, observation="inclinometer")
+    env = ReachEnv("octarm_v", planar=False, observation="inclinometer", action_mode="delta")
     obs, info = env.reset(seed=3)
+    rng = np.random.default_rng(3)
     for _ in range(3):
-        obs, _, _, _, info = env.step(env.action_space.sample())
+        obs, _, _, _, info = env.step(rng.uniform(-1, 1, 9).astype(np.float32))
     assert info["sensors"]["imu"].shape == (4, 6) and env.observation_space.contains(obs)
     assert info["estimation_error"] < 0.02
 
