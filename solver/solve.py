@@ -164,7 +164,8 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
     grid fine enough for its result, returned on the settings' grid (the finer grid's nodes
     include it). Never raises (module docstring)."""
     if model == "constant_curvature" or (
-            not scene.obstacles and settings.shortcuts and not _has_load(arm, scene)):
+            not scene.obstacles and settings.shortcuts
+            and not context(arm, packed, scene, 2 if planar else 3, settings).has_load):
         return closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     q = packed.mass_per_length * scene.gravity
     layout = packed
@@ -192,11 +193,6 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
     if layout is not packed and not scene.obstacles:  # (contact keeps its own finer layout)
         eq = _grid.on_grid(eq, layout.sec_steps, packed.sec_steps)
     return eq if record else tip_only(eq)
-
-
-def _has_load(arm, scene) -> bool:
-    """:func:`solver._model.has_load`, memoised per design and scene."""
-    return arm._solver_cache.get(("has_load", scene), lambda: has_load(arm, scene))
 
 
 def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, settings):

@@ -257,10 +257,6 @@ class SoftArmEnv(gym.Env):
         raise ValueError(f"{type(self).__name__} has no goal point to relabel: observation_format='goal' "
                          "is for the reach environments; use 'flat' or 'dict'")
 
-    def _goals(self) -> tuple[np.ndarray, np.ndarray]:
-        """The current achieved and desired goals (``observation_format="goal"``)."""
-        raise NotImplementedError
-
     def _reset_task(self, options: dict | None, start: solver.Equilibrium
                     ) -> tuple[solver.Scene, solver.Equilibrium]:
         """Draw the episode's task given the start state ``start`` in the task-free scene.
