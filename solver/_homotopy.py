@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
+from solver.actuator import _pressure_and_slope, _stretch
 from solver.jit import njit
+from solver.layout import T_CHANNEL, TF_AREA_RATIO, TF_COS_ALPHA, TF_E
 
 
 @njit
@@ -20,3 +24,39 @@ def _big_change(p_a, p_b, loads_a, loads_b):
             if loads_a[i, d] != loads_b[i, d]:
                 return True
     return False
+
+
+@njit
+def ramp_crowding(p_a, p_b, tubes_i, tubes_f):
+    """How much faster than on average the rest strains change where a pressure ramp from
+    ``p_a`` to ``p_b`` (channel pressures, Pa) changes them fastest (>= 1).
+
+    The rest strains are linear in each tube's stretch λ, and λ(p) is far from linear: the
+    braid stiffens towards lock-up, so near it most of a 0 → p_max ramp's curvature appears
+    in its first 1/256. Per tube the ratio is the largest dλ/dp over the ramp (the smallest
+    dp/dλ, closed form, on 17 stretches spanning it) times the pressure change, over the
+    stretch change. The path-following kernels divide their smallest step by it, so that
+    the smallest step is a fixed share of the strain change, not of the pressure change.
+    """
+    crowding = 1.0
+    for k in range(tubes_i.shape[0]):
+        c = tubes_i[k, T_CHANNEL]
+        lo, hi = min(p_a[c], p_b[c]), max(p_a[c], p_b[c])
+        if not hi > lo:
+            continue
+        e, ratio, cos_alpha = tubes_f[k, TF_E], tubes_f[k, TF_AREA_RATIO], tubes_f[k, TF_COS_ALPHA]
+        lam_lo = _stretch(lo, e, ratio, cos_alpha)
+        change = _stretch(hi, e, ratio, cos_alpha) - lam_lo
+        if not change > 0.0:
+            continue
+        slope = math.inf
+        for j in range(_SLOPE_SAMPLES):
+            lam = lam_lo + change * j / (_SLOPE_SAMPLES - 1)
+            slope = min(slope, _pressure_and_slope(lam, e, ratio, cos_alpha)[1])
+        if slope > 0.0 and math.isfinite(slope):
+            crowding = max(crowding, (hi - lo) / (slope * change))
+    return crowding
+
+
+# Stretches at which ramp_crowding samples dp/dλ over a ramp.
+_SLOPE_SAMPLES = 17

@@ -3,13 +3,15 @@ only where that cannot change the answer (docs/design.md §6, §10)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 
 from solver import _spatial
+from solver import _spatial_shooting as _ms
 from solver import layout as L
-from solver._model import MULTIPLE_SHOOTING_INDEX, context, rest_strains
+from solver._model import MULTIPLE_SHOOTING_INDEX, context, rest_strains, shooting_layout
 from solver._paths_planar import NO_DISCS, NO_GUARD, solve_single
 from solver.results import Equilibrium
 from solver.rod import base_rotation, integrate_spatial, rotation_to_quaternion
@@ -80,6 +82,25 @@ def _samples(arm, packed, scene, ctx):
 
 
 def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+    """Spatial dead-load solve: single shooting, or multiple shooting where that is
+    ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``), as
+    :func:`solver._paths_planar.solve_planar` does in the plane."""
+    fallbacks = settings.n_scan > 0
+    methods = (solve_spatial_single, solve_spatial_multiple)
+    if fallbacks and context(arm, packed, scene, 3, settings).shooting_index > MULTIPLE_SHOOTING_INDEX:
+        methods = methods[::-1]
+    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
+    eq = methods[0](*args)
+    if fallbacks and not (eq.converged and eq.stable):
+        # Each method covers the other's failures: multiple shooting the ill-conditioned
+        # arms, single shooting (which switches branches at folds) the buckling ones.
+        other = methods[1](*args)
+        if other.converged and other.stable:
+            return replace(other, iterations=other.iterations + eq.iterations)
+    return eq
+
+
+def solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Spatial dead-load solve by single shooting on m0 (:func:`solver._spatial._follow`):
     the loading stage of a cold solve, then the pressure ramp."""
     ctx = context(arm, packed, scene, 3, settings)
@@ -122,12 +143,97 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
     res = float(np.linalg.norm(tip_state[L.SP_M:L.SP_M + 3] - m_tip))
     # ``stable`` is the stability of the returned state, from the Newton pass that converged
     # on it.
-    common = dict(tip=tip_state[L.SP_R:L.SP_R + 3].copy(),
-                  converged=bool(ok and res <= 10 * ctx.tol), stable=bool(stable),
-                  iterations=int(iterations), residual=res, snapped=bool(snapped or snap_load),
-                  model=model, planar=False, scene=scene, pressures=p_inputs,
-                  channel_pressures=p_channel, base_moment=m0.copy(), base_force=ctx.base_force,
-                  arm=arm)
+    return _spatial_result(arm, packed, scene, ctx, pos, rot, mom, rest, m0,
+                           converged=bool(ok and res <= 10 * ctx.tol), stable=bool(stable),
+                           iterations=int(iterations), residual=res,
+                           snapped=bool(snapped or snap_load), model=model,
+                           pressures=p_inputs, channel_pressures=p_channel)
+
+
+def solve_spatial_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+    """Spatial dead-load solve by multiple shooting (:mod:`solver._spatial_shooting`): from
+    the nodes of a recorded warm start on this grid, or else from the arm loaded from
+    straight (cached per scene), along the pressure ramp."""
+    layout, segs, _ = shooting_layout(arm, packed)
+    ctx = context(arm, layout, scene, 3, settings)
+    p_target = p_channel if arm.n_channels else np.zeros(1)
+    ns = len(arm.sections)
+    rest, p_now, loads_now, m_tip = (np.empty((3, ns)), np.empty(p_target.shape[0]),
+                                     np.empty((ns, 6)), np.empty(3))
+    kernel = (segs, layout.secf, layout.sec_steps, layout.c_j, layout.tubes_i, layout.tubes_f)
+    work = (ctx.params, layout.moment_scale, rest, p_now, loads_now, m_tip)
+    iterations = 0
+    load_snapped = False
+    if warm_start is not None and warm_start.scene is not None \
+            and warm_start.orientations.shape[0] == layout.n_rows:
+        quats, moms = _nodes_of(warm_start, segs, scene)
+        start_ctx = context(arm, layout, warm_start.scene, 3, settings)
+        p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
+        start = (p_start, start_ctx.loads, start_ctx.m_tip)
+    else:
+        quats, moms, iterations, loaded, load_snapped = _loaded_nodes(arm, layout, segs, scene, ctx,
+                                                                      kernel, work)
+        start = (np.zeros_like(p_target), ctx.loads, ctx.m_tip)
+        if not loaded:
+            return _nodes_result(arm, layout, scene, ctx, quats, moms, segs, rest, loads_now,
+                                 converged=False, stable=False, iterations=iterations,
+                                 residual=math.inf, snapped=load_snapped, model=model,
+                                 pressures=p_inputs, channel_pressures=p_channel)
+    ok, its, stable, res, snapped = _ms.follow(quats, moms, *kernel, start[0], p_target, start[1],
+                                               ctx.loads, start[2], ctx.m_tip, *work)
+    return _nodes_result(arm, layout, scene, ctx, quats, moms, segs, rest, loads_now,
+                         converged=bool(ok), stable=bool(stable), iterations=iterations + its,
+                         residual=float(res), snapped=bool(snapped or load_snapped), model=model,
+                         pressures=p_inputs,
+                         channel_pressures=p_channel)
+
+
+def _nodes_of(eq, segs, scene):
+    """Multiple-shooting nodes (quaternions (K, 4), moments (K, 3)) at the segment starts of
+    a recorded spatial equilibrium on the same grid."""
+    rows = segs[:, L.SEG_ROW0] + segs[:, L.SEG_FIRST]
+    quats = np.empty((rows.size, 4))
+    for k, row in enumerate(rows):
+        rotation_to_quaternion(np.ascontiguousarray(eq.orientations[row]), quats[k])
+    rotation_to_quaternion(base_rotation(scene.base_theta), quats[0])
+    return quats, np.ascontiguousarray(eq.internal_moment[rows])
+
+
+def _loaded_nodes(arm, layout, segs, scene, ctx, kernel, work):
+    """Stage 1 of a cold multiple-shooting solve (cached per scene): the unactuated arm's
+    loads ramped in from the straight, unloaded rod. Returns copies of the nodes, the
+    iterations, whether it converged and whether it snapped."""
+    def build():
+        quats = np.empty((segs.shape[0], 4))
+        rotation_to_quaternion(base_rotation(scene.base_theta), quats[0])
+        quats[1:] = quats[0]
+        moms = np.zeros((segs.shape[0], 3))
+        p0 = np.zeros(max(arm.n_channels, 1))
+        ok, its, stable, _, snapped = _ms.follow(quats, moms, *kernel, p0, p0,
+                                                 np.zeros_like(ctx.loads), ctx.loads, np.zeros(3),
+                                                 ctx.m_tip, *work)
+        for a in (quats, moms):
+            a.flags.writeable = False
+        return quats, moms, int(its), bool(ok and stable), bool(snapped)
+
+    quats, moms, its, ok, snapped = arm._solver_cache.get(("spatial loaded nodes", layout.key, scene),
+                                                          build)
+    return quats.copy(), moms.copy(), its, ok, snapped
+
+
+def _nodes_result(arm, layout, scene, ctx, quats, moms, segs, rest, loads, **fields):
+    """The Equilibrium of multiple-shooting nodes at the level of rest strains ``rest`` and
+    loads ``loads`` (the backbone recorded segment by segment)."""
+    rows = layout.n_rows
+    pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
+    _ms.record(quats, moms, segs, layout.secf, layout.sec_steps, layout.c_j, rest,
+               loads, np.empty((6, L.NSTATE)), pos, rot, mom)
+    return _spatial_result(arm, layout, scene, ctx, pos, rot, mom, rest, moms[0].copy(), **fields)
+
+
+def _spatial_result(arm, packed, scene, ctx, pos, rot, mom, rest, m0, **fields):
+    """The spatial Equilibrium of a recorded backbone: positions, frames and moments (N, ·)
+    at the rest strains ``rest`` and base moment ``m0``; strains from the constitutive law."""
     seg, s, force = _samples(arm, packed, scene, ctx)
     nb = np.einsum("nji,nj->ni", rot, force)
     mb = np.einsum("nji,nj->ni", rot, mom)
@@ -138,4 +244,6 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
                                 u2[seg] + mb[:, 1] * packed.c_i[seg], mb[:, 2] * packed.c_j[seg]])
     return Equilibrium._make(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
                              curvature=strain_u, internal_force=force, internal_moment=mom,
-                             section_ends=packed.section_ends, **common)
+                             section_ends=packed.section_ends, tip=pos[-1].copy(),
+                             planar=False, scene=scene, base_moment=m0.copy(),
+                             base_force=ctx.base_force, arm=arm, **fields)

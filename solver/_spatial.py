@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from solver._homotopy import _big_change
+from solver._homotopy import _big_change, ramp_crowding
 from solver.jit import njit
 from solver.layout import (
     CA,
@@ -146,7 +146,9 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
     tol = params[TOL]
     max_iter = int(params[MAX_ITER])
     max_step = params[MAX_STEP]
-    dt_min = params[DT_MIN]
+    # The smallest step is a share of the rest-strain change (near braid lock-up most of it
+    # is crowded into the start of a pressure ramp).
+    dt_min = params[DT_MIN] / ramp_crowding(p_a, p_b, tubes_i, tubes_f)
     work = np.empty((6, NSTATE))
     dummy = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
     t = 0.0
