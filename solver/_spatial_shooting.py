@@ -25,7 +25,6 @@ import math
 
 import numpy as np
 
-from solver._contact import _orthonormalise
 from solver._homotopy import ramp_crowding
 from solver._spatial import _mirror_symmetric, _negative_eigenvalues, _set_level
 from solver.jit import njit
@@ -313,14 +312,14 @@ def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, work):
     Jacobi fields δφ(L) = I, δm(L) = 0 are integrated from the tip to the base, each segment
     from its own end node (the tip's end state for the last).
 
-    Along a rod in tension the fields grow like e^(L·√(N/EI)) and turn parallel, and the
-    eigenvalues of δφ(s) are lost to round-off. While the fields stay resolved the test is
-    the single-shooting one (no real eigenvalue of δφ(s) may turn negative); once they turn
-    parallel (the normalised Gram determinant of the 6×3 fields below 1e-12) they are
-    re-orthonormalised (Gram–Schmidt: a triangular factor of positive determinant) at each
-    segment start, as the planar multiple-shooting test does, and from there on det δφ(s)
-    must stay positive (a pair of coincident conjugate points, which cancels in the
-    determinant, is then not seen).
+    Along a rod in tension the bending fields grow like e^(L·√(N/EI)) while the torsional
+    one does not: δφ(s) soon has eigenvalues 10¹⁶ apart and the small one is lost to
+    round-off. So at every segment start s_k the fields F (6×3) are restarted as
+    F δφ(s_k)⁻¹ = (I, W), W = δm δφ⁻¹ the Riccati variable, which stays of the size of the
+    arm's stiffness away from a conjugate point. Within the segment the δφ block is then
+    δφ(s) δφ(s_k)⁻¹: it starts at I, and, as in the single-shooting test, none of its real
+    eigenvalues may turn negative (det δφ(s) keeps its sign through the restarts, which
+    multiply it by det δφ(s_k)⁻¹ > 0).
     """
     n_seg = segs.shape[0]
     none = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
@@ -328,24 +327,19 @@ def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, work):
     _run_segment(n_seg - 1, quats[n_seg - 1], moms[n_seg - 1], zero, _BY_MOMENT, segs, secf,
                  steps, c_j, rest, loads, work, False, none[0], none[1], none[2])
     y = work[0]
-    fields = np.zeros((6, 3))  # rows δφ, δm; one Jacobi field per column
+    for d in range(SP_DPHI, SP_DM + 9):
+        y[d] = 0.0
     for d in range(3):
-        fields[d, d] = 1.0
-    resolved = True
+        y[SP_DPHI + 4 * d] = 1.0
+    riccati = np.empty(9)
     for k in range(n_seg - 1, -1, -1):
         if k < n_seg - 1:
             for d in range(4):
                 y[SP_Q + d] = quats[k + 1, d]
             for d in range(3):
                 y[SP_M + d] = moms[k + 1, d]
-        if resolved and _gram_ratio(fields) < 1e-12:
-            resolved = False
-        if not resolved and not _orthonormalise(fields):
-            return False
-        for c in range(3):
-            for d in range(3):
-                y[SP_DPHI + 3 * c + d] = fields[d, c]
-                y[SP_DM + 3 * c + d] = fields[3 + d, c]
+            if not _restart_fields(y, riccati):
+                return False
         i = segs[k, SEG_SECTION]
         first = segs[k, SEG_FIRST]
         length = secf[LEN, i]
@@ -355,31 +349,41 @@ def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, work):
             spatial_rk4_step(y, -(end - j) * h, h, work, length, secf[CA, i], secf[CG, i],
                              secf[CI, i], c_j[i], rest[REST_U1, i], rest[REST_U2, i],
                              rest[REST_V3, i], loads[i])
-            dphi = y[SP_DPHI:SP_DPHI + 9]
-            det = det3(dphi)
-            if not math.isfinite(det) or (_negative_eigenvalues(dphi) > 0 if resolved else det <= 0.0):
+            block = y[SP_DPHI:SP_DPHI + 9]
+            if not math.isfinite(det3(block)) or _negative_eigenvalues(block) > 0:
                 return False
-        for c in range(3):
-            for d in range(3):
-                fields[d, c] = y[SP_DPHI + 3 * c + d]
-                fields[3 + d, c] = y[SP_DM + 3 * c + d]
     return True
 
 
 @njit
-def _gram_ratio(f):
-    """det(fᵀf) / Π|f_c|² of the columns of ``f`` (6, 3): 1 for orthogonal fields, 0 for
-    parallel ones."""
-    g = np.empty(9)
-    norms = 1.0
+def _restart_fields(y, riccati):
+    """Jacobi fields (δφ, δm) in ``y`` (column-wise blocks at SP_DPHI, SP_DM) replaced by
+    (I, δm δφ⁻¹); ``riccati`` (9,) scratch. False if δφ is singular or not finite."""
+    phi = y[SP_DPHI:SP_DPHI + 9]
+    det = det3(phi)
+    if not (math.isfinite(det) and det != 0.0):
+        return False
+    # δφ⁻¹ by the adjugate (column-wise storage: entry (row a, column b) at 3b + a).
+    inv = np.empty(9)
     for a in range(3):
         for b in range(3):
-            dot = 0.0
-            for d in range(6):
-                dot += f[d, a] * f[d, b]
-            g[3 * b + a] = dot
-        norms *= g[4 * a]
-    return det3(g) / norms if norms > 0.0 else 0.0
+            a1, a2 = (a + 1) % 3, (a + 2) % 3
+            b1, b2 = (b + 1) % 3, (b + 2) % 3
+            # (δφ⁻¹)[a, b] = cofactor(b, a) / det
+            inv[3 * b + a] = (phi[3 * a1 + b1] * phi[3 * a2 + b2]
+                              - phi[3 * a2 + b1] * phi[3 * a1 + b2]) / det
+    for a in range(3):
+        for b in range(3):
+            total = 0.0
+            for c in range(3):
+                total += y[SP_DM + 3 * c + a] * inv[3 * b + c]
+            riccati[3 * b + a] = total
+    for d in range(9):
+        y[SP_DM + d] = riccati[d]
+        y[SP_DPHI + d] = 0.0
+    for d in range(3):
+        y[SP_DPHI + 4 * d] = 1.0
+    return True
 
 
 @njit
