@@ -33,6 +33,7 @@ from solver.layout import (
     DT_MIN,
     JUMP,
     LEN,
+    M_BOUND,
     MAX_ITER,
     MAX_STEP,
     N_SCAN,
@@ -409,6 +410,54 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
                         m0[1] = -m0[1]
                 return True, total
         amp *= 3.0
+    found, its = _scan_roots(m0, accepted, quat0, secf, steps, c_j, rest, loads_now, m_tip, params,
+                             work, dummy)
+    return found, total + its
+
+
+# Shells of the root scan, as fractions of the base-moment bound M_BOUND.
+_SCAN_SHELLS = (0.05, 0.15, 0.4, 1.0)
+
+
+@njit
+def _scan_roots(m0, accepted, quat0, secf, steps, c_j, rest, loads, m_tip, params, work, dummy):
+    """Where the critical mode leads to no stable state (the arm snaps far): the stable
+    equilibrium nearest the last base moment ``accepted``, as the planar fold scan finds it
+    (:func:`solver._planar._scan`) — Newton from ``accepted`` moved by shells of growing
+    radius (:data:`_SCAN_SHELLS` of M_BOUND) in the 26 directions of a cube's faces, edges
+    and corners; the nearest stable root of the first shell that has one.
+
+    Returns (found, iterations); ``m0`` (3,) holds the root found.
+    """
+    total = 0
+    best = math.inf
+    root = np.empty(3)
+    for shell in _SCAN_SHELLS:
+        radius = shell * params[M_BOUND]
+        for i in range(-1, 2):
+            for j in range(-1, 2):
+                for k in range(-1, 2):
+                    norm = math.sqrt(i * i + j * j + k * k)
+                    if norm == 0.0:
+                        continue
+                    m0[0] = accepted[0] + radius * i / norm
+                    m0[1] = accepted[1] + radius * j / norm
+                    m0[2] = accepted[2] + radius * k / norm
+                    ok, its, _, stable = _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip,
+                                                 params[TOL], int(params[MAX_ITER]),
+                                                 params[MAX_STEP], work, dummy)
+                    total += its
+                    if ok and stable:
+                        gap = math.sqrt((m0[0] - accepted[0]) ** 2 + (m0[1] - accepted[1]) ** 2
+                                        + (m0[2] - accepted[2]) ** 2)
+                        if gap < best:
+                            best = gap
+                            for d in range(3):
+                                root[d] = m0[d]
+        if best < math.inf:
+            for d in range(3):
+                m0[d] = root[d]
+            return True, total
     return False, total
 
 

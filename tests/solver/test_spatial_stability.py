@@ -196,18 +196,19 @@ def _in_plane_scene(arm, rng):
 def test_in_plane_shortcut_never_changes_the_answer(design):
     """Random in-plane scenes (channels II = III) solved in 3D, cold and along warm paths:
     the shortcut and the general path give the same tip (1e-6·L) and the same flags. The
-    sample holds sideways buckles (a third of the OctArm V scenes leave the plane)."""
+    sample holds states the shortcut must hand to the spatial kernels: folds and sideways
+    buckles (about a fifth of the OctArm V scenes snap or end out of the plane)."""
     arm = designs.get(design)
     rng = np.random.default_rng(7)
     general = solver.Settings(shortcuts=False)
-    left_plane = 0
+    handed_over = 0
     for _ in range(15):
         scene, p = _in_plane_scene(arm, rng)
         a = solver.solve(arm, p, scene, planar=False)
         b = solver.solve(arm, p, scene, planar=False, settings=general)
         assert np.linalg.norm(a.tip - b.tip) <= 1e-6 * arm.length
         assert (a.converged, a.stable, a.snapped) == (b.converged, b.stable, b.snapped)
-        left_plane += abs(b.tip[2]) > 1e-6
+        handed_over += b.snapped or abs(b.tip[2]) > 1e-6
     scene = solver.Scene(base_angle_deg=90.0)
     a = b = None
     for _ in range(10):
@@ -216,9 +217,9 @@ def test_in_plane_shortcut_never_changes_the_answer(design):
         b = solver.solve(arm, p, scene, planar=False, warm_start=b, settings=general)
         assert np.linalg.norm(a.tip - b.tip) <= 1e-6 * arm.length
         assert (a.converged, a.stable, a.snapped) == (b.converged, b.stable, b.snapped)
-        left_plane += abs(b.tip[2]) > 1e-6
+        handed_over += b.snapped or abs(b.tip[2]) > 1e-6
     if design == "octarm_v":
-        assert left_plane >= 3
+        assert handed_over >= 3
 
 
 def test_sideways_buckle_takes_the_plus_z_mirror_image():
