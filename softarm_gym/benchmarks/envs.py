@@ -3,7 +3,9 @@
 Each case is timed as a user runs it: ``gym.make(env_id, observation=...)`` with random
 (seeded) actions, resets included whenever an episode ends, after a warm-up that loads
 the numba kernels. ``single`` is one env in this process; ``vector`` an
-``AsyncVectorEnv`` with one worker per core (steps counted over all workers).
+``AsyncVectorEnv`` with one worker per core (steps counted over all workers). The reach IDs
+of :data:`SPATIAL_IDS` are also timed in 3D (``planar=False``, their registered delta
+actions), with every observation.
 """
 
 from __future__ import annotations
@@ -17,9 +19,12 @@ import numpy as np
 import softarm_gym  # noqa: F401  (registers the IDs)
 from softarm_gym.sensing import ESTIMATORS
 
-TARGETS = {"reach_true": 5000.0, "estimator": 1000.0, "wrap": 500.0}
+TARGETS = {"reach_true": 5000.0, "estimator": 1000.0, "wrap": 500.0, "reach_true_3d": 3000.0}
 """Issue targets (steps/s): OctArmReach with ``true`` observations, any estimator, wrap (and
-obstacle reach, the other contact task)."""
+obstacle reach, the other contact task), 3D reach with ``true`` observations."""
+
+SPATIAL_IDS = ("SoftArm/OctArmReach-v1", "SoftArm/CTReach-v1")
+"""Reach IDs the benchmark also times in 3D (``planar=False``)."""
 
 QUICK_OBSERVATIONS = ("true", "constant_curvature")
 
@@ -29,11 +34,13 @@ def env_ids() -> tuple[str, ...]:
     return tuple(env_id for env_id in gym.registry if env_id.startswith("SoftArm/"))
 
 
-def target_for(env_id: str, observation: str) -> float:
+def target_for(env_id: str, observation: str, planar: bool = True) -> float:
     """The issue's steps/s target for a case."""
     if "Wrap" in env_id or "ObstacleReach" in env_id:
         return TARGETS["wrap"]
-    return TARGETS["reach_true"] if observation == "true" and "OctArm" in env_id else TARGETS["estimator"]
+    if observation == "true" and "OctArm" in env_id:
+        return TARGETS["reach_true"] if planar else TARGETS["reach_true_3d"]
+    return TARGETS["estimator"]
 
 
 def _time_steps(env, n_steps: int, seed: int) -> float:
@@ -54,7 +61,8 @@ def _time_steps(env, n_steps: int, seed: int) -> float:
 
 def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = None,
         observations=None, ids=None, progress=None) -> dict:
-    """Time every (ID, observation) case, single and vectorised.
+    """Time every (ID, observation) case, single and vectorised, and the 3D cases of the
+    IDs in :data:`SPATIAL_IDS`.
 
     Args:
         quick: fewer steps and only the ``true`` and ``constant_curvature`` observations.
@@ -65,8 +73,8 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
         progress: optional callable taking a status string.
 
     Returns:
-        ``{"cases": [{"env_id", "observation", "single_steps_per_s", "vector_steps_per_s",
-        "n_envs", "target_steps_per_s"}], "n_steps": ..., "n_envs": ...}``.
+        ``{"cases": [{"env_id", "observation", "planar", "single_steps_per_s",
+        "vector_steps_per_s", "n_envs", "target_steps_per_s"}], "n_steps": ..., "n_envs": ...}``.
     """
     n_steps = n_steps or (60 if quick else 300)
     if n_steps < 1:
@@ -78,23 +86,25 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
         if obs not in ESTIMATORS:
             raise ValueError(f"unknown observation {obs!r}; choose from {', '.join(ESTIMATORS)}")
     cases = []
-    for env_id in ids:
-        for obs in observations:
-            if progress:
-                progress(f"{env_id} observation={obs}")
-            env = gym.make(env_id, observation=obs)
-            _time_steps(env, min(20, n_steps), seed=1)  # warm-up: load kernels, first resets
-            single = _time_steps(env, n_steps, seed=0)
-            env.close()
-            vec = gym.vector.AsyncVectorEnv([lambda i=env_id, o=obs: gym.make(i, observation=o)] * n_envs)
-            try:
-                _time_steps(vec, min(10, n_steps), seed=1)
-                vector = _time_steps(vec, max(1, n_steps // n_envs), seed=0)
-            finally:
-                vec.close()
-            cases.append({"env_id": env_id, "observation": obs, "single_steps_per_s": single,
-                          "vector_steps_per_s": vector, "n_envs": n_envs,
-                          "target_steps_per_s": target_for(env_id, obs)})
+    plan = [(env_id, obs, True) for env_id in ids for obs in observations]
+    plan += [(env_id, obs, False) for env_id in ids if env_id in SPATIAL_IDS for obs in observations]
+    for env_id, obs, planar in plan:
+        kwargs = {"observation": obs} if planar else {"observation": obs, "planar": False}
+        if progress:
+            progress(f"{env_id} observation={obs}{'' if planar else ' (3D)'}")
+        env = gym.make(env_id, **kwargs)
+        _time_steps(env, min(20, n_steps), seed=1)  # warm-up: load kernels, first resets
+        single = _time_steps(env, n_steps, seed=0)
+        env.close()
+        vec = gym.vector.AsyncVectorEnv([lambda i=env_id, k=kwargs: gym.make(i, **k)] * n_envs)
+        try:
+            _time_steps(vec, min(10, n_steps), seed=1)
+            vector = _time_steps(vec, max(1, n_steps // n_envs), seed=0)
+        finally:
+            vec.close()
+        cases.append({"env_id": env_id, "observation": obs, "planar": planar,
+                      "single_steps_per_s": single, "vector_steps_per_s": vector,
+                      "n_envs": n_envs, "target_steps_per_s": target_for(env_id, obs, planar)})
     resets = [reset_times(env_id) for env_id in ids if env_id in RESET_IDS]
     return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs, "resets": resets}
 
@@ -132,7 +142,8 @@ def format_table(result: dict) -> str:
              f"{result['n_steps']} steps per case)"]
     for c in result["cases"]:
         met = "ok" if c["single_steps_per_s"] >= c["target_steps_per_s"] else "below"
-        lines.append(f"{c['env_id']:24s} {c['observation']:20s} {c['single_steps_per_s']:9.0f} "
+        name = c["env_id"] if c.get("planar", True) else f"{c['env_id']} 3D"
+        lines.append(f"{name:24s} {c['observation']:20s} {c['single_steps_per_s']:9.0f} "
                      f"{c['vector_steps_per_s']:9.0f} {c['target_steps_per_s']:9.0f}  {met}")
     if result.get("resets"):
         lines += ["", f"reset (median of {result['resets'][0]['n_resets']}, alternating)   "

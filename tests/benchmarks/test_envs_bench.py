@@ -24,3 +24,15 @@ def test_env_bench_ids_are_checked(capsys):
     assert "unknown ID(s) SoftArm/NoSuchTask-v0" in capsys.readouterr().err
     assert main(["bench", "--ids", "SoftArm/CTReach-v0"]) == 2
     assert "--ids only applies to --env" in capsys.readouterr().err
+
+
+def test_reach_is_also_timed_in_3d():
+    """The 3D rows: the reach IDs of SPATIAL_IDS with planar=False, held to the 3D targets."""
+    from softarm_gym.benchmarks.envs import SPATIAL_IDS, run
+
+    result = run(n_steps=4, n_envs=2, observations=("true",), ids=(SPATIAL_IDS[0], "SoftArm/CTWrap-v1"))
+    rows = {(c["env_id"], c["planar"]): c for c in result["cases"]}
+    assert set(rows) == {(SPATIAL_IDS[0], True), (SPATIAL_IDS[0], False), ("SoftArm/CTWrap-v1", True)}
+    assert rows[(SPATIAL_IDS[0], False)]["target_steps_per_s"] == TARGETS["reach_true_3d"]
+    assert target_for(SPATIAL_IDS[1], "cable_encoder", planar=False) == TARGETS["estimator"]
+    assert f"{SPATIAL_IDS[0]} 3D" in format_table(result)
