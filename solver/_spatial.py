@@ -415,8 +415,9 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
     return found, total + its
 
 
-# Shells of the root scan, as fractions of the base-moment bound M_BOUND.
-_SCAN_SHELLS = (0.05, 0.15, 0.4, 1.0)
+# Shells of the root scan, as fractions of the base-moment bound M_BOUND (every equilibrium
+# has |m0| <= M_BOUND, so the last shell reaches across that whole ball).
+_SCAN_SHELLS = (0.05, 0.15, 0.4, 1.0, 2.0)
 
 
 @njit
