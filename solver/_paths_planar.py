@@ -182,16 +182,24 @@ def _loaded_record(arm, packed, scene, ctx, m0):
 def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Planar dead-load solve: single shooting, or multiple shooting where that is
     ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``)."""
+    return solve_either(solve_single, solve_multiple, 2, arm, packed, p_inputs, p_channel, scene,
+                        model, warm_start, settings)
+
+
+def solve_either(single, multiple, dim, arm, packed, p_inputs, p_channel, scene, model, warm_start,
+                 settings):
+    """Solve by ``single`` shooting, or by ``multiple`` shooting first where single shooting
+    is ill-conditioned (index above MULTIPLE_SHOOTING_INDEX); with the fallbacks on
+    (``settings.n_scan > 0``) the other method runs where the first did not return a stable
+    converged state. Each covers the other's failures: multiple shooting the ill-conditioned
+    arms, single shooting (with its fold scan and branch switching) the buckling ones."""
     fallbacks = settings.n_scan > 0 and model != "constant_curvature"
-    ctx = context(arm, packed, scene, 2, settings)
-    methods = (solve_single, solve_multiple)
-    if fallbacks and ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
+    methods = (single, multiple)
+    if fallbacks and context(arm, packed, scene, dim, settings).shooting_index > MULTIPLE_SHOOTING_INDEX:
         methods = methods[::-1]
     args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     eq = methods[0](*args)
     if fallbacks and not (eq.converged and eq.stable):
-        # Each method covers the other's failures: multiple shooting the ill-conditioned
-        # arms, single shooting (which has the fold scan) the buckled columns.
         other = methods[1](*args)
         if other.converged and other.stable:
             return replace(other, iterations=other.iterations + eq.iterations)

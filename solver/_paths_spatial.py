@@ -12,7 +12,7 @@ from solver import _spatial
 from solver import _spatial_shooting as _ms
 from solver import layout as L
 from solver._model import MULTIPLE_SHOOTING_INDEX, context, rest_strains, shooting_layout
-from solver._paths_planar import NO_DISCS, NO_GUARD, solve_single
+from solver._paths_planar import NO_DISCS, NO_GUARD, solve_either, solve_single
 from solver.results import Equilibrium
 from solver.rod import base_rotation, integrate_spatial, rotation_to_quaternion
 
@@ -85,19 +85,8 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
     """Spatial dead-load solve: single shooting, or multiple shooting where that is
     ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``), as
     :func:`solver._paths_planar.solve_planar` does in the plane."""
-    fallbacks = settings.n_scan > 0
-    methods = (solve_spatial_single, solve_spatial_multiple)
-    if fallbacks and context(arm, packed, scene, 3, settings).shooting_index > MULTIPLE_SHOOTING_INDEX:
-        methods = methods[::-1]
-    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
-    eq = methods[0](*args)
-    if fallbacks and not (eq.converged and eq.stable):
-        # Each method covers the other's failures: multiple shooting the ill-conditioned
-        # arms, single shooting (which switches branches at folds) the buckling ones.
-        other = methods[1](*args)
-        if other.converged and other.stable:
-            return replace(other, iterations=other.iterations + eq.iterations)
-    return eq
+    return solve_either(solve_spatial_single, solve_spatial_multiple, 3, arm, packed, p_inputs,
+                        p_channel, scene, model, warm_start, settings)
 
 
 def solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):

@@ -302,16 +302,25 @@ def _stability(secf, steps, c_j, rest, loads, work):
     for d in range(3):
         y[SP_DPHI + 4 * d] = 1.0  # δφ(L) = identity columns, δm(L) = 0
     for i in range(secf.shape[1] - 1, -1, -1):
-        length = secf[LEN, i]
-        nst = steps[i]
-        h = -length / nst
-        for j in range(nst):
-            spatial_rk4_step(y, length + j * h, h, work, length, secf[CA, i], secf[CG, i],
-                             secf[CI, i], c_j[i], rest[REST_U1, i], rest[REST_U2, i],
-                             rest[REST_V3, i], loads[i])
-            dphi = y[SP_DPHI:SP_DPHI + 9]
-            if not math.isfinite(det3(dphi)) or _negative_eigenvalues(dphi) > 0:
-                return False
+        if not _fields_back(y, i, 0, steps[i], secf, steps, c_j, rest, loads, work):
+            return False
+    return True
+
+
+@njit
+def _fields_back(y, i, first, count, secf, steps, c_j, rest, loads, work):
+    """Integrate the state and Jacobi fields ``y`` back over ``count`` RK4 steps of section
+    i, from the end of step ``first + count − 1`` to the start of step ``first``; False as
+    soon as a real eigenvalue of δφ is negative (or δφ is not finite)."""
+    length = secf[LEN, i]
+    h = -length / steps[i]
+    end = first + count
+    for j in range(count):
+        spatial_rk4_step(y, -(end - j) * h, h, work, length, secf[CA, i], secf[CG, i], secf[CI, i],
+                         c_j[i], rest[REST_U1, i], rest[REST_U2, i], rest[REST_V3, i], loads[i])
+        dphi = y[SP_DPHI:SP_DPHI + 9]
+        if not math.isfinite(det3(dphi)) or _negative_eigenvalues(dphi) > 0:
+            return False
     return True
 
 

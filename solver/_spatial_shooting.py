@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from solver._homotopy import ramp_crowding
-from solver._spatial import _mirror_symmetric, _negative_eigenvalues, _set_level
+from solver._spatial import _fields_back, _mirror_symmetric, _set_level
 from solver.jit import njit
 from solver.layout import (
     CA,
@@ -340,18 +340,9 @@ def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, work):
                 y[SP_M + d] = moms[k + 1, d]
             if not _restart_fields(y, riccati):
                 return False
-        i = segs[k, SEG_SECTION]
-        first = segs[k, SEG_FIRST]
-        length = secf[LEN, i]
-        h = -length / steps[i]
-        end = first + segs[k, SEG_STEPS]
-        for j in range(segs[k, SEG_STEPS]):
-            spatial_rk4_step(y, -(end - j) * h, h, work, length, secf[CA, i], secf[CG, i],
-                             secf[CI, i], c_j[i], rest[REST_U1, i], rest[REST_U2, i],
-                             rest[REST_V3, i], loads[i])
-            block = y[SP_DPHI:SP_DPHI + 9]
-            if not math.isfinite(det3(block)) or _negative_eigenvalues(block) > 0:
-                return False
+        if not _fields_back(y, segs[k, SEG_SECTION], segs[k, SEG_FIRST], segs[k, SEG_STEPS],
+                            secf, steps, c_j, rest, loads, work):
+            return False
     return True
 
 
