@@ -244,6 +244,10 @@ class CurlController(_PressureController):
         return self._command
 
 
+_MAX_CORNERS = 64
+"""CEMPlanner tries every corner of the action box by default up to this many (6 inputs)."""
+
+
 class CEMPlanner(_PressureController):
     """Sampling-based model-predictive control: the cross-entropy method over action sequences,
     each candidate rolled out on the nominal model from the current state. Reach, obstacle
@@ -299,7 +303,7 @@ class CEMPlanner(_PressureController):
     """
 
     def __init__(self, env, samples: int = 32, elites: int = 6, iterations: int = 3, horizon: int = 1,
-                 init_std: float = 0.5, seed: int = 0):
+                 init_std: float = 0.5, all_corners: bool | None = None, seed: int = 0):
         for name, value, low in (("samples", samples, 2), ("elites", elites, 1),
                                  ("iterations", iterations, 1), ("horizon", horizon, 1)):
             if isinstance(value, bool) or int(value) != value or value < low:
@@ -328,6 +332,15 @@ class CEMPlanner(_PressureController):
         self._slices = observation_slices(env)
         self._n = base.n_inputs
         self._batch = None if self.contact else solver.BatchStepper(self.arm, self.scene, self.samples)
+        if all_corners is None:
+            all_corners = self.action_mode == "absolute" and 2 ** self._n <= _MAX_CORNERS
+        elif not isinstance(all_corners, bool):
+            raise ValueError(f"all_corners must be True, False or None; got {all_corners!r}")
+        # Every corner of the action box (rows: the binary digits of 0 .. 2^n - 1), each held
+        # over the horizon.
+        self._corners = None if not all_corners else np.repeat(
+            (2.0 * ((np.arange(2 ** self._n)[:, None] >> np.arange(self._n)) & 1) - 1.0)[:, None],
+            self.horizon, axis=1)
         self.rng = np.random.default_rng(seed)
         self.reset()
 
@@ -375,7 +388,18 @@ class CEMPlanner(_PressureController):
                            stiffness=self.task.contact_stiffness)
 
     def _score_reach(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
-        """Summed reach rewards of (m, horizon, n) action sequences on the batched model."""
+        """Summed reach rewards of (m, horizon, n) action sequences on the batched model, in
+        chunks of the batch's size (the last one padded with copies of its last sequence)."""
+        n = self._batch.n
+        totals = []
+        for start in range(0, actions.shape[0], n):
+            chunk = actions[start:start + n]
+            padded = np.concatenate([chunk, np.repeat(chunk[-1:], n - chunk.shape[0], axis=0)])
+            totals.append(self._score_batch(padded, fraction)[:chunk.shape[0]])
+        return np.concatenate(totals)
+
+    def _score_batch(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+        """Summed reach rewards of (batch size, horizon, n) action sequences."""
         batch = self._batch
         batch.adopt(self._nominal.equilibrium)
         fractions = np.repeat(fraction[None], batch.n, axis=0)
@@ -472,14 +496,18 @@ class CEMPlanner(_PressureController):
         if self._stalled is not None and np.array_equal(self._stalled, obs):
             return fraction  # nothing better was found from this very state: do not search again
         self.last_searched = True
-        for _ in range(self.iterations):
+        for i in range(self.iterations):
             n_corners = self.samples // 4
             noise = self.rng.standard_normal((self.samples - 2 - n_corners, *mean.shape))
             draws = np.clip(mean + std * noise, -1, 1)
             # Pressure limits make bang-bang commands (every channel at 0 or p_max) optimal
             # often, and Gaussian draws rarely hit them: the mean rounded to the box's corner
-            # and random corners are candidates too.
-            corners = self.rng.choice([-1.0, 1.0], size=(n_corners, *mean.shape))
+            # and corners are candidates too, every one of them in the first round if so
+            # configured (a single good corner among 2^n is missed by a few random draws).
+            if i == 0 and self._corners is not None:
+                corners = self._corners
+            else:
+                corners = self.rng.choice([-1.0, 1.0], size=(n_corners, *mean.shape))
             candidates = np.concatenate([hold[None], np.sign(mean)[None], corners, draws])
             scores = score(candidates, fraction)
             order = np.argsort(-scores, kind="stable")
