@@ -274,9 +274,12 @@ class CEMPlanner(_PressureController):
        and scored by the sum of the task's rewards (an unconverged rollout step costs the env's
        solver-failure penalty). Holding the current pressures is always one candidate, so on
        the model the plan is never worse than standing still; the mean rounded to the box's
-       corner and a quarter of the samples drawn among the corners are candidates too (every
-       action at ±1: pressure limits make bang-bang commands optimal often, and Gaussian
-       draws rarely hit them). The ``elites`` best set the next mean and standard deviation.
+       corner and corners of the box are candidates too (every action at ±1: pressure limits
+       make bang-bang commands optimal often, and Gaussian draws rarely hit them). With
+       ``all_corners`` the first round adds every one of the 2^n_inputs corners, each held
+       over the horizon, in place of its quarter of the samples drawn at random among them;
+       later rounds draw a quarter at random. The ``elites`` best set the next mean and
+       standard deviation.
     3. The first command of the best sequence seen is sent; the rest seeds the next decision.
 
     Where the nominal state already succeeds (reach: the tip within half the success
@@ -293,9 +296,17 @@ class CEMPlanner(_PressureController):
         env: a (possibly wrapped) planar reach, obstacle-reach, track or wrap env with
             ``observation_format='flat'`` (on track it aims where the target's last
             displacement takes it).
-        samples: candidate sequences per round (>= 2). elites: best kept per round (>= 1,
-            < samples). iterations: CEM rounds per decision (>= 1). horizon: steps per
-            sequence (>= 1). init_std: first-round standard deviation (action units, > 0).
+        samples: candidate sequences per round (>= 2; the first round has 2^n_inputs − samples/4
+            more with ``all_corners``). elites: best kept per round (>= 1, < samples).
+            iterations: CEM rounds per decision (>= 1). horizon: steps per sequence (>= 1).
+            init_std: first-round standard deviation (action units, > 0).
+        all_corners: enumerate every corner of the action box in the first round. None
+            (default): with absolute actions, where corners are the bang-bang pressure
+            commands, and at most 64 corners (6 inputs); with delta actions a corner is only
+            the largest increment. Why: the best wrap on ``SoftArm/OctArmWrap-v1`` is the full
+            curl, one corner among 64; random corner draws missed it on 10 of 100 seeds, the
+            search then settled on an S-curl that wraps ~95° and stopped searching there
+            (docs/environments.md, "Wrap calibration").
         seed: seed of the planner's generator.
 
     Attributes:
