@@ -6,7 +6,11 @@ Reported per ID: the success rate (``is_success`` at the last step), the median 
 distance (reach, m), RMS tracking error (track, m) or wrap angle (wrap, deg), the median wall
 time per episode and per decision that searched (held decisions cost almost nothing)::
 
-    python -m softarm_gym.benchmarks.planner --episodes 20 --json > docs/bench/planner.json
+    python -m softarm_gym.benchmarks.planner --episodes 20 --json
+    python -m softarm_gym.benchmarks.planner --ids SoftArm/CTWrap-v1 --episodes 100 --first-seed 100
+
+The JSON records its command; the rows of docs/bench/planner.json come from several such runs,
+each with its own.
 """
 
 from __future__ import annotations
