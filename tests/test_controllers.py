@@ -118,11 +118,24 @@ def test_planner_is_reproducible_and_wraps_round_the_disc():
     assert runs[0][0]["wrap_angle_deg"] > 270.0
 
 
+def test_planner_tries_every_corner_and_escapes_the_s_curl():
+    # OctArmWrap-v1 seed 2: the full curl towards the disc, one corner of the action box among
+    # 64, wraps 348 deg in one step. A search drawing its corners at random missed it, settled
+    # on an S-curl (section 1 curled one way, section 2 the other) that wraps ~95 deg and held.
+    env = gym.make("SoftArm/OctArmWrap-v1")
+    info, _ = _planned_episode(env, CEMPlanner(env, seed=2), 2, 2)
+    assert info["is_success"] and info["wrap_angle_deg"] > 300.0, info["wrap_angle_deg"]
+    stuck, _ = _planned_episode(env, CEMPlanner(env, seed=2, all_corners=False), 2, 2)
+    assert stuck["wrap_angle_deg"] < 120.0
+
+
 def test_planner_bad_arguments_are_named():
     env = gym.make("SoftArm/OctArmReach-v0")
     with pytest.raises(ValueError, match="elites"):
         CEMPlanner(env, samples=4, elites=4)
     with pytest.raises(ValueError, match="horizon"):
         CEMPlanner(env, horizon=0)
+    with pytest.raises(ValueError, match="all_corners"):
+        CEMPlanner(env, all_corners="yes")
     with pytest.raises(ValueError, match="planar"):
         CEMPlanner(gym.make("SoftArm/OctArmReach-v0", planar=False))

@@ -1,12 +1,16 @@
 """The sampling-based planner (:class:`softarm_gym.controllers.CEMPlanner`) on every registered ID.
 
 Each ID runs ``episodes`` full episodes of ``gym.make(env_id)`` with the registered defaults,
-episode i seeded with i, the planner seeded with i too. Reported per ID: the success rate
-(``is_success`` at the last step), the median final distance (reach, m), RMS tracking error
-(track, m) or wrap angle (wrap, deg), the median wall time per episode and per decision that
-searched (held decisions cost almost nothing)::
+episode i seeded with ``first_seed`` + i (default 0), the planner seeded with the same.
+Reported per ID: the success rate (``is_success`` at the last step), the median final
+distance (reach, m), RMS tracking error (track, m) or wrap angle (wrap, deg), the median wall
+time per episode and per decision that searched (held decisions cost almost nothing)::
 
-    python -m softarm_gym.benchmarks.planner --episodes 20 --json > docs/bench/planner.json
+    python -m softarm_gym.benchmarks.planner --episodes 20 --json
+    python -m softarm_gym.benchmarks.planner --ids SoftArm/CTWrap-v1 --episodes 100 --first-seed 100
+
+The JSON records its command; the rows of docs/bench/planner.json come from several such runs,
+each with its own.
 """
 
 from __future__ import annotations
@@ -57,13 +61,20 @@ def episode(env_id: str, seed: int, **planner_kwargs) -> dict:
             "decision_seconds": float(np.median(searched)) if searched else None}
 
 
-def run(ids=None, episodes: int = 20, progress: bool = True, **planner_kwargs) -> dict:
-    """The planner's figures for ``ids`` (default: every registered ID)."""
-    result = {"command": f"python -m softarm_gym.benchmarks.planner --episodes {episodes} --json",
-              "episodes": episodes, "planner": planner_kwargs or "defaults", "ids": {}}
+def run(ids=None, episodes: int = 20, progress: bool = True, first_seed: int = 0,
+        **planner_kwargs) -> dict:
+    """The planner's figures for ``ids`` (default: every registered ID), seeds ``first_seed``
+    to ``first_seed + episodes - 1``."""
+    command = "python -m softarm_gym.benchmarks.planner"
+    if ids:
+        command += f" --ids {','.join(ids)}"
+    command += f" --episodes {episodes}" + (f" --first-seed {first_seed}" if first_seed else "") + " --json"
+    result = {"command": command, "episodes": episodes, "first_seed": first_seed,
+              "planner": planner_kwargs or "defaults", "ids": {}}
+    seeds = range(first_seed, first_seed + episodes)
     for env_id in ids or env_ids():
         rows = [episode(env_id, seed, **planner_kwargs)
-                for seed in tqdm(range(episodes), desc=env_id, disable=not progress, file=sys.stderr)]
+                for seed in tqdm(seeds, desc=env_id, disable=not progress, file=sys.stderr)]
         measure = ("median_wrap_deg" if "Wrap" in env_id else
                    "median_tracking_rms_m" if "Track" in env_id else "median_final_distance_m")
         result["ids"][env_id] = {
@@ -80,13 +91,18 @@ def run(ids=None, episodes: int = 20, progress: bool = True, **planner_kwargs) -
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=20, help="episodes per ID (default 20)")
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="seed of the first episode (default 0; episode i: first seed + i)")
     parser.add_argument("--ids", default=None, help="comma-separated IDs (default: all registered)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be >= 1")
-    result = run(args.ids.split(",") if args.ids else None, args.episodes, not args.no_progress)
+    if args.first_seed < 0:
+        parser.error("--first-seed must be >= 0")
+    result = run(args.ids.split(",") if args.ids else None, args.episodes, not args.no_progress,
+                 args.first_seed)
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))
         return 0
