@@ -10,8 +10,8 @@ with the hyperparameters of ``baselines/hyperparams/batched/``):
 
 * ``config.json`` — everything needed to continue the run (``--resume``);
 * ``monitor.csv`` — one row per training episode (return, length, wall time, final
-  ``is_success`` and ``distance``), the learning curve (with ``--batched``, one file for
-  all arms, written by ``VecMonitor``);
+  ``is_success`` and ``distance``, on wrap ``wrap_angle_deg``), the learning curve (with
+  ``--batched``, one file for all arms, written by ``VecMonitor``);
 * ``progress.csv`` and TensorBoard event files — SB3's logger (a resumed run moves the
   previous ``progress.csv`` to ``progress_<k>.csv``);
 * ``checkpoints/model_<steps>_steps.zip`` every ``--checkpoint-freq`` steps, each with its
@@ -72,6 +72,7 @@ from baselines.config import (
     HYPERPARAMS_DIR,
     action_noise,
     check_env_id,
+    is_wrap,
     load_hyperparams,
     load_normalization,
     make_env,
@@ -88,7 +89,9 @@ from softarm_gym.sb3 import BatchedVecEnv
 __all__ = ["train", "resume", "build", "TrainingInterrupted", "latest_checkpoint", "save_checkpoint", "main"]
 
 MONITOR_KEYS = ("is_success", "distance")
-"""Final-step info entries written to ``monitor.csv`` for every training episode."""
+"""Final-step info entries written to ``monitor.csv`` for every training episode (reach, track)."""
+WRAP_MONITOR_KEYS = ("is_success", "wrap_angle_deg")
+"""The same for the wrap task, which has no target distance (its measure is the wrap angle, deg)."""
 CONFIG_FILE = "config.json"
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.json")
 _REPLAY_FIELDS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
@@ -277,32 +280,40 @@ class _Evaluation(EvalCallback):
 
 # --------------------------------------------------------------------------- the run
 
+def monitor_keys(env_id: str) -> tuple[str, ...]:
+    """The final-step info entries ``monitor.csv`` records for ``env_id``'s task."""
+    return WRAP_MONITOR_KEYS if is_wrap(env_id) else MONITOR_KEYS
+
+
 def _batched_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir: Path | None,
                  append: bool = False):
     """``n_envs`` arms in one :class:`BatchedVecEnv`, in a ``VecMonitor`` (``monitor.csv``)."""
-    venv = VecMonitor(BatchedVecEnv(env_id, n_envs, **env_kwargs), info_keywords=MONITOR_KEYS)
+    keys = monitor_keys(env_id)
+    venv = VecMonitor(BatchedVecEnv(env_id, n_envs, **env_kwargs), info_keywords=keys)
     if monitor_dir is not None:
         path = monitor_dir / "monitor.csv"
         t_start = _monitor_start(path) if append else None
         if t_start is not None:  # times stay relative to the run's first start
             venv.t_start = t_start
         venv.results_writer = ResultsWriter(str(path), header={"t_start": venv.t_start, "env_id": env_id},
-                                            extra_keys=MONITOR_KEYS, override_existing=t_start is None)
+                                            extra_keys=keys, override_existing=t_start is None)
     venv.seed(seed)
     return venv
 
 
 def _vec_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir: Path | None,
              append: bool = False):
+    keys = monitor_keys(env_id)
+
     def factory(rank: int):
         def thunk():
             env = make_env(env_id, env_kwargs)
             if monitor_dir is None:
-                env = Monitor(env, info_keywords=MONITOR_KEYS)
+                env = Monitor(env, info_keywords=keys)
             else:
                 path = monitor_dir / ("monitor.csv" if rank == 0 else f"{rank}.monitor.csv")
                 t_start = _monitor_start(path) if append else None
-                env = Monitor(env, str(path), info_keywords=MONITOR_KEYS, override_existing=t_start is None)
+                env = Monitor(env, str(path), info_keywords=keys, override_existing=t_start is None)
                 if t_start is not None:  # times stay relative to the run's first start
                     env.t_start = t_start
             env.reset(seed=seed + rank)
