@@ -2,6 +2,7 @@
 
     python -m baselines.results collect  --runs runs            # runs/* → baselines/results/training
     python -m baselines.results evaluate --runs runs --workers 2  # → baselines/results/eval/*.json
+    python -m baselines.results evaluate --runs runs --main-only --only sac_  # main cells only
     python -m baselines.results ship     --runs runs            # best policy per env → baselines/trained
     python -m baselines.results report                          # RESULTS.md + plots from saved files
 
@@ -180,11 +181,13 @@ def run_evaluation_job(job: tuple[Path, dict]) -> str:
 
 
 def run_evaluations(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, workers: int = 1,
-                    only: str | None = None) -> int:
-    """Run the missing grid cells (optionally only agents whose name contains ``only``)."""
+                    only: str | None = None, grid: bool = True, episodes: int | None = None) -> int:
+    """Run the missing grid cells (optionally only agents whose name contains ``only``; with
+    ``grid=False`` only the ``main`` cells; ``episodes`` as :func:`evaluation_jobs`)."""
     from tqdm import tqdm
 
-    jobs = [j for j in evaluation_jobs(runs_dir, results_dir) if only is None or only in j[0].name]
+    jobs = [j for j in evaluation_jobs(runs_dir, results_dir, grid=grid, episodes=episodes)
+            if only is None or only in j[0].name]
     with ProcessPoolExecutor(max_workers=workers) as pool:
         for _ in tqdm(pool.map(run_evaluation_job, jobs), total=len(jobs), file=sys.stderr, unit="cell"):
             pass
@@ -552,13 +555,20 @@ def main(argv=None) -> int:
     parser.add_argument("--results", default=str(RESULTS_DIR))
     parser.add_argument("--workers", type=int, default=1, help="parallel evaluation processes")
     parser.add_argument("--only", default=None, help="evaluate only agents whose name contains this")
+    parser.add_argument("--episodes", type=int, default=None,
+                        help=f"episodes of every cell (default {MAIN_EPISODES} for main, {GRID_EPISODES} "
+                             "for the estimator grid)")
+    parser.add_argument("--main-only", action="store_true",
+                        help="evaluate only the main cell (true observations), not the estimator grid")
     parser.add_argument("--envs", default=None,
                         help="ship: only these env ids (comma-separated; default every evaluated env)")
     args = parser.parse_args(argv)
     if args.step == "collect":
         print("\n".join(collect(args.runs, args.results)))
     elif args.step == "evaluate":
-        print(f"{run_evaluations(args.runs, args.results, args.workers, args.only)} cells evaluated")
+        n = run_evaluations(args.runs, args.results, args.workers, args.only, grid=not args.main_only,
+                            episodes=args.episodes)
+        print(f"{n} cells evaluated")
     elif args.step == "ship":
         envs = args.envs.split(",") if args.envs else None
         print("\n".join(str(p) for p in ship(args.runs, args.results, env_ids=envs)))
