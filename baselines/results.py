@@ -288,8 +288,10 @@ def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
                 continue
             folder = results_dir / "training" / summary["run"]
             observation = training_observation(summary)
+            source = summary.get("hyperparams_file")  # a YAML folder of its own: name it
             label = f"{summary['algo']} seed {summary['seed']}" + \
-                ("" if observation == "true" else f", {observation} obs.")
+                ("" if observation == "true" else f", {observation} obs.") + \
+                (f", {Path(source).parent.name}" if source else "")
             if (folder / "monitor.csv").is_file():
                 episodes = pd.read_csv(folder / "monitor.csv")
                 window = max(1, min(50, len(episodes) // 5))
@@ -451,17 +453,27 @@ def _main_rows(main: pd.DataFrame, env_id: str, by_run: dict, kind, measures, me
         kwargs = (f" {_kwargs(run.get('env_kwargs', {})) if run else '–'} |" if env_kwargs_column else "")
         lines.append(f"| {env_id} | {row['agent_name']} |{kwargs} {budget} | {steps} | {wall} | {cpu} | "
                      f"{100 * row['success_rate']:.0f} % | " + measures(row))
-    blank = "| " if env_kwargs_column else ""
+    # Seeds are pooled per algorithm, training observation and the rest of the training kwargs.
+    setting = rows["agent_name"].map(lambda name: _kwargs(_setting(by_run[name])) if name in by_run else "")
     for algo in ALGOS:
         for observation in ESTIMATORS:
-            learned = rows[(rows["agent_name"].map(kind) == algo) & (rows["trained_on"] == observation)]
-            if len(learned) < 2:
-                continue
-            rates = 100 * learned["success_rate"]
-            which = algo if observation == "true" else f"{algo} on {observation} observations"
-            lines.append(f"| {env_id} | **{which} mean ± std over {len(learned)} seeds** | {blank}| | | | "
-                         f"**{rates.mean():.0f} ± {rates.std():.0f} %** | " + mean_measures(learned))
+            for same in sorted(setting.unique()):
+                learned = rows[(rows["agent_name"].map(kind) == algo) & (rows["trained_on"] == observation)
+                               & (setting == same)]
+                if len(learned) < 2:
+                    continue
+                rates = 100 * learned["success_rate"]
+                which = algo if observation == "true" else f"{algo} on {observation} observations"
+                kwargs = f"{same} | " if env_kwargs_column else ""
+                lines.append(f"| {env_id} | **{which} mean ± std over {len(learned)} seeds** | {kwargs}"
+                             f"| | | | **{rates.mean():.0f} ± {rates.std():.0f} %** | "
+                             + mean_measures(learned))
     return lines
+
+
+def _setting(summary: dict) -> dict:
+    """A run's training env kwargs other than the observation mode (what else it trained on)."""
+    return {k: v for k, v in summary.get("env_kwargs", {}).items() if k != "observation"}
 
 
 def _deg(x) -> str:
