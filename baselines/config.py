@@ -60,7 +60,7 @@ import softarm_gym  # noqa: F401  (registers the SoftArm/* environments)
 from softarm_gym.files import write_json
 
 __all__ = ["ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams", "split_hyperparams", "make_env",
-           "check_env_id", "registered_equivalent", "sidecar_paths", "legacy_normalization_path",
+           "check_env_id", "is_wrap", "registered_equivalent", "sidecar_paths", "legacy_normalization_path",
            "policy_metadata",
            "save_normalization", "load_normalization", "restore_normalization", "read_metadata",
            "load_policy", "action_noise", "observation_sizes"]
@@ -137,6 +137,12 @@ def check_env_id(env_id) -> str:
         known = ", ".join(sorted(k for k in gym.registry if k.startswith("SoftArm/")))
         raise ValueError(f"environment id must be a registered SoftArm/* id ({known}); got {env_id!r}")
     return env_id
+
+
+def is_wrap(env_id: str) -> bool:
+    """Whether ``env_id`` is a wrap task (:class:`softarm_gym.envs.WrapEnv`): success is a wrap
+    angle, not a distance to a target, so monitors and evaluations record ``wrap_angle_deg``."""
+    return gym.spec(check_env_id(env_id)).entry_point == "softarm_gym.envs:WrapEnv"
 
 
 def make_env(env_id: str, env_kwargs: dict | None = None, **overrides) -> gym.Env:

@@ -1,9 +1,10 @@
-"""Evaluate a trained policy or the Jacobian controller, optionally with an estimator in the loop.
+"""Evaluate a trained policy or a model-based controller, optionally with an estimator in the loop.
 
     python -m baselines.evaluate --model baselines/trained/sac_OctArmReach-v1.zip --episodes 100 --json
     python -m baselines.evaluate --model FILE.zip --observation cable_encoder --sensor-noise thesis \\
         --payload-kg 0,0.5 --json
     python -m baselines.evaluate --controller jacobian --env SoftArm/OctArmReach-v0 --json
+    python -m baselines.evaluate --controller planner --env SoftArm/OctArmWrap-v1 --episodes 20 --json
 
 Models load safely (:func:`baselines.config.load_policy`): only the weights of the zip, read
 with ``torch.load(weights_only=True)``, into a policy rebuilt from the JSON metadata, and JSON
@@ -14,22 +15,30 @@ Python objects, which can run arbitrary code, so use it only for files you made 
 
 The policy is rolled out deterministically for whole episodes (``max_episode_steps``);
 episode ``i`` is reset with seed ``seed + i``, so every policy and estimator sees the same
-targets. Only the observation changes with ``--observation``: the success, the final error
-and the reward always use the true tip. Reported (JSON keys):
+targets (or discs). Only the observation changes with ``--observation``: the success, the final
+error and the reward always use the true arm. Reported (JSON keys):
 
-* ``success_rate`` — fraction of episodes whose *final* true tip is within the env's
-  ``success_tolerance`` of the target;
-* ``median_final_error_m``, ``p95_final_error_m``, ``mean_final_error_m`` — final |tip − target|;
-* ``reached_rate`` — fraction that were within tolerance at any step;
-  ``median_steps_to_success``, ``p95_steps_to_success`` — first step within tolerance, over
+* ``success_rate`` — fraction of episodes that succeed at the *last* step (``info["is_success"]``:
+  reach, the true tip within the env's ``success_tolerance`` of the target; wrap, a wrap angle
+  of at least ``success_wrap_deg`` with penetration within tolerance);
+* reach and track: ``median_final_error_m``, ``p95_final_error_m``, ``mean_final_error_m`` —
+  final |tip − target|; wrap: ``median_wrap_angle_deg``, ``p5_wrap_angle_deg``,
+  ``mean_wrap_angle_deg`` — the final wrap angle (deg; :func:`softarm_gym.envs.wrap.wrap_angle`);
+* ``reached_rate`` — fraction that succeeded at any step;
+  ``median_steps_to_success``, ``p95_steps_to_success`` — first successful step, over
   those episodes (null if none);
 * ``mean_estimation_error_m`` — mean |estimated − true tip| over all steps;
 * ``mean_return``, ``solver_failures`` (unconverged steps in total), ``wall_time_s``.
+
+Controllers (``--controller``): ``jacobian`` (:class:`~softarm_gym.controllers.JacobianController`,
+reach) and ``planner`` (:class:`~softarm_gym.controllers.CEMPlanner` with its defaults, seeded
+with the episode's seed in every episode, as ``softarm_gym.benchmarks.planner`` runs it).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 import time
@@ -39,20 +48,20 @@ import numpy as np
 from tqdm import tqdm
 
 from baselines.config import load_policy, make_env
-from softarm_gym.controllers import JacobianController
+from softarm_gym.controllers import CEMPlanner, JacobianController
 from softarm_gym.files import json_text, write_json
 from softarm_gym.sensing import ESTIMATORS
 
 __all__ = ["evaluate", "rollouts", "summarize", "main", "CONTROLLERS"]
 
-CONTROLLERS = ("jacobian",)
+CONTROLLERS = ("jacobian", "planner")
 
 
 def rollouts(env, act, reset, episodes: int, seed: int = 0, progress: bool = False) -> dict[str, np.ndarray]:
     """Run ``episodes`` whole episodes and record per-episode outcomes.
 
     Args:
-        env: a reach environment (``gym.make``, with its time limit).
+        env: a reach, track or wrap environment (``gym.make``, with its time limit).
         act: observation → action.
         reset: called with no arguments before each episode (forget controller state).
         episodes: number of episodes (>= 1).
@@ -60,13 +69,15 @@ def rollouts(env, act, reset, episodes: int, seed: int = 0, progress: bool = Fal
         progress: tqdm bar on stderr.
 
     Returns:
-        Arrays of length ``episodes``: ``final_error`` (m), ``success`` (bool), ``steps_to_success``
-        (first step within tolerance, −1 if never), ``estimation_error`` (m, mean over steps),
+        Arrays of length ``episodes``: ``final_error`` (m; NaN on wrap, which has no target),
+        ``final_wrap_deg`` (deg; NaN but on wrap), ``success`` (bool), ``steps_to_success``
+        (first successful step, −1 if never), ``estimation_error`` (m, mean over steps),
         ``episode_return``, ``solver_failures`` (unconverged steps).
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1; got {episodes}")
-    final_error = np.empty(episodes)
+    final_error = np.full(episodes, np.nan)
+    final_wrap = np.full(episodes, np.nan)
     success = np.zeros(episodes, dtype=bool)
     steps_to_success = np.full(episodes, -1)
     estimation_error = np.empty(episodes)
@@ -86,26 +97,36 @@ def rollouts(env, act, reset, episodes: int, seed: int = 0, progress: bool = Fal
             if info["is_success"] and steps_to_success[i] < 0:
                 steps_to_success[i] = steps
             done = terminated or truncated
-        final_error[i] = info["distance"]
+        final_error[i] = info.get("distance", np.nan)
+        final_wrap[i] = info.get("wrap_angle_deg", np.nan)
         success[i] = info["is_success"]
         estimation_error[i] = est / steps
         episode_return[i] = total
-    return {"final_error": final_error, "success": success, "steps_to_success": steps_to_success,
-            "estimation_error": estimation_error, "episode_return": episode_return,
-            "solver_failures": failures}
+    return {"final_error": final_error, "final_wrap_deg": final_wrap, "success": success,
+            "steps_to_success": steps_to_success, "estimation_error": estimation_error,
+            "episode_return": episode_return, "solver_failures": failures}
 
 
 def summarize(record: dict[str, np.ndarray]) -> dict:
-    """The scalar metrics of :func:`rollouts` output (module docstring)."""
+    """The scalar metrics of :func:`rollouts` output (module docstring): the final-error keys
+    for a task with a target, the wrap-angle keys for wrap (``final_wrap_deg`` not NaN)."""
     reached = record["steps_to_success"][record["steps_to_success"] >= 0]
-    err = record["final_error"]
+    n = int(record["success"].size)
+    wrap = record.get("final_wrap_deg")
+    if wrap is not None and not np.any(np.isnan(wrap)):
+        measures = {"median_wrap_angle_deg": float(np.median(wrap)),
+                    "p5_wrap_angle_deg": float(np.percentile(wrap, 5)),
+                    "mean_wrap_angle_deg": float(np.mean(wrap))}
+    else:
+        err = record["final_error"]
+        measures = {"median_final_error_m": float(np.median(err)),
+                    "p95_final_error_m": float(np.percentile(err, 95)),
+                    "mean_final_error_m": float(np.mean(err))}
     return {
-        "episodes": int(err.size),
+        "episodes": n,
         "success_rate": float(np.mean(record["success"])),
-        "median_final_error_m": float(np.median(err)),
-        "p95_final_error_m": float(np.percentile(err, 95)),
-        "mean_final_error_m": float(np.mean(err)),
-        "reached_rate": float(reached.size / err.size),
+        **measures,
+        "reached_rate": float(reached.size / n),
         "median_steps_to_success": float(np.median(reached)) if reached.size else None,
         "p95_steps_to_success": float(np.percentile(reached, 95)) if reached.size else None,
         "mean_estimation_error_m": float(np.mean(record["estimation_error"])),
@@ -182,28 +203,49 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
 
         def reset():
             return None
-    else:
+    elif controller == "jacobian":
         ctrl = JacobianController(env)
         act, reset = ctrl.act, ctrl.reset
+    else:
+        act, reset = _seeded_planner(env, seed)
     start = time.perf_counter()
     record = rollouts(env, act, reset, episodes, seed, progress)
     wall = time.perf_counter() - start
     env.close()
-    payload = env.unwrapped.payload_range
+    base = env.unwrapped
+    criterion = ({"success_wrap_deg": float(base.success_wrap_deg)} if hasattr(base, "success_wrap_deg")
+                 else {"success_tolerance_m": float(base.success_tolerance)})
     return {"agent": agent, "env_id": env_id, "observation": observation, "sensor_noise": sensor_noise,
-            "payload_kg": list(payload), "seed": seed,
-            "success_tolerance_m": float(env.unwrapped.success_tolerance),
+            "payload_kg": list(base.payload_range), "seed": seed, **criterion,
             **summarize(record), "wall_time_s": wall}
+
+
+def _seeded_planner(env, seed: int):
+    """(act, reset) of a :class:`CEMPlanner` made afresh at every episode start, the one of
+    episode i seeded with ``seed + i`` (the seed of the episode's reset)."""
+    episode_seed = itertools.count(seed)
+    planner = []
+
+    def reset():
+        planner[:] = [CEMPlanner(env, seed=next(episode_seed))]
+
+    return (lambda obs: planner[0].act(obs)), reset
 
 
 def _text(result: dict) -> str:
     steps = result["median_steps_to_success"]
+    if "median_wrap_angle_deg" in result:
+        criterion = f"wrap ≥ {result['success_wrap_deg']:.0f}°"
+        measure = (f"  final wrap angle median {result['median_wrap_angle_deg']:.0f}°, 5th percentile "
+                   f"{result['p5_wrap_angle_deg']:.0f}°\n")
+    else:
+        criterion = f"tolerance {1000 * result['success_tolerance_m']:.0f} mm"
+        measure = (f"  final error median {1000 * result['median_final_error_m']:.1f} mm, 95th percentile "
+                   f"{1000 * result['p95_final_error_m']:.1f} mm\n")
     return (f"{result['agent']} on {result['env_id']} (obs={result['observation']}, noise="
             f"{result['sensor_noise']}, payload={result['payload_kg']} kg), {result['episodes']} episodes:\n"
-            f"  success rate {100 * result['success_rate']:.1f} % (tolerance "
-            f"{1000 * result['success_tolerance_m']:.0f} mm)\n"
-            f"  final error median {1000 * result['median_final_error_m']:.1f} mm, 95th percentile "
-            f"{1000 * result['p95_final_error_m']:.1f} mm\n"
+            f"  success rate {100 * result['success_rate']:.1f} % ({criterion})\n"
+            + measure +
             f"  steps to success median {steps if steps is not None else '-'}\n"
             f"  mean estimation error {1000 * result['mean_estimation_error_m']:.1f} mm")
 

@@ -10,8 +10,8 @@ with the hyperparameters of ``baselines/hyperparams/batched/``):
 
 * ``config.json`` — everything needed to continue the run (``--resume``);
 * ``monitor.csv`` — one row per training episode (return, length, wall time, final
-  ``is_success`` and ``distance``), the learning curve (with ``--batched``, one file for
-  all arms, written by ``VecMonitor``);
+  ``is_success`` and ``distance``, on wrap ``wrap_angle_deg``), the learning curve (with
+  ``--batched``, one file for all arms, written by ``VecMonitor``);
 * ``progress.csv`` and TensorBoard event files — SB3's logger (a resumed run moves the
   previous ``progress.csv`` to ``progress_<k>.csv``);
 * ``checkpoints/model_<steps>_steps.zip`` every ``--checkpoint-freq`` steps, each with its
@@ -21,7 +21,8 @@ with the hyperparameters of ``baselines/hyperparams/batched/``):
 * ``best_model.zip`` (by evaluation return) and ``final_model.zip``, each with its ``.json``
   metadata and ``_vecnormalize.json`` statistics (see :mod:`baselines.config`);
 * ``summary.json`` — timesteps, training wall time, the process's CPU time (the machine may
-  be shared: CPU time says how much compute the run actually got) and the hyperparameters.
+  be shared: CPU time says how much compute the run actually got) and the hyperparameters
+  (with ``hyperparams_file``, their YAML, when it is not in ``baselines/hyperparams``).
 
 Faults lose at most the steps since the last checkpoint:
 
@@ -72,6 +73,7 @@ from baselines.config import (
     HYPERPARAMS_DIR,
     action_noise,
     check_env_id,
+    is_wrap,
     load_hyperparams,
     load_normalization,
     make_env,
@@ -88,7 +90,9 @@ from softarm_gym.sb3 import BatchedVecEnv
 __all__ = ["train", "resume", "build", "TrainingInterrupted", "latest_checkpoint", "save_checkpoint", "main"]
 
 MONITOR_KEYS = ("is_success", "distance")
-"""Final-step info entries written to ``monitor.csv`` for every training episode."""
+"""Final-step info entries written to ``monitor.csv`` for every training episode (reach, track)."""
+WRAP_MONITOR_KEYS = ("is_success", "wrap_angle_deg")
+"""The same for the wrap task, which has no target distance (its measure is the wrap angle, deg)."""
 CONFIG_FILE = "config.json"
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.json")
 _REPLAY_FIELDS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
@@ -277,32 +281,40 @@ class _Evaluation(EvalCallback):
 
 # --------------------------------------------------------------------------- the run
 
+def monitor_keys(env_id: str) -> tuple[str, ...]:
+    """The final-step info entries ``monitor.csv`` records for ``env_id``'s task."""
+    return WRAP_MONITOR_KEYS if is_wrap(env_id) else MONITOR_KEYS
+
+
 def _batched_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir: Path | None,
                  append: bool = False):
     """``n_envs`` arms in one :class:`BatchedVecEnv`, in a ``VecMonitor`` (``monitor.csv``)."""
-    venv = VecMonitor(BatchedVecEnv(env_id, n_envs, **env_kwargs), info_keywords=MONITOR_KEYS)
+    keys = monitor_keys(env_id)
+    venv = VecMonitor(BatchedVecEnv(env_id, n_envs, **env_kwargs), info_keywords=keys)
     if monitor_dir is not None:
         path = monitor_dir / "monitor.csv"
         t_start = _monitor_start(path) if append else None
         if t_start is not None:  # times stay relative to the run's first start
             venv.t_start = t_start
         venv.results_writer = ResultsWriter(str(path), header={"t_start": venv.t_start, "env_id": env_id},
-                                            extra_keys=MONITOR_KEYS, override_existing=t_start is None)
+                                            extra_keys=keys, override_existing=t_start is None)
     venv.seed(seed)
     return venv
 
 
 def _vec_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_dir: Path | None,
              append: bool = False):
+    keys = monitor_keys(env_id)
+
     def factory(rank: int):
         def thunk():
             env = make_env(env_id, env_kwargs)
             if monitor_dir is None:
-                env = Monitor(env, info_keywords=MONITOR_KEYS)
+                env = Monitor(env, info_keywords=keys)
             else:
                 path = monitor_dir / ("monitor.csv" if rank == 0 else f"{rank}.monitor.csv")
                 t_start = _monitor_start(path) if append else None
-                env = Monitor(env, str(path), info_keywords=MONITOR_KEYS, override_existing=t_start is None)
+                env = Monitor(env, str(path), info_keywords=keys, override_existing=t_start is None)
                 if t_start is not None:  # times stay relative to the run's first start
                     env.t_start = t_start
             env.reset(seed=seed + rank)
@@ -398,6 +410,8 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
 
     meta = {"env_id": env_id, "algo": algo, "seed": config["seed"], "env_kwargs": env_kwargs,
             "hyperparams": params, "timesteps": config["timesteps"], "batched": config.get("batched", False)}
+    if "hyperparams_file" in config:
+        meta["hyperparams_file"] = config["hyperparams_file"]
     wall0, cpu0 = float(prior.get("wall_time_s", 0.0)), float(prior.get("cpu_time_s", 0.0))
     start, cpu_start = time.perf_counter(), time.process_time()
 
@@ -457,6 +471,16 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
     return run_dir
 
 
+def _project_path(path: Path) -> str:
+    """``path`` relative to the project folder (the parent of ``baselines/``) if it lies inside
+    it, so run records name their YAML file portably; else absolute."""
+    path = path.resolve()
+    try:
+        return path.relative_to(HYPERPARAMS_DIR.parents[1]).as_posix()
+    except ValueError:
+        return path.as_posix()
+
+
 def _check_counts(eval_freq: int, checkpoint_freq: int, threads: int) -> None:
     for name, value, low in (("eval_freq", eval_freq, 0), ("checkpoint_freq", checkpoint_freq, 0),
                              ("threads", threads, 1)):
@@ -499,8 +523,9 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
         save_replay_buffer: off-policy algorithms: save the replay buffer with each checkpoint
             (and at an interruption), so a resumed run continues with it (not HER's, whose
             infos and episode bookkeeping are not plain arrays).
-        run_name: name of the run folder; default ``<algo>_<env>[_batched]_s<seed>`` (``<env>``
-            without the ``SoftArm/`` prefix). :mod:`baselines.sweep` adds the observation mode.
+        run_name: name of the run folder (``--run-name``); default
+            ``<algo>_<env>[_batched]_s<seed>`` (``<env>`` without the ``SoftArm/`` prefix).
+            :mod:`baselines.sweep` adds the observation mode.
         batched: train on one :class:`softarm_gym.sb3.BatchedVecEnv` of ``n_envs`` arms.
 
     Returns:
@@ -539,6 +564,8 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
               "eval_freq": eval_freq, "eval_episodes": eval_episodes, "checkpoint_freq": checkpoint_freq,
               "threads": threads, "tensorboard": tensorboard, "save_replay_buffer": save_replay_buffer,
               "batched": bool(batched)}
+    if hyperparams is None and Path(hyperparams_dir).resolve() != HYPERPARAMS_DIR:
+        config["hyperparams_file"] = _project_path(Path(hyperparams_dir) / f"{algo}.yml")
     try:
         write_json(run_dir / CONFIG_FILE, config)
     except TypeError as exc:
@@ -603,6 +630,8 @@ def main(argv=None) -> int:
     parser.add_argument("--hyperparams-dir", default=None,
                         help=f"folder of the YAML files (default {HYPERPARAMS_DIR}, with --batched its "
                              "batched/ subfolder)")
+    parser.add_argument("--run-name", default=None,
+                        help="name of the run folder (default <algo>_<env>[_batched]_s<seed>)")
     parser.add_argument("--batched", action="store_true",
                         help="train on n_envs arms of one batched env (softarm_gym.sb3.BatchedVecEnv)")
     parser.add_argument("--eval-freq", type=int, default=10_000, help="0 disables periodic evaluation")
@@ -634,7 +663,8 @@ def main(argv=None) -> int:
                             eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                             checkpoint_freq=args.checkpoint_freq, threads=args.threads or 1,
                             progress=not args.no_progress, time_limit_min=args.time_limit_min,
-                            save_replay_buffer=args.save_replay_buffer, batched=args.batched)
+                            save_replay_buffer=args.save_replay_buffer, batched=args.batched,
+                            run_name=args.run_name)
     except ValueError as exc:
         print(f"baselines.train: error: {exc}", file=sys.stderr)
         return 2

@@ -19,7 +19,8 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
                                                                        "mean_return", "episodes"]
     jobs = results.evaluation_jobs(runs_dir, out)
     n_cells = 1 + len(results.CONDITIONS) * 6
-    assert len(jobs) == 3 * n_cells  # the run and the controller on both envs
+    wrap_cells = 2 * (1 + len(results.WRAP_CONDITIONS) * 6)  # the planner on both wrap envs
+    assert len(jobs) == 3 * n_cells + wrap_cells  # the run and the Jacobian controller on both envs
     # Two cells, evaluated briefly, stand in for the grid.
     for cell, kwargs in (("main", {}), ("cable_encoder__noisy", {"observation": "cable_encoder",
                                                                  "sensor_noise": "thesis"})):
@@ -27,7 +28,8 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
         result.update(cell=cell, agent_name=tiny_sac_run.name)
         (out / "eval").mkdir(exist_ok=True)
         (out / "eval" / f"{tiny_sac_run.name}__{cell}.json").write_text(json.dumps(result))
-    assert len(results.evaluation_jobs(runs_dir, out)) == 3 * n_cells - 2  # done cells are skipped
+    # Done cells are skipped.
+    assert len(results.evaluation_jobs(runs_dir, out)) == 3 * n_cells + wrap_cells - 2
     shipped = results.ship(runs_dir, out, tmp_path / "trained")
     assert [p.name for p in shipped] == ["sac_OctArmReach-v0.zip"]
     meta = json.loads(shipped[0].with_suffix(".json").read_text())

@@ -16,7 +16,7 @@ from baselines.config import (
 )
 from baselines.train import build, main, resume, train
 from softarm_gym.sb3 import BatchedVecEnv
-from tests.baselines.conftest import TINY
+from tests.baselines.conftest import TINY, tiny_hyperparams
 
 ENV_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
 
@@ -126,3 +126,16 @@ def test_cli_reports_bad_input_with_exit_status_2(tmp_path, capsys, env_id, mess
     assert main(["--env", env_id, "--algo", "sac", "--log-dir", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_a_run_from_another_yaml_folder_names_its_file(tmp_path, tiny_sac_run):
+    folder = tiny_hyperparams(tmp_path / "remedy")
+    assert main(["--env", ENV_IDS[0], "--algo", "sac", "--hyperparams-dir", str(folder),
+                 "--run-name", "remedy_s0", "--log-dir", str(tmp_path / "runs"), "--timesteps", "60",
+                 "--eval-freq", "0", "--checkpoint-freq", "0", "--no-progress"]) == 0
+    run = tmp_path / "runs" / "remedy_s0"
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["hyperparams_file"] == (folder / "sac.yml").resolve().as_posix()
+    meta = json.loads((run / "final_model.json").read_text())
+    assert meta["hyperparams_file"] == summary["hyperparams_file"]
+    assert "hyperparams_file" not in json.loads((tiny_sac_run / "summary.json").read_text())
