@@ -342,7 +342,11 @@ class _Records:
 
 
 def _finite(eq: solver.Equilibrium) -> bool:
-    return bool(np.all(np.isfinite(eq.tip)) and math.isfinite(eq.residual)
+    """No NaN or inf in what a user reads of a result: tip, backbone, moments, and the residual
+    of a converged one. An unconverged result whose solve found no finite state reports
+    ``residual=inf`` on purpose (with the unloaded shape, finite, as its state): that is a
+    flag, not a leak."""
+    return bool(np.all(np.isfinite(eq.tip)) and (math.isfinite(eq.residual) or not eq.converged)
                 and np.all(np.isfinite(eq.positions)) and np.all(np.isfinite(eq.internal_moment)))
 
 

@@ -1,5 +1,6 @@
 """``softarm stress``: a tiny seeded run of the study, its helpers, and its bad input."""
 
+import dataclasses
 import json
 import math
 
@@ -164,3 +165,16 @@ def test_cli_bad_input(capsys, argv, match):
     assert main(["stress", *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("softarm stress: error: ") and match in err[0]
+
+
+def test_a_flagged_infinite_residual_is_not_a_leak():
+    """An unconverged result with no finite state reports residual=inf on purpose; a converged
+    one with an infinite residual, or any NaN in the state, is a leak."""
+    arm = solver.designs.get("octarm_v")
+    eq = solver.solve(arm, np.zeros(arm.n_inputs(True)))
+    assert stress._finite(eq)
+    assert stress._finite(dataclasses.replace(eq, converged=False, residual=math.inf))
+    assert not stress._finite(dataclasses.replace(eq, residual=math.inf))
+    positions = eq.positions.copy()
+    positions[3, 0] = math.nan
+    assert not stress._finite(dataclasses.replace(eq, converged=False, positions=positions))
