@@ -551,11 +551,7 @@ def _kwargs(env_kwargs: dict) -> str:
 
 def _wrap_estimator_section(grid: pd.DataFrame, env_ids: list[str]) -> list[str]:
     """The estimator-in-the-loop tables of the wrap envs (nothing if no wrap cell was evaluated)."""
-    grid = grid[grid["env_id"].isin(env_ids)] if len(grid) else grid
-    if not len(grid):
-        return []
-    lines = ["## Estimator in the loop: wrap", "",
-             f"{_episodes(grid['episodes'])} per cell; cells give success rate / median final wrap angle "
+    intro = ("per cell; cells give success rate / median final wrap angle "
              "(deg). `clean`: perfect sensors; `noisy`: Table 4.3 sensor resolutions (encoder 3 cm, "
              "inclinometer 2.5°, load cell); no payload. The estimators know the mounting but not the "
              "disc: none of them models the contact force (`model` predicts the free arm from the "
@@ -563,43 +559,32 @@ def _wrap_estimator_section(grid: pd.DataFrame, env_ids: list[str]) -> list[str]
              "nominal model from the commanded pressures and the disc in the observation; the "
              "estimator blocks only decide whether it searches again (it does not when the "
              "observation repeats one it found nothing better from). A dash: not evaluated. The last "
-             "column is the mean estimation error of the tip (mm), averaged over agents.", ""]
-    for env_id in env_ids:
-        rows = grid[grid["env_id"] == env_id]
-        if not len(rows):
-            continue
-        agents = sorted(rows["agent_name"].unique())
-        lines += [f"### {env_id}", "", "| estimator | condition | " + " | ".join(agents) +
-                  " | tip est. err (mm) |", "|---|---|" + "---|" * (len(agents) + 1)]
-        for observation in ESTIMATORS:
-            for condition in WRAP_CONDITIONS:
-                cell = rows[rows["cell"] == f"{observation}__{condition}"]
-                if not len(cell):
-                    continue
-                values = []
-                for agent in agents:
-                    hit = cell[cell["agent_name"] == agent]
-                    values.append("–" if not len(hit) else
-                                  f"{100 * hit['success_rate'].iloc[0]:.0f} % / "
-                                  f"{_deg(hit['median_wrap_angle_deg'].iloc[0])}")
-                lines.append(f"| {observation} | {condition} | " + " | ".join(values) +
-                             f" | {_mm(cell['mean_estimation_error_m'].mean())} |")
-        lines.append("")
-    return lines
+             "column is the mean estimation error of the tip (mm), averaged over agents.")
+    return _grid_tables(grid, env_ids, "## Estimator in the loop: wrap", intro, WRAP_CONDITIONS,
+                        lambda hit: _deg(hit["median_wrap_angle_deg"].iloc[0]))
 
 
 def _estimator_section(grid: pd.DataFrame, env_ids: list[str]) -> list[str]:
     """The estimator-in-the-loop tables of the reach envs (nothing if no grid cell was evaluated)."""
+    intro = ("per cell; cells give success rate / median final error (mm). "
+             "`clean`: perfect sensors, no payload; `noisy`: Table 4.3 sensor resolutions "
+             "(encoder 3 cm, inclinometer 2.5°, load cell); `noisy+payload`: the same plus a tip "
+             f"payload drawn per episode uniformly in {PAYLOAD_RANGE_KG[0]}–{PAYLOAD_RANGE_KG[1]} kg, "
+             "unknown to the agents and to the estimators. The last column is the mean estimation "
+             "error of the tip (mm) for that estimator and condition, averaged over agents.")
+    return _grid_tables(grid, env_ids, "## Estimator in the loop", intro, CONDITIONS,
+                        lambda hit: _mm(hit["median_final_error_m"].iloc[0]))
+
+
+def _grid_tables(grid: pd.DataFrame, env_ids: list[str], title: str, intro: str, conditions,
+                 measure) -> list[str]:
+    """A section of estimator-grid tables, one per env of ``env_ids`` with evaluated cells:
+    rows (estimator, condition), a column per agent with its success rate / ``measure(cell
+    row)``, and the mean tip estimation error. Nothing if no cell of these envs was evaluated."""
     grid = grid[grid["env_id"].isin(env_ids)] if len(grid) else grid
     if not len(grid):
         return []
-    lines = ["## Estimator in the loop", "",
-              f"{_episodes(grid['episodes'])} per cell; cells give success rate / median final error (mm). "
-              "`clean`: perfect sensors, no payload; `noisy`: Table 4.3 sensor resolutions "
-              "(encoder 3 cm, inclinometer 2.5°, load cell); `noisy+payload`: the same plus a tip "
-              f"payload drawn per episode uniformly in {PAYLOAD_RANGE_KG[0]}–{PAYLOAD_RANGE_KG[1]} kg, "
-              "unknown to the agents and to the estimators. The last column is the mean estimation "
-              "error of the tip (mm) for that estimator and condition, averaged over agents.", ""]
+    lines = [title, "", f"{_episodes(grid['episodes'])} {intro}", ""]
     for env_id in env_ids:
         rows = grid[grid["env_id"] == env_id]
         if not len(rows):
@@ -608,7 +593,7 @@ def _estimator_section(grid: pd.DataFrame, env_ids: list[str]) -> list[str]:
         lines += [f"### {env_id}", "", "| estimator | condition | " + " | ".join(agents) +
                   " | tip est. err (mm) |", "|---|---|" + "---|" * (len(agents) + 1)]
         for observation in ESTIMATORS:
-            for condition in CONDITIONS:
+            for condition in conditions:
                 cell = rows[rows["cell"] == f"{observation}__{condition}"]
                 if not len(cell):
                     continue
@@ -616,8 +601,7 @@ def _estimator_section(grid: pd.DataFrame, env_ids: list[str]) -> list[str]:
                 for agent in agents:
                     hit = cell[cell["agent_name"] == agent]
                     values.append("–" if not len(hit) else
-                                  f"{100 * hit['success_rate'].iloc[0]:.0f} % / "
-                                  f"{_mm(hit['median_final_error_m'].iloc[0])}")
+                                  f"{100 * hit['success_rate'].iloc[0]:.0f} % / {measure(hit)}")
                 lines.append(f"| {observation} | {condition} | " + " | ".join(values) +
                              f" | {_mm(cell['mean_estimation_error_m'].mean())} |")
         lines.append("")
