@@ -6,7 +6,7 @@ import math
 
 from solver.actuator import _pressure_and_slope, _stretch
 from solver.jit import njit
-from solver.layout import T_CHANNEL, TF_AREA_RATIO, TF_COS_ALPHA, TF_E
+from solver.layout import DT_MIN, T_CHANNEL, TF_AREA_RATIO, TF_COS_ALPHA, TF_E
 
 
 @njit
@@ -56,6 +56,17 @@ def ramp_crowding(p_a, p_b, tubes_i, tubes_f):
         if slope > 0.0 and math.isfinite(slope):
             crowding = max(crowding, (hi - lo) / (slope * change))
     return crowding
+
+
+@njit
+def smallest_step(dt, dt_min, params, p_a, p_b, tubes_i, tubes_f):
+    """The smallest continuation step of a ramp from ``p_a`` to ``p_b``: ``params[DT_MIN]``
+    divided by :func:`ramp_crowding`, worked out only once the step ``dt`` first comes down
+    to ``params[DT_MIN]`` (``dt_min`` < 0 until then; larger steps compare the same either
+    way), so that a warm step accepted at once does not pay for it."""
+    if dt_min < 0.0 and dt <= params[DT_MIN]:
+        return params[DT_MIN] / ramp_crowding(p_a, p_b, tubes_i, tubes_f)
+    return dt_min
 
 
 # Stretches at which ramp_crowding samples dp/dλ over a ramp.

@@ -23,14 +23,13 @@ import math
 
 import numpy as np
 
-from solver._homotopy import _big_change, ramp_crowding
+from solver._homotopy import _big_change, smallest_step
 from solver.jit import njit
 from solver.layout import (
     CA,
     CG,
     CI,
     DT0,
-    DT_MIN,
     JUMP,
     LEN,
     M_BOUND,
@@ -148,8 +147,8 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
     max_iter = int(params[MAX_ITER])
     max_step = params[MAX_STEP]
     # The smallest step is a share of the rest-strain change (near braid lock-up most of it
-    # is crowded into the start of a pressure ramp).
-    dt_min = params[DT_MIN] / ramp_crowding(p_a, p_b, tubes_i, tubes_f)
+    # is crowded into the start of a pressure ramp), worked out when the step first gets there.
+    dt_min = -1.0
     work = np.empty((6, NSTATE))
     dummy = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
     t = 0.0
@@ -173,6 +172,7 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
                  loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, dummy, slope)
         total += 2
     while t < 1.0:
+        dt_min = smallest_step(dt, dt_min, params, p_a, p_b, tubes_i, tubes_f)
         t_new = min(1.0, t + dt)
         _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from solver._homotopy import ramp_crowding
+from solver._homotopy import smallest_step
 from solver._spatial import _fields_back, _mirror_symmetric, _set_level
 from solver.jit import njit
 from solver.layout import (
@@ -33,7 +33,6 @@ from solver.layout import (
     CG,
     CI,
     DT0,
-    DT_MIN,
     JUMP,
     LEN,
     MAX_ITER,
@@ -307,7 +306,7 @@ def _newton(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, scale, tol,
 
 
 @njit
-def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, work):
+def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, work):
     """Conjugate-point test (:func:`solver._spatial._stability`) of converged nodes: the
     Jacobi fields δφ(L) = I, δm(L) = 0 are integrated from the tip to the base, each segment
     from its own end node (the tip's end state for the last).
@@ -331,14 +330,14 @@ def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, work):
         y[d] = 0.0
     for d in range(3):
         y[SP_DPHI + 4 * d] = 1.0
-    riccati = np.empty(9)
+    scratch = np.empty(18)
     for k in range(n_seg - 1, -1, -1):
         if k < n_seg - 1:
             for d in range(4):
                 y[SP_Q + d] = quats[k + 1, d]
             for d in range(3):
                 y[SP_M + d] = moms[k + 1, d]
-            if not _restart_fields(y, riccati):
+            if not _restart_fields(y, scratch):
                 return False
         if not _fields_back(y, segs[k, SEG_SECTION], segs[k, SEG_FIRST], segs[k, SEG_STEPS],
                             secf, steps, c_j, rest, loads, work):
@@ -347,15 +346,17 @@ def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, work):
 
 
 @njit
-def _restart_fields(y, riccati):
+def _restart_fields(y, scratch):
     """Jacobi fields (δφ, δm) in ``y`` (column-wise blocks at SP_DPHI, SP_DM) replaced by
-    (I, δm δφ⁻¹); ``riccati`` (9,) scratch. False if δφ is singular or not finite."""
+    (I, δm δφ⁻¹); ``scratch`` (18,): δφ⁻¹, then the product. False if δφ is singular or not
+    finite."""
     phi = y[SP_DPHI:SP_DPHI + 9]
     det = det3(phi)
     if not (math.isfinite(det) and det != 0.0):
         return False
+    inv = scratch[:9]
+    riccati = scratch[9:]
     # δφ⁻¹ by the adjugate (column-wise storage: entry (row a, column b) at 3b + a).
-    inv = np.empty(9)
     for a in range(3):
         for b in range(3):
             a1, a2 = (a + 1) % 3, (a + 2) % 3
@@ -422,7 +423,7 @@ def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, load
     tol = params[TOL]
     max_iter = int(params[MAX_ITER])
     max_step = params[MAX_STEP]
-    dt_min = params[DT_MIN] / ramp_crowding(p_a, p_b, tubes_i, tubes_f)
+    dt_min = -1.0  # worked out when the step first comes down to params[DT_MIN]
     work = np.empty((6, NSTATE))
     acc_q, acc_m = quats.copy(), moms.copy()
     prev_q, prev_m = quats.copy(), moms.copy()
@@ -436,6 +437,7 @@ def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, load
     stable = True
     res = 0.0
     while t < 1.0:
+        dt_min = smallest_step(dt, dt_min, params, p_a, p_b, tubes_i, tubes_f)
         t_new = min(1.0, t + dt)
         _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
@@ -454,8 +456,7 @@ def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, load
         ok, its, res = _newton(quats, moms, segs, secf, steps, c_j, rest, loads_now, m_tip, scale,
                                tol, max_iter, max_step, work)
         total += its
-        stable = ok and _stability(quats, moms, segs, secf, steps, c_j, rest, loads_now, m_tip,
-                                   work)
+        stable = ok and _stability(quats, moms, segs, secf, steps, c_j, rest, loads_now, work)
         jump = _distance(quats, moms, guess_q, guess_m, scale)
         pred = _distance(guess_q, guess_m, acc_q, acc_m, scale)
         if ok and stable and (jump <= params[JUMP] + 0.5 * pred or dt <= dt_min):
@@ -538,8 +539,7 @@ def _switch_branch(quats, moms, t, t_new, segs, secf, steps, c_j, tubes_i, tubes
             ok, its, _ = _newton(quats, moms, segs, secf, steps, c_j, rest, loads_now, m_tip,
                                  scale, params[TOL], int(params[MAX_ITER]), params[MAX_STEP], work)
             total += its
-            if ok and _stability(quats, moms, segs, secf, steps, c_j, rest, loads_now, m_tip,
-                                 work):
+            if ok and _stability(quats, moms, segs, secf, steps, c_j, rest, loads_now, work):
                 if symmetric and _tip_z(quats, moms, segs, secf, steps, c_j, rest, loads_now,
                                         work) < 0.0:
                     # A pitchfork out of the x–y plane: reflect z → −z (m → (−m_x, −m_y, m_z),

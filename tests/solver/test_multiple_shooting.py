@@ -190,7 +190,7 @@ def test_spatial_multiple_shooting_stability_finds_the_euler_load(load, stable):
     rest = np.array([[0.0], [0.0], [1.0]])
     work = np.empty((6, L.NSTATE))
     assert _spatial_shooting._stability(quats, moms, segs, layout.secf, layout.sec_steps,
-                                        layout.c_j, rest, ctx.loads, ctx.m_tip, work) == stable
+                                        layout.c_j, rest, ctx.loads, work) == stable
 
 
 def _near_lockup(arm, fraction=0.999):
