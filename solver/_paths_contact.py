@@ -64,7 +64,8 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, sett
                    converged=bool(eq.converged and met))
 
 
-def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                  moving=False):
     """Planar solve with penalty contact against the scene's discs (:mod:`solver._contact`).
 
     Multiple shooting at the contact resolution (:func:`solver._model.contact_layout`),
@@ -82,6 +83,10 @@ def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
       microseconds instead of milliseconds. Otherwise the contact kernels follow the path.
       The shortcut solves at the settings' resolution, the contact kernels at the finer
       contact resolution; the two agree to the coarser one's discretisation error.
+
+    ``moving``: the warm start's discs are ramped to the scene's positions
+    (:func:`solver._paths_shooting.solve_shooting`); the guarded shortcut, which checks the
+    path against the final discs only, is then skipped.
     """
     free_scene = replace(scene, obstacles=())
     if settings.shortcuts:
@@ -91,14 +96,14 @@ def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
             free = solve_planar(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
                                 settings)
             return _free_contact_result(free, scene)
-        if warm_start is None or not warm_start.in_contact:
+        if not moving and (warm_start is None or not warm_start.in_contact):
             free = solve_single(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
                                 settings, guard_discs=discs)
             if free.converged and free.stable:
                 return _free_contact_result(free, scene)
     layout, segs, sec_start = contact_layout(arm, packed, scene)
     return solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
-                          warm_start, settings, load_moments=False)
+                          warm_start, settings, load_moments=False, moving=moving)
 
 
 def _free_contact_result(eq, scene):

@@ -42,7 +42,7 @@ def solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, s
 
 
 def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model, warm_start,
-                   settings, load_moments):
+                   settings, load_moments, moving=False):
     """Planar multiple-shooting solve along the quasi-static path, the scene's obstacles (if
     any) present all along it.
 
@@ -51,7 +51,10 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
     (corrected by Newton at the start of the ramp); a cold solve from the arm loaded with
     the obstacles in place (:func:`_loaded_nodes`). Then pressures and loads are ramped from
     the start's to the target's (:func:`solver._contact._follow`, which never lets the
-    backbone tunnel through a disc).
+    backbone tunnel through a disc). ``moving``: the warm start's discs are the scene's, moved
+    (same count, radii and stiffness): their centres are ramped too, as an object the arm
+    holds moves quasi-statically (:mod:`solver.grasp`); otherwise obstacles that differ from
+    the warm start's stand at their places from the start.
     """
     free_scene = replace(scene, obstacles=())
     ctx = context(arm, layout, free_scene, 2, settings)
@@ -80,8 +83,9 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
         # The same obstacles at the warm start's stiffness (a stiffer penalty is ramped in),
         # or the scene's where they differ.
         start_discs = effective_discs(warm_start.scene, warm_start.penalty_stiffness)
+        same = L.RADIUS if moving else L.CX  # the columns that must agree for a ramp
         if start_discs.shape != goal[L.L_DISCS].shape or np.any(
-                start_discs[:, :3] != goal[L.L_DISCS][:, :3]):
+                start_discs[:, same:3] != goal[L.L_DISCS][:, same:3]):
             start_discs = goal[L.L_DISCS]
         start = (p_start, start_ctx.q, start_plate, start_target, start_discs)
     else:

@@ -159,10 +159,11 @@ def solve(arm: ArmDesign, pressures, scene: Scene | None = None, model: str = "f
 
 
 def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, record,
-              settings) -> Equilibrium:
+              settings, moving=False) -> Equilibrium:
     """The solve of validated inputs by the path the scene needs (:func:`_path`), on an RK4
     grid fine enough for its result, returned on the settings' grid (the finer grid's nodes
-    include it). Never raises (module docstring)."""
+    include it). ``moving``: the warm start's obstacles move to the scene's (penalty contact
+    only; :func:`solver._paths_contact.solve_contact`). Never raises (module docstring)."""
     if model == "constant_curvature" or (
             not scene.obstacles and settings.shortcuts
             and not context(arm, packed, scene, 2 if planar else 3, settings).has_load):
@@ -172,7 +173,7 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
     while True:
         try:
             eq = _path(arm, layout, p_inputs, p_channel, scene, model, planar, warm_start,
-                       settings)
+                       settings, moving)
             need = _grid.needs(eq, layout.secf, q)  # infinite at a sample that is not finite
             worst = float(need.max())
         except (ArithmeticError, np.linalg.LinAlgError):
@@ -195,12 +196,15 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
     return eq if record else tip_only(eq)
 
 
-def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, settings):
+def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, settings,
+          moving=False):
     """The recorded solve by the path the scene needs (contact, planar, the in-plane
     shortcut of a spatial solve, spatial)."""
     if scene.obstacles:
-        contact = solve_rigid if scene.has_rigid_obstacles else solve_contact
-        return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
+        if scene.has_rigid_obstacles:
+            return solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
+        return solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                             moving)
     if planar:
         return solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     if settings.shortcuts and scene.is_planar and in_plane(arm, packed, p_channel) and (

@@ -1,0 +1,451 @@
+"""A free rigid object held by the arm: its pose joins the quasi-static equilibrium.
+
+The object is a rigid cylinder whose axis is normal to the arm's plane (a disc in the plane),
+with mass, resting on a support until the arm lifts it. The arm touches it by the solver's
+penalty contact (:class:`solver.Disc`, frictionless); the object touches its support, two
+frictionless V-blocks under the cylinder's ends, where the arm (which wraps the cylinder's
+middle) never reaches. Equilibrium of the object (docs/design.md §14):
+
+    G(c) = F_arm(c) + W + F_ext + R(c) = 0,
+
+with c the object's centre, F_arm the force of the arm on it (the contact forces' resultant,
+read off the arm's global balance: F_arm = D − n(0), D the arm's dead loads and n(0) the
+internal force at the base), W = (0, −m g) its weight, F_ext a disturbance and R the
+V-blocks' penalty reaction. The arm is in equilibrium with the disc at c (a contact solve);
+c is found by Newton on G with a finite-difference Jacobian, updated by Broyden steps and
+backtracking. The object is *held* when it is in equilibrium with no support reaction.
+
+``grasp_margin`` is the thesis's stability requirement for a whole-arm grasp (§6.1): the
+smallest disturbance force, over planar directions, that the grasp resists before the held
+equilibrium is lost (no equilibrium nearby, or the object pushed back onto its support),
+found per direction by continuation in the force's magnitude and bisection.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from solver._model import pack
+from solver.designs import ArmDesign
+from solver.results import Equilibrium
+from solver.scene import MAX_EXTENT, Disc, Scene
+from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
+from solver.solve import _channel_pressures, _check, _dispatch
+
+__all__ = ["FreeObject", "Grasp", "settle", "grasp_margin"]
+
+# Newton on the object's pose: iterations, and the largest move per iteration as a fraction of
+# the contact radius (the arm's contact solve is warm-started from the last pose, which a long
+# move would make a jump).
+MAX_ITER = 30
+MAX_MOVE = 0.1
+# Finite-difference step of the pose Jacobian (m), relative to the contact radius: far above
+# the contact solve's own noise (its Newton tolerance), far below the contact decay length.
+FD_STEP = 1e-4
+# Force tolerance (N) of the object's balance: relative to the largest force acting on it.
+FORCE_TOL = 1e-6
+# Smallest pressure substep of :func:`settle`, as a fraction of the step.
+MIN_SUBSTEP = 1.0 / 64.0
+
+
+@dataclass(frozen=True)
+class FreeObject:
+    """A rigid cylinder (a disc in the arm's plane) the arm can grasp and lift.
+
+    Attributes:
+        radius: contact radius for the backbone curve (m): the object's radius plus the arm's
+            half-thickness, as for :class:`solver.Disc`.
+        mass_kg: the object's mass (kg).
+        seat: (x, y) of the centre when the object rests on its support (m).
+        stiffness: penalty k of the arm–object contact (N/m², finite: see :class:`solver.Disc`).
+        cradle_half_angle_deg: angle of each V-block face's normal from the vertical (deg): the
+            support holds the object against any force within this cone of the upward
+            direction and lets it go upwards.
+        support_stiffness: penalty of the V-blocks (N/m of penetration, both blocks together).
+    """
+
+    radius: float
+    mass_kg: float
+    seat: tuple
+    stiffness: float = 2.0e4
+    cradle_half_angle_deg: float = 45.0
+    support_stiffness: float = 1.0e5
+
+    def __post_init__(self):
+        Disc(center=self.seat, radius=self.radius, stiffness=self.stiffness)  # validates them
+        if not math.isfinite(self.stiffness):
+            raise ValueError("FreeObject.stiffness must be finite: a free object's pose is solved "
+                             "with penalty contact (rigid contact has no force–pose law to balance)")
+        object.__setattr__(self, "seat", tuple(float(v) for v in self.seat))
+        for name, low, high in (("mass_kg", 0.0, MAX_EXTENT), ("cradle_half_angle_deg", 0.0, 90.0),
+                                ("support_stiffness", 0.0, math.inf)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(v) or not low < v < high:
+                raise ValueError(f"FreeObject.{name} must be a finite number in ({low:g}, {high:g}); "
+                                 f"got {v!r}")
+            object.__setattr__(self, name, float(v))
+
+    def disc(self, center) -> Disc:
+        """The object at ``center`` as an obstacle of the arm's contact solve."""
+        return Disc(center=(float(center[0]), float(center[1])), radius=self.radius,
+                    stiffness=self.stiffness)
+
+    def normals(self) -> np.ndarray:
+        """(2, 2) the V-blocks' face normals (unit, pointing at the object), as rows."""
+        b = math.radians(self.cradle_half_angle_deg)
+        return np.array([[math.sin(b), math.cos(b)], [-math.sin(b), math.cos(b)]])
+
+    def support(self, center) -> tuple[np.ndarray, np.ndarray]:
+        """The V-blocks' reaction (2,) on the object at ``center`` (N) and its Jacobian (2, 2)
+        with respect to the centre (N/m): k·max(0, −gap_i)·n_i per face, gap_i = (c − seat)·n_i."""
+        force = np.zeros(2)
+        jac = np.zeros((2, 2))
+        rel = np.asarray(center, dtype=float) - self.seat
+        k = 0.5 * self.support_stiffness
+        for n in self.normals():
+            gap = float(rel @ n)
+            if gap <= 0.0:  # a face just touching counts: the reaction's one-sided derivative
+                force -= k * gap * n
+                jac -= k * np.outer(n, n)
+        return force, jac
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """The arm and a free object in equilibrium together (or the last attempt at it).
+
+    Attributes:
+        arm: the arm's equilibrium with the object's disc at ``center``.
+        center: (2,) the object's centre (m).
+        converged: the arm's solve converged and the object's balance met its tolerance.
+        held: in equilibrium with no support reaction: the arm alone carries the object.
+        lift: height of the centre above its seat (m; negative when pressed into the support).
+        arm_force: (2,) force of the arm on the object (N).
+        support_force: (2,) reaction of the support on the object (N).
+        residual: |G|, the object's force imbalance (N).
+        stiffness: (2, 2) −∂G/∂c at the returned pose (N/m): the object's restoring stiffness.
+        stable: the arm's equilibrium is stable and ``stiffness`` is positive definite (the
+            object sits in a potential well).
+        iterations: Newton iterations on the pose; ``solves``: contact solves of the arm.
+    """
+
+    arm: Equilibrium
+    center: np.ndarray
+    converged: bool
+    held: bool
+    lift: float
+    arm_force: np.ndarray
+    support_force: np.ndarray
+    residual: float
+    stiffness: np.ndarray = field(repr=False)
+    stable: bool
+    iterations: int
+    solves: int
+
+
+def _dead_loads(arm: ArmDesign, scene: Scene) -> np.ndarray:
+    """D: the internal force at the base of the arm with no contact (N): weights and tip force."""
+    return np.array(scene.tip_force[:2]) - np.array(
+        [0.0, scene.gravity * (arm.mass + scene.payload_kg)])
+
+
+class _Balance:
+    """G(c) for one arm, pressures, scene, object and disturbance; counts the contact solves."""
+
+    def __init__(self, arm, pressures, scene, obj, external_force, model, settings):
+        if not isinstance(obj, FreeObject):
+            raise ValueError(f"obj must be a solver.grasp.FreeObject; got {type(obj).__name__}")
+        _check(arm, scene, model, True)
+        if model == "constant_curvature":
+            raise ValueError("the constant-curvature model has no contact: a grasp needs 'full' "
+                             "or 'unshearable'")
+        if scene.obstacles:
+            raise ValueError("the scene of a grasp must have no obstacles of its own: the object "
+                             "is the only one (its contact force is read off the arm's balance)")
+        f = np.asarray(external_force, dtype=float).ravel()
+        if f.shape != (2,) or not np.all(np.isfinite(f)):
+            raise ValueError(f"external_force must be two finite numbers (N); got {external_force!r}")
+        self.arm, self.scene, self.obj, self.model, self.settings = arm, scene, obj, model, settings
+        self.packed = pack(arm, model, settings)
+        self.p_inputs, self.p_channel = _channel_pressures(arm, pressures, True, self.packed)
+        self.dead = _dead_loads(arm, scene)
+        self.load = np.array([0.0, -obj.mass_kg * scene.gravity]) + f
+        self.counter = [0]  # contact solves, shared with the copies of at()
+
+    def at(self, p_inputs) -> _Balance:
+        """This balance at other (valid) input pressures; the solve count is shared."""
+        other = object.__new__(_Balance)
+        other.__dict__.update(self.__dict__)
+        other.p_inputs = p_inputs
+        other.p_channel = p_inputs[self.packed.spatial_of_planar]
+        other.counter = self.counter
+        return other
+
+    def arm_at(self, center, warm: Equilibrium) -> Equilibrium | None:
+        """The arm's equilibrium at these pressures with the object's disc at ``center``; None
+        where the object would cover the arm's base (a pose the clamp forbids)."""
+        if math.hypot(center[0], center[1]) <= self.obj.radius:
+            return None
+        self.counter[0] += 1
+        scene = replace(self.scene, obstacles=(self.obj.disc(center),))
+        return _dispatch(self.arm, self.packed, self.p_inputs, self.p_channel, scene, self.model,
+                         True, warm, True, self.settings, moving=True)
+
+    def forces(self, center, eq: Equilibrium):
+        """(G, arm force, supports' reaction) at ``center`` with the arm in ``eq``."""
+        arm_force = self.dead - eq.base_force[:2]
+        support = self.obj.support(center)[0]
+        return arm_force + self.load + support, arm_force, support
+
+    def tolerance(self, arm_force) -> float:
+        return FORCE_TOL * (1.0 + float(np.abs(self.load).sum() + np.abs(arm_force).sum()))
+
+    def arm_jacobian(self, center, eq) -> np.ndarray | None:
+        """∂F_arm/∂c by forward differences (two contact solves; zero when the arm does not
+        touch the object), or None if a contact solve fails."""
+        jac = np.zeros((2, 2))
+        if not eq.in_contact:
+            return jac
+        h = FD_STEP * self.obj.radius
+        arm_force = self.dead - eq.base_force[:2]
+        for j in range(2):
+            c = center.copy()
+            c[j] += h
+            moved = self.arm_at(c, eq)
+            if moved is None or not moved.converged:
+                return None
+            jac[:, j] = (self.dead - moved.base_force[:2] - arm_force) / h
+        return jac
+
+
+def _newton(bal: _Balance, center, eq: Equilibrium):
+    """Newton on the object's pose from ``center`` with the arm in ``eq`` (solved there).
+
+    The Jacobian is the support's, exact, plus the arm's: by finite differences, then
+    Broyden-updated along the steps taken, rebuilt when a step fails.
+
+    Returns (center, eq, G, arm force, support force, converged, iterations).
+    """
+    c = np.array(center, dtype=float)
+    g, arm_force, support = bal.forces(c, eq)
+    max_move = MAX_MOVE * bal.obj.radius
+    arm_jac = None
+    fresh = False
+    for it in range(MAX_ITER + 1):
+        if np.abs(g).max() <= bal.tolerance(arm_force):
+            return c, eq, g, arm_force, support, True, it
+        if it == MAX_ITER:
+            break
+        if arm_jac is None:
+            arm_jac = bal.arm_jacobian(c, eq)
+            fresh = True
+            if arm_jac is None:
+                break
+        jac = arm_jac + bal.obj.support(c)[1]
+        try:
+            step = -np.linalg.solve(jac, g)
+        except np.linalg.LinAlgError:
+            step = -np.linalg.lstsq(jac, g, rcond=None)[0]
+        norm = float(np.hypot(*step))
+        if not math.isfinite(norm):
+            break
+        if norm > max_move:
+            step *= max_move / norm
+        accepted = False
+        for _ in range(8):  # backtracking on |G|
+            trial = c + step
+            moved = bal.arm_at(trial, eq)
+            if moved is not None and moved.converged:
+                g_new, f_new, s_new = bal.forces(trial, moved)
+                if np.abs(g_new).max() < np.abs(g).max():
+                    accepted = True
+                    break
+            step = 0.5 * step
+        if not accepted:
+            if fresh:
+                break
+            arm_jac = None  # a stale (Broyden) Jacobian: rebuild it and try again
+            continue
+        # Broyden's update of the arm's part along the step taken.
+        arm_jac = arm_jac + np.outer(f_new - arm_force - arm_jac @ step, step) / float(step @ step)
+        fresh = False
+        c, eq, g, arm_force, support = trial, moved, g_new, f_new, s_new
+    return c, eq, g, arm_force, support, False, it
+
+
+def _result(bal, c, eq, g, arm_force, support, converged, iterations) -> Grasp:
+    stiffness = np.full((2, 2), np.nan)
+    stable = False
+    if converged:
+        jac = bal.arm_jacobian(c, eq)
+        if jac is not None:
+            stiffness = -(jac + bal.obj.support(c)[1])
+            sym = 0.5 * (stiffness + stiffness.T)
+            stable = bool(eq.stable and np.all(np.linalg.eigvalsh(sym) > 0.0))
+    held = bool(converged and not np.any(support))
+    return Grasp(arm=eq, center=c, converged=bool(converged), held=held,
+                 lift=float(c[1] - bal.obj.seat[1]), arm_force=arm_force, support_force=support,
+                 residual=float(np.hypot(*g)), stiffness=stiffness, stable=stable,
+                 iterations=int(iterations), solves=bal.counter[0])
+
+
+def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=None,
+           warm_start: Equilibrium | None = None, external_force=(0.0, 0.0), model: str = "full",
+           settings: Settings = DEFAULT_SETTINGS) -> Grasp:
+    """The arm at ``pressures`` and the free object in equilibrium together (planar).
+
+    The quasi-static path from the previous state (``warm_start`` with the object at
+    ``center``; cold: the unactuated arm with the object on its seat) to ``pressures`` is
+    followed with the object free all along: pressures move in substeps (the whole step
+    first, halved down to 1/64 of it where a substep fails, doubled again after a success);
+    in each the arm moves with the object held where it was, then the object's pose is solved
+    by Newton from there, the equilibrium nearest the previous one. Where the smallest
+    substep finds none — the object has slipped out of the arm's hold — it falls back onto its
+    support, and the pose is solved from the seat.
+
+    Args:
+        arm: the design. pressures: (n_inputs,) planar input pressures (Pa).
+        scene: mounting and loads, without obstacles (the object is the only one).
+        obj: the object. center: (2,) its centre before the step (m; default its seat).
+        warm_start: the arm's previous equilibrium, solved with the object's disc at
+            ``center`` (default: a cold start).
+        external_force: (2,) disturbance on the object (N).
+        model, settings: as in :func:`solver.solve`.
+
+    Returns:
+        The :class:`Grasp` at ``pressures``; where the path could not be followed to the end,
+        the last state reached, with ``converged=False``.
+    """
+    if model not in MODELS:
+        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    bal = _Balance(arm, pressures, scene, obj, external_force, model, settings)
+    start = np.array(obj.seat if center is None else center, dtype=float)
+    if start.shape != (2,) or not np.all(np.isfinite(start)):
+        raise ValueError(f"center must be two finite numbers (m); got {center!r}")
+    target = bal.p_inputs
+    if warm_start is None:
+        origin = np.zeros_like(target)
+        now = _settle(bal.at(origin), start, None, fall_back=False)
+    else:
+        origin = np.asarray(warm_start.pressures, dtype=float)
+        if origin.shape != target.shape:
+            raise ValueError("warm_start was solved with another number of input pressures")
+        now = _settle(bal.at(origin), start, warm_start, fall_back=False)
+    t, dt = 0.0, 1.0
+    while now.converged and t < 1.0:
+        t_new = min(1.0, t + dt)
+        attempt = _settle(bal.at(origin + t_new * (target - origin)), now.center, now.arm,
+                          fall_back=dt <= MIN_SUBSTEP)
+        if attempt.converged:
+            now, t, dt = attempt, t_new, 2.0 * dt
+        elif dt > MIN_SUBSTEP:
+            dt *= 0.5
+        else:
+            return replace(attempt, solves=bal.counter[0])
+    return replace(now, solves=bal.counter[0])
+
+
+def _settle(bal: _Balance, start, warm_start, fall_back: bool) -> Grasp:
+    """The object's equilibrium at ``bal``'s pressures nearest ``start`` (with the arm moved
+    there from ``warm_start`` with the object held at ``start``), or from the seat."""
+    eq = bal.arm_at(start, warm_start)
+    if eq is None:
+        raise ValueError(f"the object at {tuple(start)} covers the arm's base at the origin")
+    if not eq.converged:
+        return _result(bal, start, eq, *bal.forces(start, eq)[:3], False, 0)
+    c, eq_c, g, arm_force, support, ok, its = _newton(bal, start, eq)
+    seat = np.array(bal.obj.seat)
+    if not ok and fall_back and np.any(start != seat):
+        fallen = bal.arm_at(seat, eq)
+        if fallen is not None and fallen.converged:
+            c, eq_c, g, arm_force, support, ok, more = _newton(bal, seat, fallen)
+            its += more
+    return _result(bal, c, eq_c, g, arm_force, support, ok, its)
+
+
+class _Push:
+    """A disturbance along ``unit`` on the object held in ``eq``'s arm and scene."""
+
+    def __init__(self, eq, scene, obj, unit, settings):
+        self.eq, self.scene, self.obj, self.unit, self.settings = eq, scene, obj, unit, settings
+
+    def holds(self, force, state):
+        """Whether the object stays held under ``force`` (N) from ``state`` (centre, arm
+        equilibrium), and the state it is held in."""
+        eq = self.eq
+        bal = _Balance(eq.arm, eq.pressures, self.scene, self.obj, force * self.unit, eq.model,
+                       self.settings)
+        g = _settle(bal, state[0], state[1], fall_back=False)
+        return g.converged and g.held, (g.center, g.arm)
+
+
+def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_force: float | None = None,
+                 rel_tol: float = 0.05, settings: Settings = DEFAULT_SETTINGS) -> tuple[float, np.ndarray]:
+    """The smallest disturbance force the grasp resists, over planar directions (N).
+
+    For each of ``directions`` directions evenly spaced from straight up, a force on the
+    object is increased from zero — doubling from a tenth of the object's weight, then
+    bisected to ``rel_tol`` — while the object stays held: in equilibrium, nearest the last
+    one, off its support. The largest force it stays held under is that direction's margin.
+    Not held to begin with: every margin is 0.
+
+    Args:
+        grasp: a converged result of :func:`settle` (its arm, pressures and scene are used).
+        obj: the object it holds.
+        directions: number of directions (≥ 1), the first straight up (+y).
+        max_force: largest force tried (N; default 100 times the object's weight): a margin
+            equal to it means "at least".
+        rel_tol: relative resolution of each margin.
+
+    Returns:
+        (margin, per_direction): the smallest margin (N) and (directions,) the margin along
+        each direction (unit vectors (−sin φ_k, cos φ_k), φ_k = 2πk/directions).
+    """
+    if isinstance(directions, bool) or int(directions) != directions or directions < 1:
+        raise ValueError(f"directions must be an integer >= 1; got {directions!r}")
+    if not 0 < rel_tol < 1:
+        raise ValueError(f"rel_tol must be in (0, 1); got {rel_tol!r}")
+    eq = grasp.arm
+    weight = obj.mass_kg * eq.scene.gravity
+    cap = 100.0 * weight if max_force is None else float(max_force)
+    if not (math.isfinite(cap) and cap > 0):
+        raise ValueError(f"max_force must be a finite number > 0 (N); got {max_force!r}")
+    margins = np.zeros(int(directions))
+    if not (grasp.converged and grasp.held):
+        return 0.0, margins
+    scene = replace(eq.scene, obstacles=())
+    for k in range(int(directions)):
+        phi = 2.0 * math.pi * k / directions
+        push = _Push(eq, scene, obj, np.array([-math.sin(phi), math.cos(phi)]), settings)
+        state = (grasp.center, eq)
+        low, high = 0.0, None
+        f = max(0.1 * weight, 1e-3)
+        while f <= cap:
+            ok, new = push.holds(f, state)
+            if not ok:
+                high = f
+                break
+            low, state = f, new
+            f *= 2.0
+        if high is None and low < cap:
+            ok, new = push.holds(cap, state)
+            if ok:
+                low = cap
+            else:
+                high = cap
+        if high is None:
+            margins[k] = low
+            continue
+        while high - low > rel_tol * high:
+            mid = 0.5 * (low + high)
+            ok, new = push.holds(mid, state)
+            if ok:
+                low, state = mid, new
+            else:
+                high = mid
+        margins[k] = low
+    return float(margins.min()), margins

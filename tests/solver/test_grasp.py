@@ -1,0 +1,163 @@
+"""A free object held by the arm (:mod:`solver.grasp`): its balance, its support, the margin."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.interpolate import CubicSpline
+
+import solver
+from solver.grasp import FreeObject, grasp_margin, settle
+
+ARM = solver.designs.octarm_v()
+# The distal section's outer half-thickness (tube offset + outer radius) and its tubes' ring
+# stiffness: the contact radius and penalty the wrap env uses for this arm.
+HALF = max(t.radius + t.material.outer_radius for t in ARM.tubes if t.last_section == 2)
+STIFFNESS = min(t.material.ring_stiffness for t in ARM.tubes if t.last_section == 2)
+SCENE = solver.Scene()
+
+
+def _channels_i(fraction):
+    """Channel I of every section at ``fraction`` of p_max: a curl towards −x."""
+    p = np.zeros(ARM.n_inputs(True))
+    p[0::2] = fraction * ARM.max_pressure
+    return p
+
+
+@pytest.fixture(scope="module")
+def held():
+    """A 0.5 kg cylinder wrapped by channel I at 90 % pressure, then let go: the arm holds it.
+
+    The arm first curls round it fixed in place (as the wrap env's disc), then the object is
+    freed from there with its support far below, so only the arm can hold it.
+    """
+    center = (-0.16, -0.062)
+    obj = FreeObject(radius=0.119 + HALF, mass_kg=0.5, seat=(center[0], center[1] - 0.3),
+                     stiffness=STIFFNESS)
+    fixed = solver.Scene(obstacles=(obj.disc(center),))
+    eq = solver.solve(ARM, _channels_i(0.3), fixed)
+    for fraction in np.arange(0.35, 0.901, 0.05):
+        eq = solver.solve(ARM, _channels_i(fraction), fixed, warm_start=eq)
+    return obj, settle(ARM, _channels_i(0.9), SCENE, obj, center=center, warm_start=eq)
+
+
+def test_object_at_rest_sinks_into_its_v_blocks_by_the_penalty_law():
+    obj = FreeObject(radius=0.08, mass_kg=0.3, seat=(0.4, -0.2), stiffness=STIFFNESS,
+                     cradle_half_angle_deg=40.0, support_stiffness=2e5)
+    g = settle(ARM, np.zeros(ARM.n_inputs(True)), SCENE, obj)
+    weight = 0.3 * SCENE.gravity
+    assert g.converged and not g.held and not g.arm.in_contact
+    np.testing.assert_allclose(g.support_force, [0.0, weight], atol=1e-9)
+    # Two faces of k/2 each, normals 40° from the vertical: k d cos²β = m g.
+    assert g.lift == pytest.approx(-weight / (2e5 * math.cos(math.radians(40.0)) ** 2), rel=1e-9)
+    np.testing.assert_allclose(g.center[0], 0.4, atol=1e-12)
+    assert g.stable and np.all(np.linalg.eigvalsh(g.stiffness) > 0)
+
+
+def test_held_object_is_in_equilibrium_by_an_independent_force_sum(held):
+    obj, g = held
+    assert g.converged and g.held and g.stable
+    np.testing.assert_array_equal(g.support_force, [0.0, 0.0])
+    weight = np.array([0.0, -obj.mass_kg * SCENE.gravity])
+    assert np.abs(g.arm_force + weight).max() <= 1e-4
+    # The arm's force on the object summed along the backbone — the penalty law applied to a
+    # spline through the recorded samples, on a fine grid — not read off the arm's base
+    # balance as the solver does.
+    eq = g.arm
+    distinct = np.concatenate([[True], np.diff(eq.s) > 0])  # section ends are sampled twice
+    s = np.linspace(0.0, eq.s[-1], 100_001)
+    rel = CubicSpline(eq.s[distinct], eq.positions[distinct])(s) - g.center
+    dist = np.hypot(rel[:, 0], rel[:, 1])
+    per_length = (obj.stiffness * np.maximum(obj.radius - dist, 0.0) / dist)[:, None] * rel
+    summed = -np.trapezoid(per_length, s, axis=0)
+    np.testing.assert_allclose(summed, -weight, atol=0.005 * weight[1] * -1)
+    assert math.degrees(solver_wrap(eq.positions, g.center, obj.radius)) > 270
+
+
+def solver_wrap(positions, center, radius, margin=0.005):
+    """The angular extent of the backbone within ``margin`` of the contact circle (rad)."""
+    rel = positions - np.asarray(center)
+    near = np.hypot(rel[:, 0], rel[:, 1]) <= radius + margin
+    phi = np.unwrap(np.arctan2(rel[near, 1], rel[near, 0]))
+    return float(phi.max() - phi.min()) if phi.size > 1 else 0.0
+
+
+def test_margin_is_a_force_the_grasp_resists_and_beyond_which_it_does_not(held):
+    obj, g = held
+    margin, per = grasp_margin(g, obj, directions=4, max_force=60.0, rel_tol=0.05)
+    assert per.shape == (4,) and margin == per.min() > 0
+    for k, m in enumerate(per):
+        phi = 2 * math.pi * k / 4
+        unit = np.array([-math.sin(phi), math.cos(phi)])
+        push = settle(ARM, g.arm.pressures, SCENE, obj, center=g.center, warm_start=g.arm,
+                      external_force=0.9 * m * unit)
+        assert push.converged and push.held, (k, m)
+        if m < 60.0:
+            # The object gives way under the push, nearest state first, as the margin did.
+            state = (g.center, g.arm)
+            lost = False
+            for f in np.linspace(m, 1.2 * m / 0.95 + 1e-9, 4)[1:]:
+                push = settle(ARM, g.arm.pressures, SCENE, obj, center=state[0],
+                              warm_start=state[1], external_force=f * unit)
+                if not (push.converged and push.held):
+                    lost = True
+                    break
+                state = (push.center, push.arm)
+            assert lost, (k, m)
+
+
+def test_not_held_has_zero_margin():
+    obj = FreeObject(radius=0.08, mass_kg=0.3, seat=(0.4, -0.2), stiffness=STIFFNESS)
+    g = settle(ARM, np.zeros(ARM.n_inputs(True)), SCENE, obj)
+    margin, per = grasp_margin(g, obj, directions=3)
+    assert margin == 0.0 and np.all(per == 0.0)
+
+
+def test_moving_disc_ramp_ends_where_a_plain_warm_solve_does():
+    """A disc moved a millimetre against the curled arm: the ramped path (``moving``) and the
+    plain warm solve (the disc jumps, Newton corrects) reach the same equilibrium."""
+    from solver._model import pack
+    from solver.settings import DEFAULT_SETTINGS
+    from solver.solve import _channel_pressures, _dispatch
+
+    disc = solver.Disc(center=(-0.16, -0.25), radius=0.1, stiffness=STIFFNESS)
+    p = _channels_i(0.6)
+    eq = solver.solve(ARM, p, solver.Scene(obstacles=(disc,)))
+    assert eq.converged and eq.in_contact
+    moved = solver.Scene(obstacles=(replace(disc, center=(-0.159, -0.249)),))
+    packed = pack(ARM, "full", DEFAULT_SETTINGS)
+    p_inputs, p_channel = _channel_pressures(ARM, p, True, packed)
+    ramped = _dispatch(ARM, packed, p_inputs, p_channel, moved, "full", True, eq, True,
+                       DEFAULT_SETTINGS, moving=True)
+    jumped = _dispatch(ARM, packed, p_inputs, p_channel, moved, "full", True, eq, True,
+                       DEFAULT_SETTINGS)
+    assert ramped.converged and jumped.converged
+    np.testing.assert_allclose(ramped.tip, jumped.tip, atol=1e-9)
+    np.testing.assert_allclose(ramped.base_force, jumped.base_force, atol=1e-7)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"mass_kg": 0.0}, "mass_kg"),
+    ({"mass_kg": math.nan}, "mass_kg"),
+    ({"stiffness": math.inf}, "finite"),
+    ({"cradle_half_angle_deg": 90.0}, "cradle_half_angle_deg"),
+    ({"radius": -1.0}, "radius"),
+])
+def test_free_object_rejects_bad_parameters(kwargs, match):
+    args = {"radius": 0.1, "mass_kg": 0.2, "seat": (0.3, -0.3), **kwargs}
+    with pytest.raises(ValueError, match=match):
+        FreeObject(**args)
+
+
+def test_settle_rejects_bad_input():
+    obj = FreeObject(radius=0.1, mass_kg=0.2, seat=(0.3, -0.3))
+    p = np.zeros(ARM.n_inputs(True))
+    with pytest.raises(ValueError, match="no obstacles"):
+        settle(ARM, p, solver.Scene(obstacles=(solver.Disc(center=(1.0, 1.0)),)), obj)
+    with pytest.raises(ValueError, match="external_force"):
+        settle(ARM, p, SCENE, obj, external_force=(1.0, math.nan))
+    with pytest.raises(ValueError, match="covers the arm's base"):
+        settle(ARM, p, SCENE, obj, center=(0.0, -0.05))
+    with pytest.raises(ValueError, match="directions"):
+        grasp_margin(settle(ARM, p, SCENE, obj), obj, directions=0)
