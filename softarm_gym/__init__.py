@@ -128,3 +128,13 @@ register(
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
 )
+
+# Grasp: the OctArmWrap-v1 geometry with a free object resting in forks; lift it out and hold
+# it (docs/environments.md, "Grasp"; the object's pose is solved with the arm, solver.grasp).
+register(
+    id="SoftArm/OctArmGrasp-v0",
+    entry_point="softarm_gym.envs:GraspEnv",
+    max_episode_steps=100,
+    reward_threshold=134.0,
+    kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
+)

@@ -36,6 +36,7 @@ first step of an episode the controller then holds the pressures.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -179,8 +180,14 @@ class CurlController(_PressureController):
     the step; once the step is below 1/1000 of p_max it holds. It uses no contact or wrap
     feedback: the reference a learned wrap policy should beat.
 
+    On a grasp env (:class:`~softarm_gym.envs.GraspEnv`, whose goal block also holds the
+    object's seat) it reads the object's centre: once the object is ``success_lift`` above its
+    seat it holds the pressures, unless the object is pressed against the arm's base clamp
+    (its contact circle within 2 mm of the base), where it backs the curl off by half the
+    last increment, and so on.
+
     Args:
-        env: a (possibly wrapped) planar wrap environment with ``observation_format='flat'``.
+        env: a (possibly wrapped) planar wrap or grasp environment with ``observation_format='flat'``.
         ramp_steps: steps from zero to full pressure while no command is rejected (>= 1).
 
     Raises:
@@ -207,6 +214,8 @@ class CurlController(_PressureController):
             turning[k] = u2 @ lengths
         self.turning = turning
         """Total rest turning (rad) of the arm with each input alone at p_max (> 0: counter-clockwise)."""
+        self.success_lift = getattr(base, "success_lift", None)
+        """The grasp env's lift to reach (m), or None on a wrap env."""
         self.reset()
 
     def reset(self) -> None:
@@ -239,10 +248,22 @@ class CurlController(_PressureController):
             return self._command
         # Below a thousandth of p_max the next rejection could not be seen: stop and hold.
         increment = self._increment if self._increment >= _MIN_INCREMENT else 0.0
-        step = np.where(self._inputs > 0, increment, -increment)
+        if self.success_lift is not None:
+            goal = obs[self._slices["goal"]]
+            if goal[1] - goal[4] >= self.success_lift:
+                if math.hypot(goal[0], goal[1]) > goal[2] + _CLAMP_MARGIN:
+                    self._command = current
+                    return self._command
+                self._increment *= 0.5  # pressed against the base clamp: curl back
+                increment = -self._increment if self._increment >= _MIN_INCREMENT else 0.0
+        step = np.where(self._inputs > 0, increment, -abs(increment))
         self._command = np.clip(current + step, 0.0, 1.0)
         return self._command
 
+
+_CLAMP_MARGIN = 2e-3
+"""CurlController on grasp: an object whose contact circle is this close to the arm's base
+(m) is pressed against the base clamp (:data:`solver.grasp.CLAMP_GAP` = 1 mm, plus slack)."""
 
 _MAX_CORNERS = 64
 """CEMPlanner tries every corner of the action box by default up to this many (6 inputs)."""

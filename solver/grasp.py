@@ -2,18 +2,18 @@
 
 The object is a rigid cylinder whose axis is normal to the arm's plane (a disc in the plane),
 with mass, resting on a support until the arm lifts it. The arm touches it by the solver's
-penalty contact (:class:`solver.Disc`, frictionless); the object touches its support, two
-frictionless V-blocks under the cylinder's ends, where the arm (which wraps the cylinder's
-middle) never reaches. Equilibrium of the object (docs/design.md §14):
+penalty contact (:class:`solver.Disc`, frictionless); the object touches its support — two
+forks open upwards (or V-blocks) under the cylinder's ends, where the arm, which wraps the
+cylinder's middle, never reaches. Equilibrium of the object (docs/design.md §14):
 
     G(c) = F_arm(c) + W + F_ext + R(c) = 0,
 
 with c the object's centre, F_arm the force of the arm on it (the contact forces' resultant,
 read off the arm's global balance: F_arm = D − n(0), D the arm's dead loads and n(0) the
 internal force at the base), W = (0, −m g) its weight, F_ext a disturbance and R the
-V-blocks' penalty reaction. The arm is in equilibrium with the disc at c (a contact solve);
+support's penalty reaction. The arm is in equilibrium with the disc at c (a contact solve);
 c is found by Newton on G with a finite-difference Jacobian, updated by Broyden steps and
-backtracking. The object is *held* when it is in equilibrium with no support reaction.
+backtracking. The object is *held* when it is in equilibrium clear of its support.
 
 ``grasp_margin`` is the thesis's stability requirement for a whole-arm grasp (§6.1): the
 smallest disturbance force, over planar directions, that the grasp resists before the held
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,20 +36,38 @@ from solver.scene import MAX_EXTENT, Disc, Scene
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
 from solver.solve import _channel_pressures, _check, _dispatch
 
-__all__ = ["FreeObject", "Grasp", "settle", "grasp_margin"]
+__all__ = ["FreeObject", "Grasp", "settle", "grasp_margin", "SUPPORTS"]
+
+SUPPORTS = ("fork", "v_blocks")
 
 # Newton on the object's pose: iterations, and the largest move per iteration as a fraction of
 # the contact radius (the arm's contact solve is warm-started from the last pose, which a long
 # move would make a jump).
-MAX_ITER = 30
+MAX_ITER = 20
 MAX_MOVE = 0.1
+BACKTRACKS = 4
+# The object's stiffness counts as positive definite (Newton's step) when its smallest
+# eigenvalue exceeds this fraction of its largest; below, the step is shifted (see _newton).
+SHIFT = 1e-3
 # Finite-difference step of the pose Jacobian (m), relative to the contact radius: far above
 # the contact solve's own noise (its Newton tolerance), far below the contact decay length.
-FD_STEP = 1e-4
+FD_STEP = 1e-3
 # Force tolerance (N) of the object's balance: relative to the largest force acting on it.
 FORCE_TOL = 1e-6
 # Smallest pressure substep of :func:`settle`, as a fraction of the step.
 MIN_SUBSTEP = 1.0 / 64.0
+# Contact solves one call of :func:`settle` may spend before it reports the step unconverged
+# (a wrap that snaps shut round a free object can cost seconds per solve).
+MAX_SOLVES = 150
+
+
+class _Exhausted(Exception):
+    """The contact-solve budget of one :func:`settle` call ran out."""
+# Fraction of a fork's depth, at its top, over which its walls' hold fades (a chamfered rim).
+RIM = 0.25
+# Clearance (m) the base clamp keeps between the object's contact circle and the arm's base
+# (so that its penalty's give never lets the disc cover the base).
+CLAMP_GAP = 1e-3
 
 
 @dataclass(frozen=True)
@@ -61,16 +80,22 @@ class FreeObject:
         mass_kg: the object's mass (kg).
         seat: (x, y) of the centre when the object rests on its support (m).
         stiffness: penalty k of the arm–object contact (N/m², finite: see :class:`solver.Disc`).
-        cradle_half_angle_deg: angle of each V-block face's normal from the vertical (deg): the
-            support holds the object against any force within this cone of the upward
-            direction and lets it go upwards.
-        support_stiffness: penalty of the V-blocks (N/m of penetration, both blocks together).
+        support: what the cylinder's ends rest in. ``"fork"``: U-shaped forks open upwards,
+            ``fork_depth`` deep — they hold the object against sideways pushes and weight
+            until it is lifted out of them, then let it go. ``"v_blocks"``: V-blocks whose
+            faces' normals are ``cradle_half_angle_deg`` from the vertical — a pushed object
+            rides up a face (docs/design.md §14).
+        fork_depth: depth of the forks (m).
+        cradle_half_angle_deg: V-blocks' face angle (deg, in (0, 90)).
+        support_stiffness: penalty of the support (N/m of penetration, both ends together).
     """
 
     radius: float
     mass_kg: float
     seat: tuple
     stiffness: float = 2.0e4
+    support: str = "fork"
+    fork_depth: float = 0.02
     cradle_half_angle_deg: float = 45.0
     support_stiffness: float = 1.0e5
 
@@ -80,8 +105,11 @@ class FreeObject:
             raise ValueError("FreeObject.stiffness must be finite: a free object's pose is solved "
                              "with penalty contact (rigid contact has no force–pose law to balance)")
         object.__setattr__(self, "seat", tuple(float(v) for v in self.seat))
+        if self.support not in SUPPORTS:
+            raise ValueError(f"FreeObject.support must be one of {', '.join(SUPPORTS)}; "
+                             f"got {self.support!r}")
         for name, low, high in (("mass_kg", 0.0, MAX_EXTENT), ("cradle_half_angle_deg", 0.0, 90.0),
-                                ("support_stiffness", 0.0, math.inf)):
+                                ("support_stiffness", 0.0, math.inf), ("fork_depth", 0.0, MAX_EXTENT)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
                     or not math.isfinite(v) or not low < v < high:
@@ -99,16 +127,62 @@ class FreeObject:
         b = math.radians(self.cradle_half_angle_deg)
         return np.array([[math.sin(b), math.cos(b)], [-math.sin(b), math.cos(b)]])
 
-    def support(self, center) -> tuple[np.ndarray, np.ndarray]:
-        """The V-blocks' reaction (2,) on the object at ``center`` (N) and its Jacobian (2, 2)
-        with respect to the centre (N/m): k·max(0, −gap_i)·n_i per face, gap_i = (c − seat)·n_i."""
-        force = np.zeros(2)
-        jac = np.zeros((2, 2))
+    def clear(self, center) -> bool:
+        """Whether the object at ``center`` is clear of its support (out of the forks; off
+        both V-block faces) and of the arm's base clamp."""
         rel = np.asarray(center, dtype=float) - self.seat
+        if math.hypot(center[0], center[1]) <= self.radius + CLAMP_GAP:
+            return False
+        if self.support == "fork":
+            return bool(rel[1] >= self.fork_depth)
+        return bool(np.all(self.normals() @ rel > 0.0))
+
+    def _clamp(self, center) -> tuple[np.ndarray, np.ndarray]:
+        """The base clamp's reaction on the object and its Jacobian: the clamp is a boss round
+        the arm's base (the origin) that keeps the object's centre ``radius + CLAMP_GAP``
+        from it, a penalty of ``support_stiffness`` (a tight wrap pulls the object there)."""
+        c = np.asarray(center, dtype=float)
+        dist = math.hypot(c[0], c[1])
+        reach = self.radius + CLAMP_GAP
+        if dist >= reach or dist == 0.0:
+            return np.zeros(2), np.zeros((2, 2))
+        k = self.support_stiffness
+        u = c / dist
+        # f = k (reach − |c|) u: ∂f/∂c = −k u uᵀ + k (reach − |c|)/|c| (I − u uᵀ).
+        jac = -k * np.outer(u, u) + k * (reach - dist) / dist * (np.eye(2) - np.outer(u, u))
+        return k * (reach - dist) * u, jac
+
+    def support_reaction(self, center) -> tuple[np.ndarray, np.ndarray]:
+        """The support's reaction (2,) on the object at ``center`` (N) and its Jacobian (2, 2)
+        with respect to the centre (N/m), penalty k = ``support_stiffness``.
+
+        Forks: floor k·max(0, seat_y − c_y) upwards; walls −k·(c_x − seat_x)·w while the
+        centre is less than ``fork_depth`` above the seat, w fading from 1 to 0 over the top
+        quarter of the fork (``RIM``). V-blocks: (k/2)·max(0, −gap_i)·n_i per
+        face, gap_i = (c − seat)·n_i. A face just touching counts, for the one-sided
+        derivative.
+        """
+        force, jac = self._clamp(center)
+        rel = np.asarray(center, dtype=float) - self.seat
+        if self.support == "fork":
+            k = self.support_stiffness
+            if rel[1] <= 0.0:
+                force[1] -= k * rel[1]
+                jac[1, 1] -= k
+            # The walls' hold fades linearly over the top quarter of the fork (a chamfered
+            # rim): a pushed object slides out over it instead of meeting a step in force.
+            top = (1.0 - RIM) * self.fork_depth
+            if rel[1] < self.fork_depth:
+                w, dw = (1.0, 0.0) if rel[1] <= top else \
+                    ((self.fork_depth - rel[1]) / (RIM * self.fork_depth), -1.0 / (RIM * self.fork_depth))
+                force[0] -= k * rel[0] * w
+                jac[0, 0] -= k * w
+                jac[0, 1] -= k * rel[0] * dw
+            return force, jac
         k = 0.5 * self.support_stiffness
         for n in self.normals():
             gap = float(rel @ n)
-            if gap <= 0.0:  # a face just touching counts: the reaction's one-sided derivative
+            if gap <= 0.0:
                 force -= k * gap * n
                 jac -= k * np.outer(n, n)
         return force, jac
@@ -122,10 +196,11 @@ class Grasp:
         arm: the arm's equilibrium with the object's disc at ``center``.
         center: (2,) the object's centre (m).
         converged: the arm's solve converged and the object's balance met its tolerance.
-        held: in equilibrium with no support reaction: the arm alone carries the object.
+        held: in equilibrium, clear of its support (:meth:`FreeObject.clear`): the arm alone
+            carries the object.
         lift: height of the centre above its seat (m; negative when pressed into the support).
         arm_force: (2,) force of the arm on the object (N).
-        support_force: (2,) reaction of the support on the object (N).
+        support_force: (2,) reaction of the support and the base clamp on the object (N).
         residual: |G|, the object's force imbalance (N).
         stiffness: (2, 2) −∂G/∂c at the returned pose (N/m): the object's restoring stiffness.
         stable: the arm's equilibrium is stable and ``stiffness`` is positive definite (the
@@ -175,6 +250,7 @@ class _Balance:
         self.dead = _dead_loads(arm, scene)
         self.load = np.array([0.0, -obj.mass_kg * scene.gravity]) + f
         self.counter = [0]  # contact solves, shared with the copies of at()
+        self.budget = math.inf
 
     def at(self, p_inputs) -> _Balance:
         """This balance at other (valid) input pressures; the solve count is shared."""
@@ -190,6 +266,8 @@ class _Balance:
         where the object would cover the arm's base (a pose the clamp forbids)."""
         if math.hypot(center[0], center[1]) <= self.obj.radius:
             return None
+        if self.counter[0] >= self.budget:
+            raise _Exhausted
         self.counter[0] += 1
         scene = replace(self.scene, obstacles=(self.obj.disc(center),))
         return _dispatch(self.arm, self.packed, self.p_inputs, self.p_channel, scene, self.model,
@@ -198,7 +276,7 @@ class _Balance:
     def forces(self, center, eq: Equilibrium):
         """(G, arm force, supports' reaction) at ``center`` with the arm in ``eq``."""
         arm_force = self.dead - eq.base_force[:2]
-        support = self.obj.support(center)[0]
+        support = self.obj.support_reaction(center)[0]
         return arm_force + self.load + support, arm_force, support
 
     def tolerance(self, arm_force) -> float:
@@ -226,9 +304,14 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
     """Newton on the object's pose from ``center`` with the arm in ``eq`` (solved there).
 
     The Jacobian is the support's, exact, plus the arm's: by finite differences, then
-    Broyden-updated along the steps taken, rebuilt when a step fails.
+    Broyden-updated along the steps taken, rebuilt when a step fails. Where the object's
+    stiffness K = −∂G/∂c is not positive definite (the arm pulls it the more, the further it
+    goes), Newton's step would head for an unstable root against the net force; the step is
+    then (K + μI)⁻¹G with μ making K + μI positive definite — along the net force, as the
+    object would move — and taken without the |G| test (pseudo-transient continuation),
+    until a stable root is near.
 
-    Returns (center, eq, G, arm force, support force, converged, iterations).
+    Returns the :class:`_Pose` reached.
     """
     c = np.array(center, dtype=float)
     g, arm_force, support = bal.forces(c, eq)
@@ -237,7 +320,7 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
     fresh = False
     for it in range(MAX_ITER + 1):
         if np.abs(g).max() <= bal.tolerance(arm_force):
-            return c, eq, g, arm_force, support, True, it
+            return _Pose(c, eq, g, arm_force, support, True, it)
         if it == MAX_ITER:
             break
         if arm_jac is None:
@@ -245,23 +328,27 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
             fresh = True
             if arm_jac is None:
                 break
-        jac = arm_jac + bal.obj.support(c)[1]
+        stiffness = -(arm_jac + bal.obj.support_reaction(c)[1])
+        low, high = np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))
+        shifted = not low > SHIFT * high
+        if shifted:
+            stiffness = stiffness + (SHIFT * max(abs(high), abs(low)) - low) * np.eye(2)
         try:
-            step = -np.linalg.solve(jac, g)
+            step = np.linalg.solve(stiffness, g)
         except np.linalg.LinAlgError:
-            step = -np.linalg.lstsq(jac, g, rcond=None)[0]
+            step = np.linalg.lstsq(stiffness, g, rcond=None)[0]
         norm = float(np.hypot(*step))
         if not math.isfinite(norm):
             break
         if norm > max_move:
             step *= max_move / norm
         accepted = False
-        for _ in range(8):  # backtracking on |G|
+        for _ in range(BACKTRACKS):  # backtracking on |G|
             trial = c + step
             moved = bal.arm_at(trial, eq)
             if moved is not None and moved.converged:
                 g_new, f_new, s_new = bal.forces(trial, moved)
-                if np.abs(g_new).max() < np.abs(g).max():
+                if shifted or np.abs(g_new).max() < np.abs(g).max():
                     accepted = True
                     break
             step = 0.5 * step
@@ -270,32 +357,53 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
                 break
             arm_jac = None  # a stale (Broyden) Jacobian: rebuild it and try again
             continue
-        # Broyden's update of the arm's part along the step taken.
-        arm_jac = arm_jac + np.outer(f_new - arm_force - arm_jac @ step, step) / float(step @ step)
+        if shifted and np.abs(g_new).max() >= np.abs(g).max() and not fresh:
+            arm_jac = None  # a shifted step that did not help: its Jacobian may be stale
+        elif float(step @ step) > 0.0:
+            # Broyden's update of the arm's part along the step taken.
+            arm_jac = arm_jac + np.outer(f_new - arm_force - arm_jac @ step, step) / float(step @ step)
         fresh = False
         c, eq, g, arm_force, support = trial, moved, g_new, f_new, s_new
-    return c, eq, g, arm_force, support, False, it
+    return _Pose(c, eq, g, arm_force, support, False, it)
 
 
-def _result(bal, c, eq, g, arm_force, support, converged, iterations) -> Grasp:
+class _Pose(NamedTuple):
+    """A state of :func:`_settle`: the object's centre, the arm's equilibrium there, the
+    balance G, the arm's force, the supports' reaction, whether G met its tolerance and the
+    Newton iterations spent."""
+
+    center: np.ndarray
+    arm: Equilibrium
+    g: np.ndarray
+    arm_force: np.ndarray
+    support: np.ndarray
+    converged: bool
+    iterations: int
+
+
+def _result(bal: _Balance, pose: _Pose, converged: bool, iterations: int) -> Grasp:
+    """The :class:`Grasp` of ``pose``, with the object's stiffness (two more contact solves)."""
+    c, eq = pose.center, pose.arm
     stiffness = np.full((2, 2), np.nan)
     stable = False
     if converged:
+        bal.budget = math.inf  # the stiffness of a state reached is always worked out
         jac = bal.arm_jacobian(c, eq)
         if jac is not None:
-            stiffness = -(jac + bal.obj.support(c)[1])
+            stiffness = -(jac + bal.obj.support_reaction(c)[1])
             sym = 0.5 * (stiffness + stiffness.T)
             stable = bool(eq.stable and np.all(np.linalg.eigvalsh(sym) > 0.0))
-    held = bool(converged and not np.any(support))
+    held = bool(converged and bal.obj.clear(c) and not np.any(pose.support))
     return Grasp(arm=eq, center=c, converged=bool(converged), held=held,
-                 lift=float(c[1] - bal.obj.seat[1]), arm_force=arm_force, support_force=support,
-                 residual=float(np.hypot(*g)), stiffness=stiffness, stable=stable,
-                 iterations=int(iterations), solves=bal.counter[0])
+                 lift=float(c[1] - bal.obj.seat[1]), arm_force=pose.arm_force,
+                 support_force=pose.support, residual=float(np.hypot(*pose.g)),
+                 stiffness=stiffness, stable=stable, iterations=int(iterations),
+                 solves=bal.counter[0])
 
 
 def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=None,
            warm_start: Equilibrium | None = None, external_force=(0.0, 0.0), model: str = "full",
-           settings: Settings = DEFAULT_SETTINGS) -> Grasp:
+           settings: Settings = DEFAULT_SETTINGS, max_solves: int = MAX_SOLVES) -> Grasp:
     """The arm at ``pressures`` and the free object in equilibrium together (planar).
 
     The quasi-static path from the previous state (``warm_start`` with the object at
@@ -311,60 +419,75 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
         arm: the design. pressures: (n_inputs,) planar input pressures (Pa).
         scene: mounting and loads, without obstacles (the object is the only one).
         obj: the object. center: (2,) its centre before the step (m; default its seat).
-        warm_start: the arm's previous equilibrium, solved with the object's disc at
-            ``center`` (default: a cold start).
+        warm_start: the arm's equilibrium before the step with the object's disc at
+            ``center``, e.g. the ``arm`` of the last :class:`Grasp` (default: a cold start).
         external_force: (2,) disturbance on the object (N).
         model, settings: as in :func:`solver.solve`.
+        max_solves: contact solves the step may spend (each substep and Newton iteration
+            costs one or more); beyond, the step is reported unconverged.
 
     Returns:
-        The :class:`Grasp` at ``pressures``; where the path could not be followed to the end,
-        the last state reached, with ``converged=False``.
+        The :class:`Grasp` at ``pressures``; where the path could not be followed to the end
+        (or the budget ran out), the last state reached, with ``converged=False``.
     """
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    if isinstance(max_solves, bool) or int(max_solves) != max_solves or max_solves < 1:
+        raise ValueError(f"max_solves must be an integer >= 1; got {max_solves!r}")
     bal = _Balance(arm, pressures, scene, obj, external_force, model, settings)
     start = np.array(obj.seat if center is None else center, dtype=float)
     if start.shape != (2,) or not np.all(np.isfinite(start)):
         raise ValueError(f"center must be two finite numbers (m); got {center!r}")
+    if math.hypot(*start) <= obj.radius:
+        raise ValueError(f"the object at {tuple(start)} covers the arm's base at the origin")
     target = bal.p_inputs
-    if warm_start is None:
-        origin = np.zeros_like(target)
-        now = _settle(bal.at(origin), start, None, fall_back=False)
-    else:
+    if warm_start is not None:
         origin = np.asarray(warm_start.pressures, dtype=float)
         if origin.shape != target.shape:
             raise ValueError("warm_start was solved with another number of input pressures")
-        now = _settle(bal.at(origin), start, warm_start, fall_back=False)
-    t, dt = 0.0, 1.0
-    while now.converged and t < 1.0:
-        t_new = min(1.0, t + dt)
-        attempt = _settle(bal.at(origin + t_new * (target - origin)), now.center, now.arm,
-                          fall_back=dt <= MIN_SUBSTEP)
-        if attempt.converged:
-            now, t, dt = attempt, t_new, 2.0 * dt
-        elif dt > MIN_SUBSTEP:
-            dt *= 0.5
+    bal.budget = int(max_solves)
+    iterations = 0
+    try:
+        if warm_start is None:
+            origin = np.zeros_like(target)
+            now = _settle(bal.at(origin), start, None, fall_back=False)
+            iterations += now.iterations
+            if not now.converged:
+                return _result(bal, now, False, iterations)
         else:
-            return replace(attempt, solves=bal.counter[0])
-    return replace(now, solves=bal.counter[0])
+            now = _Pose(start, warm_start, *bal.forces(start, warm_start), True, 0)
+        t, dt = 0.0, 1.0
+        while t < 1.0:
+            t_new = min(1.0, t + dt)
+            attempt = _settle(bal.at(origin + t_new * (target - origin)), now.center, now.arm,
+                              fall_back=dt <= MIN_SUBSTEP)
+            iterations += attempt.iterations
+            if attempt.converged:
+                now, t, dt = attempt, t_new, 2.0 * dt
+            elif dt > MIN_SUBSTEP:
+                dt *= 0.5
+            else:
+                return _result(bal, attempt, False, iterations)
+    except _Exhausted:
+        return _result(bal, now, False, iterations)
+    return _result(bal, now, True, iterations)
 
 
-def _settle(bal: _Balance, start, warm_start, fall_back: bool) -> Grasp:
+def _settle(bal: _Balance, start, warm_start, fall_back: bool) -> _Pose:
     """The object's equilibrium at ``bal``'s pressures nearest ``start`` (with the arm moved
     there from ``warm_start`` with the object held at ``start``), or from the seat."""
     eq = bal.arm_at(start, warm_start)
-    if eq is None:
-        raise ValueError(f"the object at {tuple(start)} covers the arm's base at the origin")
-    if not eq.converged:
-        return _result(bal, start, eq, *bal.forces(start, eq)[:3], False, 0)
-    c, eq_c, g, arm_force, support, ok, its = _newton(bal, start, eq)
+    if eq is None or not eq.converged:
+        eq = warm_start if eq is None else eq
+        return _Pose(start, eq, *bal.forces(start, eq), False, 0)
+    pose = _newton(bal, start, eq)
     seat = np.array(bal.obj.seat)
-    if not ok and fall_back and np.any(start != seat):
+    if not pose.converged and fall_back and np.any(start != seat):
         fallen = bal.arm_at(seat, eq)
         if fallen is not None and fallen.converged:
-            c, eq_c, g, arm_force, support, ok, more = _newton(bal, seat, fallen)
-            its += more
-    return _result(bal, c, eq_c, g, arm_force, support, ok, its)
+            more = _newton(bal, seat, fallen)
+            pose = more._replace(iterations=pose.iterations + more.iterations)
+    return pose
 
 
 class _Push:
@@ -379,8 +502,9 @@ class _Push:
         eq = self.eq
         bal = _Balance(eq.arm, eq.pressures, self.scene, self.obj, force * self.unit, eq.model,
                        self.settings)
-        g = _settle(bal, state[0], state[1], fall_back=False)
-        return g.converged and g.held, (g.center, g.arm)
+        pose = _settle(bal, state[0], state[1], fall_back=False)
+        held = pose.converged and self.obj.clear(pose.center) and not np.any(pose.support)
+        return held, (pose.center, pose.arm)
 
 
 def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_force: float | None = None,

@@ -21,7 +21,7 @@ from softarm_gym.sensing import ESTIMATORS
 
 TARGETS = {"reach_true": 5000.0, "estimator": 1000.0, "wrap": 500.0, "reach_true_3d": 3000.0}
 """Issue targets (steps/s): OctArmReach with ``true`` observations, any estimator, wrap (and
-obstacle reach, the other contact task), 3D reach with ``true`` observations."""
+obstacle reach and grasp, the other contact tasks), 3D reach with ``true`` observations."""
 
 SPATIAL_IDS = ("SoftArm/OctArmReach-v1", "SoftArm/CTReach-v1")
 """Reach IDs the benchmark also times in 3D (``planar=False``)."""
@@ -36,7 +36,7 @@ def env_ids() -> tuple[str, ...]:
 
 def target_for(env_id: str, observation: str, planar: bool = True) -> float:
     """The issue's steps/s target for a case."""
-    if "Wrap" in env_id or "ObstacleReach" in env_id:
+    if "Wrap" in env_id or "ObstacleReach" in env_id or "Grasp" in env_id:
         return TARGETS["wrap"]
     if observation == "true" and "OctArm" in env_id:
         return TARGETS["reach_true"] if planar else TARGETS["reach_true_3d"]
