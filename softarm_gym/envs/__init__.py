@@ -20,5 +20,6 @@ from softarm_gym.envs.reach import ReachEnv
 from softarm_gym.envs.track import TrackEnv
 from softarm_gym.envs.wrap import WrapEnv, arm_half_thickness, wrap_angle
 
-__all__ = ["SoftArmEnv", "ReachEnv", "ObstacleReachEnv", "TrackEnv", "WrapEnv", "GraspEnv", "ArmRandomization",
-           "wrap_angle", "arm_half_thickness", "run_demo_episode", "ACTION_MODES", "OBSERVATION_FORMATS"]
+__all__ = ["SoftArmEnv", "ReachEnv", "ObstacleReachEnv", "TrackEnv", "WrapEnv", "GraspEnv",
+           "ArmRandomization", "wrap_angle", "arm_half_thickness", "run_demo_episode", "ACTION_MODES",
+           "OBSERVATION_FORMATS"]
