@@ -440,10 +440,15 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
     ``max_step`` units of ``unknown_scale`` then halved until the residual's 2-norm falls.
 
     The Jacobian is kept between calls (``jac`` (n, n), valid while ``jac_ok[0]``): an
-    estimator warm-starts from its previous estimate, where the last Jacobian still holds,
-    so it is rebuilt only when a step with it does not cut the residual's 2-norm by 4×
-    (Newton's contraction): a modified Newton with refresh, converging to the same root.
-    In place on ``z``; returns (converged, max |residual|)."""
+    estimator warm-starts from its previous estimate, where the last Jacobian nearly holds.
+    Each step taken with it updates it by Broyden's rank-one rule (so a step costs one
+    residual, not n + 1); it is rebuilt by differences only when a step with it does not cut
+    the residual's 2-norm by 10 % (the step is then not taken): a quasi-Newton with refresh,
+    converging to the same root. A fresh Jacobian whose step no halving improves, or three in a
+    row that gain under 2 % of the merit, end the search unconverged: the start is in a valley
+    of the merit, not near a root, and the caller tries another (a stalled start cost 60
+    iterations' worth of residuals before). In place on ``z``; returns (converged,
+    max |residual|)."""
     n = z.shape[0]
     res = np.empty(n)
     trial = np.empty(n)
@@ -453,6 +458,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
     merit = 0.0
     for k in range(n):
         merit += res[k] * res[k]
+    crawl = 0
     for it in range(max_iter + 1):
         err = 0.0
         for k in range(n):
@@ -504,12 +510,34 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
             if not fresh:
                 break  # a kept Jacobian that needs halving is stale: rebuild it instead
             scale *= 0.5
-        if not fresh and not trial_merit < 0.0625 * merit:
+        if fresh and not trial_merit < merit:
+            # A fresh Jacobian's direction that no step length improves: Newton has stalled
+            # here (a local minimum of the merit); the caller tries another start.
+            for k in range(n):
+                z[k] = start[k]
+            break
+        # Fresh Jacobians that gain under 2 % of the merit three times running: a crawl
+        # along a valley of the merit, not a descent to a root.
+        crawl = crawl + 1 if fresh and not trial_merit < 0.98 * merit else (crawl if not fresh else 0)
+        if crawl >= 3:
+            break
+        if not fresh and not trial_merit < 0.81 * merit:
             jac_ok[0] = False  # too slow a contraction: the kept Jacobian is stale
-            if not trial_merit < merit:
+            for k in range(n):
+                z[k] = start[k]  # and the step is not taken
+            continue
+        # Broyden's update along the step taken: J += (Δr − J Δz) Δzᵀ / |Δz|².
+        dz2 = 0.0
+        for k in range(n):
+            dz2 += (z[k] - start[k]) ** 2
+        if dz2 > 0.0:
+            for r in range(n):
+                mismatch = trial[r] - res[r]
                 for k in range(n):
-                    z[k] = start[k]  # and the step is not taken
-                continue
+                    mismatch -= jac[r, k] * (z[k] - start[k])
+                mismatch /= dz2
+                for k in range(n):
+                    jac[r, k] += mismatch * (z[k] - start[k])
         for k in range(n):
             res[k] = trial[k]
         merit = trial_merit
