@@ -140,9 +140,11 @@ def check_env_id(env_id) -> str:
 
 
 def is_wrap(env_id: str) -> bool:
-    """Whether ``env_id`` is a wrap task (:class:`softarm_gym.envs.WrapEnv`): success is a wrap
-    angle, not a distance to a target, so monitors and evaluations record ``wrap_angle_deg``."""
-    return gym.spec(check_env_id(env_id)).entry_point == "softarm_gym.envs:WrapEnv"
+    """Whether ``env_id`` is a wrap task (:class:`softarm_gym.envs.WrapEnv`, or the grasp built
+    on it, :class:`softarm_gym.envs.GraspEnv`): success is not a distance to a target, so
+    monitors and evaluations record ``wrap_angle_deg``."""
+    return gym.spec(check_env_id(env_id)).entry_point in ("softarm_gym.envs:WrapEnv",
+                                                          "softarm_gym.envs:GraspEnv")
 
 
 def make_env(env_id: str, env_kwargs: dict | None = None, **overrides) -> gym.Env:
