@@ -45,6 +45,7 @@ from scipy.optimize import lsq_linear
 import solver
 from softarm_gym.analysis import jacobian
 from softarm_gym.envs.terms import fractions_from_actions, reach_reward_sum, reach_rewards
+from solver.grasp import CLAMP_GAP
 
 __all__ = ["JacobianController", "CurlController", "CEMPlanner", "observation_slices"]
 
@@ -183,8 +184,8 @@ class CurlController(_PressureController):
     On a grasp env (:class:`~softarm_gym.envs.GraspEnv`, whose goal block also holds the
     object's seat) it reads the object's centre: once the object is ``success_lift`` above its
     seat it holds the pressures, unless the object is pressed against the arm's base clamp
-    (its contact circle within 2 mm of the base), where it backs the curl off by half the
-    last increment, and so on.
+    (its contact circle within ``CLAMP_GAP`` + 1 mm of the base), where it backs the curl off
+    by half the last increment, and so on.
 
     Args:
         env: a (possibly wrapped) planar wrap or grasp environment with ``observation_format='flat'``.
@@ -261,9 +262,9 @@ class CurlController(_PressureController):
         return self._command
 
 
-_CLAMP_MARGIN = 2e-3
+_CLAMP_MARGIN = CLAMP_GAP + 1e-3
 """CurlController on grasp: an object whose contact circle is this close to the arm's base
-(m) is pressed against the base clamp (:data:`solver.grasp.CLAMP_GAP` = 1 mm, plus slack)."""
+(m) is pressed against the base clamp (:data:`solver.grasp.CLAMP_GAP`, plus 1 mm of slack)."""
 
 _MAX_CORNERS = 64
 """CEMPlanner tries every corner of the action box by default up to this many (6 inputs)."""

@@ -66,7 +66,7 @@ class _Exhausted(Exception):
 # Fraction of a fork's depth, at its top, over which its walls' hold fades (a chamfered rim).
 RIM = 0.25
 # Clearance (m) the base clamp keeps between the object's contact circle and the arm's base
-# (so that its penalty's give never lets the disc cover the base).
+# (so that its penalty's give never lets the disc cover the base: 75 N to close it).
 CLAMP_GAP = 1e-3
 
 
@@ -140,17 +140,23 @@ class FreeObject:
     def _clamp(self, center) -> tuple[np.ndarray, np.ndarray]:
         """The base clamp's reaction on the object and its Jacobian: the clamp is a boss round
         the arm's base (the origin) that keeps the object's centre ``radius + CLAMP_GAP``
-        from it, a penalty of ``support_stiffness`` (a tight wrap pulls the object there)."""
+        from it (a tight wrap pulls the object there), a penalty of ``support_stiffness``
+        with a smooth onset: f(δ) = k δ²/2ε for a depth δ < ε = CLAMP_GAP/2, then k (δ − ε/2).
+        Where a wrap presses the object against the clamp, a kink in f at first touch made
+        Newton cycle between touching and not."""
         c = np.asarray(center, dtype=float)
         dist = math.hypot(c[0], c[1])
-        reach = self.radius + CLAMP_GAP
-        if dist >= reach or dist == 0.0:
+        depth = self.radius + CLAMP_GAP - dist
+        if depth <= 0.0 or dist == 0.0:
             return np.zeros(2), np.zeros((2, 2))
         k = self.support_stiffness
+        onset = 0.5 * CLAMP_GAP
+        f, df = (0.5 * k * depth * depth / onset, k * depth / onset) if depth < onset else \
+            (k * (depth - 0.5 * onset), k)
         u = c / dist
-        # f = k (reach − |c|) u: ∂f/∂c = −k u uᵀ + k (reach − |c|)/|c| (I − u uᵀ).
-        jac = -k * np.outer(u, u) + k * (reach - dist) / dist * (np.eye(2) - np.outer(u, u))
-        return k * (reach - dist) * u, jac
+        # f u with δ = reach − |c|: ∂(f u)/∂c = −f'(δ) u uᵀ + (f/|c|)(I − u uᵀ).
+        jac = -df * np.outer(u, u) + f / dist * (np.eye(2) - np.outer(u, u))
+        return f * u, jac
 
     def support_reaction(self, center) -> tuple[np.ndarray, np.ndarray]:
         """The support's reaction (2,) on the object at ``center`` (N) and its Jacobian (2, 2)
