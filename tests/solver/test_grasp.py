@@ -109,6 +109,28 @@ def test_margin_is_a_force_the_grasp_resists_and_beyond_which_it_does_not(held):
             assert not _push(g, obj, unit, np.linspace(0.0, 1.1 * m / 0.95, 12)[1:]), (k, m)
 
 
+def test_a_cup_holds_against_gravity_but_not_an_upward_push_beyond_the_weight():
+    """The distal sections curled under a 0.1 kg object make a cup (a J): the arm holds it
+    from below only, so with frictionless contact the grasp gives way to an upward push just
+    as the push outweighs the object (margin within the 5 % bisection of m g)."""
+    center = (-0.095, -0.55)
+    obj = FreeObject(radius=0.06 + HALF, mass_kg=0.1, seat=(center[0], center[1] - 0.5),
+                     stiffness=STIFFNESS)
+    fixed = solver.Scene(obstacles=(obj.disc(center),))
+    p = np.zeros(ARM.n_inputs(True))
+    eq = solver.solve(ARM, p, fixed)
+    for fraction in np.arange(0.1, 0.801, 0.05):
+        p[[2, 4]] = fraction * ARM.max_pressure  # channel I of sections 2 and 3
+        eq = solver.solve(ARM, p, fixed, warm_start=eq)
+    g = settle(ARM, p, SCENE, obj, center=center, warm_start=eq)
+    assert g.converged and g.held
+    assert g.arm_force[1] > 0 and solver_wrap(g.arm.positions, g.center, obj.radius) < math.pi
+    weight = obj.mass_kg * SCENE.gravity
+    _, per = grasp_margin(g, obj, directions=4, max_force=20 * weight)
+    assert 0.95 * weight <= per[0] <= weight * (1 + 1e-12)  # at m g exactly it floats, neutral
+    assert per[2] > weight  # pushed down, the cup takes it
+
+
 def test_not_held_has_zero_margin():
     obj = FreeObject(radius=0.08, mass_kg=0.3, seat=(0.4, -0.2), stiffness=STIFFNESS)
     g = settle(ARM, np.zeros(ARM.n_inputs(True)), SCENE, obj)
