@@ -58,7 +58,7 @@ FORCE_TOL = 1e-6
 MIN_SUBSTEP = 1.0 / 64.0
 # Contact solves one call of :func:`settle` may spend before it reports the step unconverged
 # (a wrap that snaps shut round a free object can cost seconds per solve).
-MAX_SOLVES = 150
+MAX_SOLVES = 300
 
 
 class _Exhausted(Exception):
@@ -313,9 +313,11 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
     Broyden-updated along the steps taken, rebuilt when a step fails. Where the object's
     stiffness K = −∂G/∂c is not positive definite (the arm pulls it the more, the further it
     goes), Newton's step would head for an unstable root against the net force; the step is
-    then (K + μI)⁻¹G with μ making K + μI positive definite — along the net force, as the
-    object would move — and taken without the |G| test (pseudo-transient continuation),
-    until a stable root is near.
+    then (K + μI)⁻¹G with μ making K + μI positive definite, its smallest eigenvalue at least
+    |G| over the largest move — along the net force, as the object would move, a full move
+    where nothing holds it (K = 0) — and taken without the |G| test (pseudo-transient
+    continuation), until a stable root is near. The same step is taken where Newton's step
+    from a fresh Jacobian cuts |G| at no length.
 
     Returns the :class:`_Pose` reached.
     """
@@ -324,6 +326,7 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
     max_move = MAX_MOVE * bal.obj.radius
     arm_jac = None
     fresh = False
+    move_on = False  # Newton's step failed: take the net force's way instead
     for it in range(MAX_ITER + 1):
         if np.abs(g).max() <= bal.tolerance(arm_force):
             return _Pose(c, eq, g, arm_force, support, True, it)
@@ -336,9 +339,12 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
                 break
         stiffness = -(arm_jac + bal.obj.support_reaction(c)[1])
         low, high = np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))
-        shifted = not low > SHIFT * high
+        shifted = move_on or not low > SHIFT * high
+        move_on = False
         if shifted:
-            stiffness = stiffness + (SHIFT * max(abs(high), abs(low)) - low) * np.eye(2)
+            # At least |G|/max_move: an object nothing holds (K = 0) falls a full move.
+            floor = max(SHIFT * max(abs(high), abs(low)), float(np.hypot(*g)) / max_move)
+            stiffness = stiffness + (floor - low) * np.eye(2)
         try:
             step = np.linalg.solve(stiffness, g)
         except np.linalg.LinAlgError:
@@ -360,7 +366,12 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
             step = 0.5 * step
         if not accepted:
             if fresh:
-                break
+                if shifted:
+                    break
+                # Newton's step from a fresh Jacobian cuts |G| at no length: the nearest root
+                # lies past a rise in |G| (the object climbing out of a fork's chamfer, say).
+                move_on = True
+                continue
             arm_jac = None  # a stale (Broyden) Jacobian: rebuild it and try again
             continue
         if shifted and np.abs(g_new).max() >= np.abs(g).max() and not fresh:
@@ -415,7 +426,8 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
     The quasi-static path from the previous state (``warm_start`` with the object at
     ``center``; cold: the unactuated arm with the object on its seat) to ``pressures`` is
     followed with the object free all along: pressures move in substeps (the whole step
-    first, halved down to 1/64 of it where a substep fails, doubled again after a success);
+    first, halved down to 1/64 of it where a substep fails, doubled again after a success up
+    to 3/4 of the last that failed);
     in each the arm moves with the object held where it was, then the object's pose is solved
     by Newton from there, the equilibrium nearest the previous one. Where the smallest
     substep finds none — the object has slipped out of the arm's hold — it falls back onto its
@@ -462,15 +474,18 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
                 return _result(bal, now, False, iterations)
         else:
             now = _Pose(start, warm_start, *bal.forces(start, warm_start), True, 0)
-        t, dt = 0.0, 1.0
+        t, dt, failed = 0.0, 1.0, math.inf
         while t < 1.0:
             t_new = min(1.0, t + dt)
             attempt = _settle(bal.at(origin + t_new * (target - origin)), now.center, now.arm,
                               fall_back=dt <= MIN_SUBSTEP)
             iterations += attempt.iterations
             if attempt.converged:
-                now, t, dt = attempt, t_new, 2.0 * dt
+                # Grow the substep again, but not back to one that failed (a failed substep
+                # costs a Newton's worth of contact solves).
+                now, t, dt = attempt, t_new, min(2.0 * dt, 0.75 * failed)
             elif dt > MIN_SUBSTEP:
+                failed = dt
                 dt *= 0.5
             else:
                 return _result(bal, attempt, False, iterations)
