@@ -3,10 +3,10 @@
 Every task's difficulty is set by ``gym.make`` kwargs, none of them new: the success
 tolerance of reach, the speed of the tracked trajectory (``segment_steps``: steps between
 waypoints of the target's pressure path), the size of the object to wrap (``object_radius``
-range). :data:`LEVELS` names three or four levels of each, the registered default among
+range), the mass of the object to grasp (``object_mass_kg`` range). :data:`LEVELS` names three or four levels of each, the registered default among
 them, and :func:`run` measures the reference controller of each task
 (:func:`softarm_gym.benchmarks.reference.reference_controller`: the Jacobian controller on
-reach and track, the scripted curl on wrap) on ``episodes`` seeded episodes per level::
+reach and track, the scripted curl on wrap and grasp) on ``episodes`` seeded episodes per level::
 
     python -m softarm_gym.benchmarks.difficulty --episodes 20 --json > docs/bench/difficulty.json
 
@@ -45,10 +45,14 @@ LEVELS = {
     "SoftArm/CTWrap-v0": ("object_radius", [
         ("easy", {"object_radius": (0.12, 0.15)}), ("default", {}),
         ("hard", {"object_radius": (0.20, 0.25)})]),
+    "SoftArm/OctArmGrasp-v0": ("object_mass_kg", [
+        ("easy", {"object_mass_kg": (0.05, 0.15)}), ("default", {}),
+        ("hard", {"object_mass_kg": (0.6, 0.9)})]),
 }
 """ID → (the knob, [(level, gym.make kwargs), ...]); ``{}`` is the registered default. A
 larger disc is easier for OctArm V (a smaller one needs a tighter curl than the arm has) and
-a smaller one for CT (placed half a turn round, a larger disc needs more arc in contact)."""
+a smaller one for CT (placed half a turn round, a larger disc needs more arc in contact). A
+heavier object is harder to grasp: the arm's pull must lift it out of its forks."""
 
 
 def run(episodes: int = 20, ids=None, progress: bool = True) -> dict:

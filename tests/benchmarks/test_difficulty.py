@@ -13,10 +13,11 @@ def test_every_level_makes_a_valid_env_and_includes_the_default():
             assert set(kwargs) <= {knob}
             env = gym.make(env_id, **kwargs)
             env.reset(seed=0)
-            set_to = getattr(env.unwrapped, {"object_radius": "object_radius_range"}.get(knob, knob))
+            ranges = {"object_radius": "object_radius_range", "object_mass_kg": "object_mass_range"}
+            set_to = getattr(env.unwrapped, ranges.get(knob, knob))
             if kwargs:
                 want = kwargs[knob]
-                assert (tuple(set_to) == tuple(want)) if knob == "object_radius" else set_to == want
+                assert (tuple(set_to) == tuple(want)) if knob in ranges else set_to == want
             env.close()
 
 
