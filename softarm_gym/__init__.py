@@ -135,6 +135,6 @@ register(
     id="SoftArm/OctArmGrasp-v0",
     entry_point="softarm_gym.envs:GraspEnv",
     max_episode_steps=100,
-    reward_threshold=144.0,
+    reward_threshold=150.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
 )
