@@ -460,6 +460,27 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "relabelling does not apply: the wrap env refuses the goal format (the wrap reward has "
              "no goal point to substitute). On CTWrap-v1 12,465 SAC steps were too few to learn "
              "anything, and PPO in 32,768 wraps 33° of the 90° (the planner wraps every disc).",
+             "",
+             "Track and obstacle reach (`SoftArm/OctArmTrack-v0`, `SoftArm/CTTrack-v0`, "
+             "`SoftArm/OctArmObstacleReach-v0`, `SoftArm/CTObstacleReach-v0`): SAC, 3 seeds each, with "
+             "reach's settings and delta actions (`hyperparams/sac.yml`: the Track ids register absolute "
+             "actions, so their entries ask for delta; the ObstacleReach ids register delta, so theirs "
+             "are the registered env itself), one training at a time on the 2-core machine, which "
+             "another engineer's jobs shared for most of the time, with budgets sized to about 7 minutes "
+             "per run (far below reach's 150,000 steps). Track: `python -m baselines.train --env "
+             "SoftArm/OctArmTrack-v0 --algo sac --seed S --timesteps 80000 --time-limit-min 8 "
+             "--eval-freq 5000 --eval-episodes 10` (S = 0, 1, 2; the same for `SoftArm/CTTrack-v0`). "
+             "Obstacle reach trains at only 60–120 steps/s (its contact solves), so seed 0 ran to a "
+             "wall-clock cap and the other seeds for the steps it got: `--env "
+             "SoftArm/OctArmObstacleReach-v0 --algo sac --seed 0 --timesteps 60000 --time-limit-min 8` "
+             "(stopped at 28,946 steps), `--seed S --timesteps 28946 --time-limit-min 8`; `--env "
+             "SoftArm/CTObstacleReach-v0 --algo sac --seed 0 --timesteps 60000 --time-limit-min 7` "
+             "(stopped at 49,808 steps), `--seed S --timesteps 49808 --time-limit-min 7` (S = 1, 2; "
+             "both hit the cap first, at 48,367 and 47,148 steps; `--eval-freq 5000 --eval-episodes 10` "
+             "throughout). Evaluated with `python -m "
+             "baselines.results evaluate --runs runs --main-only --episodes 50 --only RUN` per run and "
+             "for `jacobian_<env>` (the Jacobian controller on the registered env), mostly while the "
+             "next seed trained; the main cell only (no estimator grid); not shipped.",
              ""]
     by_run = {r["run"]: r for r in runs}
     if len(table):  # the observation mode each agent was trained on (the controller: true)
