@@ -22,7 +22,11 @@ error and the reward always use the true arm. Reported (JSON keys):
   reach, the true tip within the env's ``success_tolerance`` of the target; wrap, a wrap angle
   of at least ``success_wrap_deg`` with penetration within tolerance);
 * reach and track: ``median_final_error_m``, ``p95_final_error_m``, ``mean_final_error_m`` —
-  final |tip − target|; wrap: ``median_wrap_angle_deg``, ``p5_wrap_angle_deg``,
+  final |tip − target|; track also ``median_tracking_rms_m``, ``median_tracking_max_m`` — the
+  median over episodes of each episode's RMS and largest tracking error (true tip, every step;
+  ``info["tracking_rms_m"]``, ``info["tracking_max_m"]``); obstacle reach also
+  ``contact_rate`` — fraction of episodes whose arm touched a disc at any step
+  (``info["in_contact"]``); wrap: ``median_wrap_angle_deg``, ``p5_wrap_angle_deg``,
   ``mean_wrap_angle_deg`` — the final wrap angle (deg; :func:`softarm_gym.envs.wrap.wrap_angle`);
 * ``reached_rate`` — fraction that succeeded at any step;
   ``median_steps_to_success``, ``p95_steps_to_success`` — first successful step, over
@@ -70,14 +74,19 @@ def rollouts(env, act, reset, episodes: int, seed: int = 0, progress: bool = Fal
 
     Returns:
         Arrays of length ``episodes``: ``final_error`` (m; NaN on wrap, which has no target),
-        ``final_wrap_deg`` (deg; NaN but on wrap), ``success`` (bool), ``steps_to_success``
-        (first successful step, −1 if never), ``estimation_error`` (m, mean over steps),
+        ``final_wrap_deg`` (deg; NaN but on wrap), ``tracking_rms`` and ``tracking_max`` (m, the
+        episode's RMS and largest tracking error; NaN but on track), ``contact`` (1.0 if the arm
+        touched a disc at any step, else 0.0; NaN on envs without obstacles), ``success`` (bool),
+        ``steps_to_success`` (first successful step, −1 if never), ``estimation_error`` (m, mean over steps),
         ``episode_return``, ``solver_failures`` (unconverged steps).
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1; got {episodes}")
     final_error = np.full(episodes, np.nan)
     final_wrap = np.full(episodes, np.nan)
+    tracking_rms = np.full(episodes, np.nan)
+    tracking_max = np.full(episodes, np.nan)
+    contact = np.full(episodes, np.nan)
     success = np.zeros(episodes, dtype=bool)
     steps_to_success = np.full(episodes, -1)
     estimation_error = np.empty(episodes)
@@ -94,22 +103,28 @@ def rollouts(env, act, reset, episodes: int, seed: int = 0, progress: bool = Fal
             total += float(reward)
             est += info["estimation_error"]
             failures[i] += not info["converged"]
+            if "in_contact" in info:
+                contact[i] = max(0.0 if np.isnan(contact[i]) else contact[i], float(info["in_contact"]))
             if info["is_success"] and steps_to_success[i] < 0:
                 steps_to_success[i] = steps
             done = terminated or truncated
         final_error[i] = info.get("distance", np.nan)
         final_wrap[i] = info.get("wrap_angle_deg", np.nan)
+        tracking_rms[i] = info.get("tracking_rms_m", np.nan)
+        tracking_max[i] = info.get("tracking_max_m", np.nan)
         success[i] = info["is_success"]
         estimation_error[i] = est / steps
         episode_return[i] = total
-    return {"final_error": final_error, "final_wrap_deg": final_wrap, "success": success,
+    return {"final_error": final_error, "final_wrap_deg": final_wrap, "tracking_rms": tracking_rms,
+            "tracking_max": tracking_max, "contact": contact, "success": success,
             "steps_to_success": steps_to_success, "estimation_error": estimation_error,
             "episode_return": episode_return, "solver_failures": failures}
 
 
 def summarize(record: dict[str, np.ndarray]) -> dict:
     """The scalar metrics of :func:`rollouts` output (module docstring): the final-error keys
-    for a task with a target, the wrap-angle keys for wrap (``final_wrap_deg`` not NaN)."""
+    for a task with a target, the wrap-angle keys for wrap (``final_wrap_deg`` not NaN), and the
+    tracking-error keys on track and ``contact_rate`` on obstacle reach (their records not NaN)."""
     reached = record["steps_to_success"][record["steps_to_success"] >= 0]
     n = int(record["success"].size)
     wrap = record.get("final_wrap_deg")
@@ -122,6 +137,13 @@ def summarize(record: dict[str, np.ndarray]) -> dict:
         measures = {"median_final_error_m": float(np.median(err)),
                     "p95_final_error_m": float(np.percentile(err, 95)),
                     "mean_final_error_m": float(np.mean(err))}
+    rms, largest = record.get("tracking_rms"), record.get("tracking_max")
+    if rms is not None and largest is not None and not np.any(np.isnan(rms)):  # track
+        measures.update(median_tracking_rms_m=float(np.median(rms)),
+                        median_tracking_max_m=float(np.median(largest)))
+    contact = record.get("contact")
+    if contact is not None and not np.any(np.isnan(contact)):  # obstacle reach
+        measures["contact_rate"] = float(np.mean(contact))
     return {
         "episodes": n,
         "success_rate": float(np.mean(record["success"])),

@@ -10,7 +10,9 @@
 CSVs, evaluation JSONs), so the document and its plots can be regenerated without the
 (gitignored) run folders. The evaluation grid, for every trained policy (its
 ``best_model.zip``), the Jacobian controller on each reach environment (:data:`ENV_IDS`) and
-the sampling planner (``CEMPlanner``) on each wrap environment (:data:`WRAP_ENV_IDS`):
+the sampling planner (``CEMPlanner``) on each wrap environment (:data:`WRAP_ENV_IDS`) — and
+the Jacobian controller on the track and obstacle-reach environments (:data:`TRACK_ENV_IDS`,
+:data:`OBSTACLE_ENV_IDS`) too:
 
 * ``main`` — true observations, no sensor noise, no payload, :data:`MAIN_EPISODES` episodes;
 * estimator-in-the-loop — every estimator × :data:`CONDITIONS` (``clean``: no noise, no
@@ -20,8 +22,9 @@ the sampling planner (``CEMPlanner``) on each wrap environment (:data:`WRAP_ENV_
   :data:`GRID_EPISODES` episodes each; not for agents trained on the goal format
   (``sac_her``), which see the true tip as ``achieved_goal``: the goal format refuses estimators.
 
-Reach is scored by the final distance to the target, wrap by the final wrap angle (deg);
-the report has a section for each.
+Reach is scored by the final distance to the target, wrap by the final wrap angle (deg), track
+by the episode's RMS and largest tracking error, obstacle reach by the final distance and
+whether the arm touched a disc; the report has a section for each.
 
 Episode ``i`` of every cell is reset with seed ``i``, so all agents face the same targets.
 """
@@ -45,7 +48,8 @@ from softarm_gym.files import write_json
 from softarm_gym.sensing import ESTIMATORS
 
 __all__ = ["collect", "evaluation_jobs", "reference_controller", "run_evaluation_job", "run_evaluations",
-           "ship", "report", "training_observation", "DEFINITIONS", "WRAP_DEFINITIONS", "main"]
+           "ship", "report", "task", "training_observation", "DEFINITIONS", "WRAP_DEFINITIONS",
+           "TRACK_DEFINITIONS", "OBSTACLE_DEFINITIONS", "main"]
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 RESULTS_DIR = PACKAGE_DIR / "results"
@@ -54,6 +58,13 @@ ENV_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
 """Reach environments of the baselines (the Jacobian controller's reference rows)."""
 WRAP_ENV_IDS = ("SoftArm/OctArmWrap-v1", "SoftArm/CTWrap-v1")
 """Wrap environments of the baselines (the planner's reference rows)."""
+TRACK_ENV_IDS = ("SoftArm/OctArmTrack-v0", "SoftArm/CTTrack-v0")
+"""Track environments of the baselines (the Jacobian controller's reference rows)."""
+OBSTACLE_ENV_IDS = ("SoftArm/OctArmObstacleReach-v0", "SoftArm/CTObstacleReach-v0")
+"""Obstacle-reach environments of the baselines (the Jacobian controller's reference rows)."""
+TASKS = {"softarm_gym.envs:WrapEnv": "wrap", "softarm_gym.envs:TrackEnv": "track",
+         "softarm_gym.envs:ObstacleReachEnv": "obstacle"}
+"""Entry point → the report section of its envs (any other: ``reach``)."""
 MAIN_EPISODES = 100
 GRID_EPISODES = 20
 PAYLOAD_RANGE_KG = (0.0, 0.25)
@@ -78,6 +89,18 @@ WRAP_DEFINITIONS = ("Success = `info[\"is_success\"]` at the last of the 200 ste
                     "(deg, the angular extent of the backbone in contact with the disc); steps to success "
                     "= first successful step, over the episodes that got there.")
 """What the wrap section's numbers mean."""
+TRACK_DEFINITIONS = ("Success = the true tip within the env's tolerance (2 cm) of the moving target at "
+                     "the last of the 200 steps; RMS and max tracking error = the RMS and the largest "
+                     "|true tip − target| over the episode's steps (`info[\"tracking_rms_m\"]`, "
+                     "`info[\"tracking_max_m\"]`), their median over the episodes; final err = "
+                     "|true tip − target| at the last step.")
+"""What the track section's numbers mean."""
+OBSTACLE_DEFINITIONS = ("Success = final true tip within the env's tolerance (2 cm) after the 100-step "
+                        "episode, as on reach (the registered `contact=\"penalize\"`: the arm may lean "
+                        "on a disc, at a cost in reward); errors are final |true tip − target|; contact = "
+                        "fraction of episodes in which the arm touched a disc at some step "
+                        "(`info[\"in_contact\"]`); steps to success as on reach.")
+"""What the obstacle-reach section's numbers mean."""
 CONTROLLERS = ("jacobian", "planner")
 """Agent name prefixes of the model-based reference controllers (not trained, never shipped)."""
 
@@ -115,12 +138,21 @@ def collect(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list
 
 
 def reference_controller(env_id: str) -> str:
-    """The model-based reference of ``env_id``'s task: ``planner`` on wrap, ``jacobian`` on reach."""
+    """The model-based reference of ``env_id``'s task: ``planner`` on wrap, ``jacobian`` on reach
+    (track and obstacle reach too: it follows the current target, and does not know the discs)."""
     return "planner" if is_wrap(env_id) else "jacobian"
 
 
+def task(env_id: str) -> str:
+    """The report section of ``env_id``: ``reach``, ``track``, ``obstacle`` or ``wrap`` (:data:`TASKS`)."""
+    import gymnasium as gym
+
+    return TASKS.get(gym.spec(env_id).entry_point, "reach")
+
+
 def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, *, grid: bool = True,
-                    env_ids=ENV_IDS + WRAP_ENV_IDS, episodes: int | None = None) -> list[tuple[Path, dict]]:
+                    env_ids=ENV_IDS + WRAP_ENV_IDS + TRACK_ENV_IDS + OBSTACLE_ENV_IDS,
+                    episodes: int | None = None) -> list[tuple[Path, dict]]:
     """(output JSON path, :func:`baselines.evaluate.evaluate` kwargs) of every grid cell not yet done.
 
     Args:
@@ -266,10 +298,10 @@ def training_observation(summary: dict) -> str:
 
 
 def _env_ids(runs: list[dict], table: pd.DataFrame | None = None) -> list[str]:
-    """The environments of the runs (and of the evaluations in ``table``), :data:`ENV_IDS` and
-    :data:`WRAP_ENV_IDS` first."""
+    """The environments of the runs (and of the evaluations in ``table``), :data:`ENV_IDS`,
+    :data:`WRAP_ENV_IDS`, :data:`TRACK_ENV_IDS` and :data:`OBSTACLE_ENV_IDS` first."""
     used = {r["env_id"] for r in runs} | (set(table["env_id"]) if table is not None and len(table) else set())
-    known = ENV_IDS + WRAP_ENV_IDS
+    known = ENV_IDS + WRAP_ENV_IDS + TRACK_ENV_IDS + OBSTACLE_ENV_IDS
     return [e for e in known if e in used] + sorted(used - set(known))
 
 
@@ -277,7 +309,7 @@ def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
     from softarm_gym.plotting import figure, save
 
     env_ids = _env_ids(runs)
-    cols = min(len(env_ids), 2)  # reach above, wrap below
+    cols = min(len(env_ids), 2)  # reach above, wrap, track and obstacle reach below
     rows = -(-len(env_ids) // cols)
     fig, axes = figure(rows, cols, figsize=(5.5 * cols, 3.8 * rows), squeeze=False)
     for ax in axes.flat[len(env_ids):]:
@@ -428,6 +460,27 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "relabelling does not apply: the wrap env refuses the goal format (the wrap reward has "
              "no goal point to substitute). On CTWrap-v1 12,465 SAC steps were too few to learn "
              "anything, and PPO in 32,768 wraps 33° of the 90° (the planner wraps every disc).",
+             "",
+             "Track and obstacle reach (`SoftArm/OctArmTrack-v0`, `SoftArm/CTTrack-v0`, "
+             "`SoftArm/OctArmObstacleReach-v0`, `SoftArm/CTObstacleReach-v0`): SAC, 3 seeds each, with "
+             "reach's settings and delta actions (`hyperparams/sac.yml`: the Track ids register absolute "
+             "actions, so their entries ask for delta; the ObstacleReach ids register delta, so theirs "
+             "are the registered env itself), one training at a time on the 2-core machine, which "
+             "another engineer's jobs shared for most of the time, with budgets sized to about 7 minutes "
+             "per run (far below reach's 150,000 steps). Track: `python -m baselines.train --env "
+             "SoftArm/OctArmTrack-v0 --algo sac --seed S --timesteps 80000 --time-limit-min 8 "
+             "--eval-freq 5000 --eval-episodes 10` (S = 0, 1, 2; the same for `SoftArm/CTTrack-v0`). "
+             "Obstacle reach trains at only 60–120 steps/s (its contact solves), so seed 0 ran to a "
+             "wall-clock cap and the other seeds for the steps it got: `--env "
+             "SoftArm/OctArmObstacleReach-v0 --algo sac --seed 0 --timesteps 60000 --time-limit-min 8` "
+             "(stopped at 28,946 steps), `--seed S --timesteps 28946 --time-limit-min 8`; `--env "
+             "SoftArm/CTObstacleReach-v0 --algo sac --seed 0 --timesteps 60000 --time-limit-min 7` "
+             "(stopped at 49,808 steps), `--seed S --timesteps 49808 --time-limit-min 7` (S = 1, 2; "
+             "both hit the cap first, at 48,367 and 47,148 steps; `--eval-freq 5000 --eval-episodes 10` "
+             "throughout). Evaluated with `python -m "
+             "baselines.results evaluate --runs runs --main-only --episodes 50 --only RUN` per run and "
+             "for `jacobian_<env>` (the Jacobian controller on the registered env), mostly while the "
+             "next seed trained; the main cell only (no estimator grid); not shipped.",
              ""]
     by_run = {r["run"]: r for r in runs}
     if len(table):  # the observation mode each agent was trained on (the controller: true)
@@ -439,11 +492,13 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
 
     main = table[table["cell"] == "main"] if len(table) else table
     env_ids = _env_ids(runs, table)
-    reach_ids = [e for e in env_ids if not is_wrap(e)]
+    reach_ids = [e for e in env_ids if task(e) == "reach"]
     wrap_ids = [e for e in env_ids if is_wrap(e)]
+    track_ids = [e for e in env_ids if task(e) == "track"]
+    obstacle_ids = [e for e in env_ids if task(e) == "obstacle"]
     reach_main = main[main["env_id"].isin(reach_ids)] if len(main) else main
     wrap_main = main[main["env_id"].isin(wrap_ids)] if len(main) else main
-    if len(reach_main) or not len(wrap_main):
+    if len(reach_main) or not len(main):
         lines += ["## Reach with true observations", "",
                   f"{_episodes(reach_main['episodes'])} each, no sensor noise, no payload." if len(reach_main)
                   else "No agent has been evaluated yet.", "",
@@ -471,6 +526,8 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
                 f"{_steps(row['median_steps_to_success'])} |"), lambda learned: (
                 f"{_deg(learned['median_wrap_angle_deg'].mean())} | "
                 f"{_deg(learned['p5_wrap_angle_deg'].mean())} | |"), env_kwargs_column=True)
+    lines += _track_section(main, track_ids, by_run, kind)
+    lines += _obstacle_section(main, obstacle_ids, by_run, kind)
     lines += ["", "Targets of the issue, as measured:", ""]
     for env_id, agent, goal in TARGETS:  # the targets are for policies trained on true observations
         if not len(main):
@@ -492,7 +549,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
               "periodic deterministic evaluations" + (f", {per_eval}" if per_eval else "") + "):",
               "", f"![learning curves]({picture.as_posix()})", ""]
     grid = table[table["cell"] != "main"] if len(table) else table
-    lines += _estimator_section(grid, reach_ids)
+    lines += _estimator_section(grid, [e for e in env_ids if not is_wrap(e)])
     lines += _wrap_estimator_section(grid, wrap_ids)
     text = "\n".join(lines) + "\n"
     Path(out).write_text(text)
@@ -533,6 +590,55 @@ def _main_rows(main: pd.DataFrame, env_id: str, by_run: dict, kind, measures, me
                              f"| | | | **{rates.mean():.0f} ± {rates.std():.0f} %** | "
                              + mean_measures(learned))
     return lines
+
+
+def _track_section(main: pd.DataFrame, env_ids: list[str], by_run: dict, kind) -> list[str]:
+    """The track table (true observations): success, median RMS and max tracking error, median
+    final error; nothing if no track agent was evaluated."""
+    rows = main[main["env_id"].isin(env_ids)] if len(main) else main
+    if not len(rows):
+        return []
+    lines = ["", "## Track with true observations", "",
+             f"{_episodes(rows['episodes'])} each, no sensor noise, no payload. " + TRACK_DEFINITIONS
+             + " The env kwargs column gives what a run trained on beyond the registered defaults "
+             "(`{}`: the registered env itself; the Jacobian controller runs on the registered env).", "",
+             "| env | agent | env kwargs | budget (min) | train steps | train wall (min) | train CPU (min) "
+             "| success | median RMS track err (mm) | median max track err (mm) | median final err (mm) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for env_id in env_ids:
+        lines += _main_rows(main, env_id, by_run, kind, lambda row: (
+            f"{_mm(row.get('median_tracking_rms_m'))} | {_mm(row.get('median_tracking_max_m'))} | "
+            f"{_mm(row['median_final_error_m'])} |"), lambda learned: (
+            f"{_mm(learned['median_tracking_rms_m'].mean())} | "
+            f"{_mm(learned['median_tracking_max_m'].mean())} | "
+            f"{_mm(learned['median_final_error_m'].mean())} |"), env_kwargs_column=True)
+    return lines
+
+
+def _obstacle_section(main: pd.DataFrame, env_ids: list[str], by_run: dict, kind) -> list[str]:
+    """The obstacle-reach table (true observations): success, median and p95 final error,
+    contact rate, median steps to success; nothing if no obstacle-reach agent was evaluated."""
+    rows = main[main["env_id"].isin(env_ids)] if len(main) else main
+    if not len(rows):
+        return []
+    lines = ["", "## Obstacle reach with true observations", "",
+             f"{_episodes(rows['episodes'])} each, no sensor noise, no payload. " + OBSTACLE_DEFINITIONS
+             + " The Jacobian controller steers on the free arm's model: it does not know the discs.", "",
+             "| env | agent | budget (min) | train steps | train wall (min) | train CPU (min) | success "
+             "| median err (mm) | p95 err (mm) | contact | median steps to success |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for env_id in env_ids:
+        lines += _main_rows(main, env_id, by_run, kind, lambda row: (
+            f"{_mm(row['median_final_error_m'])} | {_mm(row['p95_final_error_m'])} | "
+            f"{_percent(row.get('contact_rate'))} | {_steps(row['median_steps_to_success'])} |"),
+            lambda learned: (
+            f"{_mm(learned['median_final_error_m'].mean())} | {_mm(learned['p95_final_error_m'].mean())} | "
+            f"{_percent(learned['contact_rate'].mean())} | |"))
+    return lines
+
+
+def _percent(x) -> str:
+    return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{100 * x:.0f} %"
 
 
 def _setting(summary: dict) -> dict:

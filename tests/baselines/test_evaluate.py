@@ -56,3 +56,31 @@ def test_summarize_counts_steps_only_over_reached_episodes():
     assert s["median_steps_to_success"] == 4.0
     assert s["median_final_error_m"] == pytest.approx(0.02)
     assert s["solver_failures"] == 1
+
+
+def test_summarize_adds_tracking_errors_on_track_and_contact_on_obstacle_reach():
+    common = {"final_error": np.array([0.01, 0.05, 0.03]), "success": np.array([True, False, False]),
+              "steps_to_success": np.array([4, -1, -1]), "estimation_error": np.zeros(3),
+              "episode_return": np.zeros(3), "solver_failures": np.zeros(3, dtype=int),
+              "final_wrap_deg": np.full(3, np.nan)}
+    nan = {key: np.full(3, np.nan) for key in ("tracking_rms", "tracking_max", "contact")}
+    track = summarize({**common, **nan, "tracking_rms": np.array([0.02, 0.04, 0.01]),
+                       "tracking_max": np.array([0.05, 0.2, 0.03])})
+    assert track["median_tracking_rms_m"] == pytest.approx(0.02)
+    assert track["median_tracking_max_m"] == pytest.approx(0.05)
+    assert track["median_final_error_m"] == pytest.approx(0.03) and "contact_rate" not in track
+    obstacle = summarize({**common, **nan, "contact": np.array([1.0, 0.0, 1.0])})
+    assert obstacle["contact_rate"] == pytest.approx(2 / 3) and "median_tracking_rms_m" not in obstacle
+    reach = summarize({**common, **nan})
+    assert not {"contact_rate", "median_tracking_rms_m", "median_tracking_max_m"} & set(reach)
+
+
+@pytest.mark.parametrize(("env_id", "keys"), [
+    ("SoftArm/OctArmTrack-v0", {"median_tracking_rms_m", "median_tracking_max_m"}),
+    ("SoftArm/OctArmObstacleReach-v0", {"contact_rate"}),
+])
+def test_evaluate_records_the_track_and_obstacle_measures(env_id, keys):
+    result = evaluate(controller="jacobian", env_id=env_id, episodes=1)
+    assert keys <= set(result) and "median_final_error_m" in result
+    for key in keys:
+        assert 0.0 <= result[key] <= 1.0  # metres or a fraction

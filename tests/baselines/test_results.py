@@ -20,7 +20,8 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
     jobs = results.evaluation_jobs(runs_dir, out)
     n_cells = 1 + len(results.CONDITIONS) * 6
     wrap_cells = 2 * (1 + len(results.WRAP_CONDITIONS) * 6)  # the planner on both wrap envs
-    assert len(jobs) == 3 * n_cells + wrap_cells  # the run and the Jacobian controller on both envs
+    # The run, and the Jacobian controller on both reach, both track and both obstacle-reach envs.
+    assert len(jobs) == 7 * n_cells + wrap_cells
     # Two cells, evaluated briefly, stand in for the grid.
     for cell, kwargs in (("main", {}), ("cable_encoder__noisy", {"observation": "cable_encoder",
                                                                  "sensor_noise": "thesis"})):
@@ -29,7 +30,7 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
         (out / "eval").mkdir(exist_ok=True)
         (out / "eval" / f"{tiny_sac_run.name}__{cell}.json").write_text(json.dumps(result))
     # Done cells are skipped.
-    assert len(results.evaluation_jobs(runs_dir, out)) == 3 * n_cells + wrap_cells - 2
+    assert len(results.evaluation_jobs(runs_dir, out)) == 7 * n_cells + wrap_cells - 2
     shipped = results.ship(runs_dir, out, tmp_path / "trained")
     assert [p.name for p in shipped] == ["sac_OctArmReach-v0.zip"]
     meta = json.loads(shipped[0].with_suffix(".json").read_text())
@@ -60,3 +61,55 @@ def test_a_run_ships_under_the_registered_id_whose_defaults_it_trained_in():
     assert shipped["env_id"] == "SoftArm/OctArmReach-v1" and shipped["env_kwargs"] == {}
     assert shipped["trained_on"] == {"env_id": "SoftArm/OctArmReach-v0", "env_kwargs": delta}
     assert shipped["selected_from"] == "sac_OctArmReach-v0_s1"
+
+
+def _run_summary(name: str, env_id: str, seed: int, env_kwargs: dict) -> dict:
+    return {"env_id": env_id, "algo": "sac", "seed": seed, "env_kwargs": env_kwargs, "timesteps_done": 80000,
+            "wall_time_s": 330.0, "cpu_time_s": 324.0, "time_limit_min": 8, "run": name}
+
+
+def test_report_has_track_and_obstacle_sections(tmp_path):
+    # Saved files only: two SAC seeds and the Jacobian controller per task.
+    out = tmp_path / "results"
+    (out / "eval").mkdir(parents=True)
+    track, obstacle = "SoftArm/OctArmTrack-v0", "SoftArm/OctArmObstacleReach-v0"
+    base = {"episodes": 50, "cell": "main", "observation": "true", "median_steps_to_success": 12.0,
+            "mean_estimation_error_m": 0.0, "p95_final_error_m": 0.05}
+    cells = {f"sac_OctArmTrack-v0_s{s}": {"env_id": track, "agent": "sac:best_model.zip",
+                                          "success_rate": rate, "median_final_error_m": 0.012,
+                                          "median_tracking_rms_m": rms, "median_tracking_max_m": 0.1}
+             for s, rate, rms in ((0, 0.6, 0.02), (1, 0.8, 0.03))}
+    cells |= {f"sac_OctArmObstacleReach-v0_s{s}": {"env_id": obstacle, "agent": "sac:best_model.zip",
+                                                   "success_rate": rate, "median_final_error_m": 0.01,
+                                                   "contact_rate": contact}
+              for s, rate, contact in ((0, 0.5, 0.2), (1, 0.7, 0.4))}
+    cells["jacobian_OctArmTrack-v0"] = {"env_id": track, "agent": "jacobian", "success_rate": 1.0,
+                                        "median_final_error_m": 0.001, "median_tracking_rms_m": 0.0046,
+                                        "median_tracking_max_m": 0.03}
+    cells["jacobian_OctArmObstacleReach-v0"] = {"env_id": obstacle, "agent": "jacobian", "success_rate": 0.9,
+                                                "median_final_error_m": 0.002, "contact_rate": 0.25}
+    for name, cell in cells.items():
+        (out / "eval" / f"{name}__main.json").write_text(json.dumps({**base, **cell, "agent_name": name}))
+        if name.startswith("sac_"):
+            env_id = cell["env_id"]
+            kwargs = {"action_mode": "delta", "delta_scale": 0.1} if env_id == track else {}
+            (out / "training" / name).mkdir(parents=True)
+            (out / "training" / name / "summary.json").write_text(
+                json.dumps(_run_summary(name, env_id, int(name[-1]), kwargs)))
+    text = results.report(out, tmp_path / "RESULTS.md")
+    assert "## Reach with true observations" not in text and "## Wrap with true observations" not in text
+    assert "## Track with true observations" in text and "## Obstacle reach with true observations" in text
+    assert text.index("## Track with") < text.index("## Obstacle reach with")
+    assert ("| SoftArm/OctArmTrack-v0 | sac_OctArmTrack-v0_s0 | `{\"action_mode\": \"delta\", "
+            "\"delta_scale\": 0.1}` | 8 | 80,000 | 5.5 | 5.4 | 60 % | 20.0 | 100.0 | 12.0 |") in text
+    assert ("| SoftArm/OctArmTrack-v0 | jacobian_OctArmTrack-v0 | – | – | – | – | – | 100 % | 4.6 | 30.0 "
+            "| 1.0 |") in text
+    assert "**sac mean ± std over 2 seeds** | `{\"action_mode\": \"delta\", \"delta_scale\": 0.1}` | " \
+           "| | | | **70 ± 14 %** | 25.0 | 100.0 | 12.0 |" in text
+    assert ("| SoftArm/OctArmObstacleReach-v0 | sac_OctArmObstacleReach-v0_s1 | 8 | 80,000 | 5.5 | 5.4 "
+            "| 70 % | 10.0 | 50.0 | 40 % | 12 |") in text
+    assert ("| SoftArm/OctArmObstacleReach-v0 | jacobian_OctArmObstacleReach-v0 | – | – | – | – | 90 % "
+            "| 2.0 | 50.0 | 25 % | 12 |") in text
+    assert "| **sac mean ± std over 2 seeds** | | | | | **60 ± 14 %** | 10.0 | 50.0 | 30 % | |" in text
+    assert results.task(track) == "track" and results.task(obstacle) == "obstacle"
+    assert results.task("SoftArm/CTReach-v1") == "reach" and results.task("SoftArm/CTWrap-v1") == "wrap"
