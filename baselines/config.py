@@ -60,7 +60,8 @@ import softarm_gym  # noqa: F401  (registers the SoftArm/* environments)
 from softarm_gym.files import write_json
 
 __all__ = ["ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams", "split_hyperparams", "make_env",
-           "check_env_id", "is_wrap", "registered_equivalent", "sidecar_paths", "legacy_normalization_path",
+           "check_env_id", "is_grasp", "is_wrap", "registered_equivalent", "sidecar_paths",
+           "legacy_normalization_path",
            "policy_metadata",
            "save_normalization", "load_normalization", "restore_normalization", "read_metadata",
            "load_policy", "action_noise", "observation_sizes"]
@@ -145,6 +146,11 @@ def is_wrap(env_id: str) -> bool:
     monitors and evaluations record ``wrap_angle_deg``."""
     return gym.spec(check_env_id(env_id)).entry_point in ("softarm_gym.envs:WrapEnv",
                                                           "softarm_gym.envs:GraspEnv")
+
+
+def is_grasp(env_id: str) -> bool:
+    """Whether ``env_id`` is the grasp task (:class:`softarm_gym.envs.GraspEnv`)."""
+    return gym.spec(check_env_id(env_id)).entry_point == "softarm_gym.envs:GraspEnv"
 
 
 def make_env(env_id: str, env_kwargs: dict | None = None, **overrides) -> gym.Env:

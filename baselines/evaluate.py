@@ -35,8 +35,9 @@ error and the reward always use the true arm. Reported (JSON keys):
 * ``mean_return``, ``solver_failures`` (unconverged steps in total), ``wall_time_s``.
 
 Controllers (``--controller``): ``jacobian`` (:class:`~softarm_gym.controllers.JacobianController`,
-reach) and ``planner`` (:class:`~softarm_gym.controllers.CEMPlanner` with its defaults, seeded
-with the episode's seed in every episode, as ``softarm_gym.benchmarks.planner`` runs it).
+reach), ``planner`` (:class:`~softarm_gym.controllers.CEMPlanner` with its defaults, seeded
+with the episode's seed in every episode, as ``softarm_gym.benchmarks.planner`` runs it) and
+``curl`` (:class:`~softarm_gym.controllers.CurlController`, the scripted wrap and grasp).
 """
 
 from __future__ import annotations
@@ -52,13 +53,13 @@ import numpy as np
 from tqdm import tqdm
 
 from baselines.config import load_policy, make_env
-from softarm_gym.controllers import CEMPlanner, JacobianController
+from softarm_gym.controllers import CEMPlanner, CurlController, JacobianController
 from softarm_gym.files import json_text, write_json
 from softarm_gym.sensing import ESTIMATORS
 
 __all__ = ["evaluate", "rollouts", "summarize", "main", "CONTROLLERS"]
 
-CONTROLLERS = ("jacobian", "planner")
+CONTROLLERS = ("jacobian", "planner", "curl")
 
 
 def rollouts(env, act, reset, episodes: int, seed: int = 0, progress: bool = False) -> dict[str, np.ndarray]:
@@ -225,8 +226,8 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
 
         def reset():
             return None
-    elif controller == "jacobian":
-        ctrl = JacobianController(env)
+    elif controller in ("jacobian", "curl"):
+        ctrl = JacobianController(env) if controller == "jacobian" else CurlController(env)
         act, reset = ctrl.act, ctrl.reset
     else:
         act, reset = _seeded_planner(env, seed)

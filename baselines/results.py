@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from baselines.config import ALGOS, is_wrap, registered_equivalent, sidecar_paths
+from baselines.config import ALGOS, is_grasp, is_wrap, registered_equivalent, sidecar_paths
 from baselines.evaluate import evaluate
 from softarm_gym.files import write_json
 from softarm_gym.sensing import ESTIMATORS
@@ -101,7 +101,7 @@ OBSTACLE_DEFINITIONS = ("Success = final true tip within the env's tolerance (2 
                         "fraction of episodes in which the arm touched a disc at some step "
                         "(`info[\"in_contact\"]`); steps to success as on reach.")
 """What the obstacle-reach section's numbers mean."""
-CONTROLLERS = ("jacobian", "planner")
+CONTROLLERS = ("jacobian", "planner", "curl")
 """Agent name prefixes of the model-based reference controllers (not trained, never shipped)."""
 
 
@@ -138,8 +138,12 @@ def collect(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list
 
 
 def reference_controller(env_id: str) -> str:
-    """The model-based reference of ``env_id``'s task: ``planner`` on wrap, ``jacobian`` on reach
-    (track and obstacle reach too: it follows the current target, and does not know the discs)."""
+    """The model-based reference of ``env_id``'s task: ``planner`` on wrap, ``curl`` (the
+    scripted curl) on grasp, whose free object the planner's rollouts do not model,
+    ``jacobian`` on reach (track and obstacle reach too: it follows the current target, and
+    does not know the discs)."""
+    if is_grasp(env_id):
+        return "curl"
     return "planner" if is_wrap(env_id) else "jacobian"
 
 
