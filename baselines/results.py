@@ -62,8 +62,10 @@ TRACK_ENV_IDS = ("SoftArm/OctArmTrack-v0", "SoftArm/CTTrack-v0")
 """Track environments of the baselines (the Jacobian controller's reference rows)."""
 OBSTACLE_ENV_IDS = ("SoftArm/OctArmObstacleReach-v0", "SoftArm/CTObstacleReach-v0")
 """Obstacle-reach environments of the baselines (the Jacobian controller's reference rows)."""
+GRASP_ENV_IDS = ("SoftArm/OctArmGrasp-v0",)
+"""Grasp environments of the baselines (the scripted curl's reference rows; listed with wrap)."""
 TASKS = {"softarm_gym.envs:WrapEnv": "wrap", "softarm_gym.envs:TrackEnv": "track",
-         "softarm_gym.envs:ObstacleReachEnv": "obstacle"}
+         "softarm_gym.envs:ObstacleReachEnv": "obstacle", "softarm_gym.envs:GraspEnv": "wrap"}
 """Entry point → the report section of its envs (any other: ``reach``)."""
 MAIN_EPISODES = 100
 GRID_EPISODES = 20
@@ -155,7 +157,7 @@ def task(env_id: str) -> str:
 
 
 def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, *, grid: bool = True,
-                    env_ids=ENV_IDS + WRAP_ENV_IDS + TRACK_ENV_IDS + OBSTACLE_ENV_IDS,
+                    env_ids=ENV_IDS + WRAP_ENV_IDS + TRACK_ENV_IDS + OBSTACLE_ENV_IDS + GRASP_ENV_IDS,
                     episodes: int | None = None) -> list[tuple[Path, dict]]:
     """(output JSON path, :func:`baselines.evaluate.evaluate` kwargs) of every grid cell not yet done.
 
@@ -485,6 +487,18 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "baselines.results evaluate --runs runs --main-only --episodes 50 --only RUN` per run and "
              "for `jacobian_<env>` (the Jacobian controller on the registered env), mostly while the "
              "next seed trained; the main cell only (no estimator grid); not shipped.",
+             "",
+             "Grasp (`SoftArm/OctArmGrasp-v0`, listed with wrap: its runs record the wrap angle; "
+             "success is its own, the object held by the arm alone at least 3 cm above its seat at "
+             "the last of the 100 steps): SAC, 3 seeds, wrap's settings on the registered defaults "
+             "but the grasp margin, which the reward does not use (`env_kwargs: {margin_directions: "
+             "0}`), 20,000 steps each, one training at a time: `python -m baselines.train --env "
+             "SoftArm/OctArmGrasp-v0 --algo sac --seed S --time-limit-min 25 --eval-freq 5000 "
+             "--eval-episodes 10` (S = 0, 1, 2). `curl_OctArmGrasp-v0` is the scripted "
+             "`CurlController` on the registered env (it stops curling once the object is lifted; the "
+             "planner's rollouts do not model the free object). Evaluated with `python -m "
+             "baselines.results evaluate --runs runs --main-only --episodes 20 --only RUN` per run and "
+             "for `curl_OctArmGrasp-v0`; the main cell only; not shipped.",
              ""]
     by_run = {r["run"]: r for r in runs}
     if len(table):  # the observation mode each agent was trained on (the controller: true)
