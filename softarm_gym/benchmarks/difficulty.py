@@ -4,9 +4,11 @@ Every task's difficulty is set by ``gym.make`` kwargs, none of them new: the suc
 tolerance of reach, the speed of the tracked trajectory (``segment_steps``: steps between
 waypoints of the target's pressure path), the size of the object to wrap (``object_radius``
 range), the mass of the object to grasp (``object_mass_kg`` range). :data:`LEVELS` names
-three or four levels of each, the registered default among them, and :func:`run` measures the reference controller of each task
+three or four levels of each, the registered default among them, and :func:`run` measures
+the reference controller of each task
 (:func:`softarm_gym.benchmarks.reference.reference_controller`: the Jacobian controller on
-reach and track, the scripted curl on wrap and grasp) on ``episodes`` seeded episodes per level::
+reach and track, the scripted curl on wrap and grasp) on ``episodes`` seeded episodes per
+level::
 
     python -m softarm_gym.benchmarks.difficulty --episodes 20 --json > docs/bench/difficulty.json
 
