@@ -449,8 +449,9 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "best agent per env, `--only planner_CTWrap-v1` (100 main episodes, 20 per grid cell), "
              "`--only planner_OctArmWrap-v1 --episodes 20` (main) and `--only "
              "planner_OctArmWrap-v1__ESTIMATOR__noisy --episodes 10` for the sensor-based estimators, "
-             "then `--only planner_OctArmWrap-v1 --episodes 10` for the rest of its grid until the "
-             "machine time ran out (the planner costs up to minutes per episode when it searches at "
+             "then `--only planner_OctArmWrap-v1 --episodes 10` for the rest of its grid (the last "
+             "five cells on a faster machine: `--only planner_OctArmWrap-v1 --episodes 10 "
+             "--workers 2`, 2.4 min; the planner costs up to minutes per episode when it searches at "
              "every step); shipped "
              "with `python -m baselines.results ship --envs SoftArm/OctArmWrap-v1,SoftArm/CTWrap-v1`.",
              "",
