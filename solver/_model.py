@@ -247,7 +247,12 @@ def context(arm: ArmDesign, packed: PackedArm, scene: Scene, dim: int,
             settings: Settings) -> SceneContext:
     """The :class:`SceneContext` of ``scene`` for ``packed`` (cached). ``settings`` must be
     the ones ``packed`` was built with (they are part of its key). A design made by
-    :meth:`ArmDesign.scaled` shares its nominal's loads (the masses are unchanged)."""
+    :meth:`ArmDesign.scaled` shares its nominal's loads (the masses are unchanged). Obstacles
+    do not enter a context, so it is keyed by the scene without them: a scene whose disc moves
+    every step (a grasped object) does not fill the design's cache with copies."""
+    if scene.obstacles:
+        scene = replace(scene, obstacles=())
+
     def build():
         scaled_from = arm._solver_cache.scaled_from
         if scaled_from is not None and packed.key[0] == "pack":

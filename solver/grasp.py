@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from solver._model import pack
+from solver._model import context, pack
 from solver.designs import ArmDesign
 from solver.results import Equilibrium
 from solver.scene import MAX_EXTENT, Disc, Scene
@@ -60,14 +60,15 @@ MIN_SUBSTEP = 1.0 / 64.0
 # (a wrap that snaps shut round a free object can cost seconds per solve).
 MAX_SOLVES = 300
 
-
-class _Exhausted(Exception):
-    """The contact-solve budget of one :func:`settle` call ran out."""
 # Fraction of a fork's depth, at its top, over which its walls' hold fades (a chamfered rim).
 RIM = 0.25
 # Clearance (m) the base clamp keeps between the object's contact circle and the arm's base
 # (so that its penalty's give never lets the disc cover the base: 75 N to close it).
 CLAMP_GAP = 1e-3
+
+
+class _Exhausted(Exception):
+    """The contact-solve budget of one :func:`settle` call ran out."""
 
 
 @dataclass(frozen=True)
@@ -228,12 +229,6 @@ class Grasp:
     solves: int
 
 
-def _dead_loads(arm: ArmDesign, scene: Scene) -> np.ndarray:
-    """D: the internal force at the base of the arm with no contact (N): weights and tip force."""
-    return np.array(scene.tip_force[:2]) - np.array(
-        [0.0, scene.gravity * (arm.mass + scene.payload_kg)])
-
-
 class _Balance:
     """G(c) for one arm, pressures, scene, object and disturbance; counts the contact solves."""
 
@@ -253,7 +248,8 @@ class _Balance:
         self.arm, self.scene, self.obj, self.model, self.settings = arm, scene, obj, model, settings
         self.packed = pack(arm, model, settings)
         self.p_inputs, self.p_channel = _channel_pressures(arm, pressures, True, self.packed)
-        self.dead = _dead_loads(arm, scene)
+        # D: the internal force at the base with no contact (weights and tip force).
+        self.dead = context(arm, self.packed, scene, 2, settings).base_force[:2]
         self.load = np.array([0.0, -obj.mass_kg * scene.gravity]) + f
         self.counter = [0]  # contact solves, shared with the copies of at()
         self.budget = math.inf
@@ -279,9 +275,13 @@ class _Balance:
         return _dispatch(self.arm, self.packed, self.p_inputs, self.p_channel, scene, self.model,
                          True, warm, True, self.settings, moving=True)
 
+    def arm_force(self, eq: Equilibrium) -> np.ndarray:
+        """The force of the arm in ``eq`` on the object (N): D − n(0)."""
+        return self.dead - eq.base_force[:2]
+
     def forces(self, center, eq: Equilibrium):
         """(G, arm force, supports' reaction) at ``center`` with the arm in ``eq``."""
-        arm_force = self.dead - eq.base_force[:2]
+        arm_force = self.arm_force(eq)
         support = self.obj.support_reaction(center)[0]
         return arm_force + self.load + support, arm_force, support
 
@@ -295,14 +295,14 @@ class _Balance:
         if not eq.in_contact:
             return jac
         h = FD_STEP * self.obj.radius
-        arm_force = self.dead - eq.base_force[:2]
+        arm_force = self.arm_force(eq)
         for j in range(2):
             c = center.copy()
             c[j] += h
             moved = self.arm_at(c, eq)
             if moved is None or not moved.converged:
                 return None
-            jac[:, j] = (self.dead - moved.base_force[:2] - arm_force) / h
+            jac[:, j] = (self.arm_force(moved) - arm_force) / h
         return jac
 
 
@@ -410,8 +410,8 @@ def _result(bal: _Balance, pose: _Pose, converged: bool, iterations: int) -> Gra
             stiffness = -(jac + bal.obj.support_reaction(c)[1])
             sym = 0.5 * (stiffness + stiffness.T)
             stable = bool(eq.stable and np.all(np.linalg.eigvalsh(sym) > 0.0))
-    held = bool(converged and bal.obj.clear(c) and not np.any(pose.support))
-    return Grasp(arm=eq, center=c, converged=bool(converged), held=held,
+    return Grasp(arm=eq, center=c, converged=bool(converged),
+                 held=bool(converged and bal.obj.clear(c)),
                  lift=float(c[1] - bal.obj.seat[1]), arm_force=pose.arm_force,
                  support_force=pose.support, residual=float(np.hypot(*pose.g)),
                  stiffness=stiffness, stable=stable, iterations=int(iterations),
@@ -524,8 +524,7 @@ class _Push:
         bal = _Balance(eq.arm, eq.pressures, self.scene, self.obj, force * self.unit, eq.model,
                        self.settings)
         pose = _settle(bal, state[0], state[1], fall_back=False)
-        held = pose.converged and self.obj.clear(pose.center) and not np.any(pose.support)
-        return held, (pose.center, pose.arm)
+        return pose.converged and self.obj.clear(pose.center), (pose.center, pose.arm)
 
 
 def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_force: float | None = None,

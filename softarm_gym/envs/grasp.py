@@ -10,7 +10,7 @@ import numpy as np
 import solver
 from softarm_gym.envs.base import _check_options, _finite_number, _range
 from softarm_gym.envs.wrap import WrapEnv
-from solver.grasp import FreeObject, grasp_margin, settle
+from solver.grasp import CLAMP_GAP, FreeObject, grasp_margin, settle
 
 __all__ = ["GraspEnv"]
 
@@ -126,8 +126,12 @@ class GraspEnv(WrapEnv):
         self._object = None
         self._grasp = None
         self._margin = (None, math.nan, np.zeros(0))
-        self._seat = np.zeros(2)
         super().__init__(design, wrap_weight=wrap_weight, **kwargs)
+
+    @property
+    def _seat(self) -> np.ndarray:
+        """(2,) the object's seat (m)."""
+        return np.array(self._object.seat)
 
     def _goal_bounds(self):
         r = self.reach
@@ -136,20 +140,18 @@ class GraspEnv(WrapEnv):
     def _place(self, center, radius: float, start: solver.Equilibrium):
         """The scene with the object resting in its forks at ``center`` and the start state, or
         None if that does not converge."""
-        mass = self._mass
-        obj = FreeObject(radius=radius + self.half_thickness, mass_kg=mass,
+        obj = FreeObject(radius=radius + self.half_thickness, mass_kg=self._mass,
                          seat=(float(center[0]), float(center[1])), stiffness=self.contact_stiffness,
                          fork_depth=self.fork_depth)
         free = replace(self._scene, obstacles=())
-        if math.hypot(*obj.seat) <= obj.radius + 1e-3:
-            return None
+        if math.hypot(*obj.seat) <= obj.radius + CLAMP_GAP:
+            return None  # seated against the arm's base clamp
         # From the start state itself: the object is placed clear of it.
         grasp = settle(self._sim_arm, start.pressures, free, obj, center=obj.seat,
                        warm_start=start, model=self.model)
         if not grasp.converged:
             return None
         self._object, self._grasp, self._free_scene = obj, grasp, free
-        self._seat = np.array(obj.seat)
         self._center = grasp.center.copy()
         self._object_radius = radius
         self._contact_radius = obj.radius

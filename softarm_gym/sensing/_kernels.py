@@ -518,9 +518,10 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
             break
         # Fresh Jacobians that gain under 2 % of the merit three times running: a crawl
         # along a valley of the merit, not a descent to a root.
-        crawl = crawl + 1 if fresh and not trial_merit < 0.98 * merit else (crawl if not fresh else 0)
-        if crawl >= 3:
-            break
+        if fresh:
+            crawl = 0 if trial_merit < 0.98 * merit else crawl + 1
+            if crawl >= 3:
+                break
         if not fresh and not trial_merit < 0.81 * merit:
             jac_ok[0] = False  # too slow a contraction: the kept Jacobian is stale
             for k in range(n):
