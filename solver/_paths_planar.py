@@ -11,8 +11,8 @@ import numpy as np
 
 from solver import _planar
 from solver import layout as L
-from solver._grid import planar_fine
-from solver._model import MULTIPLE_SHOOTING_INDEX, SceneContext, context, pack, rest_strains
+from solver._grid import on_grid, planar_fine
+from solver._model import MULTIPLE_SHOOTING_INDEX, SceneContext, context, pack, refined, rest_strains
 from solver._paths_shooting import solve_multiple
 from solver.results import Equilibrium
 from solver.rod import arc_chain_planar, arc_chain_spatial, base_rotation, integrate_planar
@@ -192,18 +192,48 @@ def solve_either(single, multiple, dim, arm, packed, p_inputs, p_channel, scene,
     is ill-conditioned (index above MULTIPLE_SHOOTING_INDEX); with the fallbacks on
     (``settings.n_scan > 0``) the other method runs where the first did not return a stable
     converged state. Each covers the other's failures: multiple shooting the ill-conditioned
-    arms, single shooting (with its fold scan and branch switching) the buckling ones."""
+    arms, single shooting (with its fold scan and branch switching) the buckling ones. Where
+    both fail, both run again with :meth:`Settings.finer` continuation, then on a grid of
+    twice the steps (returned on this one; docs/design.md §8); still failing, the result on
+    this grid and settings with the smaller residual is returned, unconverged."""
     fallbacks = settings.n_scan > 0 and model != "constant_curvature"
     methods = (single, multiple)
     if fallbacks and context(arm, packed, scene, dim, settings).shooting_index > MULTIPLE_SHOOTING_INDEX:
         methods = methods[::-1]
     args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     eq = methods[0](*args)
-    if fallbacks and not (eq.converged and eq.stable):
-        other = methods[1](*args)
+    if not fallbacks or (eq.converged and eq.stable):
+        return eq
+    iterations = eq.iterations
+    finer = settings.finer()
+    tries = [(method, settings, packed) for method in methods[1:]]
+    if finer != settings:
+        tries += [(method, finer, _packed_for(arm, packed, model, finer)) for method in methods]
+    doubled = refined(arm, packed, 2 * packed.sec_steps)
+    tries += [(method, settings, doubled) for method in methods]
+    best = eq
+    for method, tried, layout in tries:
+        other = method(arm, layout, p_inputs, p_channel, scene, model, warm_start, tried)
+        iterations += other.iterations
         if other.converged and other.stable:
-            return replace(other, iterations=other.iterations + eq.iterations)
-    return eq
+            if layout is doubled:
+                other = on_grid(other, doubled.sec_steps, packed.sec_steps)
+            return replace(other, iterations=iterations)
+        if other.residual < best.residual and layout is packed:
+            best = other
+    # The failure nearest a solution: where its grid does not resolve it (single shooting's
+    # loaded arm beyond the grid), the caller refines the grid and solves again.
+    return replace(best, iterations=iterations)
+
+
+def _packed_for(arm, packed, model, settings):
+    """``packed``'s grid (the settings' one or a refinement of it) packed for ``settings``:
+    the packed design keys the caches (scene context, loaded states) that hold the
+    continuation parameters, so other settings need their own."""
+    base = pack(arm, model, settings)
+    if np.array_equal(base.sec_steps, packed.sec_steps):
+        return base
+    return refined(arm, base, packed.sec_steps)
 
 
 def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,

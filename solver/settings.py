@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 __all__ = ["MODELS", "Settings", "SolverError", "DEFAULT_SETTINGS"]
 
 MODELS = ("full", "unshearable", "constant_curvature")
+
+# Smallest continuation step of :meth:`Settings.finer` (fraction of the ramp).
+FINER_DT_MIN = 1.0 / 4096.0
 
 
 class SolverError(RuntimeError):
@@ -70,5 +73,17 @@ class Settings:
         The stress test compares this against the default to show what the fallbacks buy.
         """
         return cls(dt0=1.0, dt_min=1.0, contact_dt_min=1.0, n_scan=0, **kwargs)
+
+    def finer(self) -> Settings:
+        """The last fallback of a dead-load solve that found no stable equilibrium: 16× smaller
+        continuation steps, more Newton iterations per step and a 4× denser fold scan.
+
+        A path that turns sharply near a fold (an upright arm buckling under a payload, an
+        arm near lock-up) makes the default steps jump onto the unstable branch or past the
+        fold's end; these settings follow it. They cost several times a default solve, so
+        they run only where both shooting methods have failed.
+        """
+        return replace(self, dt_min=min(self.dt_min, FINER_DT_MIN), max_iter=max(self.max_iter, 40),
+                       n_scan=max(self.n_scan, 384))
 
 DEFAULT_SETTINGS = Settings()

@@ -138,3 +138,35 @@ def test_batch_closed_form_equals_solve(model, gravity):
     for k in range(0, 25, 6):
         np.testing.assert_allclose(tips[k], solver.solve(arm, P[k], scene, model=model).tip,
                                    atol=1e-12)
+
+
+def test_both_methods_failing_fall_back_to_finer_continuation():
+    """A soft OctArm V (moduli × 0.046) pointing up, folding over under its own weight: with
+    the default continuation single shooting leaves its grid unresolved and multiple
+    shooting loses the path; the finer continuation (:meth:`Settings.finer`) follows it, so
+    the default solve converges — to the stable equilibrium the finer settings find alone."""
+    from dataclasses import replace
+
+    from softarm_gym.benchmarks.stress import scaled
+    from solver._model import pack
+    from solver._paths_planar import solve_single
+    from solver._paths_shooting import solve_multiple
+    from solver.solve import _channel_pressures
+
+    arm = scaled(designs.octarm_v(), stiffness=0.0322149580125922 / 0.6961461434850154)
+    scene = solver.Scene(base_angle_deg=178.7332626375461, payload_kg=0.04136377153946509)
+    p = np.array([11728.26612917, 18468.84957647, 28964.7243914, 11622.80110374, 29000.42015825,
+                  17154.45569641])
+    settings = solver.Settings()
+    packed = pack(arm, "full", settings)
+    p_inputs, p_channel = _channel_pressures(arm, p, True, packed)
+    for method in (solve_single, solve_multiple):
+        plain = method(arm, packed, p_inputs, p_channel, scene, "full", None, settings)
+        assert not plain.converged
+    eq = solver.solve(arm, p, scene)
+    assert eq.converged and eq.stable
+    finer = solver.solve(arm, p, scene, settings=settings.finer())
+    assert finer.converged and finer.stable
+    np.testing.assert_allclose(eq.tip, finer.tip, atol=1e-9 * arm.length)
+    assert settings.finer() == replace(settings, dt_min=1.0 / 4096.0, max_iter=40, n_scan=384)
+    assert settings.finer().finer() == settings.finer()
