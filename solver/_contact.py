@@ -37,8 +37,10 @@ import math
 import numpy as np
 
 from solver._obstacles import _contact_force, _contact_stiffness, _nearest_surface, _tunnels
+from solver._self_contact import build_piece, clear_pieces, self_contact_on, self_loads
 from solver.jit import njit
 from solver.layout import (
+    B_TOUCH,
     C_COLUMNS,
     C_FX,
     C_FY,
@@ -63,6 +65,7 @@ from solver.layout import (
     L_TARGET,
     MAX_ITER,
     MAX_STEP,
+    N_BOUNDS,
     PREDICT_CAP,
     REST_U2,
     REST_V3,
@@ -71,6 +74,11 @@ from solver.layout import (
     SEG_ROW0,
     SEG_SECTION,
     SEG_STEPS,
+    SELF_FX,
+    SELF_FY,
+    SELF_PEN,
+    SELF_QX,
+    SELF_QY,
     TOL,
 )
 from solver.rod import (
@@ -171,15 +179,69 @@ def _rk4_tangent(st, P, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs):
 
 
 @njit
-def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw):
+def _new_partners(grid):
+    """Scratch for self-contact (:mod:`solver._self_contact`) on ``grid``: (points
+    (M, c + 1, 4), bounds (M, N_BOUNDS), loads (M, c + 1, 5)), c the longest segment's steps;
+    empty without self-contact."""
+    segs = grid[G_SEGS]
+    n_seg = segs.shape[0] if self_contact_on(grid) else 0
+    cap = 0
+    for seg in range(segs.shape[0]):
+        cap = max(cap, segs[seg, SEG_STEPS])
+    bounds = np.empty((n_seg, N_BOUNDS))
+    clear_pieces(bounds)
+    return np.empty((n_seg, cap + 1, 4)), bounds, np.zeros((n_seg, cap + 1, 5))
+
+
+@njit
+def _self_row(loads, segs, seg, node, out, row):
+    """Add the self-contact load per length and penetration of node ``node`` of segment
+    ``seg`` (its canonical slot) to the record row ``row``."""
+    a, b = (seg - 1, segs[seg - 1, SEG_STEPS]) if node == 0 and seg > 0 else (seg, node)
+    out[row, C_FX] += loads[a, b, SELF_QX]
+    out[row, C_FY] += loads[a, b, SELF_QY]
+    out[row, C_PEN] = max(out[row, C_PEN], loads[a, b, SELF_PEN])
+
+
+@njit
+def _prepare_partners(Z, grid, rest, level, partners):
+    """The self-contact loads of the state ``Z`` into ``partners`` (nothing without
+    self-contact): each segment's piece from its start node to the next one's — the tip
+    segment's to its end integrated without self-contact loads — then the loads
+    (:func:`solver._self_contact.self_loads`). Functions of Z alone."""
+    pts, bounds, loads = partners
+    n_seg = bounds.shape[0]
+    if n_seg == 0:
+        return
+    clear_pieces(bounds)
+    za = np.empty(6)
+    zb = np.empty(6)
+    theta0 = grid[G_THETA0]
+    for seg in range(n_seg - 1):
+        _start_state(Z, seg, theta0, za)
+        _start_state(Z, seg + 1, theta0, zb)
+        build_piece(za, zb, seg, grid, rest, pts, bounds)
+    _start_state(Z, n_seg - 1, theta0, za)
+    none = (pts[:0], bounds[:0], loads[:0])
+    _segment(za, n_seg - 1, grid, rest, level, zb, np.empty((7, 6)), False,
+             np.empty((1, C_COLUMNS)), np.empty((0, 6)), np.empty((8, 6, 6)), none)
+    build_piece(za, zb, n_seg - 1, grid, rest, pts, bounds)
+    self_loads(grid, pts, bounds, loads)
+
+
+@njit
+def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, partners):
     """Integrate segment ``seg`` from state ``z`` (6,) into ``out_state`` (6,).
 
-    ``grid`` = (θ0, segs, secf, steps, sec_start) and ``level`` (a level tuple, see
-    ``L_P``…) give the layout and loads. Applies the endplate jump n(s⁺) = n(s⁻) − W at a
-    section end (not at the tip: that is the boundary condition). ``work`` is (7, 6)
-    scratch. With ``record``, writes the segment's nodes (and the section's last node) into
-    ``out``. With ``phi`` (6, 6) (not empty), the segment map's Jacobian ∂out_state/∂z is
-    integrated into it alongside (``tw`` (8, 6, 6) scratch).
+    ``grid`` (the layout tuple, ``G_*``) and ``level`` (a level tuple, see ``L_P``…) give
+    the layout and loads. Applies the endplate jump n(s⁺) = n(s⁻) − W at a section end (not
+    at the tip: that is the boundary condition), and the self-contact point loads of
+    ``partners`` (:func:`_new_partners`, worked out by :func:`_prepare_partners`; none if
+    empty) at the RK4 nodes, the tip's included. ``work`` is (7, 6) scratch. With
+    ``record``, writes the segment's nodes (and the section's last node) into ``out``. With
+    ``phi`` (6, 6) (not empty), the segment map's Jacobian ∂out_state/∂z is integrated into
+    it alongside (``tw`` (8, 6, 6) scratch): the self-contact loads depend on the shooting
+    nodes, not on this segment's start state, and do not enter it.
 
     Near a disc every RK4 step is refined into NEAR_SUBSTEPS substeps: the penalty's kink at
     the disc surface, and contact patches shorter than a step, cost RK4 its accuracy there,
@@ -214,10 +276,20 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw):
                 phi[d, e] = 1.0 if d == e else 0.0
     start = work[5]
     fine = work[6]
+    loads = partners[2]
+    own = loads.shape[0] > 0
     for j in range(first, first + nst):
+        if own and j > first:  # the node just reached carries its load from here on
+            st[3] -= loads[seg, j - first, SELF_FX]
+            st[4] -= loads[seg, j - first, SELF_FY]
         if record:
-            _write_row(st, sec_start[i] + j * h, out, segs[seg, SEG_ROW0] + j, ca, cg, ci, ur, vr,
-                       discs)
+            row = segs[seg, SEG_ROW0] + j
+            _write_row(st, sec_start[i] + j * h, out, row, ca, cg, ci, ur, vr, discs)
+            if own:
+                _self_row(loads, segs, seg, j - first, out, row)
+        if own and seg == 0 and j == first:  # the base node's load, into the clamp's reaction
+            st[3] -= loads[0, 0, SELF_FX]
+            st[4] -= loads[0, 0, SELF_FY]
         if discs.shape[0] > 0:
             for d in range(6):
                 start[d] = st[d]
@@ -274,10 +346,15 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw):
                         + (fine[d] - st[d]) * tw[7, 0, e]
         for d in range(6):
             st[d] = weight * fine[d] + (1.0 - weight) * st[d]
+    if own:
+        st[3] -= loads[seg, nst, SELF_FX]
+        st[4] -= loads[seg, nst, SELF_FY]
     if segs[seg, SEG_END] == 1:
         if record:
-            _write_row(st, sec_start[i] + secf[0, i], out, segs[seg, SEG_ROW0] + steps[i], ca, cg,
-                       ci, ur, vr, discs)
+            row = segs[seg, SEG_ROW0] + steps[i]
+            _write_row(st, sec_start[i] + secf[0, i], out, row, ca, cg, ci, ur, vr, discs)
+            if own:
+                _self_row(loads, segs, seg, nst, out, row)
         if i < secf.shape[1] - 1:
             st[3] -= level[L_PLATE][i, 0]
             st[4] -= level[L_PLATE][i, 1]
@@ -312,15 +389,17 @@ def _start_state(Z, seg, theta0, z):
 
 
 @njit
-def _system(Z, grid, rest, level, F, J, want_jac, blocks):
+def _system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
     """Residuals F (N,) of the multiple-shooting system and, if ``want_jac``, its Jacobian J.
 
     Unknowns Z: (n0x, n0y, m0), then the 6-state at the start of segments 1..M−1. Rows: the
     6 continuity conditions of segments 0..M−2, then n(L), m(L) against the level's tip
     target. J is banded (each row couples one segment's start to the next's) and is stored
-    in the band form of :func:`_band_solve`, ``(BAND_ROWS, N)``. The segment maps'
-    Jacobians are integrated with the segments (:func:`_segment`) into ``blocks``
-    (M, 6, 6) (their stability test: :func:`_stability`).
+    in the band form of :func:`_band_solve`, ``(BAND_ROWS, N)``: with self-contact, the
+    Jacobian at fixed self-contact loads (their dependence on the nodes: :func:`_coupled`).
+    The segment maps' Jacobians are integrated with the segments (:func:`_segment`) into
+    ``blocks`` (M, 6, 6) (their stability test: :func:`_stability`). The self-contact
+    loads of Z are worked out into ``partners`` (:func:`_new_partners`) first.
     """
     segs = grid[G_SEGS]
     target = level[L_TARGET]
@@ -331,12 +410,13 @@ def _system(Z, grid, rest, level, F, J, want_jac, blocks):
     tw = np.empty((8, 6, 6))
     no_tangent = np.empty((0, 6))
     dummy = np.empty((1, C_COLUMNS))
+    _prepare_partners(Z, grid, rest, level, partners)
     if want_jac:
         J[:, :] = 0.0  # band storage: A[i, j] at J[BAND + i − j, j]
     for seg in range(n_seg):
         _start_state(Z, seg, grid[G_THETA0], z)
         block = blocks[seg] if want_jac else no_tangent
-        _segment(z, seg, grid, rest, level, end, work, False, dummy, block, tw)
+        _segment(z, seg, grid, rest, level, end, work, False, dummy, block, tw, partners)
         row = 6 * seg
         last = seg == n_seg - 1
         if not last:
@@ -554,6 +634,52 @@ def _weighted_norm(v, weights):
 
 
 @njit
+def _touched(partners) -> bool:
+    """Whether parts of the arm press on each other (a piece is in contact)."""
+    bounds = partners[1]
+    for seg in range(bounds.shape[0]):
+        if bounds[seg, B_TOUCH] > 0.0:
+            return True
+    return False
+
+
+@njit
+def _coupled(Z, grid, rest, level, F, J, partners, weights, A):
+    """The full Jacobian (N, N) of the system into ``A`` where parts of the arm touch: the
+    band ``J`` (exact at fixed self-contact loads) in the columns of nodes that shape no
+    piece in contact, and forward differences of the residual ``F`` in the columns of those
+    that do (the loads move with them, on their own segments and on the parts they touch)."""
+    n = Z.shape[0]
+    A[:, :] = 0.0
+    for j in range(n):
+        for i in range(max(0, j - 8), min(n, j + 9)):
+            A[i, j] = J[BAND + i - j, j]
+    bounds = partners[1]
+    n_seg = bounds.shape[0]
+    columns = np.zeros(n, dtype=np.bool_)
+    for seg in range(n_seg):
+        if bounds[seg, B_TOUCH] > 0.0:
+            for node in (seg, seg + 1):
+                if node == 0:
+                    columns[0:3] = True
+                elif node < n_seg:
+                    columns[3 + 6 * (node - 1):3 + 6 * node] = True
+    scratch = (np.empty_like(partners[0]), np.empty_like(partners[1]), np.empty_like(partners[2]))
+    moved = Z.copy()
+    F_moved = np.empty(n)
+    no_blocks = np.empty((0, 6, 6))
+    for c in range(n):
+        if not columns[c]:
+            continue
+        eps = 1e-7 * max(abs(Z[c]), weights[c])
+        moved[c] = Z[c] + eps
+        _system(moved, grid, rest, level, F_moved, J, False, no_blocks, scratch)
+        moved[c] = Z[c]
+        for i in range(n):
+            A[i, c] = (F_moved[i] - F[i]) / eps
+
+
+@njit
 def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     """Damped Newton on the multiple-shooting system at ``level``; ``Z`` is updated in place.
 
@@ -563,7 +689,8 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
     over a full Newton step). The factored Jacobian is kept while the residual falls at
     least twentyfold per iteration (a Jacobian costs about two passes over the arm, a
     residual one) and recomputed otherwise, and at a converged state for its stability
-    test.
+    test. Where parts of the arm touch each other the system is not banded: its full
+    Jacobian (:func:`_coupled`) is formed and solved densely, afresh at every iteration.
     Returns (converged, iterations, |F|, stable).
     """
     n = Z.shape[0]
@@ -574,23 +701,32 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
     blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
     base = np.empty(n)
     step = np.empty(n)
-    _system(Z, grid, rest, level, F, J, True, blocks)
+    partners = _new_partners(grid)
+    dense = np.empty((n, n)) if partners[1].shape[0] else np.empty((0, 0))
+    _system(Z, grid, rest, level, F, J, True, blocks, partners)
     fresh = True
+    coupled = _touched(partners)
     res = _weighted_norm(F, res_weights)
     for it in range(max_iter + 1):
         if not math.isfinite(res):
             return False, it, math.inf, False
         if res <= tol:
             if not fresh:
-                _system(Z, grid, rest, level, F, J, True, blocks)
+                _system(Z, grid, rest, level, F, J, True, blocks, partners)
             return True, it, res, _stability(blocks) > 0.0
         if it == max_iter:
             break
-        if fresh and not _band_factor(J, piv):
-            return False, it, res, False
-        for k in range(n):
-            step[k] = F[k]
-        _band_lu_solve(J, piv, step)
+        if coupled:
+            _coupled(Z, grid, rest, level, F, J, partners, weights, dense)
+            if not np.all(np.isfinite(dense)) or np.linalg.det(dense) == 0.0:
+                return False, it, res, False
+            step[:] = np.linalg.solve(dense, F)
+        else:
+            if fresh and not _band_factor(J, piv):
+                return False, it, res, False
+            for k in range(n):
+                step[k] = F[k]
+            _band_lu_solve(J, piv, step)
         norm = _weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         for k in range(n):
@@ -599,7 +735,7 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
         for _ in range(8):
             for k in range(n):
                 Z[k] = base[k] - alpha * step[k]
-            _system(Z, grid, rest, level, F_try, J, False, blocks)
+            _system(Z, grid, rest, level, F_try, J, False, blocks, partners)
             res_try = _weighted_norm(F_try, res_weights)
             if res_try < res:
                 break
@@ -609,12 +745,13 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
         for k in range(n):
             F[k] = F_try[k]
         fresh = False
-        if slow:
-            _system(Z, grid, rest, level, F, J, True, blocks)
+        if slow or coupled or _touched(partners):
+            _system(Z, grid, rest, level, F, J, True, blocks, partners)
             res = _weighted_norm(F, res_weights)
             fresh = True
+            coupled = _touched(partners)
     if not fresh:
-        _system(Z, grid, rest, level, F, J, True, blocks)
+        _system(Z, grid, rest, level, F, J, True, blocks, partners)
     return False, max_iter, res, _stability(blocks) > 0.0
 
 
@@ -710,7 +847,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     has_discs = a[L_DISCS].shape[0] > 0
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
-    _system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)))
+    _system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)), _new_partners(grid))
     res = _weighted_norm(F, res_weights)
     total += 1
     if not res <= tol:  # not an equilibrium of ``a`` (or NaN): correct it first
@@ -786,9 +923,11 @@ def _record(Z, grid, rest, level, out):
     work = np.empty((7, 6))
     no_tangent = np.empty((0, 6))
     tw = np.empty((0, 6, 6))
+    partners = _new_partners(grid)
+    _prepare_partners(Z, grid, rest, level, partners)
     for seg in range(grid[G_SEGS].shape[0]):
         _start_state(Z, seg, grid[G_THETA0], z)
-        _segment(z, seg, grid, rest, level, end, work, True, out, no_tangent, tw)
+        _segment(z, seg, grid, rest, level, end, work, True, out, no_tangent, tw, partners)
 
 
 @njit
@@ -802,10 +941,11 @@ def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, slope):
     F1 = np.empty(n)
     J = np.empty((BAND_ROWS, n))
     blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
+    partners = _new_partners(grid)
     _at_level(eps_t, a, b, now, tubes_i, tubes_f, secf, rest)
-    _system(Z, grid, rest, now, F1, J, False, blocks)
+    _system(Z, grid, rest, now, F1, J, False, blocks, partners)
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
-    _system(Z, grid, rest, now, F0, J, True, blocks)
+    _system(Z, grid, rest, now, F0, J, True, blocks, partners)
     for k in range(n):
         F1[k] = -(F1[k] - F0[k]) / eps_t
     slope[:] = F1

@@ -250,8 +250,8 @@ def context(arm: ArmDesign, packed: PackedArm, scene: Scene, dim: int,
     :meth:`ArmDesign.scaled` shares its nominal's loads (the masses are unchanged). Obstacles
     do not enter a context, so it is keyed by the scene without them: a scene whose disc moves
     every step (a grasped object) does not fill the design's cache with copies."""
-    if scene.obstacles:
-        scene = replace(scene, obstacles=())
+    if scene.has_contact:
+        scene = replace(scene, obstacles=(), self_contact=None)
 
     def build():
         scaled_from = arm._solver_cache.scaled_from
@@ -341,7 +341,8 @@ def contact_layout(arm, packed, scene):
     near a disc are subdivided further by the kernel, see :mod:`solver._contact`) and
     multiple-shooting segments span SEGMENT_STEPS steps.
     """
-    stiffness = max(d.stiffness for d in scene.obstacles)
+    stiffness = max([d.stiffness for d in scene.obstacles]
+                    + ([scene.self_contact] if scene.self_contact is not None else []))
     key = ("contact", packed.key, stiffness)
 
     def build():

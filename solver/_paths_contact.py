@@ -12,6 +12,7 @@ from solver import layout as L
 from solver._model import contact_layout, reach
 from solver._paths_planar import solve_planar, solve_single
 from solver._paths_shooting import solve_shooting
+from solver.scene import SELF_CONTACT_EXCLUSION
 
 # Penalty continuation for rigid obstacles (Disc(stiffness=math.inf)): the first penalty
 # makes the decay length (EI/k)^¼ a twentieth of the arm; each stage stiffens it tenfold, up
@@ -74,7 +75,9 @@ def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
 
     Shortcuts (``settings.shortcuts``), each exact:
 
-    * no disc within the arm's reach (:func:`solver._model.reach`): the contact-free solve;
+    * no disc within the arm's reach (:func:`solver._model.reach`): the contact-free solve,
+      if no part of its backbone comes near another (:func:`clear_of_itself`; always, without
+      self-contact);
     * a cold solve, or a warm step from a state that touched nothing: single shooting
       without contact, guarded — if the backbone stays clear of every disc by half an RK4
       step at every accepted state (loading stage included) and no sample passes through a
@@ -88,22 +91,42 @@ def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
     (:func:`solver._paths_shooting.solve_shooting`); the guarded shortcut, which checks the
     path against the final discs only, is then skipped.
     """
-    free_scene = replace(scene, obstacles=())
+    free_scene = replace(scene, obstacles=(), self_contact=None)
     if settings.shortcuts:
         discs = scene.discs_array()
         if np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]
                   > reach(arm, packed, scene)):
             free = solve_planar(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
                                 settings)
-            return _free_contact_result(free, scene)
-        if not moving and (warm_start is None or not warm_start.in_contact):
+            if clear_of_itself(arm, scene, free):
+                return _free_contact_result(free, scene)
+        elif not moving and (warm_start is None or not warm_start.in_contact):
             free = solve_single(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
                                 settings, guard_discs=discs)
-            if free.converged and free.stable:
+            if free.converged and free.stable and clear_of_itself(arm, scene, free):
                 return _free_contact_result(free, scene)
     layout, segs, sec_start = contact_layout(arm, packed, scene)
     return solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
                           warm_start, settings, load_moments=False, moving=moving)
+
+
+def clear_of_itself(arm, scene, eq) -> bool:
+    """Whether no two parts of the backbone of ``eq`` farther apart along the arc than the
+    self-contact exclusion come within their summed half-thicknesses plus one RK4 step (the
+    samples' spacing) of each other — always True without self-contact. Checked on the
+    returned state only: a contact-free path that crossed itself on the way and came out
+    clear is not caught (a quasi-static ramp between two clear states seldom does)."""
+    if scene.self_contact is None or eq.s.size == 0:
+        return True
+    half = np.array(arm.half_thickness())
+    section = np.searchsorted(np.asarray(eq.section_ends), np.arange(eq.s.size))
+    h_sample = half[np.minimum(section, half.size - 1)]
+    spacing = float(np.max(np.diff(eq.s))) if eq.s.size > 1 else 0.0
+    exclusion = SELF_CONTACT_EXCLUSION * 2.0 * half.max()
+    gap = np.hypot(*(eq.positions[:, None, :] - eq.positions[None, :, :]).transpose(2, 0, 1)) \
+        - (h_sample[:, None] + h_sample[None, :]) - spacing
+    far = np.abs(eq.s[:, None] - eq.s[None, :]) > exclusion
+    return bool(np.all(gap[far] > 0.0))
 
 
 def _free_contact_result(eq, scene):

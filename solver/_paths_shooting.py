@@ -14,6 +14,7 @@ from solver import layout as L
 from solver._model import context, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
 from solver.rod import integrate_planar, rest_strains_into
+from solver.scene import SELF_CONTACT_EXCLUSION
 
 # Snaps per multiple-shooting solve before it gives up (each costs an energy minimisation).
 MAX_SNAPS = 8
@@ -56,7 +57,7 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
     holds moves quasi-statically (:mod:`solver.grasp`); otherwise obstacles that differ from
     the warm start's stand at their places from the start.
     """
-    free_scene = replace(scene, obstacles=())
+    free_scene = replace(scene, obstacles=(), self_contact=None)
     ctx = context(arm, layout, free_scene, 2, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, ctx,
@@ -64,7 +65,7 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
     goal = (p_target, ctx.q, plate, target, scene.discs_array())
     iterations = 0
     if warm_start is not None and warm_start.scene is not None:
-        start_scene = replace(warm_start.scene, obstacles=())
+        start_scene = replace(warm_start.scene, obstacles=(), self_contact=None)
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         start_ctx = ctx if start_scene == free_scene else \
             context(arm, layout, start_scene, 2, settings)
@@ -93,14 +94,14 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
                                                   settings, load_moments)
         start = (np.zeros_like(p_target), *goal[1:])
         if not loaded:
-            grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+            grid = shooting_grid(arm, scene, layout, segs, sec_start)
             return _shooting_result(nodes, scene, grid, layout, start,
                                     converged=False, stable=False, iterations=iterations,
                                     residual=math.inf, model=model, pressures=p_inputs,
                                     channel_pressures=p_channel, arm=arm)
     now = _contact._new_level(goal)
     rest = np.empty((3, len(arm.sections)))
-    grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+    grid = shooting_grid(arm, scene, layout, segs, sec_start)
     snapped = False
     params = shooting_params(scene, settings)
     for _ in range(MAX_SNAPS + 1):
@@ -227,9 +228,21 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
                 return None
             states, state = relaxed
         landed = nodes_from_states(states, segs)
-    ok, _, _, stable = _contact._newton(landed, grid, rest, level, weights, res_weights,
-                                        settings.tol, 4 * settings.max_iter, MAX_STEP)
-    return landed if ok and stable else None
+    # Neither the scan nor the relaxation knows self-contact: where the arm lands on itself,
+    # its penalty is brought in from a thousandth, Newton following each stiffening.
+    k = grid[L.G_SELF][L.SC_K]
+    for stiffness in k * np.logspace(-3.0, 0.0, SELF_STAGES) if k > 0 else (k,):
+        staged = (*grid[:L.G_SELF], np.concatenate([[stiffness], grid[L.G_SELF][1:]]))
+        ok, _, _, stable = _contact._newton(landed, staged, rest, level, weights, res_weights,
+                                            settings.tol, 4 * settings.max_iter, MAX_STEP)
+        if not ok:
+            return None
+    return landed if stable else None
+
+
+# Penalty stages (log-spaced, from a thousandth to the full stiffness) that bring a snapped
+# state's self-contact in (see _snap).
+SELF_STAGES = 7
 
 
 def _planar_loads(layout, level):
@@ -253,11 +266,28 @@ def shooting_params(scene, settings, predict_cap=math.inf):
     params[L.TOL] = settings.tol
     params[L.MAX_STEP] = MAX_STEP
     params[L.DT0] = settings.dt0
-    params[L.DT_MIN] = settings.contact_dt_min if scene.obstacles else settings.dt_min
+    params[L.DT_MIN] = settings.contact_dt_min if scene.has_contact else settings.dt_min
     params[L.MAX_ITER] = settings.max_iter
     params[L.N_SCAN] = settings.n_scan
     params[L.PREDICT_CAP] = predict_cap
     return params
+
+
+def shooting_grid(arm, scene, layout, segs, sec_start):
+    """The layout tuple (``G_*``) of a multiple-shooting solve of ``scene`` on ``layout``:
+    with the scene's self-contact parameters (stiffness 0 without): its penalty, the
+    exclusion length — ``SELF_CONTACT_EXCLUSION`` arm thicknesses, and at least 2.5
+    segments, so that no part meets its own segment's partner piece — and the sections'
+    half-thicknesses."""
+    ns = len(arm.sections)
+    sp = np.zeros(L.SC_HALF + ns)
+    if scene.self_contact is not None:
+        half = np.array(arm.half_thickness())
+        seg_len = segs[:, L.SEG_STEPS] * (layout.sec_len / layout.sec_steps)[segs[:, L.SEG_SECTION]]
+        sp[L.SC_K] = scene.self_contact
+        sp[L.SC_EXCLUSION] = max(SELF_CONTACT_EXCLUSION * 2.0 * half.max(), 2.5 * seg_len.max())
+        sp[L.SC_HALF:] = half
+    return (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, sp)
 
 
 def effective_discs(scene, stiffness):
@@ -317,7 +347,7 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
         p0 = np.zeros(max(arm.n_channels, 1))
         start = (p0, np.zeros_like(ctx.q), np.zeros_like(plate), np.zeros(3), grown)
         goal = (p0, ctx.q, plate, target, discs)
-        grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+        grid = shooting_grid(arm, scene, layout, segs, sec_start)
         ok, stable, _, its, _, _, _ = _contact._follow(
             nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal,
             shooting_params(scene, settings, predict_cap=MAX_STEP),
@@ -333,8 +363,8 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
 def _shooting_result(nodes, scene, grid, layout, level, **fields):
     """The Equilibrium of a multiple-shooting state ``nodes`` at ``level`` (a level tuple,
     ``L_*``; ``grid`` its layout tuple): the backbone integrated from the nodes, with the
-    contact fields if the scene has obstacles."""
-    contact = bool(scene.obstacles)
+    contact fields if the scene has obstacles or self-contact."""
+    contact = scene.has_contact
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
     _contact._record(nodes, grid, _level_rest(layout, level), level, out)
     common = dict(tip=out[-1, [L.C_X, L.C_Y]].copy(), planar=True, scene=scene,

@@ -416,6 +416,13 @@ class ArmDesign:
         """Names of the pressures :func:`solver.solve` expects, in order."""
         return tuple(n for n, _ in self.planar_channels) if planar else self.channels
 
+    def half_thickness(self) -> tuple[float, ...]:
+        """Each section's half-thickness (m): the largest ``tube.radius + Ro`` over the
+        tubes that span it (0 where none does) — how far its surface stands off the backbone."""
+        return tuple(max((t.radius + t.material.outer_radius for t in self.tubes
+                          if t.first_section <= i <= t.last_section), default=0.0)
+                     for i in range(len(self.sections)))
+
     @property
     def mass(self) -> float:
         """Total mass of rod and endplates (kg)."""

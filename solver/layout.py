@@ -58,5 +58,20 @@ CX, CY, RADIUS, STIFFNESS = range(4)
 L_P, L_Q, L_PLATE, L_TARGET, L_DISCS = range(5)
 
 # The multiple-shooting layout tuple ``grid``: base angle θ0, segment table, section array,
-# RK4 steps per section (ns,) and section start arc lengths (ns,).
-G_THETA0, G_SEGS, G_SECF, G_STEPS, G_START = range(5)
+# RK4 steps per section (ns,), section start arc lengths (ns,) and the self-contact
+# parameters (2 + ns,): penalty stiffness (N/m²; 0: off), exclusion length along the arc
+# (m), then each section's half-thickness (m).
+G_THETA0, G_SEGS, G_SECF, G_STEPS, G_START, G_SELF = range(6)
+SC_K, SC_EXCLUSION, SC_HALF = range(3)
+
+# Self-contact, worked out from the shooting nodes at every residual: each segment's
+# backbone as a cubic Hermite curve sampled at its RK4 nodes, (M, segment steps + 1, 4)
+# points x, y, s (m) and half-thickness (m); per segment (M, 12) a bounding circle's centre
+# x, y and radius (m; negative: not built), whether it is in contact (0 or 1), and the
+# curve's end points a, b and end tangents (per unit of the curve's parameter; m); and per
+# RK4 node (M, segment steps + 1, 5) the point load the node carries (N), that load per
+# length (N/m) and the node's penetration (m).
+P_X, P_Y, P_S, P_H = range(4)
+B_X, B_Y, B_R, B_TOUCH, B_AX, B_AY, B_TAX, B_TAY, B_BX, B_BY, B_TBX, B_TBY = range(12)
+N_BOUNDS = 12
+SELF_FX, SELF_FY, SELF_QX, SELF_QY, SELF_PEN = range(5)

@@ -7,11 +7,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Scene", "Disc"]
+__all__ = ["Scene", "Disc", "SELF_CONTACT_EXCLUSION"]
 
 MAX_EXTENT = 1e4
 """Largest disc radius and centre coordinate (m): far beyond any arm (a design is at most
 3.2 km long only on paper), and far from overflow in the contact arithmetic."""
+
+
+SELF_CONTACT_EXCLUSION = 3.0
+"""Parts of the arm touch each other only when farther apart along it than this many arm
+thicknesses (twice the largest section half-thickness): nearer parts are neighbours, which
+bending, not contact, keeps apart."""
 
 
 @dataclass(frozen=True)
@@ -70,6 +76,12 @@ class Scene:
         tip_force: extra dead force at the tip, (Fx, Fy) or (Fx, Fy, Fz) in N.
         tip_moment: extra dead moment at the tip, Mz (N m) or (Mx, My, Mz).
         obstacles: rigid :class:`Disc` s in contact with the arm (planar solves only).
+        self_contact: penalty stiffness (N/m², the discs' law) between parts of the arm
+            farther apart along it than ``SELF_CONTACT_EXCLUSION`` arm thicknesses, which
+            then cannot pass through each other (planar solves only; docs/design.md §9). A
+            physical value is the outer tubes' :meth:`~solver.designs.TubeMaterial.ring_stiffness`.
+            None (the default): no self-contact — parts of an arm curled past a full turn
+            pass through each other.
     """
 
     base_angle_deg: float = 0.0
@@ -78,6 +90,7 @@ class Scene:
     tip_force: tuple = (0.0, 0.0)
     tip_moment: float | tuple = 0.0
     obstacles: tuple = ()
+    self_contact: float | None = None
 
     def __post_init__(self):
         for name in ("base_angle_deg", "payload_kg", "gravity"):
@@ -105,6 +118,13 @@ class Scene:
                 raise ValueError(f"Scene.obstacles[{k}] ({d}) covers the arm's base at the origin: "
                                  "the clamp cannot sit inside an obstacle")
         object.__setattr__(self, "obstacles", obstacles)
+        k = self.self_contact
+        if k is not None:
+            if isinstance(k, bool) or not isinstance(k, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(k) or not k > 0:
+                raise ValueError(f"Scene.self_contact must be None or a finite penalty stiffness > 0 "
+                                 f"(N/m²); got {k!r}")
+            object.__setattr__(self, "self_contact", float(k))
         object.__setattr__(self, "tip_force", tuple(float(f) for f in force))
         object.__setattr__(self, "tip_moment",
                            float(moment[0]) if moment.size == 1 else tuple(float(m) for m in moment))
@@ -135,6 +155,11 @@ class Scene:
     def has_rigid_obstacles(self) -> bool:
         """True when an obstacle is rigid (``stiffness=math.inf``, hard contact)."""
         return any(d.stiffness == math.inf for d in self.obstacles)
+
+    @property
+    def has_contact(self) -> bool:
+        """True when the solve has contact to resolve: obstacles or self-contact."""
+        return bool(self.obstacles) or self.self_contact is not None
 
     @property
     def is_planar(self) -> bool:

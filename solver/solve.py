@@ -112,6 +112,15 @@ def _check(arm, scene, model, planar):
                          "use planar=False")
     if scene.obstacles and model != "constant_curvature" and not planar:
         raise ValueError("obstacles (contact) are supported in planar solves only")
+    if scene.self_contact is not None:
+        if not planar:
+            raise ValueError("self-contact is supported in planar solves only")
+        if model == "constant_curvature":
+            raise ValueError("the constant-curvature model has no contact; self-contact needs "
+                             "model 'full' or 'unshearable'")
+        if not all(arm.half_thickness()):
+            raise ValueError(f"self-contact needs every section's half-thickness, from its tubes; "
+                             f"design {arm.name!r} has a section no tube spans")
     if planar and not arm.planar_channels and arm.tubes:
         raise ValueError(f"design {arm.name!r} defines no planar channels; use planar=False")
 
@@ -165,7 +174,7 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
     include it). ``moving``: the warm start's obstacles move to the scene's (penalty contact
     only; :func:`solver._paths_contact.solve_contact`). Never raises (module docstring)."""
     if model == "constant_curvature" or (
-            not scene.obstacles and settings.shortcuts
+            not scene.has_contact and settings.shortcuts
             and not context(arm, packed, scene, 2 if planar else 3, settings).has_load):
         return closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
     q = packed.mass_per_length * scene.gravity
@@ -191,7 +200,7 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
             eq = replace(eq, converged=False)
             break
         layout = refined(arm, packed, steps)
-    if layout is not packed and not scene.obstacles:  # (contact keeps its own finer layout)
+    if layout is not packed and not scene.has_contact:  # (contact keeps its own finer layout)
         eq = _grid.on_grid(eq, layout.sec_steps, packed.sec_steps)
     return eq if record else tip_only(eq)
 
@@ -200,7 +209,7 @@ def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, se
           moving=False):
     """The recorded solve by the path the scene needs (contact, planar, the in-plane
     shortcut of a spatial solve, spatial)."""
-    if scene.obstacles:
+    if scene.has_contact:
         if scene.has_rigid_obstacles:
             return solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
         return solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
@@ -280,12 +289,12 @@ def solve_batch(arm: ArmDesign, pressures, scene: Scene | None = None, model: st
     """
     scene, packed, p, channel = _batch_inputs(arm, pressures, scene, model, planar, settings)
     general = model != "constant_curvature" and (has_load(arm, scene) or not settings.shortcuts)
-    if planar and not general and not scene.obstacles:
+    if planar and not general and not scene.has_contact:
         tips = np.empty((p.shape[0], 2))
         _planar._arc_tips(scene.base_theta, packed.secf, packed.tubes_i, packed.tubes_f, channel,
                           tips)
         return tips, np.ones(p.shape[0], dtype=bool)
-    if not (general and planar) or scene.obstacles:
+    if not (general and planar) or scene.has_contact:
         dim = 2 if planar else 3
         tips = np.empty((p.shape[0], dim))
         ok = np.empty(p.shape[0], dtype=bool)
@@ -335,8 +344,9 @@ def step_batch(arm: ArmDesign, pressures, scene: Scene | None = None,
         The new :class:`BatchState`.
     """
     scene, packed, p, channel = _batch_inputs(arm, pressures, scene, model, True, settings)
-    if scene.obstacles:
-        raise ValueError("step_batch does not model contact; use solve() for scenes with obstacles")
+    if scene.has_contact:
+        raise ValueError("step_batch does not model contact; use solve() for scenes with obstacles "
+                         "or self-contact")
     ctx = context(arm, packed, scene, 2, settings)
     n = p.shape[0]
     moving = True

@@ -75,8 +75,8 @@ def _not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
         return "a spatial solve (planar=False)"
     if not arm.n_channels:
         return "a passive arm (no channels)"
-    if scene.obstacles:
-        return "a scene with obstacles (contact)"
+    if scene.has_contact:
+        return "a scene with obstacles or self-contact (contact)"
     if model == "constant_curvature":
         return "the constant_curvature model"
     if not has_load(arm, scene) and settings.shortcuts:

@@ -97,6 +97,24 @@ def _range(name: str, value) -> tuple[float, float]:
     return v, v
 
 
+def _self_contact_stiffness(value, arm, planar: bool, model: str) -> float | None:
+    """The penalty (N/m²) of a ``self_contact`` argument: False → None (off); True → the
+    ring stiffness of the arm's tubes (``TubeMaterial.ring_stiffness``, the smallest: the
+    contact law of the wrap envs' discs); a number > 0 → itself."""
+    if value is False or value is None:
+        return None
+    if not planar or model == "constant_curvature":
+        raise ValueError("self_contact needs planar=True and model 'full' or 'unshearable' "
+                         f"(got planar={planar}, model={model!r})")
+    if value is True:
+        return float(min(t.material.ring_stiffness for t in arm.tubes))
+    k = _finite_number("self_contact", value, 0.0)
+    if k <= 0:
+        raise ValueError(f"self_contact must be True, False or a penalty stiffness > 0 (N/m²); "
+                         f"got {value!r}")
+    return k
+
+
 class SoftArmEnv(gym.Env):
     """Base class of the soft-arm environments (see :class:`ReachEnv` for the env card).
 
@@ -113,7 +131,8 @@ class SoftArmEnv(gym.Env):
                  initial_pressure_fraction: float = 0.1, solver_failure_penalty: float = 1.0,
                  max_solver_failures: int = 5, model: str = "full", synthesize_sensors=None,
                  actuation: str = "ideal", pressure_time_constant_s: float = 0.2,
-                 step_dt_s: float = 0.1, render_mode: str | None = None, render_size: int = 400):
+                 step_dt_s: float = 0.1, self_contact=False, render_mode: str | None = None,
+                 render_size: int = 400):
         self.arm = _design(design)
         if not isinstance(planar, (bool, np.bool_)):
             raise ValueError(f"planar must be True or False; got {planar!r}")
@@ -166,6 +185,7 @@ class SoftArmEnv(gym.Env):
         # First-order lag sampled every step: p ← p + (1 − e^(−dt/τ))·(p_command − p).
         self._lag_gain = -math.expm1(-self.step_dt_s / self.pressure_time_constant_s)
         self.model = model
+        self.self_contact = _self_contact_stiffness(self_contact, self.arm, self.planar, model)
         self.n_backbone = int(n_backbone)
         self.observation_format = observation_format
         self.render_mode = render_mode
@@ -291,7 +311,7 @@ class SoftArmEnv(gym.Env):
         payload = float(rng.uniform(*self.payload_range)) if self.payload_range[1] > self.payload_range[0] \
             else self.payload_range[0]
         self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, payload_kg=payload,
-                                   gravity=self.gravity)
+                                   gravity=self.gravity, self_contact=self.self_contact)
         stepper = solver.Stepper(self._sim_arm, self._scene, model=self.model, planar=self.planar)
         fraction = self._initial_fraction()
         report = stepper.reset(fraction * self.p_max)

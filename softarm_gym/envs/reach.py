@@ -141,6 +141,11 @@ class ReachEnv(SoftArmEnv):
       follows it, ``delta`` actions increment the command, and ``info`` adds
       ``commanded_pressures_pa``. τ is an assumed order of magnitude, not a thesis figure
       (docs/environments.md, "Pneumatic lag").
+    * ``self_contact`` (False): parts of the arm farther apart along it than three arm
+      thicknesses press on each other instead of passing through (planar, ``model`` ``"full"``
+      or ``"unshearable"``): True uses the tubes' ring stiffness as the penalty (the wrap
+      envs' contact law), a number sets it (N/m²). Where no part comes near another the step
+      costs nothing more; where parts touch, a step is a contact solve (docs/design.md §9).
     * ``synthesize_sensors`` (None): synthesise sensor readings every step. By default only
       when the observation's estimator reads them (not for ``true`` and ``model``, which
       need none — skipping them is most of a ``true`` step's saving); True forces them into

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import softarm_gym  # noqa: F401
+from tests.solver.test_self_contact import far_gap
 
 
 @pytest.mark.parametrize("observation, expected", [("true", False), ("model", False),
@@ -29,3 +30,30 @@ def test_forced_synthesis_and_invalid_request():
 def test_wrap_object_too_large_is_a_constructor_error():
     with pytest.raises(ValueError, match="object_radius 5.0 m must be smaller"):
         gym.make("SoftArm/OctArmWrap-v0", object_radius=5.0)
+
+
+def test_self_contact_keeps_the_curled_arm_out_of_itself():
+    """Channels I at full pressure curl OctArm V past a full turn: with ``self_contact`` the
+    env's arm stops on itself (the overlap is the penalty's give), without it passes through."""
+    gaps = {}
+    for self_contact in (False, True):
+        env = gym.make("SoftArm/OctArmReach-v0", self_contact=self_contact, base_angle_deg=0.0)
+        env.reset(seed=0)
+        action = np.tile(np.array([1.0, -1.0], dtype=np.float32), 3)
+        for _ in range(3):
+            _, _, _, _, info = env.step(action)
+            assert info["converged"]
+        eq = env.unwrapped._stepper.equilibrium
+        gaps[self_contact] = far_gap(eq, env.unwrapped.arm)
+    assert gaps[False] < -0.02 and -0.005 < gaps[True] < 0.0
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"self_contact": -1.0}, "self_contact"),
+    ({"self_contact": "yes"}, "self_contact"),
+    ({"self_contact": True, "planar": False}, "planar=True"),
+    ({"self_contact": True, "model": "constant_curvature"}, "planar=True and model"),
+])
+def test_self_contact_argument_is_checked(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make("SoftArm/OctArmReach-v0", **kwargs)

@@ -283,7 +283,7 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     from solver import _contact, _planar
     from solver import layout as L
     from solver._model import context, pack, shooting_layout, shooting_terms
-    from solver._paths_shooting import nodes_from_states
+    from solver._paths_shooting import nodes_from_states, shooting_grid
     from solver.rod import rest_strains_into
 
     arm = designs.get("octarm_vi")
@@ -302,11 +302,11 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     nodes = nodes_from_states(out[:, [L.X, L.Y, L.THETA, L.NX, L.NY, L.M]], segs)
     plate, target, state_w, *_ = shooting_terms(arm, layout, segs, scene, ctx, True)
     level = (np.zeros(arm.n_channels), ctx.q, plate, target, np.empty((0, 4)))
-    grid = (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start)
+    grid = shooting_grid(arm, scene, layout, segs, sec_start)
     F = np.empty(nodes.size)
     J = np.empty((_contact.BAND_ROWS, nodes.size))
     blocks = np.empty((segs.shape[0], 6, 6))
-    _contact._system(nodes, grid, rest, level, F, J, True, blocks)
+    _contact._system(nodes, grid, rest, level, F, J, True, blocks, _contact._new_partners(grid))
     measure = _contact._stability(blocks)
     assert np.abs(F).max() < 1e-6  # the planar equilibrium, in multiple-shooting form
     assert (measure > 0) == stable
