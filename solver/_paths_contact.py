@@ -23,9 +23,10 @@ RIGID_MAX_STIFFNESS = 1e11
 
 
 def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
-    """A solve with rigid obstacles (hard contact) by penalty continuation.
+    """A solve with rigid obstacles or rigid self-contact (hard contact) by penalty
+    continuation.
 
-    The rigid discs get a finite penalty k: from a warm start its final one, else the k
+    The rigid discs (and the self-contact, if rigid) get a finite penalty k: from a warm start its final one, else the k
     at which the decay length (EI_min/k)^¼ is L/20. After each solve, while the deepest
     penetration exceeds ``settings.gap_tol``, k is multiplied by RIGID_GROWTH and the
     solve continues from the last state, the penalty ramped up along the path (the
@@ -43,7 +44,8 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, sett
     while True:
         stage = replace(scene, obstacles=tuple(
             replace(d, stiffness=stiffness) if d.stiffness == math.inf else d
-            for d in scene.obstacles))
+            for d in scene.obstacles),
+            self_contact=stiffness if scene.self_contact == math.inf else scene.self_contact)
         attempt = solve_contact(arm, packed, p_inputs, p_channel, stage, model, eq, settings)
         iterations += attempt.iterations
         if not attempt.converged:

@@ -194,8 +194,9 @@ def solve_either(single, multiple, dim, arm, packed, p_inputs, p_channel, scene,
     converged state. Each covers the other's failures: multiple shooting the ill-conditioned
     arms, single shooting (with its fold scan and branch switching) the buckling ones. Where
     both fail, both run again with :meth:`Settings.finer` continuation, then on a grid of
-    twice the steps (returned on this one; docs/design.md §8); still failing, the result on
-    this grid and settings with the smaller residual is returned, unconverged."""
+    twice the steps (returned on this one; docs/design.md §8), then with both; still
+    failing, the result of these settings with the smallest residual is returned,
+    unconverged (on this grid: where it does not resolve that state, the caller refines)."""
     fallbacks = settings.n_scan > 0 and model != "constant_curvature"
     methods = (single, multiple)
     if fallbacks and context(arm, packed, scene, dim, settings).shooting_index > MULTIPLE_SHOOTING_INDEX:
@@ -211,15 +212,18 @@ def solve_either(single, multiple, dim, arm, packed, p_inputs, p_channel, scene,
         tries += [(method, finer, _packed_for(arm, packed, model, finer)) for method in methods]
     doubled = refined(arm, packed, 2 * packed.sec_steps)
     tries += [(method, settings, doubled) for method in methods]
+    if finer != settings:
+        finer_doubled = refined(arm, _packed_for(arm, packed, model, finer), doubled.sec_steps)
+        tries += [(method, finer, finer_doubled) for method in methods]
     best = eq
     for method, tried, layout in tries:
         other = method(arm, layout, p_inputs, p_channel, scene, model, warm_start, tried)
         iterations += other.iterations
+        if not np.array_equal(layout.sec_steps, packed.sec_steps):
+            other = on_grid(other, layout.sec_steps, packed.sec_steps)
         if other.converged and other.stable:
-            if layout is doubled:
-                other = on_grid(other, doubled.sec_steps, packed.sec_steps)
             return replace(other, iterations=iterations)
-        if other.residual < best.residual and layout is packed:
+        if other.residual < best.residual and tried is settings:
             best = other
     # The failure nearest a solution: where its grid does not resolve it (single shooting's
     # loaded arm beyond the grid), the caller refines the grid and solves again.

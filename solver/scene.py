@@ -79,7 +79,8 @@ class Scene:
         self_contact: penalty stiffness (N/m², the discs' law) between parts of the arm
             farther apart along it than ``SELF_CONTACT_EXCLUSION`` arm thicknesses, which
             then cannot pass through each other (planar solves only; docs/design.md §9). A
-            physical value is the outer tubes' :meth:`~solver.designs.TubeMaterial.ring_stiffness`.
+            physical value is the outer tubes' :meth:`~solver.designs.TubeMaterial.ring_stiffness`;
+            ``math.inf``: rigid (hard contact, by penalty continuation as for rigid discs).
             None (the default): no self-contact — parts of an arm curled past a full turn
             pass through each other.
     """
@@ -121,9 +122,9 @@ class Scene:
         k = self.self_contact
         if k is not None:
             if isinstance(k, bool) or not isinstance(k, (int, float, np.floating, np.integer)) \
-                    or not math.isfinite(k) or not k > 0:
-                raise ValueError(f"Scene.self_contact must be None or a finite penalty stiffness > 0 "
-                                 f"(N/m²); got {k!r}")
+                    or math.isnan(k) or not k > 0:
+                raise ValueError(f"Scene.self_contact must be None, a penalty stiffness > 0 (N/m²) "
+                                 f"or math.inf (rigid); got {k!r}")
             object.__setattr__(self, "self_contact", float(k))
         object.__setattr__(self, "tip_force", tuple(float(f) for f in force))
         object.__setattr__(self, "tip_moment",
@@ -153,8 +154,8 @@ class Scene:
 
     @property
     def has_rigid_obstacles(self) -> bool:
-        """True when an obstacle is rigid (``stiffness=math.inf``, hard contact)."""
-        return any(d.stiffness == math.inf for d in self.obstacles)
+        """True when an obstacle or the self-contact is rigid (``math.inf``: hard contact)."""
+        return any(d.stiffness == math.inf for d in self.obstacles) or self.self_contact == math.inf
 
     @property
     def has_contact(self) -> bool:

@@ -5,7 +5,8 @@ Each case is timed as a user runs it: ``gym.make(env_id, observation=...)`` with
 the numba kernels. ``single`` is one env in this process; ``vector`` an
 ``AsyncVectorEnv`` with one worker per core (steps counted over all workers). The reach IDs
 of :data:`SPATIAL_IDS` are also timed in 3D (``planar=False``, their registered delta
-actions), with every observation.
+actions), with every observation, and the IDs of :data:`SELF_CONTACT_IDS` with
+``self_contact=True``.
 """
 
 from __future__ import annotations
@@ -25,6 +26,10 @@ obstacle reach and grasp, the other contact tasks), 3D reach with ``true`` obser
 
 SPATIAL_IDS = ("SoftArm/OctArmReach-v1", "SoftArm/CTReach-v1")
 """Reach IDs the benchmark also times in 3D (``planar=False``)."""
+
+SELF_CONTACT_IDS = ("SoftArm/OctArmReach-v1", "SoftArm/OctArmWrap-v1", "SoftArm/CTWrap-v1")
+"""IDs the benchmark also times with ``self_contact=True`` (``true`` observations): what
+self-contact costs where it is asked for."""
 
 QUICK_OBSERVATIONS = ("true", "constant_curvature")
 
@@ -61,8 +66,8 @@ def _time_steps(env, n_steps: int, seed: int) -> float:
 
 def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = None,
         observations=None, ids=None, progress=None) -> dict:
-    """Time every (ID, observation) case, single and vectorised, and the 3D cases of the
-    IDs in :data:`SPATIAL_IDS`.
+    """Time every (ID, observation) case, single and vectorised, the 3D cases of the IDs in
+    :data:`SPATIAL_IDS` and the self-contact cases of :data:`SELF_CONTACT_IDS`.
 
     Args:
         quick: fewer steps and only the ``true`` and ``constant_curvature`` observations.
@@ -73,7 +78,7 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
         progress: optional callable taking a status string.
 
     Returns:
-        ``{"cases": [{"env_id", "observation", "planar", "single_steps_per_s",
+        ``{"cases": [{"env_id", "observation", "planar", "self_contact", "single_steps_per_s",
         "vector_steps_per_s", "n_envs", "target_steps_per_s"}], "n_steps": ..., "n_envs": ...}``.
     """
     n_steps = n_steps or (60 if quick else 300)
@@ -86,12 +91,16 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
         if obs not in ESTIMATORS:
             raise ValueError(f"unknown observation {obs!r}; choose from {', '.join(ESTIMATORS)}")
     cases = []
-    plan = [(env_id, obs, True) for env_id in ids for obs in observations]
-    plan += [(env_id, obs, False) for env_id in ids if env_id in SPATIAL_IDS for obs in observations]
-    for env_id, obs, planar in plan:
-        kwargs = {"observation": obs} if planar else {"observation": obs, "planar": False}
+    plan = [(env_id, obs, {}) for env_id in ids for obs in observations]
+    plan += [(env_id, obs, {"planar": False}) for env_id in ids if env_id in SPATIAL_IDS
+             for obs in observations]
+    plan += [(env_id, "true", {"self_contact": True}) for env_id in ids
+             if env_id in SELF_CONTACT_IDS and "true" in observations]
+    for env_id, obs, extra in plan:
+        kwargs = {"observation": obs, **extra}
+        planar = extra.get("planar", True)
         if progress:
-            progress(f"{env_id} observation={obs}{'' if planar else ' (3D)'}")
+            progress(f"{env_id} observation={obs}{''.join(f' {k}={v}' for k, v in extra.items())}")
         env = gym.make(env_id, **kwargs)
         _time_steps(env, min(20, n_steps), seed=1)  # warm-up: load kernels, first resets
         single = _time_steps(env, n_steps, seed=0)
@@ -103,6 +112,7 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
         finally:
             vec.close()
         cases.append({"env_id": env_id, "observation": obs, "planar": planar,
+                      "self_contact": bool(extra.get("self_contact", False)),
                       "single_steps_per_s": single, "vector_steps_per_s": vector,
                       "n_envs": n_envs, "target_steps_per_s": target_for(env_id, obs, planar)})
     resets = [reset_times(env_id) for env_id in ids if env_id in RESET_IDS]
@@ -142,7 +152,8 @@ def format_table(result: dict) -> str:
              f"{result['n_steps']} steps per case)"]
     for c in result["cases"]:
         met = "ok" if c["single_steps_per_s"] >= c["target_steps_per_s"] else "below"
-        name = c["env_id"] if c.get("planar", True) else f"{c['env_id']} 3D"
+        name = c["env_id"] + ("" if c.get("planar", True) else " 3D") \
+            + (" self" if c.get("self_contact") else "")
         lines.append(f"{name:24s} {c['observation']:20s} {c['single_steps_per_s']:9.0f} "
                      f"{c['vector_steps_per_s']:9.0f} {c['target_steps_per_s']:9.0f}  {met}")
     if result.get("resets"):

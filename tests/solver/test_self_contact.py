@@ -89,6 +89,17 @@ def test_stiffer_penalties_converge_to_hard_contact():
     assert np.linalg.norm(tips[2] - tips[1]) < 0.5 * np.linalg.norm(tips[1] - tips[0])
 
 
+def test_rigid_self_contact_meets_the_gap_tolerance():
+    """``self_contact=math.inf``: penalty continuation until the deepest overlap is below
+    ``Settings.gap_tol`` (0.1 mm), the state the stiff penalties were converging to."""
+    eq = solver.solve(ARM, CURL, solver.Scene(self_contact=math.inf))
+    assert eq.converged and eq.stable
+    assert 0.0 < eq.penetration.max() <= solver.Settings().gap_tol
+    assert far_gap(eq) > -solver.Settings().gap_tol - 1e-6
+    stiff = solver.solve(ARM, CURL, solver.Scene(self_contact=100 * RING))
+    np.testing.assert_allclose(eq.tip, stiff.tip, atol=5e-3)
+
+
 def test_self_contact_far_apart_changes_nothing():
     """Where no part comes near another the contact-free equilibrium is returned as it is."""
     p = 0.4 * CURL
@@ -99,7 +110,7 @@ def test_self_contact_far_apart_changes_nothing():
     np.testing.assert_array_equal(with_self.contact_force, 0.0)
 
 
-@pytest.mark.parametrize("value", [0.0, -1.0, math.inf, math.nan, True, "tube"])
+@pytest.mark.parametrize("value", [0.0, -1.0, -math.inf, math.nan, True, "tube"])
 def test_scene_rejects_bad_self_contact(value):
     with pytest.raises(ValueError, match="self_contact"):
         solver.Scene(self_contact=value)
