@@ -185,3 +185,49 @@ def test_settle_rejects_bad_input():
         settle(ARM, p, SCENE, obj, center=(0.0, -0.05))
     with pytest.raises(ValueError, match="directions"):
         grasp_margin(settle(ARM, p, SCENE, obj), obj, directions=0)
+
+
+def test_a_wrap_past_270_degrees_holds_against_an_upward_push_and_a_cup_does_not():
+    """Thesis §6.1's stability requirement, across wrap angles. OctArm V (0.83 m) cannot
+    curl 270° round an object clear of its own base; this arm has its sections twice as long
+    and moduli eight times as high (stress.scaled: the same curvature at the rated pressure,
+    half the sag), with self-contact on. Its distal sections (channel I) curl round a
+    0.3 kg cylinder beside the end of section 1: at 60 % pressure they cup it (a wrap under
+    90°), and with frictionless contact an upward push just past the object's weight lifts
+    it out; at 90 % they wrap it past 270°, over its top, and it stays held under twice its
+    weight pushing up. The upward margin grows from at most m g to over 2 m g."""
+    from softarm_gym.benchmarks.stress import scaled
+
+    arm = scaled(solver.designs.octarm_v(), length=2.0, stiffness=8.0)
+    ring = min(t.material.ring_stiffness for t in arm.tubes)
+    scene = solver.Scene(self_contact=ring)
+    center = (-0.19, -0.56)
+    obj = FreeObject(radius=0.15 + arm.half_thickness()[-1], mass_kg=0.3,
+                     seat=(center[0], center[1] - 0.5), stiffness=ring)
+    fixed = solver.Scene(obstacles=(obj.disc(center),), self_contact=ring)
+    weight = obj.mass_kg * scene.gravity
+
+    def grasp(fraction):
+        p = np.zeros(arm.n_inputs(True))
+        eq = solver.solve(arm, p, fixed)
+        for level in np.arange(0.05, fraction + 1e-9, 0.05):
+            p[[2, 4]] = level * arm.max_pressure  # channel I of sections 2 and 3
+            eq = solver.solve(arm, p, fixed, warm_start=eq)
+        return settle(arm, p, scene, obj, center=center, warm_start=eq)
+
+    def held_under(g, force):
+        state = (g.center, g.arm)
+        for f in np.linspace(0.0, force, 5)[1:]:
+            push = settle(arm, g.arm.pressures, scene, obj, center=state[0], warm_start=state[1],
+                          external_force=(0.0, f))
+            if not (push.converged and push.held):
+                return False
+            state = (push.center, push.arm)
+        return True
+
+    cup, wrap = grasp(0.6), grasp(0.9)
+    assert cup.converged and cup.held and wrap.converged and wrap.held
+    assert math.degrees(solver_wrap(cup.arm.positions, cup.center, obj.radius)) < 90
+    assert math.degrees(solver_wrap(wrap.arm.positions, wrap.center, obj.radius)) > 270
+    assert not held_under(cup, 1.1 * weight)
+    assert held_under(wrap, 2.0 * weight)
