@@ -37,7 +37,7 @@ import math
 import numpy as np
 
 from solver._obstacles import _contact_force, _contact_stiffness, _nearest_surface, _tunnels
-from solver._self_contact import build_piece, clear_pieces, self_contact_on, self_loads
+from solver._self_contact import build_piece, clear_pieces, may_touch, self_contact_on, self_loads
 from solver.jit import njit
 from solver.layout import (
     B_TOUCH,
@@ -208,12 +208,16 @@ def _prepare_partners(Z, grid, rest, level, partners):
     """The self-contact loads of the state ``Z`` into ``partners`` (nothing without
     self-contact): each segment's piece from its start node to the next one's — the tip
     segment's to its end integrated without self-contact loads — then the loads
-    (:func:`solver._self_contact.self_loads`). Functions of Z alone."""
+    (:func:`solver._self_contact.self_loads`). Functions of Z alone. Skipped (no loads)
+    where no part can be near another (:func:`solver._self_contact.may_touch`)."""
     pts, bounds, loads = partners
     n_seg = bounds.shape[0]
     if n_seg == 0:
         return
     clear_pieces(bounds)
+    if not may_touch(Z, grid, rest):  # no part near another: nothing to work out
+        loads[:, :, :] = 0.0
+        return
     za = np.empty(6)
     zb = np.empty(6)
     theta0 = grid[G_THETA0]

@@ -163,6 +163,52 @@ def build_piece(za, zb, seg, grid, rest, pts, bounds):
 
 
 @njit
+def may_touch(Z, grid, rest) -> bool:
+    """A cheap, conservative test on the shooting nodes ``Z`` alone: False when no two
+    segments farther apart along the arc than the exclusion can come within reach of each
+    other, so there is no self-contact to work out. A segment of arc length ℓ stretched at
+    most v lies within v·ℓ/2 of its end nodes' midpoint (the tip segment: within v·ℓ of its
+    start), v = 1.5 × the largest rest stretch."""
+    segs = grid[G_SEGS]
+    secf = grid[G_SECF]
+    sp = grid[G_SELF]
+    n_seg = segs.shape[0]
+    stretch = 0.0
+    for i in range(rest.shape[1]):
+        stretch = max(stretch, rest[REST_V3, i])
+    stretch *= 1.5
+    reach = 2.0 * _largest_half(sp)
+    cx = np.empty(n_seg)
+    cy = np.empty(n_seg)
+    radius = np.empty(n_seg)
+    s0 = np.empty(n_seg)
+    s1 = np.empty(n_seg)
+    for seg in range(n_seg):
+        i = segs[seg, SEG_SECTION]
+        step = secf[LEN, i] / grid[G_STEPS][i]
+        ell = segs[seg, SEG_STEPS] * step
+        s0[seg] = grid[G_START][i] + segs[seg, SEG_FIRST] * step
+        s1[seg] = s0[seg] + ell
+        ax = 0.0 if seg == 0 else Z[3 + 6 * (seg - 1)]
+        ay = 0.0 if seg == 0 else Z[4 + 6 * (seg - 1)]
+        if seg < n_seg - 1:
+            cx[seg] = 0.5 * (ax + Z[3 + 6 * seg])
+            cy[seg] = 0.5 * (ay + Z[4 + 6 * seg])
+            radius[seg] = 0.5 * stretch * ell
+        else:
+            cx[seg] = ax
+            cy[seg] = ay
+            radius[seg] = stretch * ell
+    for a in range(n_seg):
+        for b in range(a + 1, n_seg):
+            if s1[b] - s0[a] <= sp[SC_EXCLUSION]:
+                continue
+            if math.hypot(cx[a] - cx[b], cy[a] - cy[b]) < radius[a] + radius[b] + reach:
+                return True
+    return False
+
+
+@njit
 def _slot(segs, seg, j):
     """The canonical (segment, node) of node j of segment ``seg``: a segment's first node is
     the previous segment's last (except at the base)."""
