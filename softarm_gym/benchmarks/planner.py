@@ -8,6 +8,7 @@ time per episode and per decision that searched (held decisions cost almost noth
 
     python -m softarm_gym.benchmarks.planner --episodes 20 --json
     python -m softarm_gym.benchmarks.planner --ids SoftArm/CTWrap-v1 --episodes 100 --first-seed 100
+    python -m softarm_gym.benchmarks.planner --ids SoftArm/OctArmWrap-v1 --env-kwargs '{"self_contact": true}'
 
 The JSON records its command; the rows of docs/bench/planner.json come from several such runs,
 each with its own.
@@ -31,15 +32,15 @@ from softarm_gym.controllers import CEMPlanner
 __all__ = ["episode", "run", "main"]
 
 
-def episode(env_id: str, seed: int, **planner_kwargs) -> dict:
-    """One planned episode of ``gym.make(env_id)`` seeded with ``seed``.
+def episode(env_id: str, seed: int, env_kwargs: dict | None = None, **planner_kwargs) -> dict:
+    """One planned episode of ``gym.make(env_id, **env_kwargs)`` seeded with ``seed``.
 
     Returns:
         ``success``, ``measure`` (reach: final distance, m; track: RMS tracking error over
         the episode, m; wrap: wrap angle, deg), ``seconds``,
         ``decision_seconds`` (median time of the decisions that searched; None if none did).
     """
-    env = gym.make(env_id)
+    env = gym.make(env_id, **(env_kwargs or {}))
     planner = CEMPlanner(env, seed=seed, **planner_kwargs)
     obs, info = env.reset(seed=seed)
     start = time.perf_counter()
@@ -62,18 +63,21 @@ def episode(env_id: str, seed: int, **planner_kwargs) -> dict:
 
 
 def run(ids=None, episodes: int = 20, progress: bool = True, first_seed: int = 0,
-        **planner_kwargs) -> dict:
+        env_kwargs: dict | None = None, **planner_kwargs) -> dict:
     """The planner's figures for ``ids`` (default: every registered ID), seeds ``first_seed``
-    to ``first_seed + episodes - 1``."""
+    to ``first_seed + episodes - 1``, on ``gym.make(env_id, **env_kwargs)``."""
     command = "python -m softarm_gym.benchmarks.planner"
     if ids:
         command += f" --ids {','.join(ids)}"
-    command += f" --episodes {episodes}" + (f" --first-seed {first_seed}" if first_seed else "") + " --json"
+    command += f" --episodes {episodes}" + (f" --first-seed {first_seed}" if first_seed else "")
+    if env_kwargs:
+        command += f" --env-kwargs '{json.dumps(env_kwargs)}'"
+    command += " --json"
     result = {"command": command, "episodes": episodes, "first_seed": first_seed,
-              "planner": planner_kwargs or "defaults", "ids": {}}
+              "env_kwargs": env_kwargs or {}, "planner": planner_kwargs or "defaults", "ids": {}}
     seeds = range(first_seed, first_seed + episodes)
     for env_id in ids or env_ids():
-        rows = [episode(env_id, seed, **planner_kwargs)
+        rows = [episode(env_id, seed, env_kwargs, **planner_kwargs)
                 for seed in tqdm(seeds, desc=env_id, disable=not progress, file=sys.stderr)]
         measure = ("median_wrap_deg" if "Wrap" in env_id else
                    "median_tracking_rms_m" if "Track" in env_id else "median_final_distance_m")
@@ -94,6 +98,8 @@ def main(argv=None) -> int:
     parser.add_argument("--first-seed", type=int, default=0,
                         help="seed of the first episode (default 0; episode i: first seed + i)")
     parser.add_argument("--ids", default=None, help="comma-separated IDs (default: all registered)")
+    parser.add_argument("--env-kwargs", default=None, metavar="JSON",
+                        help='keyword arguments of gym.make, e.g. \'{"self_contact": true}\'')
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
     args = parser.parse_args(argv)
@@ -101,8 +107,16 @@ def main(argv=None) -> int:
         parser.error("--episodes must be >= 1")
     if args.first_seed < 0:
         parser.error("--first-seed must be >= 0")
+    env_kwargs = None
+    if args.env_kwargs:
+        try:
+            env_kwargs = json.loads(args.env_kwargs)
+        except json.JSONDecodeError as exc:
+            parser.error(f"--env-kwargs is not JSON: {exc}")
+        if not isinstance(env_kwargs, dict):
+            parser.error("--env-kwargs must be a JSON object")
     result = run(args.ids.split(",") if args.ids else None, args.episodes, not args.no_progress,
-                 args.first_seed)
+                 args.first_seed, env_kwargs)
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))
         return 0
