@@ -66,6 +66,7 @@ from solver.layout import (
     MAX_ITER,
     MAX_STEP,
     N_BOUNDS,
+    N_SELF,
     PREDICT_CAP,
     REST_U2,
     REST_V3,
@@ -76,6 +77,9 @@ from solver.layout import (
     SEG_STEPS,
     SELF_FX,
     SELF_FY,
+    SELF_K00,
+    SELF_K01,
+    SELF_K11,
     SELF_PEN,
     SELF_QX,
     SELF_QY,
@@ -190,7 +194,25 @@ def _new_partners(grid):
         cap = max(cap, segs[seg, SEG_STEPS])
     bounds = np.empty((n_seg, N_BOUNDS))
     clear_pieces(bounds)
-    return np.empty((n_seg, cap + 1, 4)), bounds, np.zeros((n_seg, cap + 1, 5))
+    return np.empty((n_seg, cap + 1, 4)), bounds, np.zeros((n_seg, cap + 1, N_SELF))
+
+
+@njit
+def _node_load(loads, seg, node, st, phi, tangent):
+    """Apply the self-contact point load of node ``node`` of segment ``seg`` (its canonical
+    slot) to the state: n⁺ = n⁻ − F. With ``tangent``, the segment map's Jacobian ``phi``
+    takes the load's stiffness with the other part held fixed (δn⁺ = δn⁻ − K δr): Newton's
+    coupled Jacobian replaces these columns by differences, so it only informs the
+    stability test."""
+    st[3] -= loads[seg, node, SELF_FX]
+    st[4] -= loads[seg, node, SELF_FY]
+    if tangent:
+        k00 = loads[seg, node, SELF_K00]
+        k01 = loads[seg, node, SELF_K01]
+        k11 = loads[seg, node, SELF_K11]
+        for e in range(6):
+            phi[3, e] -= k00 * phi[0, e] + k01 * phi[1, e]
+            phi[4, e] -= k01 * phi[0, e] + k11 * phi[1, e]
 
 
 @njit
@@ -284,16 +306,14 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
     own = loads.shape[0] > 0
     for j in range(first, first + nst):
         if own and j > first:  # the node just reached carries its load from here on
-            st[3] -= loads[seg, j - first, SELF_FX]
-            st[4] -= loads[seg, j - first, SELF_FY]
+            _node_load(loads, seg, j - first, st, phi, tangent)
         if record:
             row = segs[seg, SEG_ROW0] + j
             _write_row(st, sec_start[i] + j * h, out, row, ca, cg, ci, ur, vr, discs)
             if own:
                 _self_row(loads, segs, seg, j - first, out, row)
         if own and seg == 0 and j == first:  # the base node's load, into the clamp's reaction
-            st[3] -= loads[0, 0, SELF_FX]
-            st[4] -= loads[0, 0, SELF_FY]
+            _node_load(loads, 0, 0, st, phi, tangent)
         if discs.shape[0] > 0:
             for d in range(6):
                 start[d] = st[d]
@@ -351,8 +371,7 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
         for d in range(6):
             st[d] = weight * fine[d] + (1.0 - weight) * st[d]
     if own:
-        st[3] -= loads[seg, nst, SELF_FX]
-        st[4] -= loads[seg, nst, SELF_FY]
+        _node_load(loads, seg, nst, st, phi, tangent)
     if segs[seg, SEG_END] == 1:
         if record:
             row = segs[seg, SEG_ROW0] + steps[i]

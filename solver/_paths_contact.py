@@ -26,8 +26,8 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, sett
     """A solve with rigid obstacles or rigid self-contact (hard contact) by penalty
     continuation.
 
-    The rigid discs (and the self-contact, if rigid) get a finite penalty k: from a warm start its final one, else the k
-    at which the decay length (EI_min/k)^¼ is L/20. After each solve, while the deepest
+    The rigid discs (and the self-contact, if rigid) get a finite penalty k: from a warm
+    start its final one, else the k at which the decay length (EI_min/k)^¼ is L/20. After each solve, while the deepest
     penetration exceeds ``settings.gap_tol``, k is multiplied by RIGID_GROWTH and the
     solve continues from the last state, the penalty ramped up along the path (the
     homotopy of :func:`solver._paths_shooting.solve_shooting`). The penetration falls as 1/k and the state

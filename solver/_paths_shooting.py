@@ -192,7 +192,8 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
 
     Clear of every obstacle, the arm snaps as the single-shooting path does: to the stable
     root of the level nearest its base moment (:func:`solver._planar._scan`, ``params`` its
-    parameters), if that is clear of the obstacles too. Otherwise, a local minimum of the
+    parameters), if that is clear of the obstacles and of itself too (with self-contact).
+    Otherwise, a local minimum of the
     discrete rod's energy reached from the last state (:func:`solver._relax.relax`) — from
     the scan's root if it lands in an obstacle; with ``over`` (a level past the ramp's end)
     it relaxes there first and then back at ``level``. Either is polished by Newton on the
@@ -213,7 +214,8 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
             free = np.empty((layout.n_rows, L.N_COLUMNS))
             integrate_planar(m0, theta0, layout.secf, layout.sec_steps, rest, loads, True, free)
             landed = nodes_from_states(free[:, _FREE_STATE], segs)
-            if not _planar._clear_of(free, level[L.L_DISCS], 0.0):
+            if not (_planar._clear_of(free, level[L.L_DISCS], 0.0)
+                    and _clear_of_itself(free, layout, grid[L.G_SELF])):
                 record[:, [L.C_X, L.C_Y, L.C_TH, L.C_V1, L.C_V3]] = free[:, [L.X, L.Y, L.THETA,
                                                                            L.V1, L.V3]]
                 landed = None
@@ -223,7 +225,7 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
             relaxed = _relax.relax(state, theta0, layout.secf, layout.sec_steps,
                                    _level_rest(layout, lvl), lvl[L.L_Q], lvl[L.L_PLATE],
                                    lvl[L.L_TARGET][:2] - lvl[L.L_PLATE][-1], lvl[L.L_TARGET][2],
-                                   lvl[L.L_DISCS])
+                                   lvl[L.L_DISCS], grid[L.G_SELF])
             if relaxed is None:
                 return None
             states, state = relaxed
@@ -238,6 +240,17 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
         if not ok:
             return None
     return landed if stable else None
+
+
+def _clear_of_itself(record, layout, sp):
+    """Whether the planar ``record`` keeps parts of the arm farther apart than the
+    self-contact exclusion out of each other's half-thicknesses (True without self-contact)."""
+    if sp[L.SC_K] <= 0:
+        return True
+    half = np.repeat(sp[L.SC_HALF:], layout.sec_steps + 1)
+    pos, s = record[:, [L.X, L.Y]], record[:, L.S]
+    gap = np.hypot(*(pos[:, None] - pos[None, :]).transpose(2, 0, 1)) - half[:, None] - half[None, :]
+    return bool(np.all(gap[np.abs(s[:, None] - s[None, :]) > sp[L.SC_EXCLUSION]] > 0.0))
 
 
 # Penalty stages (log-spaced, from a thousandth to the full stiffness) that bring a snapped

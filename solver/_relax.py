@@ -30,7 +30,22 @@ import numpy as np
 
 from solver._obstacles import _penalty_energy
 from solver.jit import njit
-from solver.layout import C_TH, C_V1, C_V3, CA, CG, CI, CX, CY, LEN, RADIUS, STIFFNESS
+from solver.layout import (
+    C_TH,
+    C_V1,
+    C_V3,
+    CA,
+    CG,
+    CI,
+    CX,
+    CY,
+    LEN,
+    RADIUS,
+    SC_EXCLUSION,
+    SC_HALF,
+    SC_K,
+    STIFFNESS,
+)
 
 
 @njit
@@ -54,8 +69,43 @@ def _positions(theta0, x, sec_of, h, v_rest, pos, mid_c, mid_s):
 
 
 @njit
+def _self_contact(pos, h, node_s, node_h, self_k, exclusion, force, sign):
+    """Energy (J) of self-contact between nodes farther apart along the arc than
+    ``exclusion`` (m), and its forces added to ``force`` times ``sign`` (−1: dV/dr, +1: the
+    external force): a pair (a, b) within h_a + h_b of each other stores
+    ½ (k/R) w_a w_b (R − d)², R = h_a + h_b, w the nodes' shares of the arc. A node-to-node
+    stand-in for the solver's node-to-curve law (:mod:`solver._self_contact`), which the
+    Newton polish of a relaxed state then applies: it only has to keep the relaxation from
+    passing the arm through itself."""
+    n = h.shape[0]
+    energy = 0.0
+    if self_k <= 0.0:
+        return energy
+    for a in range(n + 1):
+        wa = 0.5 * ((h[a - 1] if a > 0 else 0.0) + (h[a] if a < n else 0.0))
+        for b in range(a + 1, n + 1):
+            if node_s[b] - node_s[a] <= exclusion:
+                continue
+            reach = node_h[a] + node_h[b]
+            dx = pos[a, 0] - pos[b, 0]
+            dy = pos[a, 1] - pos[b, 1]
+            dist = math.sqrt(dx * dx + dy * dy)
+            pen = reach - dist
+            if pen > 0.0 and dist > 0.0:
+                wb = 0.5 * ((h[b - 1] if b > 0 else 0.0) + (h[b] if b < n else 0.0))
+                stiffness = self_k * wa * wb / reach
+                energy += 0.5 * stiffness * pen * pen
+                push = sign * stiffness * pen / dist
+                force[a, 0] += push * dx
+                force[a, 1] += push * dy
+                force[b, 0] -= push * dx
+                force[b, 1] -= push * dy
+    return energy
+
+
+@njit
 def energy_and_gradient(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at, plate,
-                        tip_force, tip_moment, discs, grad):
+                        tip_force, tip_moment, discs, self_params, grad):
     """Total potential energy (J) of the discrete rod at unknowns ``x`` (3N,) = (θ_1..θ_N,
     v1_0..v1_{N−1}, w_0..w_{N−1}); its gradient into ``grad`` (3N,).
 
@@ -65,7 +115,8 @@ def energy_and_gradient(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at,
         q: (ns, 2) distributed load (N/m). plate_at: (ns,) node index of each section end;
         plate: (ns, 2) endplate weight there (N), the last one at the tip node.
         tip_force: (2,) tip force and payload weight (N). tip_moment: N m.
-        discs: (k, 4) obstacles.
+        discs: (k, 4) obstacles. self_params: (node_s (N + 1,), node_h (N + 1,), k,
+            exclusion) of self-contact (k = 0: none; :func:`_self_contact`).
     """
     n = h.shape[0]
     pos = np.empty((n + 1, 2))
@@ -74,7 +125,8 @@ def energy_and_gradient(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at,
     _positions(theta0, x, sec_of, h, v_rest, pos, mid_c, mid_s)
     # dV/dr at every node (minus the external force there).
     force = np.zeros((n + 1, 2))
-    e_total = 0.0
+    e_total = _self_contact(pos, h, self_params[0], self_params[1], self_params[2],
+                            self_params[3], force, -1.0)
     for e in range(n):
         i = sec_of[e]
         for d in range(2):
@@ -142,7 +194,7 @@ def energy_and_gradient(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at,
 
 @njit
 def shooting_states(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at, plate, tip_force,
-                    discs, states):
+                    discs, self_params, states):
     """Shooting states (x, y, θ, n_x, n_y, m) at every node of the discrete rod (N + 1, 6).
 
     n at a node is the sum of the external forces distal to it (the free tip carries
@@ -156,6 +208,8 @@ def shooting_states(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at, pla
     mid_s = np.empty(n)
     _positions(theta0, x, sec_of, h, v_rest, pos, mid_c, mid_s)
     force = np.zeros((n + 1, 2))
+    _self_contact(pos, h, self_params[0], self_params[1], self_params[2], self_params[3], force,
+                  1.0)
     for e in range(n):
         for d in range(2):
             half = 0.5 * h[e] * q[sec_of[e], d]
@@ -215,7 +269,7 @@ def strains_of_record(record, steps):
 
 
 def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_moment, discs,
-          max_iter=3000):
+          self_contact=None, max_iter=3000):
     """Minimise the discrete rod's energy under the given loads from the state ``start``.
 
     Args:
@@ -225,6 +279,8 @@ def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_momen
         level_rest: (3, ns) rest strains at the loads to relax under; q, plate (ns, 2),
             tip_force (2,), tip_moment, discs (k, 4): those loads (``plate`` includes the
             endplate at the tip; ``tip_force`` is the rest of the tip load).
+        self_contact: the layout tuple's self-contact parameters (``G_SELF``: stiffness,
+            exclusion, half-thicknesses per section), or None.
 
     Returns:
         ((Σ(steps + 1), 6) states (x, y, θ, n_x, n_y, m) on the record's rows, the minimum
@@ -248,8 +304,15 @@ def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_momen
         h / np.where(shearable, secf[CG], 1.0)[sec_of],
         h / secf[CA, sec_of]]))
     grad = np.empty(3 * n)
+    node_s = np.concatenate([[0.0], np.cumsum(h)])
+    if self_contact is not None and self_contact[SC_K] > 0:
+        half = np.asarray(self_contact[SC_HALF:])
+        node_h = np.concatenate([[half[0]], half[sec_of]])
+        self_params = (node_s, node_h, float(self_contact[SC_K]), float(self_contact[SC_EXCLUSION]))
+    else:
+        self_params = (node_s, np.zeros(n + 1), 0.0, 0.0)
     args = (theta0, sec_of, h, secf, u_rest, v_rest, q, ends, plate, tip_force,
-            float(tip_moment), discs, grad)
+            float(tip_moment), discs, self_params, grad)
 
     def fun(y):
         energy = energy_and_gradient(y * scale, *args)
@@ -262,7 +325,7 @@ def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_momen
         return None
     nodes = np.empty((n + 1, 6))
     shooting_states(x, theta0, sec_of, h, secf, u_rest, v_rest, q, ends, plate, tip_force, discs,
-                    nodes)
+                    self_params, nodes)
     node_of_row = np.concatenate([np.arange(k + 1) + off for k, off in
                                   zip(steps, np.concatenate([[0], np.cumsum(steps)[:-1]]))])
     return nodes[node_of_row], (x[:n], x[n:2 * n], x[2 * n:] + v_rest[sec_of])

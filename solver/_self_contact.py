@@ -71,6 +71,9 @@ from solver.layout import (
     SEG_STEPS,
     SELF_FX,
     SELF_FY,
+    SELF_K00,
+    SELF_K01,
+    SELF_K11,
     SELF_PEN,
     SELF_QX,
     SELF_QY,
@@ -329,9 +332,10 @@ def _add(loads, segs, seg, j, fx, fy):
 @njit
 def self_loads(grid, pts, bounds, loads):
     """The self-contact point loads of the pieces ``pts`` (see the module docstring) into
-    ``loads`` (M, segment steps + 1, 5), at each node's canonical slot: SELF_FX, SELF_FY
+    ``loads`` (M, segment steps + 1, N_SELF), at each node's canonical slot: SELF_FX, SELF_FY
     the point load (N), SELF_QX, SELF_QY that load per length of the node's share of the arc
-    (N/m), SELF_PEN its own deepest penetration (m). Pieces in contact are marked in
+    (N/m), SELF_PEN its own deepest penetration (m), SELF_K00…SELF_K11 its own law's
+    stiffness across the normal with the other part fixed (N/m). Pieces in contact are marked in
     ``bounds``. Returns the deepest penetration."""
     segs = grid[G_SEGS]
     sp = grid[G_SELF]
@@ -390,12 +394,18 @@ def self_loads(grid, pts, bounds, loads):
                         uy = dy / dist
                         f = w * (0.5 * k * pen * pen / ONSET if pen < ONSET
                                  else k * (pen - 0.5 * ONSET))
+                        stiff = w * (k * pen / ONSET if pen < ONSET else k)
                         _add(loads, segs, seg, j, 0.5 * f * ux, 0.5 * f * uy)
                         _add(loads, segs, piece, node, -0.5 * f * (1.0 - t) * ux,
                              -0.5 * f * (1.0 - t) * uy)
                         _add(loads, segs, piece, node + 1, -0.5 * f * t * ux, -0.5 * f * t * uy)
                         a, b = _slot(segs, seg, j)
                         loads[a, b, SELF_PEN] = max(loads[a, b, SELF_PEN], pen)
+                        # The node's own law across the normal (∂pen/∂r = −ûᵀ), the other
+                        # part held fixed: for the stability test (docs/design.md §9).
+                        loads[a, b, SELF_K00] -= stiff * ux * ux
+                        loads[a, b, SELF_K01] -= stiff * ux * uy
+                        loads[a, b, SELF_K11] -= stiff * uy * uy
                         deepest = max(deepest, pen)
                         bounds[seg, B_TOUCH] = 1.0
                         bounds[best_seg, B_TOUCH] = 1.0

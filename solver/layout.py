@@ -69,9 +69,11 @@ SC_K, SC_EXCLUSION, SC_HALF = range(3)
 # points x, y, s (m) and half-thickness (m); per segment (M, 12) a bounding circle's centre
 # x, y and radius (m; negative: not built), whether it is in contact (0 or 1), and the
 # curve's end points a, b and end tangents (per unit of the curve's parameter; m); and per
-# RK4 node (M, segment steps + 1, 5) the point load the node carries (N), that load per
-# length (N/m) and the node's penetration (m).
+# RK4 node (M, segment steps + 1, 8) the point load the node carries (N), that load per
+# length (N/m), the node's penetration (m) and the load's stiffness ∂F/∂r (symmetric 2×2:
+# k00, k01, k11; N/m) with the other part held fixed.
 P_X, P_Y, P_S, P_H = range(4)
 B_X, B_Y, B_R, B_TOUCH, B_AX, B_AY, B_TAX, B_TAY, B_BX, B_BY, B_TBX, B_TBY = range(12)
 N_BOUNDS = 12
-SELF_FX, SELF_FY, SELF_QX, SELF_QY, SELF_PEN = range(5)
+SELF_FX, SELF_FY, SELF_QX, SELF_QY, SELF_PEN, SELF_K00, SELF_K01, SELF_K11 = range(8)
+N_SELF = 8
