@@ -37,7 +37,7 @@ import math
 import numpy as np
 
 from solver._obstacles import _contact_force, _contact_stiffness, _nearest_surface, _tunnels
-from solver._self_contact import build_piece, clear_pieces, may_touch, self_contact_on, self_loads
+from solver._self_contact import _slot, build_piece, clear_pieces, may_touch, self_contact_on, self_loads
 from solver.jit import njit
 from solver.layout import (
     B_TOUCH,
@@ -219,7 +219,7 @@ def _node_load(loads, seg, node, st, phi, tangent):
 def _self_row(loads, segs, seg, node, out, row):
     """Add the self-contact load per length and penetration of node ``node`` of segment
     ``seg`` (its canonical slot) to the record row ``row``."""
-    a, b = (seg - 1, segs[seg - 1, SEG_STEPS]) if node == 0 and seg > 0 else (seg, node)
+    a, b = _slot(segs, seg, node)
     out[row, C_FX] += loads[a, b, SELF_QX]
     out[row, C_FY] += loads[a, b, SELF_QY]
     out[row, C_PEN] = max(out[row, C_PEN], loads[a, b, SELF_PEN])

@@ -12,7 +12,8 @@ from solver import layout as L
 from solver._model import contact_layout, reach
 from solver._paths_planar import solve_planar, solve_single
 from solver._paths_shooting import solve_shooting
-from solver.scene import SELF_CONTACT_EXCLUSION
+from solver._self_contact import smallest_far_gap
+from solver.scene import self_contact_exclusion
 
 # Penalty continuation for rigid obstacles (Disc(stiffness=math.inf)): the first penalty
 # makes the decay length (EI/k)^¼ a twentieth of the arm; each stage stiffens it tenfold, up
@@ -27,14 +28,14 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, sett
     continuation.
 
     The rigid discs (and the self-contact, if rigid) get a finite penalty k: from a warm
-    start its final one, else the k at which the decay length (EI_min/k)^¼ is L/20. After each solve, while the deepest
-    penetration exceeds ``settings.gap_tol``, k is multiplied by RIGID_GROWTH and the
-    solve continues from the last state, the penalty ramped up along the path (the
-    homotopy of :func:`solver._paths_shooting.solve_shooting`). The penetration falls as 1/k and the state
-    converges to the hard-contact limit (tested). If the penetration is still above
-    ``gap_tol`` where the next stage would pass RIGID_MAX_STIFFNESS, or a stage does not
-    converge (the last converged stage is then returned), the result is reported
-    unconverged.
+    start its final one, else the k at which the decay length (EI_min/k)^¼ is L/20. After
+    each solve, while the deepest penetration exceeds ``settings.gap_tol``, k is multiplied
+    by RIGID_GROWTH and the solve continues from the last state, the penalty ramped up along
+    the path (the homotopy of :func:`solver._paths_shooting.solve_shooting`). The
+    penetration falls as 1/k and the state converges to the hard-contact limit (tested).
+    If the penetration is still above ``gap_tol`` where the next stage would pass
+    RIGID_MAX_STIFFNESS, or a stage does not converge (the last converged stage is then
+    returned), the result is reported unconverged.
     """
     warm_k = warm_start.penalty_stiffness if warm_start is not None else math.nan
     stiffness = warm_k if math.isfinite(warm_k) else min(
@@ -118,17 +119,14 @@ def clear_of_itself(arm, scene, eq) -> bool:
     samples' spacing) of each other — always True without self-contact. Checked on the
     returned state only: a contact-free path that crossed itself on the way and came out
     clear is not caught (a quasi-static ramp between two clear states seldom does)."""
-    if scene.self_contact is None or eq.s.size == 0:
+    if scene.self_contact is None or eq.s.size < 2:
         return True
     half = np.array(arm.half_thickness())
-    section = np.searchsorted(np.asarray(eq.section_ends), np.arange(eq.s.size))
-    h_sample = half[np.minimum(section, half.size - 1)]
-    spacing = float(np.max(np.diff(eq.s))) if eq.s.size > 1 else 0.0
-    exclusion = SELF_CONTACT_EXCLUSION * 2.0 * half.max()
-    gap = np.hypot(*(eq.positions[:, None, :] - eq.positions[None, :, :]).transpose(2, 0, 1)) \
-        - (h_sample[:, None] + h_sample[None, :]) - spacing
-    far = np.abs(eq.s[:, None] - eq.s[None, :]) > exclusion
-    return bool(np.all(gap[far] > 0.0))
+    section = np.minimum(np.searchsorted(np.asarray(eq.section_ends), np.arange(eq.s.size)),
+                         half.size - 1)
+    gap = smallest_far_gap(np.ascontiguousarray(eq.positions), eq.s, half[section],
+                           self_contact_exclusion(half))
+    return bool(gap > float(np.max(np.diff(eq.s))))
 
 
 def _free_contact_result(eq, scene):

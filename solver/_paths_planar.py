@@ -207,14 +207,13 @@ def solve_either(single, multiple, dim, arm, packed, p_inputs, p_channel, scene,
         return eq
     iterations = eq.iterations
     finer = settings.finer()
-    tries = [(method, settings, packed) for method in methods[1:]]
-    if finer != settings:
-        tries += [(method, finer, _packed_for(arm, packed, model, finer)) for method in methods]
     doubled = refined(arm, packed, 2 * packed.sec_steps)
-    tries += [(method, settings, doubled) for method in methods]
+    stages = [(settings, doubled)]
     if finer != settings:
-        finer_doubled = refined(arm, _packed_for(arm, packed, model, finer), doubled.sec_steps)
-        tries += [(method, finer, finer_doubled) for method in methods]
+        stages = [(finer, _packed_for(arm, packed, model, finer)), *stages,
+                  (finer, _packed_for(arm, doubled, model, finer))]
+    tries = [(method, settings, packed) for method in methods[1:]]
+    tries += [(method, tried, layout) for tried, layout in stages for method in methods]
     best = eq
     for method, tried, layout in tries:
         other = method(arm, layout, p_inputs, p_channel, scene, model, warm_start, tried)

@@ -12,9 +12,10 @@ import numpy as np
 from solver import _contact, _grid, _planar, _relax
 from solver import layout as L
 from solver._model import context, rest_strains, shooting_layout, shooting_terms
+from solver._self_contact import smallest_far_gap
 from solver.results import Equilibrium
 from solver.rod import integrate_planar, rest_strains_into
-from solver.scene import SELF_CONTACT_EXCLUSION
+from solver.scene import self_contact_exclusion
 
 # Snaps per multiple-shooting solve before it gives up (each costs an energy minimisation).
 MAX_SNAPS = 8
@@ -230,8 +231,8 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
                 return None
             states, state = relaxed
         landed = nodes_from_states(states, segs)
-    # Neither the scan nor the relaxation knows self-contact: where the arm lands on itself,
-    # its penalty is brought in from a thousandth, Newton following each stiffening.
+    # The relaxation's self-contact is a node-to-node stand-in: where the arm lands on itself,
+    # the solver's law is brought in from a thousandth, Newton following each stiffening.
     k = grid[L.G_SELF][L.SC_K]
     for stiffness in k * np.logspace(-3.0, 0.0, SELF_STAGES) if k > 0 else (k,):
         staged = (*grid[:L.G_SELF], np.concatenate([[stiffness], grid[L.G_SELF][1:]]))
@@ -248,9 +249,7 @@ def _clear_of_itself(record, layout, sp):
     if sp[L.SC_K] <= 0:
         return True
     half = np.repeat(sp[L.SC_HALF:], layout.sec_steps + 1)
-    pos, s = record[:, [L.X, L.Y]], record[:, L.S]
-    gap = np.hypot(*(pos[:, None] - pos[None, :]).transpose(2, 0, 1)) - half[:, None] - half[None, :]
-    return bool(np.all(gap[np.abs(s[:, None] - s[None, :]) > sp[L.SC_EXCLUSION]] > 0.0))
+    return smallest_far_gap(record[:, [L.X, L.Y]], record[:, L.S], half, sp[L.SC_EXCLUSION]) > 0.0
 
 
 # Penalty stages (log-spaced, from a thousandth to the full stiffness) that bring a snapped
@@ -298,7 +297,7 @@ def shooting_grid(arm, scene, layout, segs, sec_start):
         half = np.array(arm.half_thickness())
         seg_len = segs[:, L.SEG_STEPS] * (layout.sec_len / layout.sec_steps)[segs[:, L.SEG_SECTION]]
         sp[L.SC_K] = scene.self_contact
-        sp[L.SC_EXCLUSION] = max(SELF_CONTACT_EXCLUSION * 2.0 * half.max(), 2.5 * seg_len.max())
+        sp[L.SC_EXCLUSION] = max(self_contact_exclusion(half), 2.5 * seg_len.max())
         sp[L.SC_HALF:] = half
     return (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, sp)
 

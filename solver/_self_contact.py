@@ -212,6 +212,20 @@ def may_touch(Z, grid, rest) -> bool:
 
 
 @njit
+def smallest_far_gap(positions, s, half, exclusion):
+    """The smallest surface gap (m; negative: overlap) between backbone samples ``positions``
+    (N, 2) at arc lengths ``s`` (N,) with half-thicknesses ``half`` (N,), over the pairs
+    farther apart along the arc than ``exclusion`` (m); inf if there is none."""
+    gap = math.inf
+    for a in range(s.shape[0]):
+        for b in range(a + 1, s.shape[0]):
+            if abs(s[b] - s[a]) > exclusion:
+                d = math.hypot(positions[a, 0] - positions[b, 0], positions[a, 1] - positions[b, 1])
+                gap = min(gap, d - half[a] - half[b])
+    return gap
+
+
+@njit
 def _slot(segs, seg, j):
     """The canonical (segment, node) of node j of segment ``seg``: a segment's first node is
     the previous segment's last (except at the base)."""

@@ -20,6 +20,12 @@ thicknesses (twice the largest section half-thickness): nearer parts are neighbo
 bending, not contact, keeps apart."""
 
 
+def self_contact_exclusion(half_thickness) -> float:
+    """The exclusion length (m) of an arm with these section half-thicknesses (m):
+    ``SELF_CONTACT_EXCLUSION`` times its largest thickness."""
+    return SELF_CONTACT_EXCLUSION * 2.0 * max(half_thickness)
+
+
 @dataclass(frozen=True)
 class Disc:
     """A rigid disc (planar obstacle) the arm's backbone is pressed against by penalty contact.
