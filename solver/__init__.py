@@ -13,14 +13,15 @@ from solver import actuator, designs, rod
 from solver._model import rest_strains
 from solver.actuator import PSI, pressure_from_stretch, stretch_from_pressure
 from solver.results import BatchState, Equilibrium
-from solver.scene import Disc, Scene
+from solver.scene import Cylinder, Disc, Scene, Sphere
 from solver.settings import MODELS, Settings, SolverError
 from solver.solve import channel_pressures, solve, solve_batch, step_batch
 from solver.stepper import BatchReport, BatchStepper, Stepper, StepReport, ThreadPolicy
 
 __all__ = [
     "actuator", "designs", "rod", "PSI", "pressure_from_stretch", "stretch_from_pressure",
-    "Scene", "Disc", "MODELS", "Equilibrium", "Settings", "SolverError", "rest_strains", "solve",
+    "Scene", "Disc", "Cylinder", "Sphere", "MODELS", "Equilibrium", "Settings", "SolverError",
+    "rest_strains", "solve",
     "solve_batch", "step_batch", "BatchState", "channel_pressures", "Stepper", "StepReport", "ThreadPolicy",
     "BatchStepper", "BatchReport",
 ]

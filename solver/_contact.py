@@ -780,17 +780,18 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
 
 @njit
 def _set_level(t, a, b, now):
-    """Interpolate the homotopy between level tuples ``a`` and ``b`` at ``t`` into ``now``."""
+    """Interpolate the homotopy between level tuples ``a`` and ``b`` at ``t`` into ``now``
+    (planar or spatial: the widths are the arrays')."""
     for k in range(a[L_P].shape[0]):
         now[L_P][k] = a[L_P][k] + t * (b[L_P][k] - a[L_P][k])
     for i in range(a[L_Q].shape[0]):
-        for d in range(2):
+        for d in range(a[L_Q].shape[1]):
             now[L_Q][i, d] = a[L_Q][i, d] + t * (b[L_Q][i, d] - a[L_Q][i, d])
             now[L_PLATE][i, d] = a[L_PLATE][i, d] + t * (b[L_PLATE][i, d] - a[L_PLATE][i, d])
-    for d in range(3):
+    for d in range(a[L_TARGET].shape[0]):
         now[L_TARGET][d] = a[L_TARGET][d] + t * (b[L_TARGET][d] - a[L_TARGET][d])
     for i in range(a[L_DISCS].shape[0]):
-        for d in range(4):
+        for d in range(a[L_DISCS].shape[1]):
             now[L_DISCS][i, d] = a[L_DISCS][i, d] + t * (b[L_DISCS][i, d] - a[L_DISCS][i, d])
 
 

@@ -1,10 +1,13 @@
 """Obstacle geometry shared by the contact kernels and the contact-free guards.
 
-Obstacles are discs in the x–y plane, an (n, 4) array of centre x, centre y, radius and
-penalty stiffness (N/m²). Two questions are asked of a quasi-static path between accepted
-states: is the backbone clear of every disc, and did any backbone sample *tunnel* — pass
-through a disc between two states, which a continuation step can do when it is too long
-(a penalty disc exerts no force on a backbone that has already crossed it)?
+Planar obstacles are discs in the x–y plane, an (n, 4) array of centre x, centre y, radius
+and penalty stiffness (N/m²); spatial ones cylinders and spheres, an (n, 8) array
+(``layout.O_*``): a point, an axis (zero for a sphere), radius and stiffness. The penalty
+law is the same: force per reference length k·penetration along the outward normal. Two
+questions are asked of a quasi-static path between accepted states: is the backbone clear
+of every obstacle, and did any backbone sample *tunnel* — pass through an obstacle between
+two states, which a continuation step can do when it is too long (a penalty obstacle exerts
+no force on a backbone that has already crossed it)?
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ from __future__ import annotations
 import math
 
 from solver.jit import njit
-from solver.layout import CX, CY, RADIUS, STIFFNESS
+from solver.layout import CX, CY, O_AXIS, O_P, O_RADIUS, O_STIFFNESS, RADIUS, STIFFNESS
 
 
 @njit
@@ -136,4 +139,82 @@ def _tunnels(prev_xy, new_xy, discs, slack):
             end = max(r - math.hypot(ax - cx, ay - cy), r - math.hypot(bx - cx, by - cy))
             if _segment_depth(ax, ay, bx, by, cx, cy, r) > max(end, 0.0) + slack:
                 return True
+    return False
+
+
+# Points along a move at which a spatial tunnel is looked for (the move's chord is not
+# straight against a cylinder's axis in closed form as simply as against a disc's centre).
+TUNNEL_SAMPLES = 9
+
+
+@njit(inline="always")
+def _offset_3d(r0, r1, r2, obstacles, d):
+    """The vector (3 floats) from the core of spatial obstacle ``d`` — the nearest point of
+    a cylinder's axis, or a sphere's centre — to (r0, r1, r2), and its length (m)."""
+    e0 = r0 - obstacles[d, O_P]
+    e1 = r1 - obstacles[d, O_P + 1]
+    e2 = r2 - obstacles[d, O_P + 2]
+    a0 = obstacles[d, O_AXIS]
+    a1 = obstacles[d, O_AXIS + 1]
+    a2 = obstacles[d, O_AXIS + 2]
+    along = e0 * a0 + e1 * a1 + e2 * a2  # 0 for a sphere (zero axis)
+    e0 -= along * a0
+    e1 -= along * a1
+    e2 -= along * a2
+    return e0, e1, e2, math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+
+@njit
+def contact_force_3d(r0, r1, r2, obstacles):
+    """Penalty force per length (fx, fy, fz; N/m) and deepest penetration (m) at backbone
+    point r among spatial ``obstacles`` (n, 8): f = k · max(0, R − |e|) · e/|e|, e the offset
+    from the obstacle's core (:func:`_offset_3d`)."""
+    fx = 0.0
+    fy = 0.0
+    fz = 0.0
+    deepest = 0.0
+    for d in range(obstacles.shape[0]):
+        e0, e1, e2, dist = _offset_3d(r0, r1, r2, obstacles, d)
+        pen = obstacles[d, O_RADIUS] - dist
+        if pen > 0.0 and dist > 0.0:
+            scale = obstacles[d, O_STIFFNESS] * pen / dist
+            fx += scale * e0
+            fy += scale * e1
+            fz += scale * e2
+            if pen > deepest:
+                deepest = pen
+    return fx, fy, fz, deepest
+
+
+@njit
+def clearance_3d(r0, r1, r2, obstacles):
+    """Smallest signed gap (m; negative inside) from r to the spatial obstacles' surfaces."""
+    gap = math.inf
+    for d in range(obstacles.shape[0]):
+        g = _offset_3d(r0, r1, r2, obstacles, d)[3] - obstacles[d, O_RADIUS]
+        if g < gap:
+            gap = g
+    return gap
+
+
+@njit
+def tunnels_3d(prev, new, obstacles, slack):
+    """:func:`_tunnels` against spatial obstacles: True when a sample, moved along the
+    straight segment between its positions in ``prev`` and ``new`` (N, ≥3; m), goes deeper
+    into an obstacle, at any of TUNNEL_SAMPLES points, than the deeper of its two ends by
+    more than ``slack`` (m)."""
+    for k in range(prev.shape[0]):
+        for d in range(obstacles.shape[0]):
+            radius = obstacles[d, O_RADIUS]
+            end = max(radius - _offset_3d(prev[k, 0], prev[k, 1], prev[k, 2], obstacles, d)[3],
+                      radius - _offset_3d(new[k, 0], new[k, 1], new[k, 2], obstacles, d)[3])
+            limit = max(end, 0.0) + slack
+            for j in range(1, TUNNEL_SAMPLES - 1):
+                t = j / (TUNNEL_SAMPLES - 1.0)
+                depth = radius - _offset_3d(prev[k, 0] + t * (new[k, 0] - prev[k, 0]),
+                                            prev[k, 1] + t * (new[k, 1] - prev[k, 1]),
+                                            prev[k, 2] + t * (new[k, 2] - prev[k, 2]),
+                                            obstacles, d)[3]
+                if depth > limit:
+                    return True
     return False

@@ -23,9 +23,12 @@ RIGID_GROWTH = 10.0
 RIGID_MAX_STIFFNESS = 1e11
 
 
-def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                contact=None):
     """A solve with rigid obstacles or rigid self-contact (hard contact) by penalty
-    continuation.
+    continuation, each stage solved by ``contact`` (a penalty-contact path:
+    :func:`solve_contact`, the default, or the spatial
+    :func:`solver._paths_spatial_contact.solve_contact_spatial`).
 
     The rigid discs (and the self-contact, if rigid) get a finite penalty k: from a warm
     start its final one, else the k at which the decay length (EI_min/k)^¼ is L/20. After
@@ -47,7 +50,8 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, sett
             replace(d, stiffness=stiffness) if d.stiffness == math.inf else d
             for d in scene.obstacles),
             self_contact=stiffness if scene.self_contact == math.inf else scene.self_contact)
-        attempt = solve_contact(arm, packed, p_inputs, p_channel, stage, model, eq, settings)
+        attempt = (contact or solve_contact)(arm, packed, p_inputs, p_channel, stage, model, eq,
+                                             settings)
         iterations += attempt.iterations
         if not attempt.converged:
             # Keep the last stage that converged (stiffness one step back), reported as not

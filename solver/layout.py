@@ -77,3 +77,20 @@ B_X, B_Y, B_R, B_TOUCH, B_AX, B_AY, B_TAX, B_TAY, B_BX, B_BY, B_TBX, B_TBY = ran
 N_BOUNDS = 12
 SELF_FX, SELF_FY, SELF_QX, SELF_QY, SELF_PEN, SELF_K00, SELF_K01, SELF_K11 = range(8)
 N_SELF = 8
+
+# Spatial contact state (13,): position r, quaternion β of the directors, internal force n
+# and moment m (world frame); its tangent coordinates (12,) replace β by a world-frame
+# rotation vector δφ (``CT_*``).
+CS_R, CS_Q, CS_N, CS_M = SP_R, SP_Q, 7, 10  # r and β where the dead-load state has them
+N_CSTATE = 13
+CT_R, CT_PHI, CT_N, CT_M = 0, 3, 6, 9
+N_CTANGENT = 12
+
+# Spatial obstacles (k, 8): a point, an axis direction (a cylinder; zero: a sphere about the
+# point), the contact radius (m) and the penalty stiffness (N/m²).
+O_P, O_AXIS, O_RADIUS, O_STIFFNESS = 0, 3, 6, 7
+N_OBSTACLE = 8
+
+# The spatial contact layout tuple ``grid``: base orientation quaternion (4,), segment table,
+# section array, RK4 steps per section (ns,), 1/GJ (ns,) and section start arc lengths (ns,).
+GS_QUAT0, GS_SEGS, GS_SECF, GS_STEPS, GS_CJ, GS_START = range(6)

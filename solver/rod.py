@@ -31,16 +31,21 @@ import math
 
 import numpy as np
 
-from solver._obstacles import _contact_force
+from solver._obstacles import _contact_force, contact_force_3d
 from solver.actuator import _stretch
 from solver.jit import njit
 from solver.layout import (
     CA,
     CG,
     CI,
+    CS_M,
+    CS_N,
+    CS_Q,
+    CS_R,
     EA,
     EI,
     LEN,
+    N_CSTATE,
     NEX,
     NEY,
     NSTATE,
@@ -574,6 +579,77 @@ def spatial_rk4_step(y, sig, h, work, length, ca, cg, ci, cj, u1r, u2r, v3r, loa
         y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
     qn = math.sqrt(y[SP_Q] ** 2 + y[SP_Q + 1] ** 2 + y[SP_Q + 2] ** 2 + y[SP_Q + 3] ** 2)
     for d in range(SP_Q, SP_Q + 4):
+        y[d] /= qn
+
+
+@njit
+def spatial_state_rhs(y, dy, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
+    """Derivative of the spatial contact state (r, β, n, m; ``CS_*``) into ``dy``
+    (N_CSTATE,): the law of :func:`spatial_rhs` with the internal force as state,
+    n' = −q − f_contact (``q`` (3,) the section's load per length, N/m; ``obstacles``
+    (k, 8) spatial penalty obstacles, :func:`solver._obstacles.contact_force_3d`)."""
+    w, x, yy, z = _unit_quaternion(y)  # the quaternion sits at CS_Q == SP_Q
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation_rows(w, x, yy, z)
+    n0 = y[CS_N]
+    n1 = y[CS_N + 1]
+    n2 = y[CS_N + 2]
+    m0 = y[CS_M]
+    m1 = y[CS_M + 1]
+    m2 = y[CS_M + 2]
+    nb0 = r00 * n0 + r10 * n1 + r20 * n2
+    nb1 = r01 * n0 + r11 * n1 + r21 * n2
+    nb2 = r02 * n0 + r12 * n1 + r22 * n2
+    mb0 = r00 * m0 + r10 * m1 + r20 * m2
+    mb1 = r01 * m0 + r11 * m1 + r21 * m2
+    mb2 = r02 * m0 + r12 * m1 + r22 * m2
+    v0 = nb0 * cg
+    v1 = nb1 * cg
+    v2 = v3r + nb2 * ca
+    u0 = u1r + mb0 * ci
+    u1 = u2r + mb1 * ci
+    u2 = mb2 * cj
+    rp0 = r00 * v0 + r01 * v1 + r02 * v2
+    rp1 = r10 * v0 + r11 * v1 + r12 * v2
+    rp2 = r20 * v0 + r21 * v1 + r22 * v2
+    fx, fy, fz, _ = contact_force_3d(y[CS_R], y[CS_R + 1], y[CS_R + 2], obstacles)
+    dy[CS_R] = rp0
+    dy[CS_R + 1] = rp1
+    dy[CS_R + 2] = rp2
+    dy[CS_Q] = 0.5 * (-x * u0 - yy * u1 - z * u2)
+    dy[CS_Q + 1] = 0.5 * (w * u0 - z * u1 + yy * u2)
+    dy[CS_Q + 2] = 0.5 * (z * u0 + w * u1 - x * u2)
+    dy[CS_Q + 3] = 0.5 * (-yy * u0 + x * u1 + w * u2)
+    dy[CS_N] = -q[0] - fx
+    dy[CS_N + 1] = -q[1] - fy
+    dy[CS_N + 2] = -q[2] - fz
+    dy[CS_M] = -(rp1 * n2 - rp2 * n1)
+    dy[CS_M + 1] = -(rp2 * n0 - rp0 * n2)
+    dy[CS_M + 2] = -(rp0 * n1 - rp1 * n0)
+
+
+@njit
+def spatial_state_rk4_step(y, h, work, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
+    """One RK4 step of length ``h`` of the spatial contact state ``y`` (N_CSTATE,) in place
+    (:func:`spatial_state_rhs`), the quaternion renormalised; ``work`` (≥5, N_CSTATE)."""
+    k1 = work[0]
+    k2 = work[1]
+    k3 = work[2]
+    k4 = work[3]
+    tmp = work[4]
+    spatial_state_rhs(y, k1, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+    for d in range(N_CSTATE):
+        tmp[d] = y[d] + 0.5 * h * k1[d]
+    spatial_state_rhs(tmp, k2, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+    for d in range(N_CSTATE):
+        tmp[d] = y[d] + 0.5 * h * k2[d]
+    spatial_state_rhs(tmp, k3, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+    for d in range(N_CSTATE):
+        tmp[d] = y[d] + h * k3[d]
+    spatial_state_rhs(tmp, k4, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+    for d in range(N_CSTATE):
+        y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+    qn = math.sqrt(y[CS_Q] ** 2 + y[CS_Q + 1] ** 2 + y[CS_Q + 2] ** 2 + y[CS_Q + 3] ** 2)
+    for d in range(CS_Q, CS_Q + 4):
         y[d] /= qn
 
 

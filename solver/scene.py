@@ -7,7 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Scene", "Disc", "SELF_CONTACT_EXCLUSION"]
+from solver.layout import N_OBSTACLE
+
+__all__ = ["Scene", "Disc", "Cylinder", "Sphere", "SELF_CONTACT_EXCLUSION"]
 
 MAX_EXTENT = 1e4
 """Largest disc radius and centre coordinate (m): far beyond any arm (a design is at most
@@ -55,16 +57,108 @@ class Disc:
             raise ValueError(f"Disc.center must be two finite numbers within ±{MAX_EXTENT:g} m; "
                              f"got {self.center!r}")
         object.__setattr__(self, "center", (float(c[0]), float(c[1])))
-        for name in ("radius", "stiffness"):
-            v = getattr(self, name)
-            rigid_ok = name == "stiffness" and v == math.inf
-            high = math.inf if name == "stiffness" else MAX_EXTENT
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
-                    or not (math.isfinite(v) or rigid_ok) or not 0 < v <= high:
-                what = "a number > 0 or math.inf (rigid)" if name == "stiffness" else \
-                    f"a finite number > 0 and <= {MAX_EXTENT:g} m"
-                raise ValueError(f"Disc.{name} must be {what}; got {v!r}")
-            object.__setattr__(self, name, float(v))
+        _radius_and_stiffness(self)
+
+
+def _vector3(owner: str, name: str, value, unit: bool = False) -> tuple:
+    """``value`` as three floats within ±MAX_EXTENT (``unit``: normalised, not zero)."""
+    try:
+        v = np.asarray(value, dtype=float).ravel()
+    except (TypeError, ValueError):
+        v = np.empty(0)
+    if v.size != 3 or not np.all(np.abs(v) <= MAX_EXTENT):
+        raise ValueError(f"{owner}.{name} must be three finite numbers within ±{MAX_EXTENT:g}; "
+                         f"got {value!r}")
+    if unit:
+        norm = float(np.linalg.norm(v))
+        if not norm > 1e-12:
+            raise ValueError(f"{owner}.{name} must be a nonzero direction; got {value!r}")
+        v = v / norm
+    return tuple(float(c) for c in v)
+
+
+def _radius_and_stiffness(obj) -> None:
+    """Validate and store ``obj.radius`` (m) and ``obj.stiffness`` (N/m², or math.inf)."""
+    owner = type(obj).__name__
+    for name in ("radius", "stiffness"):
+        v = getattr(obj, name)
+        rigid_ok = name == "stiffness" and v == math.inf
+        high = math.inf if name == "stiffness" else MAX_EXTENT
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                or not (math.isfinite(v) or rigid_ok) or not 0 < v <= high:
+            what = "a number > 0 or math.inf (rigid)" if name == "stiffness" else \
+                f"a finite number > 0 and <= {MAX_EXTENT:g} m"
+            raise ValueError(f"{owner}.{name} must be {what}; got {v!r}")
+        object.__setattr__(obj, name, float(v))
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A rigid infinite cylinder (spatial obstacle) the backbone is pressed against by
+    penalty contact, with the law of :class:`Disc` (force per reference length k·penetration
+    along the normal to the axis). A :class:`Disc` in a spatial solve is the cylinder along
+    z through its centre.
+
+    Attributes:
+        point: (x, y, z) of a point on the axis (m).
+        axis: direction of the axis (normalised; any nonzero 3-vector).
+        radius: contact radius for the backbone curve (m): object radius plus the arm's
+            half-thickness for surface contact.
+        stiffness: penalty k (N/m²), or ``math.inf`` (rigid), as for :class:`Disc`.
+    """
+
+    point: tuple = (0.0, 0.0, 0.0)
+    axis: tuple = (0.0, 0.0, 1.0)
+    radius: float = 0.05
+    stiffness: float = 2.0e4
+
+    def __post_init__(self):
+        object.__setattr__(self, "point", _vector3("Cylinder", "point", self.point))
+        object.__setattr__(self, "axis", _vector3("Cylinder", "axis", self.axis, unit=True))
+        _radius_and_stiffness(self)
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """A rigid sphere (spatial obstacle), penalty contact with the law of :class:`Disc`.
+
+    Attributes:
+        center: (x, y, z) of the centre (m).
+        radius: contact radius for the backbone curve (m).
+        stiffness: penalty k (N/m²), or ``math.inf`` (rigid).
+    """
+
+    center: tuple = (0.0, 0.0, 0.0)
+    radius: float = 0.05
+    stiffness: float = 2.0e4
+
+    def __post_init__(self):
+        object.__setattr__(self, "center", _vector3("Sphere", "center", self.center))
+        _radius_and_stiffness(self)
+
+
+def core_distance(obstacle, points) -> np.ndarray:
+    """Distance (m) of (N, 2|3) points from an obstacle's core: a disc's centre in the x–y
+    plane (planar points, or the x, y of spatial ones), a cylinder's axis, a sphere's
+    centre. A point is inside where this is below the radius."""
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    if isinstance(obstacle, Disc):
+        return np.hypot(p[:, 0] - obstacle.center[0], p[:, 1] - obstacle.center[1])
+    rel = p - np.array(obstacle.point if isinstance(obstacle, Cylinder) else obstacle.center)
+    if isinstance(obstacle, Cylinder):
+        axis = np.array(obstacle.axis)
+        rel = rel - (rel @ axis)[:, None] * axis
+    return np.linalg.norm(rel, axis=1)
+
+
+def obstacle_row(obstacle) -> list:
+    """An obstacle as a row (N_OBSTACLE,) of the spatial kernels' array (``layout.O_*``): a point, an axis
+    (zero for a sphere), radius and stiffness; a :class:`Disc` is the cylinder along z."""
+    if isinstance(obstacle, Disc):
+        return [*obstacle.center, 0.0, 0.0, 0.0, 1.0, obstacle.radius, obstacle.stiffness]
+    if isinstance(obstacle, Cylinder):
+        return [*obstacle.point, *obstacle.axis, obstacle.radius, obstacle.stiffness]
+    return [*obstacle.center, 0.0, 0.0, 0.0, obstacle.radius, obstacle.stiffness]
 
 
 @dataclass(frozen=True)
@@ -81,7 +175,9 @@ class Scene:
         gravity: magnitude of gravitational acceleration (m/s²); 0 switches gravity off.
         tip_force: extra dead force at the tip, (Fx, Fy) or (Fx, Fy, Fz) in N.
         tip_moment: extra dead moment at the tip, Mz (N m) or (Mx, My, Mz).
-        obstacles: rigid :class:`Disc` s in contact with the arm (planar solves only).
+        obstacles: rigid obstacles in contact with the arm: :class:`Disc` s (planar and
+            spatial solves; in 3D a disc is the cylinder along z through its centre),
+            :class:`Cylinder` s and :class:`Sphere` s (spatial solves only).
         self_contact: penalty stiffness (N/m², the discs' law) between parts of the arm
             farther apart along it than ``SELF_CONTACT_EXCLUSION`` arm thicknesses, which
             then cannot pass through each other (planar solves only; docs/design.md §9). A
@@ -118,10 +214,11 @@ class Scene:
             raise ValueError(
                 f"Scene.tip_moment must be 1 (Mz) or 3 finite numbers (N m); got {self.tip_moment!r}")
         obstacles = tuple(self.obstacles) if isinstance(self.obstacles, (tuple, list)) else None
-        if obstacles is None or not all(isinstance(o, Disc) for o in obstacles):
-            raise ValueError(f"Scene.obstacles must be a tuple of solver.Disc; got {self.obstacles!r}")
+        if obstacles is None or not all(isinstance(o, (Disc, Cylinder, Sphere)) for o in obstacles):
+            raise ValueError("Scene.obstacles must be a tuple of solver.Disc, solver.Cylinder or "
+                             f"solver.Sphere; got {self.obstacles!r}")
         for k, d in enumerate(obstacles):
-            if math.hypot(*d.center) <= d.radius:
+            if core_distance(d, np.zeros(3))[0] <= d.radius:
                 raise ValueError(f"Scene.obstacles[{k}] ({d}) covers the arm's base at the origin: "
                                  "the clamp cannot sit inside an obstacle")
         object.__setattr__(self, "obstacles", obstacles)
@@ -138,7 +235,8 @@ class Scene:
         # Derived once (not fields: they follow from the fields above).
         m3 = self.tip_moment_3d()
         object.__setattr__(self, "_is_planar", bool(self.tip_force_3d()[2] == 0.0 and m3[0] == 0.0
-                                                    and m3[1] == 0.0))
+                                                    and m3[1] == 0.0
+                                                    and all(isinstance(o, Disc) for o in obstacles)))
         object.__setattr__(self, "_base_theta", math.radians(self.base_angle_deg - 90.0))
 
     @property
@@ -170,10 +268,15 @@ class Scene:
 
     @property
     def is_planar(self) -> bool:
-        """True when no load leaves the x–y plane."""
+        """True when no load leaves the x–y plane and every obstacle is a :class:`Disc`."""
         return self._is_planar
 
     def discs_array(self) -> np.ndarray:
         """Obstacles as an (n, 4) array: centre x, centre y, radius, stiffness."""
         return np.array([[*d.center, d.radius, d.stiffness] for d in self.obstacles],
                         dtype=float).reshape(-1, 4)
+
+    def obstacles_array(self) -> np.ndarray:
+        """Obstacles as the spatial kernels' (n, 8) array (:func:`obstacle_row`)."""
+        return np.array([obstacle_row(o) for o in self.obstacles],
+                        dtype=float).reshape(-1, N_OBSTACLE)

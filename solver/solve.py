@@ -37,9 +37,10 @@ from solver._model import PackedArm, context, has_load, pack, refined
 from solver._paths_contact import solve_contact, solve_rigid
 from solver._paths_planar import closed_form, loaded_base_moment, solve_planar
 from solver._paths_spatial import in_plane, in_plane_shortcut, in_plane_state, solve_spatial
+from solver._paths_spatial_contact import solve_contact_spatial
 from solver.designs import ArmDesign
 from solver.results import BatchState, Equilibrium, tip_only
-from solver.scene import Scene
+from solver.scene import Scene, core_distance
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings, SolverError
 
 __all__ = ["solve", "solve_batch", "step_batch", "channel_pressures"]
@@ -108,10 +109,8 @@ def _check(arm, scene, model, planar):
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
     if planar and not scene.is_planar:
-        raise ValueError("scene has out-of-plane loads (tip_force z or tip_moment x/y); "
-                         "use planar=False")
-    if scene.obstacles and model != "constant_curvature" and not planar:
-        raise ValueError("obstacles (contact) are supported in planar solves only")
+        raise ValueError("scene has out-of-plane loads (tip_force z or tip_moment x/y) or "
+                         "obstacles other than discs (cylinders, spheres); use planar=False")
     if scene.self_contact is not None:
         if not planar:
             raise ValueError("self-contact is supported in planar solves only")
@@ -210,10 +209,13 @@ def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, se
     """The recorded solve by the path the scene needs (contact, planar, the in-plane
     shortcut of a spatial solve, spatial)."""
     if scene.has_contact:
+        contact = solve_contact if planar else solve_contact_spatial
         if scene.has_rigid_obstacles:
-            return solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
-        return solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                             moving)
+            return solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                               contact)
+        if not planar:
+            return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
+        return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings, moving)
     if planar:
         return solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     if settings.shortcuts and scene.is_planar and in_plane(arm, packed, p_channel) and (
@@ -250,7 +252,7 @@ def _check_warm_start(warm_start, arm, scene, model, planar):
     points = warm_start.positions if warm_start.positions.shape[0] else warm_start.tip[None, :]
     for k in new:
         d = scene.obstacles[k]
-        if np.min(np.hypot(points[:, 0] - d.center[0], points[:, 1] - d.center[1])) < d.radius:
+        if np.min(core_distance(d, points)) < d.radius:
             raise ValueError(f"warm_start's backbone lies inside obstacle {k} ({d}), which it "
                              "was not solved with: an obstacle cannot be ramped in; solve cold")
 

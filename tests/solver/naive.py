@@ -258,3 +258,58 @@ def moment_balance(arm, scene, eq):
         distal = np.arange(n) <= end
         balance[distal] += cross(r[end] - r[distal], section.endplate_mass * g)
     return eq.internal_moment - balance
+
+
+def solve_bvp_rod_on_obstacle(rod, scene, obstacle, guess_eq, tol=1e-6, nodes=401):
+    """A passive one-section rod (:func:`solver.designs.rod`, no gravity) pressed on a
+    cylinder or sphere by its tip load, by scipy ``solve_bvp``; returns the tip (3,).
+
+    The state is (r, d1, d2, d3, n, m) (18,): directors as vectors, not a quaternion, and
+    the contact written from the obstacle's geometry alone:
+        r' = Σ v_k d_k,  d_k' = ω × d_k,  ω = Σ u_k d_k,
+        v = (n·d1/GA, n·d2/GA, 1 + n·d3/EA),  u = (m·d1/EI, m·d2/EI, m·d3/GJ),
+        n' = −k·max(0, R − |e|)·e/|e|,  m' = −r' × n,
+    e the offset of r from the axis (cylinder) or centre (sphere). ``guess_eq`` (a recorded
+    spatial Equilibrium) only seeds the mesh: the answer is whatever satisfies the equations.
+    """
+    sec = rod.sections[0]
+    length = sec.length
+    point = np.array(obstacle.point if hasattr(obstacle, "axis") else obstacle.center)
+    axis = np.array(obstacle.axis) if hasattr(obstacle, "axis") else np.zeros(3)
+    k, radius = obstacle.stiffness, obstacle.radius
+    theta0 = math.radians(scene.base_angle_deg - 90.0)
+    base = np.array([[-math.sin(theta0), 0.0, math.cos(theta0)],
+                     [math.cos(theta0), 0.0, math.sin(theta0)],
+                     [0.0, 1.0, 0.0]])
+    force = np.array(scene.tip_force_3d())
+    moment = np.array(scene.tip_moment_3d())
+
+    def rhs(s, y):
+        r, d1, d2, d3, n, m = (y[3 * j:3 * j + 3] for j in range(6))
+        v = [np.sum(n * d1, 0) / sec.GA, np.sum(n * d2, 0) / sec.GA, 1.0 + np.sum(n * d3, 0) / sec.EA]
+        u = [np.sum(m * d1, 0) / sec.EI, np.sum(m * d2, 0) / sec.EI, np.sum(m * d3, 0) / sec.GJ]
+        dr = v[0] * d1 + v[1] * d2 + v[2] * d3
+        w = u[0] * d1 + u[1] * d2 + u[2] * d3
+        e = r - point[:, None]
+        e = e - np.sum(e * axis[:, None], 0) * axis[:, None]
+        dist = np.linalg.norm(e, axis=0)
+        f = k * np.maximum(0.0, radius - dist) * e / np.where(dist > 0, dist, 1.0)
+        return np.concatenate([dr, np.cross(w, d1, axis=0), np.cross(w, d2, axis=0),
+                               np.cross(w, d3, axis=0), -f, -np.cross(dr, n, axis=0)])
+
+    def bc(ya, yb):
+        return np.concatenate([ya[0:3], ya[3:6] - base[:, 0], ya[6:9] - base[:, 1],
+                               ya[9:12] - base[:, 2], yb[12:15] - force, yb[15:18] - moment])
+
+    s = np.linspace(0.0, length, nodes)
+    guess = np.empty((18, nodes))
+    for c in range(3):
+        guess[c] = np.interp(s, guess_eq.s, guess_eq.positions[:, c])
+        for j in range(3):
+            guess[3 + 3 * j + c] = np.interp(s, guess_eq.s, guess_eq.orientations[:, c, j])
+        guess[12 + c] = np.interp(s, guess_eq.s, guess_eq.internal_force[:, c])
+        guess[15 + c] = np.interp(s, guess_eq.s, guess_eq.internal_moment[:, c])
+    sol = solve_bvp(rhs, bc, s, guess, tol=tol, max_nodes=40000)
+    if not sol.success:
+        raise RuntimeError(f"solve_bvp failed: {sol.message}")
+    return sol.sol(length)[:3]

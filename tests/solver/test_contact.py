@@ -85,13 +85,6 @@ def test_cold_contact_solve_matches_ramp():
     np.testing.assert_allclose(cold.tip, ramped.tip, atol=1e-6)
 
 
-def test_contact_is_planar_only():
-    arm = designs.octarm_v()
-    scene = solver.Scene(obstacles=(solver.Disc(center=(0.1, -0.4)),))
-    with pytest.raises(ValueError, match="planar"):
-        solver.solve(arm, np.zeros(9), scene, planar=False)
-
-
 @pytest.mark.parametrize("kwargs, match", [
     (dict(center=(0, np.nan)), "center"), (dict(radius=0), "radius"),
     (dict(stiffness=-1), "stiffness"), (dict(center=(1, 2, 3)), "center"),

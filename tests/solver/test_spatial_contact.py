@@ -1,0 +1,203 @@
+"""Spatial contact: cylinders, spheres and discs in 3D (solver._spatial_contact)."""
+
+import math
+
+import numpy as np
+import pytest
+
+import solver
+from solver import designs
+from tests.solver.naive import solve_bvp_rod_on_obstacle
+
+
+def _in_plane_scenes():
+    """OctArm V curled with channel I into an obstacle in its plane: (pressure fraction,
+    scene) pairs, hanging and horizontal, whose in-plane equilibrium is stable in 3D too
+    (pressed harder, an arm slides off sideways: see
+    :func:`test_an_arm_pressed_on_an_obstacle_in_its_plane_can_slide_out_of_it`)."""
+    stiffness = 2e5
+    return [
+        (0.6, solver.Scene(obstacles=(solver.Disc((-0.144, -0.139), 0.102, stiffness),))),
+        (1.0, solver.Scene(obstacles=(solver.Disc((-0.144, -0.139), 0.102, stiffness),))),
+        (0.6, solver.Scene(obstacles=(solver.Sphere((-0.144, -0.139, 0.0), 0.102, stiffness),))),
+        (0.8, solver.Scene(base_angle_deg=90, payload_kg=0.2,
+                           obstacles=(solver.Cylinder((0.5, 0.2, 0.3), (0, 0, -2), 0.1, 1e5),))),
+    ]
+
+
+@pytest.mark.parametrize("fraction, scene", _in_plane_scenes())
+def test_in_plane_contact_in_3d_matches_the_planar_contact_solve(fraction, scene):
+    """An obstacle whose x–y section is a disc the planar arm meets in its plane (a disc, a
+    cylinder along z, a sphere centred in the plane), all loads in-plane: the spatial
+    contact solve is the planar one embedded, to 1e-6·L, with the same flags and contact."""
+    arm = designs.octarm_v()
+    p = np.zeros(6)
+    p[0] = fraction * arm.max_pressure
+    o = scene.obstacles[0]
+    centre = o.center[:2] if not isinstance(o, solver.Cylinder) else o.point[:2]
+    planar_scene = solver.Scene(base_angle_deg=scene.base_angle_deg, payload_kg=scene.payload_kg,
+                                obstacles=(solver.Disc(centre, o.radius, o.stiffness),))
+    flat = solver.solve(arm, p, planar_scene)
+    eq = solver.solve(arm, solver.channel_pressures(arm, p), scene, planar=False)
+    assert flat.converged and eq.converged
+    assert (eq.stable, eq.in_contact) == (flat.stable, flat.in_contact)
+    assert np.linalg.norm(eq.tip - np.append(flat.tip, 0.0)) <= 1e-6 * arm.length
+    assert np.abs(eq.positions[:, 2]).max() <= 1e-9 * arm.length
+    assert eq.penetration.max() == pytest.approx(flat.penetration.max(), rel=1e-4, abs=1e-9)
+
+
+@pytest.mark.parametrize("obstacle", [
+    solver.Sphere((0.7, -0.3, 0.12), 0.2, 2e3),
+    solver.Cylinder((0.6, -0.3, 0.0), (1.0, 0.3, 1.0), 0.15, 2e3),
+])
+def test_rod_pressed_on_a_sphere_or_cylinder_matches_an_independent_bvp(obstacle):
+    """A passive rod, held horizontal, pushed down and sideways by a tip force onto a sphere
+    off its plane or a skew cylinder: the tip against scipy's ``solve_bvp`` of the same
+    equations written with directors as vectors (tests/solver/naive.py) — 1e-4·L at the
+    default resolution, 1e-6·L at 256 RK4 steps."""
+    rod = designs.rod(length=1.0, EI=1.0, EA=1e3, GA=1e3, GJ=0.7)
+    scene = solver.Scene(base_angle_deg=90, gravity=0.0, tip_force=(0.0, -3.0, 0.5),
+                         obstacles=(obstacle,))
+    eq = solver.solve(rod, [], scene, planar=False)
+    fine = solver.solve(rod, [], scene, planar=False, settings=solver.Settings(steps_per_section=256))
+    assert eq.converged and eq.stable and eq.in_contact and fine.converged
+    reference = solve_bvp_rod_on_obstacle(rod, scene, obstacle, fine)
+    assert np.linalg.norm(fine.tip - reference) <= 1e-6 * rod.length
+    assert np.linalg.norm(eq.tip - reference) <= 1e-4 * rod.length
+
+
+@pytest.mark.parametrize("obstacle, out_of_plane_at", [
+    (solver.Disc((-0.2, -0.55), 0.12, 1e5), 0.7),
+    (solver.Sphere((-0.2, -0.55, 0.0), 0.12, 1e5), 0.45),
+])
+def test_an_arm_pressed_on_an_obstacle_in_its_plane_can_slide_out_of_it(obstacle, out_of_plane_at):
+    """Curled harder into a cylinder along z (free to slide along it) or a sphere (whose
+    normal turns as the arm moves sideways), the in-plane state loses stability in 3D: the
+    perfect in-plane state is flagged unstable (so the solve does not return it), and with
+    a 1e-3 imperfection (channel II) the quasi-static ramp leaves the plane by more than a
+    tenth of the arm where the perfect one would have stayed in it."""
+    arm = designs.octarm_v()
+    scene = solver.Scene(obstacles=(obstacle,))
+    perfect = np.zeros(9)
+    perfect[0] = out_of_plane_at * arm.max_pressure
+    eq = solver.solve(arm, perfect, scene, planar=False)
+    assert not (eq.converged and eq.stable)
+    stepper = solver.Stepper(arm, scene, planar=False)
+    stepper.reset(np.zeros(9))
+    for frac in np.linspace(0.05, out_of_plane_at, int(round(out_of_plane_at / 0.05))):
+        p = np.zeros(9)
+        p[0], p[1] = frac * arm.max_pressure, 1e-3 * frac * arm.max_pressure
+        assert stepper.step(p).converged
+    assert np.abs(stepper.equilibrium.positions[:, 2]).max() > 0.1 * arm.length
+
+
+def _pressed_on(arm, p, where, axis, radius=0.08, depth=0.02, stiffness=1e5):
+    """A cylinder of ``radius`` along ``axis`` that overlaps the free backbone at pressures
+    ``p`` by ``depth`` at the fraction ``where`` of its samples."""
+    free = solver.solve(arm, p, solver.Scene(), planar=False)
+    j = int(where * (free.s.size - 1))
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    normal = np.cross(a, free.orientations[j][:, 2])
+    normal /= np.linalg.norm(normal)
+    return solver.Cylinder(tuple(free.positions[j] + (radius - depth) * normal), tuple(a),
+                           radius, stiffness)
+
+
+def test_contact_is_mirror_symmetric():
+    """Mirroring the scene in the x–y plane (a skew cylinder's axis and point, z → −z) and
+    swapping channels II and III mirrors the equilibrium."""
+    arm = designs.octarm_v()
+    p = np.array([0.2, 0.9, 0.1, 0.3, 0.0, 0.6, 0.0, 0.2, 0.0]) * arm.max_pressure
+    swap = np.array([0, 2, 1, 3, 5, 4, 6, 8, 7])
+    cyl = _pressed_on(arm, p, 0.5, (0.3, 0.2, 1.0))
+    mirrored = solver.Cylinder(tuple(np.array(cyl.point) * [1, 1, -1]),
+                               tuple(np.array(cyl.axis) * [1, 1, -1]), cyl.radius, cyl.stiffness)
+    a = solver.solve(arm, p, solver.Scene(obstacles=(cyl,)), planar=False)
+    b = solver.solve(arm, p[swap], solver.Scene(obstacles=(mirrored,)), planar=False)
+    assert a.converged and b.converged and a.in_contact
+    assert np.abs(a.positions[:, 2]).max() > 0.05  # out of plane: the test is not vacuous
+    np.testing.assert_allclose(b.positions * [1, 1, -1], a.positions, atol=1e-9 * arm.length)
+
+
+@pytest.mark.parametrize("load, stable", [(0.9, True), (1.1, False)])
+def test_stability_flags_a_compressed_column_past_eulers_load(load, stable):
+    """The straight column under an axial tip load of ``load`` × Euler's π²EI/4L² has a
+    double conjugate point (in-plane and out-of-plane at once), whose signs cancel in a
+    determinant: the contact kernels' test must still call it unstable past the load."""
+    from solver import _spatial_contact as sc
+    from solver import layout as L
+    from solver._model import contact_layout, pack
+
+    rod = designs.rod(length=1.0, EI=1.0, EA=1e8, GA=1e8, GJ=0.7)
+    force = load * math.pi ** 2 / 4.0
+    scene = solver.Scene(base_angle_deg=180, gravity=0.0, tip_force=(0.0, -force, 0.0),
+                         obstacles=(solver.Sphere((0.5, 0.5, 0.0), 0.1, 1e4),))
+    packed = pack(rod, "full", solver.Settings())
+    layout, segs, sec_start = contact_layout(rod, packed, scene)
+    quat0 = np.empty(4)
+    solver.rod.rotation_to_quaternion(solver.rod.base_rotation(scene.base_theta), quat0)
+    arcs = sec_start[segs[:, L.SEG_SECTION]] + segs[:, L.SEG_FIRST] * (layout.sec_len / layout.sec_steps)[0]
+    nodes = np.zeros((segs.shape[0], L.N_CSTATE))
+    nodes[:, L.CS_R + 1] = arcs * (1.0 - force / 1e8)
+    nodes[:, L.CS_Q:L.CS_Q + 4] = quat0
+    nodes[:, L.CS_N + 1] = -force
+    grid = (quat0, segs, layout.secf, layout.sec_steps, layout.c_j, sec_start)
+    level = (np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3)), np.array([0, -force, 0, 0, 0, 0.0]),
+             scene.obstacles_array())
+    n = sc.n_unknowns(segs.shape[0])
+    F, J = np.empty(n), np.empty((n, n))
+    blocks = np.empty((segs.shape[0], L.N_CTANGENT, L.N_CTANGENT))
+    rest = np.array([[0.0], [0.0], [1.0]])
+    assert sc._system(nodes, grid, rest, level, F, J, True, blocks, np.repeat([1.0, 1.0, 3.0, 1.0], 3))
+    assert np.abs(F).max() < 1e-9  # the straight column is an equilibrium at every load
+    assert sc._stability(blocks) == stable
+
+
+@pytest.mark.parametrize("where", [0.6, 0.8])
+def test_cold_solve_equals_a_warm_ramp_through_contact(where):
+    """A cold solve ramps the pressures from the loaded arm; ten warm steps along the same
+    ramp reach the same state (no fold on the way)."""
+    arm = designs.octarm_v()
+    goal = np.array([0.45, 0.0, 0.15, 0.25, 0.0, 0.0, 0.3, 0.0, 0.1]) * arm.max_pressure
+    scene = solver.Scene(obstacles=(_pressed_on(arm, 0.6 * goal, where, (0.2, 0.0, 1.0)),))
+    cold = solver.solve(arm, goal, scene, planar=False)
+    stepper = solver.Stepper(arm, scene, planar=False)
+    stepper.reset(np.zeros(9))
+    for t in np.linspace(0.1, 1.0, 10):
+        assert stepper.step(t * goal).converged
+    assert cold.converged and cold.in_contact and stepper.equilibrium.in_contact
+    np.testing.assert_allclose(stepper.tip, cold.tip, atol=1e-6 * arm.length)
+
+
+def test_out_of_reach_obstacle_takes_the_contact_free_solve():
+    arm = designs.octarm_v()
+    p = np.array([0.3, 0.0, 0.5, 0.2, 0.1, 0.0, 0.0, 0.4, 0.0]) * arm.max_pressure
+    far = solver.solve(arm, p, solver.Scene(obstacles=(solver.Sphere((0, -3.0, 0), 0.5),)),
+                       planar=False)
+    free = solver.solve(arm, p, solver.Scene(), planar=False)
+    assert far.converged and not far.in_contact
+    np.testing.assert_array_equal(far.tip, free.tip)
+    assert far.contact_force.shape == (far.s.size, 3) and not far.contact_force.any()
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: solver.Cylinder(axis=(0, 0, 0)), "axis.*nonzero"),
+    (lambda: solver.Cylinder(point=(0, np.nan, 0)), "point"),
+    (lambda: solver.Sphere(center=(1, 2)), "center"),
+    (lambda: solver.Sphere(radius=-1), "radius"),
+    (lambda: solver.Cylinder(stiffness=0), "stiffness"),
+    (lambda: solver.Scene(obstacles=(solver.Sphere((0, -0.1, 0), 0.2),)), "covers the arm's base"),
+    (lambda: solver.Scene(obstacles=(solver.Cylinder((0.1, 0, 0), (0, 1, 0), 0.2),)),
+     "covers the arm's base"),
+])
+def test_bad_spatial_obstacles(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_planar_solve_refuses_cylinders_and_spheres():
+    arm = designs.octarm_v()
+    scene = solver.Scene(obstacles=(solver.Sphere((0.1, -0.4, 0.0), 0.1),))
+    assert not scene.is_planar
+    with pytest.raises(ValueError, match="planar=False"):
+        solver.solve(arm, np.zeros(6), scene)
