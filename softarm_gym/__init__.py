@@ -129,6 +129,16 @@ register(
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
 )
 
+# 3D wrap: OctArm V (all nine channels) around a cylinder placed at a random heading about
+# the hanging arm, its axis normal to the curl towards it (docs/environments.md, "3D wrap").
+register(
+    id="SoftArm/OctArmWrap3D-v0",
+    entry_point="softarm_gym.envs:WrapEnv",
+    max_episode_steps=200,
+    kwargs={"design": "octarm_v", "planar": False, "base_angle_deg": 0.0,
+            "object_radius": (0.11, 0.125)},
+)
+
 # Grasp: the OctArmWrap-v1 geometry with a free object resting in forks; lift it out and hold
 # it (docs/environments.md, "Grasp"; the object's pose is solved with the arm, solver.grasp).
 register(

@@ -270,6 +270,27 @@ _MAX_CORNERS = 64
 """CEMPlanner tries every corner of the action box by default up to this many (6 inputs)."""
 
 
+def _section_corners(arm) -> np.ndarray:
+    """Bang-bang spatial actions (m, n_channels) that bend every section from the ``j``-th on
+    the same way: each nonzero on/off pattern of a section's channels, applied to sections
+    j … last, the others off — the corners of a spatial arm's 2^n_channels that curl it
+    towards one of its channels' headings (the planar arm's corners, all of which are
+    enumerated, include them)."""
+    sections = np.array([next(t.first_section for t in arm.tubes if t.channel == c)
+                         for c in range(arm.n_channels)])
+    width = max(np.count_nonzero(sections == i) for i in range(len(arm.sections)))
+    rows = []
+    for pattern in range(1, 2 ** width):
+        for first in range(len(arm.sections)):
+            row = -np.ones(arm.n_channels)
+            for i in range(first, len(arm.sections)):
+                channels = np.flatnonzero(sections == i)
+                on = (pattern >> np.arange(channels.size)) & 1
+                row[channels] = 2.0 * on - 1.0
+            rows.append(row)
+    return np.unique(np.array(rows), axis=0)
+
+
 class CEMPlanner(_PressureController):
     """Sampling-based model-predictive control: the cross-entropy method over action sequences,
     each candidate rolled out on the nominal model from the current state. Reach, obstacle
@@ -346,9 +367,12 @@ class CEMPlanner(_PressureController):
         if not (np.isfinite(init_std) and init_std > 0):
             raise ValueError(f"init_std must be > 0 (action units); got {init_std!r}")
         base = env.unwrapped
-        if getattr(base, "observation_format", None) != "flat" or not getattr(base, "planar", False):
-            raise ValueError("CEMPlanner needs a planar env with observation_format='flat'")
         self.wrap = hasattr(base, "success_wrap_deg")
+        if getattr(base, "observation_format", None) != "flat" or not (
+                getattr(base, "planar", False) or self.wrap):
+            raise ValueError("CEMPlanner needs a planar env (or a wrap env, planar or 3D) with "
+                             "observation_format='flat'")
+        self.planar = bool(base.planar)
         self.obstacles = hasattr(base, "contact_reward")
         self.contact = self.wrap or self.obstacles
         self.tracking = hasattr(base, "segment_steps")
@@ -369,11 +393,15 @@ class CEMPlanner(_PressureController):
             all_corners = self.action_mode == "absolute" and 2 ** self._n <= _MAX_CORNERS
         elif not isinstance(all_corners, bool):
             raise ValueError(f"all_corners must be True, False or None; got {all_corners!r}")
-        # Every corner of the action box (rows: the binary digits of 0 .. 2^n - 1), each held
-        # over the horizon.
-        self._corners = None if not all_corners else np.repeat(
-            (2.0 * ((np.arange(2 ** self._n)[:, None] >> np.arange(self._n)) & 1) - 1.0)[:, None],
-            self.horizon, axis=1)
+        # Every corner of the action box (rows: the binary digits of 0 .. 2^n - 1), or for a
+        # spatial arm with too many, the section-wise ones; each held over the horizon.
+        corners = None
+        if all_corners:
+            corners = 2.0 * ((np.arange(2 ** self._n)[:, None] >> np.arange(self._n)) & 1) - 1.0
+        elif not self.planar and self.action_mode == "absolute":
+            corners = _section_corners(self.arm)
+        self._corners = None if corners is None else np.repeat(corners[:, None], self.horizon,
+                                                                axis=1)
         self.rng = np.random.default_rng(seed)
         self.reset()
 
@@ -393,20 +421,20 @@ class CEMPlanner(_PressureController):
             scene = self.scene
             if self.wrap:
                 goal = obs[self._slices["goal"]]
-                scene = replace(scene, obstacles=(self._disc(goal),))
+                scene = replace(scene, obstacles=(self.task.object_of_goal(goal),))
                 self._goal = goal.copy()
             elif self.obstacles:
                 # The obstacles block: (x, y, contact radius) per slot, radius 0 for no disc.
                 slots = obs[self._slices["obstacles"]].reshape(-1, 3)
                 scene = replace(scene, obstacles=tuple(self._disc(d) for d in slots if d[2] > 0))
-            self._nominal = solver.Stepper(self.arm, scene)
+            self._nominal = solver.Stepper(self.arm, scene, planar=self.planar)
             # As the envs start: cold without the discs, then into the scene. A cold solve in the
             # scene loads the straight arm through the discs, which can catch it as it droops.
-            free = solver.solve(self.arm, fraction * self.p_max, self.scene, planar=True) \
+            free = solver.solve(self.arm, fraction * self.p_max, self.scene, planar=self.planar) \
                 if scene.obstacles else None
             self._nominal.reset(fraction * self.p_max, warm_start=free)
             if self.contact:
-                self._rollout = solver.Stepper(self.arm, scene)
+                self._rollout = solver.Stepper(self.arm, scene, planar=self.planar)
         elif np.any(self._nominal.pressures != fraction * self.p_max):
             self._nominal.step(fraction * self.p_max)
         if not self.wrap:
@@ -414,6 +442,12 @@ class CEMPlanner(_PressureController):
             # A tracking target moves first within a step: aim where its last displacement
             # (the goal block's third part) takes it.
             self._goal = goal[:2] + (goal[4:6] if self.tracking else 0.0)
+
+    def _wrap_object(self) -> tuple:
+        """(centre, contact radius, axis) of the wrap goal block, as ``wrap_terms`` takes them."""
+        goal = self._goal
+        return (goal[:2], float(goal[2]), None) if self.planar else \
+            (goal[:3], float(goal[6]), goal[3:6])
 
     def _disc(self, row: np.ndarray) -> solver.Disc:
         """The disc of an observation's (x, y, contact radius) with the env's contact stiffness."""
@@ -493,16 +527,16 @@ class CEMPlanner(_PressureController):
 
     def _wrap_reward(self, eq: solver.Equilibrium, fraction: np.ndarray, converged: bool) -> float:
         penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
-        terms, _, _ = self.task.wrap_terms(eq.positions, penetration, fraction, self._goal[:2],
-                                           float(self._goal[2]))
+        terms, _, _ = self.task.wrap_terms(eq.positions, penetration, fraction,
+                                           *self._wrap_object())
         return sum(terms.values()) + (0.0 if converged else -self.task.solver_failure_penalty)
 
     def _succeeds(self, fraction: np.ndarray) -> bool:
         eq = self._nominal.equilibrium
         if self.wrap:
             penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
-            return self.task.wrap_terms(eq.positions, penetration, fraction, self._goal[:2],
-                                        float(self._goal[2]))[1]
+            return self.task.wrap_terms(eq.positions, penetration, fraction,
+                                        *self._wrap_object())[1]
         return float(np.hypot(*(eq.tip - self._goal))) <= 0.5 * self.task.success_tolerance
 
     # ------------------------------------------------------------------ control

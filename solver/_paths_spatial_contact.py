@@ -11,6 +11,7 @@ import numpy as np
 from solver import _spatial_contact as _sc
 from solver import layout as L
 from solver._model import contact_layout, context, reach
+from solver._obstacles import clearance_3d, tunnels_3d
 from solver._paths_shooting import MAX_STEP
 from solver._paths_spatial import solve_spatial
 from solver.results import Equilibrium
@@ -41,6 +42,14 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
                              else None, settings)
         n = free.positions.shape[0]
         return replace(free, scene=scene, contact_force=np.zeros((n, 3)), penetration=np.zeros(n))
+    if settings.shortcuts and warm_start is not None and warm_start.s.size \
+            and not warm_start.in_contact:
+        free = solve_spatial(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
+                             settings)
+        if free.converged and free.stable and _clear(free, warm_start, obstacles):
+            n = free.positions.shape[0]
+            return replace(free, scene=scene, contact_force=np.zeros((n, 3)),
+                           penetration=np.zeros(n))
     layout, segs, sec_start = contact_layout(arm, packed, scene)
     ctx = context(arm, layout, free_scene, 3, settings)
     grid, terms = _grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
@@ -76,6 +85,27 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
     return _result(nodes, scene, grid, layout, now, converged=bool(ok), stable=bool(stable),
                    iterations=int(iterations + its), residual=float(res), model=model,
                    pressures=p_inputs, channel_pressures=p_channel, arm=arm)
+
+
+def _clear(free, start, obstacles) -> bool:
+    """Whether the contact-free step from the recorded ``start`` to ``free`` (same grid)
+    stays clear of every obstacle: both backbones by more than an RK4 step (the samples'
+    spacing), and no sample moving through one between them
+    (:func:`solver._obstacles.tunnels_3d`, no slack). A contact-free path that leaves the
+    obstacles' reach of either end and comes back is not caught (a warm step seldom does)."""
+    if start.positions.shape != free.positions.shape:
+        return False
+    margin = float(np.max(np.diff(free.s)))
+    for eq in (start, free):
+        for k in range(obstacles.shape[0]):
+            if clearance_3d_all(eq.positions, obstacles[k:k + 1]) <= margin:
+                return False
+    return not tunnels_3d(start.positions, free.positions, obstacles, 0.0)
+
+
+def clearance_3d_all(points, obstacles) -> float:
+    """Smallest signed gap (m) from (N, 3) points to the obstacles' surfaces."""
+    return min(clearance_3d(p[0], p[1], p[2], obstacles) for p in points)
 
 
 def _grid_and_terms(arm, layout, segs, sec_start, scene, ctx):

@@ -99,6 +99,9 @@ class GraspEnv(WrapEnv):
     def __init__(self, design="octarm_v", *, object_mass_kg=(0.2, 0.4), fork_depth: float = 0.02,
                  success_lift: float = 0.03, lift_weight: float = 1.0, margin_directions: int = 4,
                  margin_weight: float = 0.0, wrap_weight: float = 0.5, **kwargs):
+        if kwargs.get("planar", True) is not True:
+            raise ValueError("GraspEnv is planar only (the free object's equilibrium is planar); "
+                             "use planar=True")
         self.object_mass_range = _range("object_mass_kg", object_mass_kg)
         if self.object_mass_range[0] <= 0:
             raise ValueError(f"object_mass_kg must be > 0 (kg); got {object_mass_kg!r}")
@@ -137,9 +140,9 @@ class GraspEnv(WrapEnv):
         r = self.reach
         return np.array([-r, -r, 0.0, -r, -r]), np.array([r, r, r, r, r])
 
-    def _place(self, center, radius: float, start: solver.Equilibrium):
+    def _place(self, center, radius: float, start: solver.Equilibrium, axis=None):
         """The scene with the object resting in its forks at ``center`` and the start state, or
-        None if that does not converge."""
+        None if that does not converge (planar: ``axis`` is None)."""
         obj = FreeObject(radius=radius + self.half_thickness, mass_kg=self._mass,
                          seat=(float(center[0]), float(center[1])), stiffness=self.contact_stiffness,
                          fork_depth=self.fork_depth)

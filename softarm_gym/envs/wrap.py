@@ -9,6 +9,7 @@ import numpy as np
 
 import solver
 from softarm_gym.envs.base import SoftArmEnv, _check_options, _finite_number, _range
+from softarm_gym.render import Cylinder
 
 __all__ = ["WrapEnv", "wrap_angle", "arm_half_thickness", "check_contact_stiffness",
            "resolve_contact_stiffness"]
@@ -48,27 +49,42 @@ def resolve_contact_stiffness(arm: solver.designs.ArmDesign, value) -> float:
     return math.inf if value == "rigid" else float(value)
 
 
-def wrap_angle(positions: np.ndarray, center, contact_radius: float, margin: float) -> float:
-    """Angular extent of the arm's contact around a disc centre (rad).
+def _axial_coordinates(positions: np.ndarray, center, axis) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates (x, y) of backbone samples about an object's centre, in the plane normal
+    to its ``axis`` (3D; None: the x–y plane of planar samples)."""
+    rel = np.asarray(positions, dtype=float) - np.asarray(center, dtype=float)
+    if axis is None:
+        return rel[:, 0], rel[:, 1]
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    return rel @ e1, rel @ np.cross(a, e1)
 
-    The backbone samples within ``contact_radius + margin`` of the centre are in contact;
-    their polar angles about the centre, taken in arc-length order and unwrapped, span the
-    wrap angle (max − min). A spiral that passes a point twice counts beyond 2π.
+
+def wrap_angle(positions: np.ndarray, center, contact_radius: float, margin: float,
+               axis=None) -> float:
+    """Angular extent of the arm's contact around a disc centre, or a cylinder's axis (rad).
+
+    The backbone samples within ``contact_radius + margin`` of the centre (in 3D: of the
+    axis) are in contact; their polar angles about it (in 3D: in the plane normal to the
+    axis), taken in arc-length order and unwrapped, span the wrap angle (max − min). A spiral
+    that passes a point twice counts beyond 2π.
 
     Args:
-        positions: (N, 2) backbone samples, base to tip (m).
-        center: (2,) disc centre (m).
+        positions: (N, 2) planar or (N, 3) spatial backbone samples, base to tip (m).
+        center: (2,) disc centre, or (3,) a point of the cylinder's axis (m).
         contact_radius: disc radius for the backbone curve (m).
         margin: gap still counted as contact (m).
+        axis: (3,) the cylinder's axis direction (spatial samples), None for a disc.
 
     Returns:
         The wrap angle (rad), 0 with fewer than two contact samples.
     """
-    rel = positions - np.asarray(center, dtype=float)
-    near = np.hypot(rel[:, 0], rel[:, 1]) <= contact_radius + margin
+    x, y = _axial_coordinates(positions, center, axis)
+    near = np.hypot(x, y) <= contact_radius + margin
     if np.count_nonzero(near) < 2:
         return 0.0
-    phi = np.unwrap(np.arctan2(rel[near, 1], rel[near, 0]))
+    phi = np.unwrap(np.arctan2(y[near], x[near]))
     return float(phi.max() - phi.min())
 
 
@@ -188,14 +204,13 @@ class WrapEnv(SoftArmEnv):
         self.success_bonus = _finite_number("success_bonus", success_bonus, 0.0)
         self.success_wrap_deg = _finite_number("success_wrap_deg", success_wrap_deg, 0.0)
         self.terminate_on_success = bool(terminate_on_success)
-        self._center = np.zeros(2)
         self._object_radius = self.object_radius_range[0]
         self._contact_radius = self.object_radius_range[0]
         self.touch_arc_length = None
-        if kwargs.get("planar", True) is not True:
-            raise ValueError("WrapEnv is planar only (the solver's disc contact is planar); use planar=True")
         kwargs.setdefault("base_angle_deg", 0.0)
         super().__init__(design, **kwargs)
+        self._center = np.zeros(self.dim)
+        self._axis = None if self.planar else np.array([0.0, 0.0, 1.0])
         if self.object_radius_range[1] >= self.arm.length:
             # Placement puts the disc tangent to the arm and within reach; a disc as large as
             # the arm is long cannot be wrapped (and cannot be placed clear of the start).
@@ -206,90 +221,121 @@ class WrapEnv(SoftArmEnv):
 
     def _goal_bounds(self):
         r = self.reach
-        return np.array([-r, -r, 0.0]), np.array([r, r, r])
+        if self.planar:
+            return np.array([-r, -r, 0.0]), np.array([r, r, r])
+        return np.array([-r, -r, -r, -1.0, -1.0, -1.0, 0.0]), np.array([r, r, r, 1.0, 1.0, 1.0, r])
 
     def _reset_task(self, options, start):
         options = _check_options(options, ("object",))
         if "object" in options:
             obj = np.asarray(options["object"], dtype=float)
-            if obj.shape != (3,) or not np.all(np.isfinite(obj)) or obj[2] <= 0 \
-                    or np.any(np.abs(obj) > self.reach):
-                raise ValueError("options['object'] must be (x, y, object_radius) in m with radius > 0, "
-                                 f"each within ±{self.reach:.3f} m (twice the arm's length); "
+            size = 3 if self.planar else 7
+            if obj.shape != (size,) or not np.all(np.isfinite(obj)) or obj[-1] <= 0 \
+                    or np.any(np.abs(obj[:self.dim]) > self.reach) or obj[-1] > self.reach \
+                    or (not self.planar and not np.linalg.norm(obj[3:6]) > 0):
+                what = "(x, y, object_radius)" if self.planar else \
+                    "(x, y, z, axis x, axis y, axis z, object_radius) with a nonzero axis"
+                raise ValueError(f"options['object'] must be {what} in m with radius > 0, "
+                                 f"centre and radius within ±{self.reach:.3f} m (twice the arm's length); "
                                  f"got {options['object']!r}")
             self.touch_arc_length = None
-            placed = self._place(obj[:2], float(obj[2]), start)
+            axis = None if self.planar else obj[3:6] / np.linalg.norm(obj[3:6])
+            placed = self._place(obj[:self.dim], float(obj[-1]), start, axis)
             if placed is None:
                 raise RuntimeError(f"the start state has no converged equilibrium with the object "
                                    f"{tuple(obj)} of options['object']")
             return placed
         rng = self.np_random
-        positions, angles, s = start.positions, start.angles, start.s
+        positions, s = start.positions, start.s
         for _ in range(_PLACEMENT_ATTEMPTS):
             radius = float(rng.uniform(*self.object_radius_range))
             contact = radius + self.half_thickness
-            side = 1.0 if rng.uniform() < 0.5 else -1.0
             k = int(np.searchsorted(s, max(s[-1] - math.radians(self.placement_wrap_deg) * contact, 0.0)))
-            normal = side * np.array([-math.sin(angles[k]), math.cos(angles[k])])
+            axis = None
+            if self.planar:
+                side = 1.0 if rng.uniform() < 0.5 else -1.0
+                normal = side * np.array([-math.sin(start.angles[k]), math.cos(start.angles[k])])
+            else:
+                # A side at a random heading about the arm; the axis normal to the curl towards it.
+                heading = rng.uniform(0.0, 2.0 * math.pi)
+                frame = start.orientations[k]
+                normal = math.cos(heading) * frame[:, 0] + math.sin(heading) * frame[:, 1]
+                axis = np.cross(frame[:, 2], normal)
             center = positions[k] + (contact + self.placement_gap) * normal
-            clearance = np.hypot(*(positions - center).T).min() - contact
+            clearance = np.hypot(*_axial_coordinates(positions, center, axis)).min() - contact
             if clearance >= 0.5 * self.placement_gap and np.all(np.abs(center) <= self.reach):
-                placed = self._place(center, radius, start)
+                placed = self._place(center, radius, start, axis)
                 if placed is not None:
                     self.touch_arc_length = float(s[k])
                     return placed
         raise RuntimeError(f"no disc placement for {self.arm.name} clear of the start backbone in "
                            f"{_PLACEMENT_ATTEMPTS} draws (object_radius {self.object_radius_range} m)")
 
-    def _place(self, center, radius: float, start: solver.Equilibrium):
-        """The scene with the disc and the start state in it, or None if that does not converge."""
+    def _place(self, center, radius: float, start: solver.Equilibrium, axis=None):
+        """The scene with the object (a disc; in 3D a cylinder along ``axis``) and the start
+        state in it, or None if that does not converge."""
         contact = radius + self.half_thickness
-        disc = solver.Disc(center=(float(center[0]), float(center[1])), radius=contact,
-                           stiffness=self.contact_stiffness)
-        scene = replace(self._scene, obstacles=(disc,))
-        # From the start state itself: the disc is placed clear of it, so the state stands.
-        eq = solver.solve(self._sim_arm, start.pressures, scene, model=self.model, planar=True,
-                          warm_start=start)
+        goal = np.concatenate([center, [] if axis is None else axis, [contact]])
+        scene = replace(self._scene, obstacles=(self.object_of_goal(goal),))
+        # From the start state itself: the object is placed clear of it, so the state stands.
+        eq = solver.solve(self._sim_arm, start.pressures, scene, model=self.model,
+                          planar=self.planar, warm_start=start)
         if not eq.converged:
             return None
-        self._center = np.array(disc.center)
+        self._center = np.array(center, dtype=float)
+        self._axis = None if axis is None else np.array(axis, dtype=float)
         self._object_radius = radius
         self._contact_radius = contact
         return scene, eq
 
+    def object_of_goal(self, goal: np.ndarray) -> solver.Disc | solver.Cylinder:
+        """The solver's object for a goal block (planar (x, y, contact radius): a disc; 3D
+        (point (3,), axis (3,), contact radius): a cylinder), at the env's contact stiffness."""
+        if self.planar:
+            return solver.Disc(center=(float(goal[0]), float(goal[1])), radius=float(goal[2]),
+                               stiffness=self.contact_stiffness)
+        return solver.Cylinder(point=tuple(goal[:3]), axis=tuple(goal[3:6]), radius=float(goal[6]),
+                               stiffness=self.contact_stiffness)
+
     def _fill_goal(self, obs):
         out = obs[self._slices["goal"]]
-        out[:2] = self._center
-        out[2] = self._contact_radius
+        out[:self.dim] = self._center
+        if not self.planar:
+            out[3:6] = self._axis
+        out[-1] = self._contact_radius
 
     def _task_reward(self, converged):
         eq = self._eq
         penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
         terms, success, info = self.wrap_terms(eq.positions, penetration, self._fraction,
-                                               self._center, self._contact_radius)
+                                               self._center, self._contact_radius, self._axis)
         terms["reward_solver"] = self._solver_term(converged)
         info.update({"object_center": self._center.copy(), "object_radius": self._object_radius,
                      "contact_radius": self._contact_radius})
+        if not self.planar:
+            info["object_axis"] = self._axis.copy()
         return terms, success, info
 
     def wrap_terms(self, positions: np.ndarray, penetration: float, fraction: np.ndarray,
-                   center, contact_radius: float) -> tuple[dict[str, float], bool, dict]:
+                   center, contact_radius: float, axis=None) -> tuple[dict[str, float], bool, dict]:
         """The task's reward terms (all but ``reward_solver``), success and measures of a
         backbone: the rule of the env card's Rewards, for this env's weights.
 
         A pure function of its arguments (planners evaluate it on model rollouts).
 
         Args:
-            positions: (N, 2) backbone samples (m). penetration: deepest penetration (m).
-            fraction: (n_inputs,) pressures / p_max. center: (2,) disc centre (m).
+            positions: (N, 2|3) backbone samples (m). penetration: deepest penetration (m).
+            fraction: (n_inputs,) pressures / p_max. center: (2,) disc centre or (3,) a
+                point of the cylinder's axis (m).
             contact_radius: object radius + the arm's half-thickness (m).
+            axis: (3,) the cylinder's axis (3D), None for a disc.
 
         Returns:
             (terms, success, {"wrap_angle_deg", "penetration", "gap"}).
         """
-        wrap = wrap_angle(positions, center, contact_radius, self.contact_margin)
-        rel = positions - np.asarray(center, dtype=float)
-        gap = max(float(np.hypot(rel[:, 0], rel[:, 1]).min()) - contact_radius, 0.0)
+        wrap = wrap_angle(positions, center, contact_radius, self.contact_margin, axis)
+        gap = max(float(np.hypot(*_axial_coordinates(positions, center, axis)).min())
+                  - contact_radius, 0.0)
         wrap_deg = math.degrees(wrap)
         success = wrap_deg >= self.success_wrap_deg and penetration <= self.penetration_tolerance
         terms = {
@@ -305,8 +351,12 @@ class WrapEnv(SoftArmEnv):
         return self.terminate_on_success and success
 
     def _task_artists(self):
-        return {"disc": (self._center, self._object_radius)}
+        if self.planar:
+            return {"disc": (self._center, self._object_radius)}
+        return {"objects": (Cylinder(center=tuple(self._center), axis=tuple(self._axis),
+                                     radius=self._object_radius, length=2.0 * self.arm.length),)}
 
     def _caption(self):
-        wrap = wrap_angle(self._eq.positions, self._center, self._contact_radius, self.contact_margin)
+        wrap = wrap_angle(self._eq.positions, self._center, self._contact_radius, self.contact_margin,
+                          self._axis)
         return super()._caption() + f"\nwrap {math.degrees(wrap):.0f} deg"

@@ -94,7 +94,7 @@ def _vector_rollout(vec, n_steps):
         actions = np.stack([np.full(vec.single_action_space.shape, np.sin(k + i)) for i in range(2)])
         obs, reward, terminated, truncated, info = vec.step(actions)
         rewards.append(reward)
-        assert info["tip_true"].shape == (2, 2)
+        assert info["tip_true"].shape == (2, vec.get_attr("dim")[0])
     return obs, np.array(rewards)
 
 

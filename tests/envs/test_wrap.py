@@ -101,7 +101,7 @@ def test_object_option_and_validation():
     assert info["object_radius"] == 0.05 and env.touch_arc_length is None
     with pytest.raises(ValueError, match="object"):
         env.reset(seed=0, options={"object": (0.2, -0.4, -1.0)})
-    with pytest.raises(ValueError, match="each within"):
+    with pytest.raises(ValueError, match="radius within ±"):
         env.reset(seed=0, options={"object": (100.0, 100.0, 0.05)})
     with pytest.raises(ValueError, match=r"unknown reset option\(s\) 'target'; .* accepts 'object'"):
         env.reset(seed=0, options={"target": (0.2, -0.4)})
@@ -150,3 +150,76 @@ def test_random_absolute_jumps_converge(env_id):
         assert info["converged"], (step, info["solver"])
         if term or trunc:
             env.reset(seed=step)
+
+
+# ------------------------------------------------------------------ 3D wrap
+
+
+def test_wrap_angle_about_a_tilted_axis_is_the_arcs_extent():
+    """An arc of 200° about a skew axis (in the plane normal to it, shifted along it) with
+    samples far from it: the 3D measure is the arc's extent."""
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    e1 = np.cross(axis, [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    centre = np.array([0.1, -0.4, 0.2])
+    phi = np.linspace(0.5, 0.5 + math.radians(200.0), 120)
+    along = np.linspace(-0.05, 0.05, phi.size)
+    arc = centre + 0.1 * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2) + along[:, None] * axis
+    far = centre + 0.3 * e1 + np.linspace(0, 0.2, 20)[:, None] * e2
+    pts = np.vstack([far, arc])
+    assert wrap_angle(pts, centre, 0.1, 1e-3, axis) == pytest.approx(math.radians(200.0), rel=1e-9)
+    assert wrap_angle(pts, centre + 0.7 * axis, 0.1, 1e-3, -axis) == pytest.approx(
+        math.radians(200.0), rel=1e-9)
+
+
+def test_3d_wrap_places_a_cylinder_normal_to_the_curl_clear_of_the_start():
+    env = WrapEnv("octarm_v", planar=False, object_radius=(0.11, 0.125))
+    goal = env.observation_slices["goal"]
+    headings = []
+    for seed in range(4):
+        obs, info = env.reset(seed=seed)
+        eq = env._eq
+        centre, axis = info["object_center"], info["object_axis"]
+        k = int(np.searchsorted(eq.s, env.touch_arc_length))
+        tangent = eq.orientations[k][:, 2]
+        assert abs(axis @ tangent) < 1e-6 and np.linalg.norm(axis) == pytest.approx(1.0)
+        rel = eq.positions - centre
+        distance = np.linalg.norm(rel - (rel @ axis)[:, None] * axis, axis=1)
+        assert distance.min() >= info["contact_radius"] + 0.5 * env.placement_gap
+        np.testing.assert_allclose(obs[goal], np.concatenate(
+            [centre, axis, [info["contact_radius"]]]).astype(np.float32))
+        assert info["wrap_angle_deg"] == 0.0 and not eq.in_contact
+        headings.append(math.atan2(axis[2], axis[0]))
+    assert np.ptp(headings) > 0.5  # the side is drawn at random about the arm
+
+
+def test_3d_wrap_object_option_and_validation():
+    env = WrapEnv("octarm_v", planar=False)
+    obs, info = env.reset(seed=0, options={"object": (-0.2, -0.55, 0.05, 0.0, 0.0, 2.0, 0.12)})
+    np.testing.assert_allclose(info["object_axis"], [0.0, 0.0, 1.0])
+    np.testing.assert_allclose(info["object_center"], [-0.2, -0.55, 0.05])
+    for bad in [(-0.2, -0.55, 0.12), (-0.2, -0.55, 0.05, 0.0, 0.0, 0.0, 0.12),
+                (-0.2, -0.55, 0.05, 0.0, 0.0, 1.0, -0.1)]:
+        with pytest.raises(ValueError, match="options\\['object'\\]"):
+            env.reset(seed=0, options={"object": bad})
+
+
+def test_3d_wrap_curl_towards_the_cylinder_wraps_it():
+    """A cylinder along z beside the hanging arm (the planar geometry in 3D): ramping the
+    proximal channel I curls the arm around it, every step converged."""
+    env = WrapEnv("octarm_v", planar=False, initial_pressure_fraction=0.0)
+    env.reset(seed=0, options={"object": (-0.144, -0.139, 0.0, 0.0, 0.0, 1.0, 0.102 - env.half_thickness)})
+    action = -np.ones(9)
+    for t in np.linspace(0.1, 1.0, 10):
+        action[0] = 2.0 * t - 1.0
+        _, _, _, _, info = env.step(action)
+        assert info["converged"]
+    assert info["wrap_angle_deg"] > 45.0 and info["penetration"] < env.penetration_tolerance
+
+
+def test_grasp_is_planar_only():
+    from softarm_gym.envs import GraspEnv
+
+    with pytest.raises(ValueError, match="planar"):
+        GraspEnv(planar=False)
