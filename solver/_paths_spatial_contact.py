@@ -10,6 +10,7 @@ import numpy as np
 
 from solver import _spatial_contact as _sc
 from solver import layout as L
+from solver._contact import TUNNEL_SLACK
 from solver._model import contact_layout, context, reach
 from solver._obstacles import clearance_3d, tunnels_3d
 from solver._paths_shooting import MAX_STEP
@@ -29,9 +30,10 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
     ``warm_start`` on this grid continues from its nodes, another recorded spatial warm start
     from its samples interpolated to the nodes (Newton corrects them at the start of the
     ramp); a cold solve from the arm loaded with the obstacles in place
-    (:func:`_loaded_nodes`). Pressures and loads are then ramped to the target's. A fold on
-    the way (a snap) is not passed: the solve is then reported unconverged at the last
-    state it reached.
+    (:func:`_loaded_nodes`). Pressures and loads are then ramped to the target's. Where the
+    path ends at a fold or a bifurcation the arm snaps to the stable state found along the
+    critical mode (:func:`_switch_branch`, ``eq.snapped``) and the ramp goes on from there;
+    if none is found the solve is reported unconverged at the last state it reached.
     """
     free_scene = replace(scene, obstacles=())
     obstacles = scene.obstacles_array()
@@ -79,12 +81,141 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
                            pressures=p_inputs, channel_pressures=p_channel, arm=arm)
     now = tuple(np.empty_like(a) for a in goal)
     rest = np.empty((3, len(arm.sections)))
-    ok, its, res, stable, _ = _sc.follow(
-        nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, *terms[2:], settings.tol,
-        settings.max_iter, MAX_STEP, settings.dt0, settings.contact_dt_min, rest, now)
+    snapped = False
+    for _ in range(MAX_SNAPS + 1):
+        origin = nodes.copy()
+        ok, its, res, stable, t = _sc.follow(
+            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, *terms[2:], settings.tol,
+            settings.max_iter, MAX_STEP, settings.dt0, settings.contact_dt_min, rest, now)
+        iterations += its
+        if ok or t >= 1.0 or settings.n_scan == 0:
+            break
+        landed = _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings)
+        if landed is None:
+            break
+        nodes, start = landed
+        snapped = True
     return _result(nodes, scene, grid, layout, now, converged=bool(ok), stable=bool(stable),
-                   iterations=int(iterations + its), residual=float(res), model=model,
-                   pressures=p_inputs, channel_pressures=p_channel, arm=arm)
+                   snapped=snapped, iterations=int(iterations), residual=float(res),
+                   model=model, pressures=p_inputs, channel_pressures=p_channel, arm=arm)
+
+
+# Snaps per spatial contact solve before it gives up, and how far past the fold (in the
+# ramp's parameter) and how far along the critical mode (weighted RMS of the unknowns) a
+# branch switch looks, tried in turn.
+MAX_SNAPS = 4
+SNAP_AHEAD = (1e-3, 1e-2, 5e-2)
+SNAP_AMPLITUDES = (0.02, 0.05, 0.1, 0.2, 0.5)
+
+
+def _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings):
+    """The stable state the arm moves to where the path from ``start`` (the state
+    ``origin``) to ``goal`` ends at ``t`` (a fold or a bifurcation — an arm pressed on an
+    obstacle in its plane sliding out of it), and the level it stands at: (nodes, level),
+    or None.
+
+    A little further on (SNAP_AHEAD), the critical mode is the right singular vector of
+    the smallest singular value of the weighted shooting Jacobian at the last state; Newton
+    starts from the state moved along it by growing amplitudes (the mode signed so that it
+    lifts the arm towards +z first: a symmetric sideways pitchfork takes the +z mirror
+    image, as the dead-load kernels do), and the first stable equilibrium whose backbone got
+    there without tunnelling through an obstacle is the one the arm lands on. Failing that,
+    the imperfect path (:func:`_imperfect_path`).
+    """
+    weights, res_weights, scales = terms[2:]
+    n = weights.size
+    rest = np.empty((3, layout.secf.shape[1]))
+    blocks = np.empty((nodes.shape[0], L.N_CTANGENT, L.N_CTANGENT))
+    before = _sc.new_record(layout.n_rows)
+    _level_rest(_level_at(start, goal, t), layout, rest)
+    _sc.record(nodes, grid, rest, _level_at(start, goal, t), before)
+    for ahead in SNAP_AHEAD:
+        t_new = min(1.0, t + ahead)
+        level = _level_at(start, goal, t_new)
+        _level_rest(level, layout, rest)
+        F, J = np.empty(n), np.empty((n, n))
+        if not _sc._system(nodes, grid, rest, level, F, J, True, blocks, scales):
+            return None
+        mode = np.linalg.svd(J * weights[None, :] / res_weights[:, None])[2][-1] * weights
+        lift = np.empty_like(nodes)
+        _sc._retract(nodes, mode, 1e-6, lift)
+        if np.sum(lift[:, L.CS_R + 2] - nodes[:, L.CS_R + 2]) < 0.0:
+            mode = -mode
+        for amplitude in SNAP_AMPLITUDES:
+            for sign in (1.0, -1.0):
+                trial = np.empty_like(nodes)
+                _sc._retract(nodes, mode, sign * amplitude * math.sqrt(n), trial)
+                ok, _, _, stable = _sc._newton(trial, grid, rest, level, weights, res_weights,
+                                               scales, settings.tol, 4 * settings.max_iter,
+                                               MAX_STEP)
+                if not (ok and stable):
+                    continue
+                after = _sc.new_record(layout.n_rows)
+                _sc.record(trial, grid, rest, level, after)
+                if not tunnels_3d(before[1], after[1], level[L.L_DISCS], TUNNEL_SLACK):
+                    return trial, level
+    return _imperfect_path(origin, grid, layout, start, goal, _tip_direction(nodes, mode), terms,
+                           settings)
+
+
+def _tip_direction(nodes, mode):
+    """Unit tip displacement (3,) of the nodes moved along ``mode`` (zero if none)."""
+    moved = np.empty_like(nodes)
+    _sc._retract(nodes, mode, 1e-6, moved)
+    direction = moved[-1, L.CS_R:L.CS_R + 3] - nodes[-1, L.CS_R:L.CS_R + 3]
+    norm = np.linalg.norm(direction)
+    return direction / norm if norm > 0.0 else direction
+
+
+# Sizes of the imperfection (fractions of the force scale) an imperfect path tries in turn.
+IMPERFECTIONS = (1e-3, 1e-2)
+
+
+def _imperfect_path(nodes, grid, layout, level, goal, direction, terms, settings):
+    """Where a small push does not land the arm on a stable state (a snap, not a gentle
+    pitchfork), the way a real arm gets there: a small tip force along ``direction`` (the
+    critical mode's tip displacement; an imperfection) is brought in at the path's start
+    (``nodes`` at ``level``, well clear of the fold), the ramp is followed to ``goal`` with
+    it — the imperfect path goes round the fold the perfect one ends at — and the force is
+    taken off again. Returns (nodes, goal) or None."""
+    weights, res_weights, scales = terms[2:]
+    if not np.linalg.norm(direction) > 0.0:
+        return None
+    rest = np.empty((3, layout.secf.shape[1]))
+    for size in IMPERFECTIONS:
+        for sign in (1.0, -1.0):
+            push = sign * size * scales[L.CT_N] * direction
+            trial = nodes.copy()
+            stages = ((level, _pushed(level, push)), (_pushed(level, push), _pushed(goal, push)),
+                      (_pushed(goal, push), goal))
+            for a, b in stages:
+                now = tuple(np.empty_like(x) for x in b)
+                ok, _, _, stable, _ = _sc.follow(
+                    trial, grid, layout.tubes_i, layout.tubes_f, a, b, weights, res_weights,
+                    scales, settings.tol, settings.max_iter, MAX_STEP, settings.dt0,
+                    settings.contact_dt_min, rest, now)
+                if not (ok and stable):
+                    break
+            else:
+                return trial, goal
+    return None
+
+
+def _pushed(level, push):
+    """``level`` with the tip force ``push`` (3,) added to its tip target."""
+    target = level[L.L_TARGET].copy()
+    target[:3] += push
+    return (*level[:L.L_TARGET], target, *level[L.L_TARGET + 1:])
+
+
+def _level_at(start, goal, t):
+    """The level tuple a fraction ``t`` of the way from ``start`` to ``goal``."""
+    return tuple(a + t * (b - a) for a, b in zip(start, goal))
+
+
+def _level_rest(level, layout, rest):
+    """The rest strains (3, ns) at a level's pressures, into ``rest``."""
+    rest_strains_into(level[L.L_P], layout.tubes_i, layout.tubes_f, layout.secf, rest)
 
 
 def _clear(free, start, obstacles) -> bool:
@@ -195,7 +326,7 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings):
 def _result(nodes, scene, grid, layout, level, **fields):
     """The spatial Equilibrium of the node states ``nodes`` at ``level``."""
     rest = np.empty((3, layout.secf.shape[1]))
-    rest_strains_into(level[L.L_P], layout.tubes_i, layout.tubes_f, layout.secf, rest)
+    _level_rest(level, layout, rest)
     rec = _sc.new_record(layout.n_rows)
     _sc.record(nodes, grid, rest, level, rec)
     s, pos, rot, force, mom, contact, pen, strain_v, strain_u = rec
