@@ -17,8 +17,11 @@ ends an episode resets the copy at once and returns its first observation, with 
 one in ``info["final_obs"]`` and that step's info in ``info["final_info"]`` — what SB3's
 ``VecEnv`` API needs, see :mod:`softarm_gym.sb3`), the single env's ``info`` keys as arrays
 with ``_key`` masks. What needs per-copy machinery —
-estimator observations, payload ranges, parameter randomisation, the wrap task, 3D — is
+estimator observations, payload ranges, parameter randomisation, the wrap task — is
 refused with a ``ValueError`` naming it: use ``vectorization_mode="sync"`` or ``"async"``.
+With ``planar=False`` the copies are stepped by :class:`solver.SpatialBatchStepper` (one
+spatial stepper per copy, on a thread pool where that pays) and observed by the single env's
+``true`` estimate: the same conformance, not the planar batch's speed.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from softarm_gym.envs.terms import (
     clip_observations,
     fill_pressures,
     fill_reach_goals,
+    fill_shape,
     fill_true_shapes,
     fractions_from_actions,
     reach_reward_sum,
@@ -54,8 +58,6 @@ def _unsupported(env: ReachEnv) -> list[str]:
     if env.observation_name != "true":
         reasons.append(f"observation={env.observation_name!r} (estimators need per-copy sensing; "
                        "the batched env observes 'true')")
-    if not env.planar:
-        reasons.append("planar=False")
     if env.payload_range[0] != env.payload_range[1]:
         reasons.append(f"a payload_kg range {env.payload_range} (one scene serves every copy)")
     if env.randomization.active:
@@ -98,8 +100,9 @@ class BatchedReachVectorEnv(VectorEnv):
         max_episode_steps: truncation length (default 100, as registered).
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP`` (or their
             string values).
-        **kwargs: ReachEnv arguments. Refused with a ``ValueError`` naming them: estimator
-            observations, ``planar=False``, payload ranges, randomisation, the Dict format,
+        **kwargs: ReachEnv arguments (``planar=False`` included). Refused with a
+            ``ValueError`` naming them: estimator observations, payload ranges, randomisation,
+            the Dict format,
             sensor synthesis, rendering, and arms the lean planar solver does not step.
     """
 
@@ -134,15 +137,16 @@ class BatchedReachVectorEnv(VectorEnv):
                                   gravity=t.gravity)
         self.render_mode = None
         try:
-            self._batch = solver.BatchStepper(self.arm, self.scene, n, model=t.model)
+            self._batch = solver.BatchStepper(self.arm, self.scene, n, model=t.model) if t.planar \
+                else solver.SpatialBatchStepper(self.arm, self.scene, n, model=t.model)
         except ValueError as exc:
             raise ValueError(f"the batched vector env cannot step this arm: {exc}") from None
         self._rngs: list[np.random.Generator] | None = None
         self._obs = np.zeros((n, t.observation_space.shape[0]))
         self._low = t.observation_space.low.astype(np.float64)
         self._high = t.observation_space.high.astype(np.float64)
-        self._tips = np.zeros((n, 2))
-        self._target = np.zeros((n, 2))
+        self._tips = np.zeros((n, t.dim))
+        self._target = np.zeros((n, t.dim))
         self._fraction = np.zeros((n, t.n_inputs))
         self._steps = np.zeros(n, dtype=np.int64)
         self._failures = np.zeros(n, dtype=np.int64)
@@ -154,8 +158,9 @@ class BatchedReachVectorEnv(VectorEnv):
         self._shape_starts = np.array([slices[name].start for name in ("tip", "section_ends", "backbone")],
                                       dtype=np.int64)
         self._s_query = None
-        self._tangent = np.empty((self._batch.records.shape[1], 2))
-        self._backbone = np.empty((t.n_backbone, 2))
+        if t.planar:
+            self._tangent = np.empty((self._batch.records.shape[1], 2))
+            self._backbone = np.empty((t.n_backbone, 2))
 
     @property
     def observation_slices(self) -> dict[str, slice]:
@@ -228,11 +233,24 @@ class BatchedReachVectorEnv(VectorEnv):
 
     def _observe(self) -> np.ndarray:
         t = self._template
+        if not t.planar:
+            # No lean record in 3D: the single env's own ``true`` estimate of each copy.
+            for i in range(self.num_envs):
+                eq = self._batch.equilibrium(i)
+                fill_shape(self._obs[i], t.observation_slices,
+                           t.estimator.estimate(None, eq.pressures, truth=eq), False)
+                self._tips[i] = eq.tip
+            return self._finish_observation()
         records = self._batch.records
         if self._s_query is None:
             self._s_query = np.linspace(0.0, float(records[0, -1, L.S]), t.n_backbone)
         fill_true_shapes(records, np.asarray(self._batch.section_ends, dtype=np.int64), self._s_query,
                          self._shape_starts, self._obs, self._tips, self._tangent, self._backbone)
+        return self._finish_observation()
+
+    def _finish_observation(self) -> np.ndarray:
+        """The pressure and goal blocks, then every copy's observation clipped to the space."""
+        t = self._template
         slices = t.observation_slices
         fill_pressures(self._fraction, slices["pressures"].start, self._obs)
         fill_reach_goals(self._target, self._tips, slices["goal"].start, self._obs)

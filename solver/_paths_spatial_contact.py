@@ -32,8 +32,11 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
     ramp); a cold solve from the arm loaded with the obstacles in place
     (:func:`_loaded_nodes`). Pressures and loads are then ramped to the target's. Where the
     path ends at a fold or a bifurcation the arm snaps to the stable state found along the
-    critical mode (:func:`_switch_branch`, ``eq.snapped``) and the ramp goes on from there;
-    if none is found the solve is reported unconverged at the last state it reached.
+    critical mode (:func:`_switch_branch`, ``eq.snapped``) and the ramp goes on from there.
+    Where none is found but the contact-free step from a state that touched nothing snapped
+    (the spatial kernels' branch switch) into an obstacle without passing through it, the arm
+    lands there: the obstacles are grown in from the radius at which they touch it. Failing
+    all of these, the solve is reported unconverged at the last state it reached.
     """
     free_scene = replace(scene, obstacles=())
     obstacles = scene.obstacles_array()
@@ -44,6 +47,7 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
                              else None, settings)
         n = free.positions.shape[0]
         return replace(free, scene=scene, contact_force=np.zeros((n, 3)), penetration=np.zeros(n))
+    free = None
     if settings.shortcuts and warm_start is not None and warm_start.s.size \
             and not warm_start.in_contact:
         free = solve_spatial(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
@@ -95,6 +99,21 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
             break
         nodes, start = landed
         snapped = True
+    if not ok and free is not None and free.snapped and free.converged and free.stable \
+            and not tunnels_3d(warm_start.positions, free.positions, obstacles, TUNNEL_SLACK):
+        # The arm snapped through free space (the free path's own branch switch) into the
+        # obstacles: it lands on them, the obstacles grown in from where they touch it.
+        landed = _nodes_from_record(free, grid, layout, segs, sec_start)
+        grown = obstacles.copy()
+        for k, o in enumerate(scene.obstacles):
+            grown[k, L.O_RADIUS] = min(o.radius, float(core_distance(o, free.positions).min()))
+        ok, its, res, stable, _ = _sc.follow(
+            landed, grid, layout.tubes_i, layout.tubes_f, (*goal[:L.L_DISCS], grown), goal,
+            *terms[2:], settings.tol, settings.max_iter, MAX_STEP, settings.dt0,
+            settings.contact_dt_min, rest, now)
+        iterations += its
+        if ok:
+            nodes, snapped = landed, True
     return _result(nodes, scene, grid, layout, now, converged=bool(ok), stable=bool(stable),
                    snapped=snapped, iterations=int(iterations), residual=float(res),
                    model=model, pressures=p_inputs, channel_pressures=p_channel, arm=arm)

@@ -17,7 +17,13 @@ from gymnasium import spaces
 
 import solver
 from softarm_gym.envs.randomization import ArmRandomization
-from softarm_gym.envs.terms import clip_observations, fill_pressures, fill_true_shapes, fractions_from_actions
+from softarm_gym.envs.terms import (
+    clip_observations,
+    fill_pressures,
+    fill_shape,
+    fill_true_shapes,
+    fractions_from_actions,
+)
 from softarm_gym.render import ArmRenderer, ArmRenderer3D, HumanWindow
 from softarm_gym.sensing import ESTIMATORS, SensorNoise, make_estimator, shape_from_equilibrium, synthesize
 from solver import layout as L
@@ -429,17 +435,7 @@ class SoftArmEnv(gym.Env):
             if self.synthesize_sensors else None
         shape = self._shape_estimate = self.estimator.estimate(self._readings, eq.pressures, truth=eq)
         self._estimated_tip[:] = shape.tip
-        obs = self._obs
-        obs[self._slices["tip"]] = shape.tip
-        ends = obs[self._slices["section_ends"]].reshape(self.n_sections, 2 * self.dim)
-        if self.planar:
-            ends[:, :2] = shape.section_ends[:, :2]
-            ends[:, 2] = np.cos(shape.section_ends[:, 2])
-            ends[:, 3] = np.sin(shape.section_ends[:, 2])
-        else:
-            ends[:, :3] = shape.section_ends
-            ends[:, 3:] = shape.section_frames[:, :, 2]
-        obs[self._slices["backbone"]] = shape.backbone.ravel()
+        fill_shape(self._obs, self._slices, shape, self.planar)
 
     def _observation(self):
         obs = self._obs

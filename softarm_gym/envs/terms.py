@@ -19,7 +19,7 @@ from solver.jit import njit
 from solver.layout import THETA, V1, V3, S, X, Y
 from solver.rod import hermite_resample
 
-__all__ = ["fractions_from_actions", "fill_true_shapes", "fill_pressures", "clip_observations",
+__all__ = ["fractions_from_actions", "fill_true_shapes", "fill_shape", "fill_pressures", "clip_observations",
            "fill_reach_goals", "goal_rewards", "reach_rewards", "reach_reward_sum", "REACH_TERMS"]
 
 REACH_TERMS = ("reward_distance", "reward_control", "reward_success", "reward_solver")
@@ -96,6 +96,22 @@ def fill_true_shapes(records, section_ends, s_query, starts, obs, tips, tangent,
         for j in range(backbone.shape[0]):
             o[starts[2] + 2 * j] = backbone[j, 0]
             o[starts[2] + 2 * j + 1] = backbone[j, 1]
+
+
+def fill_shape(obs, slices, shape, planar: bool) -> None:
+    """The shape blocks of one observation ``obs`` (D,) from an estimator's
+    :class:`~softarm_gym.sensing.ShapeEstimate`: tip; per section end (x, y, cos θ, sin θ)
+    planar or (x, y, z, d3) spatial; the backbone samples. ``slices``: the blocks' places."""
+    obs[slices["tip"]] = shape.tip
+    ends = obs[slices["section_ends"]].reshape(shape.section_ends.shape[0], -1)
+    if planar:
+        ends[:, :2] = shape.section_ends[:, :2]
+        ends[:, 2] = np.cos(shape.section_ends[:, 2])
+        ends[:, 3] = np.sin(shape.section_ends[:, 2])
+    else:
+        ends[:, :3] = shape.section_ends
+        ends[:, 3:] = shape.section_frames[:, :, 2]
+    obs[slices["backbone"]] = shape.backbone.ravel()
 
 
 @njit
