@@ -198,6 +198,15 @@ def clearance_3d(r0, r1, r2, obstacles):
 
 
 @njit
+def smallest_clearance_3d(points, obstacles):
+    """:func:`clearance_3d` of the closest of (N, ≥3) points (m)."""
+    gap = math.inf
+    for k in range(points.shape[0]):
+        gap = min(gap, clearance_3d(points[k, 0], points[k, 1], points[k, 2], obstacles))
+    return gap
+
+
+@njit
 def tunnels_3d(prev, new, obstacles, slack):
     """:func:`_tunnels` against spatial obstacles: True when a sample, moved along the
     straight segment between its positions in ``prev`` and ``new`` (N, ≥3; m), goes deeper

@@ -12,7 +12,7 @@ from solver import _spatial_contact as _sc
 from solver import layout as L
 from solver._contact import TUNNEL_SLACK
 from solver._model import contact_layout, context, reach
-from solver._obstacles import clearance_3d, tunnels_3d
+from solver._obstacles import smallest_clearance_3d, tunnels_3d
 from solver._paths_shooting import MAX_STEP
 from solver._paths_spatial import solve_spatial
 from solver.results import Equilibrium
@@ -47,20 +47,37 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
                              else None, settings)
         n = free.positions.shape[0]
         return replace(free, scene=scene, contact_force=np.zeros((n, 3)), penetration=np.zeros(n))
-    free = None
+    free, near = None, False
     if settings.shortcuts and warm_start is not None and warm_start.s.size \
             and not warm_start.in_contact:
         free = solve_spatial(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
                              settings)
-        if free.converged and free.stable and _clear(free, warm_start, obstacles):
+        gap = _free_step_gap(free, warm_start, obstacles) if free.converged and free.stable \
+            else -math.inf
+        if gap > float(np.max(np.diff(free.s))):
             n = free.positions.shape[0]
             return replace(free, scene=scene, contact_force=np.zeros((n, 3)),
                            penetration=np.zeros(n))
+        near = gap > 0.0
     layout, segs, sec_start = contact_layout(arm, packed, scene)
     ctx = context(arm, layout, free_scene, 3, settings)
     grid, terms = _grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     goal = (p_target, ctx.q, terms[0], terms[1], obstacles)
+    rest = np.empty((3, len(arm.sections)))
+    if near:
+        # The free step ends within an RK4 step of an obstacle, clear of it, and got there
+        # without passing through one: that state, corrected by Newton on the contact grid
+        # (where a stage point may graze the obstacle), is the answer.
+        nodes = _nodes_from_record(free, grid, layout, segs, sec_start)
+        _level_rest(goal, layout, rest)
+        ok, its, res, stable = _sc._newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
+                                           settings.max_iter, MAX_STEP)
+        if ok and stable:
+            return _result(nodes, scene, grid, layout, goal, converged=True, stable=True,
+                           snapped=free.snapped, iterations=int(free.iterations + its),
+                           residual=float(res), model=model, pressures=p_inputs,
+                           channel_pressures=p_channel, arm=arm)
     iterations = 0
     nodes = None
     if warm_start is not None and warm_start.scene is not None:
@@ -84,7 +101,6 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
                            iterations=iterations, residual=math.inf, model=model,
                            pressures=p_inputs, channel_pressures=p_channel, arm=arm)
     now = tuple(np.empty_like(a) for a in goal)
-    rest = np.empty((3, len(arm.sections)))
     snapped = False
     for _ in range(MAX_SNAPS + 1):
         origin = nodes.copy()
@@ -237,25 +253,21 @@ def _level_rest(level, layout, rest):
     rest_strains_into(level[L.L_P], layout.tubes_i, layout.tubes_f, layout.secf, rest)
 
 
-def _clear(free, start, obstacles) -> bool:
-    """Whether the contact-free step from the recorded ``start`` to ``free`` (same grid)
-    stays clear of every obstacle: both backbones by more than an RK4 step (the samples'
-    spacing), and no sample moving through one between them
+def _free_step_gap(free, start, obstacles) -> float:
+    """How far the contact-free step from the recorded ``start`` to ``free`` stays from the
+    obstacles: the smallest gap (m) of either backbone's samples to an obstacle's surface
+    (``start`` resampled at ``free``'s arc lengths if on another grid), or −inf where a
+    sample moving straight between them passes through one
     (:func:`solver._obstacles.tunnels_3d`, no slack). A contact-free path that leaves the
     obstacles' reach of either end and comes back is not caught (a warm step seldom does)."""
-    if start.positions.shape != free.positions.shape:
-        return False
-    margin = float(np.max(np.diff(free.s)))
-    for eq in (start, free):
-        for k in range(obstacles.shape[0]):
-            if clearance_3d_all(eq.positions, obstacles[k:k + 1]) <= margin:
-                return False
-    return not tunnels_3d(start.positions, free.positions, obstacles, 0.0)
-
-
-def clearance_3d_all(points, obstacles) -> float:
-    """Smallest signed gap (m) from (N, 3) points to the obstacles' surfaces."""
-    return min(clearance_3d(p[0], p[1], p[2], obstacles) for p in points)
+    before = start.positions
+    if before.shape != free.positions.shape:  # a contact state, on the finer contact grid
+        before = np.column_stack([np.interp(free.s, start.s, start.positions[:, c])
+                                  for c in range(3)])
+    if tunnels_3d(before, free.positions, obstacles, 0.0):
+        return -math.inf
+    return min(smallest_clearance_3d(before, obstacles),
+               smallest_clearance_3d(free.positions, obstacles))
 
 
 def _grid_and_terms(arm, layout, segs, sec_start, scene, ctx):

@@ -1,4 +1,4 @@
-"""Aggregate steps per second of the batched (BatchStepper-backed) reach vector env."""
+"""Aggregate steps per second of the batched reach vector env (planar and 3D)."""
 
 from __future__ import annotations
 
@@ -8,11 +8,17 @@ import numba
 import numpy as np
 
 
-def _time(n: int, steps: int, action_mode: str) -> tuple[float, float]:
-    """(seconds for ``steps`` steps of n arms, converged fraction); the first step untimed."""
+def _time(n: int, steps: int, action_mode: str, planar: bool = True,
+          sync: bool = False) -> tuple[float, float]:
+    """(seconds for ``steps`` steps of n arms, converged fraction); the first step untimed.
+    ``sync``: Gymnasium's SyncVectorEnv over single envs instead of the batched env."""
+    import gymnasium as gym
+
     from softarm_gym.vector import BatchedReachVectorEnv
 
-    env = BatchedReachVectorEnv(num_envs=n, action_mode=action_mode)
+    env = gym.make_vec("SoftArm/OctArmReach-v0", num_envs=n, vectorization_mode="sync",
+                       action_mode=action_mode, planar=planar) if sync else \
+        BatchedReachVectorEnv(num_envs=n, action_mode=action_mode, planar=planar)
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, (steps + 1, n, env.single_action_space.shape[0]))
@@ -51,6 +57,32 @@ def run(sizes=(4, 16, 256, 1024, 4096), steps: int = 100, action_mode: str = "de
         if progress:
             progress(f"batched vector env {n}")
     return rows
+
+
+def run_spatial(sizes=(4, 16, 64), steps: int = 20, action_mode: str = "delta",
+                progress=None) -> list[dict]:
+    """The batched env with ``planar=False`` (:class:`solver.SpatialBatchStepper`) against
+    SyncVectorEnv over single 3D envs, side by side per size (OctArm V reach, ``true``
+    observations, random ``delta`` actions, the first step untimed)."""
+    rows = []
+    for n in sizes:
+        seconds, converged = _time(n, steps, action_mode, planar=False)
+        sync, _ = _time(n, steps, action_mode, planar=False, sync=True)
+        rows.append({"num_envs": n, "steps": steps, "threads": numba.get_num_threads(),
+                     "env_steps_per_s": n * steps / seconds,
+                     "sync_env_steps_per_s": n * steps / sync, "converged_fraction": converged})
+        if progress:
+            progress(f"batched vector env 3D {n}")
+    return rows
+
+
+def format_spatial_table(rows: list[dict]) -> str:
+    lines = ["| batched vector env, 3D (true obs., delta actions) | env-steps/s (aggregate) "
+             "| SyncVectorEnv | converged |", "|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['num_envs']} arms | {r['env_steps_per_s']:,.0f} ({r['threads']} threads) | "
+                     f"{r['sync_env_steps_per_s']:,.0f} | {100 * r['converged_fraction']:.2f} % |")
+    return "\n".join(lines)
 
 
 def format_table(rows: list[dict]) -> str:

@@ -81,8 +81,11 @@ def run(args) -> int:
             return 0
         sizes = (4, 256) if args.quick else (4, 16, 256, 1024, 4096)
         result["batched_vector"] = vector_bench.run(sizes, progress=progress)
+        result["batched_vector_3d"] = vector_bench.run_spatial((4,) if args.quick else (4, 16, 64),
+                                                               progress=progress)
         emit(result, args.json, envs.format_table(result) + "\n\n"
-             + vector_bench.format_table(result["batched_vector"]))
+             + vector_bench.format_table(result["batched_vector"]) + "\n\n"
+             + vector_bench.format_spatial_table(result["batched_vector_3d"]))
         return 0
     result = solver_bench.run(quick=args.quick, progress=progress)
     text = solver_bench.format_table(result)
