@@ -72,7 +72,7 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
         nodes = _nodes_from_record(free, grid, layout, segs, sec_start)
         _level_rest(goal, layout, rest)
         ok, its, res, stable = _sc._newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
-                                           settings.max_iter, MAX_STEP)
+                                           settings.max_iter, MAX_STEP, _sc.NO_TETHER)
         if ok and stable:
             return _result(nodes, scene, grid, layout, goal, converged=True, stable=True,
                            snapped=free.snapped, iterations=int(free.iterations + its),
@@ -80,6 +80,7 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
                            channel_pressures=p_channel, arm=arm)
     iterations = 0
     nodes = None
+    snapped = False
     if warm_start is not None and warm_start.scene is not None:
         start_scene = replace(warm_start.scene, obstacles=())
         start_ctx = ctx if start_scene == free_scene else context(arm, layout, start_scene, 3,
@@ -93,28 +94,18 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
             p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
             start = (p_start, start_ctx.q, start_terms[0], start_terms[1], obstacles)
     if nodes is None:
-        nodes, iterations, loaded = _loaded_nodes(arm, layout, segs, sec_start, scene, ctx,
-                                                  settings)
+        nodes, iterations, loaded, snapped = _loaded_nodes(arm, layout, segs, sec_start, scene,
+                                                           ctx, settings)
         start = (np.zeros_like(p_target), *goal[1:])
         if not loaded:
             return _result(nodes, scene, grid, layout, start, converged=False, stable=False,
                            iterations=iterations, residual=math.inf, model=model,
                            pressures=p_inputs, channel_pressures=p_channel, arm=arm)
     now = tuple(np.empty_like(a) for a in goal)
-    snapped = False
-    for _ in range(MAX_SNAPS + 1):
-        origin = nodes.copy()
-        ok, its, res, stable, t = _sc.follow(
-            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, *terms[2:], settings.tol,
-            settings.max_iter, MAX_STEP, settings.dt0, settings.contact_dt_min, rest, now)
-        iterations += its
-        if ok or t >= 1.0 or settings.n_scan == 0:
-            break
-        landed = _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings)
-        if landed is None:
-            break
-        nodes, start = landed
-        snapped = True
+    nodes, ok, its, res, stable, jumped = _ramp(nodes, grid, layout, start, goal, terms, settings,
+                                                rest, now)
+    iterations += its
+    snapped = snapped or jumped
     if not ok and free is not None and free.snapped and free.converged and free.stable \
             and not tunnels_3d(warm_start.positions, free.positions, obstacles, TUNNEL_SLACK):
         # The arm snapped through free space (the free path's own branch switch) into the
@@ -135,6 +126,31 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
                    model=model, pressures=p_inputs, channel_pressures=p_channel, arm=arm)
 
 
+def _ramp(nodes, grid, layout, start, goal, terms, settings, rest, now):
+    """The quasi-static ramp from ``nodes`` at level ``start`` to ``goal``
+    (:func:`solver._spatial_contact.follow`), snapping where it ends short of the goal
+    (:func:`_switch_branch`, at most MAX_SNAPS times). Returns (nodes, converged, iterations,
+    |residual|, stable, snapped); ``now`` and ``rest`` hold the level reached."""
+    snapped = False
+    iterations = 0
+    origin = (nodes.copy(), start)
+    for _ in range(MAX_SNAPS + 1):
+        ok, its, res, stable, t = _sc.follow(
+            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, *terms[2:], settings.tol,
+            settings.max_iter, MAX_STEP, settings.dt0, settings.contact_dt_min, rest, now)
+        iterations += its
+        if ok or t >= 1.0 or settings.n_scan == 0:
+            break
+        # A landing the path cannot leave (t = 0: at a fold again) asks for a real snap.
+        landed = _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
+                                push=not (snapped and t == 0.0))
+        if landed is None:
+            break
+        nodes, start = landed
+        snapped = True
+    return nodes, ok, iterations, res, stable, snapped
+
+
 # Snaps per spatial contact solve before it gives up, and how far past the fold (in the
 # ramp's parameter) and how far along the critical mode (weighted RMS of the unknowns) a
 # branch switch looks, tried in turn.
@@ -143,11 +159,12 @@ SNAP_AHEAD = (1e-3, 1e-2, 5e-2)
 SNAP_AMPLITUDES = (0.02, 0.05, 0.1, 0.2, 0.5)
 
 
-def _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings):
-    """The stable state the arm moves to where the path from ``start`` (the state
-    ``origin``) to ``goal`` ends at ``t`` (a fold or a bifurcation — an arm pressed on an
-    obstacle in its plane sliding out of it), and the level it stands at: (nodes, level),
-    or None.
+def _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings, push=True):
+    """The stable state the arm moves to where the path from ``start`` to ``goal`` ends at
+    ``t`` (a fold or a bifurcation — an arm pressed on an obstacle in its plane sliding out
+    of it), and the level it stands at: (nodes, level), or None. ``origin``: (nodes, level)
+    where the whole ramp began, well clear of the fold. ``push``: try the small pushes
+    along the critical mode first (not where the last one landed on another fold).
 
     A little further on (SNAP_AHEAD), the critical mode is the right singular vector of
     the smallest singular value of the weighted shooting Jacobian at the last state; Newton
@@ -160,37 +177,106 @@ def _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings)
     weights, res_weights, scales = terms[2:]
     n = weights.size
     rest = np.empty((3, layout.secf.shape[1]))
-    blocks = np.empty((nodes.shape[0], L.N_CTANGENT, L.N_CTANGENT))
     before = _sc.new_record(layout.n_rows)
     _level_rest(_level_at(start, goal, t), layout, rest)
     _sc.record(nodes, grid, rest, _level_at(start, goal, t), before)
-    for ahead in SNAP_AHEAD:
-        t_new = min(1.0, t + ahead)
-        level = _level_at(start, goal, t_new)
+    for ahead in SNAP_AHEAD if push else ():
+        level = _level_at(start, goal, min(1.0, t + ahead))
         _level_rest(level, layout, rest)
-        F, J = np.empty(n), np.empty((n, n))
-        if not _sc._system(nodes, grid, rest, level, F, J, True, blocks, scales):
+        mode = _critical_mode(nodes, grid, rest, level, terms)
+        if mode is None:
             return None
-        mode = np.linalg.svd(J * weights[None, :] / res_weights[:, None])[2][-1] * weights
-        lift = np.empty_like(nodes)
-        _sc._retract(nodes, mode, 1e-6, lift)
-        if np.sum(lift[:, L.CS_R + 2] - nodes[:, L.CS_R + 2]) < 0.0:
-            mode = -mode
         for amplitude in SNAP_AMPLITUDES:
             for sign in (1.0, -1.0):
                 trial = np.empty_like(nodes)
                 _sc._retract(nodes, mode, sign * amplitude * math.sqrt(n), trial)
                 ok, _, _, stable = _sc._newton(trial, grid, rest, level, weights, res_weights,
                                                scales, settings.tol, 4 * settings.max_iter,
-                                               MAX_STEP)
+                                               MAX_STEP, _sc.NO_TETHER)
                 if not (ok and stable):
                     continue
                 after = _sc.new_record(layout.n_rows)
                 _sc.record(trial, grid, rest, level, after)
                 if not tunnels_3d(before[1], after[1], level[L.L_DISCS], TUNNEL_SLACK):
                     return trial, level
-    return _imperfect_path(origin, grid, layout, start, goal, _tip_direction(nodes, mode), terms,
-                           settings)
+    level = _level_at(start, goal, min(1.0, t + SNAP_AHEAD[1]))
+    relaxed = _relax(nodes, grid, layout, level, terms, settings)
+    if relaxed is not None:
+        return relaxed, level
+    _level_rest(level, layout, rest)
+    mode = _critical_mode(nodes, grid, rest, level, terms)
+    if mode is None:
+        return None
+    return _imperfect_path(origin[0].copy(), grid, layout, origin[1], goal,
+                           _tip_direction(nodes, mode), terms, settings)
+
+
+def _critical_mode(nodes, grid, rest, level, terms):
+    """The critical mode at ``level`` (rest strains ``rest``) of the state ``nodes``: the
+    right singular vector of the smallest singular value of the weighted shooting Jacobian,
+    in the unknowns' units, signed to lift the arm towards +z; None where the state is not
+    finite."""
+    weights, res_weights, scales = terms[2:]
+    n = weights.size
+    F, J = np.empty(n), np.empty((n, n))
+    blocks = np.empty((nodes.shape[0], L.N_CTANGENT, L.N_CTANGENT))
+    if not _sc._system(nodes, grid, rest, level, F, J, True, blocks, scales, _sc.NO_TETHER):
+        return None
+    mode = np.linalg.svd(J * weights[None, :] / res_weights[:, None])[2][-1] * weights
+    lift = np.empty_like(nodes)
+    _sc._retract(nodes, mode, 1e-6, lift)
+    return -mode if np.sum(lift[:, L.CS_R + 2] - nodes[:, L.CS_R + 2]) < 0.0 else mode
+
+
+# Proximal relaxation (see _relax): iterations, the first spring (the force scale per
+# RELAX_START of the arm's length), the move under which the springs slacken, and how far
+# they slacken before the arm is let go.
+RELAX_STEPS = 400
+RELAX_START = 1e-3
+RELAX_MOVE = 1e-3
+RELAX_END = 1e-6
+
+
+def _relax(nodes, grid, layout, level, terms, settings):
+    """The stable equilibrium at ``level`` that an arm started at ``nodes`` (past a fold,
+    no longer an equilibrium) comes to rest in, by proximal point iterations: every node
+    after the base is tied by a spring of k N/m to where it is, the tethered equilibrium is
+    solved by Newton, and the anchors move there. The springs are conservative, so each
+    iteration lowers the arm's energy: it follows its energy downhill, as a damped arm
+    does. k starts stiff (the force scale per RELAX_START of the length); it slackens
+    fourfold while the arm moves less than RELAX_MOVE of its length per iteration, and
+    stiffens fourfold where Newton fails or a node would pass through an obstacle. Below
+    RELAX_END of its start the arm is let go: the untethered Newton must land on a stable
+    state. Returns the nodes or None."""
+    weights, res_weights, scales = terms[2:]
+    rest = np.empty((3, layout.secf.shape[1]))
+    _level_rest(level, layout, rest)
+    start = scales[L.CT_N] / (RELAX_START * scales[L.CT_R])
+    stiffness = start
+    state = nodes.copy()
+    for _ in range(RELAX_STEPS):
+        anchors = state[:, L.CS_R:L.CS_R + 3].copy()
+        trial = state.copy()
+        ok = _sc._newton(trial, grid, rest, level, weights, res_weights, scales, settings.tol,
+                         settings.max_iter, MAX_STEP, (np.array([stiffness]), anchors))[0]
+        if not ok or tunnels_3d(anchors, trial[:, L.CS_R:L.CS_R + 3], level[L.L_DISCS],
+                                TUNNEL_SLACK):
+            stiffness *= 4.0
+            if stiffness > start / RELAX_END:
+                return None
+            continue
+        move = float(np.abs(trial[:, L.CS_R:L.CS_R + 3] - anchors).max())
+        state = trial
+        if move < RELAX_MOVE * scales[L.CT_R]:
+            stiffness *= 0.25
+            if stiffness < RELAX_END * start:
+                final = state.copy()
+                ok, _, _, stable = _sc._newton(final, grid, rest, level, weights, res_weights,
+                                               scales, settings.tol, settings.max_iter, MAX_STEP,
+                                               _sc.NO_TETHER)
+                if ok and stable:
+                    return final
+    return None
 
 
 def _tip_direction(nodes, mode):
@@ -210,7 +296,7 @@ def _imperfect_path(nodes, grid, layout, level, goal, direction, terms, settings
     """Where a small push does not land the arm on a stable state (a snap, not a gentle
     pitchfork), the way a real arm gets there: a small tip force along ``direction`` (the
     critical mode's tip displacement; an imperfection) is brought in at the path's start
-    (``nodes`` at ``level``, well clear of the fold), the ramp is followed to ``goal`` with
+    (``nodes`` at ``level``, where the ramp began), the ramp is followed to ``goal`` with
     it — the imperfect path goes round the fold the perfect one ends at — and the force is
     taken off again. Returns (nodes, goal) or None."""
     weights, res_weights, scales = terms[2:]
@@ -325,8 +411,9 @@ def _nodes_from_record(eq, grid, layout, segs, sec_start):
 def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings):
     """Stage 1 of a cold solve (cached per scene): from the straight, unloaded, unactuated
     arm the loads are ramped in with the obstacles in place; an obstacle that overlaps the
-    straight arm grows in from the radius at which it touches the arm's axis. Returns a copy
-    of the nodes, the iterations and whether it converged."""
+    straight arm grows in from the radius at which it touches the arm's axis; the arm may
+    snap on the way (:func:`_ramp`). Returns a copy of the nodes, the iterations, whether it
+    converged and whether it snapped."""
     def build():
         grid, terms = _grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
         axis = base_rotation(scene.base_theta)[:, 2]
@@ -342,16 +429,14 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings):
         start = (p0, np.zeros_like(ctx.q), np.zeros_like(terms[0]), np.zeros(6), grown)
         goal = (p0, ctx.q, terms[0], terms[1], obstacles)
         now = tuple(np.empty_like(a) for a in goal)
-        ok, its, _, stable, _ = _sc.follow(
-            nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, *terms[2:], settings.tol,
-            settings.max_iter, MAX_STEP, settings.dt0, settings.contact_dt_min,
-            np.empty((3, len(arm.sections))), now)
+        nodes, ok, its, _, stable, snapped = _ramp(nodes, grid, layout, start, goal, terms,
+                                                   settings, np.empty((3, len(arm.sections))), now)
         nodes.flags.writeable = False
-        return nodes, int(its), bool(ok and stable)
+        return nodes, int(its), bool(ok and stable), snapped
 
-    nodes, its, ok = arm._solver_cache.get(("spatial loaded contact nodes", layout.key, scene),
-                                           build)
-    return nodes.copy(), its, ok
+    nodes, its, ok, snapped = arm._solver_cache.get(
+        ("spatial loaded contact nodes", layout.key, scene), build)
+    return nodes.copy(), its, ok, snapped
 
 
 def _result(nodes, scene, grid, layout, level, **fields):

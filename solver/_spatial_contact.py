@@ -66,6 +66,9 @@ from solver.layout import (
 )
 from solver.rod import _rotation_rows, rest_strains_into, rotation_to_quaternion, spatial_state_rk4_step
 
+NO_TETHER = (np.zeros(1), np.zeros((0, 3)))
+"""The ``tether`` of an ordinary solve: no springs (:func:`_system`)."""
+
 # Forward-difference steps of the segment Jacobians, relative to the tangent coordinates'
 # weights (the square root of the machine epsilon: half the digits of the derivative).
 FD_STEP = 1.5e-8
@@ -211,13 +214,15 @@ def _difference(a, b, out):
 
 
 @njit
-def _system(Z, grid, rest, level, F, J, want_jac, blocks, scales):
+def _system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
     """Residuals F of the node states ``Z`` (K, N_CSTATE) and, with ``want_jac``, their
     Jacobian J (dense (n, n), zero off the band) and the segment maps' Jacobians ``blocks``
     (K, 12, 12) in tangent coordinates. ``scales`` (12,) the tangent coordinates' weights
     (the differences' steps are FD_STEP times them). Row order per segment: the jumps of r,
-    rotation, n and m; at the tip n(L⁻) and m(L) less the level's target. Returns False
-    where a state is not finite."""
+    rotation, n and m; at the tip n(L⁻) and m(L) less the level's target. ``tether``:
+    (k (1,), anchors (K, 3)): with k > 0, every node after the base is held to its anchor by
+    a spring of k N/m (a point load −k(r − anchor), see :func:`relax`). Returns False where
+    a state is not finite."""
     segs = grid[GS_SEGS]
     n_seg = segs.shape[0]
     target = level[L_TARGET]
@@ -242,11 +247,16 @@ def _system(Z, grid, rest, level, F, J, want_jac, blocks, scales):
                 F[row + 3 + d] = end[CS_M + d] - target[3 + d]
         else:
             _difference(end, Z[seg + 1], F[row:row + N_CTANGENT])
+            if tether[0][0] > 0.0:  # n jumps by +k(r − anchor) across the tethered node
+                for d in range(3):
+                    F[row + CT_N + d] += tether[0][0] * (Z[seg + 1, CS_R + d] - tether[1][seg + 1, d])
         if not want_jac:
             continue
         if not last:
             for d in range(N_CTANGENT):
                 J[row + d, _column(seg + 1, d)] = -1.0
+            for d in range(3):
+                J[row + CT_N + d, _column(seg + 1, CT_R + d)] += tether[0][0]
         for c in range(N_CTANGENT):
             step = FD_STEP * scales[c]
             _nudge(Z[seg], c, step, moved)
@@ -332,12 +342,13 @@ def _between(a, b, out):
 
 
 @njit
-def _newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step):
+def _newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step, tether):
     """Damped Newton on the spatial contact system at ``level``; ``Z`` updated in place.
 
     As :func:`solver._contact._newton`: weighted RMS norms, steps clipped to ``max_step``
-    and halved until the residual falls; a fresh Jacobian at every iteration. Returns
-    (converged, iterations, |F|, stable).
+    and halved until the residual falls; a fresh Jacobian at every iteration. ``tether``:
+    see :func:`_system` (:data:`NO_TETHER`: none). Returns (converged, iterations, |F|,
+    stable) — stable by the test of the untethered problem.
     """
     n = weights.shape[0]
     n_seg = Z.shape[0]
@@ -348,7 +359,7 @@ def _newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, m
     step = np.empty(n)
     rhs = np.empty(n)
     base = Z.copy()
-    if not _system(Z, grid, rest, level, F, J, True, blocks, scales):
+    if not _system(Z, grid, rest, level, F, J, True, blocks, scales, tether):
         return False, 0, math.inf, False
     res = _weighted_norm(F, res_weights)
     for it in range(max_iter + 1):
@@ -368,7 +379,7 @@ def _newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, m
         res_try = math.inf
         for _ in range(8):
             _retract(base, step, -alpha, Z)
-            if _system(Z, grid, rest, level, F_try, J, False, blocks, scales):
+            if _system(Z, grid, rest, level, F_try, J, False, blocks, scales, tether):
                 res_try = _weighted_norm(F_try, res_weights)
                 if res_try < res:
                     break
@@ -376,7 +387,7 @@ def _newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, m
         if not res_try < res:
             Z[:, :] = base
             return False, it + 1, res, False
-        if not _system(Z, grid, rest, level, F, J, True, blocks, scales):
+        if not _system(Z, grid, rest, level, F, J, True, blocks, scales, tether):
             return False, it + 1, math.inf, False
         res = _weighted_norm(F, res_weights)
     return False, max_iter, res, _stability(blocks)
@@ -425,7 +436,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     total = 0
     ok, its, res, stable = _newton(Z, grid, rest, now, weights, res_weights, scales, tol,
-                                   max_iter, max_step)
+                                   max_iter, max_step, NO_TETHER)
     total += its
     if not (ok and stable):
         return False, total, res, stable, 0.0
@@ -445,7 +456,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
         final = t_new >= 1.0
         ok, its, res, stable = _newton(Z, grid, rest, now, weights, res_weights, scales,
                                        tol if final else 1e3 * tol, max_iter if final else 8,
-                                       max_step)
+                                       max_step, NO_TETHER)
         total += its
         _between(Z, guess, moved)
         corr = _weighted_norm(moved, weights)

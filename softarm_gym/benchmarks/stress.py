@@ -36,6 +36,7 @@ import solver
 from softarm_gym.jobs import Chunk, Plan, Runner, chunk_bounds
 from solver import PSI, designs
 from solver.designs import ArmDesign
+from solver.scene import core_distance
 
 __all__ = ["Trial", "CLASSES", "random_trials", "class_trials", "run_trials", "summarize",
            "run_env_steps", "env_plan", "run", "plan", "format_report", "TARGET_CONVERGED_FRACTION",
@@ -252,7 +253,9 @@ def _curl_inputs(arm: ArmDesign, side: float) -> np.ndarray:
 
 def _class_wrap_press(n, rng, steps: int = 8):
     """A disc tangent to the start backbone; the curling channels ramp to the maximum and press
-    the arm into it (contact stiffness 1e5–1e6 N/m², the payload pushing too)."""
+    the arm into it (contact stiffness 1e5–1e6 N/m², the payload pushing too). One trial in
+    three is spatial: the disc becomes a cylinder whose axis leans up to 30° off z, or a
+    sphere, through the same centre (the arm, pressed in its plane, may slide out of it)."""
     out = []
     for _ in range(n):
         arm = _NAMED_ARMS[int(rng.integers(len(_NAMED_ARMS)))]
@@ -263,10 +266,22 @@ def _class_wrap_press(n, rng, steps: int = 8):
         k = int(np.searchsorted(start.s, max(start.s[-1] - 1.5 * math.pi * radius, 0.0)))
         theta = start.angles[k]
         center = start.positions[k] + 1.05 * radius * side * np.array([-math.sin(theta), math.cos(theta)])
-        disc = solver.Disc(center=tuple(center), radius=radius, stiffness=10.0 ** rng.uniform(5.0, 6.0))
+        stiffness = 10.0 ** rng.uniform(5.0, 6.0)
         target = _curl_inputs(arm, side) * arm.max_pressure
+        planar = bool(rng.uniform() >= 1.0 / 3.0)
+        if planar:
+            obstacle = solver.Disc(center=tuple(center), radius=radius, stiffness=stiffness)
+        else:
+            target = solver.channel_pressures(arm, target)
+            lean, heading = math.radians(rng.uniform(0.0, 30.0)), rng.uniform(0.0, 2.0 * math.pi)
+            axis = (math.sin(lean) * math.cos(heading), math.sin(lean) * math.sin(heading), math.cos(lean))
+            obstacle = solver.Cylinder((*center, 0.0), axis, radius, stiffness) \
+                if rng.uniform() < 0.5 else solver.Sphere((*center, 0.0), radius, stiffness)
+            if core_distance(obstacle, np.zeros(3))[0] <= radius:  # it leans over the base
+                obstacle = solver.Cylinder((*center, 0.0), (0.0, 0.0, 1.0), radius, stiffness)
         ramp = np.linspace(0.0, 1.0, steps)[:, None] * target[None, :]
-        out.append(Trial(arm, ramp, replace(scene, obstacles=(disc,)), solver.MODELS[int(rng.integers(2))]))
+        out.append(Trial(arm, ramp, replace(scene, obstacles=(obstacle,)),
+                         solver.MODELS[int(rng.integers(2))], planar))
     return out
 
 
@@ -400,7 +415,7 @@ def _describe(trial: Trial, step: int, eq) -> dict:
             "max_pressure_psi": trial.arm.max_pressure / PSI, "length_m": trial.arm.length,
             "EI_base": trial.arm.sections[0].EI, "base_angle_deg": s.base_angle_deg,
             "payload_kg": s.payload_kg,
-            "obstacles": [[*d.center, d.radius, d.stiffness] for d in s.obstacles],
+            "obstacles": [{"kind": type(d).__name__, **asdict(d)} for d in s.obstacles],
             "residual": None if eq is None else float(eq.residual),
             "iterations": None if eq is None else int(eq.iterations)}
 
