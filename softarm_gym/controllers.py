@@ -181,6 +181,13 @@ class CurlController(_PressureController):
     the step; once the step is below 1/1000 of p_max it holds. It uses no contact or wrap
     feedback: the reference a learned wrap policy should beat.
 
+    On a 3D wrap env (``planar=False``) the side is a heading: the object's direction from
+    the backbone sample nearest it, in the base frame's (d1, d2) plane (the nominal mounting;
+    the arm starts nearly straight). Each channel's weight is how far the bend it gives alone
+    at p_max (Σ (u1*, u2*)·L over the sections) points that way (the cosine, clipped at 0,
+    scaled so that the largest is 1), and the commands ramp to ``level`` × weight, ``level``
+    rising by the step.
+
     On a grasp env (:class:`~softarm_gym.envs.GraspEnv`, whose goal block also holds the
     object's seat) it reads the object's centre: once the object is ``success_lift`` above its
     seat it holds the pressures, unless the object is pressed against the arm's base clamp
@@ -188,7 +195,8 @@ class CurlController(_PressureController):
     by half the last increment, and so on.
 
     Args:
-        env: a (possibly wrapped) planar wrap or grasp environment with ``observation_format='flat'``.
+        env: a (possibly wrapped) wrap (planar or 3D) or grasp environment with
+            ``observation_format='flat'``.
         ramp_steps: steps from zero to full pressure while no command is rejected (>= 1).
 
     Raises:
@@ -205,16 +213,21 @@ class CurlController(_PressureController):
         self.action_mode = base.action_mode
         self.delta_scale = float(base.delta_scale)
         self._slices = observation_slices(env)
+        self.planar = bool(base.planar)
         lengths = np.array([section.length for section in base.arm.sections])
-        turning = np.empty(base.n_inputs)
+        bends = np.empty((base.n_inputs, 2))
         for k in range(base.n_inputs):
             pressures = np.zeros(base.n_inputs)
             pressures[k] = base.arm.max_pressure
-            channels = solver.channel_pressures(base.arm, pressures, planar=True)
-            _, u2, _ = solver.rest_strains(base.arm, channels)
-            turning[k] = u2 @ lengths
-        self.turning = turning
-        """Total rest turning (rad) of the arm with each input alone at p_max (> 0: counter-clockwise)."""
+            channels = solver.channel_pressures(base.arm, pressures, planar=self.planar)
+            u1, u2, _ = solver.rest_strains(base.arm, channels)
+            bends[k] = u1 @ lengths, u2 @ lengths
+        self.turning = bends[:, 1]
+        """Total rest turning (rad) about d2 of the arm with each input alone at p_max (planar:
+        > 0 counter-clockwise)."""
+        self.bends = bends
+        """(n_inputs, 2) total rest curvature (u1*, u2*)·L of each input alone at p_max (rad)."""
+        self.base_frame = solver.rod.base_rotation(math.radians(base.base_angle_deg - 90.0))
         self.success_lift = getattr(base, "success_lift", None)
         """The grasp env's lift to reach (m), or None on a wrap env."""
         self.reset()
@@ -223,7 +236,20 @@ class CurlController(_PressureController):
         """Forget the side, the last command and the step size (call at every episode start)."""
         self._inputs = None
         self._command = None
+        self._level = 0.0
         self._increment = 1.0 / self.ramp_steps
+
+    def _weights(self, obs: np.ndarray) -> np.ndarray:
+        """3D: each channel's weight towards the object's heading (see the class docstring)."""
+        backbone = obs[self._slices["backbone"]].reshape(-1, 3)
+        centre = obs[self._slices["goal"]][:3]
+        k = int(np.argmin(np.linalg.norm(backbone - centre, axis=1)))
+        heading = self.base_frame[:, :2].T @ (centre - backbone[k])
+        # A curvature (u1, u2) turns d3 towards u2·d1 − u1·d2 (d3' = u × d3).
+        towards = np.column_stack([self.bends[:, 1], -self.bends[:, 0]])
+        cosine = towards @ heading / (np.linalg.norm(towards, axis=1) * np.linalg.norm(heading) + 1e-300)
+        weights = np.clip(cosine, 0.0, None)
+        return weights / weights.max() if weights.max() > 0 else weights
 
     def _side(self, obs: np.ndarray) -> float:
         """+1 when the disc lies to the left of the backbone (counter-clockwise curl), else −1."""
@@ -239,7 +265,8 @@ class CurlController(_PressureController):
         obs = np.asarray(obs, dtype=float)
         current = 0.5 * (obs[self._slices["pressures"]] + 1.0)
         if self._inputs is None:
-            self._inputs = (np.sign(self.turning) == self._side(obs)).astype(float)
+            self._inputs = (np.sign(self.turning) == self._side(obs)).astype(float) \
+                if self.planar else self._weights(obs)
         # The observation is float32: a command the env took matches it to ~1e-7.
         elif np.max(np.abs(current - self._command)) > 1e-5:
             # Rejected: hold the accepted state for a step (so the env's run of consecutive
@@ -257,6 +284,10 @@ class CurlController(_PressureController):
                     return self._command
                 self._increment *= 0.5  # pressed against the base clamp: curl back
                 increment = -self._increment if self._increment >= _MIN_INCREMENT else 0.0
+        if not self.planar:
+            self._level = min(self._level + increment, 1.0)
+            self._command = self._level * self._inputs
+            return self._command
         step = np.where(self._inputs > 0, increment, -abs(increment))
         self._command = np.clip(current + step, 0.0, 1.0)
         return self._command

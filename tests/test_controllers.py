@@ -73,6 +73,24 @@ def test_curl_controller_curls_towards_the_disc(seed):
     assert chosen > 180.0 > info["wrap_angle_deg"]
 
 
+def test_curl_controller_curls_towards_the_cylinder_in_3d():
+    """On the 3D wrap env the weights point the arm's bend at the object's heading: seed 0
+    wraps past the id's 75°; the same weights turned half a turn about the arm (the channels
+    facing the object pressed instead) wrap nothing."""
+    env = gym.make("SoftArm/OctArmWrap3D-v0")
+    ctrl = CurlController(env)
+    assert _final_wrap(env, ctrl, 0, steps=30) > 75.0
+    obs, _ = env.reset(seed=0)
+    ctrl.reset()
+    towards = ctrl._weights(obs)
+    ctrl.bends = -ctrl.bends
+    away = ctrl._weights(obs)
+    assert np.argmax(towards) != np.argmax(away)
+    for _ in range(30):
+        obs, _, _, _, info = env.step(ctrl.act(obs))
+    assert info["wrap_angle_deg"] == 0.0
+
+
 def test_curl_controller_holds_after_a_rejected_command():
     env = gym.make("SoftArm/OctArmWrap-v0")
     ctrl = CurlController(env, ramp_steps=4)

@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import softarm_gym  # noqa: F401
-from softarm_gym.envs import ReachEnv, WrapEnv
+from softarm_gym.envs import GraspEnv, ReachEnv
 
 SPATIAL_OBSERVATIONS = ("true", "model", "constant_curvature", "cable_encoder", "load_cell")
 
@@ -54,6 +54,6 @@ def test_spatial_inclinometer_observation_reads_imus():
 
 def test_spatial_unsupported_combinations_are_clear_errors():
     with pytest.raises(ValueError, match="planar only"):
-        WrapEnv("octarm_v", planar=False)
+        GraspEnv("octarm_v", planar=False)
     with pytest.raises(ValueError, match="planar must be"):
         ReachEnv("octarm_v", planar="yes")
