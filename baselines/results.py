@@ -56,7 +56,7 @@ RESULTS_DIR = PACKAGE_DIR / "results"
 TRAINED_DIR = PACKAGE_DIR / "trained"
 ENV_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
 """Reach environments of the baselines (the Jacobian controller's reference rows)."""
-WRAP_ENV_IDS = ("SoftArm/OctArmWrap-v1", "SoftArm/CTWrap-v1")
+WRAP_ENV_IDS = ("SoftArm/OctArmWrap-v1", "SoftArm/CTWrap-v1", "SoftArm/OctArmWrap3D-v0")
 """Wrap environments of the baselines (the planner's reference rows)."""
 TRACK_ENV_IDS = ("SoftArm/OctArmTrack-v0", "SoftArm/CTTrack-v0")
 """Track environments of the baselines (the Jacobian controller's reference rows)."""
@@ -86,7 +86,8 @@ DEFINITIONS = ("Success = final true tip within the env's tolerance "
                "training), acting deterministically; episode i of every evaluation uses seed i.")
 """What the report's numbers mean (part of its introduction)."""
 WRAP_DEFINITIONS = ("Success = `info[\"is_success\"]` at the last of the 200 steps: a wrap angle of "
-                    "at least the env's `success_wrap_deg` (OctArmWrap-v1 270°, CTWrap-v1 90°) with the "
+                    "at least the env's `success_wrap_deg` (OctArmWrap-v1 270°, CTWrap-v1 90°, "
+                    "OctArmWrap3D-v0 75°, about the cylinder's axis) with the "
                     "deepest penetration of the disc within 5 mm; the wrap angle is the final one "
                     "(deg, the angular extent of the backbone in contact with the disc); steps to success "
                     "= first successful step, over the episodes that got there.")

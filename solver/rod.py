@@ -491,20 +491,13 @@ def planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs):
 # ----------------------------------------------------------------------------- spatial
 
 
-@njit
-def spatial_rhs(sig, y, dy, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i):
-    """Derivative of the spatial state (r, β, m, δφ, δm; ``SP_*``) at local coordinate
-    ``sig`` into ``dy`` (NSTATE,). ``loads_i`` (6,): n_end and q of the section (``SL_*``).
-    Written out in scalars: it runs 4× per RK4 step and must not allocate."""
-    w, x, yy, z = _unit_quaternion(y)
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation_rows(w, x, yy, z)
-    rest = length - sig
-    n0 = loads_i[SL_N] + loads_i[SL_Q] * rest
-    n1 = loads_i[SL_N + 1] + loads_i[SL_Q + 1] * rest
-    n2 = loads_i[SL_N + 2] + loads_i[SL_Q + 2] * rest
-    m0 = y[SP_M]
-    m1 = y[SP_M + 1]
-    m2 = y[SP_M + 2]
+@njit(inline="always")
+def _spatial_law(r00, r01, r02, r10, r11, r12, r20, r21, r22, n0, n1, n2, m0, m1, m2, ca, cg,
+                 ci, cj, u1r, u2r, v3r):
+    """The constitutive law in 3D, in scalars: from the directors (rows of R), the internal
+    force and moment (world frame) and the section's compliances and rest strains, the
+    curvature u (body frame) and the slope r' = R v (world frame), v = (cg·n1, cg·n2,
+    v3* + ca·n3) and u = (u1* + ci·m1, u2* + ci·m2, cj·m3) with n, m in the body frame."""
     # Body-frame components (Rᵀ n, Rᵀ m).
     nb0 = r00 * n0 + r10 * n1 + r20 * n2
     nb1 = r01 * n0 + r11 * n1 + r21 * n2
@@ -521,6 +514,25 @@ def spatial_rhs(sig, y, dy, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i):
     rp0 = r00 * v0 + r01 * v1 + r02 * v2
     rp1 = r10 * v0 + r11 * v1 + r12 * v2
     rp2 = r20 * v0 + r21 * v1 + r22 * v2
+    return u0, u1, u2, rp0, rp1, rp2
+
+
+@njit
+def spatial_rhs(sig, y, dy, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i):
+    """Derivative of the spatial state (r, β, m, δφ, δm; ``SP_*``) at local coordinate
+    ``sig`` into ``dy`` (NSTATE,). ``loads_i`` (6,): n_end and q of the section (``SL_*``).
+    Written out in scalars: it runs 4× per RK4 step and must not allocate."""
+    w, x, yy, z = _unit_quaternion(y)
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation_rows(w, x, yy, z)
+    rest = length - sig
+    n0 = loads_i[SL_N] + loads_i[SL_Q] * rest
+    n1 = loads_i[SL_N + 1] + loads_i[SL_Q + 1] * rest
+    n2 = loads_i[SL_N + 2] + loads_i[SL_Q + 2] * rest
+    m0 = y[SP_M]
+    m1 = y[SP_M + 1]
+    m2 = y[SP_M + 2]
+    u0, u1, u2, rp0, rp1, rp2 = _spatial_law(r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                                             n0, n1, n2, m0, m1, m2, ca, cg, ci, cj, u1r, u2r, v3r)
     dy[SP_R] = rp0
     dy[SP_R + 1] = rp1
     dy[SP_R + 2] = rp2
@@ -596,21 +608,8 @@ def spatial_state_rhs(y, dy, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
     m0 = y[CS_M]
     m1 = y[CS_M + 1]
     m2 = y[CS_M + 2]
-    nb0 = r00 * n0 + r10 * n1 + r20 * n2
-    nb1 = r01 * n0 + r11 * n1 + r21 * n2
-    nb2 = r02 * n0 + r12 * n1 + r22 * n2
-    mb0 = r00 * m0 + r10 * m1 + r20 * m2
-    mb1 = r01 * m0 + r11 * m1 + r21 * m2
-    mb2 = r02 * m0 + r12 * m1 + r22 * m2
-    v0 = nb0 * cg
-    v1 = nb1 * cg
-    v2 = v3r + nb2 * ca
-    u0 = u1r + mb0 * ci
-    u1 = u2r + mb1 * ci
-    u2 = mb2 * cj
-    rp0 = r00 * v0 + r01 * v1 + r02 * v2
-    rp1 = r10 * v0 + r11 * v1 + r12 * v2
-    rp2 = r20 * v0 + r21 * v1 + r22 * v2
+    u0, u1, u2, rp0, rp1, rp2 = _spatial_law(r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                                             n0, n1, n2, m0, m1, m2, ca, cg, ci, cj, u1r, u2r, v3r)
     fx, fy, fz, _ = contact_force_3d(y[CS_R], y[CS_R + 1], y[CS_R + 2], obstacles)
     dy[CS_R] = rp0
     dy[CS_R + 1] = rp1
