@@ -142,6 +142,17 @@ register(
             "object_radius": (0.11, 0.125), "success_wrap_deg": 75.0},
 )
 
+# CT in 3D: CTWrap-v1's horizontal arm, object radii, half-turn placement and 90-degree success,
+# the cylinder at a random heading about the arm (docs/environments.md, "3D wrap").
+register(
+    id="SoftArm/CTWrap3D-v0",
+    entry_point="softarm_gym.envs:WrapEnv",
+    max_episode_steps=200,
+    reward_threshold=135.0,
+    kwargs={"design": "ct", "planar": False, "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),
+            "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
+)
+
 # Grasp: the OctArmWrap-v1 geometry with a free object resting in forks; lift it out and hold
 # it (docs/environments.md, "Grasp"; the object's pose is solved with the arm, solver.grasp).
 register(
