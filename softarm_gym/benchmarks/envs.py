@@ -98,10 +98,10 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
              if env_id in SELF_CONTACT_IDS and "true" in observations]
     for env_id, obs, extra in plan:
         kwargs = {"observation": obs, **extra}
-        planar = extra.get("planar", True)
         if progress:
             progress(f"{env_id} observation={obs}{''.join(f' {k}={v}' for k, v in extra.items())}")
         env = gym.make(env_id, **kwargs)
+        planar = env.unwrapped.planar  # a 3D id (OctArmWrap3D-v0) is spatial without the kwarg
         _time_steps(env, min(20, n_steps), seed=1)  # warm-up: load kernels, first resets
         single = _time_steps(env, n_steps, seed=0)
         env.close()

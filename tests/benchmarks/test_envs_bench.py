@@ -27,17 +27,20 @@ def test_env_bench_ids_are_checked(capsys):
 
 
 def test_reach_is_also_timed_in_3d_and_with_self_contact():
-    """The 3D rows: the reach IDs of SPATIAL_IDS with planar=False, held to the 3D targets;
-    the self-contact rows: the IDs of SELF_CONTACT_IDS with self_contact=True."""
+    """The 3D rows: the reach IDs of SPATIAL_IDS with planar=False, held to the 3D targets, and
+    the 3D ids (registered spatial) labelled 3D; the self-contact rows: the IDs of
+    SELF_CONTACT_IDS with self_contact=True."""
     from softarm_gym.benchmarks.envs import SELF_CONTACT_IDS, SPATIAL_IDS, run
 
     assert SPATIAL_IDS[0] in SELF_CONTACT_IDS and "SoftArm/CTWrap-v1" in SELF_CONTACT_IDS
-    result = run(n_steps=4, n_envs=2, observations=("true",), ids=(SPATIAL_IDS[0], "SoftArm/CTWrap-v1"))
+    result = run(n_steps=4, n_envs=2, observations=("true",),
+                 ids=(SPATIAL_IDS[0], "SoftArm/CTWrap-v1", "SoftArm/CTWrap3D-v0"))
     rows = {(c["env_id"], c["planar"], c["self_contact"]): c for c in result["cases"]}
     assert set(rows) == {(SPATIAL_IDS[0], True, False), (SPATIAL_IDS[0], False, False),
                          ("SoftArm/CTWrap-v1", True, False), (SPATIAL_IDS[0], True, True),
-                         ("SoftArm/CTWrap-v1", True, True)}
+                         ("SoftArm/CTWrap-v1", True, True), ("SoftArm/CTWrap3D-v0", False, False)}
     assert rows[(SPATIAL_IDS[0], False, False)]["target_steps_per_s"] == TARGETS["reach_true_3d"]
     assert target_for(SPATIAL_IDS[1], "cable_encoder", planar=False) == TARGETS["estimator"]
     table = format_table(result)
     assert f"{SPATIAL_IDS[0]} 3D" in table and "SoftArm/CTWrap-v1 self" in table
+    assert "SoftArm/CTWrap3D-v0 3D" in table
