@@ -501,6 +501,15 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "planner's rollouts do not model the free object). Evaluated with `python -m "
              "baselines.results evaluate --runs runs --main-only --episodes 20 --only RUN` per run and "
              "for `curl_OctArmGrasp-v0`; the main cell only; not shipped.",
+             "",
+             "3D wrap (`SoftArm/OctArmWrap3D-v0`, success at 75° about the cylinder's axis): SAC, 3 "
+             "seeds, wrap's settings on the registered defaults (the YAML's 54,496 steps: what a "
+             "first seed got in a 25-min cap), two trainings at a time on the 2-core machine: "
+             "`python -m baselines.train --env SoftArm/OctArmWrap3D-v0 --algo sac --seed S "
+             "--timesteps 54496 --time-limit-min 25 --eval-freq 5000 --eval-episodes 5 --threads 1` "
+             "(S = 0, 1, 2). `planner_OctArmWrap3D-v0` is `CEMPlanner` with its defaults. Evaluated "
+             "with `python -m baselines.results evaluate --runs runs --main-only --episodes 50 "
+             "--only RUN` per run and for the planner; the main cell only; the best run shipped.",
              ""]
     by_run = {r["run"]: r for r in runs}
     if len(table):  # the observation mode each agent was trained on (the controller: true)
