@@ -1,0 +1,62 @@
+"""Action wrappers for the soft-arm environments.
+
+:class:`CornerActions` turns the continuous pressure box into its corners: every channel
+either vented or at p_max. The wrap task's optimum lies there — ``CEMPlanner`` wraps every
+seeded ``OctArmWrap-v1`` disc by holding one corner (channel I or II of every section at
+p_max, by the side of the disc) — while along the diagonal to that corner the wrap snaps from
+under 50° to over 300° between 80 % and 90 % of p_max, a cliff a continuous policy's gradient
+does not cross. A categorical policy over the corners sees each of them directly.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+__all__ = ["CornerActions", "MAX_CORNER_INPUTS"]
+
+MAX_CORNER_INPUTS = 12
+"""The most action dimensions :class:`CornerActions` takes (4,096 corners)."""
+
+
+class CornerActions(gym.ActionWrapper, gym.utils.RecordConstructorArgs):
+    """A ``Discrete(2**n)`` action space over the corners of the env's ``Box(-1, 1, (n,))``.
+
+    Action ``k`` is the corner whose component ``c`` is +1 where bit ``n - 1 - c`` of ``k`` is
+    set and −1 where it is clear (``k`` written in binary with channel 0 first, the order of
+    ``itertools.product((-1, 1), repeat=n)``). With the envs' absolute actions a corner is a
+    bang-bang pressure command (each channel vented or at p_max); with delta actions it moves
+    every channel by ± ``delta_scale``.
+
+    Args:
+        env: an env with a ``Box(-1, 1, (n,))`` action space, ``n`` ≤ :data:`MAX_CORNER_INPUTS`.
+
+    Raises:
+        ValueError: another action space, or too many dimensions.
+    """
+
+    def __init__(self, env: gym.Env):
+        gym.utils.RecordConstructorArgs.__init__(self)
+        gym.ActionWrapper.__init__(self, env)
+        box = env.action_space
+        if not isinstance(box, spaces.Box) or len(box.shape) != 1 \
+                or not (np.all(box.low == -1.0) and np.all(box.high == 1.0)):
+            raise ValueError(f"CornerActions needs a Box(-1, 1, (n,)) action space; got {box}")
+        n = box.shape[0]
+        if n > MAX_CORNER_INPUTS:
+            raise ValueError(f"CornerActions takes at most {MAX_CORNER_INPUTS} action dimensions "
+                             f"({2 ** MAX_CORNER_INPUTS} corners); got {n}")
+        self.corners = np.array(list(itertools.product((-1.0, 1.0), repeat=n)), dtype=box.dtype)
+        """(2**n, n) the corner of each discrete action."""
+        self.action_space = spaces.Discrete(len(self.corners))
+
+    def action(self, action) -> np.ndarray:
+        """The corner of discrete action ``action`` (an int in [0, 2**n))."""
+        k = np.asarray(action)
+        if k.shape not in ((), (1,)) or not np.issubdtype(k.dtype, np.integer) \
+                or not 0 <= int(k.reshape(())) < len(self.corners):
+            raise ValueError(f"action must be an integer in [0, {len(self.corners)}); got {action!r}")
+        return self.corners[int(k.reshape(()))]
