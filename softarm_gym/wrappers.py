@@ -1,11 +1,12 @@
 """Action wrappers for the soft-arm environments.
 
 :class:`CornerActions` turns the continuous pressure box into its corners: every channel
-either vented or at p_max. The wrap task's optimum lies there — ``CEMPlanner`` wraps every
-seeded ``OctArmWrap-v1`` disc by holding one corner (channel I or II of every section at
-p_max, by the side of the disc) — while along the diagonal to that corner the wrap snaps from
-under 50° to over 300° between 80 % and 90 % of p_max, a cliff a continuous policy's gradient
-does not cross. A categorical policy over the corners sees each of them directly.
+either vented or at p_max. The wrap task's optimum can lie there: on ``OctArmWrap-v1`` seeds
+0–3, ``CEMPlanner`` holds one corner from the first step (channel I or II+III of every section
+at p_max, by the side of the disc), while on the straight path from all vented to that corner
+the wrap snaps from under 50° to over 300° between 80 % and 90 % of p_max: a cliff that a
+continuous policy's gradient does not show. A categorical policy over the corners sees each
+of them directly.
 """
 
 from __future__ import annotations
