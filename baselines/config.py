@@ -7,7 +7,9 @@ nothing is ``eval``-ed). Keys other than the ones below go to the SB3 algorithm 
 * ``policy`` (str), ``n_timesteps`` (int): the policy class name and the training budget;
 * ``n_envs`` (int, default 1): parallel copies of the environment (``DummyVecEnv``);
 * ``normalize`` (bool or mapping of ``VecNormalize`` arguments, default false);
-* ``env_kwargs`` (mapping, default empty): keyword arguments of ``gym.make``;
+* ``env_kwargs`` (mapping, default empty): keyword arguments of ``gym.make``, and
+  ``action_wrapper``, a name from :data:`ACTION_WRAPPERS` (``"corners"``: discrete bang-bang
+  actions, :class:`softarm_gym.wrappers.CornerActions`) put round the env wherever it is made;
 * ``noise_type`` / ``noise_std`` (off-policy only): ``"normal"`` action noise of that std;
 * ``replay_buffer_class`` (off-policy only): a name from :data:`REPLAY_BUFFERS`
   (``HerReplayBuffer``, with ``replay_buffer_kwargs`` a mapping), as rl-zoo3 writes it.
@@ -58,6 +60,7 @@ from stable_baselines3.common.noise import NormalActionNoise
 
 import softarm_gym  # noqa: F401  (registers the SoftArm/* environments)
 from softarm_gym.files import write_json
+from softarm_gym.wrappers import CornerActions
 
 __all__ = ["ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams", "split_hyperparams", "make_env",
            "check_env_id", "is_grasp", "is_wrap", "registered_equivalent", "sidecar_paths",
@@ -117,13 +120,20 @@ def split_hyperparams(params: dict) -> tuple[dict, dict]:
     return special, algo_kwargs
 
 
-def action_noise(special: dict, n_actions: int):
-    """The SB3 action-noise object described by ``noise_type``/``noise_std`` (None without them)."""
+def action_noise(special: dict, action_space: spaces.Space):
+    """The SB3 action-noise object described by ``noise_type``/``noise_std`` (None without them).
+
+    Raises:
+        ValueError: an unknown ``noise_type``, or noise asked for a discrete action space.
+    """
     kind = special.get("noise_type")
     if kind is None:
         return None
     if kind != "normal":
         raise ValueError(f"noise_type must be 'normal'; got {kind!r}")
+    if not isinstance(action_space, spaces.Box):
+        raise ValueError(f"noise_type needs a continuous (Box) action space; got {action_space}")
+    n_actions = action_space.shape[0]
     std = float(special.get("noise_std", 0.1))
     return NormalActionNoise(mean=np.zeros(n_actions), sigma=std * np.ones(n_actions))
 
@@ -153,15 +163,26 @@ def is_grasp(env_id: str) -> bool:
     return gym.spec(check_env_id(env_id)).entry_point == "softarm_gym.envs:GraspEnv"
 
 
+ACTION_WRAPPERS = {"corners": CornerActions}
+"""Names an ``env_kwargs["action_wrapper"]`` may take, and the wrapper each puts round the env."""
+
+
 def make_env(env_id: str, env_kwargs: dict | None = None, **overrides) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs, **overrides)``; overrides win (e.g. ``observation=...``).
+    """``gym.make(env_id, **env_kwargs, **overrides)``; overrides win (e.g. ``observation=...``);
+    an ``action_wrapper`` entry is not passed on but names the wrapper put round the env
+    (:data:`ACTION_WRAPPERS`).
 
     Raises:
-        ValueError: ``env_id`` is not a registered ``SoftArm/*`` id (:func:`check_env_id`).
+        ValueError: ``env_id`` is not a registered ``SoftArm/*`` id (:func:`check_env_id`), or
+            an unknown ``action_wrapper``.
     """
     kwargs = dict(env_kwargs or {})
     kwargs.update(overrides)
-    return gym.make(check_env_id(env_id), **kwargs)
+    wrapper = kwargs.pop("action_wrapper", None)
+    if wrapper is not None and wrapper not in ACTION_WRAPPERS:
+        raise ValueError(f"unknown action_wrapper {wrapper!r}; choose one of {', '.join(ACTION_WRAPPERS)}")
+    env = gym.make(check_env_id(env_id), **kwargs)
+    return env if wrapper is None else ACTION_WRAPPERS[wrapper](env)
 
 
 def registered_equivalent(env_id: str, env_kwargs: dict | None = None) -> tuple[str, dict]:

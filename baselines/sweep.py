@@ -66,7 +66,14 @@ from pathlib import Path
 from tqdm import tqdm
 
 from baselines import results
-from baselines.config import ALGOS, HYPERPARAMS_DIR, check_env_id, load_hyperparams, split_hyperparams
+from baselines.config import (
+    ALGOS,
+    HYPERPARAMS_DIR,
+    check_env_id,
+    load_hyperparams,
+    make_env,
+    split_hyperparams,
+)
 from baselines.train import CONFIG_FILE, _check_counts, latest_checkpoint, resume, train
 from softarm_gym.files import write_json
 from softarm_gym.jobs import (
@@ -155,10 +162,8 @@ def _names(text: str, choices, what: str) -> list[str]:
 def _check_env_kwargs(env_id: str, env_kwargs: dict, where: str) -> None:
     """Build the env once, so that settings it refuses (``observation_format="goal"`` with an
     estimator, say) are one line before the sweep rather than a failure in every run."""
-    import gymnasium as gym
-
     try:
-        gym.make(env_id, **env_kwargs).close()
+        make_env(env_id, env_kwargs).close()
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{where}: {first_line(exc)}") from None
 

@@ -290,6 +290,8 @@ def _batched_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int, monitor_
                  append: bool = False):
     """``n_envs`` arms in one :class:`BatchedVecEnv`, in a ``VecMonitor`` (``monitor.csv``)."""
     keys = monitor_keys(env_id)
+    if "action_wrapper" in env_kwargs:
+        raise ValueError("--batched does not take an action_wrapper (the batched env steps Box actions)")
     venv = VecMonitor(BatchedVecEnv(env_id, n_envs, **env_kwargs), info_keywords=keys)
     if monitor_dir is not None:
         path = monitor_dir / "monitor.csv"
@@ -369,7 +371,7 @@ def build(env_id: str, algo: str, params: dict, seed: int, *, batched: bool = Fa
     normalize = special.get("normalize", False)
     if normalize:
         venv = VecNormalize(venv, **(normalize if isinstance(normalize, dict) else {}))
-    noise = action_noise(special, venv.action_space.shape[0])
+    noise = action_noise(special, venv.action_space)
     if noise is not None:
         algo_kwargs["action_noise"] = noise
     return ALGOS[algo](special["policy"], venv, seed=seed, device="cpu", verbose=0, **algo_kwargs), venv

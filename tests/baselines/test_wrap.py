@@ -6,11 +6,12 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from gymnasium import spaces
 
 from baselines import results
-from baselines.config import is_wrap, load_hyperparams, make_env, split_hyperparams
+from baselines.config import action_noise, is_wrap, load_hyperparams, load_policy, make_env, split_hyperparams
 from baselines.evaluate import evaluate, main, summarize
-from baselines.train import train
+from baselines.train import build, train
 from softarm_gym.benchmarks.planner import episode
 from tests.baselines.conftest import TINY
 
@@ -105,3 +106,28 @@ def test_wrap_grid_ship_and_report(tiny_wrap_run, tmp_path):
     assert "## Estimator in the loop: wrap" in text
     assert "| cable_encoder | noisy | 85 % / 321 | 50.0 |" in text
     assert "best trained agent on SoftArm/OctArmWrap-v1" not in text  # no trained agent on it here
+
+
+def test_corner_actions_train_load_and_evaluate_through_env_kwargs(tmp_path):
+    """``env_kwargs: {action_wrapper: corners}`` puts CornerActions round the env wherever
+    baselines makes it: training, the saved metadata, loading the policy and evaluating it."""
+    tiny = {**TINY["ppo"], "n_envs": 1, "normalize": False, "n_steps": 32, "n_timesteps": 64,
+            "env_kwargs": {"action_wrapper": "corners"}}
+    run = train("SoftArm/CTWrap-v1", "ppo", seed=0, log_dir=tmp_path, hyperparams=tiny, eval_freq=0,
+                checkpoint_freq=0, progress=False)
+    policy, meta, _ = load_policy(run / "final_model.zip")
+    assert meta["env_kwargs"] == {"action_wrapper": "corners"}
+    assert policy.action_space == spaces.Discrete(2 ** 4)  # CT: four planar channels
+    result = evaluate(model=run / "final_model.zip", episodes=1)
+    assert WRAP_KEYS <= set(result) and result["solver_failures"] == 0
+
+
+def test_unknown_action_wrapper_and_noise_on_discrete_actions_are_named():
+    with pytest.raises(ValueError, match="unknown action_wrapper 'steps'; choose one of corners"):
+        make_env("SoftArm/CTWrap-v1", {"action_wrapper": "steps"})
+    with pytest.raises(ValueError, match="noise_type needs a continuous"):
+        action_noise({"noise_type": "normal"}, spaces.Discrete(4))
+    assert make_env("SoftArm/CTWrap-v1", {"action_wrapper": "corners"}).action_space == spaces.Discrete(16)
+    with pytest.raises(ValueError, match="--batched does not take an action_wrapper"):
+        build("SoftArm/OctArmReach-v1", "ppo", {**TINY["ppo"], "env_kwargs": {"action_wrapper": "corners"}},
+              seed=0, batched=True)
