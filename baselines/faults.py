@@ -61,6 +61,12 @@ def _check_folder(run: Path) -> int:
     return bad
 
 
+def _hear_sigint() -> None:
+    """In the child before exec: SIGINT to its default. A drill started as a background job of
+    a shell without job control inherits SIGINT ignored, and its sessions would not hear it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def drill(cycles: int = 20, timesteps: int = 20_000, seed: int = 0,
           workdir: Path | str | None = None) -> dict:
     """Run the drill (module docstring); returns the tallies."""
@@ -80,7 +86,8 @@ def drill(cycles: int = 20, timesteps: int = 20_000, seed: int = 0,
     for cycle in range(cycles):
         before = _steps(latest_checkpoint(run)) if run.exists() else 0
         proc = subprocess.Popen(first if cycle == 0 else [*train, "--resume", str(run)],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=_hear_sigint)
         tally["resumed"] += cycle > 0
         while _steps(latest_checkpoint(run) if run.exists() else None) <= before and proc.poll() is None:
             time.sleep(0.1)  # until this session has trained and checkpointed something
