@@ -566,7 +566,7 @@ def test_rl_sweep_worker_dying_without_retries_is_one_line_and_keeps_the_finishe
     assert busy, "both runs finished before a worker could be killed"
     os.kill(busy[0], signal.SIGKILL)
     out, err = proc.communicate(timeout=180)
-    assert proc.returncode == 2 and out == "" and "Traceback" not in err
+    assert proc.returncode == 2 and out == "" and "Traceback" not in err, (proc.returncode, out, err)
     error = err.strip().splitlines()[-1]
     assert error.startswith("baselines.sweep: error: 1 of 2 runs and 0 evaluation cells failed after 0 "
                             "retries (first: ") and "WorkerCrashedError" in error and "--resume" in error
@@ -598,7 +598,7 @@ def test_rl_sweep_ctrl_c_saves_the_running_training_then_resume_finishes_it(tmp_
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=CANCEL_GRACE_S + 60)
     assert time.monotonic() - start < CANCEL_GRACE_S  # the task stopped; nobody waited for the grace
-    assert proc.returncode == 2 and out == "" and "Traceback" not in err
+    assert proc.returncode == 2 and out == "" and "Traceback" not in err, (proc.returncode, out, err)
     assert err.strip().splitlines() == [
         f"baselines.sweep: error: interrupted; 0 of 1 runs finished and kept in {run.parent} (unfinished "
         "runs continue from their newest checkpoint); rerun the same command with --resume to continue"]
