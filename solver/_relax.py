@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from solver._blas import single_blas_thread
 from solver._obstacles import _penalty_energy
 from solver.jit import njit
 from solver.layout import (
@@ -318,8 +319,9 @@ def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_momen
         energy = energy_and_gradient(y * scale, *args)
         return energy, grad * scale
 
-    result = minimize(fun, x0 / scale, jac=True, method="L-BFGS-B",
-                      options={"maxiter": max_iter, "gtol": 1e-12, "ftol": 0.0})
+    with single_blas_thread():
+        result = minimize(fun, x0 / scale, jac=True, method="L-BFGS-B",
+                          options={"maxiter": max_iter, "gtol": 1e-12, "ftol": 0.0})
     x = result.x * scale
     if not np.all(np.isfinite(x)):
         return None

@@ -33,6 +33,7 @@ import numpy as np
 
 from solver import _grid, _planar
 from solver import layout as L
+from solver._blas import single_blas_thread
 from solver._model import PackedArm, context, has_load, pack, refined
 from solver._paths_contact import solve_contact, solve_rigid
 from solver._paths_planar import closed_form, loaded_base_moment, solve_planar
@@ -210,12 +211,14 @@ def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, se
     shortcut of a spatial solve, spatial)."""
     if scene.has_contact:
         contact = solve_contact if planar else solve_contact_spatial
-        if scene.has_rigid_obstacles:
-            return solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                               contact)
-        if not planar:
-            return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
-        return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings, moving)
+        with single_blas_thread():  # dense Newton and relaxation steps (docs/design.md §8)
+            if scene.has_rigid_obstacles:
+                return solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start,
+                                   settings, contact)
+            if not planar:
+                return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
+            return contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                           moving)
     if planar:
         return solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
     if settings.shortcuts and scene.is_planar and in_plane(arm, packed, p_channel) and (

@@ -1,0 +1,30 @@
+"""One BLAS thread for the solver's dense algebra (this package only).
+
+The solver's dense problems are small: the contact Newton's coupled columns (tens of
+unknowns), the relaxation's L-BFGS-B over a few hundred strains. A second BLAS thread does
+not speed them up, and where the cores are busy — vectorised envs, a training beside the
+envs, several sweeps — OpenBLAS's threads wait on each other at every call: a wrap step
+that snaps took ten times longer on a loaded 2-core machine (docs/design.md §8). Parallel
+work is across arms (``BatchStepper``, processes), never inside one solve.
+"""
+
+from __future__ import annotations
+
+from threadpoolctl import ThreadpoolController
+
+__all__ = ["single_blas_thread"]
+
+_controller: ThreadpoolController | None = None
+
+
+def single_blas_thread():
+    """A context manager limiting every loaded BLAS/LAPACK library to one thread for the block
+    (the previous limits come back at its end; about 20 µs, so for solves of milliseconds).
+
+    The libraries are looked up once, at the first call: by then numpy's and scipy's (whose
+    LAPACK numba's ``np.linalg`` uses) are loaded.
+    """
+    global _controller
+    if _controller is None:
+        _controller = ThreadpoolController()
+    return _controller.limit(limits=1, user_api="blas")

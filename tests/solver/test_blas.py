@@ -1,0 +1,60 @@
+"""The solver's dense algebra runs on one BLAS thread (solver._blas; docs/design.md §8)."""
+
+import importlib
+
+import numpy as np
+import pytest
+import scipy.optimize
+from threadpoolctl import threadpool_info, threadpool_limits
+
+import solver
+from solver import PSI, designs
+from solver._blas import single_blas_thread
+
+solve_module = importlib.import_module("solver.solve")  # solver.solve is the function
+
+
+def _blas_threads() -> set[int]:
+    return {lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"}
+
+
+@pytest.fixture
+def two_blas_threads():
+    """BLAS at two threads around the test, as on this 2-core machine by default."""
+    with threadpool_limits(limits=2, user_api="blas"):
+        yield _blas_threads()
+
+
+def test_the_block_limits_blas_to_one_thread_and_restores_the_limit(two_blas_threads):
+    with single_blas_thread():
+        assert _blas_threads() == {1}
+    assert _blas_threads() == two_blas_threads
+
+
+def test_a_contact_step_and_its_snap_relaxation_run_on_one_blas_thread(monkeypatch, two_blas_threads):
+    """OctArm V curled round a disc at its base, switched to channels I of sections 1 and 2:
+    the arm snaps, and the snap's landing is found by relaxation (L-BFGS-B)."""
+    seen = {"contact": [], "relax": []}
+    contact, minimize = solve_module.solve_contact, scipy.optimize.minimize
+
+    def contact_spy(*args, **kwargs):
+        seen["contact"].append(_blas_threads())
+        return contact(*args, **kwargs)
+
+    def minimize_spy(*args, **kwargs):
+        seen["relax"].append(_blas_threads())
+        return minimize(*args, **kwargs)
+
+    monkeypatch.setattr(solve_module, "solve_contact", contact_spy)
+    monkeypatch.setattr(scipy.optimize, "minimize", minimize_spy)
+    arm = designs.octarm_v()
+    disc = solver.Disc(center=(-0.1596, -0.0616), radius=0.1493, stiffness=9.8e4)
+    start = np.array([1, 1, 0, 1, 1, 0]) * 100 * PSI
+    free = solver.solve(arm, start, solver.Scene())
+    scene = solver.Scene(obstacles=(disc,))
+    eq = solver.solve(arm, start, scene, warm_start=free)
+    eq = solver.solve(arm, np.array([1, 0, 1, 0, 0, 0]) * 100 * PSI, scene, warm_start=eq)
+    assert eq.converged
+    assert seen["contact"] and seen["relax"], "the step no longer snaps: choose another"
+    assert all(threads == {1} for threads in seen["contact"] + seen["relax"])
+    assert _blas_threads() == two_blas_threads
