@@ -47,7 +47,7 @@ from baselines.evaluate import evaluate
 from softarm_gym.files import write_json
 from softarm_gym.sensing import ESTIMATORS
 
-__all__ = ["collect", "evaluation_jobs", "reference_controller", "run_evaluation_job", "run_evaluations",
+__all__ = ["collect", "evaluation_jobs", "reference_controllers", "run_evaluation_job", "run_evaluations",
            "ship", "report", "task", "training_observation", "DEFINITIONS", "WRAP_DEFINITIONS",
            "TRACK_DEFINITIONS", "OBSTACLE_DEFINITIONS", "main"]
 
@@ -63,7 +63,8 @@ TRACK_ENV_IDS = ("SoftArm/OctArmTrack-v0", "SoftArm/CTTrack-v0")
 OBSTACLE_ENV_IDS = ("SoftArm/OctArmObstacleReach-v0", "SoftArm/CTObstacleReach-v0")
 """Obstacle-reach environments of the baselines (the Jacobian controller's reference rows)."""
 GRASP_ENV_IDS = ("SoftArm/OctArmGrasp-v0",)
-"""Grasp environments of the baselines (the scripted curl's reference rows; listed with wrap)."""
+"""Grasp environments of the baselines (the planner's and the scripted curl's reference rows;
+listed with wrap)."""
 TASKS = {"softarm_gym.envs:WrapEnv": "wrap", "softarm_gym.envs:TrackEnv": "track",
          "softarm_gym.envs:ObstacleReachEnv": "obstacle", "softarm_gym.envs:GraspEnv": "wrap"}
 """Entry point → the report section of its envs (any other: ``reach``)."""
@@ -140,14 +141,13 @@ def collect(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR) -> list
     return names
 
 
-def reference_controller(env_id: str) -> str:
-    """The model-based reference of ``env_id``'s task: ``planner`` on wrap, ``curl`` (the
-    scripted curl) on grasp, whose free object the planner's rollouts do not model,
-    ``jacobian`` on reach (track and obstacle reach too: it follows the current target, and
-    does not know the discs)."""
+def reference_controllers(env_id: str) -> tuple[str, ...]:
+    """The model-based references of ``env_id``'s task: ``planner`` on wrap; on grasp the
+    planner (the ceiling) and ``curl`` (the scripted curl); ``jacobian`` on reach (track and
+    obstacle reach too: it follows the current target, and does not know the discs)."""
     if is_grasp(env_id):
-        return "curl"
-    return "planner" if is_wrap(env_id) else "jacobian"
+        return "planner", "curl"
+    return ("planner",) if is_wrap(env_id) else ("jacobian",)
 
 
 def task(env_id: str) -> str:
@@ -167,16 +167,16 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
         results_dir: the cells go to ``results_dir/eval/<agent>__<cell>.json``.
         grid: the estimator-in-the-loop cells too, not only ``main`` (never for agents
             trained on the goal format, whose observation has no estimator blocks to swap).
-        env_ids: environments the reference controller (:func:`reference_controller`) is
+        env_ids: environments the reference controllers (:func:`reference_controllers`) are
             evaluated on.
         episodes: episodes of every cell (default :data:`MAIN_EPISODES` for ``main``,
             :data:`GRID_EPISODES` for the others).
     """
     agents = [(run.name, {"model": run / "best_model.zip"}, _goal_format(run), _run_env(run))
               for run in _runs(Path(runs_dir)) if (run / "best_model.zip").is_file()]
-    agents += [(f"{reference_controller(env_id)}_{env_id.split('/')[-1]}",
-                {"controller": reference_controller(env_id), "env_id": env_id}, False, env_id)
-               for env_id in env_ids]
+    agents += [(f"{controller}_{env_id.split('/')[-1]}", {"controller": controller, "env_id": env_id},
+                False, env_id)
+               for env_id in env_ids for controller in reference_controllers(env_id)]
     jobs = []
     out_dir = Path(results_dir) / "eval"
     for name, who, goal_format, env_id in agents:

@@ -45,7 +45,7 @@ from scipy.optimize import lsq_linear
 import solver
 from softarm_gym.analysis import jacobian
 from softarm_gym.envs.terms import fractions_from_actions, reach_reward_sum, reach_rewards
-from solver.grasp import CLAMP_GAP
+from solver.grasp import CLAMP_GAP, FreeObject, settle
 
 __all__ = ["JacobianController", "CurlController", "CEMPlanner", "observation_slices"]
 
@@ -325,7 +325,7 @@ def _section_corners(arm) -> np.ndarray:
 class CEMPlanner(_PressureController):
     """Sampling-based model-predictive control: the cross-entropy method over action sequences,
     each candidate rolled out on the nominal model from the current state. Reach, obstacle
-    reach, track, wrap.
+    reach, track, wrap, grasp.
 
     What it knows, as :class:`JacobianController`: the nominal design, the base angle, p_max,
     the action mode and ``delta_scale``, the observation layout, and the task's reward rule
@@ -334,7 +334,10 @@ class CEMPlanner(_PressureController):
     env's contact stiffness; obstacle reach: the reach rule plus
     :meth:`~softarm_gym.envs.ObstacleReachEnv.contact_reward`, the discs read from the
     ``obstacles`` block, a touching step rejected as the env rejects it under
-    ``contact="forbid"``). Not the true state, the payload or a randomised arm.
+    ``contact="forbid"``; grasp: :meth:`~softarm_gym.envs.GraspEnv.grasp_terms`, the object's
+    seat, centre and contact radius read from the observation, its mass taken as the middle
+    of the env's ``object_mass_kg`` range, the grasp margin left out of the score). Not the
+    true state, the payload, the object's mass or a randomised arm.
 
     Each decision (:meth:`step_fraction`):
 
@@ -363,11 +366,14 @@ class CEMPlanner(_PressureController):
     run on :class:`solver.BatchStepper` (all candidates in one parallel call) for reach; for
     wrap and obstacle reach, whose contact has no batched kernel, one :class:`solver.Stepper`
     in the scene with the discs steps them in turn (its start, like the envs', solved cold
-    without the discs and then in their scene). Its randomness comes from its own generator
+    without the discs and then in their scene); for grasp each rollout step is
+    :func:`solver.grasp.settle` of arm and free object together, on at most
+    ``grasp_solves`` contact solves (a snap that would cost more counts as unconverged).
+    Its randomness comes from its own generator
     (``seed``), so it is reproducible.
 
     Args:
-        env: a (possibly wrapped) planar reach, obstacle-reach, track or wrap env with
+        env: a (possibly wrapped) planar reach, obstacle-reach, track, wrap or grasp env with
             ``observation_format='flat'`` (on track it aims where the target's last
             displacement takes it).
         samples: candidate sequences per round (>= 2; the first round has 2^n_inputs − samples/4
@@ -382,15 +388,18 @@ class CEMPlanner(_PressureController):
             search then settled on an S-curl that wraps ~95° and stopped searching there
             (docs/environments.md, "Wrap calibration").
         seed: seed of the planner's generator.
+        grasp_solves: contact solves a grasp rollout step may spend (>= 1).
 
     Attributes:
         last_searched: whether the last decision ran rollouts (False: it held).
     """
 
     def __init__(self, env, samples: int = 32, elites: int = 6, iterations: int = 3, horizon: int = 1,
-                 init_std: float = 0.5, all_corners: bool | None = None, seed: int = 0):
+                 init_std: float = 0.5, all_corners: bool | None = None, seed: int = 0,
+                 grasp_solves: int = 60):
         for name, value, low in (("samples", samples, 2), ("elites", elites, 1),
-                                 ("iterations", iterations, 1), ("horizon", horizon, 1)):
+                                 ("iterations", iterations, 1), ("horizon", horizon, 1),
+                                 ("grasp_solves", grasp_solves, 1)):
             if isinstance(value, bool) or int(value) != value or value < low:
                 raise ValueError(f"{name} must be an integer >= {low}; got {value!r}")
         if elites >= samples:
@@ -399,6 +408,8 @@ class CEMPlanner(_PressureController):
             raise ValueError(f"init_std must be > 0 (action units); got {init_std!r}")
         base = env.unwrapped
         self.wrap = hasattr(base, "success_wrap_deg")
+        self.grasp = hasattr(base, "success_lift")
+        self.grasp_solves = int(grasp_solves)
         if getattr(base, "observation_format", None) != "flat" or not (
                 getattr(base, "planar", False) or self.wrap):
             raise ValueError("CEMPlanner needs a planar env (or a wrap env, planar or 3D) with "
@@ -440,6 +451,7 @@ class CEMPlanner(_PressureController):
         """Forget the nominal state, the disc and the plan (call at every episode start)."""
         self._nominal = None
         self._rollout = None
+        self._object = None
         self._plan = np.zeros((self.horizon, self._n))
         self._stalled = None
         self.last_searched = False
@@ -448,6 +460,9 @@ class CEMPlanner(_PressureController):
 
     def _track(self, obs: np.ndarray, fraction: np.ndarray) -> None:
         """Move the nominal equilibrium to the commanded pressures (cold at the first step)."""
+        if self.grasp:
+            self._track_grasp(obs, fraction)
+            return
         if self._nominal is None:
             scene = self.scene
             if self.wrap:
@@ -473,6 +488,45 @@ class CEMPlanner(_PressureController):
             # A tracking target moves first within a step: aim where its last displacement
             # (the goal block's third part) takes it.
             self._goal = goal[:2] + (goal[4:6] if self.tracking else 0.0)
+
+    def _track_grasp(self, obs: np.ndarray, fraction: np.ndarray) -> None:
+        """As :meth:`_track` for grasp: the nominal state is a :class:`solver.grasp.Grasp`, arm
+        and object settled together (the first, as the env places the object: on its seat, from
+        the arm solved cold without it)."""
+        pressures = fraction * self.p_max
+        if self._nominal is None:
+            goal = obs[self._slices["goal"]]
+            task = self.task
+            self._object = FreeObject(radius=float(goal[2]), mass_kg=float(np.mean(task.object_mass_range)),
+                                      seat=(float(goal[3]), float(goal[4])),
+                                      stiffness=task.contact_stiffness, fork_depth=task.fork_depth)
+            free = solver.solve(self.arm, pressures, self.scene, planar=True)
+            self._nominal = settle(self.arm, pressures, self.scene, self._object, center=goal[:2],
+                                   warm_start=free)
+        elif np.any(self._nominal.arm.pressures != pressures):
+            moved = settle(self.arm, pressures, self.scene, self._object, center=self._nominal.center,
+                           warm_start=self._nominal.arm)
+            if moved.converged:
+                self._nominal = moved
+
+    def _score_grasp(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+        """Summed grasp rewards of (m, horizon, n) action sequences, each step settling arm and
+        object together from the last (an unconverged step keeps the state, as in the env)."""
+        new = np.empty((1, self._n))
+        totals = np.zeros(actions.shape[0])
+        penalty = self.task.solver_failure_penalty
+        for j, sequence in enumerate(actions):
+            state, current = self._nominal, fraction.copy()
+            for action in sequence:
+                fractions_from_actions(action[None], current[None], self.action_mode == "delta",
+                                       self.delta_scale, new)
+                moved = settle(self.arm, new[0] * self.p_max, self.scene, self._object,
+                               center=state.center, warm_start=state.arm, max_solves=self.grasp_solves)
+                if moved.converged:
+                    state, current = moved, new[0].copy()
+                terms = self.task.grasp_terms(state, self._object, current)[0]
+                totals[j] += sum(terms.values()) + (0.0 if moved.converged else -penalty)
+        return totals
 
     def _wrap_object(self) -> tuple:
         """(centre, contact radius, axis) of the wrap goal block, as ``wrap_terms`` takes them."""
@@ -563,6 +617,8 @@ class CEMPlanner(_PressureController):
         return sum(terms.values()) + (0.0 if converged else -self.task.solver_failure_penalty)
 
     def _succeeds(self, fraction: np.ndarray) -> bool:
+        if self.grasp:
+            return self.task.grasp_terms(self._nominal, self._object, fraction)[1]
         eq = self._nominal.equilibrium
         if self.wrap:
             penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
@@ -586,7 +642,8 @@ class CEMPlanner(_PressureController):
         self.last_searched = False
         if self._succeeds(fraction):
             return fraction
-        score = self._score_contact if self.contact else self._score_reach
+        score = self._score_grasp if self.grasp else self._score_contact if self.contact \
+            else self._score_reach
         hold = self._hold(fraction)
         mean = np.vstack([self._plan[1:], self._plan[-1:]]) if self._plan.any() else hold
         std = np.full_like(mean, self.init_std)

@@ -147,6 +147,18 @@ def test_planner_tries_every_corner_and_escapes_the_s_curl():
     assert stuck["wrap_angle_deg"] < 120.0
 
 
+def test_planner_lifts_the_free_object_of_a_grasp_and_then_holds():
+    # OctArmGrasp-v0 seed 1: one corner (channels I of section 1, II of section 2) lifts the
+    # object 7 cm out of its forks, held by the arm alone; the planner's rollouts settle arm
+    # and object together, with the object's mass the middle of the env's range.
+    env = gym.make("SoftArm/OctArmGrasp-v0")
+    planner = CEMPlanner(env, seed=1)
+    info, actions = _planned_episode(env, planner, 1, 2)
+    assert info["is_success"] and info["held"] and info["lift"] >= 0.03, info["lift"]
+    assert not planner.last_searched  # the nominal state succeeds: it holds without searching
+    np.testing.assert_array_equal(actions[0], actions[1])
+
+
 def test_planner_bad_arguments_are_named():
     env = gym.make("SoftArm/OctArmReach-v0")
     with pytest.raises(ValueError, match="elites"):
@@ -155,5 +167,7 @@ def test_planner_bad_arguments_are_named():
         CEMPlanner(env, horizon=0)
     with pytest.raises(ValueError, match="all_corners"):
         CEMPlanner(env, all_corners="yes")
+    with pytest.raises(ValueError, match="grasp_solves"):
+        CEMPlanner(env, grasp_solves=0)
     with pytest.raises(ValueError, match="planar"):
         CEMPlanner(gym.make("SoftArm/OctArmReach-v0", planar=False))

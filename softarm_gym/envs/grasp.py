@@ -10,7 +10,7 @@ import numpy as np
 import solver
 from softarm_gym.envs.base import _check_options, _finite_number, _range
 from softarm_gym.envs.wrap import WrapEnv
-from solver.grasp import CLAMP_GAP, FreeObject, grasp_margin, settle
+from solver.grasp import CLAMP_GAP, FreeObject, Grasp, grasp_margin, settle
 
 __all__ = ["GraspEnv"]
 
@@ -207,24 +207,42 @@ class GraspEnv(WrapEnv):
 
     def _task_reward(self, converged):
         g = self._grasp
-        eq = g.arm
-        penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
-        terms, _, info = self.wrap_terms(eq.positions, penetration, self._fraction, g.center,
-                                         self._contact_radius)
         margin, per = self._grasp_margin()
-        weight = self._object.mass_kg * self._scene.gravity
-        success = bool(g.held and g.lift >= self.success_lift
-                       and penetration <= self.penetration_tolerance)
-        terms["reward_success"] = self.success_bonus if success else 0.0
-        terms["reward_lift"] = self.lift_weight * min(max(g.lift / self.success_lift, 0.0), 1.0)
-        terms["reward_margin"] = self.margin_weight * min(margin / weight, 1.0) \
-            if self.margin_weight > 0 else 0.0
+        terms, success, info = self.grasp_terms(g, self._object, self._fraction, margin)
         terms["reward_solver"] = self._solver_term(converged)
         info.update({"object_center": g.center.copy(), "object_radius": self._object_radius,
                      "contact_radius": self._contact_radius, "object_mass_kg": self._object.mass_kg,
                      "held": g.held, "lift": g.lift, "arm_force": g.arm_force.copy(),
                      "support_force": g.support_force.copy(), "object_stable": g.stable,
                      "grasp_margin_n": margin, "grasp_margins_n": per.copy()})
+        return terms, success, info
+
+    def grasp_terms(self, grasp: Grasp, obj: FreeObject, fraction: np.ndarray,
+                    margin: float = math.nan) -> tuple[dict[str, float], bool, dict]:
+        """The task's reward terms (all but ``reward_solver``), success and the wrap measures of
+        a grasp state: the rule of the env card's Rewards, for this env's weights.
+
+        A pure function of its arguments (planners evaluate it on model rollouts).
+
+        Args:
+            grasp: arm and object in equilibrium (:func:`solver.grasp.settle`).
+            obj: the object (its contact radius and mass).
+            fraction: (n_inputs,) pressures / p_max.
+            margin: the grasp margin (N), read only when ``margin_weight`` > 0.
+
+        Returns:
+            (terms, success, {"wrap_angle_deg", "penetration", "gap"}).
+        """
+        eq = grasp.arm
+        penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
+        terms, _, info = self.wrap_terms(eq.positions, penetration, fraction, grasp.center, obj.radius)
+        success = bool(grasp.held and grasp.lift >= self.success_lift
+                       and penetration <= self.penetration_tolerance)
+        terms["reward_success"] = self.success_bonus if success else 0.0
+        terms["reward_lift"] = self.lift_weight * min(max(grasp.lift / self.success_lift, 0.0), 1.0)
+        weight = obj.mass_kg * self._scene.gravity
+        terms["reward_margin"] = self.margin_weight * min(margin / weight, 1.0) \
+            if self.margin_weight > 0 else 0.0
         return terms, success, info
 
     def _caption(self):

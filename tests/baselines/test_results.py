@@ -19,8 +19,8 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
                                                                        "mean_return", "episodes"]
     jobs = results.evaluation_jobs(runs_dir, out)
     n_cells = 1 + len(results.CONDITIONS) * 6
-    # The planner on each wrap env, the scripted curl on the grasp env.
-    wrap_cells = ((len(results.WRAP_ENV_IDS) + len(results.GRASP_ENV_IDS))
+    # The planner on each wrap env; the planner and the scripted curl on the grasp env.
+    wrap_cells = ((len(results.WRAP_ENV_IDS) + 2 * len(results.GRASP_ENV_IDS))
                   * (1 + len(results.WRAP_CONDITIONS) * 6))
     # The run, and the Jacobian controller on both reach, both track and both obstacle-reach envs.
     assert len(jobs) == 7 * n_cells + wrap_cells
