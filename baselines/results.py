@@ -496,11 +496,13 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
              "but the grasp margin, which the reward does not use (`env_kwargs: {margin_directions: "
              "0}`), 20,000 steps each, one training at a time: `python -m baselines.train --env "
              "SoftArm/OctArmGrasp-v0 --algo sac --seed S --time-limit-min 25 --eval-freq 5000 "
-             "--eval-episodes 10` (S = 0, 1, 2). `curl_OctArmGrasp-v0` is the scripted "
-             "`CurlController` on the registered env (it stops curling once the object is lifted; the "
-             "planner's rollouts do not model the free object). Evaluated with `python -m "
-             "baselines.results evaluate --runs runs --main-only --episodes 20 --only RUN` per run and "
-             "for `curl_OctArmGrasp-v0`; the main cell only; not shipped.",
+             "--eval-episodes 10` (S = 0, 1, 2). `planner_OctArmGrasp-v0` is `CEMPlanner` with its "
+             "defaults (its rollouts settle arm and free object together, the object's mass taken as "
+             "the middle of the env's range): the ceiling. `curl_OctArmGrasp-v0` is the scripted "
+             "`CurlController` on the registered env (it stops curling once the object is lifted). "
+             "Evaluated with `python -m baselines.results evaluate --runs runs --main-only --episodes 20 "
+             "--only RUN` per run and for `planner_OctArmGrasp-v0` and `curl_OctArmGrasp-v0`; the main "
+             "cell only; not shipped.",
              "",
              "3D wrap (`SoftArm/OctArmWrap3D-v0`, success at 75° about the cylinder's axis): SAC, 3 "
              "seeds, wrap's settings on the registered defaults (the YAML's 54,496 steps: what a "

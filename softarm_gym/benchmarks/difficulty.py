@@ -1,14 +1,14 @@
 """Difficulty levels: the reference controllers' success as a task's knobs are turned.
 
 Every task's difficulty is set by ``gym.make`` kwargs, none of them new: the success
-tolerance of reach, the speed of the tracked trajectory (``segment_steps``: steps between
-waypoints of the target's pressure path), the size of the object to wrap (``object_radius``
-range), the mass of the object to grasp (``object_mass_kg`` range). :data:`LEVELS` names
-three or four levels of each, the registered default among them, and :func:`run` measures
-the reference controller of each task
-(:func:`softarm_gym.benchmarks.reference.reference_controller`: the Jacobian controller on
-reach and track, the scripted curl on wrap and grasp) on ``episodes`` seeded episodes per
-level::
+tolerance of reach, the number of discs of obstacle reach (``n_obstacles``), the speed of
+the tracked trajectory (``segment_steps``: steps between waypoints of the target's pressure
+path), the size of the object to wrap (``object_radius`` range), the mass of the object to
+grasp (``object_mass_kg`` range). :data:`LEVELS` names three or four levels of each, the
+registered default among them, and :func:`run` measures the reference controller of each
+task (:func:`softarm_gym.benchmarks.reference.reference_controller`: the Jacobian controller
+on reach, obstacle reach and track, the scripted curl on wrap and grasp) on ``episodes``
+seeded episodes per level::
 
     python -m softarm_gym.benchmarks.difficulty --episodes 20 --json > docs/bench/difficulty.json
 
@@ -47,6 +47,10 @@ LEVELS = {
     "SoftArm/CTWrap-v0": ("object_radius", [
         ("easy", {"object_radius": (0.12, 0.15)}), ("default", {}),
         ("hard", {"object_radius": (0.20, 0.25)})]),
+    "SoftArm/OctArmObstacleReach-v0": ("n_obstacles", [
+        ("easy", {"n_obstacles": 1}), ("default", {}), ("hard", {"n_obstacles": 3})]),
+    "SoftArm/CTObstacleReach-v0": ("n_obstacles", [
+        ("easy", {"n_obstacles": 1}), ("default", {}), ("hard", {"n_obstacles": 3})]),
     "SoftArm/OctArmGrasp-v0": ("object_mass_kg", [
         ("easy", {"object_mass_kg": (0.6, 0.9)}), ("default", {}),
         ("hard", {"object_mass_kg": (0.05, 0.15)})]),

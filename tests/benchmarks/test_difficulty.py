@@ -13,11 +13,16 @@ def test_every_level_makes_a_valid_env_and_includes_the_default():
             assert set(kwargs) <= {knob}
             env = gym.make(env_id, **kwargs)
             env.reset(seed=0)
-            ranges = {"object_radius": "object_radius_range", "object_mass_kg": "object_mass_range"}
+            ranges = {"object_radius": "object_radius_range", "object_mass_kg": "object_mass_range",
+                      "n_obstacles": "n_obstacles_range"}
             set_to = getattr(env.unwrapped, ranges.get(knob, knob))
             if kwargs:
                 want = kwargs[knob]
-                assert (tuple(set_to) == tuple(want)) if knob in ranges else set_to == want
+                if knob in ranges:
+                    want = tuple(want) if isinstance(want, tuple) else (want, want)  # a count: n..n
+                    assert tuple(set_to) == want
+                else:
+                    assert set_to == want
             env.close()
 
 
