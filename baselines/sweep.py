@@ -81,6 +81,7 @@ from softarm_gym.jobs import (
     DEFAULT_RETRIES,
     Interrupted,
     JobError,
+    cancel_unfinished,
     code_fingerprint,
     first_line,
     ray_session,
@@ -377,14 +378,12 @@ def _execute(fn, tasks: list[_Task], *, ray, cpus: int, retries: int, bar, what:
             ended(task)
     except KeyboardInterrupt:
         # A gentle cancel raises KeyboardInterrupt in the task: a training saves a checkpoint.
-        for ref in pending:
-            ray.cancel(ref)
+        cancel_unfinished(ray, pending, force=False)
         with contextlib.suppress(KeyboardInterrupt):  # a second Ctrl-C: do not wait
             ray.wait(list(pending), num_returns=len(pending), timeout=CANCEL_GRACE_S)
         raise
     finally:
-        for ref in pending:
-            ray.cancel(ref, force=True)
+        cancel_unfinished(ray, pending, force=True)
 
 
 def _check_cpus(ray, cpus: int) -> None:

@@ -54,7 +54,7 @@ from tqdm import tqdm
 
 __all__ = ["BACKENDS", "DEFAULT_RETRIES", "Chunk", "Plan", "Runner", "ChunkStore", "JobError",
            "Interrupted", "default_chunk_dir", "code_fingerprint", "chunk_bounds", "atomic_path",
-           "write_atomic", "ray_session", "first_line"]
+           "write_atomic", "ray_session", "cancel_unfinished", "first_line"]
 
 BACKENDS = ("local", "ray")
 DEFAULT_RETRIES = 3
@@ -404,11 +404,26 @@ class Runner:
                         "the same softarm-gym version on every node")
                 record(i, result, seconds)
         finally:
-            for ref in pending:
-                ray.cancel(ref, force=True)
+            cancel_unfinished(ray, pending, force=True)
 
 
 # ----------------------------------------------------------------------------- Ray connection
+
+
+def cancel_unfinished(ray, refs, *, force: bool) -> None:
+    """``ray.cancel`` the tasks of ``refs`` whose results are not ready yet, and only those.
+
+    Cancelling a task that has just finished races, in Ray's driver, with the task's
+    completion: the driver can abort with "Check failed: it != submissible_tasks_.end() Tried
+    to complete task that was not pending" (exit status 1, no Python traceback). Cancelling
+    every task of a sweep after they all stopped hit it about once in 30 Ctrl-Cs.
+    """
+    refs = list(refs)
+    if not refs:
+        return
+    _, unfinished = ray.wait(refs, num_returns=len(refs), timeout=0)
+    for ref in unfinished:
+        ray.cancel(ref, force=force)
 
 
 @contextlib.contextmanager
