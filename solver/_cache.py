@@ -28,6 +28,10 @@ class DesignCache:
             hit = self._store[key] = build()
         return hit
 
+    def peek(self, key):
+        """The entry for ``key``, or None (no ``build`` closure to make on the hot path)."""
+        return self._store.get(key)
+
     def __len__(self) -> int:
         return len(self._store)
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -46,8 +47,12 @@ def section_needs(curv, force, strain, q, secf, ends, need):
         q: (ns,) |distributed load| per reference length of each section (N/m).
         secf: (6, ns) section array. ends: (ns,) the samples' rows at the section ends.
         need: (ns,) written; infinite where a sample is not finite.
+
+    Returns:
+        The largest need (infinite if a sample is not finite).
     """
     row = 0
+    most = 0.0
     for i in range(secf.shape[1]):
         h = secf[LEN, i] / (ends[i] - row)
         ci = secf[CI, i]
@@ -68,6 +73,8 @@ def section_needs(curv, force, strain, q, secf, ends, need):
             row += 1
         worst = h * max(math.sqrt(turn2), math.sqrt(math.sqrt(load4)), spread6 ** (1.0 / 6.0))
         need[i] = worst / STEP_TURN if finite else math.inf
+        most = max(most, need[i])
+    return most
 
 
 @njit(inline="always")
@@ -95,15 +102,11 @@ def planar_fine(record, secf, steps, loads):
         row += steps[i] + 1
         ends[i] = row
     need = np.empty(ns)
-    section_needs(record[:, U:U + 1], record[:, NX:NY + 1], record[:, V1:V3 + 1], q, secf, ends,
-                  need)
-    for i in range(ns):
-        if not need[i] <= 1.0:
-            return False
-    return True
+    return section_needs(record[:, U:U + 1], record[:, NX:NY + 1], record[:, V1:V3 + 1], q, secf,
+                         ends, need) <= 1.0
 
 
-def needs(eq, secf, q) -> np.ndarray:
+def needs(eq, secf, q) -> tuple[np.ndarray, float]:
     """:func:`section_needs` of a recorded :class:`~solver.results.Equilibrium` (planar or
     spatial, dead loads or contact).
 
@@ -111,13 +114,19 @@ def needs(eq, secf, q) -> np.ndarray:
         secf: (6, ns) the section array. q: (ns,) |distributed load| (N/m).
 
     Returns:
-        (ns,) need per section.
+        (ns,) need per section, and the largest.
     """
     curv = eq.curvature if eq.curvature.ndim == 2 else eq.curvature[:, None]
     need = np.empty(secf.shape[1])
-    section_needs(curv, eq.internal_force, eq.shear_stretch, q, secf,
-                  np.asarray(eq.section_ends, dtype=np.int64), need)
-    return need
+    worst = section_needs(curv, eq.internal_force, eq.shear_stretch, q, secf,
+                          section_rows(eq.section_ends), need)
+    return need, worst
+
+
+@lru_cache(maxsize=256)
+def section_rows(section_ends: tuple) -> np.ndarray:
+    """``section_ends`` as an int array (a solve's grid is one of a few; not to be written)."""
+    return np.array(section_ends, dtype=np.int64)
 
 
 def refined_steps(eq, base_steps, current, need, limit):

@@ -252,6 +252,10 @@ def context(arm: ArmDesign, packed: PackedArm, scene: Scene, dim: int,
     every step (a grasped object) does not fill the design's cache with copies."""
     if scene.has_contact:
         scene = replace(scene, obstacles=(), self_contact=None)
+    key = ("scene", packed.key, scene, dim)
+    hit = arm._solver_cache.peek(key)
+    if hit is not None:
+        return hit
 
     def build():
         scaled_from = arm._solver_cache.scaled_from
@@ -261,7 +265,7 @@ def context(arm: ArmDesign, packed: PackedArm, scene: Scene, dim: int,
             return _build_context(arm, packed, scene, dim, settings, loads)
         return _build_context(arm, packed, scene, dim, settings)
 
-    return arm._solver_cache.get(("scene", packed.key, scene, dim), build)
+    return arm._solver_cache.get(key, build)
 
 
 def _build_context(arm, packed, scene, dim, settings, loads: SceneContext | None = None) -> SceneContext:

@@ -136,11 +136,10 @@ def _resolved(nodes, grid, layout, level):
     ``level`` (:func:`solver._grid.section_needs` of its record)."""
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
     _contact._record(nodes, grid, _level_rest(layout, level), level, out)
-    need = np.empty(layout.secf.shape[1])
-    _grid.section_needs(out[:, L.C_U:L.C_U + 1], out[:, L.C_NX:L.C_NY + 1],
-                        out[:, L.C_V1:L.C_V3 + 1], np.hypot(*level[L.L_Q].T), layout.secf,
-                        np.asarray(layout.section_ends, dtype=np.int64), need)
-    return bool(need.max() <= 1.0)
+    return bool(_grid.section_needs(out[:, L.C_U:L.C_U + 1], out[:, L.C_NX:L.C_NY + 1],
+                                    out[:, L.C_V1:L.C_V3 + 1], np.hypot(*level[L.L_Q].T),
+                                    layout.secf, _grid.section_rows(layout.section_ends),
+                                    np.empty(layout.secf.shape[1])) <= 1.0)
 
 
 def _level_span(start, goal, p_max):

@@ -118,7 +118,10 @@ _NOT_RECORDED = {name: _DEFAULTS[name] for name in (*SAMPLED, "section_ends")}
 
 def tip_only(eq: Equilibrium) -> Equilibrium:
     """``eq`` without its samples (what a solve with ``record=False`` returns)."""
-    return Equilibrium._make(**{**eq.__dict__, **_NOT_RECORDED})
+    out = object.__new__(Equilibrium)
+    out.__dict__.update(eq.__dict__)
+    out.__dict__.update(_NOT_RECORDED)
+    return out
 
 
 # ----------------------------------------------------------------------------- packing

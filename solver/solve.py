@@ -40,6 +40,7 @@ from solver._paths_planar import closed_form, loaded_base_moment, solve_planar
 from solver._paths_spatial import in_plane, in_plane_shortcut, in_plane_state, solve_spatial
 from solver._paths_spatial_contact import solve_contact_spatial
 from solver.designs import ArmDesign
+from solver.jit import njit
 from solver.results import BatchState, Equilibrium, tip_only
 from solver.scene import Scene, core_distance
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings, SolverError
@@ -62,12 +63,29 @@ def _channel_pressures(arm: ArmDesign, pressures, planar: bool,
             f"design {arm.name!r} expects {n} pressures in {'planar' if planar else 'spatial'} "
             f"mode ({', '.join(names) or 'none: a passive rod'}); got "
             f"{np.array2string(np.asarray(pressures, dtype=object), max_line_width=10**6)}")
-    # min/max are NaN if any entry is: one comparison each catches NaN, negatives and excess.
-    if n and not (p.min() >= 0.0 and p.max() <= arm.max_pressure * (1 + 1e-12)):
-        _explain_bad_pressures(arm, p, planar)
     if not planar:
+        if not _channels_of(p, _NO_INDEX, arm.max_pressure * (1 + 1e-12), p):
+            _explain_bad_pressures(arm, p, planar)
         return p, p
-    return p, p[packed.spatial_of_planar]
+    p_channel = np.empty(packed.spatial_of_planar.shape[0])
+    if not _channels_of(p, packed.spatial_of_planar, arm.max_pressure * (1 + 1e-12), p_channel):
+        _explain_bad_pressures(arm, p, planar)
+    return p, p_channel
+
+
+_NO_INDEX = np.empty(0, dtype=np.int64)
+
+
+@njit
+def _channels_of(p, index, p_max, out):
+    """Spatial-channel pressures ``out[c] = p[index[c]]`` of planar inputs ``p``; False if an
+    input is not finite, negative or above ``p_max`` (then ``out`` is incomplete)."""
+    for k in range(p.shape[0]):
+        if not (0.0 <= p[k] <= p_max):
+            return False
+    for c in range(index.shape[0]):
+        out[c] = p[index[c]]
+    return True
 
 
 def channel_pressures(arm: ArmDesign, pressures, planar: bool = True) -> np.ndarray:
@@ -183,8 +201,7 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
         try:
             eq = _path(arm, layout, p_inputs, p_channel, scene, model, planar, warm_start,
                        settings, moving)
-            need = _grid.needs(eq, layout.secf, q)  # infinite at a sample that is not finite
-            worst = float(need.max())
+            need, worst = _grid.needs(eq, layout.secf, q)  # infinite at a sample not finite
         except (ArithmeticError, np.linalg.LinAlgError):
             eq = None
         if eq is None or not (math.isfinite(worst) and all(map(math.isfinite, eq.tip))):

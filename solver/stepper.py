@@ -30,12 +30,18 @@ from solver import layout as L
 from solver._model import MULTIPLE_SHOOTING_INDEX, context, has_load, pack
 from solver._paths_planar import loaded_base_moment
 from solver.designs import ArmDesign
-from solver.jit import njit
 from solver.results import Equilibrium
 from solver.rod import planar_rest_gradient, rest_strains_into
 from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
-from solver.solve import _channel_pressures, _check, _check_warm_start, _dispatch, _explain_bad_pressures
+from solver.solve import (
+    _channel_pressures,
+    _channels_of,
+    _check,
+    _check_warm_start,
+    _dispatch,
+    _explain_bad_pressures,
+)
 
 __all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy"]
 
@@ -55,18 +61,6 @@ class StepReport(NamedTuple):
     snapped: bool
     iterations: int
     residual: float
-
-
-@njit
-def _channels_of(p, index, p_max, out):
-    """Spatial-channel pressures ``out[c] = p[index[c]]`` of planar inputs ``p``; False if an
-    input is not finite, negative or above ``p_max`` (then ``out`` is incomplete)."""
-    for k in range(p.shape[0]):
-        if not (0.0 <= p[k] <= p_max):
-            return False
-    for c in range(index.shape[0]):
-        out[c] = p[index[c]]
-    return True
 
 
 def _not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
