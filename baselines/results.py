@@ -313,66 +313,81 @@ def _env_ids(runs: list[dict], table: pd.DataFrame | None = None) -> list[str]:
 
 
 def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
+    """One panel per environment. A run has one colour and one legend entry; the line style
+    says what is drawn (the key above the panels): training episodes' success (rolling mean,
+    solid), deterministic evaluations (dashed, dots) and, on wrap tasks, the training
+    episodes' final wrap angle on the right axis (dotted)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
     from softarm_gym.plotting import figure, save
 
     env_ids = _env_ids(runs)
     cols = min(len(env_ids), 2)  # reach above, wrap, track and obstacle reach below
     rows = -(-len(env_ids) // cols)
-    fig, axes = figure(rows, cols, figsize=(5.5 * cols, 3.8 * rows), squeeze=False)
+    fig, axes = figure(rows, cols, figsize=(5.5 * cols, 4.6 * rows), squeeze=False)
     for ax in axes.flat[len(env_ids):]:
         ax.set_visible(False)
     for ax, env_id in zip(axes.flat, env_ids):
-        for summary in runs:
-            if summary["env_id"] != env_id:
-                continue
+        mine = [r for r in runs if r["env_id"] == env_id]
+        twin = ax.twinx() if is_wrap(env_id) else None
+        handles = []
+        for k, summary in enumerate(mine):
+            color = f"C{k % 10}"
             folder = results_dir / "training" / summary["run"]
-            observation = training_observation(summary)
-            source = summary.get("hyperparams_file")  # a YAML folder of its own: name it
-            label = f"{summary['algo']} seed {summary['seed']}" + \
-                ("" if observation == "true" else f", {observation} obs.") + \
-                (f", {Path(source).parent.name}" if source else "")
-            if (folder / "monitor.csv").is_file():
-                episodes = pd.read_csv(folder / "monitor.csv")
-                window = max(1, min(50, len(episodes) // 5))
+            episodes = pd.read_csv(folder / "monitor.csv") if (folder / "monitor.csv").is_file() else None
+            window = max(1, min(50, len(episodes) // 5)) if episodes is not None else 1
+            if episodes is not None:
                 rolling = episodes["is_success"].astype(float).rolling(window, min_periods=window).mean()
-                line, = ax.plot(episodes["timesteps"], 100 * rolling, lw=1, alpha=0.8,
-                                label=f"{label} (training episodes, {window}-ep. mean)")
-                color = line.get_color()
-            else:
-                color = None
+                ax.plot(episodes["timesteps"], 100 * rolling, lw=1, alpha=0.8, color=color)
+                if twin is not None and "wrap_angle_deg" in episodes:
+                    angle = episodes["wrap_angle_deg"].rolling(window, min_periods=window).mean()
+                    twin.plot(episodes["timesteps"], angle, ":", lw=1, color=color)
             if (folder / "evaluations.csv").is_file():
                 evals = pd.read_csv(folder / "evaluations.csv")
-                ax.plot(evals["timesteps"], 100 * evals["success_rate"], "o--", ms=3, color=color,
-                        label=f"{label} (deterministic eval)")
-        if is_wrap(env_id):
-            _wrap_angle_curves(ax, results_dir, [r for r in runs if r["env_id"] == env_id])
+                ax.plot(evals["timesteps"], 100 * evals["success_rate"], "o--", ms=3, lw=1,
+                        color=color)
+            handles.append(Line2D([], [], color=color, lw=2, label=_run_label(summary)))
+        if twin is not None:
+            twin.set_ylabel("final wrap angle (°, dotted)")
+            twin.set_ylim(0, 360)
         ax.set_title(env_id)
         ax.set_xscale("log")
+        # Readable ticks on spans of less than a decade: 5k, 10k, 20k, 50k, ...
+        ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(FuncFormatter(_steps_tick))
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("environment steps (log scale)")
         ax.set_ylabel("final-step success rate (%)")
         ax.set_ylim(-2, 102)
         ax.grid(alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=6)
+        if handles:
+            ax.legend(handles=handles, fontsize=6, ncol=2, loc="upper center",
+                      bbox_to_anchor=(0.5, -0.16), frameon=False)
+    key = [Line2D([], [], color="0.3", lw=1,
+                  label="training episodes' success (rolling mean of ≤ 50 episodes)"),
+           Line2D([], [], color="0.3", ls="--", marker="o", ms=3, lw=1,
+                  label="deterministic evaluations' success"),
+           Line2D([], [], color="0.3", ls=":", lw=1,
+                  label="training episodes' final wrap angle (right axis)")]
+    fig.legend(handles=key, loc="outside upper center", ncol=3, fontsize=8, frameon=False)
     save(fig, path)
 
 
-def _wrap_angle_curves(ax, results_dir: Path, runs: list[dict]) -> None:
-    """On a twin axis: the final wrap angle of the training episodes (rolling mean, thin lines),
-    which shows progress where the success rate is still flat."""
-    twin = ax.twinx()
-    for summary in runs:
-        path = results_dir / "training" / summary["run"] / "monitor.csv"
-        if path.is_file():
-            episodes = pd.read_csv(path)
-            if "wrap_angle_deg" in episodes:
-                window = max(1, min(50, len(episodes) // 5))
-                angle = episodes["wrap_angle_deg"].rolling(window, min_periods=window).mean()
-                twin.plot(episodes["timesteps"], angle, ":", lw=1, label=f"{summary['run']} wrap angle")
-    twin.set_ylabel("training episodes' final wrap angle (°, dotted)")
-    twin.set_ylim(0, 360)
-    if twin.get_legend_handles_labels()[0]:
-        twin.legend(fontsize=6, loc="center right")
+def _run_label(summary: dict) -> str:
+    """``"sac seed 0"``, with the observation and hyperparameter folder when not the defaults."""
+    observation = training_observation(summary)
+    source = summary.get("hyperparams_file")  # a YAML folder of its own: name it
+    return (f"{summary['algo']} seed {summary['seed']}"
+            + ("" if observation == "true" else f", {observation} obs.")
+            + (f", {Path(source).parent.name}" if source else ""))
+
+
+def _steps_tick(value, _pos) -> str:
+    """A step count as ``5k``, ``20k``, ``1M``."""
+    if value >= 1e6:
+        return f"{value / 1e6:g}M"
+    return f"{value / 1e3:g}k" if value >= 1e3 else f"{value:g}"
 
 
 def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR / "RESULTS.md", *,

@@ -179,6 +179,49 @@ def _loaded_record(arm, packed, scene, ctx, m0):
     return out, bmin
 
 
+def not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
+    """Why the lean planar kernels (:func:`solver._planar._step`, :func:`solve_warm`) cannot
+    solve this arm in this scene (None: they can): they are single shooting without
+    contact, on a loaded arm with channels."""
+    if not planar:
+        return "a spatial solve (planar=False)"
+    if not arm.n_channels:
+        return "a passive arm (no channels)"
+    if scene.has_contact:
+        return "a scene with obstacles or self-contact (contact)"
+    if model == "constant_curvature":
+        return "the constant_curvature model"
+    if not ctx.has_load and settings.shortcuts:
+        return "an unloaded arm (solved in closed form)"
+    if settings.n_scan > 0 and ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
+        return f"multiple shooting (L·sqrt(N/EI) = {ctx.shooting_index:.3g} > {MULTIPLE_SHOOTING_INDEX})"
+    return None
+
+
+def solve_warm(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings, record):
+    """The common warm solve (a lean scene, the warm start solved in the same scene) in one
+    kernel call: :func:`solver._planar._follow` from the warm start, as
+    :func:`solve_single` calls it, and the grid check in the kernel.
+
+    Returns:
+        The Equilibrium :func:`solver.solve` returns when the result is converged, stable
+        and resolved by the grid (the general path would return it as it is); else None
+        (the general path, with its fallbacks and refinement, takes over).
+    """
+    ctx = context(arm, packed, scene, 2, settings)
+    if warm_start.scene != scene or not_lean(arm, scene, model, True, settings, ctx) is not None:
+        return None
+    out = np.empty((packed.n_rows, L.N_COLUMNS))
+    m0 = float(warm_start.base_moment[-1])
+    state, ok, stable, snapped, its, res, _, loads_now = follow(
+        packed, scene, warm_start.channel_pressures, p_channel, ctx, ctx, m0, out)
+    if not (ok and stable and planar_fine(out, packed.secf, packed.sec_steps, loads_now)):
+        return None
+    return single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, state[0],
+                          record, converged=True, stable=True, iterations=int(its),
+                          residual=float(res), snapped=bool(snapped))
+
+
 def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
     """Planar dead-load solve: single shooting, or multiple shooting where that is
     ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``)."""
@@ -267,7 +310,7 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, set
             # The loaded arm is beyond this grid: the ramp from it is not trusted. Its state,
             # unconverged (the caller refines the grid).
             out, bmin = _loaded_record(arm, packed, scene, ctx, m0)
-            return _single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx,
+            return single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx,
                                   m0, converged=False, stable=bool(bmin > 0.0),
                                   iterations=iterations, snapped=snapped,
                                   residual=float(abs(out[-1, L.M] - ctx.m_tip)))
@@ -278,13 +321,20 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, set
     if not ok:  # the returned (last good) state was not recorded by a final Newton pass
         integrate_planar(state[0], scene.base_theta, packed.secf, packed.sec_steps, rest,
                          loads_now, True, out)
-    return _single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, state[0],
+    return single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, state[0],
                           converged=bool(ok), stable=bool(stable), iterations=int(iterations + its),
                           residual=float(res), snapped=bool(snapped or snap))
 
 
-def _single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, m0, **flags):
-    """The planar Equilibrium of a backbone record ``out`` (its arrays views into it)."""
+def single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, m0, record=True,
+                   **flags):
+    """The planar Equilibrium of a backbone record ``out`` (its arrays views into it); without
+    ``record``, its tip only."""
+    if not record:
+        return Equilibrium._make(
+            tip=out[-1, L.X:L.Y + 1].copy(), model=model, planar=True, scene=scene,
+            pressures=p_inputs, channel_pressures=p_channel, base_moment=np.array([float(m0)]),
+            base_force=ctx.base_force, arm=arm, **flags)
     return Equilibrium._make(
         tip=out[-1, L.X:L.Y + 1].copy(), s=out[:, L.S], positions=out[:, L.X:L.Y + 1],
         angles=out[:, L.THETA], shear_stretch=out[:, L.V1:L.V3 + 1], curvature=out[:, L.U],

@@ -27,8 +27,8 @@ import numpy as np
 
 from solver import _planar
 from solver import layout as L
-from solver._model import MULTIPLE_SHOOTING_INDEX, context, has_load, pack
-from solver._paths_planar import loaded_base_moment
+from solver._model import context, pack
+from solver._paths_planar import loaded_base_moment, not_lean, single_result
 from solver.designs import ArmDesign
 from solver.results import Equilibrium
 from solver.rod import planar_rest_gradient, rest_strains_into
@@ -63,38 +63,14 @@ class StepReport(NamedTuple):
     residual: float
 
 
-def _not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
-    """Why the lean planar kernel cannot step this arm in this scene (None: it can)."""
-    if not planar:
-        return "a spatial solve (planar=False)"
-    if not arm.n_channels:
-        return "a passive arm (no channels)"
-    if scene.has_contact:
-        return "a scene with obstacles or self-contact (contact)"
-    if model == "constant_curvature":
-        return "the constant_curvature model"
-    if not has_load(arm, scene) and settings.shortcuts:
-        return "an unloaded arm (solved in closed form)"
-    if settings.n_scan > 0 and ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
-        return f"multiple shooting (L·sqrt(N/EI) = {ctx.shooting_index:.3g} > {MULTIPLE_SHOOTING_INDEX})"
-    return None
-
-
 def _record_equilibrium(record, flags, m0, pressures, channel_pressures, arm, model, scene,
                         packed, ctx) -> Equilibrium:
     """The planar :class:`Equilibrium` of a lean-path backbone record (arrays copied)."""
-    rec = record.copy()
     converged, stable, snapped, iterations, residual = flags
-    return Equilibrium._make(
-        tip=rec[-1, L.X:L.Y + 1].copy(), converged=bool(converged), stable=bool(stable),
-        iterations=int(iterations), residual=float(residual), snapped=bool(snapped),
-        s=rec[:, L.S], positions=rec[:, L.X:L.Y + 1], angles=rec[:, L.THETA],
-        shear_stretch=rec[:, L.V1:L.V3 + 1], curvature=rec[:, L.U],
-        internal_force=rec[:, L.NX:L.NY + 1], internal_moment=rec[:, L.M],
-        section_ends=packed.section_ends, model=model, planar=True, scene=scene,
-        pressures=np.array(pressures, dtype=float),
-        channel_pressures=np.array(channel_pressures, dtype=float),
-        base_moment=np.array([float(m0)]), base_force=ctx.base_force, arm=arm)
+    return single_result(record.copy(), packed, arm, scene, model, np.array(pressures, dtype=float),
+                         np.array(channel_pressures, dtype=float), ctx, m0,
+                         converged=bool(converged), stable=bool(stable), iterations=int(iterations),
+                         residual=float(residual), snapped=bool(snapped))
 
 
 def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
@@ -146,7 +122,7 @@ class Stepper:
         self.n_inputs = arm.n_inputs(planar)
         self._packed = packed = pack(arm, model, settings)
         ctx = context(arm, packed, scene, 2 if planar else 3, settings)
-        self.lean = _not_lean(arm, scene, model, planar, settings, ctx) is None
+        self.lean = not_lean(arm, scene, model, planar, settings, ctx) is None
         self.section_ends = packed.section_ends
         self._p_max = arm.max_pressure * (1 + 1e-12)
         self._eq = None
@@ -426,7 +402,7 @@ class BatchStepper:
         self.arm, self.scene, self.model, self.settings, self.n = arm, scene, model, settings, int(n)
         self._packed = packed = pack(arm, model, settings)
         self._ctx = ctx = context(arm, packed, scene, 2, settings)
-        reason = _not_lean(arm, scene, model, True, settings, ctx)
+        reason = not_lean(arm, scene, model, True, settings, ctx)
         if reason is not None:
             raise ValueError(f"BatchStepper steps the lean planar path only, not {reason}; use "
                              "a Stepper (or solve()) per copy")

@@ -1,5 +1,7 @@
 """Quasi-static path following: warm starts follow the branch; folds snap and say so."""
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -45,6 +47,67 @@ def test_warm_step_equals_cold_solve_on_a_single_branch():
     cold = solver.solve(arm, p2, scene)
     assert warm.converged and warm.iterations < cold.iterations
     np.testing.assert_allclose(warm.tip, cold.tip, atol=1e-10)
+
+
+def _same(a, b):
+    """Equal Equilibria, arrays bit for bit (NaN equal to NaN)."""
+    assert a.__dict__.keys() == b.__dict__.keys()
+    for name, value in a.__dict__.items():
+        other = b.__dict__[name]
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(value, other, err_msg=name)
+        else:
+            assert value == other or (value != value and other != other), name
+
+
+@pytest.mark.parametrize("record", [True, False])
+def test_warm_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
+    """solve()'s warm fast path (solver._paths_planar.solve_warm) returns exactly what the
+    general path returns, and hands over to it where it does not apply (a snap, a scene it
+    does not solve, a grid too coarse)."""
+    solve_module = importlib.import_module("solver.solve")  # the module, not solver.solve()
+
+    rng = np.random.default_rng(5)
+    default, coarse = solver.Settings(), solver.Settings(steps_per_section=2)
+    cases = []
+    for arm, scene in [(designs.octarm_v(), solver.Scene(base_angle_deg=45, payload_kg=0.1)),
+                       (designs.ct(), solver.Scene(base_angle_deg=90)),
+                       (designs.octarm_v(), solver.Scene(base_angle_deg=90)),
+                       (designs.octarm_v(), solver.Scene(gravity=0.0))]:  # closed form
+        eq = solver.solve(arm, np.zeros(arm.n_inputs()), scene)
+        for step in (0.01, 0.01, 0.3, 1.0):  # small env steps, then jumps across the box
+            p = np.clip(eq.pressures + rng.normal(0, step * arm.max_pressure, eq.pressures.shape),
+                        0, arm.max_pressure)
+            cases.append((arm, p, scene, eq, default))
+            eq = solver.solve(arm, p, scene, warm_start=eq)
+    # On a coarse grid the kernel's check refuses what the general path refines.
+    arm, scene = designs.octarm_v(), solver.Scene(base_angle_deg=90)
+    start = solver.solve(arm, np.full(6, 0.5 * arm.max_pressure), scene, settings=coarse)
+    cases.append((arm, np.full(6, arm.max_pressure), scene, start, coarse))
+    # The snap of test_snap_through_and_hysteresis, approached in one step.
+    up = _sweep(designs.octarm_v(), solver.Scene(base_angle_deg=90), 1, np.linspace(0, 40, 9))
+    p = up[-1].pressures.copy()
+    p[1] = 100 * PSI
+    cases.append((up[-1].arm, p, up[-1].scene, up[-1], default))
+
+    outcomes = []
+    solve_warm = solve_module.solve_warm
+
+    def spy(*args):
+        eq = solve_warm(*args)
+        outcomes.append(eq is not None)
+        return eq
+
+    monkeypatch.setattr(solve_module, "solve_warm", spy)
+    fast = [solver.solve(arm, p, scene, warm_start=eq, record=record, settings=s)
+            for arm, p, scene, eq, s in cases]
+    monkeypatch.setattr(solve_module, "solve_warm", lambda *args: None)
+    general = [solver.solve(arm, p, scene, warm_start=eq, record=record, settings=s)
+               for arm, p, scene, eq, s in cases]
+    for a, b in zip(fast, general):
+        _same(a, b)
+    assert any(outcomes) and not all(outcomes)  # both the fast path and the hand-over ran
+    assert all(e.converged for e in fast)
 
 
 def test_warm_start_across_payload_change():
