@@ -180,7 +180,7 @@ def _loaded_record(arm, packed, scene, ctx, m0):
 
 
 def not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
-    """Why the lean planar kernels (:func:`solver._planar._step`, :func:`solve_warm`) cannot
+    """Why the lean planar kernels (:func:`solver._planar._step`, :func:`solve_lean`) cannot
     solve this arm in this scene (None: they can): they are single shooting without
     contact, on a loaded arm with channels."""
     if not planar:
@@ -198,10 +198,11 @@ def not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
     return None
 
 
-def solve_warm(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings, record):
-    """The common warm solve (a lean scene, the warm start solved in the same scene) in one
-    kernel call: :func:`solver._planar._follow` from the warm start, as
-    :func:`solve_single` calls it, and the grid check in the kernel.
+def solve_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings, record):
+    """The common planar solve in one kernel call, where the scene is lean (:func:`not_lean`):
+    :func:`solver._planar._follow` from the warm start (solved in the same scene) or, cold,
+    from the cached loaded arm, as :func:`solve_single` calls it, with the grid check in the
+    kernel.
 
     Returns:
         The Equilibrium :func:`solver.solve` returns when the result is converged, stable
@@ -209,17 +210,26 @@ def solve_warm(arm, packed, p_inputs, p_channel, scene, model, warm_start, setti
         (the general path, with its fallbacks and refinement, takes over).
     """
     ctx = context(arm, packed, scene, 2, settings)
-    if warm_start.scene != scene or not_lean(arm, scene, model, True, settings, ctx) is not None:
+    if not_lean(arm, scene, model, True, settings, ctx) is not None:
         return None
+    if warm_start is not None:
+        if warm_start.scene != scene:
+            return None
+        m0, iterations, snapped = float(warm_start.base_moment[-1]), 0, False
+        p_start = warm_start.channel_pressures
+    else:
+        m0, iterations, snapped, loaded, resolved = loaded_base_moment(arm, packed, scene, ctx)
+        if not resolved:
+            return None
+        p_start = np.zeros_like(p_channel)
     out = np.empty((packed.n_rows, L.N_COLUMNS))
-    m0 = float(warm_start.base_moment[-1])
-    state, ok, stable, snapped, its, res, _, loads_now = follow(
-        packed, scene, warm_start.channel_pressures, p_channel, ctx, ctx, m0, out)
+    state, ok, stable, snap, its, res, _, loads_now = follow(packed, scene, p_start, p_channel,
+                                                              ctx, ctx, m0, out)
     if not (ok and stable and planar_fine(out, packed.secf, packed.sec_steps, loads_now)):
         return None
     return single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, state[0],
-                          record, converged=True, stable=True, iterations=int(its),
-                          residual=float(res), snapped=bool(snapped))
+                         record, converged=True, stable=True, iterations=int(iterations + its),
+                         residual=float(res), snapped=bool(snapped or snap))
 
 
 def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):

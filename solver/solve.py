@@ -36,7 +36,7 @@ from solver import layout as L
 from solver._blas import single_blas_thread
 from solver._model import PackedArm, context, has_load, pack, refined
 from solver._paths_contact import solve_contact, solve_rigid
-from solver._paths_planar import closed_form, loaded_base_moment, solve_planar, solve_warm
+from solver._paths_planar import closed_form, loaded_base_moment, solve_lean, solve_planar
 from solver._paths_spatial import in_plane, in_plane_shortcut, in_plane_state, solve_spatial
 from solver._paths_spatial_contact import solve_contact_spatial
 from solver.designs import ArmDesign
@@ -195,9 +195,13 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
             not scene.has_contact and settings.shortcuts
             and not context(arm, packed, scene, 2 if planar else 3, settings).has_load):
         return closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
-    if planar and warm_start is not None and not moving:
-        eq = solve_warm(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings, record)
-        if eq is not None:
+    if planar and not moving:
+        try:
+            eq = solve_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                            record)
+        except (ArithmeticError, np.linalg.LinAlgError):
+            eq = None  # the general path meets it again, and reports it
+        if eq is not None and all(map(math.isfinite, eq.tip)):
             return eq
     q = packed.mass_per_length * scene.gravity
     layout = packed

@@ -61,10 +61,10 @@ def _same(a, b):
 
 
 @pytest.mark.parametrize("record", [True, False])
-def test_warm_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
-    """solve()'s warm fast path (solver._paths_planar.solve_warm) returns exactly what the
-    general path returns, and hands over to it where it does not apply (a snap, a scene it
-    does not solve, a grid too coarse)."""
+def test_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
+    """solve()'s fast path (solver._paths_planar.solve_lean), warm and cold, returns exactly
+    what the general path returns, and hands over to it where it does not apply (a snap, a
+    scene it does not solve, a grid too coarse)."""
     solve_module = importlib.import_module("solver.solve")  # the module, not solver.solve()
 
     rng = np.random.default_rng(5)
@@ -78,12 +78,13 @@ def test_warm_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
         for step in (0.01, 0.01, 0.3, 1.0):  # small env steps, then jumps across the box
             p = np.clip(eq.pressures + rng.normal(0, step * arm.max_pressure, eq.pressures.shape),
                         0, arm.max_pressure)
-            cases.append((arm, p, scene, eq, default))
+            cases += [(arm, p, scene, eq, default), (arm, p, scene, None, default)]
             eq = solver.solve(arm, p, scene, warm_start=eq)
     # On a coarse grid the kernel's check refuses what the general path refines.
     arm, scene = designs.octarm_v(), solver.Scene(base_angle_deg=90)
     start = solver.solve(arm, np.full(6, 0.5 * arm.max_pressure), scene, settings=coarse)
-    cases.append((arm, np.full(6, arm.max_pressure), scene, start, coarse))
+    cases += [(arm, np.full(6, arm.max_pressure), scene, start, coarse),
+              (arm, np.full(6, arm.max_pressure), scene, None, coarse)]
     # The snap of test_snap_through_and_hysteresis, approached in one step.
     up = _sweep(designs.octarm_v(), solver.Scene(base_angle_deg=90), 1, np.linspace(0, 40, 9))
     p = up[-1].pressures.copy()
@@ -91,17 +92,17 @@ def test_warm_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
     cases.append((up[-1].arm, p, up[-1].scene, up[-1], default))
 
     outcomes = []
-    solve_warm = solve_module.solve_warm
+    solve_lean = solve_module.solve_lean
 
     def spy(*args):
-        eq = solve_warm(*args)
+        eq = solve_lean(*args)
         outcomes.append(eq is not None)
         return eq
 
-    monkeypatch.setattr(solve_module, "solve_warm", spy)
+    monkeypatch.setattr(solve_module, "solve_lean", spy)
     fast = [solver.solve(arm, p, scene, warm_start=eq, record=record, settings=s)
             for arm, p, scene, eq, s in cases]
-    monkeypatch.setattr(solve_module, "solve_warm", lambda *args: None)
+    monkeypatch.setattr(solve_module, "solve_lean", lambda *args: None)
     general = [solver.solve(arm, p, scene, warm_start=eq, record=record, settings=s)
                for arm, p, scene, eq, s in cases]
     for a, b in zip(fast, general):

@@ -146,15 +146,18 @@ def test_no_exception_and_no_nan_escapes_a_solve(monkeypatch, failure):
     import importlib
 
     api = importlib.import_module("solver.solve")  # the module (solver.solve is the function)
-    path = api._path
 
-    def broken(*args):
-        if failure == "raise":
-            raise np.linalg.LinAlgError("Singular matrix")
-        eq = path(*args)
-        return replace(eq, tip=np.full_like(eq.tip, np.nan))
+    def breaking(path):
+        def broken(*args):
+            if failure == "raise":
+                raise np.linalg.LinAlgError("Singular matrix")
+            eq = path(*args)
+            return eq if eq is None else replace(eq, tip=np.full_like(eq.tip, np.nan))
+        return broken
 
-    monkeypatch.setattr(api, "_path", broken)
+    # Both paths to the kernels: the general one and the one-call planar one.
+    monkeypatch.setattr(api, "_path", breaking(api._path))
+    monkeypatch.setattr(api, "solve_lean", breaking(api.solve_lean))
     scene = solver.Scene(base_angle_deg=90, payload_kg=0.2)
     p = np.array([30, 0, 0, 0, 0, 0]) * PSI
     for planar in (True, False):
