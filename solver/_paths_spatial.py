@@ -14,7 +14,7 @@ from solver import layout as L
 from solver._model import MULTIPLE_SHOOTING_INDEX, context, rest_strains, shooting_layout
 from solver._paths_planar import NO_DISCS, NO_GUARD, solve_either, solve_single
 from solver.results import Equilibrium
-from solver.rod import base_rotation, integrate_spatial, rotation_to_quaternion
+from solver.rod import base_rotation, integrate_spatial, rotation_to_quaternion, spatial_strains_into
 
 
 def in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
@@ -224,13 +224,9 @@ def _spatial_result(arm, packed, scene, ctx, pos, rot, mom, rest, m0, **fields):
     """The spatial Equilibrium of a recorded backbone: positions, frames and moments (N, ·)
     at the rest strains ``rest`` and base moment ``m0``; strains from the constitutive law."""
     seg, s, force = _samples(arm, packed, scene, ctx)
-    nb = np.einsum("nji,nj->ni", rot, force)
-    mb = np.einsum("nji,nj->ni", rot, mom)
-    u1, u2, v3 = rest
-    strain_v = np.column_stack([nb[:, 0] * packed.c_g[seg], nb[:, 1] * packed.c_g[seg],
-                                v3[seg] + nb[:, 2] * packed.c_a[seg]])
-    strain_u = np.column_stack([u1[seg] + mb[:, 0] * packed.c_i[seg],
-                                u2[seg] + mb[:, 1] * packed.c_i[seg], mb[:, 2] * packed.c_j[seg]])
+    strain_v, strain_u = np.empty((s.size, 3)), np.empty((s.size, 3))
+    spatial_strains_into(rot, force, mom, rest, seg, packed.c_a, packed.c_g, packed.c_i,
+                         packed.c_j, strain_v, strain_u)
     return Equilibrium._make(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
                              curvature=strain_u, internal_force=force, internal_moment=mom,
                              section_ends=packed.section_ends, tip=pos[-1].copy(),

@@ -492,12 +492,12 @@ def planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs):
 
 
 @njit(inline="always")
-def _spatial_law(r00, r01, r02, r10, r11, r12, r20, r21, r22, n0, n1, n2, m0, m1, m2, ca, cg,
-                 ci, cj, u1r, u2r, v3r):
+def _spatial_strains(r00, r01, r02, r10, r11, r12, r20, r21, r22, n0, n1, n2, m0, m1, m2, ca,
+                     cg, ci, cj, u1r, u2r, v3r):
     """The constitutive law in 3D, in scalars: from the directors (rows of R), the internal
-    force and moment (world frame) and the section's compliances and rest strains, the
-    curvature u (body frame) and the slope r' = R v (world frame), v = (cg·n1, cg·n2,
-    v3* + ca·n3) and u = (u1* + ci·m1, u2* + ci·m2, cj·m3) with n, m in the body frame."""
+    force and moment (world frame) and the section's compliances and rest strains, the strains
+    in the body frame, v = (cg·n1, cg·n2, v3* + ca·n3) and u = (u1* + ci·m1, u2* + ci·m2,
+    cj·m3) with n, m in the body frame; returns (v0, v1, v2, u0, u1, u2)."""
     # Body-frame components (Rᵀ n, Rᵀ m).
     nb0 = r00 * n0 + r10 * n1 + r20 * n2
     nb1 = r01 * n0 + r11 * n1 + r21 * n2
@@ -505,16 +505,40 @@ def _spatial_law(r00, r01, r02, r10, r11, r12, r20, r21, r22, n0, n1, n2, m0, m1
     mb0 = r00 * m0 + r10 * m1 + r20 * m2
     mb1 = r01 * m0 + r11 * m1 + r21 * m2
     mb2 = r02 * m0 + r12 * m1 + r22 * m2
-    v0 = nb0 * cg
-    v1 = nb1 * cg
-    v2 = v3r + nb2 * ca
-    u0 = u1r + mb0 * ci
-    u1 = u2r + mb1 * ci
-    u2 = mb2 * cj
+    return nb0 * cg, nb1 * cg, v3r + nb2 * ca, u1r + mb0 * ci, u2r + mb1 * ci, mb2 * cj
+
+
+@njit(inline="always")
+def _spatial_law(r00, r01, r02, r10, r11, r12, r20, r21, r22, n0, n1, n2, m0, m1, m2, ca, cg,
+                 ci, cj, u1r, u2r, v3r):
+    """:func:`_spatial_strains`, returning the curvature u (body frame) and the slope
+    r' = R v (world frame)."""
+    v0, v1, v2, u0, u1, u2 = _spatial_strains(r00, r01, r02, r10, r11, r12, r20, r21, r22, n0,
+                                              n1, n2, m0, m1, m2, ca, cg, ci, cj, u1r, u2r, v3r)
     rp0 = r00 * v0 + r01 * v1 + r02 * v2
     rp1 = r10 * v0 + r11 * v1 + r12 * v2
     rp2 = r20 * v0 + r21 * v1 + r22 * v2
     return u0, u1, u2, rp0, rp1, rp2
+
+
+@njit
+def spatial_strains_into(rot, force, mom, rest, seg, ca, cg, ci, cj, strain_v, strain_u):
+    """The body-frame strains of a spatial record by :func:`_spatial_strains`.
+
+    Args:
+        rot: (N, 3, 3) frames (rows: directors). force, mom: (N, 3) internal force and moment
+            (N, N m; world frame). rest: (3, ns) rest strains. seg: (N,) section of each sample.
+        ca, cg, ci, cj: (ns,) compliances 1/EA, 1/GA, 1/EI, 1/GJ.
+        strain_v, strain_u: (N, 3) written: v and u.
+    """
+    for k in range(rot.shape[0]):
+        i = seg[k]
+        r = rot[k]
+        (strain_v[k, 0], strain_v[k, 1], strain_v[k, 2], strain_u[k, 0], strain_u[k, 1],
+         strain_u[k, 2]) = _spatial_strains(
+            r[0, 0], r[0, 1], r[0, 2], r[1, 0], r[1, 1], r[1, 2], r[2, 0], r[2, 1], r[2, 2],
+            force[k, 0], force[k, 1], force[k, 2], mom[k, 0], mom[k, 1], mom[k, 2], ca[i],
+            cg[i], ci[i], cj[i], rest[REST_U1, i], rest[REST_U2, i], rest[REST_V3, i])
 
 
 @njit
