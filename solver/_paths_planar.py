@@ -337,18 +337,15 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, set
 
 
 def single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, m0, record=True,
-                   **flags):
+                  **flags):
     """The planar Equilibrium of a backbone record ``out`` (its arrays views into it); without
     ``record``, its tip only."""
-    if not record:
-        return Equilibrium._make(
-            tip=out[-1, L.X:L.Y + 1].copy(), model=model, planar=True, scene=scene,
-            pressures=p_inputs, channel_pressures=p_channel, base_moment=np.array([float(m0)]),
-            base_force=ctx.base_force, arm=arm, **flags)
-    return Equilibrium._make(
-        tip=out[-1, L.X:L.Y + 1].copy(), s=out[:, L.S], positions=out[:, L.X:L.Y + 1],
-        angles=out[:, L.THETA], shear_stretch=out[:, L.V1:L.V3 + 1], curvature=out[:, L.U],
+    samples = dict(
+        s=out[:, L.S], positions=out[:, L.X:L.Y + 1], angles=out[:, L.THETA],
+        shear_stretch=out[:, L.V1:L.V3 + 1], curvature=out[:, L.U],
         internal_force=out[:, L.NX:L.NY + 1], internal_moment=out[:, L.M],
-        section_ends=packed.section_ends, model=model, planar=True, scene=scene,
+        section_ends=packed.section_ends) if record else {}
+    return Equilibrium._make(
+        tip=out[-1, L.X:L.Y + 1].copy(), model=model, planar=True, scene=scene,
         pressures=p_inputs, channel_pressures=p_channel, base_moment=np.array([float(m0)]),
-        base_force=ctx.base_force, arm=arm, **flags)
+        base_force=ctx.base_force, arm=arm, **samples, **flags)

@@ -63,12 +63,10 @@ def _channel_pressures(arm: ArmDesign, pressures, planar: bool,
             f"design {arm.name!r} expects {n} pressures in {'planar' if planar else 'spatial'} "
             f"mode ({', '.join(names) or 'none: a passive rod'}); got "
             f"{np.array2string(np.asarray(pressures, dtype=object), max_line_width=10**6)}")
-    if not planar:
-        if not _channels_of(p, _NO_INDEX, arm.max_pressure * (1 + 1e-12), p):
-            _explain_bad_pressures(arm, p, planar)
-        return p, p
-    p_channel = np.empty(packed.spatial_of_planar.shape[0])
-    if not _channels_of(p, packed.spatial_of_planar, arm.max_pressure * (1 + 1e-12), p_channel):
+    # Spatial inputs are the channels: only checked (an empty index expands nothing).
+    index = packed.spatial_of_planar if planar else _NO_INDEX
+    p_channel = np.empty(index.shape[0]) if planar else p
+    if not _channels_of(p, index, arm.max_pressure * (1 + 1e-12), p_channel):
         _explain_bad_pressures(arm, p, planar)
     return p, p_channel
 
