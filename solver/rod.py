@@ -375,10 +375,14 @@ def planar_rest_gradient(record, secf, steps, rest, grad):
     ∂m0/∂u*_i and ∂m0/∂v*_i with the tip condition m(L) = M_tip held (the predictor of a warm
     step to new pressures).
 
-    The linearised statics δθ' = δm/EI + δu*, δm' = K·δθ − n1·δv* (K = ∂m'/∂θ, as in
-    :func:`integrate_planar`) are integrated for a unit change of each section's u* and v*
-    and of m0, by Heun's rule on the recorded nodes: second-order accurate, which is plenty
-    for a prediction that Newton then corrects.
+    The linearised statics y = (δθ, δm), δθ' = δm/EI + δu*, δm' = K·δθ − n1·δv* (K = ∂m'/∂θ,
+    as in :func:`integrate_planar`), discretised by Heun's rule on the recorded nodes (second
+    order, plenty for a prediction that Newton then corrects), map each step's y_j to
+    y_{j+1} = M_j·y_j + F_j·(δu*, δv*). Only δm(L) matters, so the sensitivities of all 2·ns + 1
+    parameters come from one adjoint sweep tip → base, λ_j = M_jᵀ·λ_{j+1} from λ = (0, 1) at
+    the tip: ∂m(L)/∂m0 = λ_0[1] and ∂m(L)/∂(u*_i, v*_i) = Σ_j λ_{j+1}·F_j over section i's
+    steps — the discrete adjoint of the forward sensitivities, equal to them to rounding
+    (``tests/solver/naive.py``) at a fraction of their cost.
 
     Args:
         record: (Σ(steps + 1), N_COLUMNS) the equilibrium's record (:func:`integrate_planar`).
@@ -386,40 +390,36 @@ def planar_rest_gradient(record, secf, steps, rest, grad):
         grad: (2, ns) written: rows ∂m0/∂u* (N m²), ∂m0/∂v* (N m).
     """
     ns = secf.shape[1]
-    n_par = 2 * ns + 1
-    a = np.zeros(n_par)
-    b = np.zeros(n_par)
-    b[2 * ns] = 1.0  # the m0 direction: δθ(0) = 0, δm(0) = 1
-    row = 0
-    for i in range(ns):
+    lam_a = 0.0
+    lam_b = 1.0
+    end = record.shape[0]
+    for i in range(ns - 1, -1, -1):
         ca = secf[CA, i]
         cg = secf[CG, i]
         ci = secf[CI, i]
         vr = rest[REST_V3, i]
-        k0, n1_0 = _stiffness_and_shear(record, row, ca, cg, vr)
-        for j in range(steps[i]):
-            r = row + j + 1
-            h = record[r, S] - record[r - 1, S]
-            k1, n1_1 = _stiffness_and_shear(record, r, ca, cg, vr)
-            for par in range(n_par):
-                if 2 * i + 2 <= par < 2 * ns:
-                    continue  # a later section's parameter: still zero
-                du = 1.0 if par == 2 * i else 0.0
-                dv = 1.0 if par == 2 * i + 1 else 0.0
-                da0 = ci * b[par] + du
-                db0 = k0 * a[par] - dv * n1_0
-                a_pred = a[par] + h * da0
-                b_pred = b[par] + h * db0
-                da1 = ci * b_pred + du
-                db1 = k1 * a_pred - dv * n1_1
-                a[par] += 0.5 * h * (da0 + da1)
-                b[par] += 0.5 * h * (db0 + db1)
-            k0 = k1
-            n1_0 = n1_1
-        row += steps[i] + 1
+        first = end - steps[i] - 1  # the section's first row
+        gu = 0.0
+        gv = 0.0
+        k1, n1_1 = _stiffness_and_shear(record, end - 1, ca, cg, vr)
+        for r in range(end - 2, first - 1, -1):
+            h = record[r + 1, S] - record[r, S]
+            k0, n1_0 = _stiffness_and_shear(record, r, ca, cg, vr)
+            hh = 0.5 * h * h
+            # λ_{j+1}·F_j for a unit δu* and δv*; then λ_j = M_jᵀ·λ_{j+1} with
+            # M_j = [[1 + h²·K0/(2EI), h/EI], [h·(K0 + K1)/2, 1 + h²·K1/(2EI)]].
+            gu += h * lam_a + hh * k1 * lam_b
+            gv -= hh * ci * n1_0 * lam_a + 0.5 * h * (n1_0 + n1_1) * lam_b
+            lam_a, lam_b = ((1.0 + hh * ci * k0) * lam_a + 0.5 * h * (k0 + k1) * lam_b,
+                            h * ci * lam_a + (1.0 + hh * ci * k1) * lam_b)
+            k1 = k0
+            n1_1 = n1_0
+        grad[0, i] = gu
+        grad[1, i] = gv
+        end = first
     for i in range(ns):
-        grad[0, i] = -b[2 * i] / b[2 * ns]
-        grad[1, i] = -b[2 * i + 1] / b[2 * ns]
+        grad[0, i] = -grad[0, i] / lam_b
+        grad[1, i] = -grad[1, i] / lam_b
 
 
 @njit(inline="always")

@@ -8,6 +8,8 @@
   taken from global equilibrium, sections coupled by junction conditions (endplate weight as
   a force jump), clamped base and loaded free tip as two-point boundary conditions — the
   layout of the thesis's Appendix A.2 MATLAB code.
+* The predictor's rest-strain gradient by forward sensitivities, one linearised system per
+  parameter (the solver's kernel takes the discrete adjoint of the same scheme).
 """
 
 from __future__ import annotations
@@ -141,6 +143,48 @@ def solve_bvp_planar(arm, channel_pressures, scene, unshearable=False, tol=1e-10
         raise RuntimeError(f"solve_bvp failed: {sol.message}")
     end = sol.sol(1.0)[6 * (ns - 1): 6 * ns]
     return end[:2], end[2], sol
+
+
+def rest_gradient_forward(arm, eq, rest):
+    """∂m0/∂u*_i and ∂m0/∂v*_i of a recorded planar equilibrium, m(L) held: the linearised
+    statics δθ' = δm/EI + δu*, δm' = K·δθ − n1·δv* integrated forward by Heun's rule on the
+    recorded nodes, once for each section's u* and v* and once for m0.
+
+    Args:
+        arm: the design. eq: a recorded planar Equilibrium of it. rest: (3, ns) its rest
+            strains (u1*, u2*, v3*).
+
+    Returns:
+        (2, ns): rows ∂m0/∂u* (N m²), ∂m0/∂v* (N m).
+    """
+    ns = len(arm.sections)
+    ends = np.asarray(eq.section_ends)
+    starts = np.concatenate([[0], ends[:-1] + 1])
+
+    def stiffness_and_shear(row, sec, vr):
+        th = eq.angles[row]
+        nx, ny = eq.internal_force[row]
+        n1 = -nx * math.sin(th) + ny * math.cos(th)
+        n3 = nx * math.cos(th) + ny * math.sin(th)
+        return (1 / sec.GA - 1 / sec.EA) * (n1 * n1 - n3 * n3) + vr * n3, n1
+
+    def response(par):
+        a, b = 0.0, 1.0 if par == 2 * ns else 0.0
+        for i, sec in enumerate(arm.sections):
+            du = 1.0 if par == 2 * i else 0.0
+            dv = 1.0 if par == 2 * i + 1 else 0.0
+            for r in range(starts[i], ends[i]):
+                h = eq.s[r + 1] - eq.s[r]
+                k0, n1_0 = stiffness_and_shear(r, sec, rest[2][i])
+                k1, n1_1 = stiffness_and_shear(r + 1, sec, rest[2][i])
+                da0, db0 = b / sec.EI + du, k0 * a - dv * n1_0
+                a_pred, b_pred = a + h * da0, b + h * db0
+                da1, db1 = b_pred / sec.EI + du, k1 * a_pred - dv * n1_1
+                a, b = a + 0.5 * h * (da0 + da1), b + 0.5 * h * (db0 + db1)
+        return b
+
+    db_dm0 = response(2 * ns)
+    return np.array([[-response(2 * i + k) / db_dm0 for i in range(ns)] for k in range(2)])
 
 
 def rk4_planar(arm, rest, scene, m0, steps=2000):

@@ -13,6 +13,7 @@ import pytest
 import solver
 from solver import PSI, designs
 from solver import layout as L
+from tests.solver import naive
 
 
 def _walk(arm, n, scale, seed, planar=True):
@@ -97,6 +98,21 @@ def test_rest_gradient_predicts_the_base_moment():
         predicted = grad[0] @ d_rest[L.REST_U2] + grad[1] @ d_rest[L.REST_V3]
         assert predicted == pytest.approx(measured, rel=1e-2, abs=1e-9)
         assert rest0.shape == d_rest.shape
+
+
+@pytest.mark.parametrize("design, payload, angle", [("octarm_v", 0.2, 60.0), ("ct", 0.0, 0.0),
+                                                    ("octarm_v", 0.0, 180.0)])
+def test_rest_gradient_adjoint_equals_forward_sensitivities(design, payload, angle):
+    """The kernel's one adjoint sweep against one forward integration per parameter of the
+    same Heun scheme (naive.py): equal to rounding, on arms that bend, hang and stand."""
+    arm = getattr(designs, design)()
+    stepper = solver.Stepper(arm, solver.Scene(payload_kg=payload, base_angle_deg=angle))
+    rng = np.random.default_rng(3)
+    stepper.reset(rng.uniform(0.0, 0.6, arm.n_inputs(True)) * arm.max_pressure)
+    eq = stepper.equilibrium
+    rest = np.vstack(solver.rest_strains(arm, eq.channel_pressures))
+    forward = naive.rest_gradient_forward(arm, eq, rest)
+    np.testing.assert_allclose(stepper._memo[3], forward, rtol=1e-9, atol=1e-12 * np.abs(forward).max())
 
 
 def test_small_steps_take_one_newton_iteration():
