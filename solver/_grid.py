@@ -54,27 +54,32 @@ def section_needs(curv, force, strain, q, secf, ends, need):
     row = 0
     most = 0.0
     for i in range(secf.shape[1]):
-        h = secf[LEN, i] / (ends[i] - row)
-        ci = secf[CI, i]
-        qc2 = (q[i] * ci) ** 2
-        # The rates' powers free of roots, maximised over the samples; the roots (monotonic)
-        # are taken once per section: turn², load⁴ = |v|²|n|²/EI², spread⁶ = |v|²(|q|/EI)².
-        turn2 = load4 = spread6 = 0.0
-        finite = True
-        while row <= ends[i]:
-            u2 = _square(curv[row])
-            v2 = _square(strain[row])
-            l4 = v2 * _square(force[row]) * ci * ci
-            s6 = v2 * qc2
-            finite = finite and u2 <= math.inf and l4 <= math.inf and s6 <= math.inf
-            turn2 = max(turn2, u2)
-            load4 = max(load4, l4)
-            spread6 = max(spread6, s6)
-            row += 1
-        worst = h * max(math.sqrt(turn2), math.sqrt(math.sqrt(load4)), spread6 ** (1.0 / 6.0))
-        need[i] = worst / STEP_TURN if finite else math.inf
+        need[i] = _section_need(curv, force, strain, row, ends[i], secf[LEN, i], secf[CI, i], q[i])
         most = max(most, need[i])
+        row = ends[i] + 1
     return most
+
+
+@njit(inline="always")
+def _section_need(curv, force, strain, first, last, length, ci, q):
+    """h·ω / :data:`STEP_TURN` of one section, samples ``first`` … ``last`` (rows)."""
+    h = length / (last - first)
+    qc2 = (q * ci) ** 2
+    # The rates' powers free of roots, maximised over the samples; the roots (monotonic) are
+    # taken once per section: turn², load⁴ = |v|²|n|²/EI², spread⁶ = |v|²(|q|/EI)².
+    turn2 = load4 = spread6 = 0.0
+    finite = True
+    for row in range(first, last + 1):
+        u2 = _square(curv[row])
+        v2 = _square(strain[row])
+        l4 = v2 * _square(force[row]) * ci * ci
+        s6 = v2 * qc2
+        finite = finite and u2 <= math.inf and l4 <= math.inf and s6 <= math.inf
+        turn2 = max(turn2, u2)
+        load4 = max(load4, l4)
+        spread6 = max(spread6, s6)
+    worst = h * max(math.sqrt(turn2), math.sqrt(math.sqrt(load4)), spread6 ** (1.0 / 6.0))
+    return worst / STEP_TURN if finite else math.inf
 
 
 @njit(inline="always")
@@ -87,23 +92,24 @@ def _square(v):
 
 @njit
 def planar_fine(record, secf, steps, loads):
-    """True when the grid resolves a planar dead-load record (every need ≤ 1).
+    """True when the grid resolves a planar dead-load record (every need ≤ 1); allocates
+    nothing (it runs inside every warm step of the stepper).
 
     Args:
         record: (Σ(steps + 1), N_COLUMNS) a backbone record (:func:`solver.rod.integrate_planar`).
         secf, steps: its section array and RK4 steps. loads: (ns, 4) its dead loads.
     """
-    ns = secf.shape[1]
-    q = np.empty(ns)
-    ends = np.empty(ns, dtype=np.int64)
-    row = -1
-    for i in range(ns):
-        q[i] = math.hypot(loads[i, QX], loads[i, QY])
-        row += steps[i] + 1
-        ends[i] = row
-    need = np.empty(ns)
-    return section_needs(record[:, U:U + 1], record[:, NX:NY + 1], record[:, V1:V3 + 1], q, secf,
-                         ends, need) <= 1.0
+    curv = record[:, U:U + 1]
+    force = record[:, NX:NY + 1]
+    strain = record[:, V1:V3 + 1]
+    first = 0
+    for i in range(secf.shape[1]):
+        last = first + steps[i]
+        q = math.hypot(loads[i, QX], loads[i, QY])
+        if not _section_need(curv, force, strain, first, last, secf[LEN, i], secf[CI, i], q) <= 1.0:
+            return False
+        first = last + 1
+    return True
 
 
 def needs(eq, secf, q) -> tuple[np.ndarray, float]:
