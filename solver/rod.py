@@ -276,16 +276,19 @@ def _turned(th, c, sn, d):
 @njit(inline="always")
 def _planar_dead_rhs(sig, c, sn, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, qx, qy):
     """Right-hand side of (θ, m, a, b, x, y) under dead loads at local coordinate ``sig``,
-    θ given by (cos θ, sin θ)."""
+    θ given by (cos θ, sin θ), followed by g_θ and g_θθ, the first two derivatives of
+    m' = g(θ) in θ: g_θ = (1/GA − 1/EA)(n1² − n3²) + v*·n3, g_θθ = −4(1/GA − 1/EA)·n1·n3 + v*·n1
+    (inlined: a caller that does not use them does not compute them)."""
     nx = nex + qx * (length - sig)
     ny = ney + qy * (length - sig)
     c, sn, n1, n3, v1, v3 = _strains_cs(c, sn, nx, ny, ca, cg, vr)
-    return (ur + m * ci, v1 * n3 - v3 * n1, b * ci,
-            ((cg - ca) * (n1 * n1 - n3 * n3) + vr * n3) * a, v3 * c - v1 * sn, v3 * sn + v1 * c)
+    g_th = (cg - ca) * (n1 * n1 - n3 * n3) + vr * n3
+    return (ur + m * ci, v1 * n3 - v3 * n1, b * ci, g_th * a, v3 * c - v1 * sn, v3 * sn + v1 * c,
+            g_th, -4.0 * (cg - ca) * n1 * n3 + vr * n1)
 
 
 @njit
-def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out):
+def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=False):
     """One RK4 pass base → tip from base moment ``m0`` under dead loads.
 
     Args:
@@ -294,14 +297,21 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out):
         rest: (3, ns) rest strains; the plane uses u2* and v3*.
         loads: (ns, 4) section-end internal force and distributed load (``NEX``…).
         record: write samples to ``out`` ((Σsteps + ns, N_COLUMNS), junctions repeated).
+        second: also integrate the second variation a2 = ∂²θ/∂m0², b2 = ∂²m/∂m0²,
+            a2' = b2/EI, b2' = g_θ·a2 + g_θθ·a² (m' = g(θ)), by the midpoint rule on the RK4
+            stages at the node and mid-step: second order, plenty for Halley's correction
+            factor (:func:`solver._planar._newton`), at a fraction of a pass.
 
     Returns:
-        (θ, m, ∂m/∂m0, x, y at the tip, min over nodes of ∂m/∂m0 on (0, L]).
+        (θ, m, ∂m/∂m0, x, y at the tip, min over nodes of ∂m/∂m0 on (0, L], ∂²m/∂m0² at the
+        tip (0 unless ``second``)).
     """
     th = theta0
     m = m0
     a = 0.0
     b = 1.0
+    a2 = 0.0
+    b2 = 0.0
     x = 0.0
     y = 0.0
     s0 = 0.0
@@ -355,6 +365,7 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out):
             k4 = _planar_dead_rhs(sig + h, c, sn, m + h * k3[1], a + h * k3[2], b + h * k3[3],
                                   length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
             w = h / 6.0
+            a_node = a
             turn = w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
             c_node, s_node = _turned(th, c_node, s_node, turn)
             th += turn
@@ -363,10 +374,16 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out):
             b += w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
             x += w * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4])
             y += w * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5])
+            if second:
+                a_half = a_node + hh * k1[2]
+                a2_half = a2 + hh * ci * b2
+                b2_half = b2 + hh * (k1[6] * a2 + k1[7] * a_node * a_node)
+                a2 += h * ci * b2_half
+                b2 += h * (k2[6] * a2_half + k2[7] * a_half * a_half)
             if b < bmin:
                 bmin = b
         s0 += length
-    return th, m, b, x, y, bmin
+    return th, m, b, x, y, bmin, b2
 
 
 @njit
