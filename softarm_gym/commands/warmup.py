@@ -89,20 +89,21 @@ def warm(progress=None) -> float:
     for num_envs in (2, solver.BatchStepper.PARALLEL_MIN):
         _episode(gym.make_vec("SoftArm/OctArmReach-v0", num_envs=num_envs,
                               vectorization_mode="vector_entry_point"), seed=0)
+    _batch_kernels()
     return time.perf_counter() - start
 
 
-def run(args) -> int:
-    if args.clear:
-        for module in KERNEL_MODULES:
-            importlib.import_module(module)
-        removed = clear_cache()
-        folders = ", ".join(sorted({str(p.parent) for p in removed}))
-        print(f"removed {len(removed)} cached kernel files" + (f" from {folders}" if folders else ""))
-
-    def progress(message):
-        print(f"[warmup] {message}", file=sys.stderr, flush=True)
-
-    seconds = warm(None if args.quiet else progress)
-    print(f"numba kernels ready in {seconds:.1f} s")
-    return 0
+def _batch_kernels() -> solver.BatchStepper:
+    """Both ways of both batch kernels (cold rows, step rows): a thread policy runs a kernel
+    on the threads from its third call and measures it from its fourth
+    (:class:`solver.ThreadPolicy`), and an episode resets once, so the parallel cold kernel
+    would otherwise first compile inside a user's run (seconds on a 2-core machine).
+    Returns the batch, its policies having measured both ways."""
+    n = solver.BatchStepper.PARALLEL_MIN
+    arm = solver.designs.octarm_v()
+    batch = solver.BatchStepper(arm, solver.Scene(), n=n)
+    p = np.full((n, arm.n_inputs(True)), 0.2 * arm.max_pressure)
+    for k in range(4):
+        batch.reset(p * (1 + 0.1 * k))
+        batch.step(p * (1.05 + 0.1 * k))
+    return batch

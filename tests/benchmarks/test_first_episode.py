@@ -1,12 +1,14 @@
 """``softarm warmup`` covers every registered env configuration; the first-episode benchmark."""
 
 import gymnasium as gym
+import numba
+import numpy as np
 import pytest
 
 import softarm_gym  # noqa: F401
 from softarm_gym.benchmarks.first_episode import format_table, measure, run
 from softarm_gym.cli import main
-from softarm_gym.commands.warmup import cases
+from softarm_gym.commands.warmup import _batch_kernels, cases
 from softarm_gym.sensing import ESTIMATORS
 
 
@@ -19,6 +21,15 @@ def test_warmup_runs_every_registered_id_in_every_observation_mode():
                                                  if "Reach" in env_id and "Obstacle" not in env_id}
     for env_id, kwargs in cases():  # every case is a valid configuration
         gym.make(env_id, **kwargs).close()
+
+
+@pytest.mark.skipif(numba.get_num_threads() < 2, reason="one numba thread: no parallel kernels")
+def test_warmup_runs_both_batch_kernels_both_ways():
+    """The cold and the step rows kernels each ran, and were timed, serial and threaded: none
+    is left to compile inside a user's first long batch."""
+    batch = _batch_kernels()
+    for kind, policy in batch.thread_policies.items():
+        assert np.isfinite(policy.per_row_s).all(), (kind, policy.per_row_s)
 
 
 def test_measure_times_the_first_and_the_steady_episodes():
