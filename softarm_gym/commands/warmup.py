@@ -107,3 +107,19 @@ def _batch_kernels() -> solver.BatchStepper:
         batch.reset(p * (1 + 0.1 * k))
         batch.step(p * (1.05 + 0.1 * k))
     return batch
+
+
+def run(args) -> int:
+    if args.clear:
+        for module in KERNEL_MODULES:
+            importlib.import_module(module)
+        removed = clear_cache()
+        folders = ", ".join(sorted({str(p.parent) for p in removed}))
+        print(f"removed {len(removed)} cached kernel files" + (f" from {folders}" if folders else ""))
+
+    def progress(message):
+        print(f"[warmup] {message}", file=sys.stderr, flush=True)
+
+    seconds = warm(None if args.quiet else progress)
+    print(f"numba kernels ready in {seconds:.1f} s")
+    return 0
