@@ -43,6 +43,7 @@ from softarm_gym.envs.terms import (
     fill_reach_goals,
     fill_shape,
     fill_true_shapes,
+    fill_true_shapes_parallel,
     fractions_from_actions,
     reach_reward_sum,
     reach_rewards,
@@ -161,6 +162,10 @@ class BatchedReachVectorEnv(VectorEnv):
         if t.planar:
             self._tangent = np.empty((self._batch.records.shape[1], 2))
             self._backbone = np.empty((t.n_backbone, 2))
+            self._section_rows = np.asarray(self._batch.section_ends, dtype=np.int64)
+            # The observation kernel runs on the threads when that measures faster, as the
+            # solver's batch kernels do.
+            self._observe_policy = solver.ThreadPolicy(solver.BatchStepper.PARALLEL_MIN)
 
     @property
     def observation_slices(self) -> dict[str, slice]:
@@ -244,8 +249,9 @@ class BatchedReachVectorEnv(VectorEnv):
         records = self._batch.records
         if self._s_query is None:
             self._s_query = np.linspace(0.0, float(records[0, -1, L.S]), t.n_backbone)
-        fill_true_shapes(records, np.asarray(self._batch.section_ends, dtype=np.int64), self._s_query,
-                         self._shape_starts, self._obs, self._tips, self._tangent, self._backbone)
+        self._observe_policy.run(fill_true_shapes_parallel, fill_true_shapes, self.num_envs, records,
+                                 self._section_rows, self._s_query, self._shape_starts, self._obs,
+                                 self._tips, self._tangent, self._backbone)
         return self._finish_observation()
 
     def _finish_observation(self) -> np.ndarray:

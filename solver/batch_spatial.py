@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -61,17 +60,16 @@ class SpatialBatchStepper:
         """``job(i)`` for every i of ``rows``, on the pool or serially as the ``kind``
         policy decides (the results do not depend on it)."""
         rows = list(rows)
-        policy = self.thread_policies[kind]
-        threaded = policy.choose(len(rows))
-        start = time.perf_counter()
-        if threaded:
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(numba.get_num_threads())
-            out = list(self._pool.map(job, rows))
-        else:
-            out = [job(i) for i in rows]
-        policy.record(threaded, len(rows), time.perf_counter() - start)
-        return out
+        return self.thread_policies[kind].run(self._pooled, self._serial, len(rows), job, rows)
+
+    def _pooled(self, job, rows) -> list:
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(numba.get_num_threads())
+        return list(self._pool.map(job, rows))
+
+    @staticmethod
+    def _serial(job, rows) -> list:
+        return [job(i) for i in rows]
 
     def _inputs(self, pressures, rows: int | None) -> np.ndarray:
         p = np.asarray(pressures, dtype=float)

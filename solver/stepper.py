@@ -325,6 +325,16 @@ class ThreadPolicy:
         self._probing = self._countdown <= 0
         return best != self._probing
 
+    def run(self, parallel, serial, rows: int, *args):
+        """``parallel(*args)`` or ``serial(*args)`` (two ways of one job over ``rows``
+        copies, with the same result), as :meth:`choose` decides, timed for :meth:`record`.
+        Returns what the chosen one returns."""
+        threaded = self.choose(rows)
+        start = time.perf_counter()
+        out = (parallel if threaded else serial)(*args)
+        self.record(threaded, rows, time.perf_counter() - start)
+        return out
+
     def record(self, threaded: bool, rows: int, seconds: float) -> None:
         """The batch ``choose`` allowed ran ``seconds`` on ``rows`` copies."""
         if rows < self.min_rows or not rows:
@@ -455,16 +465,6 @@ class BatchStepper:
         return BatchReport(report[:, 0] != 0, report[:, 1] != 0, report[:, 2] != 0,
                            report[:, 3].astype(np.int64), report[:, 4].copy())
 
-    def _run_rows(self, kind: str, parallel, serial, rows: int, *args) -> None:
-        """Run a rows kernel on the threads or on one, as the ``kind`` ("cold" or "step")
-        policy of :attr:`thread_policies` decides, and tell it how long that took (both
-        kernels give the same bits)."""
-        policy = self.thread_policies[kind]
-        threaded = policy.choose(rows)
-        start = time.perf_counter()
-        (parallel if threaded else serial)(*args)
-        policy.record(threaded, rows, time.perf_counter() - start)
-
     # ------------------------------------------------------------------ cold solves
 
     def _cold(self, p_channel, states, records, record, rest_a, grad) -> np.ndarray:
@@ -472,10 +472,10 @@ class BatchStepper:
         states[:, 0] = self._loaded.m0
         report = np.zeros((m, 5))
         work = tuple(w[:m] if w.shape[0] >= m else np.empty((m, *w.shape[1:])) for w in self._work[:3])
-        self._run_rows("cold", _planar._cold_rows_parallel, _planar._cold_rows_serial, m,
-                       self._grid, self._tubes, self._p_zero, p_channel, self._ctx.loads,
-                       self._ctx.m_tip, self._ctx.params, work, states, records, record, rest_a,
-                       grad, report)
+        self.thread_policies["cold"].run(
+            _planar._cold_rows_parallel, _planar._cold_rows_serial, m, self._grid, self._tubes,
+            self._p_zero, p_channel, self._ctx.loads, self._ctx.m_tip, self._ctx.params, work,
+            states, records, record, rest_a, grad, report)
         # As solve_single: the loaded stage's iterations count, and a snap there is a snap; a
         # loaded state beyond the grid leaves every row to the general path (which refines).
         report[:, 3] += self._loaded.iterations
@@ -588,10 +588,10 @@ class BatchStepper:
         p, channel = self._inputs(p, self.n)
         report = np.zeros((self.n, 5))
         report[~active, :2] = 1.0
-        self._run_rows("step", _planar._step_rows_parallel, _planar._step_rows_serial, int(active.sum()),
-                       self._grid, self._tubes, self.channel_pressures, channel, self._ctx.loads,
-                       self._ctx.m_tip, self._ctx.params, self._work, self._states, self.records,
-                       self._memo, active, report)
+        self.thread_policies["step"].run(
+            _planar._step_rows_parallel, _planar._step_rows_serial, int(active.sum()), self._grid,
+            self._tubes, self.channel_pressures, channel, self._ctx.loads, self._ctx.m_tip,
+            self._ctx.params, self._work, self._states, self.records, self._memo, active, report)
         ok = report[:, 0] != 0
         for k in np.flatnonzero(~ok):
             # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.

@@ -15,12 +15,13 @@ import math
 
 import numpy as np
 
-from solver.jit import njit
+from solver.jit import njit, prange
 from solver.layout import THETA, V1, V3, S, X, Y
 from solver.rod import hermite_resample
 
-__all__ = ["fractions_from_actions", "fill_true_shapes", "fill_shape", "fill_pressures", "clip_observations",
-           "fill_reach_goals", "goal_rewards", "reach_rewards", "reach_reward_sum", "REACH_TERMS"]
+__all__ = ["fractions_from_actions", "fill_true_shapes", "fill_true_shapes_parallel", "fill_shape",
+           "fill_pressures", "clip_observations", "fill_reach_goals", "goal_rewards", "reach_rewards",
+           "reach_reward_sum", "REACH_TERMS"]
 
 REACH_TERMS = ("reward_distance", "reward_control", "reward_success", "reward_solver")
 """The reward terms of the reach task, in the column order of :func:`reach_rewards`."""
@@ -71,31 +72,45 @@ def fill_true_shapes(records, section_ends, s_query, starts, obs, tips, tangent,
         tangent: (N, 2) and backbone: (K, 2) scratch.
     """
     for e in range(records.shape[0]):
-        rec = records[e]
-        rows = rec.shape[0]
-        for r in range(rows):
-            c = math.cos(rec[r, THETA])
-            sn = math.sin(rec[r, THETA])
-            tangent[r, 0] = rec[r, V3] * c - rec[r, V1] * sn
-            tangent[r, 1] = rec[r, V3] * sn + rec[r, V1] * c
-        hermite_resample(rec[:, S], rec[:, X:Y + 1], tangent, s_query, backbone)
-        o = obs[e]
-        tips[e, 0] = rec[rows - 1, X]
-        tips[e, 1] = rec[rows - 1, Y]
-        backbone[backbone.shape[0] - 1, 0] = tips[e, 0]
-        backbone[backbone.shape[0] - 1, 1] = tips[e, 1]
-        o[starts[0]] = tips[e, 0]
-        o[starts[0] + 1] = tips[e, 1]
-        for i in range(section_ends.shape[0]):
-            r = section_ends[i]
-            b = starts[1] + 4 * i
-            o[b] = rec[r, X]
-            o[b + 1] = rec[r, Y]
-            o[b + 2] = math.cos(rec[r, THETA])
-            o[b + 3] = math.sin(rec[r, THETA])
-        for j in range(backbone.shape[0]):
-            o[starts[2] + 2 * j] = backbone[j, 0]
-            o[starts[2] + 2 * j + 1] = backbone[j, 1]
+        _fill_true_shape(records[e], section_ends, s_query, starts, obs[e], tips[e], tangent,
+                         backbone)
+
+
+@njit(parallel=True)
+def fill_true_shapes_parallel(records, section_ends, s_query, starts, obs, tips, tangent, backbone):
+    """:func:`fill_true_shapes` over numba's threads (each copy its own scratch, shaped as
+    ``tangent`` and ``backbone``): the same numbers."""
+    for e in prange(records.shape[0]):
+        _fill_true_shape(records[e], section_ends, s_query, starts, obs[e], tips[e],
+                         np.empty_like(tangent), np.empty_like(backbone))
+
+
+@njit(inline="always")
+def _fill_true_shape(rec, section_ends, s_query, starts, o, tip, tangent, backbone):
+    """:func:`fill_true_shapes` of one record ``rec`` into its observation ``o`` and ``tip``."""
+    rows = rec.shape[0]
+    for r in range(rows):
+        c = math.cos(rec[r, THETA])
+        sn = math.sin(rec[r, THETA])
+        tangent[r, 0] = rec[r, V3] * c - rec[r, V1] * sn
+        tangent[r, 1] = rec[r, V3] * sn + rec[r, V1] * c
+    hermite_resample(rec[:, S], rec[:, X:Y + 1], tangent, s_query, backbone)
+    tip[0] = rec[rows - 1, X]
+    tip[1] = rec[rows - 1, Y]
+    backbone[backbone.shape[0] - 1, 0] = tip[0]
+    backbone[backbone.shape[0] - 1, 1] = tip[1]
+    o[starts[0]] = tip[0]
+    o[starts[0] + 1] = tip[1]
+    for i in range(section_ends.shape[0]):
+        r = section_ends[i]
+        b = starts[1] + 4 * i
+        o[b] = rec[r, X]
+        o[b + 1] = rec[r, Y]
+        o[b + 2] = math.cos(rec[r, THETA])
+        o[b + 3] = math.sin(rec[r, THETA])
+    for j in range(backbone.shape[0]):
+        o[starts[2] + 2 * j] = backbone[j, 0]
+        o[starts[2] + 2 * j + 1] = backbone[j, 1]
 
 
 def fill_shape(obs, slices, shape, planar: bool) -> None:
