@@ -128,33 +128,22 @@ def test_make_vec_vector_entry_point(env_id):
     envs.close()
 
 
-def test_planar_kernels_and_observations_run_on_threads_as_on_one():
-    """The planar batch's step and cold kernels and its observation kernel give the same bits
-    whichever way their thread policies run them (forced each way here)."""
+@pytest.mark.parametrize("planar", [True, False])
+def test_batches_run_on_threads_as_on_one(planar):
+    """The batch gives the same bits whichever way its thread policies run it (forced each
+    way here): planar, the step and cold kernels and the observation kernel; spatial, the
+    copies' steppers on the pool."""
     runs = []
     for threaded in (False, True):
-        env = BatchedReachVectorEnv(num_envs=6, max_episode_steps=3)
-        for policy in (*env._batch.thread_policies.values(), env._observe_policy):
+        env = BatchedReachVectorEnv(num_envs=6, planar=planar, max_episode_steps=3)
+        policies = list(env._batch.thread_policies.values())
+        if planar:
+            policies.append(env._observe_policy)
+        for policy in policies:
             policy.choose = lambda rows, t=threaded: t
         out = [env.reset(seed=2)]
         for k in range(4):
-            out.append(env.step(np.full((6, 6), np.sin(k))))
-        runs.append(tuple(out))
-        env.close()
-    _assert_same(runs[0], runs[1], "threaded")
-
-
-def test_spatial_copies_run_on_threads_as_on_one():
-    """The spatial batch gives the same bits whichever way its thread policy runs the
-    copies (forced each way here)."""
-    runs = []
-    for threaded in (False, True):
-        env = BatchedReachVectorEnv(num_envs=4, planar=False, max_episode_steps=3)
-        for policy in env._batch.thread_policies.values():
-            policy.choose = lambda rows, t=threaded: t
-        out = [env.reset(seed=2)]
-        for k in range(4):
-            out.append(env.step(np.full((4, 9), np.sin(k))))
+            out.append(env.step(np.full((6, env.single_action_space.shape[0]), np.sin(k))))
         runs.append(tuple(out))
         env.close()
     _assert_same(runs[0], runs[1], "threaded")
