@@ -250,8 +250,7 @@ def context(arm: ArmDesign, packed: PackedArm, scene: Scene, dim: int,
     :meth:`ArmDesign.scaled` shares its nominal's loads (the masses are unchanged). Obstacles
     do not enter a context, so it is keyed by the scene without them: a scene whose disc moves
     every step (a grasped object) does not fill the design's cache with copies."""
-    if scene.has_contact:
-        scene = replace(scene, obstacles=(), self_contact=None)
+    scene = scene.without_contact
     key = ("scene", packed.key, scene, dim)
     hit = arm._solver_cache.peek(key)
     if hit is not None:

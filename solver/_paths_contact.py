@@ -98,7 +98,7 @@ def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
     (:func:`solver._paths_shooting.solve_shooting`); the guarded shortcut, which checks the
     path against the final discs only, is then skipped.
     """
-    free_scene = replace(scene, obstacles=(), self_contact=None)
+    free_scene = scene.without_contact
     if settings.shortcuts:
         discs = scene.discs_array()
         if np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]

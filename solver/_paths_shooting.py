@@ -5,7 +5,6 @@ results (docs/design.md §6–9)."""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 
@@ -58,7 +57,7 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
     holds moves quasi-statically (:mod:`solver.grasp`); otherwise obstacles that differ from
     the warm start's stand at their places from the start.
     """
-    free_scene = replace(scene, obstacles=(), self_contact=None)
+    free_scene = scene.without_contact
     ctx = context(arm, layout, free_scene, 2, settings)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, ctx,
@@ -66,7 +65,7 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
     goal = (p_target, ctx.q, plate, target, scene.discs_array())
     iterations = 0
     if warm_start is not None and warm_start.scene is not None:
-        start_scene = replace(warm_start.scene, obstacles=(), self_contact=None)
+        start_scene = warm_start.scene.without_contact
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         start_ctx = ctx if start_scene == free_scene else \
             context(arm, layout, start_scene, 2, settings)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -265,6 +265,16 @@ class Scene:
     def has_contact(self) -> bool:
         """True when the solve has contact to resolve: obstacles or self-contact."""
         return bool(self.obstacles) or self.self_contact is not None
+
+    @property
+    def without_contact(self) -> Scene:
+        """This scene without obstacles and self-contact (itself when it has neither): the
+        scene of a contact solve's free stages and cache keys, built once per scene."""
+        free = self.__dict__.get("_without_contact")
+        if free is None:
+            free = replace(self, obstacles=(), self_contact=None) if self.has_contact else self
+            object.__setattr__(self, "_without_contact", free)
+        return free
 
     @property
     def is_planar(self) -> bool:

@@ -1,5 +1,6 @@
 """Bad input gets a clear ValueError naming the problem, never a numba traceback."""
 
+import pickle
 import subprocess
 import sys
 from dataclasses import replace
@@ -41,6 +42,15 @@ def test_spatial_pressure_count():
 def test_bad_scene(kwargs, match):
     with pytest.raises(ValueError, match=match):
         solver.Scene(**kwargs)
+
+
+def test_scene_without_contact_is_built_once_and_pickles():
+    scene = solver.Scene(payload_kg=0.1, obstacles=(solver.Disc((0.2, -0.3), 0.05),), self_contact=1e5)
+    free = scene.without_contact
+    assert free == solver.Scene(payload_kg=0.1) and not free.has_contact
+    assert scene.without_contact is free and free.without_contact is free
+    copy = pickle.loads(pickle.dumps(scene))
+    assert copy == scene and copy.without_contact == free
 
 
 def test_bad_model_arm_scene_and_mode():
