@@ -127,58 +127,108 @@ def _scan(theta0, secf, steps, rest, loads, m_tip, params, n_scan, guess, out):
 
     Used where continuation cannot proceed (a fold passed, or a bifurcation such as Euler
     buckling): every sign change on the scan grid is polished by Newton and the stable root
-    closest to ``guess`` is taken (ties broken towards positive m0). Returns (m0, found, its).
+    closest to ``guess`` is taken (ties broken towards positive m0). The intervals are
+    visited nearest ``guess`` first, and the scan stops at the first interval farther from it
+    than the nearest stable root found: a root lies inside its interval, so no farther one
+    can be nearer — the root of the whole scan, for a fraction of its passes (an arm that
+    snaps lands near where it left). Returns (m0, found, its).
     """
+    m_bound = params[M_BOUND]
+    tie = 1e-12 * m_bound
+    best = math.nan
+    best_d = math.inf
+    if not math.isfinite(guess):
+        return best, False, 0
+    residual = np.full(n_scan + 1, math.nan)
+    seen = np.zeros(n_scan + 1, dtype=np.bool_)
+    # Interval k spans grid points k − 1 and k (1 ≤ k ≤ n_scan); start from the one holding
+    # the guess (clamped to the grid) and widen to the left and right.
+    first = min(max(int(math.floor((guess + m_bound) * n_scan / (2.0 * m_bound))) + 1, 1), n_scan)
+    left = first
+    right = first + 1
+    k = first
+    its = 0
+    while True:
+        if _grid_m(k - 1, m_bound, n_scan) <= guess <= _grid_m(k, m_bound, n_scan):
+            d_k = 0.0
+        else:
+            d_k = min(abs(_grid_m(k - 1, m_bound, n_scan) - guess),
+                      abs(_grid_m(k, m_bound, n_scan) - guess))
+        if d_k > best_d + tie:
+            break
+        for j in (k - 1, k):
+            if not seen[j]:
+                th, m, b, x, y, bmin, _ = integrate_planar(_grid_m(j, m_bound, n_scan), theta0,
+                                                           secf, steps, rest, loads, False, out)
+                residual[j] = m - m_tip
+                seen[j] = True
+                its += 1
+        root, stable, n_it = _bracket_root(_grid_m(k - 1, m_bound, n_scan), residual[k - 1],
+                                           _grid_m(k, m_bound, n_scan), residual[k], theta0,
+                                           secf, steps, rest, loads, m_tip, params, out)
+        its += n_it
+        if stable:
+            d = abs(root - guess)
+            if d < best_d - tie or (abs(d - best_d) <= tie and root > best):
+                best = root
+                best_d = d
+        # The next interval: the nearer of the two neighbours not yet visited.
+        if k == left:
+            left -= 1
+        else:
+            right += 1
+        if left < 1 and right > n_scan:
+            break
+        if left < 1:
+            k = right
+        elif right > n_scan:
+            k = left
+        else:
+            to_left = guess - _grid_m(left, m_bound, n_scan)
+            k = left if to_left <= _grid_m(right - 1, m_bound, n_scan) - guess else right
+    return best, math.isfinite(best), its
+
+
+@njit(inline="always")
+def _grid_m(k, m_bound, n_scan):
+    """Base moment of grid point k of the fold scan (N m)."""
+    return -m_bound + 2.0 * m_bound * k / n_scan
+
+
+@njit
+def _bracket_root(prev_m, prev_r, mk, r, theta0, secf, steps, rest, loads, m_tip, params, out):
+    """The root of m(L; m0) = M_tip in the scan interval [prev_m, mk] with residuals prev_r,
+    r at its ends, if they change sign: (root, stable root found, passes)."""
+    if not (math.isfinite(r) and math.isfinite(prev_r) and (r == 0.0 or prev_r * r < 0.0)):
+        return math.nan, False, 0
     tol = params[TOL]
     max_iter = int(params[MAX_ITER])
     max_step = params[MAX_STEP]
-    m_bound = params[M_BOUND]
-    best = math.nan
-    best_d = math.inf
-    its = 0
-    prev_r = math.nan
-    prev_m = 0.0
-    for k in range(n_scan + 1):
-        mk = -m_bound + 2.0 * m_bound * k / n_scan
-        th, m, b, x, y, bmin, _ = integrate_planar(mk, theta0, secf, steps, rest, loads, False, out)
-        r = m - m_tip
-        its += 1
-        if k > 0 and math.isfinite(r) and math.isfinite(prev_r) and (r == 0.0 or prev_r * r < 0.0):
-            # Secant start inside the bracket, then Newton; where the residual is too steep for
-            # Newton (heavily loaded arms), bisect the bracket first.
-            start = prev_m - prev_r * (mk - prev_m) / (r - prev_r)
-            root, ok, n_it, res, stable, bm, x, y, th = _newton(start, theta0, secf, steps, rest,
-                                                                loads, m_tip, tol, max_iter,
-                                                                max_step, out)
-            its += n_it
-            if not (ok and prev_m <= root <= mk):
-                lo, hi, r_lo = prev_m, mk, prev_r
-                for _ in range(60):
-                    mid = 0.5 * (lo + hi)
-                    th, m, b, x, y, bmin, _ = integrate_planar(mid, theta0, secf, steps, rest, loads, False,
-                                                      out)
-                    its += 1
-                    r_mid = m - m_tip
-                    if not math.isfinite(r_mid):
-                        break
-                    if (r_mid < 0.0) == (r_lo < 0.0):
-                        lo, r_lo = mid, r_mid
-                    else:
-                        hi = mid
-                    if hi - lo <= 1e-12 * m_bound:
-                        break
-                root, ok, n_it, res, stable, bm, x, y, th = _newton(
-                    0.5 * (lo + hi), theta0, secf, steps, rest, loads, m_tip, tol, max_iter,
-                    max_step, out)
-                its += n_it
-            if ok and stable:
-                d = abs(root - guess)
-                if d < best_d - 1e-12 * m_bound or (abs(d - best_d) <= 1e-12 * m_bound and root > best):
-                    best = root
-                    best_d = d
-        prev_r = r
-        prev_m = mk
-    return best, math.isfinite(best), its
+    # Secant start inside the bracket, then Newton; where the residual is too steep for Newton
+    # (heavily loaded arms), bisect the bracket first.
+    start = prev_m - prev_r * (mk - prev_m) / (r - prev_r)
+    root, ok, its, res, stable, bm, x, y, th = _newton(start, theta0, secf, steps, rest, loads,
+                                                       m_tip, tol, max_iter, max_step, out)
+    if not (ok and prev_m <= root <= mk):
+        lo, hi, r_lo = prev_m, mk, prev_r
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            th, m, b, x, y, bmin, _ = integrate_planar(mid, theta0, secf, steps, rest, loads,
+                                                       False, out)
+            its += 1
+            r_mid = m - m_tip
+            if not math.isfinite(r_mid):
+                break
+            if (r_mid < 0.0) == (r_lo < 0.0):
+                lo, r_lo = mid, r_mid
+            else:
+                hi = mid
+            if hi - lo <= 1e-12 * params[M_BOUND]:
+                break
+        root, ok, n_it, res, stable, bm, x, y, th = _newton(
+            0.5 * (lo + hi), theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out)
+        its += n_it
+    return root, ok and stable, its
 
 
 @njit

@@ -8,6 +8,7 @@
   taken from global equilibrium, sections coupled by junction conditions (endplate weight as
   a force jump), clamped base and loaded free tip as two-point boundary conditions — the
   layout of the thesis's Appendix A.2 MATLAB code.
+* The fold scan visiting every interval of its grid (the solver's stops early).
 * The predictor's rest-strain gradient by forward sensitivities, one linearised system per
   parameter (the solver's kernel takes the discrete adjoint of the same scheme).
 """
@@ -143,6 +144,26 @@ def solve_bvp_planar(arm, channel_pressures, scene, unshearable=False, tol=1e-10
         raise RuntimeError(f"solve_bvp failed: {sol.message}")
     end = sol.sol(1.0)[6 * (ns - 1): 6 * ns]
     return end[:2], end[2], sol
+
+
+def nearest_stable_root_full_scan(residual, stable, m_bound, n_scan, guess):
+    """The stable root of ``residual`` (a function of the base moment) nearest ``guess``, from
+    every sign change of an ``n_scan``-interval grid over [−m_bound, m_bound], each root by
+    ``scipy.optimize.brentq``; ``stable(m)`` says whether a root is stable. Ties (distances
+    within 1e-12·m_bound) go to the larger root. Returns (root or NaN, every stable root)."""
+    grid = [-m_bound + 2.0 * m_bound * k / n_scan for k in range(n_scan + 1)]
+    r = [residual(m) for m in grid]
+    roots = []
+    for k in range(1, n_scan + 1):
+        if math.isfinite(r[k]) and math.isfinite(r[k - 1]) and (r[k] == 0.0 or r[k - 1] * r[k] < 0.0):
+            root = grid[k] if r[k] == 0.0 else brentq(residual, grid[k - 1], grid[k],
+                                                     xtol=1e-14 * m_bound, rtol=1e-15)
+            if stable(root):
+                roots.append(root)
+    if not roots:
+        return math.nan, roots
+    nearest = min(abs(m - guess) for m in roots)
+    return max(m for m in roots if abs(m - guess) <= nearest + 1e-12 * m_bound), roots
 
 
 def rest_gradient_forward(arm, eq, rest):

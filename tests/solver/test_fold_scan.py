@@ -1,0 +1,57 @@
+"""The fold scan (``solver._planar._scan``) visits its grid nearest the guess first and stops
+early; it must pick the root a scan of every interval picks (``naive.py``)."""
+
+import math
+
+import numpy as np
+import pytest
+
+import solver
+from solver import _planar
+from solver import layout as L
+from solver._model import context, pack
+from solver.rod import integrate_planar
+from tests.solver import naive
+
+
+@pytest.mark.parametrize("design, payload, angle, fraction", [
+    ("octarm_v", 0.5, 180.0, 0.0),   # an upright column past buckling: two mirror roots
+    ("octarm_v", 1.0, 180.0, 0.3),
+    ("ct", 0.3, 180.0, 0.0),
+    ("octarm_v", 0.2, 150.0, 0.5),   # leaning: two roots at different distances
+    ("octarm_v", 0.0, 90.0, 0.4),    # one root
+])
+def test_scan_picks_the_nearest_stable_root_of_the_full_scan(design, payload, angle, fraction):
+    arm = getattr(solver.designs, design)()
+    scene = solver.Scene(payload_kg=payload, base_angle_deg=angle)
+    settings = solver.Settings()
+    packed = pack(arm, "full", settings)
+    ctx = context(arm, packed, scene, 2, settings)
+    rest = np.vstack(solver.rest_strains(arm, np.full(arm.n_channels, fraction * arm.max_pressure)))
+    out = np.empty((packed.n_rows, L.N_COLUMNS))
+    grid = (scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads)
+
+    def residual(m0):
+        return integrate_planar(m0, *grid, False, out)[1] - ctx.m_tip
+
+    def stable(m0):
+        return integrate_planar(m0, *grid, False, out)[5] > 0.0
+
+    bound = ctx.params[L.M_BOUND]
+    n_scan = settings.n_scan
+    _, roots = naive.nearest_stable_root_full_scan(residual, stable, bound, n_scan, 0.0)
+    # Guesses across the grid and beyond it, and a third and two thirds of the way between
+    # neighbouring roots, where the nearer one is on either side.
+    guesses = [*np.linspace(-1.1 * bound, 1.1 * bound, 9), 0.0, -0.0, 1e-9 * bound]
+    for a, b in zip(roots[:-1], roots[1:]):
+        guesses += [a + (b - a) / 3, a + 2 * (b - a) / 3]
+    passes = []
+    for guess in guesses:
+        expected, roots = naive.nearest_stable_root_full_scan(residual, stable, bound, n_scan, guess)
+        root, found, its = _planar._scan(*grid, ctx.m_tip, ctx.params, n_scan, guess, out)
+        assert found == math.isfinite(expected), (guess, roots)
+        if found:
+            assert root == pytest.approx(expected, abs=1e-9 * bound), (guess, roots)
+        passes.append(its)
+    # Stopping early is the point: a full scan evaluates n_scan + 1 grid points alone.
+    assert min(passes) < n_scan / 2, passes
