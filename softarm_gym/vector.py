@@ -160,8 +160,8 @@ class BatchedReachVectorEnv(VectorEnv):
                                       dtype=np.int64)
         self._s_query = None
         if t.planar:
-            self._tangent = np.empty((self._batch.records.shape[1], 2))
-            self._backbone = np.empty((t.n_backbone, 2))
+            self._tangent = np.empty((n, self._batch.records.shape[1], 2))
+            self._backbone = np.empty((n, t.n_backbone, 2))
             self._section_rows = np.asarray(self._batch.section_ends, dtype=np.int64)
             # The observation kernel runs on the threads when that measures faster, as the
             # solver's batch kernels do.

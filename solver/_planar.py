@@ -68,7 +68,7 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
 
     Halley's step converges cubically: from a warm step's first-order prediction the second
     pass meets ``tol`` nine times in ten, where plain Newton needs a third pass half the time
-    (docs/design.md §10); the second variation costs a few per cent of a pass. Steps are
+    (docs/design.md §8); the second variation costs a few per cent of a pass. Steps are
     clipped to ``max_step`` (N m) so a poor guess cannot fling the iterate onto a distant
     branch, and halved while they do not reduce the residual. Returns (m0,
     converged, iterations, |residual|, stable, bmin, x, y, θ), the last three at the tip of

@@ -338,8 +338,8 @@ class SoftArmEnv(gym.Env):
             # Scratch of the lean ``true`` observation (:meth:`_sense`), for this arm's record.
             self._s_query = np.linspace(0.0, float(stepper.record[-1, L.S]), self.n_backbone)
             self._section_rows = np.array(stepper.section_ends, dtype=np.int64)
-            self._tangent = np.empty((stepper.record.shape[0], 2))
-            self._backbone = np.empty((self.n_backbone, 2))
+            self._tangent = np.empty((1, stepper.record.shape[0], 2))
+            self._backbone = np.empty((1, self.n_backbone, 2))
         self._failures = 0
         self.estimator.reset()
         self._sense()

@@ -69,20 +69,19 @@ def fill_true_shapes(records, section_ends, s_query, starts, obs, tips, tangent,
         s_query: (K,) arc lengths of the backbone samples (m).
         starts: (3,) int: where the tip, section-end and backbone blocks start in ``obs``.
         obs: (n, D) observations, written in those blocks. tips: (n, 2) written.
-        tangent: (N, 2) and backbone: (K, 2) scratch.
+        tangent: (n, N, 2) and backbone: (n, K, 2) scratch, one per copy.
     """
     for e in range(records.shape[0]):
-        _fill_true_shape(records[e], section_ends, s_query, starts, obs[e], tips[e], tangent,
-                         backbone)
+        _fill_true_shape(records[e], section_ends, s_query, starts, obs[e], tips[e], tangent[e],
+                         backbone[e])
 
 
 @njit(parallel=True)
 def fill_true_shapes_parallel(records, section_ends, s_query, starts, obs, tips, tangent, backbone):
-    """:func:`fill_true_shapes` over numba's threads (each copy its own scratch, shaped as
-    ``tangent`` and ``backbone``): the same numbers."""
+    """:func:`fill_true_shapes` over numba's threads: the same numbers."""
     for e in prange(records.shape[0]):
-        _fill_true_shape(records[e], section_ends, s_query, starts, obs[e], tips[e],
-                         np.empty_like(tangent), np.empty_like(backbone))
+        _fill_true_shape(records[e], section_ends, s_query, starts, obs[e], tips[e], tangent[e],
+                         backbone[e])
 
 
 @njit(inline="always")
