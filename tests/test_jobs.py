@@ -211,8 +211,9 @@ def test_output_file_holds_the_printed_json(capsys, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["c", "ws.json"] and not os.listdir(tmp_path / "c")
 
 
-DEXTERITY = ["dexterity", "--levels", "2", "--chunk-size", "8", "--json", "--quiet"]
-"""64 OctArm V points in 8 chunks of ~0.3 s."""
+DEXTERITY = ["dexterity", "--levels", "4", "--chunk-size", "512", "--json", "--quiet"]
+"""4,096 OctArm V points in 8 chunks of ~0.25 s: the interrupt and kill tests need the sweep
+still running after two chunks are kept (64 points, once enough, now take ~4 ms a chunk)."""
 DESIGN = ["design", "--sections", "3", "--lengths", "0.5,1,1.5,2", "--chunk-size", "16", "--json",
           "--no-progress"]
 """256 layouts in 16 chunks of ~0.1 s."""
