@@ -61,7 +61,7 @@ from solver.rod import (
 
 @njit
 def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out,
-            record=False):
+            record=False, reach=math.inf):
     """Newton on m(L; m0) = M_tip with the exact shooting derivative ∂m(L)/∂m0, each step
     corrected by Halley's factor from the second derivative ∂²m(L)/∂m0² where that factor is
     a correction (|r·m''| ≤ m'²).
@@ -74,10 +74,16 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
     converged, iterations, |residual|, stable, bmin, x, y, θ), the last three at the tip of
     the returned iterate. With ``record`` every pass writes its samples to ``out``, so that
     on return ``out`` holds the returned iterate's backbone (no separate recording pass).
+
+    ``reach`` (N m): give up, unconverged, as soon as a step would take the iterate farther
+    than this from the start ``m0`` — a caller that will reject a root that far from its
+    prediction (a continuation step past a fold, where Newton wanders for its whole budget)
+    saves the rest of the passes. The iterations returned are then below ``max_iter``.
     """
     res = math.inf
     bmin = 1.0
     th = x = y = math.nan
+    start = m0
     base = m0
     res_base = math.inf
     for it in range(max_iter + 1):
@@ -105,6 +111,8 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
             step = max_step
         elif step < -max_step:
             step = -max_step
+        if abs(m0 + step - start) > reach:
+            return m0, False, it, abs(res), bmin > 0.0, bmin, x, y, th
         m0 += step
     return m0, False, max_iter, abs(res), bmin > 0.0, bmin, x, y, th
 
@@ -281,6 +289,12 @@ def _follow(state, grid, tubes, a, b, params, work, guard):
 # in two or three; one that is not is left to the continuation of :func:`_path` early.
 DIRECT_ITER = 6
 
+# A continuation step accepts a root at most ``jump`` from its prediction; Newton gives up on
+# the step once an iterate would leave GIVE_UP·jump of it (``_newton``'s ``reach``): past a
+# fold there is no root near the prediction, and Newton would spend its whole budget looking.
+# Twice the acceptance radius leaves room for a first step that overshoots and comes back.
+GIVE_UP = 2.0
+
 
 @njit
 def _step(state, grid, tubes, a, b, params, work, memo):
@@ -320,11 +334,13 @@ def _step(state, grid, tubes, a, b, params, work, memo):
             slope += (grad[0, i] * (rest[REST_U2, i] - rest_a[REST_U2, i])
                       + grad[1, i] * (rest[REST_V3, i] - rest_a[REST_V3, i]))
     guess = m_start + (slope if math.isfinite(slope) else 0.0)
+    jump = params[JUMP] + 0.5 * abs(guess - m_start)
+    n_direct = min(int(params[MAX_ITER]), DIRECT_ITER)
     root, ok, its, res, stable, bm, x, y, th = _newton(
-        guess, theta0, secf, steps, rest, loads, m_tip, params[TOL],
-        min(int(params[MAX_ITER]), DIRECT_ITER), params[MAX_STEP], out, record)
+        guess, theta0, secf, steps, rest, loads, m_tip, params[TOL], n_direct, params[MAX_STEP],
+        out, record, GIVE_UP * jump)
     snapped = False
-    if ok and stable and abs(root - guess) <= params[JUMP] + 0.5 * abs(guess - m_start):
+    if ok and stable and abs(root - guess) <= jump:
         state[0] = root
         state[1] = x
         state[2] = y
@@ -333,10 +349,14 @@ def _step(state, grid, tubes, a, b, params, work, memo):
             p_now[c] = p_b[c]
         loads_now[:, :] = loads
     else:
+        # The attempt was Newton from the very prediction :func:`_path` starts with (a full
+        # first step, DT0 = 1): one that converged or gave up would do so again there, so the
+        # path starts at half the step. One that ran out of iterations gets the path's budget.
+        dt_first = 0.5 * params[DT0] if its < n_direct and params[DT0] >= 1.0 else math.nan
         m_end, ok, more, snapped, stable, res, x, y, th = _path(
             m_start, theta0, secf, steps, tubes[0], tubes[1], a[0], p_b, a[1], loads, a[2],
             m_tip, params, rest, p_now, loads_now, out, record, np.empty(0), np.empty((0, 4)),
-            slope)
+            slope, dt_first)
         state[0] = m_end
         state[1] = x
         state[2] = y
@@ -355,7 +375,8 @@ def _step(state, grid, tubes, a, b, params, work, memo):
 
 @njit
 def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-          mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs, slope0=math.nan):
+          mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs, slope0=math.nan,
+          dt_first=math.nan):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
 
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
@@ -382,6 +403,8 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
 
     ``slope0``: dm0/dt at the start, if the caller knows it (the stepper's rest-strain
     gradient); otherwise a large change gets a finite-difference tangent (two passes).
+    ``dt_first``: the first continuation step, if not ``DT0`` (a caller that has already
+    tried the step to t = 1 from the same prediction and seen it rejected).
 
     Returns:
         (m0, converged, iterations, snapped, stable, |residual|, tip x, y, θ).
@@ -392,7 +415,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     dt0 = params[DT0]
     dt_min = params[DT_MIN]
     t = 0.0
-    dt = dt0
+    dt = dt_first if math.isfinite(dt_first) else dt0
     total = 0
     snapped = False
     stable = True
@@ -435,14 +458,16 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         # Intermediate points only seed the next prediction: a looser tolerance and a short
         # iteration budget (a step that needs more is rejected anyway) keep ramps cheap.
         final = t_new >= 1.0
-        root, ok, its, res, stab, bm, x, y, th = _newton(
-            guess, theta0, secf, steps, rest, loads_now, m_tip, tol if final else 1e3 * tol,
-            max_iter if final else min(max_iter, 6), max_step, out, record and final)
-        total += its
         # A continuous branch: the corrector moves the iterate little compared with the step
         # just predicted (``JUMP`` is an absolute floor, a fraction of EI/L). A larger jump
-        # means Newton left the branch: retry with a smaller step.
+        # means Newton left the branch: retry with a smaller step. At the smallest step a
+        # far root is a snap, so Newton is given its whole budget there.
         jump = params[JUMP] + 0.5 * abs(guess - m0)
+        root, ok, its, res, stab, bm, x, y, th = _newton(
+            guess, theta0, secf, steps, rest, loads_now, m_tip, tol if final else 1e3 * tol,
+            max_iter if final else min(max_iter, 6), max_step, out, record and final,
+            GIVE_UP * jump if dt > dt_min else math.inf)
+        total += its
         if guard and ok and stab and abs(root - guess) <= jump:
             if c_j_3d.shape[0] > 0 and not _planar_state_stable(x, y, th, m_tip, secf, steps,
                                                                   c_j_3d, rest, loads_now):

@@ -166,6 +166,32 @@ def nearest_stable_root_full_scan(residual, stable, m_bound, n_scan, guess):
     return max(m for m in roots if abs(m - guess) <= nearest + 1e-12 * m_bound), roots
 
 
+def march_planar(residual, m_start, n_steps=400, max_move=None):
+    """The quasi-static branch from the root ``m_start`` of ``residual(0, ·)`` to t = 1, by
+    ``n_steps`` equal steps of t, each a plain Newton solve from the linear extrapolation of
+    the last two roots. ``residual(t, m0)`` returns (r, ∂r/∂m0, stable). Returns the root at
+    t = 1, or None where the march cannot vouch for one branch: Newton fails, a root is
+    unstable, or a step moves the root by more than ``max_move`` (default: unbounded)."""
+    roots = [m_start, m_start]
+    for k in range(1, n_steps + 1):
+        t = k / n_steps
+        m = 2.0 * roots[-1] - roots[-2]
+        for _ in range(50):
+            r, dr, stable = residual(t, m)
+            if not math.isfinite(r) or dr == 0.0:
+                return None
+            m -= r / dr
+            if abs(r) < 1e-11:
+                break
+        else:
+            return None
+        r, dr, stable = residual(t, m)
+        if not stable or (max_move is not None and abs(m - roots[-1]) > max_move):
+            return None
+        roots.append(m)
+    return roots[-1]
+
+
 def rest_gradient_forward(arm, eq, rest):
     """∂m0/∂u*_i and ∂m0/∂v*_i of a recorded planar equilibrium, m(L) held: the linearised
     statics δθ' = δm/EI + δu*, δm' = K·δθ − n1·δv* integrated forward by Heun's rule on the

@@ -1,5 +1,6 @@
 """The fold scan (``solver._planar._scan``) visits its grid nearest the guess first and stops
-early; it must pick the root a scan of every interval picks (``naive.py``)."""
+early; it must pick the root a scan of every interval picks (``naive.py``). Newton gives up
+on a continuation step whose iterate leaves its ``reach``."""
 
 import math
 
@@ -55,3 +56,23 @@ def test_scan_picks_the_nearest_stable_root_of_the_full_scan(design, payload, an
         passes.append(its)
     # Stopping early is the point: a full scan evaluates n_scan + 1 grid points alone.
     assert min(passes) < n_scan / 2, passes
+
+
+def test_newton_gives_up_once_an_iterate_would_leave_its_reach():
+    arm = solver.designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=90.0)
+    settings = solver.Settings()
+    packed = pack(arm, "full", settings)
+    ctx = context(arm, packed, scene, 2, settings)
+    rest = np.vstack(solver.rest_strains(arm, np.full(arm.n_channels, 0.5 * arm.max_pressure)))
+    out = np.empty((packed.n_rows, L.N_COLUMNS))
+    args = (scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads, ctx.m_tip,
+            ctx.params[L.TOL], 12, ctx.params[L.MAX_STEP], out, False)
+    root, ok, its, *_ = _planar._newton(0.0, *args)
+    assert ok and abs(root) > 0.0
+    # A reach short of the root: the first step would leave it, so one pass and no more.
+    gave_up, ok, its, *_ = _planar._newton(0.0, *args, 0.5 * abs(root))
+    assert not ok and its == 0 and gave_up == 0.0
+    # A reach past the root changes nothing.
+    same, ok, *_ = _planar._newton(0.0, *args, 2.0 * abs(root))
+    assert ok and same == root

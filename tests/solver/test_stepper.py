@@ -13,6 +13,8 @@ import pytest
 import solver
 from solver import PSI, designs
 from solver import layout as L
+from solver._model import context, pack
+from solver.rod import integrate_planar
 from tests.solver import naive
 
 
@@ -138,6 +140,51 @@ def test_halley_steps_meet_tol_on_the_second_pass(design):
         stepper.reset(pressures[0])
         iterations += [stepper.step(p).iterations for p in pressures[1:]]
     assert np.mean(np.array(iterations) == 1) >= 0.85, iterations
+
+
+@pytest.mark.parametrize("design, angle, payload", [
+    ("octarm_v", 135.0, 0.0), ("octarm_v", 150.0, 0.2), ("ct", 180.0, 0.1)])
+def test_jumps_land_where_a_fine_march_does(design, angle, payload):
+    """Jumps between random pressures anywhere in the range: the direct attempt is often
+    rejected there, and the continuation gives up on a step as soon as Newton leaves twice
+    its acceptance radius. Every jump lands on the root a plain 400-step march along the same
+    ramp reaches (``naive.march_planar``), wherever that march stays on one stable branch."""
+    arm = getattr(designs, design)()
+    scene = solver.Scene(base_angle_deg=angle, payload_kg=payload)
+    settings = solver.Settings()
+    packed = pack(arm, "full", settings)
+    ctx = context(arm, packed, scene, 2, settings)
+    out = np.empty((packed.n_rows, L.N_COLUMNS))
+    stepper = solver.Stepper(arm, scene)
+    rng = np.random.default_rng(5)
+    compared = continued = 0
+    for _ in range(40):
+        p_a, p_b = rng.uniform(0.0, 1.0, (2, arm.n_inputs(True))) * arm.max_pressure
+        stepper.reset(p_a)
+        m_start = stepper.equilibrium.internal_moment[0]
+        c_a = stepper.channel_pressures.copy()
+        rest_a = np.vstack(solver.rest_strains(arm, c_a))
+        gradient = naive.rest_gradient_forward(arm, stepper.equilibrium, rest_a)
+        assert stepper.step(p_b).converged
+        c_b = stepper.channel_pressures
+        change = np.vstack(solver.rest_strains(arm, c_b)) - rest_a
+        predicted = m_start + gradient[0] @ change[1] + gradient[1] @ change[2]
+
+        def residual(t, m0, c_a=c_a, c_b=c_b):
+            rest = np.vstack(solver.rest_strains(arm, c_a + t * (c_b - c_a)))
+            _, m, b, _, _, bmin, _ = integrate_planar(m0, scene.base_theta, packed.secf,
+                                                      packed.sec_steps, rest, ctx.loads, False, out)
+            return m - ctx.m_tip, b, bmin > 0.0
+
+        marched = naive.march_planar(residual, m_start, max_move=ctx.params[L.JUMP])
+        if marched is None:
+            continue
+        m_end = stepper.equilibrium.internal_moment[0]
+        compared += 1
+        # Farther from the prediction than a direct attempt may land: the continuation ran.
+        continued += abs(m_end - predicted) > ctx.params[L.JUMP] + 0.5 * abs(predicted - m_start)
+        assert m_end == pytest.approx(marched, abs=1e-8 * packed.moment_scale)
+    assert compared >= 25 and continued >= 10, (compared, continued)
 
 
 def test_failed_step_keeps_the_state():
