@@ -193,16 +193,32 @@ def rest_strains_into(p_channel, tubes_i, tubes_f, secf, rest):
 @njit
 def rest_strains_cached(p_channel, tubes_i, tubes_f, secf, p_seen, stretch, rest):
     """:func:`rest_strains_into`, solving λ(p) (a Newton iteration per tube) only for the
-    tubes whose channel pressure differs from the one in ``p_seen`` (n_tubes,); ``stretch``
-    (n_tubes,) holds each tube's λ at ``p_seen`` and both are updated."""
+    tubes whose channel pressure differs from the one in ``p_seen`` (n_tubes,), and once for
+    tubes of the same material at the same pressure (a planar arm's paired channels, the
+    tubes of a channel that spans sections); ``stretch`` (n_tubes,) holds each tube's λ at
+    ``p_seen`` and both are updated."""
     _clear_rest(rest)
     for k in range(tubes_i.shape[0]):
         p = p_channel[tubes_i[k, T_CHANNEL]]
         if p != p_seen[k]:
-            stretch[k] = _tube_stretch(k, p_channel, tubes_i, tubes_f)
+            stretch[k] = math.nan
+            for j in range(k):  # p_seen[j] is already this call's pressure of tube j
+                if p_seen[j] == p and _same_material(j, k, tubes_f):
+                    stretch[k] = stretch[j]
+                    break
+            if not stretch[k] == stretch[k]:
+                stretch[k] = _tube_stretch(k, p_channel, tubes_i, tubes_f)
             p_seen[k] = p
         _add_tube(k, stretch[k], tubes_i, tubes_f, rest)
     _scale_rest(secf, rest)
+
+
+@njit(inline="always")
+def _same_material(j, k, tubes_f):
+    """Whether tubes j and k have the same λ(p): the same modulus, area ratio and wind angle."""
+    return (tubes_f[j, TF_E] == tubes_f[k, TF_E]
+            and tubes_f[j, TF_AREA_RATIO] == tubes_f[k, TF_AREA_RATIO]
+            and tubes_f[j, TF_COS_ALPHA] == tubes_f[k, TF_COS_ALPHA])
 
 
 @njit(inline="always")

@@ -97,3 +97,42 @@ def test_pressure_slope_is_the_derivative(alpha):
         fd = (_pressure(lam + h, 1.2e6, 2.5, c) - _pressure(lam - h, 1.2e6, 2.5, c)) / (2 * h)
         assert p == _pressure(lam, 1.2e6, 2.5, c)
         assert slope == pytest.approx(fd, rel=1e-6)
+
+
+def _mixed_materials():
+    """OctArm V with one of channel 0's two tubes of a stiffer material: equal pressure, a
+    different stretch."""
+    import dataclasses
+
+    from solver import designs
+
+    arm = designs.octarm_v()
+    tubes = list(arm.tubes)
+    stiff = dataclasses.replace(tubes[1].material, youngs_modulus=3e6)
+    tubes[1] = dataclasses.replace(tubes[1], material=stiff)
+    return dataclasses.replace(arm, tubes=tuple(tubes))
+
+
+@pytest.mark.parametrize("design", ["octarm_v", "ct", "octarm_vi", "mixed"])
+def test_cached_rest_strains_equal_fresh_ones_bit_for_bit(design):
+    """The stepper's λ(p) cache solves each tube only when its pressure changed, and once for
+    tubes of one material at one pressure: the rest strains are those of a fresh solve of
+    every tube, bit for bit, as pressures repeat across channels and from call to call."""
+    from solver import designs, rod
+    from solver._model import pack
+    from solver.settings import Settings
+
+    arm = _mixed_materials() if design == "mixed" else designs.get(design)
+    packed = pack(arm, "full", Settings())
+    ns, n_tubes = len(arm.sections), packed.tubes_i.shape[0]
+    p_seen, stretch = np.full(n_tubes, np.nan), np.empty(n_tubes)
+    cached, fresh = np.empty((3, ns)), np.empty((3, ns))
+    rng = np.random.default_rng(4)
+    levels = rng.uniform(0.0, arm.max_pressure, 3)  # few values: channels often share one
+    p = rng.choice(levels, arm.n_channels)
+    for _ in range(30):
+        changed = rng.uniform(size=arm.n_channels) < 0.5
+        p = np.where(changed, rng.choice(np.append(levels, 0.0), arm.n_channels), p)
+        rod.rest_strains_cached(p, packed.tubes_i, packed.tubes_f, packed.secf, p_seen, stretch, cached)
+        rod.rest_strains_into(p, packed.tubes_i, packed.tubes_f, packed.secf, fresh)
+        np.testing.assert_array_equal(cached, fresh)
