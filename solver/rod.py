@@ -206,7 +206,7 @@ def rest_strains_cached(p_channel, tubes_i, tubes_f, secf, p_seen, stretch, rest
                 if p_seen[j] == p and _same_material(j, k, tubes_f):
                     stretch[k] = stretch[j]
                     break
-            if not stretch[k] == stretch[k]:
+            if math.isnan(stretch[k]):
                 stretch[k] = _tube_stretch(k, p_channel, tubes_i, tubes_f)
             p_seen[k] = p
         _add_tube(k, stretch[k], tubes_i, tubes_f, rest)
