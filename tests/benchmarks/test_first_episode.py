@@ -23,7 +23,9 @@ def test_warmup_runs_every_registered_id_in_every_observation_mode():
         gym.make(env_id, **kwargs).close()
 
 
-@pytest.mark.skipif(numba.get_num_threads() < 2, reason="one numba thread: no parallel kernels")
+@pytest.mark.skipif(numba.get_num_threads() < 2,
+                    reason="one numba thread: ThreadPolicy never runs the threaded kernels, "
+                           "so there is no threaded timing to check")
 def test_warmup_runs_both_batch_kernels_both_ways():
     """The cold and the step rows kernels each ran, and were timed, serial and threaded: none
     is left to compile inside a user's first long batch."""
