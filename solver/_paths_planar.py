@@ -185,6 +185,12 @@ def not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
     contact, on a loaded arm with channels."""
     if not planar:
         return "a spatial solve (planar=False)"
+    return not_single(arm, scene, model, settings, ctx)
+
+
+def not_single(arm, scene, model, settings, ctx) -> str | None:
+    """Why a solve of this arm in this scene is not plain single shooting, planar or
+    spatial (None: it is): what :func:`not_lean` asks besides the plane."""
     if not arm.n_channels:
         return "a passive arm (no channels)"
     if scene.has_contact:

@@ -5,16 +5,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 
 from solver import _spatial
 from solver import _spatial_shooting as _ms
 from solver import layout as L
+from solver._grid import section_needs, section_rows
 from solver._model import MULTIPLE_SHOOTING_INDEX, context, rest_strains, shooting_layout
-from solver._paths_planar import NO_DISCS, NO_GUARD, solve_either, solve_single
-from solver.results import Equilibrium
-from solver.rod import base_rotation, integrate_spatial, rotation_to_quaternion, spatial_strains_into
+from solver._paths_planar import NO_DISCS, NO_GUARD, not_single, solve_either, solve_single
+from solver.results import Equilibrium, tip_only
+from solver.rod import base_rotation, rotation_to_quaternion, spatial_strains_into
+
+# Scratch of a spatial path that records nothing.
+_NO_RECORD = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
 
 
 def in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
@@ -89,26 +94,29 @@ def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, se
                         p_channel, scene, model, warm_start, settings)
 
 
-def solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+def solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                         ctx=None):
     """Spatial dead-load solve by single shooting on m0 (:func:`solver._spatial._follow`):
-    the loading stage of a cold solve, then the pressure ramp."""
-    ctx = context(arm, packed, scene, 3, settings)
-    quat0 = np.empty(4)
-    rotation_to_quaternion(base_rotation(scene.base_theta), quat0)
+    the loading stage of a cold solve, then the pressure ramp, whose kernel also records
+    the backbone of the state it returns. ``ctx``: the scene's context, if at hand."""
+    ctx = context(arm, packed, scene, 3, settings) if ctx is None else ctx
+    quat0 = _base_quaternion(scene.base_theta)
     p_target = p_channel if arm.n_channels else np.zeros(1)
     ns = len(arm.sections)
     rest, p_now, loads_now, m_tip = (np.empty((3, ns)), np.empty(p_target.shape[0]),
                                      np.empty((ns, 6)), np.empty(3))
+    rows = packed.n_rows
+    rec = (np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3)))
     grid = (quat0, packed.secf, packed.sec_steps, packed.c_j)
     tubes = (packed.tubes_i, packed.tubes_f)
-    work = (rest, p_now, loads_now, m_tip)
     guard = (NO_GUARD, NO_DISCS)
 
     iterations = 0
     snap_load = False
     m0 = np.zeros(3)
     if warm_start is not None and warm_start.scene is not None:
-        start_ctx = context(arm, packed, warm_start.scene, 3, settings)
+        start_ctx = ctx if warm_start.scene is scene else context(arm, packed, warm_start.scene, 3,
+                                                                  settings)
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         m0[-warm_start.base_moment.size:] = warm_start.base_moment
         start = (p_start, start_ctx.loads, start_ctx.m_tip)
@@ -117,26 +125,59 @@ def solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_st
         p_start = np.zeros_like(p_target)
         _, _, snap_load, its, _, _, _ = _spatial._follow(
             m0, grid, tubes, (p_start, np.zeros_like(ctx.loads), np.zeros(3)),
-            (p_start, ctx.loads, ctx.m_tip), ctx.params, work, guard)
+            (p_start, ctx.loads, ctx.m_tip), ctx.params,
+            (rest, p_now, loads_now, m_tip, _NO_RECORD, False), guard)
         iterations += its
         start = (p_start, ctx.loads, ctx.m_tip)
-    ok, stable, snapped, its, _, _, _ = _spatial._follow(
-        m0, grid, tubes, start, (p_target, ctx.loads, ctx.m_tip), ctx.params, work, guard)
+    ok, stable, snapped, its, res, _, _ = _spatial._follow(
+        m0, grid, tubes, start, (p_target, ctx.loads, ctx.m_tip), ctx.params,
+        (rest, p_now, loads_now, m_tip, rec, True), guard)
     iterations += its
-    rows = packed.n_rows
-    pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
-    state = np.empty((6, L.NSTATE))
-    integrate_spatial(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, loads_now,
-                      True, pos, rot, mom, state)
-    tip_state = state[0]
-    res = float(np.linalg.norm(tip_state[L.SP_M:L.SP_M + 3] - m_tip))
     # ``stable`` is the stability of the returned state, from the Newton pass that converged
     # on it.
-    return _spatial_result(arm, packed, scene, ctx, pos, rot, mom, rest, m0,
+    return _spatial_result(arm, packed, scene, ctx, *rec, rest, m0,
                            converged=bool(ok and res <= 10 * ctx.tol), stable=bool(stable),
-                           iterations=int(iterations), residual=res,
+                           iterations=int(iterations), residual=float(res),
                            snapped=bool(snapped or snap_load), model=model,
                            pressures=p_inputs, channel_pressures=p_channel)
+
+
+def solve_spatial_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
+                       record):
+    """The common spatial solve, a warm one in the scene of its warm start, without the
+    layers of the general path: :func:`solve_spatial_single` and the grid check.
+
+    Returns:
+        The Equilibrium :func:`solver.solve` returns where the general path would take single
+        shooting and return its result as it is (converged, stable, resolved by the grid,
+        no in-plane shortcut); else None (the general path takes over).
+    """
+    if warm_start is None or in_plane_state(warm_start) or not (
+            warm_start.scene is scene or warm_start.scene == scene):
+        return None
+    ctx = context(arm, packed, scene, 3, settings)
+    if not_single(arm, scene, model, settings, ctx) is not None:
+        return None
+    eq = solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_start,
+                              settings, ctx)
+    if not (eq.converged and eq.stable):
+        return None
+    need = np.empty(packed.secf.shape[1])
+    if not section_needs(eq.curvature, eq.internal_force, eq.shear_stretch,
+                         packed.mass_per_length * scene.gravity, packed.secf,
+                         section_rows(eq.section_ends), need) <= 1.0:
+        return None
+    return eq if record else tip_only(eq)
+
+
+@lru_cache(maxsize=64)
+def _base_quaternion(theta0: float) -> np.ndarray:
+    """The unit quaternion of the base frame at base angle ``theta0`` (rad; shared, not to
+    be written: left writeable so that the kernels see the array type they were compiled
+    for)."""
+    quat0 = np.empty(4)
+    rotation_to_quaternion(base_rotation(theta0), quat0)
+    return quat0
 
 
 def solve_spatial_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
@@ -184,7 +225,7 @@ def _nodes_of(eq, segs, scene):
     quats = np.empty((rows.size, 4))
     for k, row in enumerate(rows):
         rotation_to_quaternion(np.ascontiguousarray(eq.orientations[row]), quats[k])
-    rotation_to_quaternion(base_rotation(scene.base_theta), quats[0])
+    quats[0] = _base_quaternion(scene.base_theta)
     return quats, np.ascontiguousarray(eq.internal_moment[rows])
 
 
@@ -194,7 +235,7 @@ def _loaded_nodes(arm, layout, segs, scene, ctx, kernel, work):
     iterations, whether it converged and whether it snapped."""
     def build():
         quats = np.empty((segs.shape[0], 4))
-        rotation_to_quaternion(base_rotation(scene.base_theta), quats[0])
+        quats[0] = _base_quaternion(scene.base_theta)
         quats[1:] = quats[0]
         moms = np.zeros((segs.shape[0], 3))
         p0 = np.zeros(max(arm.n_channels, 1))

@@ -69,14 +69,29 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
 
     Returns (converged, iterations, |residual|, stable), stability by :func:`_stability`.
     """
+    return _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step,
+                         work, dummy, False, np.empty(3))
+
+
+@njit
+def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step, work,
+                  rec, record, first):
+    """:func:`_newton`, also writing its first iterate to ``first`` (3,) (``m0`` itself when
+    the start already meets ``tol``): the linearised response to the change of level from
+    ``m0``, the prediction a continuation step without a tangent measures its jump from.
+    With ``record`` every pass records into ``rec`` = (positions, frames, moments), so on
+    convergence they hold the returned state's backbone (recording costs a pass a few per
+    cent; a separate recording pass would cost a whole one)."""
+    for d in range(3):
+        first[d] = m0[d]
     res = math.inf
     r = np.empty(3)
     step = np.empty(3)
     base = np.empty(3)
     res_base = math.inf
     for it in range(max_iter + 1):
-        det = integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads, False, dummy[0], dummy[1],
-                         dummy[2], work)
+        det = integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads, record, rec[0], rec[1],
+                                rec[2], work)
         y = work[0]
         for d in range(3):
             r[d] = y[SP_M + d] - m_tip[d]
@@ -105,6 +120,9 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
         shrink = max_step / norm if norm > max_step else 1.0
         for d in range(3):
             m0[d] -= shrink * step[d]
+        if it == 0:
+            for d in range(3):
+                first[d] = m0[d]
     return False, max_iter, res, False
 
 
@@ -116,22 +134,24 @@ def _follow(state, grid, tubes, a, b, params, work, guard):
         state: (3,) the base moment m0 (N m), updated in place.
         grid: (quat0 (4,), secf (6, ns), steps (ns,), c_j (ns,)). tubes: (tubes_i, tubes_f).
         a, b: start and goal levels (channel pressures, loads (ns, 6), tip moment (3,)).
-        params: (N_PARAMS,) numeric parameters. work: (rest, p_now, loads_now, m_tip) scratch
-            holding the returned state's level. guard: unused (the planar kernel's).
+        params: (N_PARAMS,) numeric parameters. work: (rest, p_now, loads_now, m_tip, rec,
+            record) scratch holding the returned state's level; with ``record``, ``rec`` =
+            (positions (N, 3), frames (N, 3, 3), moments (N, 3)) gets its backbone (else
+            1-row scratch). guard: unused (the planar kernel's).
 
     Returns:
         (converged, stable, snapped, iterations, residual, t, dt) (t: 1 when converged, else
-        NaN; dt 0), as :func:`solver._planar._follow`.
+        NaN; dt 0), as :func:`solver._planar._follow`; the residual is the returned state's.
     """
     ok, total, stable, res, snapped = _path(
         state, grid[0], grid[1], grid[2], grid[3], tubes[0], tubes[1], a[0], b[0], a[1], b[1],
-        a[2], b[2], params, work[0], work[1], work[2], work[3])
+        a[2], b[2], params, work[0], work[1], work[2], work[3], work[4], work[5])
     return ok, stable, snapped, total, res, 1.0 if ok else math.nan, 0.0
 
 
 @njit
 def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-          mtip_b, params, rest, p_now, loads_now, m_tip):
+          mtip_b, params, rest, p_now, loads_now, m_tip, rec, record):
     """Spatial quasi-static path following (see :func:`solver._planar._path`).
 
     ``m0`` (3,) is updated in place. Where the step falls below ``DT_MIN`` without a stable
@@ -139,9 +159,10 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
     a fold): :func:`_switch_branch` looks for the stable state along the critical mode and
     the ramp resumes from there (flagged as a snap). If that fails too, the last accepted
     state is returned unconverged (and reported so). ``rest``, ``p_now``, ``loads_now``, ``m_tip``
-    hold the returned state's rest strains, pressures, loads and tip moment.
+    hold the returned state's rest strains, pressures, loads and tip moment; with ``record``
+    ``rec`` its backbone (:func:`_newton_first`).
 
-    Returns (converged, iterations, stable, |residual|, snapped).
+    Returns (converged, iterations, stable, |residual| of the returned state, snapped).
     """
     tol = params[TOL]
     max_iter = int(params[MAX_ITER])
@@ -150,17 +171,20 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
     # is crowded into the start of a pressure ramp), worked out when the step first gets there.
     dt_min = -1.0
     work = np.empty((6, NSTATE))
-    dummy = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
     t = 0.0
     dt = params[DT0]
     slope = np.zeros(3)
     accepted = m0.copy()
     guess = np.empty(3)
+    first = np.empty(3)
     total = 0
     snaps = 0
     ok = True
     stable = True
     res = 0.0
+    # Whether the last pass recorded the state to be returned at its level (else one more
+    # pass records it and measures its residual).
+    fresh = False
     # Tangent predictor for the first step of a large change (later steps use the secant
     # through accepted points), as in the planar kernel. Heavy hanging arms are in tension,
     # where single shooting amplifies a change of the base moment by e^(L·√(T/EI)): from
@@ -169,19 +193,28 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
                                                     or mtip_a[1] != mtip_b[1]
                                                     or mtip_a[2] != mtip_b[2]):
         _tangent(accepted, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a,
-                 loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, dummy, slope)
+                 loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, rec, slope)
         total += 2
     while t < 1.0:
         dt_min = smallest_step(dt, dt_min, params, p_a, p_b, tubes_i, tubes_f)
         t_new = min(1.0, t + dt)
         _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
+        predicted = slope[0] != 0.0 or slope[1] != 0.0 or slope[2] != 0.0
         for d in range(3):
             guess[d] = accepted[d] + slope[d] * (t_new - t)
             m0[d] = guess[d]
-        ok, its, res, stable = _newton(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip, tol,
-                                       max_iter, max_step, work, dummy)
+        ok, its, res, stable = _newton_first(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip,
+                                             tol, max_iter, max_step, work, rec, record, first)
+        fresh = ok
         total += its
+        if not predicted:
+            # No tangent or secant (a small warm step): Newton's first iterate, the change
+            # of level linearised at the start, is the prediction. Measured from the start
+            # instead, an arm whose base moment moves by a quarter of the moment scale on a
+            # 1 % pressure step "jumped" and was re-solved in halves.
+            for d in range(3):
+                guess[d] = first[d]
         # As in the planar kernel: the corrector may move the iterate little compared with
         # the step just predicted, or Newton has left the branch.
         jump = math.sqrt((m0[0] - guess[0]) ** 2 + (m0[1] - guess[1]) ** 2 + (m0[2] - guess[2]) ** 2)
@@ -194,6 +227,7 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
             t = t_new
             dt = min(2.0 * dt, 1.0)
             continue
+        fresh = False
         if dt > dt_min:
             dt *= 0.5
             continue
@@ -206,15 +240,18 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
         # does not on `softarm stress`.)
         found, its = _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i,
                                     tubes_f, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, params,
-                                    rest, p_now, loads_now, m_tip, work, dummy)
+                                    rest, p_now, loads_now, m_tip, work, rec)
         total += its
         if found:
+            # A stable converged state (measured again below, where it is the one returned).
+            ok = True
+            stable = True
             snaps += 1
             for d in range(3):
                 accepted[d] = m0[d]
             t = t_new
             _tangent(accepted, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a,
-                     loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, dummy, slope)
+                     loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, rec, slope)
             total += 2
             dt = params[DT0]
             continue
@@ -224,7 +261,13 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
             m0[d] = accepted[d]
         _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
-        return False, total, False, res, snaps > 0
+        ok = False
+        stable = False
+    if not fresh:
+        integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads_now, record, rec[0], rec[1],
+                          rec[2], work)
+        res = math.sqrt((work[0, SP_M] - m_tip[0]) ** 2 + (work[0, SP_M + 1] - m_tip[1]) ** 2
+                        + (work[0, SP_M + 2] - m_tip[2]) ** 2)
     return ok, total, stable, res, snaps > 0
 
 
@@ -240,33 +283,33 @@ def _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, 
 
 
 @njit
-def _negative_eigenvalues(d):
-    """Number of real negative eigenvalues of the 3×3 matrix stored column-wise in ``d``
-    (9,), from the roots of its characteristic cubic (closed form, no allocation)."""
-    tr = d[0] + d[4] + d[8]
-    minors = (d[0] * d[4] - d[1] * d[3]) + (d[0] * d[8] - d[2] * d[6]) + (d[4] * d[8] - d[5] * d[7])
-    det = det3(d)
-    # λ³ + a λ² + b λ + c with a = −tr, b = Σ principal 2×2 minors, c = −det; λ = x − a/3.
-    a = -tr
-    b = minors
-    c = -det
-    p = b - a * a / 3.0
-    q = 2.0 * a * a * a / 27.0 - a * b / 3.0 + c
-    disc = 0.25 * q * q + p * p * p / 27.0
-    if disc > 0.0:
-        r = math.sqrt(disc)
-        u = -0.5 * q + r
-        v = -0.5 * q - r
-        x = math.copysign(abs(u) ** (1.0 / 3.0), u) + math.copysign(abs(v) ** (1.0 / 3.0), v)
-        return 1 if x - a / 3.0 < 0.0 else 0
-    rho = math.sqrt(max(-p / 3.0, 0.0))
-    arg = -0.5 * q / (rho * rho * rho) if rho > 0.0 else 0.0
-    phi = math.acos(min(1.0, max(-1.0, arg)))
-    count = 0
-    for k in range(3):
-        if 2.0 * rho * math.cos((phi - 2.0 * math.pi * k) / 3.0) - a / 3.0 < 0.0:
-            count += 1
-    return count
+def _has_negative_eigenvalue(d, det):
+    """True when the 3×3 matrix stored column-wise in ``d`` (9,), of determinant ``det``,
+    has a real negative eigenvalue; in arithmetic alone (it runs at every node of the
+    stability pass, where root-finding by cube roots and cosines cost a third of the pass).
+
+    The characteristic polynomial p(λ) = λ³ + aλ² + bλ + c (a = −tr, b = Σ principal 2×2
+    minors, c = −det) runs from −∞ at λ → −∞ to p(0) = −det. With det < 0 it changes sign
+    an odd number of times on (−∞, 0): a negative root. With det ≥ 0 it has one there only
+    if it has two, which happens iff its local maximum λ_max = (−a − √(a² − 3b))/3 lies
+    below zero with p(λ_max) > 0 (from there p falls through zero to p(0) ≤ 0). A double
+    root there (p(λ_max) = 0: the near-coincident pair of a round section crossing zero
+    together) counts within the rounding of p's terms, as does a complex pair that close to
+    the negative axis: a false alarm is conservative.
+    """
+    if det < 0.0:
+        return True
+    a = -(d[0] + d[4] + d[8])
+    b = (d[0] * d[4] - d[1] * d[3]) + (d[0] * d[8] - d[2] * d[6]) + (d[4] * d[8] - d[5] * d[7])
+    disc = a * a - 3.0 * b
+    if disc <= 0.0:
+        return False  # p is monotonic: its one real root is where p(0) = −det ≤ 0 says
+    lam = (-a - math.sqrt(disc)) / 3.0
+    if lam >= 0.0:
+        return False
+    lam2 = lam * lam
+    terms = -lam * lam2 + abs(a) * lam2 - abs(b) * lam + abs(det)
+    return ((lam + a) * lam + b) * lam - det >= -1e-12 * terms
 
 
 @njit
@@ -319,7 +362,8 @@ def _fields_back(y, i, first, count, secf, steps, c_j, rest, loads, work):
         spatial_rk4_step(y, -(end - j) * h, h, work, length, secf[CA, i], secf[CG, i], secf[CI, i],
                          c_j[i], rest[REST_U1, i], rest[REST_U2, i], rest[REST_V3, i], loads[i])
         dphi = y[SP_DPHI:SP_DPHI + 9]
-        if not math.isfinite(det3(dphi)) or _negative_eigenvalues(dphi) > 0:
+        det = det3(dphi)
+        if not math.isfinite(det) or _has_negative_eigenvalue(dphi, det):
             return False
     return True
 

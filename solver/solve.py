@@ -37,7 +37,13 @@ from solver._blas import single_blas_thread
 from solver._model import PackedArm, context, has_load, pack, refined
 from solver._paths_contact import solve_contact, solve_rigid
 from solver._paths_planar import closed_form, loaded_base_moment, solve_lean, solve_planar
-from solver._paths_spatial import in_plane, in_plane_shortcut, in_plane_state, solve_spatial
+from solver._paths_spatial import (
+    in_plane,
+    in_plane_shortcut,
+    in_plane_state,
+    solve_spatial,
+    solve_spatial_lean,
+)
 from solver._paths_spatial_contact import solve_contact_spatial
 from solver.designs import ArmDesign
 from solver.jit import njit
@@ -201,6 +207,14 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
             eq = None  # the general path meets it again, and reports it
         if eq is not None and all(map(math.isfinite, eq.tip)):
             return eq
+    elif not planar and not moving:
+        try:
+            eq = solve_spatial_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start,
+                                    settings, record)
+        except (ArithmeticError, np.linalg.LinAlgError):
+            eq = None
+        if eq is not None and all(map(math.isfinite, eq.tip)):
+            return eq
     q = packed.mass_per_length * scene.gravity
     layout = packed
     while True:
@@ -244,8 +258,8 @@ def _path(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start, se
                            moving)
     if planar:
         return solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
-    if settings.shortcuts and scene.is_planar and in_plane(arm, packed, p_channel) and (
-            warm_start is None or in_plane_state(warm_start)):
+    if settings.shortcuts and scene.is_planar and (
+            warm_start is None or in_plane_state(warm_start)) and in_plane(arm, packed, p_channel):
         eq = in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start,
                                settings)
         if eq is not None:

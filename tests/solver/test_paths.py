@@ -65,8 +65,6 @@ def test_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
     """solve()'s fast path (solver._paths_planar.solve_lean), warm and cold, returns exactly
     what the general path returns, and hands over to it where it does not apply (a snap, a
     scene it does not solve, a grid too coarse)."""
-    solve_module = importlib.import_module("solver.solve")  # the module, not solver.solve()
-
     rng = np.random.default_rng(5)
     default, coarse = solver.Settings(), solver.Settings(steps_per_section=2)
     cases = []
@@ -91,24 +89,61 @@ def test_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
     p[1] = 100 * PSI
     cases.append((up[-1].arm, p, up[-1].scene, up[-1], default))
 
+    _fast_path_is_the_general_path(monkeypatch, "solve_lean", cases, record, planar=True)
+
+
+def _fast_path_is_the_general_path(monkeypatch, name, cases, record, planar):
+    """Solve ``cases`` (arm, pressures, scene, warm start, settings) with solve()'s fast path
+    ``name`` (in solver.solve) and without it: the same results bit for bit, the fast path
+    returning some and handing the others over."""
+    solve_module = importlib.import_module("solver.solve")  # the module, not solver.solve()
     outcomes = []
-    solve_lean = solve_module.solve_lean
+    fast_path = getattr(solve_module, name)
 
     def spy(*args):
-        eq = solve_lean(*args)
+        eq = fast_path(*args)
         outcomes.append(eq is not None)
         return eq
 
-    monkeypatch.setattr(solve_module, "solve_lean", spy)
-    fast = [solver.solve(arm, p, scene, warm_start=eq, record=record, settings=s)
+    monkeypatch.setattr(solve_module, name, spy)
+    fast = [solver.solve(arm, p, scene, warm_start=eq, record=record, settings=s, planar=planar)
             for arm, p, scene, eq, s in cases]
-    monkeypatch.setattr(solve_module, "solve_lean", lambda *args: None)
-    general = [solver.solve(arm, p, scene, warm_start=eq, record=record, settings=s)
-               for arm, p, scene, eq, s in cases]
+    monkeypatch.setattr(solve_module, name, lambda *args: None)
+    general = [solver.solve(arm, p, scene, warm_start=eq, record=record, settings=s,
+                            planar=planar) for arm, p, scene, eq, s in cases]
     for a, b in zip(fast, general):
         _same(a, b)
     assert any(outcomes) and not all(outcomes)  # both the fast path and the hand-over ran
     assert all(e.converged for e in fast)
+
+
+@pytest.mark.parametrize("record", [True, False])
+def test_spatial_warm_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
+    """solve()'s spatial fast path (solver._paths_spatial.solve_spatial_lean) returns exactly
+    what the general path returns, and hands over to it where it does not apply (a cold
+    solve, a warm start in the plane or from another scene, a grid too coarse)."""
+    rng = np.random.default_rng(6)
+    default, coarse = solver.Settings(), solver.Settings(steps_per_section=2)
+    cases = []
+    for arm, scene in [(designs.octarm_v(), solver.Scene(base_angle_deg=90, payload_kg=0.1)),
+                       (designs.ct(), solver.Scene(base_angle_deg=45)),
+                       (designs.octarm_v(), solver.Scene())]:
+        n = arm.n_inputs(False)
+        eq = solver.solve(arm, np.zeros(n), scene, planar=False)  # in the plane: handed over
+        for step in (0.01, 0.01, 0.1, 0.5):
+            p = np.clip(eq.pressures + rng.normal(0, step * arm.max_pressure, n), 0,
+                        arm.max_pressure)
+            cases += [(arm, p, scene, eq, default), (arm, p, scene, None, default)]
+            eq = solver.solve(arm, p, scene, warm_start=eq, planar=False)
+    # From another scene (the loads ramp), and on a coarse grid the check refuses.
+    arm, scene = designs.octarm_v(), solver.Scene(base_angle_deg=90)
+    p = rng.uniform(0, 0.5, 9) * arm.max_pressure
+    here = solver.solve(arm, p, scene, planar=False)
+    cases.append((arm, 0.9 * p, solver.Scene(base_angle_deg=90, payload_kg=0.2), here, default))
+    start = solver.solve(arm, p, scene, planar=False, settings=coarse)
+    cases.append((arm, np.full(9, 0.6 * arm.max_pressure) - p, scene, start, coarse))
+    _fast_path_is_the_general_path(monkeypatch, "solve_spatial_lean", cases, record,
+                                   planar=False)
 
 
 def test_warm_start_across_payload_change():

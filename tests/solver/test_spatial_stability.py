@@ -14,7 +14,13 @@ import solver
 from solver import _planar, _spatial, designs
 from solver import layout as L
 from solver._model import context, pack
-from solver.rod import base_rotation, integrate_spatial, rest_strains_into, rotation_to_quaternion
+from solver.rod import (
+    base_rotation,
+    det3,
+    integrate_spatial,
+    rest_strains_into,
+    rotation_to_quaternion,
+)
 
 
 def _kernel_inputs(arm, scene, settings):
@@ -44,13 +50,27 @@ def test_straight_column_in_3d_loses_stability_at_euler_load(load, stable):
     assert is_stable == stable
 
 
-def test_negative_eigenvalue_count():
+def test_negative_eigenvalue_test_against_numpy():
+    """The stability pass's node test against the eigenvalues numpy finds: random matrices,
+    and the cases the sign of the determinant alone gets wrong (two negative eigenvalues, a
+    complex pair left of zero beside a positive one, a double negative eigenvalue)."""
     rng = np.random.default_rng(3)
-    for _ in range(200):
-        d = rng.normal(size=(3, 3))
+    cases = [rng.normal(size=(3, 3)) for _ in range(400)]
+    for eig in ([-1.0, -2.0, 3.0], [-1.0, -1.0, 0.5], [2.0, 1.0, -0.2], [1.0, 2.0, 3.0]):
+        q = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        cases.append(q @ np.diag(eig) @ q.T)
+    for re in (-1.0, 1.0):  # a complex pair re ± 2i beside eigenvalue 2
+        block = np.array([[re, 2.0, 0.0], [-2.0, re, 0.0], [0.0, 0.0, 2.0]])
+        basis = rng.normal(size=(3, 3))
+        cases.append(basis @ block @ np.linalg.inv(basis))
+    seen = set()
+    for d in cases:
         ev = np.linalg.eigvals(d)
-        expected = int(np.sum((np.abs(ev.imag) < 1e-9) & (ev.real < 0)))
-        assert _spatial._negative_eigenvalues(d.T.ravel().copy()) == expected
+        expected = bool(np.any((np.abs(ev.imag) < 1e-9) & (ev.real < 0)))
+        seen.add((expected, bool(np.linalg.det(d) < 0)))
+        cols = d.T.ravel().copy()
+        assert _spatial._has_negative_eigenvalue(cols, det3(cols)) == expected, ev
+    assert seen == {(True, True), (True, False), (False, False)}
 
 
 @pytest.mark.parametrize("guess, stable", [(-0.039, False), (3.098, False), (6.557, True)])
