@@ -8,6 +8,13 @@ from solver.actuator import _pressure_and_slope, _stretch
 from solver.jit import njit
 from solver.layout import DT_MIN, T_CHANNEL, TF_AREA_RATIO, TF_COS_ALPHA, TF_E
 
+# A continuation step accepts a root at most ``jump`` from its prediction; Newton gives up on
+# the step once an iterate would leave GIVE_UP·jump of it (the ``reach`` of the planar and
+# spatial Newton): past a fold there is no root near the prediction, and Newton would spend
+# its whole budget looking. Twice the acceptance radius leaves room for a first step that
+# overshoots and comes back.
+GIVE_UP = 2.0
+
 
 @njit
 def _big_change(p_a, p_b, loads_a, loads_b):

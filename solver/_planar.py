@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from solver._grid import planar_fine
-from solver._homotopy import _big_change
+from solver._homotopy import GIVE_UP, _big_change
 from solver._obstacles import _clearance, _tunnels
 from solver._spatial import _planar_state_stable
 from solver.jit import njit, prange
@@ -288,13 +288,6 @@ def _follow(state, grid, tubes, a, b, params, work, guard):
 # Newton iterations of the stepper's direct attempt: a prediction that is any good converges
 # in two or three; one that is not is left to the continuation of :func:`_path` early.
 DIRECT_ITER = 6
-
-# A continuation step accepts a root at most ``jump`` from its prediction; Newton gives up on
-# the step once an iterate would leave GIVE_UP·jump of it (``_newton``'s ``reach``): past a
-# fold there is no root near the prediction, and Newton would spend its whole budget looking.
-# Twice the acceptance radius leaves room for a first step that overshoots and comes back.
-GIVE_UP = 2.0
-
 
 @njit
 def _step(state, grid, tubes, a, b, params, work, memo):

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from solver._homotopy import _big_change, smallest_step
+from solver._homotopy import GIVE_UP, _big_change, smallest_step
 from solver.jit import njit
 from solver.layout import (
     CA,
@@ -70,18 +70,25 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
     Returns (converged, iterations, |residual|, stable), stability by :func:`_stability`.
     """
     return _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step,
-                         work, dummy, False, np.empty(3))
+                         work, dummy, False, np.empty(3), math.inf)
 
 
 @njit
 def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step, work,
-                  rec, record, first):
+                  rec, record, first, reach):
     """:func:`_newton`, also writing its first iterate to ``first`` (3,) (``m0`` itself when
     the start already meets ``tol``): the linearised response to the change of level from
     ``m0``, the prediction a continuation step without a tangent measures its jump from.
     With ``record`` every pass records into ``rec`` = (positions, frames, moments), so on
     convergence they hold the returned state's backbone (recording costs a pass a few per
-    cent; a separate recording pass would cost a whole one)."""
+    cent; a separate recording pass would cost a whole one).
+
+    ``reach`` (N m): give up, unconverged, as soon as an iterate would leave that distance of
+    the start ``m0``, as the planar Newton does (:func:`solver._planar._newton`): a
+    continuation step that will reject a root that far from its prediction saves the rest
+    of the passes.
+    """
+    center = m0.copy()
     for d in range(3):
         first[d] = m0[d]
     res = math.inf
@@ -118,6 +125,10 @@ def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter
         _cramer3(y[SP_DM:SP_DM + 9], r, step)
         norm = math.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
         shrink = max_step / norm if norm > max_step else 1.0
+        if math.sqrt((m0[0] - shrink * step[0] - center[0]) ** 2
+                     + (m0[1] - shrink * step[1] - center[1]) ** 2
+                     + (m0[2] - shrink * step[2] - center[2]) ** 2) > reach:
+            return False, it, res, False
         for d in range(3):
             m0[d] -= shrink * step[d]
         if it == 0:
@@ -204,8 +215,18 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
         for d in range(3):
             guess[d] = accepted[d] + slope[d] * (t_new - t)
             m0[d] = guess[d]
+        # A predicted step gives up once an iterate would leave GIVE_UP times the radius it
+        # is accepted within (as in the plane; not at the smallest step, where a far root
+        # is a snap). A step without prediction takes Newton's first iterate as its
+        # prediction (below), so it cannot give up before it knows it.
+        reach = math.inf
+        if predicted and dt > dt_min:
+            reach = GIVE_UP * (params[JUMP] + 0.5 * math.sqrt(
+                (guess[0] - accepted[0]) ** 2 + (guess[1] - accepted[1]) ** 2
+                + (guess[2] - accepted[2]) ** 2))
         ok, its, res, stable = _newton_first(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip,
-                                             tol, max_iter, max_step, work, rec, record, first)
+                                             tol, max_iter, max_step, work, rec, record, first,
+                                             reach)
         fresh = ok
         total += its
         if not predicted:

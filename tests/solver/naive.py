@@ -192,6 +192,29 @@ def march_planar(residual, m_start, n_steps=400, max_move=None):
     return roots[-1]
 
 
+def march_spatial(residual, m_start, n_steps=400, max_move=None):
+    """:func:`march_planar` for a spatial base moment (3,): ``residual(t, m0)`` returns (r (3,),
+    ∂r/∂m0 (3, 3), stable); plain Newton steps solved by numpy."""
+    roots = [np.asarray(m_start, dtype=float)] * 2
+    for k in range(1, n_steps + 1):
+        t = k / n_steps
+        m = 2.0 * roots[-1] - roots[-2]
+        for _ in range(50):
+            r, jac, stable = residual(t, m)
+            if not np.all(np.isfinite(r)) or not np.all(np.isfinite(jac)):
+                return None
+            m = m - np.linalg.solve(jac, r)
+            if np.linalg.norm(r) < 1e-11:
+                break
+        else:
+            return None
+        r, jac, stable = residual(t, m)
+        if not stable or (max_move is not None and np.linalg.norm(m - roots[-1]) > max_move):
+            return None
+        roots.append(m)
+    return roots[-1]
+
+
 def rest_gradient_forward(arm, eq, rest):
     """∂m0/∂u*_i and ∂m0/∂v*_i of a recorded planar equilibrium, m(L) held: the linearised
     statics δθ' = δm/EI + δu*, δm' = K·δθ − n1·δv* integrated forward by Heun's rule on the
