@@ -277,8 +277,9 @@ SMALL_TURN = 0.3
 
 
 @njit(inline="always")
-def _turned(th, c, sn, d):
-    """(cos, sin) of θ + δ from θ, cos θ, sin θ."""
+def turned(th, c, sn, d):
+    """(cos, sin) of θ + δ from θ, cos θ, sin θ: Taylor polynomials of δ below
+    :data:`SMALL_TURN` (to rounding), libm above."""
     if abs(d) > SMALL_TURN:
         return math.cos(th + d), math.sin(th + d)
     d2 = d * d
@@ -371,19 +372,19 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
             k1 = _planar_dead_rhs(sig, c_node, s_node, m, a, b, length, ca, cg, ci, ur, vr, nex, ney,
                                   qx, qy)
             hh = 0.5 * h
-            c, sn = _turned(th, c_node, s_node, hh * k1[0])
+            c, sn = turned(th, c_node, s_node, hh * k1[0])
             k2 = _planar_dead_rhs(sig + hh, c, sn, m + hh * k1[1], a + hh * k1[2], b + hh * k1[3],
                                   length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
-            c, sn = _turned(th, c_node, s_node, hh * k2[0])
+            c, sn = turned(th, c_node, s_node, hh * k2[0])
             k3 = _planar_dead_rhs(sig + hh, c, sn, m + hh * k2[1], a + hh * k2[2], b + hh * k2[3],
                                   length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
-            c, sn = _turned(th, c_node, s_node, h * k3[0])
+            c, sn = turned(th, c_node, s_node, h * k3[0])
             k4 = _planar_dead_rhs(sig + h, c, sn, m + h * k3[1], a + h * k3[2], b + h * k3[3],
                                   length, ca, cg, ci, ur, vr, nex, ney, qx, qy)
             w = h / 6.0
             a_node = a
             turn = w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-            c_node, s_node = _turned(th, c_node, s_node, turn)
+            c_node, s_node = turned(th, c_node, s_node, turn)
             th += turn
             m += w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
             a += w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
