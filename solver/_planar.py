@@ -289,6 +289,7 @@ def _follow(state, grid, tubes, a, b, params, work, guard):
 # in two or three; one that is not is left to the continuation of :func:`_path` early.
 DIRECT_ITER = 6
 
+
 @njit
 def _step(state, grid, tubes, a, b, params, work, memo):
     """A warm step of the stepper (:class:`solver.stepper.Stepper`): :func:`_follow` from an

@@ -6,11 +6,7 @@ import numpy as np
 import pytest
 
 import solver
-from solver import PSI, _spatial, designs
-from solver import layout as L
-from solver._model import context, pack
-from solver.rod import base_rotation, integrate_spatial, rotation_to_quaternion
-from tests.solver import naive
+from solver import PSI, designs
 
 
 def _sweep(arm, scene, channel, levels, eq=None):
@@ -273,48 +269,3 @@ def test_both_methods_failing_fall_back_to_finer_continuation():
     np.testing.assert_allclose(eq.tip, finer.tip, atol=1e-9 * arm.length)
     assert settings.finer() == replace(settings, dt_min=1.0 / 4096.0, max_iter=40, n_scan=384)
     assert settings.finer().finer() == settings.finer()
-
-
-@pytest.mark.parametrize("angle, payload", [(0.0, 0.0), (90.0, 0.1)])
-def test_spatial_jumps_land_where_a_fine_march_does(angle, payload):
-    """Spatial jumps between random pressures of the 3D OctArm: each lands on the root a
-    plain 400-step march along the same ramp reaches (``naive.march_planar``'s spatial
-    twin), wherever that march stays on one stable branch. Continuation steps give up once
-    Newton leaves twice their acceptance radius; before they did, Newton could wander from a
-    rejected step onto another branch and have it accepted (a hanging arm landed 0.47 m
-    from the march, mirrored across the x–y plane, unflagged)."""
-    arm = designs.octarm_v()
-    scene = solver.Scene(base_angle_deg=angle, payload_kg=payload)
-    settings = solver.Settings()
-    packed = pack(arm, "full", settings)
-    ctx = context(arm, packed, scene, 3, settings)
-    quat0 = np.empty(4)
-    rotation_to_quaternion(base_rotation(scene.base_theta), quat0)
-    work = np.empty((6, L.NSTATE))
-    dummy = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
-    rng = np.random.default_rng(5)
-    compared = 0
-    end = solver.solve(arm, rng.uniform(0.0, 0.5, 9) * arm.max_pressure, scene, planar=False)
-    for _ in range(40):  # a walk of jumps of 30 % of the rated pressure per channel
-        start, p_a = end, end.pressures
-        p_b = np.clip(p_a + rng.normal(0.0, 0.3 * arm.max_pressure, 9), 0.0, arm.max_pressure)
-        end = solver.solve(arm, p_b, scene, planar=False, warm_start=start)
-        assert end.converged and end.stable
-
-        def residual(t, m0, p_a=p_a, p_b=p_b):
-            rest = np.vstack(solver.rest_strains(arm, p_a + t * (p_b - p_a)))
-            integrate_spatial(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest,
-                              ctx.loads, False, *dummy, work)
-            y = work[0].copy()
-            stable = _spatial._stability(packed.secf, packed.sec_steps, packed.c_j, rest,
-                                         ctx.loads, work)
-            return (y[L.SP_M:L.SP_M + 3] - ctx.m_tip, y[L.SP_DM:L.SP_DM + 9].reshape(3, 3).T,
-                    stable)
-
-        marched = naive.march_spatial(residual, start.base_moment, max_move=ctx.params[L.JUMP])
-        if marched is None:
-            continue
-        compared += 1
-        np.testing.assert_allclose(end.base_moment, marched, rtol=0,
-                                   atol=1e-7 * packed.moment_scale)
-    assert compared >= 15, compared

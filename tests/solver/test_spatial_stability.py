@@ -21,6 +21,7 @@ from solver.rod import (
     rest_strains_into,
     rotation_to_quaternion,
 )
+from tests.solver import naive
 
 
 def _kernel_inputs(arm, scene, settings):
@@ -261,3 +262,42 @@ def test_sideways_buckle_takes_the_plus_z_mirror_image():
     integrate_spatial(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, ctx.loads,
                       False, *dummy, work)
     np.testing.assert_allclose(work[0, L.SP_R:L.SP_R + 3], eq.tip * np.array([1, 1, -1]), atol=1e-9)
+
+
+@pytest.mark.parametrize("angle, payload", [(0.0, 0.0), (90.0, 0.1)])
+def test_spatial_jumps_land_where_a_fine_march_does(angle, payload):
+    """Spatial jumps between random pressures of the 3D OctArm: each lands on the root a
+    plain 400-step march along the same ramp reaches (``naive.march_planar``'s spatial
+    twin), wherever that march stays on one stable branch. Continuation steps give up once
+    Newton leaves twice their acceptance radius; before they did, Newton could wander from a
+    rejected step onto another branch and have it accepted (a hanging arm landed 0.47 m
+    from the march, mirrored across the x–y plane, unflagged)."""
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=angle, payload_kg=payload)
+    packed, ctx, quat0, work, dummy = _kernel_inputs(arm, scene, solver.Settings())
+    rng = np.random.default_rng(5)
+    compared = 0
+    end = solver.solve(arm, rng.uniform(0.0, 0.5, 9) * arm.max_pressure, scene, planar=False)
+    for _ in range(40):  # a walk of jumps of 30 % of the rated pressure per channel
+        start, p_a = end, end.pressures
+        p_b = np.clip(p_a + rng.normal(0.0, 0.3 * arm.max_pressure, 9), 0.0, arm.max_pressure)
+        end = solver.solve(arm, p_b, scene, planar=False, warm_start=start)
+        assert end.converged and end.stable
+
+        def residual(t, m0, p_a=p_a, p_b=p_b):
+            rest = np.vstack(solver.rest_strains(arm, p_a + t * (p_b - p_a)))
+            integrate_spatial(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest,
+                              ctx.loads, False, *dummy, work)
+            y = work[0].copy()
+            stable = _spatial._stability(packed.secf, packed.sec_steps, packed.c_j, rest,
+                                         ctx.loads, work)
+            return (y[L.SP_M:L.SP_M + 3] - ctx.m_tip, y[L.SP_DM:L.SP_DM + 9].reshape(3, 3).T,
+                    stable)
+
+        marched = naive.march_spatial(residual, start.base_moment, max_move=ctx.params[L.JUMP])
+        if marched is None:
+            continue
+        compared += 1
+        np.testing.assert_allclose(end.base_moment, marched, rtol=0,
+                                   atol=1e-7 * packed.moment_scale)
+    assert compared >= 15, compared
