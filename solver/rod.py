@@ -159,7 +159,7 @@ def _rotation_rows(w, x, y, z):
             2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z)
 
 
-@njit
+@njit(inline="always")
 def det3(cols):
     """Determinant of the 3×3 matrix stored column-wise in ``cols`` (9,)."""
     return (cols[0] * (cols[4] * cols[8] - cols[5] * cols[7])
@@ -469,7 +469,7 @@ def _stiffness_and_shear(record, r, ca, cg, vr):
     return (cg - ca) * (n1 * n1 - n3 * n3) + vr * n3, n1
 
 
-@njit
+@njit(inline="always")
 def planar_state_jacobian(th, nx, ny, ca, cg, vr):
     """The non-zero partial derivatives of the planar velocities and m' with respect to θ, n_x
     and n_y (∂n1/∂θ = −n3, ∂n3/∂θ = n1): (∂x'/∂θ, ∂x'/∂n_x, ∂x'/∂n_y = ∂y'/∂n_x, ∂y'/∂θ,
@@ -485,7 +485,7 @@ def planar_state_jacobian(th, nx, ny, ca, cg, vr):
             (cg - ca) * (c * n3 + n1 * sn) - vr * c)
 
 
-@njit
+@njit(inline="always")
 def planar_state_rhs(st, out, ca, cg, ci, ur, vr, qx, qy, discs):
     """Right-hand side of the planar state (x, y, θ, n_x, n_y, m), the internal force as
     state (n' = −q − f_contact), into ``out`` (6,); ``discs`` (k, 4) penalty obstacles."""
@@ -499,7 +499,7 @@ def planar_state_rhs(st, out, ca, cg, ci, ur, vr, qx, qy, discs):
     out[5] = v1 * n3 - v3 * n1
 
 
-@njit
+@njit(inline="always")
 def planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs):
     """One RK4 step of length ``h`` of the planar state ``st`` (6,) (x, y, θ, n_x, n_y, m),
     in place (:func:`planar_state_rhs`); ``work`` (≥5, 6) scratch."""
@@ -575,7 +575,7 @@ def spatial_strains_into(rot, force, mom, rest, seg, ca, cg, ci, cj, strain_v, s
             cg[i], ci[i], cj[i], rest[REST_U1, i], rest[REST_U2, i], rest[REST_V3, i])
 
 
-@njit
+@njit(inline="always")
 def spatial_rhs(sig, y, dy, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i):
     """Derivative of the spatial state (r, β, m, δφ, δm; ``SP_*``) at local coordinate
     ``sig`` into ``dy`` (NSTATE,). ``loads_i`` (6,): n_end and q of the section (``SL_*``).
@@ -652,7 +652,7 @@ def spatial_rk4_step(y, sig, h, work, length, ca, cg, ci, cj, u1r, u2r, v3r, loa
         y[d] /= qn
 
 
-@njit
+@njit(inline="always")
 def spatial_state_rhs(y, dy, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
     """Derivative of the spatial contact state (r, β, n, m; ``CS_*``) into ``dy``
     (N_CSTATE,): the law of :func:`spatial_rhs` with the internal force as state,
@@ -684,7 +684,7 @@ def spatial_state_rhs(y, dy, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
     dy[CS_M + 2] = -(rp0 * n1 - rp1 * n0)
 
 
-@njit
+@njit(inline="always")
 def spatial_state_rk4_step(y, h, work, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
     """One RK4 step of length ``h`` of the spatial contact state ``y`` (N_CSTATE,) in place
     (:func:`spatial_state_rhs`), the quaternion renormalised; ``work`` (≥5, N_CSTATE)."""
@@ -733,49 +733,19 @@ def integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos,
     for d in range(3):
         y[SP_M + d] = m0[d]
         y[SP_DM + 4 * d] = 1.0  # δm(0) = identity columns
-    # The RK4 step of :func:`spatial_rk4_step`, written out: this is Newton's pass, and with
-    # the step inlined by numba (or called) it ran 7–18 % slower in interleaved runs
-    # (docs/design.md §13).
-    k1 = work[1]
-    k2 = work[2]
-    k3 = work[3]
-    k4 = work[4]
-    tmp = work[5]
     row = 0
     for i in range(secf.shape[1]):
         length = secf[LEN, i]
         nst = steps[i]
         h = length / nst
-        ca = secf[CA, i]
-        cg = secf[CG, i]
-        ci = secf[CI, i]
-        cj = c_j[i]
-        u1r = rest[REST_U1, i]
-        u2r = rest[REST_U2, i]
-        v3r = rest[REST_V3, i]
-        loads_i = loads[i]
         for j in range(nst + 1):
             if record:
                 record_spatial_row(y, out_pos, out_rot, out_m, row)
                 row += 1
             if j == nst:
                 break
-            sig = j * h
-            spatial_rhs(sig, y, k1, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i)
-            for d in range(NSTATE):
-                tmp[d] = y[d] + 0.5 * h * k1[d]
-            spatial_rhs(sig + 0.5 * h, tmp, k2, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i)
-            for d in range(NSTATE):
-                tmp[d] = y[d] + 0.5 * h * k2[d]
-            spatial_rhs(sig + 0.5 * h, tmp, k3, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i)
-            for d in range(NSTATE):
-                tmp[d] = y[d] + h * k3[d]
-            spatial_rhs(sig + h, tmp, k4, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i)
-            for d in range(NSTATE):
-                y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
-            qn = math.sqrt(y[SP_Q] ** 2 + y[SP_Q + 1] ** 2 + y[SP_Q + 2] ** 2 + y[SP_Q + 3] ** 2)
-            for d in range(SP_Q, SP_Q + 4):
-                y[d] /= qn
+            spatial_rk4_step(y, j * h, h, work, length, secf[CA, i], secf[CG, i], secf[CI, i],
+                             c_j[i], rest[REST_U1, i], rest[REST_U2, i], rest[REST_V3, i], loads[i])
     return det3(y[SP_DM:SP_DM + 9])
 
 
