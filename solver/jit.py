@@ -44,8 +44,43 @@ class CacheWarning(UserWarning):
     """The numba cache was repaired or moved; results are unaffected."""
 
 
+def _sources_stamp(folder: Path) -> tuple:
+    """(latest modification time, total size, count) of the modules in ``folder`` whose code
+    kernels compile in: every module that defines kernels (``@njit``) and ``layout.py``,
+    whose constants they freeze."""
+    files = sorted(p for p in folder.glob("*.py")
+                   if p.name == "layout.py" or "@njit" in p.read_text(encoding="utf-8"))
+    stats = [p.stat() for p in files]
+    return (max((s.st_mtime_ns for s in stats), default=0), sum(s.st_size for s in stats),
+            len(stats))
+
+
+_SOLVER_STAMP = None
+""":func:`_sources_stamp` of this package, worked out at the first kernel (once a process)."""
+
+
+def _solver_stamp() -> tuple:
+    global _SOLVER_STAMP
+    if _SOLVER_STAMP is None:
+        _SOLVER_STAMP = _sources_stamp(Path(__file__).parent)
+    return _SOLVER_STAMP
+
+
 class _HealingCache(FunctionCache):
-    """numba's per-function cache, except that an unreadable entry is deleted and recompiled."""
+    """numba's per-function cache, except that an unreadable entry is deleted and recompiled,
+    and that an entry is stale when any solver module kernels compile in has changed.
+
+    numba stamps an entry with its own module's file alone. The kernels inline the rod
+    equations of :mod:`solver.rod` (and constants of :mod:`solver.layout`, helpers of other
+    kernel modules) into their machine code, so after an edit there an entry stamped with an
+    unchanged module of its own would still load, and run the old equations. Each entry's
+    stamp is therefore its module's and the solver's kernel modules' together: an edit of any
+    of them recompiles every kernel (``softarm warmup``).
+    """
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._cache_file._source_stamp = (self._cache_file._source_stamp, _solver_stamp())
 
     def load_overload(self, sig, target_context):
         try:

@@ -96,3 +96,32 @@ def test_warmup_clear_deletes_the_cache_and_compiles_it_again(tmp_path):
     assert removed >= 5 and not stale.exists()  # 2 kernels × (index + data) + the stale index
     assert "numba kernels ready" in proc.stdout
     assert len(list(folder.glob("_planar.*.nbi"))) > 3  # the solver's kernels, compiled again
+
+
+def test_an_edit_of_the_rod_equations_makes_every_cached_kernel_stale(tmp_path):
+    """numba stamps a cached kernel with its own module's file; kernels inline the rod
+    equations of solver/rod.py, so an edit there must not leave their old machine code in
+    use. On a copy of the package: a second run loads the cache; after an edit of rod.py
+    the kernels of solver.actuator (a module that did not change) are compiled again; an
+    edit of a module without kernels (solver/scene.py) leaves them cached."""
+    shutil.copytree(ROOT / "solver", tmp_path / "solver",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.nb[ic]"))
+    cache = tmp_path / "cache"
+    env = {"NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tmp_path)}
+
+    def index():
+        (path,) = cache.glob("*/actuator._pressure-*.nbi")
+        return path.read_bytes()
+
+    first = _run(env, cwd=tmp_path)
+    compiled = index()
+    assert _run(env, cwd=tmp_path).stdout == first.stdout and index() == compiled
+    with open(tmp_path / "solver" / "scene.py", "a") as f:
+        f.write("\n# no kernels here\n")
+    _run(env, cwd=tmp_path)
+    assert index() == compiled
+    with open(tmp_path / "solver" / "rod.py", "a") as f:
+        f.write("\n# an edit\n")
+    assert _run(env, cwd=tmp_path).stdout == first.stdout
+    assert index() != compiled  # the stamp stored with the recompiled entry is new
+
