@@ -12,7 +12,7 @@ import numpy as np
 from solver import _spatial
 from solver import _spatial_shooting as _ms
 from solver import layout as L
-from solver._grid import section_needs, section_rows
+from solver._grid import needs
 from solver._model import MULTIPLE_SHOOTING_INDEX, context, rest_strains, shooting_layout
 from solver._paths_planar import NO_DISCS, NO_GUARD, not_single, solve_either, solve_single
 from solver.results import Equilibrium, tip_only
@@ -162,10 +162,7 @@ def solve_spatial_lean(arm, packed, p_inputs, p_channel, scene, model, warm_star
                               settings, ctx)
     if not (eq.converged and eq.stable):
         return None
-    need = np.empty(packed.secf.shape[1])
-    if not section_needs(eq.curvature, eq.internal_force, eq.shear_stretch,
-                         packed.mass_per_length * scene.gravity, packed.secf,
-                         section_rows(eq.section_ends), need) <= 1.0:
+    if not needs(eq, packed.secf, packed.mass_per_length * scene.gravity)[1] <= 1.0:
         return None
     return eq if record else tip_only(eq)
 

@@ -88,7 +88,7 @@ def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter
     continuation step that will reject a root that far from its prediction saves the rest
     of the passes.
     """
-    center = m0.copy()
+    c0, c1, c2 = m0[0], m0[1], m0[2]
     for d in range(3):
         first[d] = m0[d]
     res = math.inf
@@ -125,9 +125,8 @@ def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter
         _cramer3(y[SP_DM:SP_DM + 9], r, step)
         norm = math.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
         shrink = max_step / norm if norm > max_step else 1.0
-        if math.sqrt((m0[0] - shrink * step[0] - center[0]) ** 2
-                     + (m0[1] - shrink * step[1] - center[1]) ** 2
-                     + (m0[2] - shrink * step[2] - center[2]) ** 2) > reach:
+        if math.sqrt((m0[0] - shrink * step[0] - c0) ** 2 + (m0[1] - shrink * step[1] - c1) ** 2
+                     + (m0[2] - shrink * step[2] - c2) ** 2) > reach:
             return False, it, res, False
         for d in range(3):
             m0[d] -= shrink * step[d]

@@ -22,6 +22,7 @@ made with :func:`njit`.
 
 from __future__ import annotations
 
+import functools
 import glob
 import os
 import stat
@@ -55,15 +56,10 @@ def _sources_stamp(folder: Path) -> tuple:
             len(stats))
 
 
-_SOLVER_STAMP = None
-""":func:`_sources_stamp` of this package, worked out at the first kernel (once a process)."""
-
-
+@functools.cache
 def _solver_stamp() -> tuple:
-    global _SOLVER_STAMP
-    if _SOLVER_STAMP is None:
-        _SOLVER_STAMP = _sources_stamp(Path(__file__).parent)
-    return _SOLVER_STAMP
+    """:func:`_sources_stamp` of this package, worked out at the first kernel (once a process)."""
+    return _sources_stamp(Path(__file__).parent)
 
 
 class _HealingCache(FunctionCache):

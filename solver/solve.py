@@ -199,20 +199,12 @@ def _dispatch(arm, packed, p_inputs, p_channel, scene, model, planar, warm_start
             not scene.has_contact and settings.shortcuts
             and not context(arm, packed, scene, 2 if planar else 3, settings).has_load):
         return closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record)
-    if planar and not moving:
+    if not moving:
+        lean = solve_lean if planar else solve_spatial_lean
         try:
-            eq = solve_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                            record)
+            eq = lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings, record)
         except (ArithmeticError, np.linalg.LinAlgError):
             eq = None  # the general path meets it again, and reports it
-        if eq is not None and all(map(math.isfinite, eq.tip)):
-            return eq
-    elif not planar and not moving:
-        try:
-            eq = solve_spatial_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start,
-                                    settings, record)
-        except (ArithmeticError, np.linalg.LinAlgError):
-            eq = None
         if eq is not None and all(map(math.isfinite, eq.tip)):
             return eq
     q = packed.mass_per_length * scene.gravity
