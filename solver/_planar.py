@@ -35,6 +35,7 @@ from solver._obstacles import _clearance, _tunnels
 from solver._spatial import _planar_state_stable
 from solver.jit import njit, prange
 from solver.layout import (
+    D_THETA,
     DT0,
     DT_MIN,
     JUMP,
@@ -52,11 +53,18 @@ from solver.layout import (
 )
 from solver.rod import (
     arc_chain_planar,
+    fma,
     integrate_planar,
     planar_rest_gradient,
     rest_strains_cached,
     rest_strains_into,
+    shift_planar_record,
 )
+
+# Newton's last correction δ is applied through the pass's first variations instead of by a
+# new pass when its second-order remainder ½|∂²m(L)/∂m0²|·δ² is below this fraction of the
+# tolerance.
+LINEAR_FINISH = 1e-3
 
 
 @njit
@@ -66,20 +74,38 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
     corrected by Halley's factor from the second derivative ∂²m(L)/∂m0² where that factor is
     a correction (|r·m''| ≤ m'²).
 
-    Halley's step converges cubically: from a warm step's first-order prediction the second
-    pass meets ``tol`` nine times in ten, where plain Newton needs a third pass half the time
-    (docs/design.md §8); the second variation costs a few per cent of a pass. Steps are
-    clipped to ``max_step`` (N m) so a poor guess cannot fling the iterate onto a distant
-    branch, and halved while they do not reduce the residual. Returns (m0,
-    converged, iterations, |residual|, stable, bmin, x, y, θ), the last three at the tip of
-    the returned iterate. With ``record`` every pass writes its samples to ``out``, so that
-    on return ``out`` holds the returned iterate's backbone (no separate recording pass).
+    Halley's step converges cubically (docs/design.md §8); the second variation costs a few
+    per cent of a pass. Steps are clipped to ``max_step`` (N m) so a poor guess cannot fling
+    the iterate onto a distant branch, and halved while they do not reduce the residual.
+    Returns (m0, converged, iterations, |residual|, stable, bmin, x, y, θ), the last three at
+    the tip of the returned iterate. With ``record`` every pass writes its samples to
+    ``out``, so that on return ``out`` holds the returned iterate's backbone (no separate
+    recording pass).
+
+    A last correction δ small enough that its second-order remainder ½|∂²m(L)/∂m0²|·δ² is
+    below ``LINEAR_FINISH``·``tol`` takes no pass: the returned state is the last pass moved
+    along its first variations (:func:`solver.rod.shift_planar_record`), which is the pass
+    from m0 + δ to that remainder, and the residual returned is the remainder (a bound on
+    what that pass would measure, rounding aside). It counts as an iteration.
 
     ``reach`` (N m): give up, unconverged, as soon as a step would take the iterate farther
     than this from the start ``m0`` — a caller that will reject a root that far from its
     prediction (a continuation step past a fold, where Newton wanders for its whole budget)
     saves the rest of the passes. The iterations returned are then below ``max_iter``.
     """
+    result = _newton_passes(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step,
+                            out, record, reach)
+    if record:
+        # The first variations served the last correction; a stored record must not look as
+        # if they described its state.
+        out[:, D_THETA:] = math.nan
+    return result
+
+
+@njit
+def _newton_passes(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out,
+                   record, reach):
+    """:func:`_newton` but for clearing the record's first variations."""
     res = math.inf
     bmin = 1.0
     th = x = y = math.nan
@@ -87,8 +113,8 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
     base = m0
     res_base = math.inf
     for it in range(max_iter + 1):
-        th, m, b, x, y, bmin, b2 = integrate_planar(m0, theta0, secf, steps, rest, loads, record,
-                                                    out, True)
+        th, m, b, x, y, bmin, b2, a, ax, ay = integrate_planar(m0, theta0, secf, steps, rest, loads,
+                                                               record, out, True)
         res = m - m_tip
         if abs(res) <= tol:
             return m0, True, it, abs(res), bmin > 0.0, bmin, x, y, th
@@ -104,6 +130,15 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
         if it == max_iter or b == 0.0:
             break
         step = -res / b
+        left = 0.5 * abs(b2) * step * step
+        if left <= LINEAR_FINISH * tol and abs(m0 + step - start) <= reach:
+            # Newton's last correction is so small that the pass it would take is this one
+            # moved along its first variations, to a second-order remainder ``left`` far
+            # below the tolerance: that is the returned state, with no further pass.
+            if record:
+                shift_planar_record(out, step, secf, steps)
+            return (m0 + step, True, it + 1, left, bmin > 0.0, bmin, fma(step, ax, x),
+                    fma(step, ay, y), fma(step, a, th))
         bend = 0.5 * res * b2 / (b * b)
         if abs(bend) <= 0.5:
             step /= 1.0 - bend
@@ -166,8 +201,8 @@ def _scan(theta0, secf, steps, rest, loads, m_tip, params, n_scan, guess, out):
             break
         for j in (k - 1, k):
             if not seen[j]:
-                th, m, b, x, y, bmin, _ = integrate_planar(_grid_m(j, m_bound, n_scan), theta0,
-                                                           secf, steps, rest, loads, False, out)
+                th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(
+                    _grid_m(j, m_bound, n_scan), theta0, secf, steps, rest, loads, False, out)
                 residual[j] = m - m_tip
                 seen[j] = True
                 its += 1
@@ -221,8 +256,8 @@ def _bracket_root(prev_m, prev_r, mk, r, theta0, secf, steps, rest, loads, m_tip
         lo, hi, r_lo = prev_m, mk, prev_r
         for _ in range(60):
             mid = 0.5 * (lo + hi)
-            th, m, b, x, y, bmin, _ = integrate_planar(mid, theta0, secf, steps, rest, loads,
-                                                       False, out)
+            th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(mid, theta0, secf, steps, rest,
+                                                                loads, False, out)
             its += 1
             r_mid = m - m_tip
             if not math.isfinite(r_mid):
@@ -250,10 +285,12 @@ def _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
     """
     mt0 = _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
-    th0, m_a, b_a, x0, y0, bm0, _ = integrate_planar(m0, theta0, secf, steps, rest, loads_now, False, out)
+    th0, m_a, b_a, x0, y0, bm0, _, _, _, _ = integrate_planar(m0, theta0, secf, steps, rest,
+                                                              loads_now, False, out)
     mt1 = _level(eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
-    th1, m_b, b_b, x1, y1, bm1, _ = integrate_planar(m0, theta0, secf, steps, rest, loads_now, False, out)
+    th1, m_b, b_b, x1, y1, bm1, _, _, _, _ = integrate_planar(m0, theta0, secf, steps, rest,
+                                                              loads_now, False, out)
     slope = -((m_b - mt1) - (m_a - mt0)) / eps / b_a if b_a != 0.0 else 0.0
     return slope if math.isfinite(slope) else 0.0
 
@@ -567,7 +604,8 @@ def _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
     flagged ``converged=False``) rather than to the failed attempt."""
     _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
-    th, m, b, x, y, bmin, _ = integrate_planar(m0, theta0, secf, steps, rest, loads_now, False, out)
+    th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(m0, theta0, secf, steps, rest, loads_now,
+                                                        False, out)
     return m0, False, total + 1, snapped, bmin > 0.0, res, x, y, th
 
 
@@ -625,8 +663,8 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
             # Keep the last good state: its rest strains, shape and tip.
             root = m0_start[k]
             rest_strains_into(p_start[k], tubes_i, tubes_f, secf, rest)
-            th, m, b, x, y, bmin, _ = integrate_planar(root, theta0, secf, steps, rest, loads, record,
-                                              shapes[k])
+            th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(root, theta0, secf, steps, rest,
+                                                                loads, record, shapes[k])
         tips[k, 0] = x
         tips[k, 1] = y
         ok[k] = conv

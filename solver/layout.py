@@ -28,10 +28,13 @@ N_PARAMS = 9
 # N) and distributed load per reference length (q x, y; N/m).
 NEX, NEY, QX, QY = range(4)
 
-# Planar record (N, 10): s, x, y, θ, m, internal force n (world x, y), strains v1, v3 and
-# curvature u. Adjacent pairs are the result's (N, 2) fields as slices.
-S, X, Y, THETA, M, NX, NY, V1, V3, U = range(10)
-N_COLUMNS = 10
+# Planar record (N, 16): s, x, y, θ, m, internal force n (world x, y), strains v1, v3 and
+# curvature u; then scratch: the first variations ∂(θ, m, x, y, v1, v3)/∂m0 of the RK4 pass
+# that wrote the record, through which Newton applies its last correction
+# (:func:`solver._planar._newton`, which leaves them NaN when it returns: a stored record
+# holds NaN there). Adjacent pairs are the result's (N, 2) fields as slices.
+S, X, Y, THETA, M, NX, NY, V1, V3, U, D_THETA, D_M, D_X, D_Y, D_V1, D_V3 = range(16)
+N_COLUMNS = 16
 
 # Spatial state (28,): position r, quaternion β of the directors, moment m (world), and the
 # sensitivities δφ (3 columns of 3) and δm (3 columns of 3).

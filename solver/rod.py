@@ -45,6 +45,12 @@ from solver.layout import (
     CS_N,
     CS_Q,
     CS_R,
+    D_M,
+    D_THETA,
+    D_V1,
+    D_V3,
+    D_X,
+    D_Y,
     EA,
     EI,
     LEN,
@@ -87,7 +93,7 @@ from solver.layout import (
 
 __all__ = [
     "base_rotation", "rotation_to_quaternion", "rest_strains_into", "rest_strains_cached",
-    "planar_strains", "integrate_planar", "planar_rest_gradient", "planar_state_rhs",
+    "planar_strains", "integrate_planar", "shift_planar_record", "planar_rest_gradient", "planar_state_rhs",
     "planar_state_jacobian", "planar_state_rk4_step", "spatial_rhs", "spatial_rk4_step",
     "integrate_spatial", "record_spatial_row", "arc_chain_planar", "arc_chain_spatial",
     "hermite_resample", "det3",
@@ -323,16 +329,22 @@ def turned(th, c, sn, d):
 def _planar_dead_rhs(sig, c, sn, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, qx, qy):
     """Right-hand side of (θ, m, a, b, x, y) under dead loads at local coordinate ``sig``,
     θ given by (cos θ, sin θ), followed by g_θ and g_θθ, the first two derivatives of
-    m' = g(θ) in θ: g_θ = (1/GA − 1/EA)(n1² − n3²) + v*·n3, g_θθ = −4(1/GA − 1/EA)·n1·n3 + v*·n1
-    (inlined: a caller that does not use them does not compute them)."""
+    m' = g(θ) in θ: g_θ = (1/GA − 1/EA)(n1² − n3²) + v*·n3, g_θθ = −4(1/GA − 1/EA)·n1·n3 + v*·n1,
+    then those of the first variations of x and y, a·∂x'/∂θ and a·∂y'/∂θ (inlined: a caller
+    that does not use them does not compute them)."""
     nx = fma(qx, length - sig, nex)
     ny = fma(qy, length - sig, ney)
     c, sn, n1, n3, v1, v3 = _strains_cs(c, sn, nx, ny, ca, cg, vr)
     g_th = fma(cg - ca, fma(n1, n1, -n3 * n3), vr * n3)
     # m' = v1·n3 − v3·n1, factored: two dependent operations fewer on the pass's chain.
     m_s = n1 * fma(n3, cg - ca, -vr)
-    return (fma(m, ci, ur), m_s, b * ci, g_th * a, fma(v3, c, -v1 * sn), fma(v3, sn, v1 * c), g_th,
-            fma(-4.0 * (cg - ca) * n1, n3, vr * n1))
+    xs = fma(v3, c, -v1 * sn)
+    ys = fma(v3, sn, v1 * c)
+    # x' and y' turn with θ, and n1' = −n3, n3' = n1 move v1 and v3: ∂x'/∂θ, ∂y'/∂θ.
+    xs_th = fma(ca * n1, c, fma(cg * n3, sn, -ys))
+    ys_th = fma(ca * n1, sn, fma(-cg * n3, c, xs))
+    return (fma(m, ci, ur), m_s, b * ci, g_th * a, xs, ys, g_th,
+            fma(-4.0 * (cg - ca) * n1, n3, vr * n1), xs_th * a, ys_th * a)
 
 
 @njit
@@ -344,7 +356,8 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
         secf: (6, ns) section array. steps: (ns,) RK4 steps per section.
         rest: (3, ns) rest strains; the plane uses u2* and v3*.
         loads: (ns, 4) section-end internal force and distributed load (``NEX``…).
-        record: write samples to ``out`` ((Σsteps + ns, N_COLUMNS), junctions repeated).
+        record: write samples to ``out`` ((Σsteps + ns, N_COLUMNS), junctions repeated),
+            with the first variations ∂(θ, m, x, y, v1, v3)/∂m0 of every sample.
         second: also integrate the second variation a2 = ∂²θ/∂m0², b2 = ∂²m/∂m0²,
             a2' = b2/EI, b2' = g_θ·a2 + g_θθ·a² (m' = g(θ)), by the midpoint rule on the RK4
             stages at the node and mid-step: second order, plenty for Halley's correction
@@ -352,12 +365,14 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
 
     Returns:
         (θ, m, ∂m/∂m0, x, y at the tip, min over nodes of ∂m/∂m0 on (0, L], ∂²m/∂m0² at the
-        tip (0 unless ``second``)).
+        tip (0 unless ``second``), ∂θ/∂m0, ∂x/∂m0, ∂y/∂m0 at the tip).
     """
     th = theta0
     m = m0
     a = 0.0
     b = 1.0
+    ax = 0.0
+    ay = 0.0
     a2 = 0.0
     b2 = 0.0
     x = 0.0
@@ -397,6 +412,12 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
                 out[row, V1] = v1
                 out[row, V3] = v3
                 out[row, U] = ur + m * ci
+                out[row, D_THETA] = a
+                out[row, D_M] = b
+                out[row, D_X] = ax
+                out[row, D_Y] = ay
+                out[row, D_V1] = -cg * n3 * a  # n1' = −n3 and n3' = n1 as θ turns
+                out[row, D_V3] = ca * n1 * a
                 row += 1
             if j == nst:
                 break
@@ -425,6 +446,8 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
             b = fma(w, k1[3] + fma(2.0, k2[3] + k3[3], k4[3]), b)
             x = fma(w, k1[4] + fma(2.0, k2[4] + k3[4], k4[4]), x)
             y = fma(w, k1[5] + fma(2.0, k2[5] + k3[5], k4[5]), y)
+            ax = fma(w, k1[8] + fma(2.0, k2[8] + k3[8], k4[8]), ax)
+            ay = fma(w, k1[9] + fma(2.0, k2[9] + k3[9], k4[9]), ay)
             if second:
                 a_half = a_node + hh * k1[2]
                 a2_half = a2 + hh * ci * b2
@@ -434,7 +457,33 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
             if b < bmin:
                 bmin = b
         s0 += length
-    return th, m, b, x, y, bmin, b2
+    return th, m, b, x, y, bmin, b2, a, ax, ay
+
+
+@njit
+def shift_planar_record(out, dm0, secf, steps):
+    """Move a pass's record (:func:`integrate_planar`) from base moment m0 to m0 + ``dm0`` to
+    first order: every sample along its recorded first variations (θ, m, x, y, v1, v3, and
+    u = u* + m/EI with m), the internal force unchanged (dead loads). The error is second
+    order, ½·|∂²/∂m0²|·dm0², against the pass from m0 + dm0 itself.
+
+    Args:
+        out: (Σ(steps + 1), N_COLUMNS) the record, changed in place. dm0: the shift (N m).
+        secf: (6, ns). steps: (ns,).
+    """
+    row = 0
+    for i in range(secf.shape[1]):
+        ci = secf[CI, i]
+        for _ in range(steps[i] + 1):
+            # Fused as the tip values the pass returns are, so the tip row is theirs bit for bit.
+            out[row, THETA] = fma(dm0, out[row, D_THETA], out[row, THETA])
+            out[row, M] = fma(dm0, out[row, D_M], out[row, M])
+            out[row, X] = fma(dm0, out[row, D_X], out[row, X])
+            out[row, Y] = fma(dm0, out[row, D_Y], out[row, Y])
+            out[row, V1] = fma(dm0, out[row, D_V1], out[row, V1])
+            out[row, V3] = fma(dm0, out[row, D_V3], out[row, V3])
+            out[row, U] = fma(ci * dm0, out[row, D_M], out[row, U])
+            row += 1
 
 
 @njit

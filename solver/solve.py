@@ -399,6 +399,10 @@ def step_batch(arm: ArmDesign, pressures, scene: Scene | None = None,
                    ctx.m_tip, ctx.params, record, tips, ok, np.empty(n, dtype=bool), m0_out, shapes)
     ok &= moving
     keep = ~ok[:, None]
+    if state is not None:
+        # A copy that did not move keeps its tip as it was (the kernel's pass from the kept
+        # base moment can differ from it by Newton's linearised last correction).
+        tips = np.where(keep, state.tips, tips)
     return BatchState(pressures=np.where(keep, p_prev, p), tips=tips, converged=ok, shapes=shapes,
                       section_ends=packed.section_ends, base_moment=m0_out,
                       channel_pressures=np.where(keep, p_start, channel), arm=arm, scene=scene)

@@ -83,6 +83,7 @@ def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
     rec[:, L.NX:L.NY + 1] = eq.internal_force
     rec[:, L.V1:L.V3 + 1] = eq.shear_stretch
     rec[:, L.U] = eq.curvature
+    rec[:, L.D_THETA:] = np.nan  # as a record Newton returns (solver.layout)
     rest_strains_into(eq.channel_pressures, packed.tubes_i, packed.tubes_f, packed.secf, rest)
     planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
 

@@ -76,3 +76,40 @@ def test_newton_gives_up_once_an_iterate_would_leave_its_reach():
     # A reach past the root changes nothing.
     same, ok, *_ = _planar._newton(0.0, *args, 2.0 * abs(root))
     assert ok and same == root
+
+
+@pytest.mark.parametrize("design, payload, angle", [
+    ("octarm_v", 0.1, 90.0), ("ct", 0.3, 90.0), ("octarm_v", 0.0, 135.0)])
+def test_newton_finishing_through_first_variations_is_a_pass_there(design, payload, angle):
+    """Where Newton's last correction is tiny, ``_newton`` returns the last pass moved along its
+    first variations (no further pass): a pass from the returned moment meets the tolerance,
+    gives the returned tip and record to far below the tolerance."""
+    arm = getattr(solver.designs, design)()
+    scene = solver.Scene(payload_kg=payload, base_angle_deg=angle)
+    settings = solver.Settings()
+    packed = pack(arm, "full", settings)
+    ctx = context(arm, packed, scene, 2, settings)
+    tol = ctx.params[L.TOL]
+    rng = np.random.default_rng(7)
+    finished = 0
+    for fraction in rng.uniform(0.0, 1.0, (12, arm.n_channels)):
+        rest = np.vstack(solver.rest_strains(arm, fraction * arm.max_pressure))
+        grid = (scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads)
+        out = np.empty((packed.n_rows, L.N_COLUMNS))
+        args = (*grid, ctx.m_tip, tol, 12, ctx.params[L.MAX_STEP], out, True)
+        root, ok, *_ = _planar._newton(0.0, *args)
+        if not ok:  # plain Newton from zero does not reach every state; the others do
+            continue
+        # Start a small step off the root: the first correction is tiny.
+        for offset in (30.0, -300.0, 3000.0):
+            m0, ok, its, res, stable, _, x, y, th = _planar._newton(root + offset * tol, *args)
+            fresh = np.empty_like(out)
+            th_p, m_p, _, x_p, y_p, *_ = integrate_planar(m0, *grid, True, fresh)
+            assert ok and abs(m_p - ctx.m_tip) <= tol
+            assert max(abs(x - x_p), abs(y - y_p), abs(th - th_p)) <= 1e-12  # m, rad
+            off = np.abs(out - fresh)[:, :L.D_THETA].max(axis=0)
+            assert off[L.M] <= 1e-3 * tol and off[L.U] <= 1e-3 * tol * packed.secf[L.CI].max()
+            assert off[[L.X, L.Y, L.THETA, L.V1, L.V3]].max() <= 1e-12
+            # A pass's own residual would be the fresh pass's, bit for bit.
+            finished += res != abs(m_p - ctx.m_tip)
+    assert finished >= 10
