@@ -1,6 +1,7 @@
 """The fold scan (``solver._planar._scan``) visits its grid nearest the guess first and stops
 early; it must pick the root a scan of every interval picks (``naive.py``). Newton gives up
-on a continuation step whose iterate leaves its ``reach``."""
+on a continuation step whose iterate leaves its ``reach``, and its last correction, applied
+through the pass's first variations, is the pass it saves."""
 
 import math
 
@@ -10,9 +11,9 @@ import pytest
 import solver
 from solver import _planar
 from solver import layout as L
-from solver._model import context, pack
 from solver.rod import integrate_planar
 from tests.solver import naive
+from tests.solver.planar_case import planar_case, planar_grid
 
 
 @pytest.mark.parametrize("design, payload, angle, fraction", [
@@ -23,14 +24,9 @@ from tests.solver import naive
     ("octarm_v", 0.0, 90.0, 0.4),    # one root
 ])
 def test_scan_picks_the_nearest_stable_root_of_the_full_scan(design, payload, angle, fraction):
-    arm = getattr(solver.designs, design)()
-    scene = solver.Scene(payload_kg=payload, base_angle_deg=angle)
-    settings = solver.Settings()
-    packed = pack(arm, "full", settings)
-    ctx = context(arm, packed, scene, 2, settings)
-    rest = np.vstack(solver.rest_strains(arm, np.full(arm.n_channels, fraction * arm.max_pressure)))
+    arm, scene, packed, ctx = planar_case(design, payload, angle)
+    grid = planar_grid(arm, scene, packed, ctx, np.full(arm.n_channels, fraction * arm.max_pressure))
     out = np.empty((packed.n_rows, L.N_COLUMNS))
-    grid = (scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads)
 
     def residual(m0):
         return integrate_planar(m0, *grid, False, out)[1] - ctx.m_tip
@@ -39,7 +35,7 @@ def test_scan_picks_the_nearest_stable_root_of_the_full_scan(design, payload, an
         return integrate_planar(m0, *grid, False, out)[5] > 0.0
 
     bound = ctx.params[L.M_BOUND]
-    n_scan = settings.n_scan
+    n_scan = solver.Settings().n_scan
     _, roots = naive.nearest_stable_root_full_scan(residual, stable, bound, n_scan, 0.0)
     # Guesses across the grid and beyond it, and a third and two thirds of the way between
     # neighbouring roots, where the nearer one is on either side.
@@ -59,15 +55,10 @@ def test_scan_picks_the_nearest_stable_root_of_the_full_scan(design, payload, an
 
 
 def test_newton_gives_up_once_an_iterate_would_leave_its_reach():
-    arm = solver.designs.octarm_v()
-    scene = solver.Scene(base_angle_deg=90.0)
-    settings = solver.Settings()
-    packed = pack(arm, "full", settings)
-    ctx = context(arm, packed, scene, 2, settings)
-    rest = np.vstack(solver.rest_strains(arm, np.full(arm.n_channels, 0.5 * arm.max_pressure)))
+    arm, scene, packed, ctx = planar_case("octarm_v", 0.0, 90.0)
     out = np.empty((packed.n_rows, L.N_COLUMNS))
-    args = (scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads, ctx.m_tip,
-            ctx.params[L.TOL], 12, ctx.params[L.MAX_STEP], out, False)
+    args = (*planar_grid(arm, scene, packed, ctx, np.full(arm.n_channels, 0.5 * arm.max_pressure)),
+            ctx.m_tip, ctx.params[L.TOL], 12, ctx.params[L.MAX_STEP], out, False)
     root, ok, its, *_ = _planar._newton(0.0, *args)
     assert ok and abs(root) > 0.0
     # A reach short of the root: the first step would leave it, so one pass and no more.
@@ -84,17 +75,12 @@ def test_newton_finishing_through_first_variations_is_a_pass_there(design, paylo
     """Where Newton's last correction is tiny, ``_newton`` returns the last pass moved along its
     first variations (no further pass): a pass from the returned moment meets the tolerance,
     gives the returned tip and record to far below the tolerance."""
-    arm = getattr(solver.designs, design)()
-    scene = solver.Scene(payload_kg=payload, base_angle_deg=angle)
-    settings = solver.Settings()
-    packed = pack(arm, "full", settings)
-    ctx = context(arm, packed, scene, 2, settings)
+    arm, scene, packed, ctx = planar_case(design, payload, angle)
     tol = ctx.params[L.TOL]
     rng = np.random.default_rng(7)
     finished = 0
     for fraction in rng.uniform(0.0, 1.0, (12, arm.n_channels)):
-        rest = np.vstack(solver.rest_strains(arm, fraction * arm.max_pressure))
-        grid = (scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads)
+        grid = planar_grid(arm, scene, packed, ctx, fraction * arm.max_pressure)
         out = np.empty((packed.n_rows, L.N_COLUMNS))
         args = (*grid, ctx.m_tip, tol, 12, ctx.params[L.MAX_STEP], out, True)
         root, ok, *_ = _planar._newton(0.0, *args)

@@ -6,10 +6,9 @@ import numba
 import numpy as np
 import pytest
 
-import solver
 from solver import layout as L
 from solver import rod
-from solver._model import context, pack
+from tests.solver.planar_case import planar_case, planar_grid
 
 
 def test_turned_is_cos_and_sin_of_the_sum_to_rounding():
@@ -45,13 +44,8 @@ def test_a_shifted_record_is_the_pass_from_the_shifted_moment(design, payload, a
     their own: the change it makes is the central difference up to that difference's own
     third-order error (a tenth of the shift, a thousandth of the gap), and what it misses of
     the pass from the shifted moment is second order (a tenth of the shift, a hundredth)."""
-    arm = getattr(solver.designs, design)()
-    scene = solver.Scene(payload_kg=payload, base_angle_deg=angle)
-    settings = solver.Settings()
-    packed = pack(arm, "full", settings)
-    ctx = context(arm, packed, scene, 2, settings)
-    rest = np.vstack(solver.rest_strains(arm, np.full(arm.n_channels, fraction * arm.max_pressure)))
-    grid = (scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads)
+    arm, scene, packed, ctx = planar_case(design, payload, angle)
+    grid = planar_grid(arm, scene, packed, ctx, np.full(arm.n_channels, fraction * arm.max_pressure))
 
     def record(m0):
         out = np.empty((packed.n_rows, L.N_COLUMNS))
