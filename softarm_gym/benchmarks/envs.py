@@ -2,7 +2,9 @@
 
 Each case is timed as a user runs it: ``gym.make(env_id, observation=...)`` with random
 (seeded) actions, resets included whenever an episode ends, after a warm-up that loads
-the numba kernels. ``single`` is one env in this process; ``vector`` an
+the numba kernels. ``single`` is one env in this process, the median of
+:data:`SINGLE_REPEATS` runs of different seeds (one short run on a shared machine can read
+tens of per cent low); ``vector`` an
 ``AsyncVectorEnv`` with one worker per core (steps counted over all workers). The reach IDs
 of :data:`SPATIAL_IDS` are also timed in 3D (``planar=False``, their registered delta
 actions), with every observation, and the IDs of :data:`SELF_CONTACT_IDS` with
@@ -32,6 +34,9 @@ SELF_CONTACT_IDS = ("SoftArm/OctArmReach-v1", "SoftArm/OctArmWrap-v1", "SoftArm/
 self-contact costs where it is asked for."""
 
 QUICK_OBSERVATIONS = ("true", "constant_curvature")
+
+SINGLE_REPEATS = 3
+"""Timed runs (seeds 0, 1, ...) of each single-env case; the row reports their median."""
 
 
 def env_ids() -> tuple[str, ...]:
@@ -79,7 +84,9 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
 
     Returns:
         ``{"cases": [{"env_id", "observation", "planar", "self_contact", "single_steps_per_s",
-        "vector_steps_per_s", "n_envs", "target_steps_per_s"}], "n_steps": ..., "n_envs": ...}``.
+        "single_runs_steps_per_s", "vector_steps_per_s", "n_envs", "target_steps_per_s"}],
+        "n_steps": ..., "n_envs": ...}``; ``single_steps_per_s`` is the median of the
+        :data:`SINGLE_REPEATS` runs in ``single_runs_steps_per_s``.
     """
     n_steps = n_steps or (60 if quick else 300)
     if n_steps < 1:
@@ -102,8 +109,9 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
             progress(f"{env_id} observation={obs}{''.join(f' {k}={v}' for k, v in extra.items())}")
         env = gym.make(env_id, **kwargs)
         planar = env.unwrapped.planar  # a 3D id (OctArmWrap3D-v0) is spatial without the kwarg
-        _time_steps(env, min(20, n_steps), seed=1)  # warm-up: load kernels, first resets
-        single = _time_steps(env, n_steps, seed=0)
+        _time_steps(env, min(20, n_steps), seed=SINGLE_REPEATS)  # warm-up: kernels, first resets
+        runs = [_time_steps(env, n_steps, seed=seed) for seed in range(SINGLE_REPEATS)]
+        single = float(np.median(runs))
         env.close()
         vec = gym.vector.AsyncVectorEnv([lambda i=env_id, k=kwargs: gym.make(i, **k)] * n_envs)
         try:
@@ -113,7 +121,8 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
             vec.close()
         cases.append({"env_id": env_id, "observation": obs, "planar": planar,
                       "self_contact": bool(extra.get("self_contact", False)),
-                      "single_steps_per_s": single, "vector_steps_per_s": vector,
+                      "single_steps_per_s": single, "single_runs_steps_per_s": runs,
+                      "vector_steps_per_s": vector,
                       "n_envs": n_envs, "target_steps_per_s": target_for(env_id, obs, planar)})
     resets = [reset_times(env_id) for env_id in ids if env_id in RESET_IDS]
     return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs, "resets": resets}

@@ -32,28 +32,45 @@ def _time(n: int, steps: int, action_mode: str, planar: bool = True,
 
 
 def run(sizes=(4, 16, 256, 1024, 4096), steps: int = 100, action_mode: str = "delta",
-        progress=None) -> list[dict]:
+        repeats: int = 3, progress=None) -> list[dict]:
     """Time ``steps`` steps of :class:`~softarm_gym.vector.BatchedReachVectorEnv` per size,
-    with numba's full thread pool and with one thread, side by side (the thread policy,
-    :class:`solver.ThreadPolicy`, measures both ways in its first steps and runs the faster:
-    those steps are timed too).
+    with numba's full thread pool and with one thread, alternately ``repeats`` times (the
+    thread policy, :class:`solver.ThreadPolicy`, measures both ways in its first steps and
+    runs the faster: those steps are timed too). Each row reports the medians; a shared
+    machine's load moves single runs by tens of per cent.
 
     Random actions in ``delta`` mode (each step changes every pressure by up to 10 % of
-    p_max, as a policy exploring does); the first step after reset is not timed.
+    p_max, as a policy exploring does); the first step after reset is not timed, the
+    autoreset at the end of the 100-step episodes is.
+
+    Returns:
+        One dict a size: ``{"num_envs", "steps", "threads", "seconds", "env_steps_per_s",
+        "one_thread_env_steps_per_s", "runs_env_steps_per_s",
+        "runs_one_thread_env_steps_per_s", "converged_fraction"}`` (``seconds``: the time of
+        ``steps`` steps at the median rate; ``converged_fraction``: over the full-pool runs).
     """
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"repeats must be an integer >= 1; got {repeats!r}")
     threads = numba.get_num_threads()
     rows = []
     for n in sizes:
-        seconds, converged = _time(n, steps, action_mode)
-        numba.set_num_threads(1)
-        try:
-            one, _ = _time(n, steps, action_mode)
-        finally:
-            numba.set_num_threads(threads)
-        rows.append({"num_envs": n, "steps": steps, "threads": threads, "seconds": seconds,
-                     "env_steps_per_s": n * steps / seconds,
-                     "one_thread_env_steps_per_s": n * steps / one,
-                     "converged_fraction": converged})
+        pool, one, converged = [], [], []
+        for _ in range(repeats):
+            seconds, fraction = _time(n, steps, action_mode)
+            pool.append(seconds)
+            converged.append(fraction)
+            numba.set_num_threads(1)
+            try:
+                one.append(_time(n, steps, action_mode)[0])
+            finally:
+                numba.set_num_threads(threads)
+        rates = [n * steps / s for s in pool]
+        rates_one = [n * steps / s for s in one]
+        rate = float(np.median(rates))
+        rows.append({"num_envs": n, "steps": steps, "threads": threads, "seconds": n * steps / rate,
+                     "env_steps_per_s": rate, "one_thread_env_steps_per_s": float(np.median(rates_one)),
+                     "runs_env_steps_per_s": rates, "runs_one_thread_env_steps_per_s": rates_one,
+                     "converged_fraction": float(np.mean(converged))})
         if progress:
             progress(f"batched vector env {n}")
     return rows

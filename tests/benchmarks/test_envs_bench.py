@@ -1,5 +1,7 @@
 """The environment benchmark's reset rows and table (the figures themselves live in docs/bench)."""
 
+import numpy as np
+
 from softarm_gym.benchmarks.envs import RESET_IDS, TARGETS, format_table, reset_times, target_for
 from softarm_gym.cli import main
 
@@ -30,12 +32,15 @@ def test_reach_is_also_timed_in_3d_and_with_self_contact():
     """The 3D rows: the reach IDs of SPATIAL_IDS with planar=False, held to the 3D targets, and
     the 3D ids (registered spatial) labelled 3D; the self-contact rows: the IDs of
     SELF_CONTACT_IDS with self_contact=True."""
-    from softarm_gym.benchmarks.envs import SELF_CONTACT_IDS, SPATIAL_IDS, run
+    from softarm_gym.benchmarks.envs import SELF_CONTACT_IDS, SINGLE_REPEATS, SPATIAL_IDS, run
 
     assert SPATIAL_IDS[0] in SELF_CONTACT_IDS and "SoftArm/CTWrap-v1" in SELF_CONTACT_IDS
     result = run(n_steps=4, n_envs=2, observations=("true",),
                  ids=(SPATIAL_IDS[0], "SoftArm/CTWrap-v1", "SoftArm/CTWrap3D-v0"))
     rows = {(c["env_id"], c["planar"], c["self_contact"]): c for c in result["cases"]}
+    for row in rows.values():
+        assert len(row["single_runs_steps_per_s"]) == SINGLE_REPEATS
+        assert row["single_steps_per_s"] == np.median(row["single_runs_steps_per_s"])
     assert set(rows) == {(SPATIAL_IDS[0], True, False), (SPATIAL_IDS[0], False, False),
                          ("SoftArm/CTWrap-v1", True, False), (SPATIAL_IDS[0], True, True),
                          ("SoftArm/CTWrap-v1", True, True), ("SoftArm/CTWrap3D-v0", False, False)}
