@@ -35,7 +35,6 @@ from solver._obstacles import _clearance, _tunnels
 from solver._spatial import _planar_state_stable
 from solver.jit import njit, prange
 from solver.layout import (
-    D_THETA,
     DT0,
     DT_MIN,
     JUMP,
@@ -54,6 +53,7 @@ from solver.layout import (
 from solver.rod import (
     arc_chain_planar,
     fma,
+    forget_first_variations,
     integrate_planar,
     planar_rest_gradient,
     rest_strains_cached,
@@ -96,9 +96,7 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
     result = _newton_passes(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step,
                             out, record, reach)
     if record:
-        # The first variations served the last correction; a stored record must not look as
-        # if they described its state.
-        out[:, D_THETA:] = math.nan
+        forget_first_variations(out)
     return result
 
 
@@ -665,6 +663,8 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
             rest_strains_into(p_start[k], tubes_i, tubes_f, secf, rest)
             th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(root, theta0, secf, steps, rest,
                                                                 loads, record, shapes[k])
+            if record:
+                forget_first_variations(shapes[k])
         tips[k, 0] = x
         tips[k, 1] = y
         ok[k] = conv

@@ -137,9 +137,8 @@ class BatchState:
         converged: (n,) whether the last step of each copy converged (a copy that did not
             kept its previous state).
         shapes: (n, N, ``layout.N_COLUMNS``) recorded backbones when stepped with
-            ``record=True``: columns s, x, y, θ, m, n_x, n_y, v1, v3, u, then the pass's first
-            variations ∂(θ, m, x, y)/∂m0 (see :mod:`solver.layout`); else (n, 1, N_COLUMNS)
-            scratch.
+            ``record=True``: columns s, x, y, θ, m, n_x, n_y, v1, v3, u, then the solver's
+            scratch columns, NaN (see :mod:`solver.layout`); else (n, 1, N_COLUMNS) scratch.
         section_ends: sample indices of the section ends in ``shapes``.
         arm, scene: the design and scene they were stepped for (a next step is checked
             against them).

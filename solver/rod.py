@@ -93,7 +93,8 @@ from solver.layout import (
 
 __all__ = [
     "base_rotation", "rotation_to_quaternion", "rest_strains_into", "rest_strains_cached",
-    "planar_strains", "integrate_planar", "shift_planar_record", "planar_rest_gradient", "planar_state_rhs",
+    "planar_strains", "integrate_planar", "shift_planar_record", "forget_first_variations",
+    "planar_rest_gradient", "planar_state_rhs",
     "planar_state_jacobian", "planar_state_rk4_step", "spatial_rhs", "spatial_rk4_step",
     "integrate_spatial", "record_spatial_row", "arc_chain_planar", "arc_chain_spatial",
     "hermite_resample", "det3",
@@ -458,6 +459,14 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
                 bmin = b
         s0 += length
     return th, m, b, x, y, bmin, b2, a, ax, ay
+
+
+@njit
+def forget_first_variations(out):
+    """NaN in the first-variation columns (``D_THETA`` …) of a record ``out`` (N, N_COLUMNS)
+    that is kept: they served the pass that wrote them (:func:`shift_planar_record`), and a
+    kept record must not look as if they described its state (docs/design.md §8)."""
+    out[:, D_THETA:] = math.nan
 
 
 @njit

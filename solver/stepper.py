@@ -31,7 +31,7 @@ from solver._model import context, pack
 from solver._paths_planar import loaded_base_moment, not_lean, single_result
 from solver.designs import ArmDesign
 from solver.results import Equilibrium
-from solver.rod import planar_rest_gradient, rest_strains_into
+from solver.rod import forget_first_variations, planar_rest_gradient, rest_strains_into
 from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
 from solver.solve import (
@@ -83,7 +83,7 @@ def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
     rec[:, L.NX:L.NY + 1] = eq.internal_force
     rec[:, L.V1:L.V3 + 1] = eq.shear_stretch
     rec[:, L.U] = eq.curvature
-    rec[:, L.D_THETA:] = np.nan  # as a record Newton returns (solver.layout)
+    forget_first_variations(rec)  # as a record Newton returns
     rest_strains_into(eq.channel_pressures, packed.tubes_i, packed.tubes_f, packed.secf, rest)
     planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
 

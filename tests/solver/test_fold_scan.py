@@ -93,6 +93,7 @@ def test_newton_finishing_through_first_variations_is_a_pass_there(design, paylo
             th_p, m_p, _, x_p, y_p, *_ = integrate_planar(m0, *grid, True, fresh)
             assert ok and abs(m_p - ctx.m_tip) <= tol
             assert max(abs(x - x_p), abs(y - y_p), abs(th - th_p)) <= 1e-12  # m, rad
+            assert np.isnan(out[:, L.D_THETA:]).all()  # the scratch the finish used is forgotten
             off = np.abs(out - fresh)[:, :L.D_THETA].max(axis=0)
             assert off[L.M] <= 1e-3 * tol and off[L.U] <= 1e-3 * tol * packed.secf[L.CI].max()
             assert off[[L.X, L.Y, L.THETA, L.V1, L.V3]].max() <= 1e-12

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import solver
-from solver import PSI, designs
+from solver import PSI, designs, layout
 
 
 def _sweep(arm, scene, channel, levels, eq=None):
@@ -218,13 +218,16 @@ def test_step_batch_failed_rows_keep_their_state():
     start = solver.step_batch(arm, np.full((3, 6), 0.2 * arm.max_pressure), scene)
     # One plain Newton attempt cannot follow a jump across the snap-through fold.
     far = np.array([[0, 1, 0, 0, 0, 0], [0.2] * 6, [0, 1, 0, 0, 0, 0]]) * arm.max_pressure
-    step = solver.step_batch(arm, far, scene, state=start,
+    step = solver.step_batch(arm, far, scene, state=start, record=True,
                              settings=solver.Settings.without_fallback())
     failed = ~step.converged
     assert failed[0] and failed[2] and not failed[1]
     np.testing.assert_array_equal(step.tips[failed], start.tips[failed])
     np.testing.assert_array_equal(step.pressures[failed], start.pressures[failed])
     np.testing.assert_array_equal(step.base_moment[failed], start.base_moment[failed])
+    # Kept and new records alike: the solver's scratch columns hold nothing (solver.layout).
+    assert np.isnan(step.shapes[:, :, layout.D_THETA:]).all()
+    assert np.isfinite(step.shapes[:, :, :layout.D_THETA]).all()
 
 
 @pytest.mark.parametrize("model, gravity", [("constant_curvature", 9.81), ("full", 0.0)])
