@@ -40,8 +40,8 @@ def run(sizes=(4, 16, 256, 1024, 4096), steps: int = 100, action_mode: str = "de
     machine's load moves single runs by tens of per cent.
 
     Random actions in ``delta`` mode (each step changes every pressure by up to 10 % of
-    p_max, as a policy exploring does); the first step after reset is not timed, the
-    autoreset at the end of the 100-step episodes is.
+    p_max, as a policy exploring does); the first step after reset is not timed, an
+    autoreset (after the env's 100-step episodes) is.
 
     Returns:
         One dict a size: ``{"num_envs", "steps", "threads", "seconds", "env_steps_per_s",
@@ -54,18 +54,16 @@ def run(sizes=(4, 16, 256, 1024, 4096), steps: int = 100, action_mode: str = "de
     threads = numba.get_num_threads()
     rows = []
     for n in sizes:
-        pool, one, converged = [], [], []
+        rates, rates_one, converged = [], [], []
         for _ in range(repeats):
             seconds, fraction = _time(n, steps, action_mode)
-            pool.append(seconds)
+            rates.append(n * steps / seconds)
             converged.append(fraction)
             numba.set_num_threads(1)
             try:
-                one.append(_time(n, steps, action_mode)[0])
+                rates_one.append(n * steps / _time(n, steps, action_mode)[0])
             finally:
                 numba.set_num_threads(threads)
-        rates = [n * steps / s for s in pool]
-        rates_one = [n * steps / s for s in one]
         rate = float(np.median(rates))
         rows.append({"num_envs": n, "steps": steps, "threads": threads, "seconds": n * steps / rate,
                      "env_steps_per_s": rate, "one_thread_env_steps_per_s": float(np.median(rates_one)),
