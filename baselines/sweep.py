@@ -74,7 +74,7 @@ from baselines.config import (
     make_env,
     split_hyperparams,
 )
-from baselines.train import CONFIG_FILE, _check_counts, latest_checkpoint, resume, train
+from baselines.train import CONFIG_FILE, check_counts, latest_checkpoint, resume, train
 from softarm_gym.files import write_json
 from softarm_gym.jobs import (
     BACKENDS,
@@ -526,7 +526,7 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
     if evaluate_episodes is not None and (int(evaluate_episodes) != evaluate_episodes
                                           or evaluate_episodes < 1):
         raise ValueError(f"evaluate_episodes must be an integer >= 1; got {evaluate_episodes!r}")
-    _check_counts(eval_freq, checkpoint_freq, cpus_per_run)
+    check_counts(eval_freq, checkpoint_freq, cpus_per_run)
     if eval_episodes < 1:
         raise ValueError(f"eval_episodes must be >= 1; got {eval_episodes}")
     names = [spec.name for spec in runs]

@@ -26,7 +26,7 @@ from solver.rod import (
 
 
 @njit
-def _section_integrals(s, integrand, ends, out):
+def section_integrals(s, integrand, ends, out):
     """Cumulative integrals of sampled functions over consecutive sections.
 
     Composite Simpson's rule on the uniform samples of each section (Simpson 3/8 on the last
@@ -64,7 +64,7 @@ def _section_integrals(s, integrand, ends, out):
 
 
 @njit
-def _planar_cable_integrand(shear_stretch, curvature, radius, out):
+def planar_cable_integrand(shear_stretch, curvature, radius, out):
     """Planar cable integrands √((v3 ∓ R·u)² + v1²) for the +R·d1 and −R·d1 cables, (N, 2)."""
     for k in range(curvature.shape[0]):
         v1 = shear_stretch[k, 0]
@@ -75,7 +75,7 @@ def _planar_cable_integrand(shear_stretch, curvature, radius, out):
 
 
 @njit
-def _load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
+def load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
                       q, point, work, s_out, pos_out, tan_out, ends_out):
     """Integrate the planar equilibrium equations base → tip from a measured base wrench (§4.2.1).
 
@@ -142,7 +142,7 @@ def _reduced_rhs(th, m, n1, ci, ur, v, w):
 
 
 @njit
-def _reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretch, weight,
+def reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretch, weight,
                     record, s_out, pos_out, tan_out, ends_out):
     """One RK4 pass of the reduced model of §4.2.2–4.2.3 (Eq. 4.17) base → tip.
 
@@ -207,7 +207,7 @@ def _reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stret
 
 
 @njit
-def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
+def reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
                       n_angles, tip_shear_weight, moment_scale, force_scale, ends, res):
     """Boundary residuals of the reduced model for unknowns z = (m0, n1_start[0..ns−1]).
 
@@ -217,7 +217,7 @@ def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weigh
     scaled by ``moment_scale``. Residuals are in rad.
     """
     ns = sec_len.shape[0]
-    m_tip, n1_tip = _reduced_planar(theta0, z[0], z[1:], sec_len, sec_steps, c_i, u_rest, stretch,
+    m_tip, n1_tip = reduced_planar(theta0, z[0], z[1:], sec_len, sec_steps, c_i, u_rest, stretch,
                                     weight, False, ends[:, 0], ends, ends, ends)
     for i in range(n_angles):
         res[i] = ends[i, 2] - theta_target[i]
@@ -227,7 +227,7 @@ def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weigh
 
 
 @njit
-def _load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
+def load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
                        v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
     """Integrate the spatial equilibrium equations base → tip from a measured 6-axis wrench.
 
@@ -327,7 +327,7 @@ def _reduced_rhs_spatial(y, dy, ci, cj, u1r, u2r, v, q):
 
 
 @njit
-def _reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch,
+def reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch,
                      q, record, work, s_out, pos_out, tan_out, ends_out, frames_out, curv_out):
     """One RK4 pass of the spatial reduced model base → tip (see :func:`_reduced_rhs_spatial`).
 
@@ -398,14 +398,14 @@ their end axes d3 in measured frames (IMUs)."""
 
 
 @njit
-def _reduced_spatial_residual(z, model, data, out):
+def reduced_spatial_residual(z, model, data, out):
     """Boundary residual (2·ns + 3,) of the spatial reduced model at unknowns ``z`` (3 + 2·ns:
     m0, then (n1, n2) per section start), in rad: the misfit to the data per section, then
     m(L) over the moment scale.
 
     Args:
         model: (rot0, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch, q, work, s, pos,
-            tan, ends, frames, curv, moment_scale) as :func:`_reduced_spatial` takes them.
+            tan, ends, frames, curv, moment_scale) as :func:`reduced_spatial` takes them.
         data: (kind, target_curv (ns, 2), target_frames (ns, 3, 3)): ``CABLE_DATA`` matches
             ∫u1, ∫u2; ``IMU_DATA`` the two angles of each estimated end axis d3 off the
             measured frame's (atan2, so a reversed axis is no root).
@@ -414,7 +414,7 @@ def _reduced_spatial_residual(z, model, data, out):
      frames, curv, moment_scale) = model
     kind, target_curv, target_frames = data
     ns = sec_len.shape[0]
-    _reduced_spatial(rot0, z[:3], z[3:].reshape((ns, 2)), sec_len, sec_steps, c_i, c_j, u1_rest,
+    reduced_spatial(rot0, z[:3], z[3:].reshape((ns, 2)), sec_len, sec_steps, c_i, c_j, u1_rest,
                      u2_rest, stretch, q, False, work, s, pos, tan, ends, frames, curv)
     for i in range(ns):
         if kind == CABLE_DATA:
@@ -433,9 +433,9 @@ def _reduced_spatial_residual(z, model, data, out):
 
 
 @njit
-def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, data, jac, jac_ok):
+def reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, data, jac, jac_ok):
     """:func:`softarm_gym.sensing.estimators.damped_newton` on
-    :func:`_reduced_spatial_residual`, compiled (the spatial reduced model's Python Newton
+    :func:`reduced_spatial_residual`, compiled (the spatial reduced model's Python Newton
     spent most of an estimate in calls): forward-difference Jacobian, steps clipped to
     ``max_step`` units of ``unknown_scale`` then halved until the residual's 2-norm falls.
 
@@ -454,7 +454,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
     trial = np.empty(n)
     probe = np.empty(n)
     start = np.empty(n)
-    _reduced_spatial_residual(z, model, data, res)
+    reduced_spatial_residual(z, model, data, res)
     merit = 0.0
     for k in range(n):
         merit += res[k] * res[k]
@@ -474,7 +474,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
                 h = 1e-6 * unknown_scale[j]
                 keep = z[j]
                 z[j] = keep + h
-                _reduced_spatial_residual(z, model, data, probe)
+                reduced_spatial_residual(z, model, data, probe)
                 for k in range(n):
                     jac[k, j] = (probe[k] - res[k]) / h
                 z[j] = keep
@@ -501,7 +501,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
         for _ in range(21):
             for k in range(n):
                 z[k] = start[k] + scale * step[k]
-            _reduced_spatial_residual(z, model, data, trial)
+            reduced_spatial_residual(z, model, data, trial)
             trial_merit = 0.0
             for k in range(n):
                 trial_merit += trial[k] * trial[k]
@@ -549,7 +549,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
 
 
 @njit
-def _planar_shape(s, pos, theta, strain, ends, s_query, backbone, section_ends, tangent):
+def planar_shape(s, pos, theta, strain, ends, s_query, backbone, section_ends, tangent):
     """The ``true`` shape of a recorded planar equilibrium in one pass.
 
     Tangent dr/ds = v3 d3 + v1 d1 at every sample (``strain`` columns v1, v3), section-end
