@@ -2,7 +2,7 @@
 
 Prints, for ``solver/``: files and lines, the import graph's depth ("floors": modules on the
 longest chain of intra-solver imports, the importing module included), its imports (one per
-imported solver module per importing module), the largest modules and functions; and, for the
+imported solver module per importing module; ``solver/__init__.py`` left out of both), the largest modules and functions; and, for the
 whole project (``solver``, ``softarm_gym``, ``baselines``, ``tests``), the underscored names
 imported from another module, with the files that import them. The architecture tests
 (``tests/test_architecture.py``) parse imports the same way, with :func:`imports_of`.
@@ -53,13 +53,10 @@ def python_files(root: Path, packages=PACKAGES) -> list[Path]:
                   if "__pycache__" not in p.parts)
 
 
-def is_module(name: str, modules: set[str]) -> bool:
-    return name in modules
-
-
 def solver_graph(root: Path) -> dict[str, set[str]]:
-    """Intra-solver import graph: module -> the solver modules it imports."""
-    files = python_files(root, ("solver",))
+    """Intra-solver import graph: module -> the solver modules it imports. The package's
+    ``__init__`` (the lobby that re-exports the public API) is left out."""
+    files = [p for p in python_files(root, ("solver",)) if p != root / "solver" / "__init__.py"]
     modules = {module_name(p, root) for p in files}
     graph = {}
     for path in files:
@@ -71,6 +68,7 @@ def solver_graph(root: Path) -> dict[str, set[str]]:
                 edges.add(module)
         here = module_name(path, root)
         edges.discard(here)
+        edges.discard("solver")
         graph[here] = edges
     return graph
 
@@ -102,17 +100,39 @@ def functions(path: Path) -> list[tuple[int, str]]:
 
 
 def private_imports(root: Path, packages=PACKAGES) -> list[tuple[str, int, str, str]]:
-    """``(file, line, module, name)`` of every underscored name imported from another module of
-    the project (``from solver.solve import _check``), and of every import of an underscored
-    project module (``from solver import _planar``). Dunders (``__version__``) are public."""
+    """``(file, line, module, name)`` of every underscored name one module of the project takes
+    from another: imported (``from solver.solve import _check``), an underscored module
+    imported (``from solver import _planar``), or read off an imported module
+    (``planar_kernels._follow``). Dunders (``__version__``) are public."""
     out = []
-    for path in python_files(root, packages):
+    files = python_files(root, packages)
+    modules = {module_name(p, root) for p in files}
+
+    def private(name: str) -> bool:
+        return name.startswith("_") and not name.startswith("__")
+
+    for path in files:
+        aliases = {}
         for module, name, line in imports_of(path, root):
             if module.split(".")[0] not in PACKAGES:
                 continue
             names = [*module.split(".")[1:], *([name] if name else [])]
-            if any(n.startswith("_") and not n.startswith("__") for n in names):
+            if any(private(n) for n in names):
                 out.append((str(path.relative_to(root)), line, module, name or ""))
+            elif name and f"{module}.{name}" in modules:
+                aliases[name] = f"{module}.{name}"
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):  # ``import a.b as c`` and ``from a import b as c``
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                for a in node.names:
+                    full = a.name if isinstance(node, ast.Import) else f"{node.module}.{a.name}"
+                    if a.asname and full in modules:
+                        aliases[a.asname] = full
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
+                    and node.value.id in aliases and private(node.attr):
+                out.append((str(path.relative_to(root)), node.lineno, aliases[node.value.id],
+                            node.attr))
     return out
 
 
@@ -123,7 +143,7 @@ def report(root: Path) -> str:
     funcs = sorted(((n, f"{p.relative_to(root)}:{q}") for p in files for n, q in functions(p)),
                    reverse=True)
     private = private_imports(root)
-    rows = [f"solver/: {len(files)} files, {sum(lines.values())} lines, "
+    rows = [f"solver/: {len(files)} files, {sum(lines.values())} lines; without __init__.py: "
             f"{floors(graph)} floors, {sum(len(e) for e in graph.values())} imports",
             "largest modules: " + ", ".join(f"{p.relative_to(root / 'solver')} {n}" for p, n in
                                              sorted(lines.items(), key=lambda kv: -kv[1])[:5]),

@@ -58,6 +58,9 @@ from solver.layout import (
     C_V3,
     C_X,
     C_Y,
+    CA,
+    CG,
+    CI,
     DT0,
     DT_MIN,
     G_SECF,
@@ -70,6 +73,7 @@ from solver.layout import (
     L_PLATE,
     L_Q,
     L_TARGET,
+    LEN,
     MAX_ITER,
     MAX_STEP,
     N_BOUNDS,
@@ -292,10 +296,10 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
     i = segs[seg, SEG_SECTION]
     first = segs[seg, SEG_FIRST]
     nst = segs[seg, SEG_STEPS]
-    h = secf[0, i] / steps[i]
-    ca = secf[1, i]
-    cg = secf[2, i]
-    ci = secf[3, i]
+    h = secf[LEN, i] / steps[i]
+    ca = secf[CA, i]
+    cg = secf[CG, i]
+    ci = secf[CI, i]
     ur = rest[REST_U2, i]
     vr = rest[REST_V3, i]
     qx = q[i, 0]
@@ -382,7 +386,7 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
     if segs[seg, SEG_END] == 1:
         if record:
             row = segs[seg, SEG_ROW0] + steps[i]
-            _write_row(st, sec_start[i] + secf[0, i], out, row, ca, cg, ci, ur, vr, discs)
+            _write_row(st, sec_start[i] + secf[LEN, i], out, row, ca, cg, ci, ur, vr, discs)
             if own:
                 _self_row(loads, segs, seg, nst, out, row)
         if i < secf.shape[1] - 1:

@@ -310,9 +310,15 @@ def follow(state, grid, tubes, a, b, params, work, guard):
         (converged, stable, snapped, iterations, residual, t, dt): t is 1 when converged
         (NaN otherwise: the planar path does not report how far it got), dt 0.
     """
+    theta0, secf, steps = grid
+    tubes_i, tubes_f = tubes
+    p_a, loads_a, mtip_a = a
+    p_b, loads_b, mtip_b = b
+    rest, p_now, loads_now, out, record = work
+    c_j_3d, discs = guard
     m0, ok, total, snapped, stable, res, x, y, th = _path(
-        state[0], grid[0], grid[1], grid[2], tubes[0], tubes[1], a[0], b[0], a[1], b[1], a[2],
-        b[2], params, work[0], work[1], work[2], work[3], work[4], guard[0], guard[1])
+        state[0], theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+        mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs)
     state[0] = m0
     state[1] = x
     state[2] = y
@@ -679,7 +685,7 @@ def _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, reco
     (not converged, too, where the grid does not resolve the state: the caller's general path
     refines it)."""
     rest, p_now, loads_now = work
-    secf, steps = grid[1], grid[2]
+    _, secf, steps = grid
     out = records[k] if record else np.empty(((steps + 1).sum(), N_COLUMNS))
     ok, stable, snapped, its, res, _, _ = follow(
         states[k], grid, tubes, (p_zero, loads, mtip), (p[k], loads, mtip), params,

@@ -153,9 +153,14 @@ def follow(state, grid, tubes, a, b, params, work, guard):
         (converged, stable, snapped, iterations, residual, t, dt) (t: 1 when converged, else
         NaN; dt 0), as :func:`solver.kernels.planar.follow`; the residual is the returned state's.
     """
+    quat0, secf, steps, c_j = grid
+    tubes_i, tubes_f = tubes
+    p_a, loads_a, mtip_a = a
+    p_b, loads_b, mtip_b = b
+    rest, p_now, loads_now, m_tip, rec, record = work
     ok, total, stable, res, snapped = _path(
-        state, grid[0], grid[1], grid[2], grid[3], tubes[0], tubes[1], a[0], b[0], a[1], b[1],
-        a[2], b[2], params, work[0], work[1], work[2], work[3], work[4], work[5])
+        state, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+        mtip_b, params, rest, p_now, loads_now, m_tip, rec, record)
     return ok, stable, snapped, total, res, 1.0 if ok else math.nan, 0.0
 
 

@@ -35,6 +35,9 @@ from solver.kernels.contact import NEAR_SUBSTEPS, TUNNEL_SLACK, set_level, weigh
 from solver.kernels.obstacles import clearance_3d, contact_force_3d, tunnels_3d
 from solver.kernels.spatial_shooting import banded_solve, rotate_node, rotation_gap
 from solver.layout import (
+    CA,
+    CG,
+    CI,
     CS_M,
     CS_N,
     CS_Q,
@@ -53,6 +56,7 @@ from solver.layout import (
     L_PLATE,
     L_Q,
     L_TARGET,
+    LEN,
     N_CSTATE,
     N_CTANGENT,
     REST_U1,
@@ -138,10 +142,10 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec):
     obstacles = level[L_DISCS]
     i = segs[seg, SEG_SECTION]
     first = segs[seg, SEG_FIRST]
-    h = secf[0, i] / steps[i]
-    ca = secf[1, i]
-    cg = secf[2, i]
-    ci = secf[3, i]
+    h = secf[LEN, i] / steps[i]
+    ca = secf[CA, i]
+    cg = secf[CG, i]
+    ci = secf[CI, i]
     cj = grid[GS_CJ][i]
     u1r = rest[REST_U1, i]
     u2r = rest[REST_U2, i]
@@ -181,7 +185,7 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec):
             out[d] /= norm
     if segs[seg, SEG_END] == 1:
         if record:
-            _record_row(out, s0 + secf[0, i], rec, segs[seg, SEG_ROW0] + steps[i], ca, cg, ci, cj,
+            _record_row(out, s0 + secf[LEN, i], rec, segs[seg, SEG_ROW0] + steps[i], ca, cg, ci, cj,
                         u1r, u2r, v3r, obstacles)
         if i < secf.shape[1] - 1:
             for d in range(3):

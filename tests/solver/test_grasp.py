@@ -141,8 +141,9 @@ def test_not_held_has_zero_margin():
 def test_moving_disc_ramp_ends_where_a_plain_warm_solve_does():
     """A disc moved a millimetre against the curled arm: the ramped path (``moving``) and the
     plain warm solve (the disc jumps, Newton corrects) reach the same equilibrium."""
-    from solver.inputs import request
+    from solver.inputs import checked_pressures
     from solver.paths.dispatch import dispatch
+    from solver.problem import Problem, pack
     from solver.settings import DEFAULT_SETTINGS
 
     disc = solver.Disc(center=(-0.16, -0.25), radius=0.1, stiffness=STIFFNESS)
@@ -150,7 +151,9 @@ def test_moving_disc_ramp_ends_where_a_plain_warm_solve_does():
     eq = solver.solve(ARM, p, solver.Scene(obstacles=(disc,)))
     assert eq.converged and eq.in_contact
     moved = solver.Scene(obstacles=(replace(disc, center=(-0.159, -0.249)),))
-    problem = request(ARM, p, moved, "full", True, eq, DEFAULT_SETTINGS)
+    packed = pack(ARM, "full", DEFAULT_SETTINGS)
+    p_inputs, p_channel = checked_pressures(ARM, p, True, packed)
+    problem = Problem(ARM, packed, moved, "full", True, DEFAULT_SETTINGS, p_inputs, p_channel, eq)
     ramped = dispatch(problem, True, moving=True)
     jumped = dispatch(problem, True)
     assert ramped.converged and jumped.converged
