@@ -35,12 +35,19 @@ from solver.inputs import (
     explain_bad_pressures,
 )
 from solver.kernels import planar as planar_kernels
+from solver.paths.contact import free_contact_result
 from solver.paths.dispatch import dispatch
+from solver.paths.lean_contact import LeanContact, lean_contact_reason
 from solver.paths.planar import loaded_base_moment, not_lean, single_result
 from solver.problem import Problem, pack
 from solver.results import Equilibrium
-from solver.rod import forget_first_variations, planar_rest_gradient, rest_strains_into
-from solver.scene import Scene
+from solver.rod import (
+    forget_first_variations,
+    integrate_planar,
+    planar_rest_gradient,
+    rest_strains_into,
+)
+from solver.scene import Scene, self_contact_exclusion
 from solver.settings import DEFAULT_SETTINGS, Settings
 
 __all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy"]
@@ -70,9 +77,10 @@ def _record_equilibrium(record, flags, m0, pressures, channel_pressures,
     converged, stable, snapped, iterations, residual = flags
     at = problem.with_inputs(np.array(pressures, dtype=float),
                              np.array(channel_pressures, dtype=float))
-    return single_result(at, record.copy(), m0,
-                         converged=bool(converged), stable=bool(stable), iterations=int(iterations),
-                         residual=float(residual), snapped=bool(snapped))
+    eq = single_result(at, record.copy(), m0,
+                       converged=bool(converged), stable=bool(stable), iterations=int(iterations),
+                       residual=float(residual), snapped=bool(snapped))
+    return free_contact_result(eq, problem.scene) if problem.scene.has_contact else eq
 
 
 def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
@@ -88,6 +96,18 @@ def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
     forget_first_variations(rec)  # as a record Newton returns
     rest_strains_into(eq.channel_pressures, packed.tubes_i, packed.tubes_f, packed.secf, rest)
     planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
+
+
+def _guard_arrays(arm: ArmDesign, scene: Scene, packed) -> tuple:
+    """The guard of the lean planar kernel's contact-free steps in ``scene``
+    (:func:`solver.kernels.planar.warm_step`): its discs (k, 4), and with self-contact each
+    recorded sample's half-thickness (rows,) and the exclusion length (m); empty without."""
+    if scene.self_contact is None:
+        return scene.discs_array(), np.empty(0), 0.0
+    half = np.array(arm.half_thickness())
+    section = np.minimum(np.searchsorted(np.asarray(packed.section_ends), np.arange(packed.n_rows)),
+                         half.size - 1)
+    return scene.discs_array(), half[section], self_contact_exclusion(half)
 
 
 class Stepper:
@@ -108,11 +128,16 @@ class Stepper:
     Attributes:
         tip: (2|3,) tip position of the current equilibrium (m); read-only view.
         pressures: (n_inputs,) its input pressures (Pa), ``channel_pressures`` per channel.
-        record: planar lean path: (N, ``layout.N_COLUMNS``) its backbone record (columns
-            ``layout.S`` … ``layout.U``; read-only, replaced at every converged step), else
-            None.
+        record: the current state's backbone record where a lean path holds it, else None:
+            (N, ``layout.N_COLUMNS``) on the lean planar path, (N, ``layout.C_COLUMNS``) on
+            the lean contact path; either way columns ``layout.S`` … ``layout.U`` are the
+            samples' s, x, y, θ, m, n, v and u (read-only, replaced at every converged step).
         section_ends: the record's rows at the section ends.
         lean: whether steps take the lean planar path.
+        lean_contact: whether steps in contact take the lean contact path
+            (:mod:`solver.paths.lean_contact`; planar penalty contact).
+        last_path: which path took the last step or reset: ``"lean"`` (the lean planar
+            kernel), ``"lean contact"`` or ``"general"`` (:func:`solver.solve`'s paths).
     """
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, *, model: str = "full",
@@ -126,11 +151,18 @@ class Stepper:
         self._problem = problem = Problem(arm, packed, scene, model, planar, settings,
                                           np.zeros(self.n_inputs), np.zeros(arm.n_channels))
         ctx = problem.ctx
-        self.lean = not_lean(problem) is None
-        self.section_ends = packed.section_ends
+        self._contact = LeanContact(problem) if lean_contact_reason(problem) is None else None
+        self.lean_contact = self._contact is not None
+        # With contact the lean path takes the steps that touch nothing, guarded as the
+        # general path's contact-free shortcut is (solver.paths.contact.solve_contact).
+        free = problem.in_scene(scene.without_contact) if self.lean_contact else problem
+        self.lean = not_lean(free) is None
+        self._section_ends = packed.section_ends
         self._p_max = arm.max_pressure * (1 + 1e-12)
         self._eq = None
         self.record = None
+        self._free = None  # the lean planar path's record of the current state, if it has one
+        self.last_path = "general"
         self.tip = np.zeros(2 if planar else 3)
         self.tip.flags.writeable = False
         self.pressures = np.zeros(self.n_inputs)
@@ -152,15 +184,26 @@ class Stepper:
                       np.full((2, ns), np.nan))
         self._p_new = np.empty(arm.n_channels)
         self._target = (self._p_new, ctx.loads, ctx.m_tip)  # the kernel's goal levels
+        self._guard = _guard_arrays(arm, scene, packed)
         self._bind_tips()
         self._flags = (True, True, False, 0, 0.0)  # of the current equilibrium
 
     # ------------------------------------------------------------------ state
 
     @property
+    def section_ends(self) -> tuple:
+        """The rows of :attr:`record` (or of the settings' grid) at the section ends."""
+        if self._contact is not None and self._contact.ready:
+            return self._contact.section_ends
+        return self._section_ends
+
+    @property
     def equilibrium(self) -> Equilibrium:
         """The current equilibrium (built on first access after a step; its arrays are
         copies, unaffected by later steps)."""
+        if self._eq is None and self._contact is not None and self._contact.ready:
+            self._eq = self._contact.equilibrium(
+                self._problem.with_inputs(self.pressures.copy(), self.channel_pressures.copy()))
         if self._eq is None and self.record is not None:
             self._eq = _record_equilibrium(self.record, self._flags, self._state[0], self.pressures,
                                            self.channel_pressures, self._problem)
@@ -180,6 +223,7 @@ class Stepper:
         if warm_start is not None:
             check_warm_start(warm_start, self.arm, self.scene, self.model, self.planar)
         eq = dispatch(self._problem.with_inputs(p_inputs, p_channel, warm_start), True)
+        self.last_path = "general"
         self._adopt(eq)
         return StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
 
@@ -194,7 +238,13 @@ class Stepper:
         """
         if self._eq is None and self.record is None:
             raise RuntimeError("call reset() before step()")
-        if not self.lean:
+        contact = self._contact
+        # The order of the general path (solver.paths.contact.solve_contact): from a state
+        # in contact, contact; from one that touches nothing, the contact-free step, guarded,
+        # and contact where that would touch.
+        if contact is not None and contact.ready and contact.in_contact:
+            return self._step_contact(pressures)
+        if not self.lean or self._free is None:
             return self._step_general(pressures)
         p = np.asarray(pressures, dtype=float)
         if p.shape != (self.n_inputs,) or not channels_of(p, self._index, self._p_max, self._p_new):
@@ -203,25 +253,55 @@ class Stepper:
         ctx = self._ctx
         work = self._works[self._spare]
         m_start = self._state[0]
+        discs, half, exclusion = self._guard
         ok, stable, snapped, its, res, _, _ = planar_kernels.warm_step(
             self._state, self._grid, self._tubes, (self.channel_pressures, ctx.loads, ctx.m_tip),
-            self._target, ctx.params, work, self._memo)
+            self._target, ctx.params, work, self._memo, (discs, self._free, half, exclusion))
         if not ok:
-            # The lean path failed (rare: see softarm stress); the general one has fallbacks
-            # (multiple shooting) the single-shooting kernel does not.
+            # The lean path failed (rare without contact: see softarm stress), or would touch:
+            # the general one has the fallbacks (multiple shooting, contact) the
+            # single-shooting kernel does not.
             self._state[0] = m_start
-            report = self._step_general(p)
+            report = self._step_contact(p) if contact is not None and contact.ready \
+                else self._step_general(p)
             return report._replace(iterations=report.iterations + int(its))
-        self.record = work[3]
+        self.last_path = "lean"
+        self.record = self._free = work[3]
         self._spare ^= 1
         self.pressures = p.copy()
         self.channel_pressures = self._p_new.copy()
         self.tip = self._tips[self._spare ^ 1]
         self._flags = report = StepReport(True, stable, snapped, its, res)
         self._eq = None
+        if contact is not None:
+            contact.ready = False  # its state is the one before this step
         return report
 
+    def _step_contact(self, pressures) -> StepReport:
+        """A step from a state on the contact layout: the lean contact path, or where it
+        cannot take the step, the general path from the same state."""
+        p_inputs, p_channel = checked_pressures(self.arm, pressures, True, self._packed)
+        contact = self._contact
+        ok, stable, its, res = contact.step(p_channel)
+        if not ok:
+            report = self._step_general(p_inputs)
+            return report._replace(iterations=report.iterations + its)
+        self.last_path = "lean contact"
+        self.pressures = p_inputs
+        self.channel_pressures = p_channel
+        self._flags = (True, stable, False, its, res)
+        self._eq = None
+        self.record = contact.record
+        self.tip = self.record[-1, L.C_X:L.C_Y + 1]
+        self._free = None
+        if not contact.in_contact and self.lean:
+            # Off every disc and itself: as the general path does from such a state, the
+            # next step is first tried contact-free (a free record of this state for it).
+            self._write_free(self.equilibrium)
+        return StepReport(True, stable, False, its, res)
+
     def _step_general(self, pressures) -> StepReport:
+        self.last_path = "general"
         p_inputs, p_channel = checked_pressures(self.arm, pressures, self.planar, self._packed)
         eq = dispatch(self._problem.with_inputs(p_inputs, p_channel, self.equilibrium), True)
         report = StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
@@ -249,11 +329,31 @@ class Stepper:
         self.channel_pressures = eq.channel_pressures.copy()
         self.tip = eq.tip.copy()
         self.tip.flags.writeable = False
-        if not self.lean:
-            return
+        self.record = self._free = None
+        if self._contact is not None and self._contact.adopt(eq):
+            self.record = self._contact.record
+            if eq.in_contact:
+                return
+        if self.lean:
+            self._write_free(eq)
+
+    def _write_free(self, eq: Equilibrium) -> None:
+        """Make the record of ``eq`` the lean planar path's start: its own, or for a state on
+        a finer (contact) layout the backbone of its base moment on the settings' grid, where
+        the general path's contact-free step starts it too."""
         rec = self._buffers[self._spare]
-        _write_record(eq, self._packed, rec, self._memo[2], self._memo[3])
-        self.record = rec
+        if eq.s.size == self._packed.n_rows:
+            _write_record(eq, self._packed, rec, self._memo[2], self._memo[3])
+        else:
+            packed, rest, grad = self._packed, self._memo[2], self._memo[3]
+            rest_strains_into(eq.channel_pressures, packed.tubes_i, packed.tubes_f, packed.secf, rest)
+            integrate_planar(float(eq.base_moment[-1]), self.scene.base_theta, packed.secf,
+                             packed.sec_steps, rest, self._ctx.loads, True, rec)
+            forget_first_variations(rec)
+            planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
+        self._free = rec
+        if self.record is None:  # (a contact state's own record stays its record)
+            self.record = rec
         self._spare ^= 1
         self._state[0] = eq.base_moment[-1]
         self._flags = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
@@ -270,8 +370,11 @@ class Stepper:
         if self.lean:
             self._target = (self._p_new, self._ctx.loads, self._ctx.m_tip)
             self._bind_tips()
-            if self.record is not None:
-                self.tip = self._tips[next(k for k, b in enumerate(self._buffers) if b is self.record)]
+            if self._free is not None and self.record is self._free:
+                self.tip = self._tips[next(k for k, b in enumerate(self._buffers) if b is self._free)]
+        if self._contact is not None and self._contact.ready and self.record is not self._free:
+            self.record = self._contact.record  # (a pickle copies views apart)
+            self.tip = self.record[-1, L.C_X:L.C_Y + 1]
 
     def with_scene(self, scene: Scene) -> Stepper:
         """A stepper of the same arm, model, mode and settings in another scene."""
@@ -279,7 +382,7 @@ class Stepper:
 
     def __repr__(self) -> str:
         return (f"Stepper({self.arm.name!r}, {self.scene}, model={self.model!r}, "
-                f"planar={self.planar}, lean={self.lean})")
+                f"planar={self.planar}, lean={self.lean}, lean_contact={self.lean_contact})")
 
 
 class ThreadPolicy:
@@ -439,6 +542,7 @@ class BatchStepper:
         self._memo = (np.full((n, n_tubes), np.nan), np.empty((n, n_tubes)), np.empty((n, 3, ns)),
                       np.full((n, 2, ns), np.nan))
         self._ready = np.zeros(n, dtype=bool)
+        self._no_guard = (np.empty((n, 0, 4)), np.empty(0), 0.0)
         # Cold solves and warm steps cost very different times per row: one policy each.
         self.thread_policies = {"cold": ThreadPolicy(self.PARALLEL_MIN),
                                 "step": ThreadPolicy(self.PARALLEL_MIN)}
@@ -591,7 +695,8 @@ class BatchStepper:
         self.thread_policies["step"].run(
             planar_kernels.step_rows_parallel, planar_kernels.step_rows_serial, int(active.sum()), self._grid,
             self._tubes, self.channel_pressures, channel, self._ctx.loads, self._ctx.m_tip,
-            self._ctx.params, self._work, self._states, self.records, self._memo, active, report)
+            self._ctx.params, self._work, self._states, self.records, self._memo, self._no_guard,
+            active, report)
         ok = report[:, 0] != 0
         for k in np.flatnonzero(~ok):
             # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.

@@ -105,11 +105,11 @@ def solve_contact(problem: Problem, moving: bool = False) -> Equilibrium:
                   > reach(arm, packed, scene)):
             free = solve_planar(problem.in_scene(free_scene, warm_start))
             if clear_of_itself(arm, scene, free):
-                return _free_contact_result(free, scene)
+                return free_contact_result(free, scene)
         elif not moving and (warm_start is None or not warm_start.in_contact):
             free = solve_single(problem.in_scene(free_scene, warm_start), guard_discs=discs)
             if free.converged and free.stable and clear_of_itself(arm, scene, free):
-                return _free_contact_result(free, scene)
+                return free_contact_result(free, scene)
     return solve_shooting(problem, contact_layout(arm, packed, scene), load_moments=False,
                           moving=moving)
 
@@ -130,7 +130,7 @@ def clear_of_itself(arm, scene, eq) -> bool:
     return bool(gap > float(np.max(np.diff(eq.s))))
 
 
-def _free_contact_result(eq, scene):
+def free_contact_result(eq, scene):
     """A contact-free equilibrium as the result of a solve in ``scene`` (zero contact)."""
     n = eq.positions.shape[0]
     return replace(eq, scene=scene, contact_force=np.zeros((n, 2)), penetration=np.zeros(n))

@@ -385,9 +385,16 @@ def _shooting_result(nodes, scene, grid, layout, level, **fields):
     """The Equilibrium of a multiple-shooting state ``nodes`` at ``level`` (a level tuple,
     ``L_*``; ``grid`` its layout tuple): the backbone integrated from the nodes, with the
     contact fields if the scene has obstacles or self-contact."""
-    contact = scene.has_contact
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
     contact_kernels.record_backbone(nodes, grid, _level_rest(layout, level), level, out)
+    return shooting_equilibrium(out, nodes, scene, layout, **fields)
+
+
+def shooting_equilibrium(out, nodes, scene, layout, **fields) -> Equilibrium:
+    """The Equilibrium of the multiple-shooting state ``nodes`` on ``layout`` whose backbone
+    ``out`` (rows, C_COLUMNS) records (its arrays copied), with the contact fields if the
+    scene has obstacles or self-contact; ``fields`` the solve's flags and inputs."""
+    contact = scene.has_contact
     common = dict(tip=out[-1, [L.C_X, L.C_Y]].copy(), planar=True, scene=scene,
                   base_moment=np.array([nodes[2]]), base_force=nodes[:2].copy(),
                   shooting_nodes=nodes, in_contact=bool(contact and out[:, L.C_PEN].max() > 0.0),
