@@ -35,19 +35,13 @@ from solver.inputs import (
     explain_bad_pressures,
 )
 from solver.kernels import planar as planar_kernels
-from solver.paths.contact import free_contact_result
 from solver.paths.dispatch import dispatch
-from solver.paths.lean_contact import LeanContact, lean_contact_reason
+from solver.paths.lean_contact import PATHS, ContactRows, lean_contact_reason
 from solver.paths.planar import loaded_base_moment, not_lean, single_result
 from solver.problem import Problem, pack
 from solver.results import Equilibrium
-from solver.rod import (
-    forget_first_variations,
-    integrate_planar,
-    planar_rest_gradient,
-    rest_strains_into,
-)
-from solver.scene import Scene, self_contact_exclusion
+from solver.rod import forget_first_variations, planar_rest_gradient, rest_strains_into
+from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
 
 __all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy"]
@@ -77,10 +71,9 @@ def _record_equilibrium(record, flags, m0, pressures, channel_pressures,
     converged, stable, snapped, iterations, residual = flags
     at = problem.with_inputs(np.array(pressures, dtype=float),
                              np.array(channel_pressures, dtype=float))
-    eq = single_result(at, record.copy(), m0,
-                       converged=bool(converged), stable=bool(stable), iterations=int(iterations),
-                       residual=float(residual), snapped=bool(snapped))
-    return free_contact_result(eq, problem.scene) if problem.scene.has_contact else eq
+    return single_result(at, record.copy(), m0,
+                         converged=bool(converged), stable=bool(stable), iterations=int(iterations),
+                         residual=float(residual), snapped=bool(snapped))
 
 
 def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
@@ -98,16 +91,8 @@ def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
     planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
 
 
-def _guard_arrays(arm: ArmDesign, scene: Scene, packed) -> tuple:
-    """The guard of the lean planar kernel's contact-free steps in ``scene``
-    (:func:`solver.kernels.planar.warm_step`): its discs (k, 4), and with self-contact each
-    recorded sample's half-thickness (rows,) and the exclusion length (m); empty without."""
-    if scene.self_contact is None:
-        return scene.discs_array(), np.empty(0), 0.0
-    half = np.array(arm.half_thickness())
-    section = np.minimum(np.searchsorted(np.asarray(packed.section_ends), np.arange(packed.n_rows)),
-                         half.size - 1)
-    return scene.discs_array(), half[section], self_contact_exclusion(half)
+_ONE = np.ones(1, dtype=bool)  # the active mask of a stepper's one copy
+_NO_GUARD = (np.empty((0, 4)), np.empty((1, L.N_COLUMNS)), np.empty(0), 0.0)  # no contact
 
 
 class Stepper:
@@ -128,16 +113,17 @@ class Stepper:
     Attributes:
         tip: (2|3,) tip position of the current equilibrium (m); read-only view.
         pressures: (n_inputs,) its input pressures (Pa), ``channel_pressures`` per channel.
-        record: the current state's backbone record where a lean path holds it, else None:
-            (N, ``layout.N_COLUMNS``) on the lean planar path, (N, ``layout.C_COLUMNS``) on
-            the lean contact path; either way columns ``layout.S`` … ``layout.U`` are the
-            samples' s, x, y, θ, m, n, v and u (read-only, replaced at every converged step).
+        record: the current state's backbone record where a lean path keeps one, else None:
+            (N, ``layout.N_COLUMNS``) on the settings' grid, (N, ``layout.C_COLUMNS``) on the
+            contact layout; either way columns ``layout.S`` … ``layout.U`` are the samples'
+            s, x, y, θ, m, n, v and u (read-only, replaced at every converged step).
         section_ends: the record's rows at the section ends.
-        lean: whether steps take the lean planar path.
+        lean: whether steps take the lean planar path (in a scene with contact, the steps
+            that touch nothing).
         lean_contact: whether steps in contact take the lean contact path
-            (:mod:`solver.paths.lean_contact`; planar penalty contact).
-        last_path: which path took the last step or reset: ``"lean"`` (the lean planar
-            kernel), ``"lean contact"`` or ``"general"`` (:func:`solver.solve`'s paths).
+            (:mod:`solver.paths.lean_contact`: planar penalty contact).
+        last_path: the path of the last step or reset: ``"lean"`` (the lean planar kernel),
+            ``"lean contact"`` or ``"general"`` (:func:`solver.solve`'s paths).
     """
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, *, model: str = "full",
@@ -151,23 +137,21 @@ class Stepper:
         self._problem = problem = Problem(arm, packed, scene, model, planar, settings,
                                           np.zeros(self.n_inputs), np.zeros(arm.n_channels))
         ctx = problem.ctx
-        self._contact = LeanContact(problem) if lean_contact_reason(problem) is None else None
-        self.lean_contact = self._contact is not None
-        # With contact the lean path takes the steps that touch nothing, guarded as the
-        # general path's contact-free shortcut is (solver.paths.contact.solve_contact).
-        free = problem.in_scene(scene.without_contact) if self.lean_contact else problem
-        self.lean = not_lean(free) is None
+        # With contact, one copy of the batch machinery (the same kernels as BatchStepper).
+        self._rows = ContactRows(problem, 1, len(scene.obstacles)) \
+            if lean_contact_reason(problem) is None else None
+        self.lean_contact = self._rows is not None
+        self.lean = self.lean_contact or not_lean(problem) is None
         self._section_ends = packed.section_ends
         self._p_max = arm.max_pressure * (1 + 1e-12)
         self._eq = None
         self.record = None
-        self._free = None  # the lean planar path's record of the current state, if it has one
         self.last_path = "general"
         self.tip = np.zeros(2 if planar else 3)
         self.tip.flags.writeable = False
         self.pressures = np.zeros(self.n_inputs)
         self.channel_pressures = np.zeros(arm.n_channels)
-        if not self.lean:
+        if not self.lean or self.lean_contact:
             return
         ns = len(arm.sections)
         n_tubes = packed.tubes_i.shape[0]
@@ -184,7 +168,6 @@ class Stepper:
                       np.full((2, ns), np.nan))
         self._p_new = np.empty(arm.n_channels)
         self._target = (self._p_new, ctx.loads, ctx.m_tip)  # the kernel's goal levels
-        self._guard = _guard_arrays(arm, scene, packed)
         self._bind_tips()
         self._flags = (True, True, False, 0, 0.0)  # of the current equilibrium
 
@@ -192,18 +175,18 @@ class Stepper:
 
     @property
     def section_ends(self) -> tuple:
-        """The rows of :attr:`record` (or of the settings' grid) at the section ends."""
-        if self._contact is not None and self._contact.ready:
-            return self._contact.section_ends
+        """The rows of :attr:`record` at the section ends (of the settings' grid where there
+        is no record)."""
+        if self._rows is not None and self._rows.on_contact_layout(0):
+            return self._rows.contact_section_ends
         return self._section_ends
 
     @property
     def equilibrium(self) -> Equilibrium:
         """The current equilibrium (built on first access after a step; its arrays are
         copies, unaffected by later steps)."""
-        if self._eq is None and self._contact is not None and self._contact.ready:
-            self._eq = self._contact.equilibrium(
-                self._problem.with_inputs(self.pressures.copy(), self.channel_pressures.copy()))
+        if self._eq is None and self._rows is not None and self.record is not None:
+            self._eq = self._rows.equilibrium(0, self.pressures, self.channel_pressures)
         if self._eq is None and self.record is not None:
             self._eq = _record_equilibrium(self.record, self._flags, self._state[0], self.pressures,
                                            self.channel_pressures, self._problem)
@@ -238,13 +221,9 @@ class Stepper:
         """
         if self._eq is None and self.record is None:
             raise RuntimeError("call reset() before step()")
-        contact = self._contact
-        # The order of the general path (solver.paths.contact.solve_contact): from a state
-        # in contact, contact; from one that touches nothing, the contact-free step, guarded,
-        # and contact where that would touch.
-        if contact is not None and contact.ready and contact.in_contact:
-            return self._step_contact(pressures)
-        if not self.lean or self._free is None:
+        if self._rows is not None:
+            return self._step_rows(pressures)
+        if not self.lean:
             return self._step_general(pressures)
         p = np.asarray(pressures, dtype=float)
         if p.shape != (self.n_inputs,) or not channels_of(p, self._index, self._p_max, self._p_new):
@@ -253,52 +232,49 @@ class Stepper:
         ctx = self._ctx
         work = self._works[self._spare]
         m_start = self._state[0]
-        discs, half, exclusion = self._guard
         ok, stable, snapped, its, res, _, _ = planar_kernels.warm_step(
             self._state, self._grid, self._tubes, (self.channel_pressures, ctx.loads, ctx.m_tip),
-            self._target, ctx.params, work, self._memo, (discs, self._free, half, exclusion))
+            self._target, ctx.params, work, self._memo, _NO_GUARD)
         if not ok:
-            # The lean path failed (rare without contact: see softarm stress), or would touch:
-            # the general one has the fallbacks (multiple shooting, contact) the
-            # single-shooting kernel does not.
+            # The lean path failed (rare: see softarm stress); the general one has fallbacks
+            # (multiple shooting) the single-shooting kernel does not.
             self._state[0] = m_start
-            report = self._step_contact(p) if contact is not None and contact.ready \
-                else self._step_general(p)
+            report = self._step_general(p)
             return report._replace(iterations=report.iterations + int(its))
         self.last_path = "lean"
-        self.record = self._free = work[3]
+        self.record = work[3]
         self._spare ^= 1
         self.pressures = p.copy()
         self.channel_pressures = self._p_new.copy()
         self.tip = self._tips[self._spare ^ 1]
         self._flags = report = StepReport(True, stable, snapped, its, res)
         self._eq = None
-        if contact is not None:
-            contact.ready = False  # its state is the one before this step
         return report
 
-    def _step_contact(self, pressures) -> StepReport:
-        """A step from a state on the contact layout: the lean contact path, or where it
-        cannot take the step, the general path from the same state."""
+    def _step_rows(self, pressures) -> StepReport:
+        """A step in a scene with contact: the lean paths of :class:`ContactRows` (one copy),
+        or where they cannot take it, the general path from the same state."""
         p_inputs, p_channel = checked_pressures(self.arm, pressures, True, self._packed)
-        contact = self._contact
-        ok, stable, its, res = contact.step(p_channel)
-        if not ok:
-            report = self._step_general(p_inputs)
-            return report._replace(iterations=report.iterations + its)
-        self.last_path = "lean contact"
+        rows = self._rows
+        if not rows.ready(0):
+            return self._step_general(p_inputs)
+        report = rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
+        if not report[0]:
+            general = self._step_general(p_inputs)
+            return general._replace(iterations=general.iterations + int(report[3]))
+        self.last_path = PATHS[int(report[5])]
         self.pressures = p_inputs
         self.channel_pressures = p_channel
-        self._flags = (True, stable, False, its, res)
         self._eq = None
-        self.record = contact.record
-        self.tip = self.record[-1, L.C_X:L.C_Y + 1]
-        self._free = None
-        if not contact.in_contact and self.lean:
-            # Off every disc and itself: as the general path does from such a state, the
-            # next step is first tried contact-free (a free record of this state for it).
-            self._write_free(self.equilibrium)
-        return StepReport(True, stable, False, its, res)
+        self._bind_row_record()
+        return StepReport(True, bool(report[1]), bool(report[2]), int(report[3]), float(report[4]))
+
+    def _bind_row_record(self) -> None:
+        """The record and tip of the one copy of :attr:`_rows` (read-only views)."""
+        record = self._rows.record(0).view()
+        record.flags.writeable = False
+        self.record = record
+        self.tip = record[-1, L.X:L.Y + 1]
 
     def _step_general(self, pressures) -> StepReport:
         self.last_path = "general"
@@ -329,31 +305,17 @@ class Stepper:
         self.channel_pressures = eq.channel_pressures.copy()
         self.tip = eq.tip.copy()
         self.tip.flags.writeable = False
-        self.record = self._free = None
-        if self._contact is not None and self._contact.adopt(eq):
-            self.record = self._contact.record
-            if eq.in_contact:
-                return
-        if self.lean:
-            self._write_free(eq)
-
-    def _write_free(self, eq: Equilibrium) -> None:
-        """Make the record of ``eq`` the lean planar path's start: its own, or for a state on
-        a finer (contact) layout the backbone of its base moment on the settings' grid, where
-        the general path's contact-free step starts it too."""
+        if self._rows is not None:
+            self._rows.adopt(0, eq)
+            self.record = None
+            if self._rows.ready(0):
+                self._bind_row_record()
+            return
+        if not self.lean:
+            return
         rec = self._buffers[self._spare]
-        if eq.s.size == self._packed.n_rows:
-            _write_record(eq, self._packed, rec, self._memo[2], self._memo[3])
-        else:
-            packed, rest, grad = self._packed, self._memo[2], self._memo[3]
-            rest_strains_into(eq.channel_pressures, packed.tubes_i, packed.tubes_f, packed.secf, rest)
-            integrate_planar(float(eq.base_moment[-1]), self.scene.base_theta, packed.secf,
-                             packed.sec_steps, rest, self._ctx.loads, True, rec)
-            forget_first_variations(rec)
-            planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
-        self._free = rec
-        if self.record is None:  # (a contact state's own record stays its record)
-            self.record = rec
+        _write_record(eq, self._packed, rec, self._memo[2], self._memo[3])
+        self.record = rec
         self._spare ^= 1
         self._state[0] = eq.base_moment[-1]
         self._flags = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
@@ -367,14 +329,15 @@ class Stepper:
 
     def __setstate__(self, state):
         self.__dict__.update(state)
+        if self._rows is not None:
+            if self.record is not None:
+                self._bind_row_record()  # (a pickle copies views apart)
+            return
         if self.lean:
             self._target = (self._p_new, self._ctx.loads, self._ctx.m_tip)
             self._bind_tips()
-            if self._free is not None and self.record is self._free:
-                self.tip = self._tips[next(k for k, b in enumerate(self._buffers) if b is self._free)]
-        if self._contact is not None and self._contact.ready and self.record is not self._free:
-            self.record = self._contact.record  # (a pickle copies views apart)
-            self.tip = self.record[-1, L.C_X:L.C_Y + 1]
+            if self.record is not None:
+                self.tip = self._tips[next(k for k, b in enumerate(self._buffers) if b is self.record)]
 
     def with_scene(self, scene: Scene) -> Stepper:
         """A stepper of the same arm, model, mode and settings in another scene."""
