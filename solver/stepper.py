@@ -36,12 +36,16 @@ from solver.inputs import (
 )
 from solver.kernels import planar as planar_kernels
 from solver.paths.dispatch import dispatch
-from solver.paths.lean_contact import PATHS, ContactRows, lean_contact_reason
+from solver.paths.lean_contact import (
+    PATHS,
+    ContactRows,
+    lean_contact_reason,
+    record_from_equilibrium,
+)
 from solver.paths.planar import loaded_base_moment, not_lean, single_result
 from solver.problem import Problem, pack
 from solver.results import Equilibrium
-from solver.rod import forget_first_variations, planar_rest_gradient, rest_strains_into
-from solver.scene import Scene
+from solver.scene import Disc, Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
 
 __all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy"]
@@ -74,21 +78,6 @@ def _record_equilibrium(record, flags, m0, pressures, channel_pressures,
     return single_result(at, record.copy(), m0,
                          converged=bool(converged), stable=bool(stable), iterations=int(iterations),
                          residual=float(residual), snapped=bool(snapped))
-
-
-def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
-    """Write a recorded planar equilibrium into a lean-path record (N, N_COLUMNS), with its
-    rest strains ``rest`` (3, ns) and the predictor's gradient ``grad`` (2, ns)."""
-    rec[:, L.S] = eq.s
-    rec[:, L.X:L.Y + 1] = eq.positions
-    rec[:, L.THETA] = eq.angles
-    rec[:, L.M] = eq.internal_moment
-    rec[:, L.NX:L.NY + 1] = eq.internal_force
-    rec[:, L.V1:L.V3 + 1] = eq.shear_stretch
-    rec[:, L.U] = eq.curvature
-    forget_first_variations(rec)  # as a record Newton returns
-    rest_strains_into(eq.channel_pressures, packed.tubes_i, packed.tubes_f, packed.secf, rest)
-    planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
 
 
 _ONE = np.ones(1, dtype=bool)  # the active mask of a stepper's one copy
@@ -314,7 +303,7 @@ class Stepper:
         if not self.lean:
             return
         rec = self._buffers[self._spare]
-        _write_record(eq, self._packed, rec, self._memo[2], self._memo[3])
+        record_from_equilibrium(eq, self._packed, rec, self._memo[2], self._memo[3])
         self.record = rec
         self._spare ^= 1
         self._state[0] = eq.base_moment[-1]
@@ -440,8 +429,15 @@ class BatchStepper:
     Each copy is stepped by the kernel of a lean :class:`Stepper` (and, where that fails, by
     the same fallback), so copy k gives, bit for bit, the equilibria a :class:`Stepper` fed
     copy k's pressures gives: a batched environment and n single ones agree exactly. Only
-    scenes a stepper steps lean are accepted (planar, channels, no obstacles, loaded, single
-    shooting); the constructor says which condition fails otherwise.
+    scenes a stepper steps lean are accepted (planar, channels, loaded, single shooting;
+    contact by penalty); the constructor says which condition fails otherwise.
+
+    With contact (discs, self-contact) every copy may hold obstacles of its own, up to
+    ``max_obstacles``, under the scene's law (its gravity, payload, mounting, self-contact
+    and obstacle stiffness): :meth:`reset` and :meth:`adopt` take the copies' scenes. A copy
+    touching nothing is stepped by the lean planar kernel, guarded; one on the contact
+    layout by the lean contact kernel (:mod:`solver.kernels.stepping`); cold solves and the
+    steps those cannot take by the general path, one copy at a time.
 
     Example::
 
@@ -453,12 +449,17 @@ class BatchStepper:
     Args:
         arm, scene, model, settings: as :class:`Stepper` (planar only).
         n: number of copies.
+        max_obstacles: with contact, the most obstacles a copy may hold (default: the
+            scene's count).
 
     Attributes:
-        records: (n, N, ``layout.N_COLUMNS``) every copy's backbone record (read-only).
-        tips: (n, 2) tip positions (m), a view of ``records``.
+        records: (n, N, ``layout.N_COLUMNS``) every copy's backbone record (read-only); with
+            contact, the records of the copies on the settings' grid (see
+            :meth:`backbones`).
+        tips: (n, 2) tip positions (m).
         pressures: (n, n_inputs) input pressures (Pa); ``channel_pressures`` (n, n_channels).
         section_ends: the records' rows at the section ends.
+        contact: whether the scene has contact (discs or self-contact).
     """
 
     PARALLEL_MIN = 64
@@ -469,7 +470,8 @@ class BatchStepper:
     one, whichever :class:`ThreadPolicy` has measured faster."""
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, n: int = 1, *,
-                 model: str = "full", settings: Settings = DEFAULT_SETTINGS):
+                 model: str = "full", settings: Settings = DEFAULT_SETTINGS,
+                 max_obstacles: int | None = None):
         scene = Scene() if scene is None else scene
         check_request(arm, scene, model, True, settings)
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
@@ -480,11 +482,23 @@ class BatchStepper:
         self._problem = problem = Problem(arm, packed, scene, model, True, settings,
                                           np.zeros(n_inputs), np.zeros(arm.n_channels))
         self._ctx = problem.ctx
-        reason = not_lean(problem)
+        self.contact = scene.has_contact
+        reason = lean_contact_reason(problem) if self.contact else not_lean(problem)
         if reason is not None:
-            raise ValueError(f"BatchStepper steps the lean planar path only, not {reason}; use "
-                             "a Stepper (or solve()) per copy")
-        self._loaded = loaded_base_moment(problem)  # as solve_single's stage 1
+            raise ValueError(f"BatchStepper steps the lean planar and contact paths only, not "
+                             f"{reason}; use a Stepper (or solve()) per copy")
+        if max_obstacles is None:
+            max_obstacles = len(scene.obstacles)
+        if isinstance(max_obstacles, bool) or not isinstance(max_obstacles, (int, np.integer)) \
+                or max_obstacles < len(scene.obstacles):
+            raise ValueError(f"max_obstacles must be an integer >= the scene's {len(scene.obstacles)} "
+                             f"obstacles; got {max_obstacles!r}")
+        if max_obstacles and not scene.obstacles:
+            raise ValueError("max_obstacles needs a scene with an obstacle: its stiffness is the "
+                             "copies' law")
+        self._rows = ContactRows(problem, self.n, int(max_obstacles)) if self.contact else None
+        if not self.contact:
+            self._loaded = loaded_base_moment(problem)  # as solve_single's stage 1
         ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
         self.n_inputs = n_inputs
         self.section_ends = packed.section_ends
@@ -494,8 +508,8 @@ class BatchStepper:
         self._tubes = (packed.tubes_i, packed.tubes_f)
         self._p_zero = np.zeros(nc)
         n = self.n
-        self.records = np.zeros((n, packed.n_rows, L.N_COLUMNS))
-        self.tips = self.records[:, -1, L.X:L.Y + 1]  # a view (rebound on unpickling)
+        self.records = self._rows.free_records if self.contact else np.zeros((n, packed.n_rows, L.N_COLUMNS))
+        self.tips = np.zeros((n, 2)) if self.contact else self.records[:, -1, L.X:L.Y + 1]
         self.pressures = np.zeros((n, n_inputs))
         self.channel_pressures = np.zeros((n, nc))
         self._states = np.zeros((n, 4))
@@ -506,6 +520,7 @@ class BatchStepper:
                       np.full((n, 2, ns), np.nan))
         self._ready = np.zeros(n, dtype=bool)
         self._no_guard = (np.empty((n, 0, 4)), np.empty(0), 0.0)
+        self._eqs = [None] * n  # with contact: each copy's Equilibrium, once built
         # Cold solves and warm steps cost very different times per row: one policy each.
         self.thread_policies = {"cold": ThreadPolicy(self.PARALLEL_MIN),
                                 "step": ThreadPolicy(self.PARALLEL_MIN)}
@@ -576,14 +591,18 @@ class BatchStepper:
             report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
         return tips, self._report(report)
 
-    def reset(self, pressures, rows=None) -> BatchReport:
+    def reset(self, pressures, rows=None, scenes=None) -> BatchReport:
         """Cold equilibria at ``pressures`` (len(rows), n_inputs) Pa become the current
         states of ``rows`` (default: every copy), as :meth:`Stepper.reset` does for each: a
-        state is adopted even if its solve did not converge (the report says so)."""
-        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.int64).reshape(-1)
-        if rows.size and (rows.min() < 0 or rows.max() >= self.n):
-            raise ValueError(f"rows must index the {self.n} copies; got {rows.tolist()}")
+        state is adopted even if its solve did not converge (the report says so). With
+        contact, ``scenes`` (one per row, or None: keep each copy's) gives the copies their
+        obstacles (the scene's law; at most ``max_obstacles``)."""
+        rows = self._rows_of(rows)
         p, channel = self._inputs(pressures, rows.size)
+        if self.contact:
+            return self._reset_contact(rows, p, channel, scenes)
+        if scenes is not None:
+            raise ValueError("scenes apply to a scene with contact; this batch has none")
         states = np.zeros((rows.size, 4))
         records = np.empty((rows.size, *self.records.shape[1:]))
         rest_a = self._memo[2][rows]
@@ -591,7 +610,7 @@ class BatchStepper:
         report = self._cold(channel, states, records, True, rest_a, grad)
         for j in np.flatnonzero((report[:, 0] == 0) | (report[:, 1] == 0)):
             eq = self._solve_row(p[j], channel[j], None, True)
-            _write_record(eq, self._packed, records[j], rest_a[j], grad[j])
+            record_from_equilibrium(eq, self._packed, records[j], rest_a[j], grad[j])
             states[j, 0] = eq.base_moment[-1]
             report[j] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
         self.records[rows] = records
@@ -606,18 +625,25 @@ class BatchStepper:
 
     def adopt(self, eq: Equilibrium, rows=None) -> None:
         """Make ``eq`` (an equilibrium of this arm and model solved in this scene with
-        ``record=True``) the current state of ``rows`` (default: every copy) — e.g. to roll
-        candidate steps out from one state."""
+        ``record=True``; with contact, in a scene of its law, whose obstacles the rows take)
+        the current state of ``rows`` (default: every copy) — e.g. to roll candidate steps
+        out from one state."""
         if not isinstance(eq, Equilibrium):
             raise ValueError("adopt() takes an Equilibrium returned by solve()")
         check_warm_start(eq, self.arm, self.scene, self.model, True)
-        if eq.scene != self.scene:
+        if self.contact:
+            self._check_copy_scene(eq.scene)
+        elif eq.scene != self.scene:
             raise ValueError(f"the equilibrium was solved in {eq.scene}, not in {self.scene}")
         if not eq.s.size:
             raise ValueError("the equilibrium was solved with record=False; adopt needs its backbone")
-        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.int64).reshape(-1)
+        rows = self._rows_of(rows)
+        if self.contact:
+            self._adopt_contact(eq, rows)
+            return
         first = int(rows[0])
-        _write_record(eq, self._packed, self.records[first], self._memo[2][first], self._memo[3][first])
+        record_from_equilibrium(eq, self._packed, self.records[first], self._memo[2][first],
+                                self._memo[3][first])
         self.records[rows] = self.records[first]
         self.pressures[rows] = eq.pressures
         self.channel_pressures[rows] = eq.channel_pressures
@@ -653,6 +679,8 @@ class BatchStepper:
         if p.shape == (self.n, self.n_inputs) and not active.all():
             p = np.where(active[:, None], p, self.pressures)  # idle rows: no check, no step
         p, channel = self._inputs(p, self.n)
+        if self.contact:
+            return self._step_contact(p, channel, active)
         report = np.zeros((self.n, 5))
         report[~active, :2] = 1.0
         self.thread_policies["step"].run(
@@ -667,7 +695,7 @@ class BatchStepper:
             report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations + report[k, 3],
                          eq.residual)
             if eq.converged:
-                _write_record(eq, self._packed, self.records[k], self._memo[2][k], self._memo[3][k])
+                record_from_equilibrium(eq, self._packed, self.records[k], self._memo[2][k], self._memo[3][k])
                 self._states[k, 0] = eq.base_moment[-1]
                 ok[k] = True
         moved = ok & active
@@ -682,12 +710,118 @@ class BatchStepper:
             raise ValueError(f"copy {k} does not exist; n = {self.n}")
         if not self._ready[k]:
             raise RuntimeError(f"copy {k} was never reset")
+        if self.contact:
+            if self._eqs[k] is None:
+                self._eqs[k] = self._rows.equilibrium(k, self.pressures[k], self.channel_pressures[k])
+            return self._eqs[k]
         return _record_equilibrium(self.records[k], self._flags[k], self._states[k, 0],
                                    self.pressures[k], self.channel_pressures[k], self._problem)
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self.tips = self.records[:, -1, L.X:L.Y + 1]
+        if not self.contact:
+            self.tips = self.records[:, -1, L.X:L.Y + 1]
+
+    # ------------------------------------------------------------------ contact
+
+    def _rows_of(self, rows) -> np.ndarray:
+        """``rows`` (None: every copy) as an index array, checked."""
+        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.int64).reshape(-1)
+        if rows.size and (rows.min() < 0 or rows.max() >= self.n):
+            raise ValueError(f"rows must index the {self.n} copies; got {rows.tolist()}")
+        return rows
+
+    def _check_copy_scene(self, scene) -> None:
+        """A copy's scene must be the batch scene's law with obstacles of its own: the same
+        mounting, loads and self-contact, discs of the template's stiffness, at most
+        ``max_obstacles``."""
+        if not isinstance(scene, Scene):
+            raise ValueError(f"a copy's scene must be a solver.Scene; got {type(scene).__name__}")
+        if scene.without_contact != self.scene.without_contact or \
+                scene.self_contact != self.scene.self_contact:
+            raise ValueError(f"a copy's scene may differ from the batch's only in its obstacles; "
+                             f"got {scene} for {self.scene}")
+        law = self.scene.obstacles[0].stiffness if self.scene.obstacles else None
+        bad = [d for d in scene.obstacles if not isinstance(d, Disc) or d.stiffness != law]
+        if bad:
+            raise ValueError(f"a copy's obstacles must be discs of the batch's stiffness {law}; "
+                             f"got {bad[0]}")
+        if len(scene.obstacles) > self._rows.max_obstacles:
+            raise ValueError(f"a copy's scene holds {len(scene.obstacles)} obstacles; this batch "
+                             f"takes at most {self._rows.max_obstacles} (max_obstacles)")
+
+    def _solve_in(self, k, p_inputs, p_channel, warm_start, scene) -> Equilibrium:
+        problem = self._problem.in_scene(scene).with_inputs(p_inputs, p_channel, warm_start)
+        return dispatch(problem, True)
+
+    def _take(self, k, eq: Equilibrium) -> None:
+        """Copy k's state becomes ``eq`` (solved in its scene by the general path)."""
+        self._rows.adopt(k, eq)
+        self._eqs[k] = eq
+        self.tips[k] = eq.tip
+        self.pressures[k] = eq.pressures
+        self.channel_pressures[k] = eq.channel_pressures
+
+    def _reset_contact(self, rows, p, channel, scenes) -> BatchReport:
+        if scenes is not None:
+            scenes = list(scenes)
+            if len(scenes) != rows.size:
+                raise ValueError(f"scenes must hold one scene per row ({rows.size}); got {len(scenes)}")
+            for scene in scenes:
+                self._check_copy_scene(scene)
+        report = np.zeros((rows.size, 5))
+        for j, k in enumerate(rows):
+            if scenes is not None:
+                self._rows.set_scene(k, scenes[j])
+            eq = self._solve_in(k, p[j], channel[j], None, self._rows.scenes[k])
+            self._take(k, eq)
+            report[j] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
+        self._ready[rows] = True
+        return self._report(report)
+
+    def _adopt_contact(self, eq, rows) -> None:
+        first = int(rows[0])
+        self._rows.set_scene(first, eq.scene)
+        self._take(first, eq)
+        self._rows.copy_rows(first, rows[1:])
+        for k in rows[1:]:
+            self._eqs[k] = eq
+            self.tips[k] = eq.tip
+            self.pressures[k] = eq.pressures
+            self.channel_pressures[k] = eq.channel_pressures
+        self._ready[rows] = True
+
+    def _step_contact(self, p, channel, active) -> BatchReport:
+        lean = active & np.array([self._rows.ready(k) for k in range(self.n)])
+        report = self._rows.step(self.channel_pressures, channel, lean,
+                                 self.thread_policies["step"].run)[:, :5]
+        report[~active, :2] = 1.0
+        moved = lean & (report[:, 0] != 0)
+        for k in np.flatnonzero(moved):
+            self._eqs[k] = None
+            self.tips[k] = self._rows.record(k)[-1, L.X:L.Y + 1]
+        self.pressures[moved] = p[moved]
+        self.channel_pressures[moved] = channel[moved]
+        for k in np.flatnonzero(active & ~moved):
+            # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.
+            eq = self._solve_in(k, p[k], channel[k], self.equilibrium(k), self._rows.scenes[k])
+            report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations + report[k, 3],
+                         eq.residual)
+            if eq.converged:
+                self._take(k, eq)
+        return self._report(report)
+
+    def scene_of(self, k: int) -> Scene:
+        """Copy k's scene (with its obstacles)."""
+        return self._rows.scenes[k] if self.contact else self.scene
+
+    def backbones(self) -> np.ndarray:
+        """(n, N, ``layout.N_COLUMNS``) every copy's current backbone in the columns
+        ``layout.S`` … ``layout.U`` (with contact, those on the contact layout copied in; the
+        grids must have the same rows, as they do at the tube stiffness of OctArm V and CT)."""
+        if not self.contact:
+            return self.records
+        return self._rows.backbones()
 
     def __repr__(self) -> str:
         return f"BatchStepper({self.arm.name!r}, {self.scene}, n={self.n}, model={self.model!r})"

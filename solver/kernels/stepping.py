@@ -11,20 +11,22 @@ would touch. A row it cannot step is reported unconverged with its state untouch
 caller's general path takes it (:mod:`solver.paths.lean_contact`). The single stepper runs
 these kernels on a batch of one, so a batched copy and a single stepper agree bit for bit.
 
-Argument tuples (arrays indexed by copy k first):
+The two argument tuples are flat (numba's parallel loops do not take nested tuples), their
+items named by the ``FR_*`` and ``CT_*`` constants below; arrays with a first axis of n hold
+one row per copy:
 
-* ``free``: (grid (θ0, secf, steps), tubes, loads (ns, 4), m_tip, params, states (n, 4),
-  records (n, rows, N_COLUMNS), scratch (n, rows, N_COLUMNS), rest (n, 3, ns),
-  p_now (n, nc), loads_now (n, ns, 4), memo (p_seen, stretch, rest_a, grad; per copy),
-  half (rows,), exclusion, ok (n,) bool): the lean planar path's grid, the copies' states
-  on it and its guard (:func:`solver.kernels.planar.warm_step`); ``ok[k]``: copy k has a
-  record there.
-* ``contact``: (grid (``G_*``), params, weights (N,), res_weights (N,), nodes (n, N),
-  p_level (n, nc), q, plate, target, discs (n, k, 4), rest (n, 3, ns), factors (per copy,
-  :func:`solver.kernels.contact.new_factors`), records (n, rows_c, C_COLUMNS),
-  scratch (n, rows_c, C_COLUMNS), check (q, ends), ok (n,) bool, touching (n,) bool): the
-  contact layout, the copies' states on it; ``ok[k]``: copy k has one; ``touching[k]``: it
-  presses on a disc or on itself.
+* ``free``: the settings' grid (θ0, secf, steps), the tubes, dead loads (ns, 4), tip
+  moment and path parameters; the copies' states (n, 4), records and scratch (n, rows,
+  N_COLUMNS), rest strains (n, 3, ns), pressures (n, nc) and loads (n, ns, 4) of the
+  returned state, the λ(p) memo and predictor (p_seen, stretch (n, n_tubes), rest_a
+  (n, 3, ns), grad (n, 2, ns)), the self-contact guard (half (rows,), exclusion) and
+  ``ok`` (n,) bool: copy k has a state on this grid (:func:`solver.kernels.planar.warm_step`).
+* ``contact``: the contact layout tuple (``G_*``, flattened), path parameters, the norms'
+  weights (N,); the copies' nodes (n, N), level pressures (n, nc), the level's loads (q,
+  plate, target), discs (n, k, 4), rest strains (n, 3, ns), factors
+  (:func:`solver.kernels.contact.new_factors`, one row per copy), records and scratch
+  (n, rows_c, C_COLUMNS), the grid check's (q (ns,), ends (ns,)), ``ok`` (n,) bool: copy k
+  has a state on this layout, and ``touching`` (n,) bool: it presses on a disc or on itself.
 """
 
 from __future__ import annotations
@@ -36,6 +38,20 @@ from solver.kernels.contact import lean_step
 from solver.kernels.planar import warm_step
 from solver.layout import C_PEN, D_THETA, S, U
 from solver.rod import integrate_planar, planar_rest_gradient, rest_strains_into
+
+(FR_THETA0, FR_SECF, FR_STEPS, FR_TUBES_I, FR_TUBES_F, FR_LOADS, FR_M_TIP, FR_PARAMS, FR_STATES,
+ FR_RECORDS, FR_SCRATCH, FR_REST, FR_P_NOW, FR_LOADS_NOW, FR_P_SEEN, FR_STRETCH, FR_REST_A,
+ FR_GRAD, FR_HALF, FR_EXCLUSION, FR_OK) = range(21)
+N_FREE = 21
+
+(CT_THETA0, CT_SEGS, CT_SECF, CT_STEPS, CT_START, CT_SELF, CT_PARAMS, CT_WEIGHTS,
+ CT_RES_WEIGHTS, CT_NODES, CT_P, CT_Q, CT_PLATE, CT_TARGET, CT_DISCS, CT_REST, CT_LU, CT_PIV,
+ CT_DENSE, CT_DENSE_PIV, CT_FLAGS, CT_RECORDS, CT_SCRATCH, CT_CHECK_Q, CT_CHECK_ENDS, CT_OK,
+ CT_TOUCHING) = range(27)
+N_CONTACT = 27
+
+# Path codes of the report's last column.
+PATH_LEAN, PATH_CONTACT = 1.0, 2.0
 
 
 @njit
@@ -49,62 +65,61 @@ def touches(record) -> bool:
 
 @njit
 def free_record_of(crec, m0, p_channel, free, k):
-    """Write copy k's record on the settings' grid (``free`` tuple, see the module) for the
-    contact-layout state whose record is ``crec`` (rows_c, C_COLUMNS) and base moment
-    ``m0``: its columns S … U where the grids agree, else the backbone of ``m0`` integrated
-    on the settings' grid (where the general path's contact-free step starts it); with its
-    rest strains and the predictor's gradient, the first variations NaN."""
-    grid, tubes, loads = free[0], free[1], free[2]
-    theta0, secf, steps = grid
-    states, records = free[5], free[6]
-    rest_a, grad = free[11][2], free[11][3]
-    rec = records[k]
-    rest_strains_into(p_channel, tubes[0], tubes[1], secf, rest_a[k])
+    """Write copy k's record on the settings' grid (``free``) for the contact-layout state
+    whose record is ``crec`` (rows_c, C_COLUMNS) and base moment ``m0``: its columns S … U
+    where the grids agree, else the backbone of ``m0`` integrated on the settings' grid
+    (where the general path's contact-free step starts it); with its rest strains and the
+    predictor's gradient, the first variations NaN."""
+    secf, steps = free[FR_SECF], free[FR_STEPS]
+    rest_a, grad = free[FR_REST_A][k], free[FR_GRAD][k]
+    rec = free[FR_RECORDS][k]
+    rest_strains_into(p_channel, free[FR_TUBES_I], free[FR_TUBES_F], secf, rest_a)
     if crec.shape[0] == rec.shape[0]:
         for r in range(rec.shape[0]):
             for c in range(S, U + 1):
                 rec[r, c] = crec[r, c]
     else:
-        integrate_planar(m0, theta0, secf, steps, rest_a[k], loads, True, rec)
+        integrate_planar(m0, free[FR_THETA0], secf, steps, rest_a, free[FR_LOADS], True, rec)
     rec[:, D_THETA:] = math.nan
-    planar_rest_gradient(rec, secf, steps, rest_a[k], grad[k])
-    states[k, 0] = m0
+    planar_rest_gradient(rec, secf, steps, rest_a, grad)
+    free[FR_STATES][k, 0] = m0
 
 
 @njit(inline="always")
 def contact_row(k, free, contact, p_from, p_to, report):
     """One warm step of copy k from ``p_from[k]`` to ``p_to[k]`` (channel pressures, Pa),
     by the lean path its state allows (module docstring). ``report[k]``: (converged, stable,
-    snapped, iterations, residual, path): path 1 the lean planar kernel, 2 the lean contact
-    one; unconverged: the state is as it was."""
+    snapped, iterations, residual, path): path ``PATH_LEAN`` the lean planar kernel,
+    ``PATH_CONTACT`` the lean contact one; unconverged: the state is as it was."""
     report[k, 0] = 0.0
     report[k, 3] = 0.0
-    c_ok, touching = contact[15], contact[16]
-    if c_ok[k] and touching[k]:
+    if contact[CT_OK][k] and contact[CT_TOUCHING][k]:
         _contact_step(k, free, contact, p_to, report)
         return
-    f_ok = free[14]
-    if not f_ok[k]:
+    if not free[FR_OK][k]:
         return
-    grid, tubes, loads, m_tip, params, states, records, scratch = free[:8]
+    states, records, scratch = free[FR_STATES], free[FR_RECORDS], free[FR_SCRATCH]
+    loads, m_tip = free[FR_LOADS], free[FR_M_TIP]
     m_start = states[k, 0]
     ok, stable, snapped, its, res, _, _ = warm_step(
-        states[k], grid, tubes, (p_from[k], loads, m_tip), (p_to[k], loads, m_tip), params,
-        (free[8][k], free[9][k], free[10][k], scratch[k], True),
-        (free[11][0][k], free[11][1][k], free[11][2][k], free[11][3][k]),
-        (contact[9][k], records[k], free[12], free[13]))
+        states[k], (free[FR_THETA0], free[FR_SECF], free[FR_STEPS]),
+        (free[FR_TUBES_I], free[FR_TUBES_F]), (p_from[k], loads, m_tip), (p_to[k], loads, m_tip),
+        free[FR_PARAMS],
+        (free[FR_REST][k], free[FR_P_NOW][k], free[FR_LOADS_NOW][k], scratch[k], True),
+        (free[FR_P_SEEN][k], free[FR_STRETCH][k], free[FR_REST_A][k], free[FR_GRAD][k]),
+        (contact[CT_DISCS][k], records[k], free[FR_HALF], free[FR_EXCLUSION]))
     report[k, 3] = its
     if ok:
         records[k, :, :] = scratch[k]
-        c_ok[k] = False  # its contact state is the one before this step
+        contact[CT_OK][k] = False  # its contact state is the one before this step
         report[k, 0] = 1.0
         report[k, 1] = stable
         report[k, 2] = snapped
         report[k, 4] = res
-        report[k, 5] = 1.0
+        report[k, 5] = PATH_LEAN
         return
     states[k, 0] = m_start
-    if c_ok[k]:
+    if contact[CT_OK][k]:
         _contact_step(k, free, contact, p_to, report)
 
 
@@ -112,26 +127,29 @@ def contact_row(k, free, contact, p_from, p_to, report):
 def _contact_step(k, free, contact, p_to, report):
     """:func:`solver.kernels.contact.lean_step` of copy k; on success its state, and if it
     touches nothing any more, its record on the settings' grid too."""
-    grid, params, weights, res_weights, nodes, p_level, q, plate, target, discs = contact[:10]
-    rest, factors, records, scratch, check, c_ok, touching = contact[10:]
-    level = (p_level[k], q, plate, target, discs[k])
+    grid = (contact[CT_THETA0], contact[CT_SEGS], contact[CT_SECF], contact[CT_STEPS],
+            contact[CT_START], contact[CT_SELF])
+    nodes, p_level, records = contact[CT_NODES], contact[CT_P], contact[CT_RECORDS]
+    level = (p_level[k], contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k])
     ok, stable, its, res = lean_step(
-        nodes[k], grid, (free[1][0], free[1][1]), level, p_to[k], params,
-        (rest[k], weights, res_weights),
-        (factors[0][k], factors[1][k], factors[2][k], factors[3][k], factors[4][k]),
-        (records[k], scratch[k]), check)
+        nodes[k], grid, (free[FR_TUBES_I], free[FR_TUBES_F]), level, p_to[k], contact[CT_PARAMS],
+        (contact[CT_REST][k], contact[CT_WEIGHTS], contact[CT_RES_WEIGHTS]),
+        (contact[CT_LU][k], contact[CT_PIV][k], contact[CT_DENSE][k], contact[CT_DENSE_PIV][k],
+         contact[CT_FLAGS][k]),
+        (records[k], contact[CT_SCRATCH][k]), (contact[CT_CHECK_Q], contact[CT_CHECK_ENDS]))
     report[k, 3] += its
     if not ok:
         return
-    records[k, :, :] = scratch[k]
+    records[k, :, :] = contact[CT_SCRATCH][k]
     report[k, 0] = 1.0
     report[k, 1] = stable
     report[k, 2] = 0.0
     report[k, 4] = res
-    report[k, 5] = 2.0
-    touching[k] = touches(records[k])
-    free[14][k] = not touching[k]
-    if not touching[k]:
+    report[k, 5] = PATH_CONTACT
+    touching = touches(records[k])
+    contact[CT_TOUCHING][k] = touching
+    free[FR_OK][k] = not touching
+    if not touching:
         free_record_of(records[k], nodes[k][2], p_level[k], free, k)
 
 
@@ -149,4 +167,3 @@ def contact_rows_serial(free, contact, p_from, p_to, active, report):
     for k in range(p_to.shape[0]):
         if active[k]:
             contact_row(k, free, contact, p_from, p_to, report)
-

@@ -36,8 +36,8 @@ from solver.scene import Scene, self_contact_exclusion
 # refinement or a tunnel).
 FAR = 1e6
 
-# Path codes of the kernels' reports.
-PATHS = {1: "lean", 2: "lean contact"}
+# The kernels' path codes.
+PATHS = {int(stepping.PATH_LEAN): "lean", int(stepping.PATH_CONTACT): "lean contact"}
 
 
 def lean_contact_reason(problem: Problem) -> str | None:
@@ -94,7 +94,6 @@ class ContactRows:
         self.n = n
         self.max_obstacles = max_obstacles
         self.scenes = [scene] * n
-        self._stiffness = scene.obstacles[0].stiffness if scene.obstacles else None
         ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
         ctx = problem.ctx
         self.section_ends = packed.section_ends
@@ -112,26 +111,56 @@ class ContactRows:
             section = np.minimum(np.searchsorted(np.asarray(packed.section_ends),
                                                  np.arange(packed.n_rows)), thick.size - 1)
             half, exclusion = thick[section], self_contact_exclusion(thick)
-        self.free = (
-            (scene.base_theta, packed.secf, packed.sec_steps), (packed.tubes_i, packed.tubes_f),
-            ctx.loads, ctx.m_tip, ctx.params, np.zeros((n, 4)),
-            np.zeros((n, packed.n_rows, L.N_COLUMNS)), np.zeros((n, packed.n_rows, L.N_COLUMNS)),
-            np.empty((n, 3, ns)), np.empty((n, nc)), np.empty((n, ns, 4)),
-            (np.full((n, n_tubes), np.nan), np.empty((n, n_tubes)), np.empty((n, 3, ns)),
-             np.full((n, 2, ns), np.nan)),
-            half, exclusion, np.zeros(n, dtype=bool))
-        coupled = scene.self_contact is not None
-        m = n_nodes if coupled else 0
-        self.contact = (
-            shooting_grid(arm, scene, layout, segs, sec_start), shooting_params(scene, settings),
-            weights, res_weights, np.zeros((n, n_nodes)), np.zeros((n, max(nc, 1))), c_ctx.q,
-            plate, target, np.zeros((n, max_obstacles, 4)), np.empty((n, 3, ns)),
-            (np.empty((n, contact_kernels.BAND_ROWS, n_nodes)), np.empty((n, n_nodes), dtype=np.int64),
-             np.empty((n, m, m)), np.empty((n, m), dtype=np.int64), np.zeros((n, 1), dtype=np.int64)),
-            np.zeros((n, layout.n_rows, L.C_COLUMNS)), np.zeros((n, layout.n_rows, L.C_COLUMNS)),
-            (layout.mass_per_length * scene.gravity, section_rows(layout.section_ends)),
-            np.zeros(n, dtype=bool), np.zeros(n, dtype=bool))
+        free = [None] * stepping.N_FREE
+        free[stepping.FR_THETA0] = scene.base_theta
+        free[stepping.FR_SECF], free[stepping.FR_STEPS] = packed.secf, packed.sec_steps
+        free[stepping.FR_TUBES_I], free[stepping.FR_TUBES_F] = packed.tubes_i, packed.tubes_f
+        free[stepping.FR_LOADS], free[stepping.FR_M_TIP] = ctx.loads, ctx.m_tip
+        free[stepping.FR_PARAMS] = ctx.params
+        free[stepping.FR_STATES] = np.zeros((n, 4))
+        free[stepping.FR_RECORDS] = np.zeros((n, packed.n_rows, L.N_COLUMNS))
+        free[stepping.FR_SCRATCH] = np.zeros((n, packed.n_rows, L.N_COLUMNS))
+        free[stepping.FR_REST] = np.empty((n, 3, ns))
+        free[stepping.FR_P_NOW] = np.empty((n, nc))
+        free[stepping.FR_LOADS_NOW] = np.empty((n, ns, 4))
+        free[stepping.FR_P_SEEN] = np.full((n, n_tubes), np.nan)
+        free[stepping.FR_STRETCH] = np.empty((n, n_tubes))
+        free[stepping.FR_REST_A] = np.empty((n, 3, ns))
+        free[stepping.FR_GRAD] = np.full((n, 2, ns), np.nan)
+        free[stepping.FR_HALF], free[stepping.FR_EXCLUSION] = half, exclusion
+        free[stepping.FR_OK] = np.zeros(n, dtype=bool)
+        grid = shooting_grid(arm, scene, layout, segs, sec_start)
+        m = n_nodes if scene.self_contact is not None else 0  # the full Jacobian of touching parts
+        contact = [None] * stepping.N_CONTACT
+        (contact[stepping.CT_THETA0], contact[stepping.CT_SEGS], contact[stepping.CT_SECF],
+         contact[stepping.CT_STEPS], contact[stepping.CT_START], contact[stepping.CT_SELF]) = grid
+        contact[stepping.CT_PARAMS] = shooting_params(scene, settings)
+        contact[stepping.CT_WEIGHTS], contact[stepping.CT_RES_WEIGHTS] = weights, res_weights
+        contact[stepping.CT_NODES] = np.zeros((n, n_nodes))
+        contact[stepping.CT_P] = np.zeros((n, max(nc, 1)))
+        contact[stepping.CT_Q], contact[stepping.CT_PLATE] = c_ctx.q, plate
+        contact[stepping.CT_TARGET] = target
+        contact[stepping.CT_DISCS] = np.zeros((n, max_obstacles, 4))
+        contact[stepping.CT_REST] = np.empty((n, 3, ns))
+        contact[stepping.CT_LU] = np.empty((n, contact_kernels.BAND_ROWS, n_nodes))
+        contact[stepping.CT_PIV] = np.empty((n, n_nodes), dtype=np.int64)
+        contact[stepping.CT_DENSE] = np.empty((n, m, m))
+        contact[stepping.CT_DENSE_PIV] = np.empty((n, m), dtype=np.int64)
+        contact[stepping.CT_FLAGS] = np.zeros((n, 1), dtype=np.int64)
+        contact[stepping.CT_RECORDS] = np.zeros((n, layout.n_rows, L.C_COLUMNS))
+        contact[stepping.CT_SCRATCH] = np.zeros((n, layout.n_rows, L.C_COLUMNS))
+        contact[stepping.CT_CHECK_Q] = layout.mass_per_length * scene.gravity
+        contact[stepping.CT_CHECK_ENDS] = section_rows(layout.section_ends)
+        contact[stepping.CT_OK] = np.zeros(n, dtype=bool)
+        contact[stepping.CT_TOUCHING] = np.zeros(n, dtype=bool)
+        self.free, self.contact = tuple(free), tuple(contact)
         self._flags = np.zeros((n, 5))
+        # Every array with a row per copy (what copy_rows copies).
+        self._per_copy = [free[i] for i in range(stepping.FR_STATES, stepping.FR_HALF)]
+        self._per_copy += [free[stepping.FR_OK], self._flags]
+        self._per_copy += [contact[i] for i in (stepping.CT_NODES, stepping.CT_P, stepping.CT_DISCS)]
+        self._per_copy += [contact[i] for i in range(stepping.CT_REST, stepping.CT_CHECK_Q)]
+        self._per_copy += [contact[stepping.CT_OK], contact[stepping.CT_TOUCHING]]
         for k in range(n):
             self.set_scene(k, scene)
 
@@ -144,7 +173,7 @@ class ContactRows:
         if discs.shape[0] > self.max_obstacles:
             raise ValueError(f"copy {k}: {discs.shape[0]} obstacles, more than the "
                              f"{self.max_obstacles} this batch holds")
-        rows = self.contact[9][k]
+        rows = self.contact[stepping.CT_DISCS][k]
         rows[:] = (FAR, FAR, 0.0, 0.0)
         rows[:discs.shape[0]] = discs
         self.scenes[k] = scene
@@ -155,48 +184,80 @@ class ContactRows:
         and — unless it touches — its record on the settings' grid for the contact-free
         step, which tries first from a state that touches nothing."""
         free, contact = self.free, self.contact
-        free[14][k] = contact[15][k] = contact[16][k] = False
+        free[stepping.FR_OK][k] = contact[stepping.CT_OK][k] = contact[stepping.CT_TOUCHING][k] = False
         self._flags[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
-        nodes = contact[4][k]
+        nodes = contact[stepping.CT_NODES][k]
+        record = contact[stepping.CT_RECORDS][k]
         if eq.converged and eq.stable and eq.shooting_nodes.shape == nodes.shape:
             nodes[:] = eq.shooting_nodes
-            p_level = contact[5][k]
+            p_level = contact[stepping.CT_P][k]
             p_level[:] = eq.channel_pressures
-            rest = contact[10][k]
-            rest_strains_into(p_level, self.layout.tubes_i, self.layout.tubes_f, self.layout.secf, rest)
-            level = (p_level, contact[6], contact[7], contact[8], contact[9][k])
-            factors = tuple(f[k] for f in contact[11])
-            blocks = np.empty((contact[0][L.G_SEGS].shape[0], 6, 6))
-            if contact_kernels.factor_state(nodes, contact[0], rest, level, contact[2],
-                                            np.empty_like(nodes), blocks, contact[12][k], factors):
-                contact[15][k] = True
-                contact[16][k] = stepping.touches(contact[12][k])
-                if contact[16][k]:
+            rest = contact[stepping.CT_REST][k]
+            layout = self.layout
+            rest_strains_into(p_level, layout.tubes_i, layout.tubes_f, layout.secf, rest)
+            level = (p_level, contact[stepping.CT_Q], contact[stepping.CT_PLATE],
+                     contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k])
+            factors = tuple(contact[i][k] for i in range(stepping.CT_LU, stepping.CT_FLAGS + 1))
+            grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
+            blocks = np.empty((contact[stepping.CT_SEGS].shape[0], 6, 6))
+            if contact_kernels.factor_state(nodes, grid, rest, level, contact[stepping.CT_WEIGHTS],
+                                            np.empty_like(nodes), blocks, record, factors):
+                contact[stepping.CT_OK][k] = True
+                contact[stepping.CT_TOUCHING][k] = stepping.touches(record)
+                if contact[stepping.CT_TOUCHING][k]:
                     return
         packed = self._problem.packed
         if eq.s.size == packed.n_rows:
-            memo = free[11]
-            record_from_equilibrium(eq, packed, free[6][k], memo[2][k], memo[3][k])
-            free[5][k, 0] = eq.base_moment[-1]
-        elif contact[15][k]:
-            stepping.free_record_of(contact[12][k], float(eq.base_moment[-1]), eq.channel_pressures,
-                                    free, k)
+            record_from_equilibrium(eq, packed, free[stepping.FR_RECORDS][k],
+                                    free[stepping.FR_REST_A][k], free[stepping.FR_GRAD][k])
+            free[stepping.FR_STATES][k, 0] = eq.base_moment[-1]
+        elif contact[stepping.CT_OK][k]:
+            stepping.free_record_of(record, float(eq.base_moment[-1]), eq.channel_pressures, free, k)
         else:
             return
-        free[14][k] = True
+        free[stepping.FR_OK][k] = True
+
+    def copy_rows(self, src: int, dst) -> None:
+        """Copies ``dst`` take copy ``src``'s scene and state."""
+        for k in dst:
+            self.scenes[k] = self.scenes[src]
+        for array in self._per_copy:
+            array[dst] = array[src]
+
+    def backbones(self) -> np.ndarray:
+        """(n, N, N_COLUMNS) every copy's record on the settings' grid, with the columns S …
+        U of the copies on the contact layout copied in (the two grids must have the same
+        rows)."""
+        records = self.free[stepping.FR_RECORDS]
+        crecords = self.contact[stepping.CT_RECORDS]
+        if crecords.shape[1] != records.shape[1]:
+            raise ValueError(f"the contact layout has {crecords.shape[1]} rows, the settings' grid "
+                             f"{records.shape[1]}: backbones on one grid need a contact stiffness "
+                             f"whose decay length the settings' steps resolve")
+        out = records.copy()
+        on = self.contact[stepping.CT_OK]
+        out[on, :, L.S:L.U + 1] = crecords[on, :, L.S:L.U + 1]
+        return out
+
+    @property
+    def free_records(self) -> np.ndarray:
+        """(n, rows, N_COLUMNS) the copies' records on the settings' grid."""
+        return self.free[stepping.FR_RECORDS]
 
     def ready(self, k: int) -> bool:
         """Whether copy k has a state the lean paths can step from."""
-        return bool(self.free[14][k] or self.contact[15][k])
+        return bool(self.free[stepping.FR_OK][k] or self.contact[stepping.CT_OK][k])
 
     def on_contact_layout(self, k: int) -> bool:
         """Whether copy k's state lies on the contact layout."""
-        return bool(self.contact[15][k])
+        return bool(self.contact[stepping.CT_OK][k])
 
     def record(self, k: int) -> np.ndarray:
         """Copy k's record: on the contact layout (rows, C_COLUMNS) or the settings' grid
         (rows, N_COLUMNS); columns S … U are the same either way (a view)."""
-        return self.contact[12][k] if self.contact[15][k] else self.free[6][k]
+        if self.contact[stepping.CT_OK][k]:
+            return self.contact[stepping.CT_RECORDS][k]
+        return self.free[stepping.FR_RECORDS][k]
 
     def step(self, p_from: np.ndarray, p_to: np.ndarray, active: np.ndarray, run) -> np.ndarray:
         """Warm steps of the ``active`` copies from the channel pressures ``p_from`` to
@@ -224,11 +285,13 @@ class ContactRows:
                      iterations=int(iterations), residual=float(residual))
         problem = self._problem.in_scene(self.scenes[k]).with_inputs(
             np.array(pressures, dtype=float), np.array(channel_pressures, dtype=float))
-        if self.contact[15][k]:
-            return shooting_equilibrium(self.contact[12][k], self.contact[4][k].copy(),
+        if self.contact[stepping.CT_OK][k]:
+            return shooting_equilibrium(self.contact[stepping.CT_RECORDS][k],
+                                        self.contact[stepping.CT_NODES][k].copy(),
                                         self.scenes[k], self.layout, model=problem.model,
                                         pressures=problem.p_inputs,
                                         channel_pressures=problem.p_channel, arm=problem.arm,
                                         **flags)
-        eq = single_result(problem, self.free[6][k].copy(), self.free[5][k, 0], **flags)
+        eq = single_result(problem, self.free[stepping.FR_RECORDS][k].copy(),
+                           self.free[stepping.FR_STATES][k, 0], **flags)
         return free_contact_result(eq, self.scenes[k])
