@@ -7,7 +7,8 @@ or the contact layout (an equilibrium from the contact paths, stepped by
 :func:`solver.kernels.contact.lean_step`). :func:`contact_row` takes them in the order the
 general path does (:func:`solver.paths.contact.solve_contact`): from a state in contact,
 contact; from one that touches nothing, the contact-free step first and contact where that
-would touch. A row it cannot step is reported unconverged with its state untouched: the
+would touch (the state moved onto the contact layout first, :func:`_enter_contact`, as the
+general path starts its ramp from it). A row it cannot step is reported unconverged with its state untouched: the
 caller's general path takes it (:mod:`solver.paths.lean_contact`). The single stepper runs
 these kernels on a batch of one, so a batched copy and a single stepper agree bit for bit.
 
@@ -33,10 +34,28 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from solver.jit import njit, prange
-from solver.kernels.contact import lean_step
+from solver.kernels.contact import factor_state, lean_step, newton
 from solver.kernels.planar import warm_step
-from solver.layout import C_PEN, D_THETA, S, U
+from solver.layout import (
+    C_PEN,
+    D_THETA,
+    MAX_ITER,
+    MAX_STEP,
+    NX,
+    NY,
+    SEG_FIRST,
+    SEG_ROW0,
+    THETA,
+    TOL,
+    M,
+    S,
+    U,
+    X,
+    Y,
+)
 from solver.rod import integrate_planar, planar_rest_gradient, rest_strains_into
 
 (FR_THETA0, FR_SECF, FR_STEPS, FR_TUBES_I, FR_TUBES_F, FR_LOADS, FR_M_TIP, FR_PARAMS, FR_STATES,
@@ -119,8 +138,13 @@ def contact_row(k, free, contact, p_from, p_to, report):
         report[k, 5] = PATH_LEAN
         return
     states[k, 0] = m_start
+    entered = False
+    if not contact[CT_OK][k] and records.shape[1] == contact[CT_RECORDS].shape[1]:
+        entered = _enter_contact(k, free, contact, p_from[k])
     if contact[CT_OK][k]:
         _contact_step(k, free, contact, p_to, report)
+        if not report[k, 0] and entered:
+            contact[CT_OK][k] = False  # the copy's state stays the contact-free one
 
 
 @njit(inline="always")
@@ -151,6 +175,58 @@ def _contact_step(k, free, contact, p_to, report):
     free[FR_OK][k] = not touching
     if not touching:
         free_record_of(records[k], nodes[k][2], p_level[k], free, k)
+
+
+@njit
+def nodes_of_record(rec, segs, Z):
+    """Multiple-shooting nodes ``Z`` (N,) of a record on the contact layout's rows (its
+    columns S … U): (n0, m0), then the 6-state at every segment start — as
+    :func:`solver.paths.shooting.nodes_from_states` takes them from an equilibrium."""
+    row = segs[0, SEG_ROW0] + segs[0, SEG_FIRST]
+    Z[0] = rec[row, NX]
+    Z[1] = rec[row, NY]
+    Z[2] = rec[row, M]
+    for seg in range(1, segs.shape[0]):
+        row = segs[seg, SEG_ROW0] + segs[seg, SEG_FIRST]
+        base = 3 + 6 * (seg - 1)
+        Z[base] = rec[row, X]
+        Z[base + 1] = rec[row, Y]
+        Z[base + 2] = rec[row, THETA]
+        Z[base + 3] = rec[row, NX]
+        Z[base + 4] = rec[row, NY]
+        Z[base + 5] = rec[row, M]
+
+
+@njit(inline="always")
+def _enter_contact(k, free, contact, p_start):
+    """Put copy k's contact-free state (its record on the settings' grid, which has the
+    contact layout's rows) on the contact layout, at the pressures ``p_start`` it stands at:
+    its nodes, corrected by Newton there (refinement near the discs moves them a little, as
+    the general path corrects a warm start at the ramp's start), their factored Jacobian
+    and record. Returns whether that succeeded (``contact[CT_OK][k]``)."""
+    nodes, p_level, rest = contact[CT_NODES][k], contact[CT_P][k], contact[CT_REST][k]
+    grid = (contact[CT_THETA0], contact[CT_SEGS], contact[CT_SECF], contact[CT_STEPS],
+            contact[CT_START], contact[CT_SELF])
+    nodes_of_record(free[FR_RECORDS][k], contact[CT_SEGS], nodes)
+    for c in range(p_start.shape[0]):
+        p_level[c] = p_start[c]
+    rest_strains_into(p_level, free[FR_TUBES_I], free[FR_TUBES_F], contact[CT_SECF], rest)
+    level = (p_level, contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k])
+    params = contact[CT_PARAMS]
+    weights = contact[CT_WEIGHTS]
+    ok, _, _, stable = newton(nodes, grid, rest, level, weights, contact[CT_RES_WEIGHTS],
+                              params[TOL], int(params[MAX_ITER]), params[MAX_STEP])
+    if not (ok and stable):
+        return False
+    factors = (contact[CT_LU][k], contact[CT_PIV][k], contact[CT_DENSE][k],
+               contact[CT_DENSE_PIV][k], contact[CT_FLAGS][k])
+    blocks = np.empty((contact[CT_SEGS].shape[0], 6, 6))
+    if not factor_state(nodes, grid, rest, level, weights, np.empty(nodes.shape[0]), blocks,
+                        contact[CT_RECORDS][k], factors):
+        return False
+    contact[CT_OK][k] = True
+    contact[CT_TOUCHING][k] = touches(contact[CT_RECORDS][k])
+    return True
 
 
 @njit(parallel=True)
