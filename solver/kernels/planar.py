@@ -459,9 +459,10 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     or snap, where the 3D path may leave the plane — ends the path unconverged, so that the
     caller hands the solve to the spatial kernels: the planar shortcut never changes the
     answer. ``discs`` ((k, 4) obstacles, or empty) guards a contact-free solve of a scene
-    with obstacles the same way: the backbone must stay clear of every disc by half an RK4
-    step at every accepted state, and no sample may pass through a disc between accepted
-    states (:func:`solver.kernels.obstacles.tunnels`; a step that fails only that is halved).
+    with obstacles: the backbone must stay clear of every disc by half an RK4 step at every
+    accepted state, and no sample may pass through a disc between accepted states
+    (:func:`solver.kernels.obstacles.tunnels`; a step that fails only that is halved); a
+    snap must land clear of them as well (the contact path's snap lands there too).
 
     ``slope0``: dm0/dt at the start, if the caller knows it (the stepper's rest-strain
     gradient); otherwise a large change gets a finite-difference tangent (two passes).
@@ -565,7 +566,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         if dt > dt_min:
             dt *= 0.5
             continue
-        if guard:  # a fold or bifurcation: the guarded path may leave its assumptions here
+        if c_j_3d.shape[0] > 0:  # a fold or bifurcation: the 3D path may leave the plane here
             return root, False, total, snapped, False, res, x, y, th
         if params[N_SCAN] == 0:
             if ok:
@@ -607,6 +608,14 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
                                                          loads_now, m_tip, tol, max_iter,
                                                          max_step, out, record and final)
         total += its
+        if discs.shape[0] > 0:
+            # Where the arm snaps clear of every disc, the contact path lands where this one
+            # does (solver.paths.shooting); where it would land on one, the contact path's
+            # relaxation finds where it comes to rest.
+            integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
+            total += 1
+            if not (ok and clear_of(rec_prev, discs, half_h)):
+                return m0, False, total, snapped, False, res, x, y, th
         t = t_new
         dt = dt0
     return m0, ok, total, snapped, stable, res, x, y, th

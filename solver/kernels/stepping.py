@@ -8,9 +8,10 @@ or the contact layout (an equilibrium from the contact paths, stepped by
 general path does (:func:`solver.paths.contact.solve_contact`): from a state in contact,
 contact; from one that touches nothing, the contact-free step first and contact where that
 would touch (the state moved onto the contact layout first, :func:`_enter_contact`, as the
-general path starts its ramp from it). A row it cannot step is reported unconverged with its state untouched: the
-caller's general path takes it (:mod:`solver.paths.lean_contact`). The single stepper runs
-these kernels on a batch of one, so a batched copy and a single stepper agree bit for bit.
+general path starts its ramp from it). A row it cannot step is reported unconverged with its
+state untouched: the caller's general path takes it (:mod:`solver.paths.lean_contact`). The
+single stepper runs these kernels on a batch of one, so a batched copy and a single stepper
+agree bit for bit.
 
 The two argument tuples are flat (numba's parallel loops do not take nested tuples), their
 items named by the ``FR_*`` and ``CT_*`` constants below; arrays with a first axis of n hold

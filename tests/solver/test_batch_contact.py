@@ -37,6 +37,10 @@ def test_copies_step_as_single_steppers(threaded, self_contact):
     singles = [solver.Stepper(arm, scene) for scene in scenes]
     for stepper, walk in zip(singles, walks):
         stepper.reset(walk[0])
+    # The walks, then a jump across the pressure range (the general path's snaps).
+    jump = np.array([0.0, 1.0, 0.0, 1.0, 0.0, 1.0]) * arm.max_pressure
+    for walk in walks:
+        walk.append(jump)
     paths = set()
     for t in range(1, len(walks[0])):
         report = batch.step(np.array([w[t] for w in walks]))

@@ -269,8 +269,10 @@ def test_batch_copies_are_steppers_bit_for_bit(design, n):
 
 def test_batch_refuses_what_it_cannot_step():
     arm = designs.octarm_v()
-    with pytest.raises(ValueError, match="obstacles"):
-        solver.BatchStepper(arm, solver.Scene(obstacles=(solver.Disc((0.1, -0.3), 0.05),)), 2)
+    with pytest.raises(ValueError, match="rigid contact"):
+        solver.BatchStepper(arm, solver.Scene(obstacles=(solver.Disc((0.1, -0.3), 0.05, math.inf),)), 2)
+    with pytest.raises(ValueError, match="spatial|planar"):
+        solver.BatchStepper(arm, solver.Scene(obstacles=(solver.Sphere((0.1, -0.3, 0.0), 0.05),)), 2)
     with pytest.raises(ValueError, match="unloaded"):
         solver.BatchStepper(arm, solver.Scene(gravity=0.0), 2)
     with pytest.raises(ValueError, match="n must be"):
