@@ -258,6 +258,19 @@ class Stepper:
         self._bind_row_record()
         return StepReport(True, bool(report[1]), bool(report[2]), int(report[3]), float(report[4]))
 
+    def contact_measures(self) -> tuple[float, float]:
+        """The current state's deepest penetration at its samples (m) and total contact
+        force ∫|f| ds (N, trapezoidal on the samples): zeros without contact (the numbers
+        :meth:`BatchStepper.contact_measures` gives a copy)."""
+        if self._rows is None:
+            eq = self.equilibrium
+            if not eq.penetration.size:
+                return 0.0, 0.0
+            f = np.hypot(*eq.contact_force.T)
+            return float(eq.penetration.max()), float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(eq.s)))
+        measures = self._rows.contact_measures()[0]
+        return float(measures[0]), float(measures[1])
+
     def _bind_row_record(self) -> None:
         """The record and tip of the one copy of :attr:`_rows` (read-only views)."""
         record = self._rows.record(0).view()
@@ -814,6 +827,13 @@ class BatchStepper:
     def scene_of(self, k: int) -> Scene:
         """Copy k's scene (with its obstacles)."""
         return self._rows.scenes[k] if self.contact else self.scene
+
+    def contact_measures(self) -> np.ndarray:
+        """(n, 2) every copy's deepest penetration at its samples (m) and total contact force
+        ∫|f| ds (N, trapezoidal on the samples); zeros without contact."""
+        if not self.contact:
+            return np.zeros((self.n, 2))
+        return self._rows.contact_measures()
 
     def backbones(self) -> np.ndarray:
         """(n, N, ``layout.N_COLUMNS``) every copy's current backbone in the columns

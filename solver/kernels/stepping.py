@@ -41,6 +41,8 @@ from solver.jit import njit, prange
 from solver.kernels.contact import factor_state, lean_step, newton
 from solver.kernels.planar import warm_step
 from solver.layout import (
+    C_FX,
+    C_FY,
     C_PEN,
     D_THETA,
     MAX_ITER,
@@ -81,6 +83,31 @@ def touches(record) -> bool:
         if record[r, C_PEN] > 0.0:
             return True
     return False
+
+
+@njit
+def measure_contact(records, on, out):
+    """Per copy, the deepest penetration (m) and the total contact force ∫|f| ds (N, the
+    trapezoidal rule on the samples) of its contact record; zeros where ``on`` (n,) is False
+    (a state on the settings' grid touches nothing).
+
+    Args:
+        records: (n, rows, C_COLUMNS) contact records. on: (n,) bool. out: (n, 2) written.
+    """
+    for k in range(records.shape[0]):
+        deepest = 0.0
+        force = 0.0
+        if on[k]:
+            rec = records[k]
+            previous = math.hypot(rec[0, C_FX], rec[0, C_FY])
+            deepest = rec[0, C_PEN]
+            for r in range(1, rec.shape[0]):
+                f = math.hypot(rec[r, C_FX], rec[r, C_FY])
+                force += 0.5 * (f + previous) * (rec[r, S] - rec[r - 1, S])
+                previous = f
+                deepest = max(deepest, rec[r, C_PEN])
+        out[k, 0] = deepest
+        out[k, 1] = force
 
 
 @njit

@@ -244,6 +244,13 @@ class ContactRows:
         """(n, rows, N_COLUMNS) the copies' records on the settings' grid."""
         return self.free[stepping.FR_RECORDS]
 
+    def contact_measures(self) -> np.ndarray:
+        """(n, 2) every copy's deepest penetration (m) and total contact force (N)
+        (:func:`solver.kernels.stepping.measure_contact`)."""
+        out = np.zeros((self.n, 2))
+        stepping.measure_contact(self.contact[stepping.CT_RECORDS], self.contact[stepping.CT_OK], out)
+        return out
+
     def ready(self, k: int) -> bool:
         """Whether copy k has a state the lean paths can step from."""
         return bool(self.free[stepping.FR_OK][k] or self.contact[stepping.CT_OK][k])
