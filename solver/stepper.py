@@ -261,13 +261,14 @@ class Stepper:
     def contact_measures(self) -> tuple[float, float]:
         """The current state's deepest penetration at its samples (m) and total contact
         force ∫|f| ds (N, trapezoidal on the samples): zeros without contact (the numbers
-        :meth:`BatchStepper.contact_measures` gives a copy)."""
+        :meth:`BatchStepper.contact_measures` gives a copy). Steppers with the lean contact
+        path only (:attr:`lean_contact`).
+
+        Raises:
+            ValueError: a stepper without it.
+        """
         if self._rows is None:
-            eq = self.equilibrium
-            if not eq.penetration.size:
-                return 0.0, 0.0
-            f = np.hypot(*eq.contact_force.T)
-            return float(eq.penetration.max()), float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(eq.s)))
+            raise ValueError(f"contact_measures needs the lean contact path; {self!r} has none")
         measures = self._rows.contact_measures()[0]
         return float(measures[0]), float(measures[1])
 
