@@ -277,6 +277,12 @@ class SoftArmEnv(gym.Env):
     # ------------------------------------------------------------------ internals
 
     @property
+    def stepper(self) -> solver.Stepper | None:
+        """The solver's stepper of the episode (None before the first reset): its path, record
+        and profile (``last_path``, ``record``, ``pass_costs``) for benchmarks and tests."""
+        return self._stepper
+
+    @property
     def _eq(self) -> solver.Equilibrium | None:
         """The current (last converged) equilibrium of the simulated arm."""
         return None if self._stepper is None else self._stepper.equilibrium

@@ -16,6 +16,7 @@ keeps one copy, :class:`solver.BatchStepper` n of them: one kernel, the same num
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -243,6 +244,44 @@ class ContactRows:
     def free_records(self) -> np.ndarray:
         """(n, rows, N_COLUMNS) the copies' records on the settings' grid."""
         return self.free[stepping.FR_RECORDS]
+
+    def pass_costs(self, k: int, repeats: int) -> dict:
+        """What one pass over copy k's contact state costs: a residual pass and a pass with
+        the Jacobian (seconds, the median of ``repeats``), the unknowns, the RK4 rows and the
+        fraction of them refined near a disc (a profile's figures; the state is untouched)."""
+        contact = self.contact
+        if not contact[stepping.CT_OK][k]:
+            raise ValueError(f"copy {k} is not on the contact layout")
+        grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
+        nodes = contact[stepping.CT_NODES][k].copy()
+        level = (contact[stepping.CT_P][k], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
+                 contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k])
+        rest = np.empty_like(contact[stepping.CT_REST][k])
+        rest_strains_into(level[L.L_P], self.layout.tubes_i, self.layout.tubes_f, self.layout.secf,
+                          rest)
+        F = np.empty_like(nodes)
+        J = np.empty((contact_kernels.BAND_ROWS, nodes.size))
+        blocks = np.empty((contact[stepping.CT_SEGS].shape[0], 6, 6))
+        partners = contact_kernels.new_partners(grid)
+        seconds = {}
+        for name, jacobian in (("residual_pass_s", False), ("jacobian_pass_s", True)):
+            times = []
+            for _ in range(repeats + 1):
+                start = time.perf_counter()
+                contact_kernels.newton_system(nodes, grid, rest, level, F, J, jacobian, blocks, partners)
+                times.append(time.perf_counter() - start)
+            seconds[name] = float(np.median(times[1:]))  # (the first may load the kernel)
+        record = contact[stepping.CT_RECORDS][k]
+        discs = level[L.L_DISCS]
+        gap = np.min(np.hypot(record[:, L.C_X, None] - discs[None, :, L.CX],
+                              record[:, L.C_Y, None] - discs[None, :, L.CY]) - discs[None, :, L.RADIUS],
+                     axis=1)
+        h = (self.layout.sec_len / self.layout.sec_steps)[np.minimum(
+            np.searchsorted(np.asarray(self.layout.section_ends), np.arange(record.shape[0])),
+            len(self.layout.sec_steps) - 1)]
+        speed = np.hypot(record[:, L.C_V1], record[:, L.C_V3])
+        return {**seconds, "unknowns": int(nodes.size), "rows": int(record.shape[0]),
+                "refined_fraction": float(np.mean(gap - h * speed < h))}
 
     def contact_measures(self) -> np.ndarray:
         """(n, 2) every copy's deepest penetration (m) and total contact force (N)
