@@ -2,9 +2,10 @@
 
 Prints, for ``solver/``: files and lines, the import graph's depth ("floors": modules on the
 longest chain of intra-solver imports, the importing module included), its imports (one per
-imported solver module per importing module; ``solver/__init__.py`` left out of both), the largest modules and functions; and, for the
-whole project (``solver``, ``softarm_gym``, ``baselines``, ``tests``), the underscored names
-imported from another module, with the files that import them. The architecture tests
+imported solver module per importing module; ``solver/__init__.py`` left out of both), the
+largest modules and functions; and, for the whole project (``solver``, ``softarm_gym``,
+``baselines``, ``tests``), the underscored names one module takes from another
+(:func:`private_imports`), counted per package. The architecture tests
 (``tests/test_architecture.py``) parse imports the same way, with :func:`imports_of`.
 """
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.layout import NSTATE, SL_N, SL_Q, SP_M, SP_Q, SP_R
+from solver.layout import SL_N, SL_Q, SP_M, SP_R
 from solver.rod import (
     hermite_resample,
     planar_state_rhs,
@@ -22,6 +22,7 @@ from solver.rod import (
     record_spatial_row,
     spatial_rhs,
     spatial_rk4_step,
+    start_spatial_state,
 )
 
 
@@ -252,12 +253,8 @@ def load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_
     loads_i = work[7, :6]
     n_start = work[7, 6:9]
     moments = np.empty((sec_len.shape[0], 3))
-    for d in range(NSTATE):
-        y[d] = 0.0
-    for d in range(4):
-        y[SP_Q + d] = quat0[d]
+    start_spatial_state(y, quat0, m0)
     for d in range(3):
-        y[SP_M + d] = m0[d]
         n_start[d] = n0[d]
     row = 0
     s0 = 0.0
