@@ -234,7 +234,7 @@ def _same_material(j, k, tubes_f):
 @njit(inline="always")
 def _tube_stretch(k, p_channel, tubes_i, tubes_f):
     return tube_stretch(p_channel[tubes_i[k, T_CHANNEL]], tubes_f[k, TF_E], tubes_f[k, TF_AREA_RATIO],
-                    tubes_f[k, TF_COS_ALPHA])
+                        tubes_f[k, TF_COS_ALPHA])
 
 
 @njit(inline="always")

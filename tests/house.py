@@ -147,7 +147,7 @@ def report(root: Path) -> str:
     rows = [f"solver/: {len(files)} files, {sum(lines.values())} lines; without __init__.py: "
             f"{floors(graph)} floors, {sum(len(e) for e in graph.values())} imports",
             "largest modules: " + ", ".join(f"{p.relative_to(root / 'solver')} {n}" for p, n in
-                                             sorted(lines.items(), key=lambda kv: -kv[1])[:5]),
+                                            sorted(lines.items(), key=lambda kv: -kv[1])[:5]),
             "largest functions: " + ", ".join(f"{q} {n}" for n, q in funcs[:5]),
             f"underscored names imported across modules: {len(private)} in "
             f"{len({f for f, *_ in private})} files"]

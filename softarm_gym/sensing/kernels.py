@@ -77,7 +77,7 @@ def planar_cable_integrand(shear_stretch, curvature, radius, out):
 
 @njit
 def load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
-                      q, point, work, s_out, pos_out, tan_out, ends_out):
+                     q, point, work, s_out, pos_out, tan_out, ends_out):
     """Integrate the planar equilibrium equations base → tip from a measured base wrench (§4.2.1).
 
     The solver's rod statics (:func:`solver.rod.planar_state_rhs`, RK4 by
@@ -144,7 +144,7 @@ def _reduced_rhs(th, m, n1, ci, ur, v, w):
 
 @njit
 def reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretch, weight,
-                    record, s_out, pos_out, tan_out, ends_out):
+                   record, s_out, pos_out, tan_out, ends_out):
     """One RK4 pass of the reduced model of §4.2.2–4.2.3 (Eq. 4.17) base → tip.
 
     In section i the stretch v_i is constant (from pressurisation: measured by the encoders
@@ -209,7 +209,7 @@ def reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretc
 
 @njit
 def reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
-                      n_angles, tip_shear_weight, moment_scale, force_scale, ends, res):
+                     n_angles, tip_shear_weight, moment_scale, force_scale, ends, res):
     """Boundary residuals of the reduced model for unknowns z = (m0, n1_start[0..ns−1]).
 
     Rows: θ(s_i) − θ_target[i] for the first ``n_angles`` section ends; then, if
@@ -219,7 +219,7 @@ def reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight
     """
     ns = sec_len.shape[0]
     m_tip, n1_tip = reduced_planar(theta0, z[0], z[1:], sec_len, sec_steps, c_i, u_rest, stretch,
-                                    weight, False, ends[:, 0], ends, ends, ends)
+                                   weight, False, ends[:, 0], ends, ends, ends)
     for i in range(n_angles):
         res[i] = ends[i, 2] - theta_target[i]
     if n_angles < ns:
@@ -229,7 +229,7 @@ def reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight
 
 @njit
 def load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
-                       v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
+                      v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
     """Integrate the spatial equilibrium equations base → tip from a measured 6-axis wrench.
 
     The solver's rod statics and RK4 step (:func:`solver.rod.spatial_rhs`,
@@ -325,7 +325,7 @@ def _reduced_rhs_spatial(y, dy, ci, cj, u1r, u2r, v, q):
 
 @njit
 def reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch,
-                     q, record, work, s_out, pos_out, tan_out, ends_out, frames_out, curv_out):
+                    q, record, work, s_out, pos_out, tan_out, ends_out, frames_out, curv_out):
     """One RK4 pass of the spatial reduced model base → tip (see :func:`_reduced_rhs_spatial`).
 
     Args:
@@ -412,7 +412,7 @@ def reduced_spatial_residual(z, model, data, out):
     kind, target_curv, target_frames = data
     ns = sec_len.shape[0]
     reduced_spatial(rot0, z[:3], z[3:].reshape((ns, 2)), sec_len, sec_steps, c_i, c_j, u1_rest,
-                     u2_rest, stretch, q, False, work, s, pos, tan, ends, frames, curv)
+                    u2_rest, stretch, q, False, work, s, pos, tan, ends, frames, curv)
     for i in range(ns):
         if kind == CABLE_DATA:
             out[2 * i] = curv[i, 0] - target_curv[i, 0]
