@@ -1,4 +1,4 @@
-"""Kernel arguments as named records or not: ``python tests/record_arguments.py [REPEATS]``.
+"""Kernel arguments as named records or not: ``python -m tests.record_arguments [REPEATS]``.
 
 The measurement behind docs/design.md §13 ("Kernel arguments"). One small path-like kernel
 (a loop over sections reading ``secf`` rows and the goal level) is called four ways: loose
