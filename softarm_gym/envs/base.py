@@ -16,9 +16,11 @@ import numpy as np
 from gymnasium import spaces
 
 import solver
-from softarm_gym.envs.config import (
+from softarm_gym.envs.config import (  # noqa: F401  (MIN/MAX_RENDER_SIZE: still importable here)
     ACTION_MODES,
     ACTUATIONS,
+    MAX_RENDER_SIZE,
+    MIN_RENDER_SIZE,
     OBSERVATION_FORMATS,
     RENDER_MODES,
     EnvConfig,

@@ -912,7 +912,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     total += 1
     if not res <= tol:  # not an equilibrium of ``a`` (or NaN): correct it first
         ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, tol,
-                                       max_iter, max_step)
+                                      max_iter, max_step)
         total += its
         if not (ok and stable):
             return False, total, res, stable, 0.0, 0.0
@@ -939,8 +939,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
             Z[k] = guess[k]
         final = t_new >= 1.0
         ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights,
-                                       tol if final else 1e3 * tol, max_iter if final else 8,
-                                       max_step)
+                                      tol if final else 1e3 * tol, max_iter if final else 8,
+                                      max_step)
         total += its
         corr = 0.0
         pred = 0.0
@@ -954,7 +954,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
             if has_discs:
                 record_backbone(Z, grid, rest, now, rec_new)
                 through = tunnels(rec_prev[:, C_X:C_Y + 1], rec_new[:, C_X:C_Y + 1],
-                                   now[L_DISCS], TUNNEL_SLACK)
+                                  now[L_DISCS], TUNNEL_SLACK)
             if not through:
                 for k in range(n):
                     slope[k] = (Z[k] - accepted[k]) / (t_new - t)
