@@ -33,7 +33,7 @@ from solver.jit import njit, prange
 from solver.kernels.grid import planar_fine
 from solver.kernels.homotopy import GIVE_UP, big_change
 from solver.kernels.obstacles import clearance, tunnels
-from solver.kernels.self_contact import smallest_far_gap
+from solver.kernels.self_contact import far_parts_clear
 from solver.kernels.spatial import planar_state_stable
 from solver.layout import (
     DT0,
@@ -425,7 +425,7 @@ def warm_step(state, grid, tubes, a, b, params, work, memo, guard):
         h_max = 0.0
         for i in range(steps.shape[0]):
             h_max = max(h_max, secf[LEN, i] / steps[i])
-        ok = smallest_far_gap(out[:, X:Y + 1], out[:, S], half, exclusion) > h_max
+        ok = far_parts_clear(out[:, X:Y + 1], out[:, S], half, exclusion, h_max)
     if ok:
         rest_a[:, :] = rest
         if record:

@@ -13,7 +13,7 @@ from solver.kernels import contact as contact_kernels
 from solver.kernels import planar as planar_kernels
 from solver.kernels import relax as relax_kernels
 from solver.kernels.grid import section_needs
-from solver.kernels.self_contact import smallest_far_gap
+from solver.kernels.self_contact import far_parts_clear
 from solver.paths.grid import section_rows
 from solver.problem import Problem, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
@@ -258,7 +258,7 @@ def _clear_of_itself(record, layout, sp):
     if sp[L.SC_K] <= 0:
         return True
     half = np.repeat(sp[L.SC_HALF:], layout.sec_steps + 1)
-    return smallest_far_gap(record[:, [L.X, L.Y]], record[:, L.S], half, sp[L.SC_EXCLUSION]) > 0.0
+    return far_parts_clear(record[:, [L.X, L.Y]], record[:, L.S], half, sp[L.SC_EXCLUSION], 0.0)
 
 
 # Penalty stages (log-spaced, from a thousandth to the full stiffness) that bring a snapped
