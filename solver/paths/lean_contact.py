@@ -324,6 +324,23 @@ class ContactRows:
         self._flags[done] = report[done, :5]
         return report
 
+    def step_moved(self, k: int, p_channel: np.ndarray, scene: Scene) -> np.ndarray:
+        """The lean contact step of copy k (a state on the contact layout) to the channel
+        pressures ``p_channel`` with its discs moved to those of ``scene`` (the same count
+        and law): an object the arm holds, moved quasi-statically. Returns the report row
+        (as :meth:`step`'s); on success the copy's scene is ``scene``."""
+        report = np.zeros((self.n, 6))
+        discs = np.full((self.max_obstacles, 4), (FAR, FAR, 0.0, 0.0))
+        given = scene.discs_array()
+        discs[:given.shape[0]] = given
+        p_to = np.zeros_like(self.contact[stepping.CT_P])
+        p_to[k] = p_channel
+        stepping.moved_contact_row(k, self.free, self.contact, p_to, discs, report)
+        if report[k, 0]:
+            self.scenes[k] = scene
+            self._flags[k] = report[k, :5]
+        return report[k]
+
     def equilibrium(self, k: int, pressures: np.ndarray, channel_pressures: np.ndarray) -> Equilibrium:
         """Copy k's state as the Equilibrium the general path returns for it (arrays copied)."""
         converged, stable, snapped, iterations, residual = self._flags[k]
