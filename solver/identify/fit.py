@@ -1,0 +1,695 @@
+"""Robust nonlinear least squares of a design's parameters, with uncertainty.
+
+:func:`fit` minimises Σ ρ(((measured − predicted)/σ)²) over the asked parameters with
+:func:`scipy.optimize.least_squares` (trust-region reflective, the parameters' physical bounds,
+a robust loss ρ, ``soft_l1`` by default, so that a few bad measurements do not drag the fit).
+The optimiser moves every parameter in units of its typical scale
+(:mod:`solver.identify.parameters`).
+
+**Predictions** are cold solves (:func:`solver.identify.measurements.predict`): the
+equilibrium reached quasi-statically from rest at each configuration's pressures. The
+objective is thus a function of the parameters alone; a warm start from the previous
+iterate's equilibrium would make it depend on the optimiser's path wherever the arm is
+bistable (docs/design.md §6), and the batched cold solve costs tens of microseconds per
+configuration anyway. Each configuration's prediction is computed once per parameter vector:
+the Jacobian reuses the residual evaluation at its base point.
+
+**Jacobian**: forward differences of step 1e-3 typical scales, one batched solve of every
+configuration per parameter. Where a configuration sits near a fold, a step can move it to
+the other stable branch (its tip jumps by centimetres); a difference across a jump is not a
+derivative, so such a configuration's rows are taken from the backward step instead, and set
+to zero if that jumps too (counted in ``FitResult.optimizer["branch_switches"]``).
+
+**Identifiability**: the singular values of the Jacobian in typical scales, J = U S Vᵀ, are
+the data's information along the directions V: 1/s is the posterior standard deviation
+along direction v, in typical scales. Before the fit (at the nominal design) and after it, a
+direction with s < 1e-6·s_max (structurally unidentifiable: two parameters act the same way
+on every measurement) or 1/s > 10 (the data do not pin it to within ten typical scales) makes
+the parameter that dominates it *unidentifiable*: it is named in the result, held at its
+nominal value, and left out of the covariance and of the posterior; the others are fitted.
+
+**Uncertainty**: the covariance is (JᵀJ)⁻¹ at the solution (J modified by the robust loss,
+as ``least_squares`` returns it), in the parameters' units; 95 % intervals are ±1.96 σ. With
+``absolute_sigma=True`` (default) the given σ are taken as the true noise; with False the
+covariance is scaled by the reduced χ², for σ that are only relative weights.
+
+**Checks that do not trust the fit**: a χ² test of the weighted residuals (without the
+robust loss) against their degrees of freedom flags a model that cannot explain the data
+(wrong model variant, wrong design, or σ too small): ``misspecified`` when its p-value is
+below 1e-3. Configurations held out of the fit (20 % at random by default) give the error on
+unseen data, before and after the fit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize, stats
+from threadpoolctl import threadpool_limits
+
+from solver.designs import ArmDesign, from_json
+from solver.identify.measurements import Measurements, predict
+from solver.identify.parameters import Parameter, apply_parameters, parse_parameters
+from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
+
+__all__ = ["fit", "FitResult", "Posterior", "identifiable", "LOSSES", "FORMAT"]
+
+LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
+"""Losses :func:`scipy.optimize.least_squares` offers."""
+FORMAT = "softarm-fit/1"
+"""The ``format`` field of a fit file."""
+FD_STEP = 1e-3
+"""Forward-difference step, in typical scales."""
+JUMP_FRACTION = 0.01
+"""A finite-difference step that moves a configuration's tip by more than this fraction of
+the arm's length has crossed to another branch (a smooth change moves it ~1e-4 of that)."""
+RCOND = 1e-6
+"""Singular values below this fraction of the largest are structural non-identifiability."""
+MAX_STD = 10.0
+"""Directions the data leave more uncertain than this many typical scales are not identified."""
+ALPHA = 1e-3
+"""Level of the χ² misspecification test."""
+Z95 = float(stats.norm.ppf(0.975))
+DEFAULT_HOLDOUT = 0.2
+
+
+def _num(v):
+    """A float, or None for a non-finite one (JSON has no NaN)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def identifiable(jac: np.ndarray, names, rcond: float = RCOND, max_std: float = MAX_STD):
+    """Which parameters a Jacobian identifies, by greedy elimination.
+
+    While the weakest direction of ``jac`` (columns in typical scales) is too weak — its
+    singular value s below ``rcond``·s_max, or 1/s above ``max_std`` — the parameter with
+    the largest component in it is removed.
+
+    Args:
+        jac: (m, p) Jacobian of the weighted residuals, columns in typical scales.
+        names: the p parameter names.
+        rcond, max_std: thresholds (module docstring).
+
+    Returns:
+        ``(kept, dropped)``: indices of the identified parameters, and for each removed one a
+        dict ``{"parameter", "reason", "with", "singular_value"}`` (``reason`` is
+        ``"structural"`` or ``"practical"``; ``with`` names the parameters it is confounded with).
+    """
+    kept, dropped = list(range(jac.shape[1])), []
+    while kept:
+        a = jac[:, kept]
+        if a.shape[0] < a.shape[1]:  # fewer rows than columns: pad, so that vt spans the null space
+            a = np.vstack([a, np.zeros((a.shape[1] - a.shape[0], a.shape[1]))])
+        _, s, vt = np.linalg.svd(a, full_matrices=False)
+        weakest, v = s[-1], vt[-1]
+        structural = not weakest > rcond * s[0]
+        if not structural and 1.0 / weakest <= max_std:
+            break
+        j = int(np.argmax(np.abs(v)))
+        partners = [names[kept[i]] for i in range(len(kept))
+                    if i != j and abs(v[i]) > 0.2 * abs(v[j])]
+        dropped.append({"parameter": names[kept[j]], "reason": "structural" if structural else "practical",
+                        "with": partners, "singular_value": float(weakest)})
+        del kept[j]
+    return kept, dropped
+
+
+class _Objective:
+    """Weighted residuals of the fit set as a function of the optimiser's variables, with a
+    small cache (the Jacobian reuses the residuals at its base point)."""
+
+    def __init__(self, design, params, meas: Measurements, active, model, settings, progress):
+        self.design, self.params, self.meas = design, params, meas
+        self.active, self.model, self.settings, self.progress = active, model, settings, progress
+        self.nominal = np.array([p.nominal for p in params])
+        self.scale = np.array([p.scale for p in params])
+        self.backbone = any(o.needs_backbone or o.needs_equilibria for o in meas.observations)
+        self.masks = [np.isfinite(o.measured) for o in meas.observations]
+        index, start = [], 0
+        for m in self.masks:
+            idx = np.full(m.shape, -1)
+            idx[m] = np.arange(start, start + m.sum())
+            start += int(m.sum())
+            index.append(idx)
+        self.index, self.m = index, start
+        self.jump = JUMP_FRACTION * design.length
+        self.cache: OrderedDict = OrderedDict()
+        self.policies: dict = {}
+        self.nfev = self.njev = self.switches = 0
+
+    def values(self, x) -> np.ndarray:
+        v = self.nominal.copy()
+        v[self.active] += np.asarray(x) * self.scale[self.active]
+        return v
+
+    def predictions(self, values, rows=None):
+        """(predicted per observation, tips, converged) at ``values`` for ``rows`` (all)."""
+        arm = apply_parameters(self.design, self.params, values)
+        meas = self.meas if rows is None else self.meas.take(rows)
+        shapes = predict(arm, meas, self.model, self.backbone, self.settings, self.policies)
+        preds = []
+        for o in meas.observations:
+            p = np.asarray(o.predict(shapes, arm), dtype=float)
+            if not np.all(np.isfinite(p)):
+                k = int(np.argwhere(~np.isfinite(p))[0, 0])
+                raise ValueError(f"observation {o.name!r} predicts a non-finite value for configuration {k}")
+            preds.append(p)
+        return preds, shapes.tips, shapes.converged
+
+    def weighted(self, preds, rows=None) -> np.ndarray:
+        """The weighted residuals of predictions for ``rows`` (all), in the fit vector's order
+        (for a subset of rows: a full-length vector, NaN outside those rows)."""
+        r = np.full(self.m, np.nan)
+        for o, idx, p in zip(self.meas.observations, self.index, preds):
+            sel = idx if rows is None else idx[rows]
+            meas, sig = (o.measured, o.sigma) if rows is None else (o.measured[rows], o.sigma[rows])
+            ok = sel >= 0
+            r[sel[ok]] = ((meas - p) / sig)[ok]
+        return r
+
+    def evaluate(self, x):
+        key = np.asarray(x, dtype=float).tobytes()
+        if key in self.cache:
+            self.cache.move_to_end(key)
+            return self.cache[key]
+        preds, tips, ok = self.predictions(self.values(x))
+        out = (self.weighted(preds), tips, ok)
+        self.cache[key] = out
+        if len(self.cache) > 4:
+            self.cache.popitem(last=False)
+        self.nfev += 1
+        if self.progress is not None:
+            self.progress({"evaluations": self.nfev, "jacobians": self.njev,
+                           "cost": 0.5 * float(np.sum(out[0] ** 2))})
+        return out
+
+    def residuals(self, x) -> np.ndarray:
+        return self.evaluate(x)[0]
+
+    def jacobian(self, x, lower=None, upper=None) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        r0, tips0, _ = self.evaluate(x)
+        jac = np.empty((self.m, x.size))
+        for j in range(x.size):
+            h = FD_STEP if upper is None or x[j] + FD_STEP <= upper[j] else -FD_STEP
+            xj = x.copy()
+            xj[j] += h
+            rj, tj, _ = self.evaluate(xj)
+            col = (rj - r0) / h
+            jumped = np.flatnonzero(np.hypot(*(tj - tips0).T) > self.jump)
+            if jumped.size:
+                self.switches += jumped.size
+                col = self._across_jump(col, x, j, h, jumped, r0, tips0, lower, upper)
+            jac[:, j] = col
+        self.njev += 1
+        return jac
+
+    def _across_jump(self, col, x, j, h, rows, r0, tips0, lower, upper):
+        """``col`` with the rows of configurations ``rows`` (whose forward step jumped branch)
+        from the backward step, or 0 where that jumps too or leaves the bounds."""
+        xb = x.copy()
+        xb[j] -= h
+        entries = np.concatenate([idx[rows][idx[rows] >= 0] for idx in self.index])
+        col[entries] = 0.0
+        inside = (lower is None or xb[j] >= lower[j]) and (upper is None or xb[j] <= upper[j])
+        if not inside:
+            return col
+        preds, tb, _ = self.predictions(self.values(xb), rows)
+        smooth = rows[np.hypot(*(tb - tips0[rows]).T) <= self.jump]
+        if smooth.size:
+            rb = self.weighted(preds, rows)
+            keep = np.concatenate([idx[smooth][idx[smooth] >= 0] for idx in self.index])
+            col[keep] = (r0[keep] - rb[keep]) / h
+        return col
+
+
+@dataclass(frozen=True)
+class Posterior:
+    """The fitted parameters' distribution: a multivariate normal, clipped to their bounds.
+
+    Attributes:
+        design: the design the parameters were fitted from (samples are built from it).
+        parameters: the identified parameters.
+        mean: (p,) their fitted values.
+        covariance: (p, p) their covariance (units of the parameters).
+    """
+
+    design: ArmDesign
+    parameters: tuple[Parameter, ...]
+    mean: np.ndarray
+    covariance: np.ndarray
+
+    def __post_init__(self):
+        p = len(self.parameters)
+        mean = np.array(self.mean, dtype=float).reshape(-1)
+        cov = np.array(self.covariance, dtype=float)
+        finite = np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))
+        if mean.shape != (p,) or cov.shape != (p, p) or not finite:
+            raise ValueError(f"a posterior of {p} parameters needs a finite mean ({p},) and covariance "
+                             f"({p}, {p}); got {mean.shape} and {cov.shape}")
+        if not np.allclose(cov, cov.T, rtol=1e-10, atol=0) or np.linalg.eigvalsh(cov).min() < \
+                -1e-10 * max(np.abs(cov).max(), 1e-300):
+            raise ValueError("the posterior covariance must be symmetric positive semi-definite")
+        w, q = np.linalg.eigh(0.5 * (cov + cov.T))
+        object.__setattr__(self, "mean", mean)
+        object.__setattr__(self, "covariance", cov)
+        object.__setattr__(self, "_factor", q * np.sqrt(np.clip(w, 0.0, None)))
+
+    @property
+    def lower(self) -> np.ndarray:
+        return np.array([p.lower for p in self.parameters])
+
+    @property
+    def upper(self) -> np.ndarray:
+        return np.array([p.upper for p in self.parameters])
+
+    def sample_values(self, rng: np.random.Generator, size: int | None = None,
+                      widen: float = 1.0) -> np.ndarray:
+        """Parameter values drawn from N(mean, widen²·covariance), clipped to the bounds.
+
+        Args:
+            rng: the only source of randomness.
+            size: number of draws (None: one, shape (p,)).
+            widen: standard-deviation factor (1: the posterior as fitted).
+
+        Returns:
+            (p,) or (size, p) values.
+        """
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng must be a numpy.random.Generator; got {type(rng).__name__}")
+        z = rng.standard_normal((1 if size is None else int(size), len(self.parameters)))
+        x = np.clip(self.mean + widen * z @ self._factor.T, self.lower, self.upper)
+        return x[0] if size is None else x
+
+    def sample(self, rng: np.random.Generator, widen: float = 1.0) -> ArmDesign:
+        """One design drawn from the posterior (:meth:`sample_values`)."""
+        return apply_parameters(self.design, self.parameters, self.sample_values(rng, widen=widen))
+
+    @property
+    def mean_design(self) -> ArmDesign:
+        """The design at the posterior mean (the fitted design)."""
+        return apply_parameters(self.design, self.parameters, self.mean)
+
+    def to_dict(self) -> dict:
+        """Plain JSON values (the ``posterior`` entry of a fit file)."""
+        return {"design": json.loads(self.design.to_json()),
+                "parameters": [p.to_dict() for p in self.parameters],
+                "mean": self.mean.tolist(), "covariance": self.covariance.tolist()}
+
+    @classmethod
+    def from_dict(cls, data) -> Posterior:
+        """Inverse of :meth:`to_dict`, validated (one-line ``ValueError``)."""
+        if not isinstance(data, dict) or set(data) != {"design", "parameters", "mean", "covariance"}:
+            raise ValueError("a posterior must be a JSON object with design, parameters, mean and covariance")
+        design = from_json(json.dumps(data["design"]))
+        if not isinstance(data["parameters"], list):
+            raise ValueError("posterior parameters must be a list")
+        params = tuple(Parameter.from_dict(p) for p in data["parameters"])
+        try:
+            return cls(design, params, np.asarray(data["mean"], dtype=float),
+                       np.asarray(data["covariance"], dtype=float))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"posterior: {exc}") from None
+
+    @classmethod
+    def load(cls, path) -> Posterior:
+        """The posterior of a fit file (written from :meth:`FitResult.to_dict`).
+
+        Raises:
+            OSError: the file cannot be read.
+            ValueError: it is not a fit file, or its posterior is invalid (one line).
+        """
+        with open(path, "rb") as fh:
+            raw = fh.read(64_000_000)
+        try:
+            data = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError) as exc:
+            raise ValueError(f"{path}: not a JSON fit file ({exc})") from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT or "posterior" not in data:
+            raise ValueError(f"{path}: not a fit file (format {FORMAT!r} with a posterior)")
+        return cls.from_dict(data["posterior"])
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """What :func:`fit` found.
+
+    Attributes:
+        design, fitted_design: the design fitted from, and with the fitted values.
+        parameters: the parameters asked for.
+        values: (p,) fitted values (nominal for an unidentifiable parameter).
+        std: (p,) standard deviations (NaN for an unidentifiable parameter).
+        covariance: (p, p) covariance (NaN rows and columns for unidentifiable ones).
+        identified: (p,) bool.
+        unidentifiable: one dict per parameter held at nominal or not identified at the
+            solution (:func:`identifiable`), with ``stage`` ``"nominal"`` or ``"solution"``.
+        singular_values: of the Jacobian at the solution, in typical scales (identified
+            parameters).
+        chi_square: the χ² test: ``{"statistic", "dof", "reduced", "p_value",
+            "misspecified", "robust_scale", "by_observation"}``.
+        holdout: error on the held-out configurations, before and after the fit (None
+            without a hold-out set).
+        configurations: per configuration: index, split, converged, and the error in metres
+            of each position observation, nominal and fitted (columns as lists).
+        residuals: per measured value: configuration, split, observation, quantity, unit,
+            measured, sigma, nominal, fitted, normalized (= (measured − fitted)/sigma).
+        optimizer: status, message, evaluations, jacobians, branch switches, seconds.
+        model, loss, f_scale, absolute_sigma: how it was fitted.
+        measurements: the data (not written to the fit file).
+    """
+
+    design: ArmDesign
+    fitted_design: ArmDesign
+    parameters: tuple[Parameter, ...]
+    values: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    identified: np.ndarray
+    unidentifiable: tuple
+    singular_values: np.ndarray
+    chi_square: dict
+    holdout: dict | None
+    configurations: dict
+    residuals: dict
+    optimizer: dict
+    model: str
+    loss: str
+    f_scale: float
+    absolute_sigma: bool
+    measurements: Measurements = field(repr=False, compare=False)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    def interval(self, level: float = 0.95) -> np.ndarray:
+        """(p, 2) normal confidence intervals (NaN for unidentifiable parameters)."""
+        z = float(stats.norm.ppf(0.5 + level / 2.0))
+        return np.column_stack([self.values - z * self.std, self.values + z * self.std])
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """(p, p) correlation matrix of the fitted parameters."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.covariance / np.outer(self.std, self.std)
+
+    @property
+    def at_bound(self) -> np.ndarray:
+        """(p,) whether a fitted value sits on its bound (its interval is then unreliable)."""
+        lo = np.array([p.lower for p in self.parameters])
+        hi = np.array([p.upper for p in self.parameters])
+        tol = 1e-6 * np.array([p.scale for p in self.parameters])
+        return self.identified & ((self.values - lo <= tol) | (hi - self.values <= tol))
+
+    def posterior(self) -> Posterior:
+        """The identified parameters' posterior, for domain randomisation."""
+        keep = np.flatnonzero(self.identified)
+        return Posterior(self.design, tuple(self.parameters[k] for k in keep), self.values[keep],
+                         self.covariance[np.ix_(keep, keep)])
+
+    def to_dict(self) -> dict:
+        """Plain JSON values (non-finite numbers as None): the fit file."""
+        ci = self.interval()
+        params = []
+        for k, p in enumerate(self.parameters):
+            params.append({**p.to_dict(), "value": self.values[k], "std": _num(self.std[k]),
+                           "ci95": [_num(ci[k, 0]), _num(ci[k, 1])], "identified": bool(self.identified[k]),
+                           "at_bound": bool(self.at_bound[k])})
+        cov = [[_num(v) for v in row] for row in self.covariance]
+        s = self.singular_values
+        return {"format": FORMAT, "model": self.model, "loss": self.loss, "f_scale": self.f_scale,
+                "absolute_sigma": self.absolute_sigma,
+                "design": json.loads(self.design.to_json()),
+                "fitted_design": json.loads(self.fitted_design.to_json()),
+                "parameters": params, "covariance": cov,
+                "identifiability": {"singular_values": s.tolist(),
+                                    "condition_number": _num(s[0] / s[-1]) if s.size else None,
+                                    "unidentifiable": list(self.unidentifiable)},
+                "chi_square": self.chi_square, "holdout": self.holdout, "optimizer": self.optimizer,
+                "posterior": self.posterior().to_dict(),
+                "configurations": self.configurations, "residuals": self.residuals}
+
+    def summary(self) -> str:
+        """A few lines for people: the parameters with intervals, then the checks."""
+        opt = self.optimizer
+        lines = [f"{self.design.name}: {len(self.parameters)} parameters fitted to {opt['fit_values']} "
+                 f"values of {opt['fit_configurations']} configurations ({self.model} model, {self.loss} "
+                 f"loss) in {opt['seconds']:.2f} s",
+                 f"{'parameter':22s} {'nominal':>12s} {'fitted':>12s} {'std':>10s}   95 % interval"]
+        ci = self.interval()
+        for k, p in enumerate(self.parameters):
+            if self.identified[k]:
+                flag = "  (at bound)" if self.at_bound[k] else ""
+                lines.append(f"{p.name:22s} {p.nominal:12.6g} {self.values[k]:12.6g} {self.std[k]:10.3g}   "
+                             f"[{ci[k, 0]:.6g}, {ci[k, 1]:.6g}] {p.unit}{flag}")
+            else:
+                lines.append(f"{p.name:22s} {p.nominal:12.6g} {'held':>12s} {'-':>10s}   not identified")
+        for u in self.unidentifiable:
+            partner = f", confounded with {', '.join(u['with'])}" if u["with"] else ""
+            lines.append(f"  unidentifiable ({u['reason']}, at the {u['stage']}): {u['parameter']}{partner}")
+        c = self.chi_square
+        verdict = "MISSPECIFIED: the model does not explain the data" if c["misspecified"] else "consistent"
+        lines.append(f"chi-square {c['statistic']:.1f} on {c['dof']} dof (reduced {c['reduced']:.3g}, "
+                     f"p = {c['p_value']:.3g}): {verdict}")
+        if self.holdout:
+            for name, h in self.holdout["observations"].items():
+                if h.get("mean_error_m") is not None:
+                    lines.append(f"held out ({self.holdout['configurations']} configurations), {name}: mean "
+                                 f"error {1e3 * h['nominal']['mean_error_m']:.1f} mm nominal -> "
+                                 f"{1e3 * h['mean_error_m']:.1f} mm fitted")
+                lines.append(f"held out, {name}: RMS normalized residual {h['nominal']['rms_normalized']:.3g}"
+                             f" nominal -> {h['rms_normalized']:.3g} fitted")
+        if self.optimizer["unconverged"]:
+            lines.append(f"WARNING: {len(self.optimizer['unconverged'])} configurations have no converged "
+                         f"equilibrium at the solution: {self.optimizer['unconverged'][:10]}")
+        if not self.optimizer["success"]:
+            lines.append(f"WARNING: the optimiser stopped without converging: {self.optimizer['message']}")
+        return "\n".join(lines)
+
+
+def _split(meas: Measurements, holdout, seed) -> np.ndarray:
+    """(n,) bool: the held-out configurations."""
+    n = meas.n
+    if holdout is None:
+        if meas.holdout is not None:
+            return meas.holdout.copy()
+        holdout = DEFAULT_HOLDOUT
+    if isinstance(holdout, (float, int)) and not isinstance(holdout, bool):
+        if not 0.0 <= holdout < 1.0:
+            raise ValueError(f"holdout must be a fraction in [0, 1) or a bool mask; got {holdout!r}")
+        mask = np.zeros(n, dtype=bool)
+        mask[np.random.default_rng(seed).permutation(n)[:int(round(holdout * n))]] = True
+        return mask
+    mask = np.asarray(holdout)
+    if mask.shape != (n,) or mask.dtype != bool:
+        raise ValueError(f"holdout must be a fraction in [0, 1) or a ({n},) bool mask; got {holdout!r}")
+    return mask.copy()
+
+
+def _table(meas: Measurements, rows, split: str, preds_nominal, preds_fitted) -> dict:
+    cols: dict[str, list] = {k: [] for k in ("configuration", "split", "observation", "quantity", "unit",
+                                             "measured", "sigma", "nominal", "fitted", "normalized")}
+    for o, pn, pf in zip(meas.observations, preds_nominal, preds_fitted):
+        mask = np.isfinite(o.measured)
+        r, c = np.nonzero(mask)
+        cols["configuration"] += rows[r].tolist()
+        cols["split"] += [split] * r.size
+        cols["observation"] += [o.name] * r.size
+        cols["quantity"] += [o.labels[j] for j in c]
+        cols["unit"] += [o.units[j] for j in c]
+        cols["measured"] += o.measured[mask].tolist()
+        cols["sigma"] += o.sigma[mask].tolist()
+        cols["nominal"] += pn[mask].tolist()
+        cols["fitted"] += pf[mask].tolist()
+        cols["normalized"] += ((o.measured - pf) / o.sigma)[mask].tolist()
+    return cols
+
+
+def _merge(a: dict, b: dict) -> dict:
+    return {k: a[k] + b[k] for k in a}
+
+
+def _distances(meas: Measurements, preds) -> dict[str, np.ndarray]:
+    """Per position observation, (n,) the error in metres per configuration (NaN where a
+    configuration has nothing measured)."""
+    out = {}
+    for o, p in zip(meas.observations, preds):
+        d = o.distances(o.measured - p)
+        if d is not None:
+            out[o.name] = d
+    return out
+
+
+def _set_summary(meas: Measurements, preds_nominal, preds_fitted) -> dict:
+    """Per observation: RMS normalized residual and mean position error, nominal and fitted."""
+    out = {}
+    for o, pn, pf in zip(meas.observations, preds_nominal, preds_fitted):
+        entry = {}
+        for key, p in (("fitted", pf), ("nominal", pn)):
+            z = ((o.measured - p) / o.sigma)[np.isfinite(o.measured)]
+            d = o.distances(o.measured - p)
+            d = d[np.isfinite(d)] if d is not None else None
+            stats_ = {"rms_normalized": _num(np.sqrt(np.mean(z**2))) if z.size else None,
+                      "chi_square": _num(np.sum(z**2)), "values": int(z.size),
+                      "mean_error_m": _num(np.mean(d)) if d is not None and d.size else None,
+                      "rms_error_m": _num(np.sqrt(np.mean(d**2))) if d is not None and d.size else None}
+            if key == "fitted":
+                entry.update(stats_)
+            else:
+                entry["nominal"] = stats_
+        out[o.name] = entry
+    return out
+
+
+def fit(design: ArmDesign, measurements: Measurements, parameters, *, model: str = "full",
+        loss: str = "soft_l1", f_scale: float = 3.0, holdout=None, seed: int = 0,
+        absolute_sigma: bool = True, max_nfev: int = 60, settings: Settings = DEFAULT_SETTINGS,
+        progress=None) -> FitResult:
+    """Fit ``parameters`` of ``design`` to ``measurements``.
+
+    Args:
+        design: the nominal design (the starting point, and the prior's centre).
+        measurements: configurations and observations (:class:`Measurements`).
+        parameters: names (``"wind_angle:s1,E"`` or a list; :mod:`solver.identify.parameters`).
+        model: the solver model predictions use (:data:`solver.MODELS`).
+        loss: robust loss of ``least_squares`` (:data:`LOSSES`).
+        f_scale: where the loss turns robust, in standard deviations of the noise.
+        holdout: configurations kept out of the fit: a fraction chosen at random with
+            ``seed``, a (n,) bool mask, or None (``measurements.holdout`` if set, else 20 %).
+        seed: seeds the random hold-out choice.
+        absolute_sigma: take the observations' σ as the true noise (else as relative weights:
+            the covariance is scaled by the reduced χ²).
+        max_nfev: most residual evaluations of the optimiser.
+        settings: numerical settings of the solves.
+        progress: called after every batch evaluation with
+            ``{"evaluations", "jacobians", "cost"}`` (e.g. to move a progress bar).
+
+    Returns:
+        The :class:`FitResult`.
+
+    Raises:
+        ValueError: (one line) unknown parameters, a model or loss name, measurements the
+            design cannot take, or too few measured values for the parameters.
+    """
+    # One BLAS thread: the fit's algebra is small (SVDs of m × p), and BLAS threads that wait on
+    # the batch solves' threads made each SVD ~100x slower on a 2-core machine.
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _fit(design, measurements, parameters, model, loss, f_scale, holdout, seed, absolute_sigma,
+                    max_nfev, settings, progress)
+
+
+def _fit(design, measurements, parameters, model, loss, f_scale, holdout, seed, absolute_sigma, max_nfev,
+         settings, progress) -> FitResult:
+    start = time.perf_counter()
+    if model not in MODELS:
+        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    if loss not in LOSSES:
+        raise ValueError(f"unknown loss {loss!r}; choose one of {', '.join(LOSSES)}")
+    if not (isinstance(f_scale, (int, float)) and math.isfinite(f_scale) and f_scale > 0):
+        raise ValueError(f"f_scale must be a finite number > 0; got {f_scale!r}")
+    if isinstance(max_nfev, bool) or not isinstance(max_nfev, int) or max_nfev < 1:
+        raise ValueError(f"max_nfev must be an integer >= 1; got {max_nfev!r}")
+    if not isinstance(measurements, Measurements):
+        raise ValueError("measurements must be a solver.identify.Measurements; got "
+                         f"{type(measurements).__name__}")
+    params = parse_parameters(design, parameters)
+    measurements.check(design)
+    held = _split(measurements, holdout, seed)
+    fit_rows, held_rows = np.flatnonzero(~held), np.flatnonzero(held)
+    train = measurements.take(fit_rows)
+    m, p = train.n_values, len(params)
+    if m <= p:
+        raise ValueError(f"{m} measured values in the fit set ({fit_rows.size} configurations) cannot "
+                         f"determine {p} parameters; need at least {p + 1}")
+    names = [q.name for q in params]
+    nominal = np.array([q.nominal for q in params])
+    scale = np.array([q.scale for q in params])
+    lower = (np.array([q.lower for q in params]) - nominal) / scale
+    upper = (np.array([q.upper for q in params]) - nominal) / scale
+
+    # Identifiability at the nominal design: name what the data cannot determine, fit the rest.
+    probe = _Objective(design, params, train, np.arange(p), model, settings, progress)
+    kept, dropped = identifiable(probe.jacobian(np.zeros(p), lower, upper), names)
+    unidentifiable = [{**d, "stage": "nominal"} for d in dropped]
+    active = np.array(kept, dtype=np.int64)
+    objective = _Objective(design, params, train, active, model, settings, progress)
+    objective.policies = probe.policies
+    objective.nfev, objective.njev, objective.switches = probe.nfev, probe.njev, probe.switches
+    values = nominal.copy()
+    cov = np.full((p, p), np.nan)
+    singular = np.empty(0)
+    result = None
+    if active.size:
+        lo, hi = lower[active], upper[active]
+        result = optimize.least_squares(
+            objective.residuals, np.zeros(active.size), jac=lambda x: objective.jacobian(x, lo, hi),
+            bounds=(lo, hi), method="trf", loss=loss, f_scale=f_scale, x_scale=1.0, max_nfev=max_nfev)
+        values = objective.values(result.x)
+        jac = result.jac
+        kept2, dropped2 = identifiable(jac, [names[k] for k in active])
+        unidentifiable += [{**d, "stage": "solution"} for d in dropped2]
+        final = active[kept2]
+        if kept2:
+            u, s, vt = np.linalg.svd(jac[:, kept2], full_matrices=False)
+            singular = s
+            cov_x = (vt.T / s**2) @ vt
+            dof = m - final.size
+            if not absolute_sigma:
+                cov_x = cov_x * (2.0 * result.cost / dof)
+            cov[np.ix_(final, final)] = cov_x * np.outer(scale[final], scale[final])
+    identified = np.isfinite(np.diag(cov))
+    std = np.sqrt(np.diag(cov))
+
+    # Residuals, nominal and fitted, on both sets; the χ² test on the fit set.
+    fitted_design = from_json(apply_parameters(design, params, values).to_json())
+    sets = {"fit": (train, fit_rows)}
+    if held_rows.size:
+        sets["holdout"] = (measurements.take(held_rows), held_rows)
+    nominal_obj = _Objective(design, params, measurements, np.arange(p), model, settings, None)
+    residual_cols, per_config, summaries, unconverged = None, {}, {}, []
+    for split, (meas, rows) in sets.items():
+        pn, _, _ = nominal_obj.predictions(nominal, rows)
+        pf, _, ok = nominal_obj.predictions(values, rows)
+        unconverged += rows[~ok].tolist()
+        cols = _table(meas, rows, split, pn, pf)
+        residual_cols = cols if residual_cols is None else _merge(residual_cols, cols)
+        summaries[split] = _set_summary(meas, pn, pf)
+        dn, df = _distances(meas, pn), _distances(meas, pf)
+        per_config.setdefault("configuration", []).extend(rows.tolist())
+        per_config.setdefault("split", []).extend([split] * rows.size)
+        per_config.setdefault("converged", []).extend(ok.tolist())
+        for name in dn:
+            per_config.setdefault(f"{name}_error_nominal_m", []).extend(map(_num, dn[name]))
+            per_config.setdefault(f"{name}_error_fitted_m", []).extend(map(_num, df[name]))
+    z = np.array(residual_cols["normalized"])[np.array(residual_cols["split"]) == "fit"]
+    n_fitted = int(identified.sum())
+    dof = m - n_fitted
+    statistic = float(np.sum(z**2))
+    p_value = float(stats.chi2.sf(statistic, dof))
+    chi = {"statistic": statistic, "dof": dof, "reduced": statistic / dof, "p_value": p_value,
+           "misspecified": bool(p_value < ALPHA), "alpha": ALPHA,
+           "robust_scale": float(np.median(np.abs(z)) / stats.norm.ppf(0.75)),
+           "by_observation": {name: {"chi_square": s["chi_square"], "values": s["values"]}
+                              for name, s in summaries["fit"].items()}}
+    held_summary = None
+    if "holdout" in summaries:
+        held_summary = {"configurations": int(held_rows.size), "observations": summaries["holdout"]}
+    optimizer = {"success": bool(result.status > 0) if result is not None else True,
+                 "status": int(result.status) if result is not None else 0,
+                 "message": result.message if result is not None else "nothing identifiable to fit",
+                 "evaluations": objective.nfev, "jacobians": objective.njev,
+                 "branch_switches": objective.switches, "unconverged": sorted(unconverged),
+                 "fit_configurations": int(fit_rows.size), "fit_values": int(m),
+                 "fit": summaries["fit"], "seconds": time.perf_counter() - start}
+    return FitResult(design=design, fitted_design=fitted_design, parameters=params, values=values, std=std,
+                     covariance=cov, identified=identified, unidentifiable=tuple(unidentifiable),
+                     singular_values=singular, chi_square=chi, holdout=held_summary,
+                     configurations=per_config, residuals=residual_cols, optimizer=optimizer, model=model,
+                     loss=loss, f_scale=float(f_scale), absolute_sigma=bool(absolute_sigma),
+                     measurements=measurements)
