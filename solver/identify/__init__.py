@@ -20,13 +20,13 @@ parameters to measurements of the arm::
   endplate masses, an unknown payload), with their bounds.
 * :mod:`solver.identify.measurements` — configurations, observations (tips, backbone
   markers; sensor readings come from ``softarm_gym.identify``) and the model's predictions.
-* :mod:`solver.identify.fit` — robust least squares, covariance, identifiability, the χ²
+* :mod:`solver.identify.fitting` — robust least squares, covariance, identifiability, the χ²
   misspecification test, the held-out error, and the posterior for domain randomisation.
 
 Planar measurements only (the thesis's experiments are planar).
 """
 
-from solver.identify.fit import FORMAT, LOSSES, FitResult, Posterior, fit, identifiable
+from solver.identify.fitting import FORMAT, LOSSES, FitResult, Posterior, fit, identifiable
 from solver.identify.measurements import (
            BackbonePoints,
            Measurements,

@@ -25,6 +25,7 @@ import numpy as np
 import solver
 from solver import layout as L
 from solver.designs import ArmDesign
+from solver.rod import hermite_resample
 from solver.settings import DEFAULT_SETTINGS, Settings
 
 __all__ = ["Measurements", "Observation", "TipPositions", "BackbonePoints", "Shapes", "predict",
@@ -278,6 +279,27 @@ class Measurements:
         return {(float(a), float(m)): np.flatnonzero(inverse.reshape(-1) == g)
                 for g, (a, m) in enumerate(unique)}
 
+    def effective_sigma(self) -> list[np.ndarray]:
+        """Per observation, (n, k) the standard deviations a fit weighs by: ``sigma``, except
+        where a quantity reads one and the same value in every configuration of a scene.
+
+        k equal readings of one quantity (a base load cell's force, which is the arm's weight
+        whatever the pressures) are one true value rounded k times: k copies of one error,
+        not k independent errors. They are weighed as one reading: each by σ·√k. (Readings
+        that vary, or carry noise that varies them, are not touched.)
+        """
+        out = []
+        for o in self.observations:
+            sigma = o.sigma.copy()
+            for rows in self.scenes().values():
+                block = o.measured[rows]
+                for j in range(block.shape[1]):
+                    seen = block[np.isfinite(block[:, j]), j]
+                    if seen.size > 1 and np.all(seen == seen[0]):
+                        sigma[rows, j] *= math.sqrt(seen.size)
+            out.append(sigma)
+        return out
+
 
 @dataclass
 class Shapes:
@@ -317,23 +339,14 @@ class Shapes:
         Hermite interpolation between the samples (positions and tangents r' = v1·d1 + v3·d3)."""
         if self.positions is None:
             raise ValueError("these shapes were solved for tips only; predict(..., backbone=True)")
-        grid = self.s
-        # The left sample of each marker's interval; section ends are sampled twice (one row per
-        # side), so side="right" lands on the distal copy and no interval has zero length.
-        i = np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2)
-        i = np.where(grid[i + 1] > grid[i], i, i - 1)
-        h = grid[i + 1] - grid[i]
-        t = (s - grid[i]) / h
-        th = self.angles
-        d3 = np.stack([np.cos(th), np.sin(th)], axis=-1)
-        d1 = np.stack([-np.sin(th), np.cos(th)], axis=-1)
-        tangent = self.stretch[..., :1] * d1 + self.stretch[..., 1:] * d3  # (n, N, 2)
-        h00, h10 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t
-        h01, h11 = -2 * t**3 + 3 * t**2, t**3 - t**2
-        p0, p1 = self.positions[:, i], self.positions[:, i + 1]
-        m0, m1 = tangent[:, i] * h[None, :, None], tangent[:, i + 1] * h[None, :, None]
-        return (h00[None, :, None] * p0 + h10[None, :, None] * m0 + h01[None, :, None] * p1
-                + h11[None, :, None] * m1)
+        s = np.ascontiguousarray(s, dtype=float)
+        c, sn = np.cos(self.angles), np.sin(self.angles)
+        v1, v3 = self.stretch[..., 0], self.stretch[..., 1]
+        tangent = np.stack([v3 * c - v1 * sn, v3 * sn + v1 * c], axis=-1)  # (n, N, 2)
+        out = np.empty((self.tips.shape[0], s.size, 2))
+        for k in range(out.shape[0]):
+            hermite_resample(self.s, np.ascontiguousarray(self.positions[k]), tangent[k], s, out[k])
+        return out
 
 
 def _record_fields(eq: solver.Equilibrium):

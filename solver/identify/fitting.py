@@ -131,6 +131,7 @@ class _Objective:
         self.scale = np.array([p.scale for p in params])
         self.backbone = any(o.needs_backbone or o.needs_equilibria for o in meas.observations)
         self.masks = [np.isfinite(o.measured) for o in meas.observations]
+        self.sigmas = meas.effective_sigma()
         index, start = [], 0
         for m in self.masks:
             idx = np.full(m.shape, -1)
@@ -166,9 +167,9 @@ class _Objective:
         """The weighted residuals of predictions for ``rows`` (all), in the fit vector's order
         (for a subset of rows: a full-length vector, NaN outside those rows)."""
         r = np.full(self.m, np.nan)
-        for o, idx, p in zip(self.meas.observations, self.index, preds):
+        for o, idx, sigma, p in zip(self.meas.observations, self.index, self.sigmas, preds):
             sel = idx if rows is None else idx[rows]
-            meas, sig = (o.measured, o.sigma) if rows is None else (o.measured[rows], o.sigma[rows])
+            meas, sig = (o.measured, sigma) if rows is None else (o.measured[rows], sigma[rows])
             ok = sel >= 0
             r[sel[ok]] = ((meas - p) / sig)[ok]
         return r
@@ -358,7 +359,8 @@ class FitResult:
         configurations: per configuration: index, split, converged, and the error in metres
             of each position observation, nominal and fitted (columns as lists).
         residuals: per measured value: configuration, split, observation, quantity, unit,
-            measured, sigma, nominal, fitted, normalized (= (measured − fitted)/sigma).
+            measured, sigma (as weighed: :meth:`Measurements.effective_sigma`), nominal, fitted,
+            normalized (= (measured − fitted)/sigma).
         optimizer: status, message, evaluations, jacobians, branch switches, seconds.
         model, loss, f_scale, absolute_sigma: how it was fitted.
         measurements: the data (not written to the fit file).
@@ -492,10 +494,10 @@ def _split(meas: Measurements, holdout, seed) -> np.ndarray:
     return mask.copy()
 
 
-def _table(meas: Measurements, rows, split: str, preds_nominal, preds_fitted) -> dict:
+def _table(meas: Measurements, sigmas, rows, split: str, preds_nominal, preds_fitted) -> dict:
     cols: dict[str, list] = {k: [] for k in ("configuration", "split", "observation", "quantity", "unit",
                                              "measured", "sigma", "nominal", "fitted", "normalized")}
-    for o, pn, pf in zip(meas.observations, preds_nominal, preds_fitted):
+    for o, sigma, pn, pf in zip(meas.observations, sigmas, preds_nominal, preds_fitted):
         mask = np.isfinite(o.measured)
         r, c = np.nonzero(mask)
         cols["configuration"] += rows[r].tolist()
@@ -504,10 +506,10 @@ def _table(meas: Measurements, rows, split: str, preds_nominal, preds_fitted) ->
         cols["quantity"] += [o.labels[j] for j in c]
         cols["unit"] += [o.units[j] for j in c]
         cols["measured"] += o.measured[mask].tolist()
-        cols["sigma"] += o.sigma[mask].tolist()
+        cols["sigma"] += sigma[mask].tolist()
         cols["nominal"] += pn[mask].tolist()
         cols["fitted"] += pf[mask].tolist()
-        cols["normalized"] += ((o.measured - pf) / o.sigma)[mask].tolist()
+        cols["normalized"] += ((o.measured - pf) / sigma)[mask].tolist()
     return cols
 
 
@@ -526,13 +528,13 @@ def _distances(meas: Measurements, preds) -> dict[str, np.ndarray]:
     return out
 
 
-def _set_summary(meas: Measurements, preds_nominal, preds_fitted) -> dict:
+def _set_summary(meas: Measurements, sigmas, preds_nominal, preds_fitted) -> dict:
     """Per observation: RMS normalized residual and mean position error, nominal and fitted."""
     out = {}
-    for o, pn, pf in zip(meas.observations, preds_nominal, preds_fitted):
+    for o, sigma, pn, pf in zip(meas.observations, sigmas, preds_nominal, preds_fitted):
         entry = {}
         for key, p in (("fitted", pf), ("nominal", pn)):
-            z = ((o.measured - p) / o.sigma)[np.isfinite(o.measured)]
+            z = ((o.measured - p) / sigma)[np.isfinite(o.measured)]
             d = o.distances(o.measured - p)
             d = d[np.isfinite(d)] if d is not None else None
             stats_ = {"rms_normalized": _num(np.sqrt(np.mean(z**2))) if z.size else None,
@@ -657,9 +659,10 @@ def _fit(design, measurements, parameters, model, loss, f_scale, holdout, seed, 
         pn, _, _ = nominal_obj.predictions(nominal, rows)
         pf, _, ok = nominal_obj.predictions(values, rows)
         unconverged += rows[~ok].tolist()
-        cols = _table(meas, rows, split, pn, pf)
+        sigmas = meas.effective_sigma()
+        cols = _table(meas, sigmas, rows, split, pn, pf)
         residual_cols = cols if residual_cols is None else _merge(residual_cols, cols)
-        summaries[split] = _set_summary(meas, pn, pf)
+        summaries[split] = _set_summary(meas, sigmas, pn, pf)
         dn, df = _distances(meas, pn), _distances(meas, pf)
         per_config.setdefault("configuration", []).extend(rows.tolist())
         per_config.setdefault("split", []).extend([split] * rows.size)
