@@ -16,7 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 import solver
-from softarm_gym.envs.randomization import ArmRandomization
+from softarm_gym.envs.randomization import coerce_randomization
 from softarm_gym.envs.terms import (
     clip_observations,
     fill_pressures,
@@ -166,7 +166,7 @@ class SoftArmEnv(gym.Env):
         self.base_angle_deg = _finite_number("base_angle_deg", base_angle_deg)
         self.payload_range = _range("payload_kg", payload_kg)
         self.gravity = _finite_number("gravity", gravity, 0.0)
-        self.randomization = ArmRandomization.coerce(randomization)
+        self.randomization = coerce_randomization(randomization)
         self.randomization.check(self.arm)
         self.action_mode = action_mode
         self.delta_scale = _finite_number("delta_scale", delta_scale, 0.0)
@@ -506,6 +506,12 @@ class SoftArmEnv(gym.Env):
     def _caption(self) -> str:
         return (f"{self.arm.name}  obs={self.observation_name}\n"
                 f"est. error {1000 * math.dist(self._shape.tip, self._eq.tip):.1f} mm")
+
+    @property
+    def simulated_arm(self) -> solver.designs.ArmDesign:
+        """The design simulated this episode: the nominal ``arm``, perturbed by ``randomization``
+        at the last reset."""
+        return self._sim_arm
 
     @property
     def observation_slices(self) -> dict[str, slice]:
