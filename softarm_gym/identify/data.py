@@ -325,8 +325,9 @@ def make_synthetic(design: solver.designs.ArmDesign, truth: dict, *,
         observations.append(BackbonePoints(pts + rng.normal(0.0, point_sigma, pts.shape), point_sigma,
                                            s=tuple(markers)))
     if not noise.is_off:
-        readings = np.array([readings_vector(synthesize(shapes.equilibrium(k), true_arm, noise, rng),
-                                             float(shapes.angles[k, 0])) for k in range(n)])
+        eqs = [shapes.equilibrium(k) for k in range(n)]
+        readings = np.array([readings_vector(synthesize(eq, true_arm, noise, rng), float(eq.angles[0]))
+                             for eq in eqs])
         observations.append(SensorObservation(readings, sensor_sigma(noise, ns), n_sections=ns))
     mask = np.zeros(n, dtype=bool)
     mask[rng.permutation(n)[:int(round(holdout * n))]] = True

@@ -56,6 +56,7 @@ from solver.designs import ArmDesign, from_json
 from solver.identify.measurements import Measurements, predict
 from solver.identify.parameters import Parameter, apply_parameters, parse_parameters
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
+from solver.stepper import BatchStepper, ThreadPolicy
 
 __all__ = ["fit", "FitResult", "Posterior", "identifiable", "LOSSES", "FORMAT"]
 
@@ -72,6 +73,8 @@ RCOND = 1e-6
 """Singular values below this fraction of the largest are structural non-identifiability."""
 MAX_STD = 10.0
 """Directions the data leave more uncertain than this many typical scales are not identified."""
+SAME_STATE = 1e-6
+"""Tips nearer than this fraction of the arm's length are one equilibrium reached two ways."""
 ALPHA = 1e-3
 """Level of the χ² misspecification test."""
 Z95 = float(stats.norm.ppf(0.975))
@@ -120,114 +123,204 @@ def identifiable(jac: np.ndarray, names, rcond: float = RCOND, max_std: float = 
     return kept, dropped
 
 
-class _Objective:
-    """Weighted residuals of the fit set as a function of the optimiser's variables, with a
-    small cache (the Jacobian reuses the residuals at its base point)."""
+def robust_cost(r: np.ndarray, loss: str, f_scale: float) -> float:
+    """The cost :func:`scipy.optimize.least_squares` minimises: ½·f²·Σ ρ((r/f)²), with ρ as
+    scipy defines each of :data:`LOSSES`."""
+    z = (np.asarray(r) / f_scale) ** 2
+    rho = {"linear": lambda z: z, "soft_l1": lambda z: 2.0 * (np.sqrt(1.0 + z) - 1.0),
+           "huber": lambda z: np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0),
+           "cauchy": np.log1p, "arctan": np.arctan}[loss](z)
+    return 0.5 * f_scale**2 * float(np.sum(rho))
 
-    def __init__(self, design, params, meas: Measurements, active, model, settings, progress):
-        self.design, self.params, self.meas = design, params, meas
-        self.active, self.model, self.settings, self.progress = active, model, settings, progress
+
+@dataclass
+class _Evaluation:
+    """The model at one parameter vector: shapes, predictions and normalised residuals of
+    every configuration (NaN where unmeasured), the fit vector and its robust cost."""
+
+    values: np.ndarray
+    shapes: object
+    preds: list
+    z: list
+    r: np.ndarray
+    cost: float
+    continued: np.ndarray
+
+
+class _Objective:
+    """The fit's weighted residuals as a function of the optimiser's variables.
+
+    Every configuration is predicted (the held-out ones too, outside the fit vector) by a
+    cold solve and, once there is a best point, also by continuation from the best point's
+    equilibria; each keeps the one nearer its own measurements (module docstring). Jacobian
+    columns continue from their base point's equilibria.
+    """
+
+    def __init__(self, design, params, meas: Measurements, fit_rows, model, settings, loss, f_scale,
+                 progress):
+        self.design, self.params, self.meas, self.fit_rows = design, params, meas, fit_rows
+        self.model, self.settings, self.loss, self.f_scale = model, settings, loss, f_scale
+        self.progress = progress
         self.nominal = np.array([p.nominal for p in params])
         self.scale = np.array([p.scale for p in params])
+        self.active = np.arange(len(params))
         self.backbone = any(o.needs_backbone or o.needs_equilibria for o in meas.observations)
-        self.masks = [np.isfinite(o.measured) for o in meas.observations]
-        self.sigmas = meas.effective_sigma()
+        fit_mask = np.zeros(meas.n, dtype=bool)
+        fit_mask[fit_rows] = True
+        # σ as weighed within each set (a reading repeated across a set's scene counts once there).
+        self.sigmas = [o.sigma.copy() for o in meas.observations]
+        for mask in (fit_mask, ~fit_mask):
+            if mask.any():
+                for sigma, part in zip(self.sigmas, meas.take(mask).effective_sigma()):
+                    sigma[mask] = part
         index, start = [], 0
-        for m in self.masks:
-            idx = np.full(m.shape, -1)
-            idx[m] = np.arange(start, start + m.sum())
-            start += int(m.sum())
+        for o in meas.observations:
+            measured = np.isfinite(o.measured) & fit_mask[:, None]
+            idx = np.full(measured.shape, -1)
+            idx[measured] = np.arange(start, start + measured.sum())
+            start += int(measured.sum())
             index.append(idx)
         self.index, self.m = index, start
         self.jump = JUMP_FRACTION * design.length
         self.cache: OrderedDict = OrderedDict()
-        self.policies: dict = {}
-        self.nfev = self.njev = self.switches = 0
+        self.best: _Evaluation | None = None
+        self.nominal_eval: _Evaluation | None = None
+        self.nfev = self.njev = self.batches = self.switches = 0
+        minimum = BatchStepper.PARALLEL_MIN
+        self.policies = {"cold": ThreadPolicy(minimum), "warm": ThreadPolicy(minimum)}
 
     def values(self, x) -> np.ndarray:
         v = self.nominal.copy()
         v[self.active] += np.asarray(x) * self.scale[self.active]
         return v
 
-    def predictions(self, values, rows=None):
-        """(predicted per observation, tips, converged) at ``values`` for ``rows`` (all)."""
+    def solve(self, values, start=None, rows=None):
+        """(shapes, predictions per observation) at ``values`` for ``rows`` (all), cold or
+        continued from ``start`` (shapes of the same rows)."""
         arm = apply_parameters(self.design, self.params, values)
         meas = self.meas if rows is None else self.meas.take(rows)
-        shapes = predict(arm, meas, self.model, self.backbone, self.settings, self.policies)
+        shapes = predict(arm, meas, self.model, self.backbone, self.settings, start, self.policies)
+        self.batches += 1
+        return shapes, self.predictions(arm, shapes, meas)
+
+    @staticmethod
+    def predictions(arm, shapes, meas) -> list:
+        """Per observation of ``meas`` its (n, k) predictions from ``shapes``."""
         preds = []
         for o in meas.observations:
             p = np.asarray(o.predict(shapes, arm), dtype=float)
-            if not np.all(np.isfinite(p)):
-                k = int(np.argwhere(~np.isfinite(p))[0, 0])
-                raise ValueError(f"observation {o.name!r} predicts a non-finite value for configuration {k}")
+            bad = ~np.all(np.isfinite(p), axis=1) & shapes.converged
+            if bad.any():
+                raise ValueError(f"observation {o.name!r} predicts a non-finite value for configuration "
+                                 f"{int(np.flatnonzero(bad)[0])}")
             preds.append(p)
-        return preds, shapes.tips, shapes.converged
+        return preds
 
-    def weighted(self, preds, rows=None) -> np.ndarray:
-        """The weighted residuals of predictions for ``rows`` (all), in the fit vector's order
-        (for a subset of rows: a full-length vector, NaN outside those rows)."""
+    def normalized(self, preds, rows=None) -> list:
+        """Per observation (rows, k) (measured − predicted)/σ, NaN where unmeasured."""
+        rows = slice(None) if rows is None else rows
+        return [(o.measured[rows] - p) / sigma[rows]
+                for o, sigma, p in zip(self.meas.observations, self.sigmas, preds)]
+
+    def vector(self, z, rows=None) -> np.ndarray:
+        """The fit vector of normalised residuals ``z`` of ``rows`` (all; NaN outside them)."""
         r = np.full(self.m, np.nan)
-        for o, idx, sigma, p in zip(self.meas.observations, self.index, self.sigmas, preds):
+        for idx, zo in zip(self.index, z):
             sel = idx if rows is None else idx[rows]
-            meas, sig = (o.measured, sigma) if rows is None else (o.measured[rows], sigma[rows])
             ok = sel >= 0
-            r[sel[ok]] = ((meas - p) / sig)[ok]
+            r[sel[ok]] = zo[ok]
         return r
 
-    def evaluate(self, x):
-        key = np.asarray(x, dtype=float).tobytes()
+    def evaluate(self, x) -> _Evaluation:
+        values = self.values(x)
+        key = values.tobytes()
         if key in self.cache:
             self.cache.move_to_end(key)
             return self.cache[key]
-        preds, tips, ok = self.predictions(self.values(x))
-        out = (self.weighted(preds), tips, ok)
-        self.cache[key] = out
+        shapes, preds = self.solve(values)
+        z = self.normalized(preds)
+        continued = np.zeros(self.meas.n, dtype=bool)
+        if self.best is not None:
+            arm = shapes.design
+            warm = predict(arm, self.meas, self.model, self.backbone, self.settings, self.best.shapes,
+                           self.policies)
+            self.batches += 1
+            # Where both reach the same equilibrium (to far below the solver's tolerance) there
+            # is nothing to choose; elsewhere each configuration keeps the branch nearer its data.
+            other = np.flatnonzero(warm.converged & (np.hypot(*(warm.tips - shapes.tips).T) > SAME_STATE
+                                                     * self.design.length))
+            if other.size:
+                warm_preds = self.predictions(arm, warm.take(other), self.meas.take(other))
+                zw = self.normalized(warm_preds, other)
+                better = _sse(zw) < _sse([zo[other] for zo in z])
+                continued[other[better]] = True
+                shapes = shapes.where(continued, warm)
+                for k, (pw, zwo) in enumerate(zip(warm_preds, zw)):
+                    preds[k][other[better]] = pw[better]
+                    z[k][other[better]] = zwo[better]
+        r = self.vector(z)
+        ev = _Evaluation(values, shapes, preds, z, r, robust_cost(r, self.loss, self.f_scale), continued)
+        self.cache[key] = ev
         if len(self.cache) > 4:
             self.cache.popitem(last=False)
+        if self.nominal_eval is None:
+            self.nominal_eval = ev
+        if self.best is None or ev.cost < self.best.cost:
+            self.best = ev
         self.nfev += 1
         if self.progress is not None:
-            self.progress({"evaluations": self.nfev, "jacobians": self.njev,
-                           "cost": 0.5 * float(np.sum(out[0] ** 2))})
-        return out
+            self.progress({"evaluations": self.batches, "jacobians": self.njev, "cost": ev.cost})
+        return ev
 
     def residuals(self, x) -> np.ndarray:
-        return self.evaluate(x)[0]
+        return self.evaluate(x).r
 
     def jacobian(self, x, lower=None, upper=None) -> np.ndarray:
         x = np.asarray(x, dtype=float)
-        r0, tips0, _ = self.evaluate(x)
+        base = self.evaluate(x)
+        rows = self.fit_rows
+        start = base.shapes.take(rows)
         jac = np.empty((self.m, x.size))
         for j in range(x.size):
             h = FD_STEP if upper is None or x[j] + FD_STEP <= upper[j] else -FD_STEP
-            xj = x.copy()
-            xj[j] += h
-            rj, tj, _ = self.evaluate(xj)
-            col = (rj - r0) / h
-            jumped = np.flatnonzero(np.hypot(*(tj - tips0).T) > self.jump)
-            if jumped.size:
-                self.switches += jumped.size
-                col = self._across_jump(col, x, j, h, jumped, r0, tips0, lower, upper)
-            jac[:, j] = col
+            col = self._column(x, j, h, rows, start, base)
+            bad = col[1]
+            if bad.size:
+                self.switches += bad.size
+                col = self._column(x, j, -h, bad, base.shapes.take(bad), base, col[0])
+            jac[:, j] = col[0]
         self.njev += 1
+        if self.progress is not None:
+            self.progress({"evaluations": self.batches, "jacobians": self.njev, "cost": base.cost})
         return jac
 
-    def _across_jump(self, col, x, j, h, rows, r0, tips0, lower, upper):
-        """``col`` with the rows of configurations ``rows`` (whose forward step jumped branch)
-        from the backward step, or 0 where that jumps too or leaves the bounds."""
-        xb = x.copy()
-        xb[j] -= h
-        entries = np.concatenate([idx[rows][idx[rows] >= 0] for idx in self.index])
-        col[entries] = 0.0
-        inside = (lower is None or xb[j] >= lower[j]) and (upper is None or xb[j] <= upper[j])
-        if not inside:
-            return col
-        preds, tb, _ = self.predictions(self.values(xb), rows)
-        smooth = rows[np.hypot(*(tb - tips0[rows]).T) <= self.jump]
-        if smooth.size:
-            rb = self.weighted(preds, rows)
-            keep = np.concatenate([idx[smooth][idx[smooth] >= 0] for idx in self.index])
-            col[keep] = (r0[keep] - rb[keep]) / h
-        return col
+    def _column(self, x, j, h, rows, start, base, col=None):
+        """A forward (h > 0) or backward difference for configurations ``rows``, continued from
+        the base point's equilibria ``start``: (the column, the rows whose step did not
+        converge or jumped branch — their entries are 0 in it)."""
+        col = np.zeros(self.m) if col is None else col
+        xj = x.copy()
+        xj[j] += h
+        if not self._inside(xj[j], j):
+            return col, rows[:0]
+        shapes, preds = self.solve(self.values(xj), start=start, rows=rows)
+        z = self.normalized(preds, rows)
+        moved = np.hypot(*(shapes.tips - base.shapes.tips[rows]).T)
+        smooth = shapes.converged & (moved <= self.jump)
+        r = self.vector([np.where(smooth[:, None], zo, np.nan) for zo in z], rows)
+        ok = np.isfinite(r)
+        col[ok] = (r[ok] - base.r[ok]) / h
+        return col, rows[~smooth]
+
+    def _inside(self, value, j) -> bool:
+        k = self.active[j]
+        p = self.params[k]
+        return p.lower <= self.nominal[k] + value * self.scale[k] <= p.upper
+
+
+def _sse(z) -> np.ndarray:
+    """(n,) per configuration Σ z² over every measured value."""
+    return sum(np.nansum(zo**2, axis=1) for zo in z)
 
 
 @dataclass(frozen=True)
@@ -616,13 +709,11 @@ def _fit(design, measurements, parameters, model, loss, f_scale, holdout, seed, 
     upper = (np.array([q.upper for q in params]) - nominal) / scale
 
     # Identifiability at the nominal design: name what the data cannot determine, fit the rest.
-    probe = _Objective(design, params, train, np.arange(p), model, settings, progress)
-    kept, dropped = identifiable(probe.jacobian(np.zeros(p), lower, upper), names)
+    objective = _Objective(design, params, measurements, fit_rows, model, settings, loss, f_scale, progress)
+    kept, dropped = identifiable(objective.jacobian(np.zeros(p), lower, upper), names)
     unidentifiable = [{**d, "stage": "nominal"} for d in dropped]
     active = np.array(kept, dtype=np.int64)
-    objective = _Objective(design, params, train, active, model, settings, progress)
-    objective.policies = probe.policies
-    objective.nfev, objective.njev, objective.switches = probe.nfev, probe.njev, probe.switches
+    objective.active = active
     values = nominal.copy()
     cov = np.full((p, p), np.nan)
     singular = np.empty(0)
@@ -650,23 +741,25 @@ def _fit(design, measurements, parameters, model, loss, f_scale, holdout, seed, 
 
     # Residuals, nominal and fitted, on both sets; the χ² test on the fit set.
     fitted_design = from_json(apply_parameters(design, params, values).to_json())
-    sets = {"fit": (train, fit_rows)}
-    if held_rows.size:
-        sets["holdout"] = (measurements.take(held_rows), held_rows)
-    nominal_obj = _Objective(design, params, measurements, np.arange(p), model, settings, None)
-    residual_cols, per_config, summaries, unconverged = None, {}, {}, []
-    for split, (meas, rows) in sets.items():
-        pn, _, _ = nominal_obj.predictions(nominal, rows)
-        pf, _, ok = nominal_obj.predictions(values, rows)
-        unconverged += rows[~ok].tolist()
-        sigmas = meas.effective_sigma()
+    before = objective.nominal_eval
+    after = objective.evaluate((values - nominal)[active] / scale[active]) if active.size else before
+    unconverged = np.flatnonzero(~after.shapes.converged).tolist()
+    residual_cols, per_config, summaries = None, {}, {}
+    for split, rows in (("fit", fit_rows), ("holdout", held_rows)):
+        if not rows.size:
+            continue
+        meas = measurements.take(rows)
+        sigmas = [sigma[rows] for sigma in objective.sigmas]
+        pn, pf = [q[rows] for q in before.preds], [q[rows] for q in after.preds]
         cols = _table(meas, sigmas, rows, split, pn, pf)
         residual_cols = cols if residual_cols is None else _merge(residual_cols, cols)
         summaries[split] = _set_summary(meas, sigmas, pn, pf)
         dn, df = _distances(meas, pn), _distances(meas, pf)
         per_config.setdefault("configuration", []).extend(rows.tolist())
         per_config.setdefault("split", []).extend([split] * rows.size)
-        per_config.setdefault("converged", []).extend(ok.tolist())
+        per_config.setdefault("converged", []).extend(after.shapes.converged[rows].tolist())
+        per_config.setdefault("branch", []).extend(
+            ["continued" if c else "cold" for c in after.continued[rows]])
         for name in dn:
             per_config.setdefault(f"{name}_error_nominal_m", []).extend(map(_num, dn[name]))
             per_config.setdefault(f"{name}_error_fitted_m", []).extend(map(_num, df[name]))
@@ -687,7 +780,8 @@ def _fit(design, measurements, parameters, model, loss, f_scale, holdout, seed, 
                  "status": int(result.status) if result is not None else 0,
                  "message": result.message if result is not None else "nothing identifiable to fit",
                  "evaluations": objective.nfev, "jacobians": objective.njev,
-                 "branch_switches": objective.switches, "unconverged": sorted(unconverged),
+                 "solve_batches": objective.batches, "branch_switches": objective.switches,
+                 "continued": int(after.continued.sum()), "unconverged": unconverged,
                  "fit_configurations": int(fit_rows.size), "fit_values": int(m),
                  "fit": summaries["fit"], "seconds": time.perf_counter() - start}
     return FitResult(design=design, fitted_design=fitted_design, parameters=params, values=values, std=std,

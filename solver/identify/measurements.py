@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import partial
 
+import numba
 import numpy as np
 
 import solver
@@ -306,105 +308,200 @@ class Shapes:
     """The model's planar equilibria at n configurations.
 
     Attributes:
+        design, model: what was solved.
+        scenes: (n,) each configuration's :class:`solver.Scene`.
+        pressures: (n, n_inputs) input pressures (Pa).
         tips: (n, 2) tip positions (m).
         converged: (n,) whether each solve converged.
-        s: (N,) reference arc length of the backbone samples (m); empty when only tips
-            were solved.
-        positions: (n, N, 2) backbone samples (m).
-        angles: (n, N) θ of d3 from +x (rad).
-        stretch: (n, N, 2) strains (v1, v3) in the body frame.
-        sources: where the equilibria come from: per scene a :class:`solver.BatchStepper`
-            or a list of :class:`solver.Equilibrium` (empty when only tips were solved).
-        source_rows: (n, 2) per configuration its source and its row there.
+        base_moment: (n,) each equilibrium's base moment (N m): with ``channel_pressures``
+            (n, n_channels), the state a later solve continues from (:func:`predict`'s ``start``).
+        records: (n, N, ``layout.N_COLUMNS``) backbone records (``layout.S`` … ``layout.U``),
+            or None when only tips were solved.
+        section_ends: the records' rows at the section ends.
+        solved: configurations solved one by one (:func:`solver.solve`), with their equilibrium.
     """
 
+    design: ArmDesign
+    model: str
+    scenes: list
+    pressures: np.ndarray
     tips: np.ndarray
     converged: np.ndarray
-    s: np.ndarray = field(default_factory=lambda: np.empty(0))
-    positions: np.ndarray | None = None
-    angles: np.ndarray | None = None
-    stretch: np.ndarray | None = None
-    sources: list = field(default_factory=list)
-    source_rows: np.ndarray | None = None
+    base_moment: np.ndarray
+    channel_pressures: np.ndarray
+    records: np.ndarray | None = None
+    section_ends: tuple = ()
+    solved: dict = field(default_factory=dict)
+
+    @property
+    def s(self) -> np.ndarray:
+        """(N,) reference arc length of the backbone samples (m)."""
+        return self._records()[0, :, L.S]
+
+    def _records(self) -> np.ndarray:
+        if self.records is None:
+            raise ValueError("these shapes were solved for tips only; predict(..., backbone=True)")
+        return self.records
 
     def equilibrium(self, k: int) -> solver.Equilibrium:
-        """Configuration k's equilibrium (a recorded one, built on demand)."""
-        if self.source_rows is None:
-            raise ValueError("these shapes were solved for tips only; predict(..., backbone=True)")
-        source, row = self.sources[self.source_rows[k, 0]], int(self.source_rows[k, 1])
-        return source.equilibrium(row) if isinstance(source, solver.BatchStepper) else source[row]
+        """Configuration k's recorded equilibrium (built from its record on demand; the
+        record's flags are the batch's: ``stable`` as ``converged``)."""
+        if k in self.solved:
+            return self.solved[k]
+        rec, ok = self._records()[k], bool(self.converged[k])
+        return solver.Equilibrium(
+            tip=rec[-1, L.X:L.Y + 1].copy(), converged=ok, stable=ok, iterations=0, residual=0.0,
+            s=rec[:, L.S].copy(), positions=rec[:, L.X:L.Y + 1].copy(), angles=rec[:, L.THETA].copy(),
+            shear_stretch=rec[:, L.V1:L.V3 + 1].copy(), curvature=rec[:, L.U].copy(),
+            internal_force=rec[:, L.NX:L.NY + 1].copy(), internal_moment=rec[:, L.M].copy(),
+            section_ends=self.section_ends, base_force=rec[0, L.NX:L.NY + 1].copy(),
+            pressures=self.pressures[k].copy(), model=self.model, planar=True,
+            base_moment=np.array([self.base_moment[k]]), scene=self.scenes[k],
+            channel_pressures=self.channel_pressures[k].copy(), arm=self.design)
 
     def points(self, s: np.ndarray) -> np.ndarray:
         """(n, len(s), 2) backbone positions at reference arc lengths ``s`` (m), by cubic
         Hermite interpolation between the samples (positions and tangents r' = v1·d1 + v3·d3)."""
-        if self.positions is None:
-            raise ValueError("these shapes were solved for tips only; predict(..., backbone=True)")
+        rec = self._records()
         s = np.ascontiguousarray(s, dtype=float)
-        c, sn = np.cos(self.angles), np.sin(self.angles)
-        v1, v3 = self.stretch[..., 0], self.stretch[..., 1]
+        c, sn = np.cos(rec[:, :, L.THETA]), np.sin(rec[:, :, L.THETA])
+        v1, v3 = rec[:, :, L.V1], rec[:, :, L.V3]
         tangent = np.stack([v3 * c - v1 * sn, v3 * sn + v1 * c], axis=-1)  # (n, N, 2)
-        out = np.empty((self.tips.shape[0], s.size, 2))
+        grid = np.ascontiguousarray(rec[0, :, L.S])
+        out = np.empty((rec.shape[0], s.size, 2))
         for k in range(out.shape[0]):
-            hermite_resample(self.s, np.ascontiguousarray(self.positions[k]), tangent[k], s, out[k])
+            hermite_resample(grid, np.ascontiguousarray(rec[k, :, L.X:L.Y + 1]), tangent[k], s, out[k])
         return out
 
+    def take(self, rows) -> Shapes:
+        """The configurations ``rows`` (indices) only."""
+        rows = np.asarray(rows, dtype=np.int64)
+        where = {int(k): j for j, k in enumerate(rows)}
+        return replace(self, scenes=[self.scenes[k] for k in rows], pressures=self.pressures[rows],
+                       tips=self.tips[rows], converged=self.converged[rows],
+                       base_moment=self.base_moment[rows],
+                       channel_pressures=self.channel_pressures[rows],
+                       records=None if self.records is None else self.records[rows],
+                       solved={where[k]: eq for k, eq in self.solved.items() if k in where})
 
-def _record_fields(eq: solver.Equilibrium):
-    return eq.positions, eq.angles, eq.shear_stretch
+    def where(self, mask: np.ndarray, other: Shapes) -> Shapes:
+        """These shapes with the configurations in ``mask`` (n,) bool taken from ``other``."""
+        pick = np.asarray(mask)
+        solved = {k: eq for k, eq in self.solved.items() if not pick[k]}
+        solved.update({k: eq for k, eq in other.solved.items() if pick[k]})
+        records = None if self.records is None else np.where(pick[:, None, None], other.records, self.records)
+        channel = np.where(pick[:, None], other.channel_pressures, self.channel_pressures)
+        return replace(self, tips=np.where(pick[:, None], other.tips, self.tips),
+                       converged=np.where(pick, other.converged, self.converged),
+                       base_moment=np.where(pick, other.base_moment, self.base_moment),
+                       channel_pressures=channel, records=records, solved=solved)
+
+
+def _record_of(eq: solver.Equilibrium, rec: np.ndarray) -> None:
+    """Write a recorded planar equilibrium into the columns of a record (N, N_COLUMNS)."""
+    rec[:, L.S] = eq.s
+    rec[:, L.X:L.Y + 1] = eq.positions
+    rec[:, L.THETA] = eq.angles
+    rec[:, L.M] = eq.internal_moment
+    rec[:, L.NX:L.NY + 1] = eq.internal_force
+    rec[:, L.V1:L.V3 + 1] = eq.shear_stretch
+    rec[:, L.U] = eq.curvature
+
+
+def _one_thread(call, *args, **kwargs):
+    """``call(*args, **kwargs)`` with numba's parallel regions on one thread."""
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        return call(*args, **kwargs)
+    finally:
+        numba.set_num_threads(threads)
 
 
 def predict(design: ArmDesign, measurements: Measurements, model: str = "full", backbone: bool = False,
-            settings: Settings = DEFAULT_SETTINGS, thread_policies: dict | None = None) -> Shapes:
-    """The model's equilibria at every configuration: cold solves, batched by scene.
+            settings: Settings = DEFAULT_SETTINGS, start: Shapes | None = None,
+            policies: dict | None = None) -> Shapes:
+    """The model's equilibria at every configuration, batched by scene.
+
+    Without ``start``, cold solves: the equilibrium the arm reaches quasi-statically from
+    rest at each configuration's pressures, as :func:`solver.solve` returns it
+    (:func:`solver.step_batch` from no state; a row it does not converge is solved by
+    :func:`solver.solve`, with its fallbacks). With ``start`` — the equilibria of these
+    configurations for another design of the same layout (a nearby parameter vector) — each
+    configuration is continued from its state there: Newton from that base moment at the same
+    pressures, for this design (:func:`solver.step_batch` given ``start``'s states as states
+    of ``design``). That follows the branch each configuration was on where the arm is
+    bistable (docs/design.md §6); a row that does not converge is flagged, not solved
+    otherwise, and scenes the batch kernel does not step (constant curvature, an unloaded
+    arm) are all flagged: the caller keeps a cold solve for them.
 
     Args:
         design: the design to solve (checked against ``measurements`` by the caller:
             :meth:`Measurements.check`).
         measurements: the configurations (their observations are not read).
         model: as in :func:`solver.solve`.
-        backbone: also return the backbones (and equilibria on demand), not only the tips.
+        backbone: record the backbones (for markers and sensors), not only the tips.
         settings: numerical settings.
-        thread_policies: a dict shared between calls, in which the batch steppers keep
-            their measured choice of threads (:class:`solver.ThreadPolicy`); None: fresh.
+        start: :class:`Shapes` of the same configurations to continue from (None: cold).
+        policies: ``{"cold": ThreadPolicy, "warm": ThreadPolicy}`` shared between calls, which
+            run each batch on numba's threads or on one, whichever they have measured faster
+            (:class:`solver.ThreadPolicy`: a parallel region on a busy 2-core machine took ten
+            times longer than one thread for the thesis's 448 configurations); None: the threads.
 
     Returns:
         The :class:`Shapes` (unconverged solves included, flagged in ``converged``).
     """
     n = measurements.n
-    tips, converged = np.empty((n, 2)), np.zeros(n, dtype=bool)
-    if not backbone:
-        for (angle, payload), rows in measurements.scenes().items():
-            scene = solver.Scene(base_angle_deg=angle, payload_kg=payload, gravity=measurements.gravity)
-            tips[rows], converged[rows] = solver.solve_batch(design, measurements.pressures[rows], scene,
-                                                             model=model, settings=settings)
-        return Shapes(tips, converged)
-    positions = angles = stretch = grid = None
-    sources, source_rows = [], np.empty((n, 2), dtype=np.int64)
+    tips, converged, base_moment = np.zeros((n, 2)), np.zeros(n, dtype=bool), np.zeros(n)
+    channel = np.zeros((n, max(design.n_channels, 1)))
+    scenes: list = [None] * n
+    records, section_ends, solved = None, (), {}
     for (angle, payload), rows in measurements.scenes().items():
         scene = solver.Scene(base_angle_deg=angle, payload_kg=payload, gravity=measurements.gravity)
+        for k in rows:
+            scenes[k] = scene
         p = measurements.pressures[rows]
-        if solver.Stepper(design, scene, model=model, settings=settings).lean:
-            batch = solver.BatchStepper(design, scene, n=rows.size, model=model, settings=settings)
-            if thread_policies is not None:
-                batch.thread_policies = thread_policies.setdefault(scene, batch.thread_policies)
-            report = batch.reset(p)
-            rec = batch.records
-            ok = report.converged
-            got = (rec[:, :, L.X:L.Y + 1], rec[:, :, L.THETA], rec[:, :, L.V1:L.V3 + 1])
-            s = rec[0, :, L.S]
-            sources.append(batch)
+        lean = solver.Stepper(design, scene, model=model, settings=settings).lean
+        if start is not None and not lean:
+            continue  # no continuation: flagged unconverged
+        if lean:
+            state = None if start is None else solver.BatchState(
+                pressures=p, tips=start.tips[rows], converged=start.converged[rows],
+                shapes=np.empty((rows.size, 1, L.N_COLUMNS)), section_ends=start.section_ends,
+                base_moment=start.base_moment[rows], channel_pressures=start.channel_pressures[rows],
+                arm=design, scene=scene)
+            kwargs = dict(state=state, model=model, record=backbone, settings=settings)
+            policy = None if policies is None else policies["cold" if start is None else "warm"]
+            if policy is None:
+                out = solver.step_batch(design, p, scene, **kwargs)
+            else:
+                out = policy.run(partial(solver.step_batch, **kwargs),
+                                 partial(_one_thread, solver.step_batch, **kwargs), rows.size, design, p,
+                                 scene)
+            tips[rows], converged[rows], base_moment[rows] = out.tips, out.converged, out.base_moment
+            channel[rows] = out.channel_pressures
+            section_ends = tuple(out.section_ends)
+            if backbone:
+                if records is None:
+                    records = np.full((n, *out.shapes.shape[1:]), np.nan)
+                records[rows] = out.shapes
+            retry = rows[~out.converged] if start is None else rows[:0]
         else:
-            eqs = [solver.solve(design, row, scene, model=model, settings=settings) for row in p]
-            ok = np.array([e.converged for e in eqs])
-            got = tuple(np.stack(a) for a in zip(*map(_record_fields, eqs)))
-            s = eqs[0].s
-            sources.append(eqs)
-        source_rows[rows] = np.column_stack([np.full(rows.size, len(sources) - 1), np.arange(rows.size)])
-        if positions is None:
-            grid = np.array(s)
-            positions, angles = np.empty((n, grid.size, 2)), np.empty((n, grid.size))
-            stretch = np.empty((n, grid.size, 2))
-        positions[rows], angles[rows], stretch[rows] = got
-        tips[rows] = got[0][:, -1]
-        converged[rows] = ok
-    return Shapes(tips, converged, grid, positions, angles, stretch, sources, source_rows)
+            retry = rows
+        for k in retry:
+            eq = solver.solve(design, measurements.pressures[k], scene, model=model, record=backbone,
+                              settings=settings)
+            tips[k], converged[k] = eq.tip, eq.converged
+            base_moment[k] = eq.base_moment[-1] if eq.base_moment.size else np.nan
+            if design.n_channels:
+                channel[k] = eq.channel_pressures
+            if backbone:
+                section_ends = tuple(eq.section_ends)
+                if records is None:
+                    records = np.full((n, eq.s.size, L.N_COLUMNS), np.nan)
+                _record_of(eq, records[k])
+                solved[int(k)] = eq
+    if backbone and records is None:  # every scene skipped (a continuation nothing could take)
+        records = np.full((n, 1, L.N_COLUMNS), np.nan)
+    return Shapes(design, model, scenes, measurements.pressures, tips, converged, base_moment, channel,
+                  records, section_ends, solved)

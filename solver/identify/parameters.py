@@ -306,7 +306,7 @@ def apply_parameters(design: ArmDesign, parameters, values) -> ArmDesign:
     endplate = [s.endplate_mass for s in design.sections]
     for p, v in zip(parameters, values):
         if not (math.isfinite(v) and p.lower <= v <= p.upper):
-            raise ValueError(f"parameter {p.name!r} = {v!r} lies outside its bounds "
+            raise ValueError(f"parameter {p.name!r} = {float(v)!r} lies outside its bounds "
                              f"[{p.lower:g}, {p.upper:g}] {p.unit}")
         if p.kind == "wind_angle":
             for k in p.tubes:
