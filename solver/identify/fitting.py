@@ -6,19 +6,28 @@ a robust loss ρ, ``soft_l1`` by default, so that a few bad measurements do not 
 The optimiser moves every parameter in units of its typical scale
 (:mod:`solver.identify.parameters`).
 
-**Predictions** are cold solves (:func:`solver.identify.measurements.predict`): the
-equilibrium reached quasi-statically from rest at each configuration's pressures. The
-objective is thus a function of the parameters alone; a warm start from the previous
-iterate's equilibrium would make it depend on the optimiser's path wherever the arm is
-bistable (docs/design.md §6), and the batched cold solve costs tens of microseconds per
-configuration anyway. Each configuration's prediction is computed once per parameter vector:
-the Jacobian reuses the residual evaluation at its base point.
+**Predictions, and which equilibrium.** Where the arm is bistable (docs/design.md §6) the
+measured arm may sit on either stable branch, as its history put it, and the cold solve
+(the equilibrium reached quasi-statically from rest) jumps from one to the other as the
+parameters cross a fold: an objective of cold solves alone is discontinuous there, and a
+trust-region step that would cross such a cliff is refused (one of twelve recovery fits of
+the tests stalled so, 14 σ from the truth). So every parameter vector is solved cold *and*
+continued, warm-started, from the equilibria of the best point so far — Newton from each
+configuration's base moment there, for the new design (:func:`~solver.identify.measurements.predict`
+with ``start``) — and each configuration keeps the branch nearer its own measurements (the
+branch is a property of the experiment's history, which the data record and the model
+cannot know). Where both reach one equilibrium there is nothing to choose; the result counts
+the configurations fitted on a continued branch (``optimizer["continued"]``, and per
+configuration ``configurations["branch"]``). Held-out configurations are solved alongside
+(outside the fit vector) and choose their branch by their own data too.
 
-**Jacobian**: forward differences of step 1e-3 typical scales, one batched solve of every
-configuration per parameter. Where a configuration sits near a fold, a step can move it to
-the other stable branch (its tip jumps by centimetres); a difference across a jump is not a
-derivative, so such a configuration's rows are taken from the backward step instead, and set
-to zero if that jumps too (counted in ``FitResult.optimizer["branch_switches"]``).
+**Jacobian**: forward differences of step 1e-3 typical scales, one batched solve per
+parameter, each configuration continued from its equilibrium at the base point, so that a
+column is the derivative along the branch the residual was evaluated on. A step that does not
+converge, or moves a tip by more than 1 % of the arm's length (another branch: a smooth change
+moves it ~1e-4 of that), is taken backwards instead, and left at zero if that fails too
+(counted in ``optimizer["branch_switches"]``). The batches run on numba's threads or on one,
+whichever :class:`solver.ThreadPolicy` measures faster.
 
 **Identifiability**: the singular values of the Jacobian in typical scales, J = U S Vᵀ, are
 the data's information along the directions V: 1/s is the posterior standard deviation

@@ -9,10 +9,10 @@ backbone: endplates, tape marks on a photographed arm); sensor readings (cable e
 inclinometers, a base load cell) are the sensor models' business and live in
 ``softarm_gym.identify`` — any object with the :class:`Observation` interface works.
 
-:func:`predict` solves every configuration of a design, grouped by scene, in parallel
-batches (:func:`solver.solve_batch` for tips, :class:`solver.BatchStepper` where the
-backbone is needed), each a cold solve: the equilibrium the arm reaches quasi-statically
-from rest at those pressures, as :func:`solver.solve` defines it.
+:func:`predict` solves every configuration of a design, grouped by scene, in batches
+(:func:`solver.step_batch`): cold — the equilibrium the arm reaches quasi-statically from
+rest at those pressures, as :func:`solver.solve` defines it — or continued from the
+equilibria of a nearby design.
 """
 
 from __future__ import annotations
