@@ -163,7 +163,7 @@ def read_csv(path, design: solver.designs.ArmDesign, *, tip_sigma: float = 0.005
         raise ValueError(f"{path}: unknown column(s) {', '.join(map(repr, unknown[:5]))}; design "
                          f"{design.name!r} takes base_angle_deg, payload_kg, {', '.join(pressure_cols)}, "
                          "tip_x_m, tip_y_m, x@<s>_m, y@<s>_m, enc_s<k>_plus_m/_minus_m, incl_s<k>_deg, "
-                         "load_shear_n, load_axial_n, load_moment_nm, split, label (see softarm fit --help)")
+                         "load_shear_n, load_axial_n, load_moment_nm, split, label (docs/identification.md)")
     missing = [c for c in ("base_angle_deg", *pressure_cols) if c not in header]
     if missing:
         raise ValueError(f"{path}: missing column(s) {', '.join(missing)} (design {design.name!r} has the "

@@ -61,8 +61,9 @@ def test_recovery_within_the_reported_intervals_with_table_4_3_sensors():
     for trial in range(12):
         truth = {"wind_angle": rng.uniform(76.0, 80.0), "E": rng.uniform(1.7e6, 2.3e6),
                  "mass_scale": rng.uniform(0.9, 1.1)}
-        meas, _, _ = make_synthetic(ARM, truth, pressures_psi=(60,), base_angles_deg=(90.0,), tip_sigma=0.0,
-                                    point_sigma=0.0, sensor_noise=SensorNoise.thesis(), holdout=0.0, seed=trial)
+        meas, _, _ = make_synthetic(ARM, truth, pressures_psi=(60,), base_angles_deg=(90.0,),
+                                    tip_sigma=0.0, point_sigma=0.0, sensor_noise=SensorNoise.thesis(),
+                                    holdout=0.0, seed=trial)
         assert [o.name for o in meas.observations] == ["sensors"]
         result = fit(ARM, meas, names, holdout=0.0)
         lo, hi = result.interval().T
@@ -77,9 +78,8 @@ def test_recovery_within_the_reported_intervals_with_table_4_3_sensors():
 
 
 def test_a_wrong_model_is_flagged_by_its_residuals():
-    truth = apply_parameters(ARM, parse_parameters(ARM, "wind_angle,E"), [77.0, 2.2e6])
-    meas = make_synthetic(ARM, {"wind_angle": 77.0, "E": 2.2e6}, pressures_psi=(50, 90), base_angles_deg=(90.0,),
-                          sensor_noise=SensorNoise.off(), seed=3)[0]
+    meas = make_synthetic(ARM, {"wind_angle": 77.0, "E": 2.2e6}, pressures_psi=(50, 90),
+                          base_angles_deg=(90.0,), sensor_noise=SensorNoise.off(), seed=3)[0]
     right = fit(ARM, meas, "wind_angle,E")
     assert not right.chi_square["misspecified"] and right.chi_square["p_value"] > 1e-3
     assert abs(right.values[0] - 77.0) < 3 * right.std[0]
@@ -91,7 +91,6 @@ def test_a_wrong_model_is_flagged_by_its_residuals():
                              sensor_noise=SensorNoise.off(), seed=4)[0]
     flagged = fit(ARM, variant, "wind_angle,E")
     assert flagged.chi_square["misspecified"]
-    assert truth != tubes
 
 
 def test_unidentifiable_parameters_are_named_and_held_not_fitted():
@@ -104,7 +103,8 @@ def test_unidentifiable_parameters_are_named_and_held_not_fitted():
     assert len(pair) == 1 and named[pair.pop()]["reason"] == "structural"
     held = ~result.identified
     assert held.sum() == 2
-    np.testing.assert_array_equal(result.values[held], [p.nominal for p, h in zip(result.parameters, held) if h])
+    nominal = [p.nominal for p, h in zip(result.parameters, held) if h]
+    np.testing.assert_array_equal(result.values[held], nominal)
     assert np.isnan(result.std[held]).all() and np.isnan(result.covariance[held]).all()
     assert result.values[0] == pytest.approx(2.2e6, rel=1e-6)
     assert {p.name for p in result.posterior().parameters} == {result.parameters[k].name
