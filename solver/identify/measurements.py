@@ -445,8 +445,8 @@ def predict(design: ArmDesign, measurements: Measurements, model: str = "full", 
         start: :class:`Shapes` of the same configurations to continue from (None: cold).
         policies: ``{"cold": ThreadPolicy, "warm": ThreadPolicy}`` shared between calls, which
             run each batch on numba's threads or on one, whichever they have measured faster
-            (:class:`solver.ThreadPolicy`: a parallel region on a busy 2-core machine took ten
-            times longer than one thread for the thesis's 448 configurations); None: the threads.
+            (:class:`solver.ThreadPolicy`: on the busy 2-core machine a parallel region took
+            ten times longer than one thread for 64 configurations); None: the threads.
 
     Returns:
         The :class:`Shapes` (unconverged solves included, flagged in ``converged``).
