@@ -315,8 +315,9 @@ class Shapes:
         converged: (n,) whether each solve converged.
         base_moment: (n,) each equilibrium's base moment (N m): with ``channel_pressures``
             (n, n_channels), the state a later solve continues from (:func:`predict`'s ``start``).
-        records: (n, N, ``layout.N_COLUMNS``) backbone records (``layout.S`` … ``layout.U``),
-            or None when only tips were solved.
+        records: (n, N, ``layout.N_COLUMNS``) backbone records (``layout.S`` … ``layout.U``) of
+            the batch-solved configurations (NaN for the others), or None when only tips were
+            solved.
         section_ends: the records' rows at the section ends.
         solved: configurations solved one by one (:func:`solver.solve`), with their equilibrium.
     """
@@ -333,15 +334,22 @@ class Shapes:
     section_ends: tuple = ()
     solved: dict = field(default_factory=dict)
 
-    @property
-    def s(self) -> np.ndarray:
-        """(N,) reference arc length of the backbone samples (m)."""
-        return self._records()[0, :, L.S]
-
     def _records(self) -> np.ndarray:
         if self.records is None:
             raise ValueError("these shapes were solved for tips only; predict(..., backbone=True)")
         return self.records
+
+    def samples(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The backbone samples of every configuration: ``(s (N,), positions (n, N, 2),
+        angles θ (n, N), strains (v1, v3) (n, N, 2))``."""
+        rec = self._records()
+        pos, angles = rec[..., L.X:L.Y + 1].copy(), rec[..., L.THETA].copy()
+        strains = rec[..., L.V1:L.V3 + 1].copy()
+        for k, eq in self.solved.items():
+            pos[k], angles[k], strains[k] = eq.positions, eq.angles, eq.shear_stretch
+        batch = np.flatnonzero(~np.isin(np.arange(rec.shape[0]), list(self.solved)))
+        s = rec[batch[0], :, L.S] if batch.size else next(iter(self.solved.values())).s
+        return np.ascontiguousarray(s), pos, angles, strains
 
     def equilibrium(self, k: int) -> solver.Equilibrium:
         """Configuration k's recorded equilibrium (built from its record on demand; the
@@ -362,15 +370,14 @@ class Shapes:
     def points(self, s: np.ndarray) -> np.ndarray:
         """(n, len(s), 2) backbone positions at reference arc lengths ``s`` (m), by cubic
         Hermite interpolation between the samples (positions and tangents r' = v1·d1 + v3·d3)."""
-        rec = self._records()
+        grid, pos, angles, strains = self.samples()
         s = np.ascontiguousarray(s, dtype=float)
-        c, sn = np.cos(rec[:, :, L.THETA]), np.sin(rec[:, :, L.THETA])
-        v1, v3 = rec[:, :, L.V1], rec[:, :, L.V3]
+        c, sn = np.cos(angles), np.sin(angles)
+        v1, v3 = strains[..., 0], strains[..., 1]
         tangent = np.stack([v3 * c - v1 * sn, v3 * sn + v1 * c], axis=-1)  # (n, N, 2)
-        grid = np.ascontiguousarray(rec[0, :, L.S])
-        out = np.empty((rec.shape[0], s.size, 2))
+        out = np.empty((pos.shape[0], s.size, 2))
         for k in range(out.shape[0]):
-            hermite_resample(grid, np.ascontiguousarray(rec[k, :, L.X:L.Y + 1]), tangent[k], s, out[k])
+            hermite_resample(grid, pos[k], tangent[k], s, out[k])
         return out
 
     def take(self, rows) -> Shapes:
@@ -395,17 +402,6 @@ class Shapes:
                        converged=np.where(pick, other.converged, self.converged),
                        base_moment=np.where(pick, other.base_moment, self.base_moment),
                        channel_pressures=channel, records=records, solved=solved)
-
-
-def _record_of(eq: solver.Equilibrium, rec: np.ndarray) -> None:
-    """Write a recorded planar equilibrium into the columns of a record (N, N_COLUMNS)."""
-    rec[:, L.S] = eq.s
-    rec[:, L.X:L.Y + 1] = eq.positions
-    rec[:, L.THETA] = eq.angles
-    rec[:, L.M] = eq.internal_moment
-    rec[:, L.NX:L.NY + 1] = eq.internal_force
-    rec[:, L.V1:L.V3 + 1] = eq.shear_stretch
-    rec[:, L.U] = eq.curvature
 
 
 def _one_thread(call, *args, **kwargs):
@@ -499,7 +495,6 @@ def predict(design: ArmDesign, measurements: Measurements, model: str = "full", 
                 section_ends = tuple(eq.section_ends)
                 if records is None:
                     records = np.full((n, eq.s.size, L.N_COLUMNS), np.nan)
-                _record_of(eq, records[k])
                 solved[int(k)] = eq
     if backbone and records is None:  # every scene skipped (a continuation nothing could take)
         records = np.full((n, 1, L.N_COLUMNS), np.nan)
