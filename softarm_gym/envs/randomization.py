@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import solver
 from solver.designs import ArmDesign
-from solver.identify import Posterior
 
 __all__ = ["ArmRandomization", "PosteriorRandomization", "coerce_randomization"]
 
@@ -123,11 +123,13 @@ class PosteriorRandomization:
         source: the fit file it was read from ("" if built in Python).
     """
 
-    posterior: Posterior
+    posterior: solver.identify.Posterior
     widen: float = 1.0
     source: str = ""
 
     def __post_init__(self):
+        from solver.identify import Posterior  # scipy.stats and optimize: only for fitted arms
+
         if not isinstance(self.posterior, Posterior):
             raise ValueError(f"PosteriorRandomization.posterior must be a solver.identify.Posterior; "
                              f"got {type(self.posterior).__name__}")
@@ -144,6 +146,8 @@ class PosteriorRandomization:
         Raises:
             ValueError: the file cannot be read or is not a fit file (one line).
         """
+        from solver.identify import Posterior
+
         try:
             posterior = Posterior.load(path)
         except OSError as exc:

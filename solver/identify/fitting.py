@@ -58,7 +58,6 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, stats
 from threadpoolctl import threadpool_limits
 
 from solver.designs import ArmDesign, from_json
@@ -86,7 +85,6 @@ SAME_STATE = 1e-6
 """Tips nearer than this fraction of the arm's length are one equilibrium reached two ways."""
 ALPHA = 1e-3
 """Level of the χ² misspecification test."""
-Z95 = float(stats.norm.ppf(0.975))
 DEFAULT_HOLDOUT = 0.2
 
 
@@ -494,6 +492,8 @@ class FitResult:
 
     def interval(self, level: float = 0.95) -> np.ndarray:
         """(p, 2) normal confidence intervals (NaN for unidentifiable parameters)."""
+        from scipy import stats  # (seconds to import: only where a fit is used)
+
         z = float(stats.norm.ppf(0.5 + level / 2.0))
         return np.column_stack([self.values - z * self.std, self.values + z * self.std])
 
@@ -690,6 +690,8 @@ def fit(design: ArmDesign, measurements: Measurements, parameters, *, model: str
 
 def _fit(design, measurements, parameters, model, loss, f_scale, holdout, seed, absolute_sigma, max_nfev,
          settings, progress) -> FitResult:
+    from scipy import optimize, stats  # (seconds to import: not on `import solver.identify`)
+
     start = time.perf_counter()
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
