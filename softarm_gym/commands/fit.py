@@ -61,7 +61,9 @@ def add_arguments(p):
     p.add_argument("--seed", type=int, default=0, help="seeds the hold-out choice and synthetic noise")
     p.add_argument("--relative-sigma", action="store_true",
                    help="the sigmas are relative weights: scale the covariance by the reduced chi-square")
-    p.add_argument("--max-nfev", type=int, default=60, help="most batch evaluations of the optimiser")
+    p.add_argument("--max-nfev", type=int, default=60,
+                   help="most residual evaluations of the optimiser (each a batch solve; the Jacobians come "
+                        "on top; default %(default)s)")
     p.add_argument("--payload-kg", type=float, default=0.0,
                    help="known tip payload of every configuration when the file has no payload_kg column "
                         "(and of the synthetic data)")
