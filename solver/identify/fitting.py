@@ -32,10 +32,11 @@ whichever :class:`solver.ThreadPolicy` measures faster.
 **Identifiability**: the singular values of the Jacobian in typical scales, J = U S Vᵀ, are
 the data's information along the directions V: 1/s is the posterior standard deviation
 along direction v, in typical scales. Before the fit (at the nominal design) and after it, a
-direction with s < 1e-6·s_max (structurally unidentifiable: two parameters act the same way
-on every measurement) or 1/s > 10 (the data do not pin it to within ten typical scales) makes
-the parameter that dominates it *unidentifiable*: it is named in the result, held at its
-nominal value, and left out of the covariance and of the posterior; the others are fitted.
+direction with s < max(1e-6·s_max, 1e-4) (structurally unidentifiable: two parameters act the
+same way on every measurement, or one acts on none) or 1/s > 10 (the data do not pin it to
+within ten typical scales) makes the parameter that dominates it *unidentifiable*: it is named
+in the result, held at its nominal value, and left out of the covariance and of the posterior;
+the others are fitted.
 
 **Uncertainty**: the covariance is (JᵀJ)⁻¹ at the solution (J modified by the robust loss,
 as ``least_squares`` returns it), in the parameters' units; 95 % intervals are ±1.96 σ. With
@@ -79,6 +80,10 @@ JUMP_FRACTION = 0.01
 the arm's length has crossed to another branch (a smooth change moves it ~1e-4 of that)."""
 RCOND = 1e-6
 """Singular values below this fraction of the largest are structural non-identifiability."""
+FD_FLOOR = 1e-4
+"""...and so are those below this (σ per typical scale): the finite differences' resolution (a
+parameter the planar solve ignores, GJ, still moves its converged state by ~1e-6 σ per step of
+1e-3 typical scales, through the tolerance)."""
 MAX_STD = 10.0
 """Directions the data leave more uncertain than this many typical scales are not identified."""
 SAME_STATE = 1e-6
@@ -98,8 +103,8 @@ def identifiable(jac: np.ndarray, names, rcond: float = RCOND, max_std: float = 
     """Which parameters a Jacobian identifies, by greedy elimination.
 
     While the weakest direction of ``jac`` (columns in typical scales) is too weak — its
-    singular value s below ``rcond``·s_max, or 1/s above ``max_std`` — the parameter with
-    the largest component in it is removed.
+    singular value s below ``rcond``·s_max or :data:`FD_FLOOR`, or 1/s above ``max_std`` — the
+    parameter with the largest component in it is removed.
 
     Args:
         jac: (m, p) Jacobian of the weighted residuals, columns in typical scales.
@@ -118,7 +123,7 @@ def identifiable(jac: np.ndarray, names, rcond: float = RCOND, max_std: float = 
             a = np.vstack([a, np.zeros((a.shape[1] - a.shape[0], a.shape[1]))])
         _, s, vt = np.linalg.svd(a, full_matrices=False)
         weakest, v = s[-1], vt[-1]
-        structural = not weakest > rcond * s[0]
+        structural = not weakest > max(rcond * s[0], FD_FLOOR)
         if not structural and 1.0 / weakest <= max_std:
             break
         j = int(np.argmax(np.abs(v)))
@@ -354,8 +359,8 @@ class Posterior:
         if mean.shape != (p,) or cov.shape != (p, p) or not finite:
             raise ValueError(f"a posterior of {p} parameters needs a finite mean ({p},) and covariance "
                              f"({p}, {p}); got {mean.shape} and {cov.shape}")
-        if not np.allclose(cov, cov.T, rtol=1e-10, atol=0) or np.linalg.eigvalsh(cov).min() < \
-                -1e-10 * max(np.abs(cov).max(), 1e-300):
+        if p and (not np.allclose(cov, cov.T, rtol=1e-10, atol=0) or np.linalg.eigvalsh(cov).min() <
+                  -1e-10 * max(np.abs(cov).max(), 1e-300)):
             raise ValueError("the posterior covariance must be symmetric positive semi-definite")
         w, q = np.linalg.eigh(0.5 * (cov + cov.T))
         object.__setattr__(self, "mean", mean)
@@ -542,7 +547,8 @@ class FitResult:
     def summary(self) -> str:
         """A few lines for people: the parameters with intervals, then the checks."""
         opt = self.optimizer
-        lines = [f"{self.design.name}: {len(self.parameters)} parameters fitted to {opt['fit_values']} "
+        count = f"{len(self.parameters)} parameter{'s' if len(self.parameters) != 1 else ''}"
+        lines = [f"{self.design.name}: {count} fitted to {opt['fit_values']} "
                  f"values of {opt['fit_configurations']} configurations ({self.model} model, {self.loss} "
                  f"loss) in {opt['seconds']:.2f} s",
                  f"{'parameter':22s} {'nominal':>12s} {'fitted':>12s} {'std':>10s}   95 % interval"]

@@ -110,6 +110,9 @@ def test_unidentifiable_parameters_are_named_and_held_not_fitted():
     assert {p.name for p in result.posterior().parameters} == {result.parameters[k].name
                                                               for k in np.flatnonzero(result.identified)}
     assert "unidentifiable (structural" in result.summary()
+    alone = fit(ARM, meas, "GJ_scale", holdout=0.0)  # nothing else to compare it with
+    assert [u["reason"] for u in alone.unidentifiable] == ["structural"] and not alone.identified.any()
+    assert alone.posterior().parameters == () and json.dumps(alone.to_dict(), allow_nan=False)
 
 
 def test_identifiable_on_matrices_with_a_known_null_space():
