@@ -12,7 +12,8 @@ inclinometers, a base load cell) are the sensor models' business and live in
 :func:`predict` solves every configuration of a design, grouped by scene, in batches
 (:func:`solver.step_batch`): cold — the equilibrium the arm reaches quasi-statically from
 rest at those pressures, as :func:`solver.solve` defines it — or continued from the
-equilibria of a nearby design.
+equilibria of a nearby design (where the batch kernel steps the scene; the others — closed
+forms of an unloaded arm or of constant curvature, multiple shooting — are solved cold).
 """
 
 from __future__ import annotations
@@ -428,8 +429,8 @@ def predict(design: ArmDesign, measurements: Measurements, model: str = "full", 
     pressures, for this design (:func:`solver.step_batch` given ``start``'s states as states
     of ``design``). That follows the branch each configuration was on where the arm is
     bistable (docs/design.md §6); a row that does not converge is flagged, not solved
-    otherwise, and scenes the batch kernel does not step (constant curvature, an unloaded
-    arm) are all flagged: the caller keeps a cold solve for them.
+    otherwise. Scenes the batch kernel does not step (constant curvature, an unloaded arm, an
+    arm that needs multiple shooting) are solved cold by :func:`solver.solve` either way.
 
     Args:
         design: the design to solve (checked against ``measurements`` by the caller:
@@ -457,10 +458,7 @@ def predict(design: ArmDesign, measurements: Measurements, model: str = "full", 
         for k in rows:
             scenes[k] = scene
         p = measurements.pressures[rows]
-        lean = solver.Stepper(design, scene, model=model, settings=settings).lean
-        if start is not None and not lean:
-            continue  # no continuation: flagged unconverged
-        if lean:
+        if solver.Stepper(design, scene, model=model, settings=settings).lean:
             state = None if start is None else solver.BatchState(
                 pressures=p, tips=start.tips[rows], converged=start.converged[rows],
                 shapes=np.empty((rows.size, 1, L.N_COLUMNS)), section_ends=start.section_ends,
@@ -496,7 +494,5 @@ def predict(design: ArmDesign, measurements: Measurements, model: str = "full", 
                 if records is None:
                     records = np.full((n, eq.s.size, L.N_COLUMNS), np.nan)
                 solved[int(k)] = eq
-    if backbone and records is None:  # every scene skipped (a continuation nothing could take)
-        records = np.full((n, 1, L.N_COLUMNS), np.nan)
     return Shapes(design, model, scenes, measurements.pressures, tips, converged, base_moment, channel,
                   records, section_ends, solved)

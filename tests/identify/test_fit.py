@@ -84,7 +84,10 @@ def test_a_wrong_model_is_flagged_by_its_residuals():
     assert not right.chi_square["misspecified"] and right.chi_square["p_value"] > 1e-3
     assert abs(right.values[0] - 77.0) < 3 * right.std[0]
     wrong = fit(ARM, meas, "wind_angle,E", model="constant_curvature")
+    assert wrong.identified.all() and wrong.optimizer["jacobians"] > 1  # it fitted, and failed
     assert wrong.chi_square["misspecified"] and wrong.chi_square["reduced"] > 10
+    nominal_cc = fit(ARM, meas, "E", model="constant_curvature", max_nfev=1)
+    assert wrong.chi_square["statistic"] < nominal_cc.chi_square["statistic"]
     # A wrong design variant: the data's bending stiffness is the bonded bundle's (ei="tubes").
     tubes = solver.designs.octarm_v(ei="tubes")
     variant = make_synthetic(tubes, {"wind_angle": 77.0}, pressures_psi=(50, 90), base_angles_deg=(90.0,),
