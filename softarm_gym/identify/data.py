@@ -326,8 +326,12 @@ def make_synthetic(design: solver.designs.ArmDesign, truth: dict, *,
                                            s=tuple(markers)))
     if not noise.is_off:
         eqs = [shapes.equilibrium(k) for k in range(n)]
-        readings = np.array([readings_vector(synthesize(eq, true_arm, noise, rng), float(eq.angles[0]))
-                             for eq in eqs])
+        readings = []
+        for eq in eqs:
+            r = synthesize(eq, true_arm, noise, rng)
+            readings.append(readings_vector(r.encoder_lengths, r.inclinometers, r.base_wrench,
+                                            float(eq.angles[0])))
+        readings = np.array(readings)
         observations.append(SensorObservation(readings, sensor_sigma(noise, ns), n_sections=ns))
     mask = np.zeros(n, dtype=bool)
     mask[rng.permutation(n)[:int(round(holdout * n))]] = True

@@ -5,7 +5,8 @@ solver never imports this package), so the fit takes readings through the generi
 :class:`solver.identify.Observation` interface, implemented here by
 :class:`SensorObservation`: the model's reading of each configuration is
 :func:`softarm_gym.sensing.synthesize` of its equilibrium, noise-free — the same sensor model
-the environments observe through.
+the environments observe through (:func:`softarm_gym.sensing.sensors.exact_readings`, the
+readings :func:`~softarm_gym.sensing.synthesize` adds noise to).
 
 Columns, planar (``k`` counts sections from 1):
 
@@ -29,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softarm_gym.sensing import SensorNoise, synthesize
+from softarm_gym.sensing import SensorNoise
+from softarm_gym.sensing.sensors import exact_readings
 from solver.identify import Observation
 
 __all__ = ["SensorObservation", "sensor_labels", "sensor_sigma", "readings_vector"]
@@ -65,13 +67,14 @@ def sensor_sigma(noise: SensorNoise, n_sections: int) -> np.ndarray:
     return sigma
 
 
-def readings_vector(readings, base_theta: float) -> np.ndarray:
-    """(k,) the columns of :class:`SensorObservation` from :class:`~softarm_gym.sensing.SensorReadings`
-    of a planar equilibrium whose base points at θ0 = ``base_theta`` (rad)."""
+def readings_vector(encoder_lengths, inclinometers, base_wrench, base_theta: float) -> np.ndarray:
+    """(k,) the columns of :class:`SensorObservation` from planar readings (the fields of
+    :class:`~softarm_gym.sensing.SensorReadings`) of an arm whose base points at
+    θ0 = ``base_theta`` (rad)."""
     c, s = math.cos(base_theta), math.sin(base_theta)
-    nx, ny, m = readings.base_wrench
+    nx, ny, m = base_wrench
     load = (-s * nx + c * ny, c * nx + s * ny, m)  # along d1 = (−sin θ0, cos θ0), d3 = (cos θ0, sin θ0)
-    return np.concatenate([readings.encoder_lengths.ravel(), readings.inclinometers[1:], load])
+    return np.concatenate([np.ravel(encoder_lengths), inclinometers[1:], load])
 
 
 @dataclass(frozen=True)
@@ -106,7 +109,7 @@ class SensorObservation(Observation):
         out = np.empty((n, len(self.labels)))
         for k in range(n):
             eq = shapes.equilibrium(k)
-            out[k] = readings_vector(synthesize(eq, design), float(eq.angles[0]))
+            out[k] = readings_vector(*exact_readings(eq, design), float(eq.angles[0]))
         # An inclinometer reads θ modulo 2π: the prediction nearest each measured angle.
         incl = slice(2 * self.n_sections, 3 * self.n_sections)
         turns = np.round(np.nan_to_num(self.measured[:, incl] - out[:, incl]) / (2 * math.pi))

@@ -357,16 +357,15 @@ class Shapes:
         record's flags are the batch's: ``stable`` as ``converged``)."""
         if k in self.solved:
             return self.solved[k]
-        rec, ok = self._records()[k], bool(self.converged[k])
+        rec, ok = self._records()[k], bool(self.converged[k])  # (views: records are not written again)
         return solver.Equilibrium(
-            tip=rec[-1, L.X:L.Y + 1].copy(), converged=ok, stable=ok, iterations=0, residual=0.0,
-            s=rec[:, L.S].copy(), positions=rec[:, L.X:L.Y + 1].copy(), angles=rec[:, L.THETA].copy(),
-            shear_stretch=rec[:, L.V1:L.V3 + 1].copy(), curvature=rec[:, L.U].copy(),
-            internal_force=rec[:, L.NX:L.NY + 1].copy(), internal_moment=rec[:, L.M].copy(),
-            section_ends=self.section_ends, base_force=rec[0, L.NX:L.NY + 1].copy(),
-            pressures=self.pressures[k].copy(), model=self.model, planar=True,
-            base_moment=np.array([self.base_moment[k]]), scene=self.scenes[k],
-            channel_pressures=self.channel_pressures[k].copy(), arm=self.design)
+            tip=rec[-1, L.X:L.Y + 1], converged=ok, stable=ok, iterations=0, residual=0.0,
+            s=rec[:, L.S], positions=rec[:, L.X:L.Y + 1], angles=rec[:, L.THETA],
+            shear_stretch=rec[:, L.V1:L.V3 + 1], curvature=rec[:, L.U],
+            internal_force=rec[:, L.NX:L.NY + 1], internal_moment=rec[:, L.M],
+            section_ends=self.section_ends, base_force=rec[0, L.NX:L.NY + 1], pressures=self.pressures[k],
+            model=self.model, planar=True, base_moment=self.base_moment[k:k + 1], scene=self.scenes[k],
+            channel_pressures=self.channel_pressures[k], arm=self.design)
 
     def points(self, s: np.ndarray) -> np.ndarray:
         """(n, len(s), 2) backbone positions at reference arc lengths ``s`` (m), by cubic

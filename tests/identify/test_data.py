@@ -42,8 +42,12 @@ def test_synthetic_readings_are_the_sensor_models_rounded_to_table_4_3():
     (obs,) = meas.observations
     noise = SensorNoise.thesis()
     shapes = predict(true_arm, meas, backbone=True)
-    exact = np.array([readings_vector(synthesize(shapes.equilibrium(k), true_arm), float(
-        shapes.equilibrium(k).angles[0])) for k in range(meas.n)])
+    exact = []
+    for k in range(meas.n):
+        r = synthesize(shapes.equilibrium(k), true_arm)
+        exact.append(readings_vector(r.encoder_lengths, r.inclinometers, r.base_wrench,
+                                     float(shapes.equilibrium(k).angles[0])))
+    exact = np.array(exact)
     res = np.concatenate([np.full(6, noise.encoder_resolution), np.full(3, math.radians(2.5)),
                           [noise.force_resolution, noise.axial_force_resolution, noise.moment_resolution]])
     assert np.all(np.abs(obs.measured - exact) <= res / 2 * (1 + 1e-9))
