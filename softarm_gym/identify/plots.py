@@ -76,8 +76,10 @@ def _shape_panel(ax, result: FitResult, k: int, label: str, rank: str, errors) -
     nominal, fitted, what = errors
     unit = 1e3 if "mm" in what else 1.0
     split = result.configurations["split"][result.configurations["configuration"].index(k)]
-    ax.set_title(f"{label}\n{split}, {rank}: {what.split(' (')[0]} {unit * nominal[k]:.3g} → "
-                 f"{unit * fitted[k]:.3g}{' mm' if unit != 1.0 else ''}", fontsize=9)
+    short = {"tip error (mm)": "tip error", "mean marker error (mm)": "marker error"}.get(what,
+                                                                                          "RMS residual/σ")
+    ax.set_title(f"{label}\n{split}, {rank}\n{short} {unit * nominal[k]:.3g} → {unit * fitted[k]:.3g}"
+                 f"{' mm' if unit != 1.0 else ''} (nominal → fitted)", fontsize=8)
     ax.set_xlabel("x (m)")
 
 
@@ -143,6 +145,7 @@ def _parameter_panel(ax, result: FitResult) -> None:
         ax.plot(np.zeros((~ok).sum()), y[~ok], "x", color="0.5", ms=6, label="not identified (held)")
     ax.axvline(0.0, color="0.45", linestyle="--", linewidth=1)
     ax.set_yticks(y)
+    ax.set_ylim(-0.7, len(params) - 0.3)
     ax.set_yticklabels([p.name for p in params], fontsize=8)
     for k, p in enumerate(params):
         text = (f"{result.values[k]:.4g} ± {1.96 * result.std[k]:.2g} {p.unit}".replace(" -", "")

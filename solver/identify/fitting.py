@@ -461,12 +461,15 @@ class FitResult:
             "misspecified", "robust_scale", "by_observation"}``.
         holdout: error on the held-out configurations, before and after the fit (None
             without a hold-out set).
-        configurations: per configuration: index, split, converged, and the error in metres
-            of each position observation, nominal and fitted (columns as lists).
+        configurations: per configuration: index, split, converged, the branch it was fitted
+            on (``"cold"`` or ``"continued"``), and the error in metres of each position
+            observation, nominal and fitted (columns as lists).
         residuals: per measured value: configuration, split, observation, quantity, unit,
             measured, sigma (as weighed: :meth:`Measurements.effective_sigma`), nominal, fitted,
             normalized (= (measured − fitted)/sigma).
-        optimizer: status, message, evaluations, jacobians, branch switches, seconds.
+        optimizer: success, status, message, residual evaluations, Jacobians, solve batches,
+            Jacobian steps that switched branch, configurations on a continued branch, the
+            unconverged configurations at the solution, fit-set size, seconds.
         model, loss, f_scale, absolute_sigma: how it was fitted.
         measurements: the data (not written to the fit file).
     """
