@@ -574,16 +574,14 @@ def _finite_obs(obs) -> bool:
 
 def _env_case(env_id, observation, observation_format, reset_seed, actions):
     """Random-action steps on one (ID, observation) case: ``{"case": JSON {"row", "message"}}``."""
-    import gymnasium as gym
-
-    import softarm_gym  # noqa: F401 - registers the SoftArm/* IDs in a fresh Ray worker
+    from softarm_gym.registry import make  # registers the SoftArm/* IDs in a fresh Ray worker
 
     row = dict(env_id=env_id, observation=observation, steps=0, exceptions=0, nan_observations=0,
                nan_rewards=0, solver_failures=0, failure_truncations=0, resets=0)
     message = None
     start = time.perf_counter()
     try:
-        env = gym.make(env_id, observation=observation, observation_format=observation_format)
+        env = make(env_id, quiet=True, observation=observation, observation_format=observation_format)
         obs, _ = env.reset(seed=reset_seed)
         row["nan_observations"] += not _finite_obs(obs)
         for action in actions:
@@ -611,9 +609,8 @@ def env_plan(n_steps: int, seed: int = 0, ids=None, observations=None) -> Plan:
     The actions and reset seeds of every case are drawn here, in case order from one
     generator, so a case's steps do not depend on where it runs.
     """
-    import gymnasium as gym
-
     from softarm_gym.benchmarks.envs import env_ids
+    from softarm_gym.registry import make
     from softarm_gym.sensing import ESTIMATORS
 
     if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 0:
@@ -630,7 +627,7 @@ def env_plan(n_steps: int, seed: int = 0, ids=None, observations=None) -> Plan:
     chunks = []
     for k, (env_id, obs) in enumerate(cases if per_case else ()):
         if env_id not in spaces:
-            probe = gym.make(env_id)
+            probe = make(env_id, quiet=True)
             spaces[env_id] = probe.action_space
             probe.close()
         reset_seed = int(rng.integers(2**31))
