@@ -53,6 +53,12 @@ import numpy as np
 from tqdm import tqdm
 
 from baselines.config import load_policy, make_env
+from softarm_gym.commands.common import (
+    add_numba_threads_argument,
+    add_output_argument,
+    add_quiet_argument,
+    apply_numba_threads,
+)
 from softarm_gym.controllers import CEMPlanner, CurlController, JacobianController
 from softarm_gym.files import json_text, write_json
 from softarm_gym.sensing import ESTIMATORS
@@ -286,27 +292,29 @@ def main(argv=None) -> int:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
-    parser.add_argument("--out", default=None, help="also write the JSON result to this file")
-    parser.add_argument("--no-progress", action="store_true")
+    add_output_argument(parser, old=("--out",))
+    add_quiet_argument(parser)
+    add_numba_threads_argument(parser)
     parser.add_argument("--trust-pickle", action="store_true",
                         help="load the model with SB3's pickle-based loader; pickles can run arbitrary "
                              "code, so only for files you made yourself")
     args = parser.parse_args(argv)
     try:
+        apply_numba_threads(args.numba_threads)
         env_kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
         if env_kwargs is not None and not isinstance(env_kwargs, dict):
             raise ValueError("--env-kwargs must be a JSON object")
         result = evaluate(model=args.model, controller=args.controller, env_id=args.env,
                           observation=args.observation, sensor_noise=args.sensor_noise,
                           payload_kg=_payload(args.payload_kg), env_kwargs=env_kwargs,
-                          episodes=args.episodes, seed=args.seed, progress=not args.no_progress,
+                          episodes=args.episodes, seed=args.seed, progress=not args.quiet,
                           trust_pickle=args.trust_pickle)
     except (ValueError, json.JSONDecodeError) as exc:
         print(f"baselines.evaluate: error: {exc}", file=sys.stderr)
         return 2
-    if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        write_json(args.out, result)
+    if args.output:
+        Path(args.output).parent.mkdir(parents=True, exist_ok=True)
+        write_json(args.output, result)
     print(json_text(result) if args.json else _text(result))
     return 0
 

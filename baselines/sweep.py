@@ -75,6 +75,7 @@ from baselines.config import (
     split_hyperparams,
 )
 from baselines.train import CONFIG_FILE, _check_counts, latest_checkpoint, resume, train
+from softarm_gym.commands.common import add_numba_threads_argument, add_quiet_argument, apply_numba_threads
 from softarm_gym.files import write_json
 from softarm_gym.jobs import (
     BACKENDS,
@@ -677,7 +678,8 @@ def main(argv=None) -> int:
                                "%(default)s)")
     training.add_argument("--save-replay-buffer", action="store_true",
                           help="save the off-policy replay buffer with checkpoints")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    add_quiet_argument(parser, help="hide the progress bars")
+    add_numba_threads_argument(parser)
     args = parser.parse_args(argv)
     received = []
 
@@ -687,6 +689,7 @@ def main(argv=None) -> int:
 
     previous = signal.signal(signal.SIGTERM, stop)
     try:
+        apply_numba_threads(args.numba_threads)
         if args.address is not None and args.backend != "ray":
             raise ValueError("--address needs --backend ray")
         if args.results is not None:
@@ -702,7 +705,7 @@ def main(argv=None) -> int:
                        evaluate_episodes=args.evaluate_episodes, results_dir=args.results_dir,
                        results_file=args.results, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                        checkpoint_freq=args.checkpoint_freq, save_replay_buffer=args.save_replay_buffer,
-                       progress=not args.no_progress,
+                       progress=not args.quiet,
                        command="python -m baselines.sweep " + shlex.join(argv))
     except (ValueError, JobError) as exc:
         print(f"baselines.sweep: error: {exc}", file=sys.stderr)

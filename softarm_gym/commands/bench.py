@@ -13,6 +13,7 @@ from __future__ import annotations
 import sys
 
 from softarm_gym.cli import UsageError, emit
+from softarm_gym.commands.common import add_numba_threads_argument
 
 NAME = "bench"
 HELP = "benchmark solver speed against accuracy (and peers)"
@@ -34,6 +35,7 @@ def add_arguments(p):
                    help="with --env: comma-separated IDs to time (default: every registered ID and "
                         "the batched vector env)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_numba_threads_argument(p)
 
 
 def run(args) -> int:
