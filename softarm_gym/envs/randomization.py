@@ -6,6 +6,7 @@ estimators keep the nominal design, so the randomisation is a model error they d
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -56,10 +57,12 @@ class ArmRandomization:
         if isinstance(value, cls):
             return value
         if isinstance(value, dict):
-            try:
-                return cls(**value)
-            except TypeError as exc:
-                raise ValueError(f"randomization has unknown fields: {exc}") from None
+            valid = [f.name for f in dataclasses.fields(cls)]
+            unknown = [repr(k) for k in value if k not in valid]
+            if unknown:
+                raise ValueError(f"randomization has unknown field(s) {', '.join(unknown)}; valid fields: "
+                                 f"{', '.join(valid)}")
+            return cls(**value)
         raise ValueError("randomization must be None, a dict with wind_angle_deg / "
                          f"youngs_modulus_rel, or an ArmRandomization; got {value!r}")
 
