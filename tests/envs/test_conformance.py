@@ -58,7 +58,7 @@ def test_sb3_check_env_passes_on_what_gym_make_returns_in_every_format(env_id):
         try:
             env = gym.make(env_id, observation_format=observation_format)
         except ValueError as exc:
-            assert observation_format == "goal" and "use observation_format='flat' or 'dict'" in str(exc), exc
+            assert observation_format == "goal" and "'flat' or 'dict'" in str(exc), exc
             continue
         assert hasattr(env, "compute_reward") == (observation_format == "goal")
         with warnings.catch_warnings():
