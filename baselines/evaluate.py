@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from baselines.config import load_policy, make_env
+from baselines.config import check_model_env, load_policy, make_env
 from softarm_gym.commands.common import (
     add_numba_threads_argument,
     add_output_argument,
@@ -182,7 +182,7 @@ def _payload(text: str | None):
 def evaluate(*, model: str | Path | None = None, controller: str | None = None, env_id: str | None = None,
              observation: str = "true", sensor_noise: str = "off", payload_kg=None,
              env_kwargs: dict | None = None, episodes: int = 100, seed: int = 0,
-             progress: bool = False, trust_pickle: bool = False) -> dict:
+             progress: bool = False, trust_pickle: bool = False, force: bool = False) -> dict:
     """Evaluate a saved model or a controller; returns the :func:`summarize` metrics plus the setup.
 
     Args:
@@ -197,6 +197,9 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
         seed: episode ``i`` uses seed ``seed + i``.
         progress: tqdm bar on stderr.
         trust_pickle: load ``model`` with SB3's pickle-based loader (module docstring).
+        force: evaluate ``model`` even on an env whose action semantics, spaces or action
+            wrapper differ from its training env's (:func:`baselines.config.check_model_env`);
+            the differences are then listed in the result's ``model_env_differences``.
 
     Raises:
         ValueError: bad or conflicting arguments, or an unreadable or unsafe model.
@@ -224,7 +227,14 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
     if payload_kg is not None:
         kwargs["payload_kg"] = payload_kg
     env = make_env(env_id, kwargs)
+    differences = []
     if model is not None:
+        try:
+            differences = check_model_env(meta, env, env_id, force=force)
+        except ValueError:
+            env.close()
+            raise
+
         def act(obs):
             if vecnorm is not None:
                 obs = vecnorm.normalize_obs(obs)
@@ -246,7 +256,8 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
                  else {"success_tolerance_m": float(base.success_tolerance)})
     return {"agent": agent, "env_id": env_id, "observation": observation, "sensor_noise": sensor_noise,
             "payload_kg": list(base.payload_range), "seed": seed, **criterion,
-            **summarize(record), "wall_time_s": wall}
+            **summarize(record), "wall_time_s": wall,
+            **({"model_env_differences": differences} if differences else {})}
 
 
 def _seeded_planner(env, seed: int):
@@ -295,6 +306,9 @@ def main(argv=None) -> int:
     add_output_argument(parser, old=("--out",))
     add_quiet_argument(parser)
     add_numba_threads_argument(parser)
+    parser.add_argument("--force", action="store_true",
+                        help="evaluate a model on an env whose actions or observations differ from its "
+                             "training env's (refused otherwise)")
     parser.add_argument("--trust-pickle", action="store_true",
                         help="load the model with SB3's pickle-based loader; pickles can run arbitrary "
                              "code, so only for files you made yourself")
@@ -308,7 +322,7 @@ def main(argv=None) -> int:
                           observation=args.observation, sensor_noise=args.sensor_noise,
                           payload_kg=_payload(args.payload_kg), env_kwargs=env_kwargs,
                           episodes=args.episodes, seed=args.seed, progress=not args.quiet,
-                          trust_pickle=args.trust_pickle)
+                          trust_pickle=args.trust_pickle, force=args.force)
     except (ValueError, json.JSONDecodeError) as exc:
         print(f"baselines.evaluate: error: {exc}", file=sys.stderr)
         return 2
