@@ -552,6 +552,7 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
     total = int(special["n_timesteps"] if timesteps is None else timesteps)
     if total < 1:
         raise ValueError(f"timesteps must be >= 1; got {total}")
+    params = {**params, "n_timesteps": total}  # the recorded budget is the one trained, not the YAML's
     _check_counts(eval_freq, checkpoint_freq, threads)
     _check_time_limit(time_limit_min)
     if run_name is None:
