@@ -125,4 +125,5 @@ def test_shipped_metadata_records_the_budget_that_was_trained():
     metadata = [json.loads(p.read_text()) for p in shipped if not p.name.endswith("_vecnormalize.json")]
     assert len(metadata) >= 5
     for meta in metadata:
-        assert meta["hyperparams"]["n_timesteps"] == meta["timesteps"] >= meta["timesteps_done"], meta["env_id"]
+        budget = meta["hyperparams"]["n_timesteps"]
+        assert budget == meta["timesteps"] >= meta["timesteps_done"], meta["env_id"]
