@@ -1,5 +1,7 @@
 """Evaluate a trained policy or a model-based controller, optionally with an estimator in the loop.
 
+Usage::
+
     python -m baselines.evaluate --model baselines/trained/sac_OctArmReach-v1.zip --episodes 100 --json
     python -m baselines.evaluate --model FILE.zip --observation cable_encoder --sensor-noise thesis \\
         --payload-kg 0,0.5 --json

@@ -28,10 +28,12 @@ myst_heading_anchors = 4
 autodoc_mock_imports = ["elastica"]
 
 autodoc_member_order = "bysource"
+autodoc_inherit_docstrings = False  # Gymnasium's and SB3's own docstrings are theirs to render
 autodoc_typehints = "description"
 autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-module-all": True}
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
+napoleon_use_ivar = True  # "Attributes:" as fields: NamedTuple fields are documented once
 
 html_theme = "furo"
 html_title = f"softarm-gym {release}"

@@ -217,10 +217,12 @@ def headline_table() -> str:
             f"batched env {batched['env_steps_per_s'] / 1000:.0f}k env-steps/s at {batched['num_envs']} "
             "arms | "
             "[benchmarks](docs/benchmarks.md#environments) |"]
+    by_task: dict = {}
     for row in baseline_rows():
-        rows.append(f"| {row['task']}, {row['arm']} {row['dims']}: success | learned "
-                    f"{_agent(row['learned'])}; reference controller {_agent_reference(row['reference'])} | "
-                    "[baselines](docs/baselines.md) |")
+        by_task.setdefault((row["task"], row["dims"]), []).append(
+            f"{row['arm']}: learned {_agent(row['learned'])}, reference {_agent_reference(row['reference'])}")
+    for (task, dims), cells in by_task.items():
+        rows.append(f"| {task} {dims}: success rate | {'; '.join(cells)} | [baselines](docs/baselines.md) |")
     rows += ["", f"Measured on: {solver['measured']['machine']}. Speeds are ratios measured side by side in "
              "one run; wall-clock figures carry over to another machine only as ratios."]
     return "\n".join(rows)
@@ -231,6 +233,19 @@ def _agent_reference(best) -> str:
         return "—"
     mean, _, name = best
     return f"{name.split('_')[0]} {mean:.0%}"
+
+
+def thresholds_table() -> str:
+    """Reference returns and the reward thresholds set from them (``docs/bench/reference_returns.json``)."""
+    data = _json("reference_returns.json")
+    rows = ["| ID | reference | mean return ± std (20 episodes) | reference success | `reward_threshold` |",
+            "|---|---|---|---|---|"]
+    for env_id, row in data["ids"].items():
+        threshold = "none" if row["threshold"] is None else f"{row['threshold']:g}"
+        rows.append(f"| `{env_id}` | `{row['controller']}` | {row['mean']:.1f} ± {row['std']:.1f} | "
+                    f"{row['success_rate']:.0%} | {threshold} |")
+    rows += ["", f"`{data['command']}`, {data['date']}. Rule: {data['rule']}."]
+    return "\n".join(rows)
 
 
 def solver_table() -> str:
@@ -299,6 +314,7 @@ def fresh_machine_table() -> str:
 
 
 SECTIONS = {"ids_table": ids_table, "headline_table": headline_table, "solver_table": solver_table,
+            "thresholds_table": thresholds_table,
             "env_table": env_table, "first_episode_table": first_episode_table,
             "fresh_machine_table": fresh_machine_table}
 """Marked-section name → the function whose Markdown fills it."""

@@ -1,5 +1,7 @@
 """An SB3 ``VecEnv`` over the batched reach env: PPO, SAC, TD3 step N arms in one solver call.
 
+Example::
+
     from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
     from softarm_gym.sb3 import BatchedVecEnv

@@ -35,19 +35,19 @@ sections and :data:`MAX_TUBES` tubes (and channels), and a design file at most
 :data:`MAX_FILE_BYTES`; each limit is named in the error it raises. Every problem is a
 one-line ``ValueError`` saying which field of which entry is wrong.
 
-=====================================  ===========================
-field                                  accepted range
-=====================================  ===========================
-lengths (section ``length``)           (0, 100] m
-radii (tube ``radius`` ≥ 0, material)  (0, 10] m
-``EA``, ``GA`` / ``EI``, ``GJ``        (0, 1e15] N / N m²
-moduli                                 (0, 1e12] Pa
-``density``                            (0, 1e5] kg/m³
-``mass_per_length`` / ``endplate_mass``  [0, 1e6] kg/m / kg
-``angle_deg``                          [-360, 360] deg
-``max_pressure``                       [0, 1e12] Pa (> 0 with tubes)
-names                                  1–100 characters; ``source`` up to 10,000
-=====================================  ===========================
+=========================================  ================================
+field                                      accepted range
+=========================================  ================================
+lengths (section ``length``)               (0, 100] m
+radii (tube ``radius`` ≥ 0, material)      (0, 10] m
+``EA``, ``GA`` / ``EI``, ``GJ``            (0, 1e15] N / N m²
+moduli                                     (0, 1e12] Pa
+``density``                                (0, 1e5] kg/m³
+``mass_per_length`` / ``endplate_mass``    [0, 1e6] kg/m / kg
+``angle_deg``                              [-360, 360] deg
+``max_pressure``                           [0, 1e12] Pa (> 0 with tubes)
+names                                      1–100 characters; ``source`` up to 10,000
+=========================================  ================================
 """
 
 from __future__ import annotations

@@ -22,15 +22,41 @@ _RULE = re.compile(r"^\s*\|(\s*:?-+:?\s*\|)+\s*$")
 
 
 def _cells(line: str) -> list[str]:
-    return [c.strip() for c in line.strip().strip("|").split("|")]
+    return [_escape(c.strip()) for c in line.strip().strip("|").split("|")]
+
+
+_LITERAL = re.compile(r"(``.+?``)")
+
+
+def _escape(text: str) -> str:
+    """``|x|`` (a norm, not a reST substitution) and ``name_`` (not a reference) outside
+    inline literals, escaped."""
+    parts = _LITERAL.split(text)
+    for k in range(0, len(parts), 2):
+        parts[k] = re.sub(r"(\w)_(?=\s|$|[.,;:)])", r"\1\\_", parts[k].replace("|", "\\|"))
+    return "".join(parts)
 
 
 def markdown_to_rst(lines: list[str]) -> list[str]:
-    """Docstring lines with Markdown headings and pipe tables rewritten as reST."""
+    """Docstring lines with Markdown headings and pipe tables rewritten as reST, and the
+    ``|`` of norms escaped outside literal blocks and inline literals."""
     out: list[str] = []
     i = 0
+    literal_indent = None  # indentation of the "::" line whose literal block we are in
     while i < len(lines):
         line = lines[i]
+        indent = len(line) - len(line.lstrip())
+        if literal_indent is not None and line.strip() and indent <= literal_indent:
+            literal_indent = None
+        if literal_indent is not None:
+            out.append(line)
+            i += 1
+            continue
+        if line.rstrip().endswith("::"):
+            literal_indent = indent
+            out.append(_escape(line))
+            i += 1
+            continue
         heading = _HEADING.match(line)
         if heading:
             out += ["", f"{heading.group(1)}.. rubric:: {heading.group(2)}", ""]
@@ -49,7 +75,7 @@ def markdown_to_rst(lines: list[str]) -> list[str]:
                 out += [f"{indent}     - {cell or '..'}" for cell in row[1:]]
             out.append("")
             continue
-        out.append(line)
+        out.append(_escape(line))
         i += 1
     return out
 

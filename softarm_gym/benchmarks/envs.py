@@ -85,6 +85,8 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
         progress: optional callable taking a status string.
 
     Returns:
+        A dict,
+
         ``{"cases": [{"env_id", "observation", "planar", "self_contact", "single_steps_per_s",
         "single_runs_steps_per_s", "vector_steps_per_s", "n_envs", "target_steps_per_s"}],
         "n_steps": ..., "n_envs": ...}``; ``single_steps_per_s`` is the median of the
@@ -141,6 +143,8 @@ def reset_times(env_id: str, n_resets: int = 200) -> dict:
     the two envs reset alternately (seeds 0, 1, ...) so both see the same machine load.
 
     Returns:
+        A dict,
+
         ``{"env_id", "plain_s", "randomized_s", "ratio", "n_resets"}``.
     """
     envs = [make(env_id, quiet=True), make(env_id, quiet=True, randomization=RANDOMIZATION)]

@@ -92,6 +92,8 @@ def run(ids=None, episodes: int = 3, cold: bool = False, progress=None) -> dict:
         progress: a callable taking a message, or None.
 
     Returns:
+        A dict,
+
         ``{"goal": GOAL, "rows": {env_id: {"warm": measure(...), "ratio": first/steady,
         ["cold": measure(...)]}}}``.
     """

@@ -85,6 +85,8 @@ def run(episodes: int = 20, ids=None, progress: bool = True) -> dict:
     """Reference returns of ``episodes`` seeded episodes (seeds 0 … episodes−1) per ID.
 
     Returns:
+        A dict,
+
         ``{env_id: {"controller", "returns", "mean", "std", "success_rate", "mean_length",
         "threshold"}}``.
     """

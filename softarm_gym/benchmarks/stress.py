@@ -319,6 +319,8 @@ def diagnose(trial: Trial, pressures: np.ndarray, previous, eq) -> dict:
         eq: the failed result (None if it raised).
 
     Returns:
+        A dict,
+
         ``{"returned_unstable": bool, "spatial": bool, "converges_with": [names...],
         "stronger_errors": [messages...]}``; ``converges_with`` empty means no tried setting
         found a converged equilibrium.
@@ -655,6 +657,8 @@ def run_env_steps(n_steps: int, seed: int = 0, ids=None, observations=None,
     cases alternate the flat and dict observation formats. Episodes reset when they end.
 
     Returns:
+        A dict,
+
         ``{"steps", "cases", "exceptions", "nan_observations", "nan_rewards",
         "solver_failures", "failure_truncations", "resets", "seconds", "per_case": [...],
         "exception_messages": [...]}``; ``seconds`` is the summed time of the cases.
@@ -684,6 +688,8 @@ def run(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: 
         chunk_size: trials per chunk.
 
     Returns:
+        A dict,
+
         ``{"seed", "random": {...}, "classes": {name: {...}}, "env": {...}, "targets": {...}}``;
         each solver entry holds the fields of :func:`summarize` (with fallbacks) and
         ``without_fallback`` (the same fields with plain Newton). For chunks kept on disk and
