@@ -56,6 +56,7 @@ import json
 import math
 import numbers
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
+from pathlib import Path
 
 from solver._cache import DesignCache
 from solver.actuator import PSI, max_stretch
@@ -63,7 +64,7 @@ from solver.actuator import PSI, max_stretch
 __all__ = [
     "TubeMaterial", "Section", "Tube", "ArmDesign", "octarm_v", "octarm_vi", "ct",
     "octarm_two_section", "rod", "pneumatic", "hydraulic", "fluid_arm", "FluidDesign",
-    "from_json", "load", "get",
+    "from_json", "load", "get", "example_file", "EXAMPLES_DIR",
     "DESIGN_NAMES", "MAX_SECTIONS", "MAX_TUBES", "MAX_FILE_BYTES",
 ]
 
@@ -510,6 +511,23 @@ def from_json(text: str) -> ArmDesign:
     if not isinstance(data, dict):
         raise ValueError("design file must hold a JSON object")
     return _build(ArmDesign, data, "design file")
+
+
+EXAMPLES_DIR = Path(__file__).resolve().parent / "examples"
+"""Example design files shipped with the package (``solver/examples/*.json``)."""
+
+
+def example_file(name: str = "two_section_pneumatic") -> Path:
+    """The path of a shipped example design, e.g. ``load(example_file())``.
+
+    Raises:
+        ValueError: no example of that name (the message lists the ones there are).
+    """
+    path = EXAMPLES_DIR / f"{name}.json"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in EXAMPLES_DIR.glob("*.json")))
+        raise ValueError(f"no example design {name!r}; examples: {known}")
+    return path
 
 
 def load(path) -> ArmDesign:
