@@ -115,6 +115,11 @@ def format_table(result: dict) -> str:
     return "\n".join(lines)
 
 
+BANDS = ("Lines: RMS tip error / L over the 64 on/off configurations at each pressure level. "
+         "Bands: ± one standard deviation of the tip error / L over those configurations.")
+"""The caption of the study's figures (what the lines and the shaded bands are)."""
+
+
 def _panel(ax, levels, table, names):
     for name in names:
         rms = np.array(table[name]["rms_over_L"])
@@ -142,6 +147,7 @@ def plot_study(result: dict, path):
             ax.set_title(f"{label} base: {title}", fontsize=9)
             ax.set_ylabel("RMS tip error / L (–)")
     axes[0, 0].legend(fontsize=8)
+    fig.suptitle(BANDS, fontsize=8, wrap=True)
     return save(fig, path)
 
 
@@ -164,4 +170,5 @@ def plot_payload(result: dict, path):
             ax.set_title(f"{label} base: {title}", fontsize=9)
             ax.set_ylabel("RMS tip error / L (–)")
     axes[0, 0].legend(fontsize=8)
+    fig.suptitle(BANDS, fontsize=8, wrap=True)
     return save(fig, path)
