@@ -42,7 +42,7 @@ def draw_workspace(ax, ws: Workspace, label: str | None = None, density_cell: fl
     ax.plot([top[0]], [top[1]], "^", color="tab:red", ms=6, label="highest tip")
     ax.plot([0], [0], "ks", ms=5, label="base")
     ax.plot([], [], ".", color="0.55", label="tips of the grid")
-    ax.legend(loc="upper right", fontsize=7, framealpha=0.9)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncols=3, fontsize=7, frameon=False)
     ax.set_aspect("equal")
     few_ticks(ax)
     ax.grid(alpha=0.3)
@@ -80,10 +80,14 @@ def plot_dexterity(maps, path, labels=None):
     """
     maps = list(maps)
     labels = list(labels) if labels else [dm.design for dm in maps]
-    # Measures in columns (named once, on top), arms in rows (named once, on the left); each
-    # panel's colourbar is a slim bar under it, so the panels keep the figure's width.
-    fig, axes = figure(len(maps), len(MEASURES), figsize=(2.9 * len(MEASURES), 2.9 * len(maps)),
-                       squeeze=False)
+    # One arm: its five measures on a 2 x 3 grid (not a 5-panel strip). Several arms: measures
+    # in columns (named on each panel), arms in rows (named on the left). Each colourbar is a
+    # slim bar under its panel.
+    single = len(maps) == 1
+    shape = (2, 3) if single else (len(maps), len(MEASURES))
+    fig, axes = figure(*shape, figsize=(3.4 * shape[1], 3.3 * shape[0]), squeeze=False)
+    if single:
+        axes[1, 2].set_axis_off()
     for row, dm in enumerate(maps):
         pts = dm.tips[dm.valid, :2]
         for col, name in enumerate(MEASURES):
@@ -93,21 +97,21 @@ def plot_dexterity(maps, path, labels=None):
                 values = np.sqrt(values)  # the thesis plots the geometric mean √(σ1σ2)
             elif name == "manipulability":
                 label, unit = "(c) σ1···σk", "σ1···σk ((m/Pa)^k)"
-            ax = axes[row, col]
+            ax = axes[divmod(col, 3)] if single else axes[row, col]
             hi = np.nanpercentile(values / scale, 98) if values.size else 1.0
             sc = ax.scatter(pts[:, 0], pts[:, 1], c=values / scale, s=2, cmap=SEQUENTIAL_CMAP,
                             vmin=np.nanmin(values / scale) if values.size else 0, vmax=hi,
                             rasterized=True)
-            bar = fig.colorbar(sc, ax=ax, location="bottom", fraction=0.06, pad=0.02, aspect=25)
+            bar = fig.colorbar(sc, ax=ax, location="bottom", fraction=0.05, pad=0.02, aspect=30)
             bar.set_label(unit, fontsize=7)
             bar.ax.tick_params(labelsize=6)
             bar.ax.xaxis.set_major_locator(MaxNLocator(4))
             ax.set_aspect("equal")
             few_ticks(ax, 4)
-            ax.tick_params(labelsize=7, labelbottom=False)
-            ax.set_ylabel(f"{labels[row]}\ny (m)" if col == 0 else "", fontsize=8)
-            if row == 0:
-                ax.set_title(label, fontsize=9)
+            ax.tick_params(labelsize=7)
+            ax.set_xlabel("x (m)", fontsize=7, labelpad=1)
+            ax.set_ylabel("y (m)" if single or col else f"{labels[row]}\ny (m)", fontsize=8)
+            ax.set_title(f"{labels[row]}: {label}" if single else label, fontsize=9)
             ax.grid(alpha=0.3)
     return save(fig, path)
 

@@ -34,9 +34,13 @@ def plot_sweeps(sweeps, path):
 def _versus_size(sweeps, path) -> None:
     fig, ax = figure(figsize=(7, 4.5))
     top = 0.0
-    for k, s in enumerate(sweeps):
-        pts = [(c.length_m if s.constraint != "gripping-radius" else size, c)
-               for size, c in zip(s.sizes, s.best_per_size) if c is not None]
+    curves = [[(c.length_m if s.constraint != "gripping-radius" else size, c)
+               for size, c in zip(s.sizes, s.best_per_size) if c is not None] for s in sweeps]
+    highest: dict = {}  # the top curve's W at each x: its labels go above, the others' below
+    for pts in curves:
+        for xi, c in pts:
+            highest[round(xi, 9)] = max(highest.get(round(xi, 9), -float("inf")), c.load_n)
+    for k, (s, pts) in enumerate(zip(sweeps, curves)):
         if not pts:
             continue
         x = [p[0] for p in pts]
@@ -53,8 +57,9 @@ def _versus_size(sweeps, path) -> None:
             # 12 % of the curve's span (the short, crowded start keeps only its first layout).
             if c.tubes != previous and c.load_n >= 0 and xi - last_x >= 0.12 * span:
                 ax.plot([xi], [c.load_n], "o", color="k", ms=3)
+                above = c.load_n >= highest[round(xi, 9)]
                 ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=7,
-                            textcoords="offset points", xytext=(-4, 6), ha="right",
+                            textcoords="offset points", xytext=(4, 5 if above else -13),
                             bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
                 last_x = xi
             previous = c.tubes
