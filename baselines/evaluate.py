@@ -5,7 +5,7 @@ Usage::
     python -m baselines.evaluate --model baselines/trained/sac_OctArmReach-v1.zip --episodes 100 --json
     python -m baselines.evaluate --model FILE.zip --observation cable_encoder --sensor-noise thesis \\
         --payload-kg 0,0.5 --json
-    python -m baselines.evaluate --controller jacobian --env SoftArm/OctArmReach-v0 --json
+    python -m baselines.evaluate --controller jacobian --env SoftArm/OctArmReach-v1 --json
     python -m baselines.evaluate --controller planner --env SoftArm/OctArmWrap-v1 --episodes 20 --json
 
 Models load safely (:func:`baselines.config.load_policy`): only the weights of the zip, read

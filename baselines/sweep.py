@@ -3,7 +3,7 @@ here or as Ray tasks on a cluster, every run resumable, then evaluated and writt
 
 Usage::
 
-    python -m baselines.sweep --envs SoftArm/OctArmReach-v0,SoftArm/CTReach-v0 --algos sac,ppo,td3 \\
+    python -m baselines.sweep --envs SoftArm/OctArmReach-v1,SoftArm/CTReach-v1 --algos sac,ppo,td3 \\
         --seeds 0-9 --observations true,cable_encoder --backend ray --address auto
     python -m baselines.sweep ...same options... --resume   # after Ctrl-C, a lost driver or failed runs
 

@@ -1,8 +1,8 @@
 """Train an SB3 agent on a soft-arm environment with the hyperparameters of ``baselines/hyperparams``.
 
-    python -m baselines.train --env SoftArm/OctArmReach-v0 --algo sac --timesteps 300000 --seed 0
-    python -m baselines.train --resume runs/sac_OctArmReach-v0_s0      # after Ctrl-C or a crash
-    python -m baselines.train --env SoftArm/OctArmReach-v0 --algo ppo --batched   # N arms per call
+    python -m baselines.train --env SoftArm/OctArmReach-v1 --algo sac --timesteps 150000 --seed 0
+    python -m baselines.train --resume runs/sac_OctArmReach-v1_s0      # after Ctrl-C or a crash
+    python -m baselines.train --env SoftArm/OctArmReach-v1 --algo ppo --batched --numba-threads 1
 
 writes into ``<log-dir>/<algo>_<env>_s<seed>/`` (``<algo>_<env>_batched_s<seed>/`` with
 ``--batched``, which trains on one :class:`softarm_gym.sb3.BatchedVecEnv` of ``n_envs`` arms
@@ -506,7 +506,7 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
     """Train ``algo`` on ``env_id`` and save everything under ``log_dir`` (module docstring).
 
     Args:
-        env_id: registered environment id (e.g. ``"SoftArm/OctArmReach-v0"``).
+        env_id: registered environment id (e.g. ``"SoftArm/OctArmReach-v1"``).
         algo: one of :data:`baselines.config.ALGOS`.
         timesteps: environment steps; default the YAML's ``n_timesteps``.
         seed: seeds the algorithm, the environments and torch.

@@ -1,6 +1,6 @@
 """A batched vector environment: many reach tasks stepped by one parallel solver call.
 
-``gym.make_vec("SoftArm/OctArmReach-v0", num_envs=1024, vectorization_mode="vector_entry_point")``
+``gym.make_vec("SoftArm/OctArmReach-v1", num_envs=1024, vectorization_mode="vector_entry_point")``
 returns a :class:`BatchedReachVectorEnv`: all arms move together through a
 :class:`solver.BatchStepper` (numba ``prange`` over the copies), and observations, rewards
 and resets are computed for the whole batch by the batch-first functions of
