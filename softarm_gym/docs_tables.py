@@ -293,11 +293,16 @@ def first_episode_table() -> str:
 def fresh_machine_table() -> str:
     """``make demo`` and ``make test`` on a fresh clone (``docs/bench/fresh_machine.json``)."""
     data = _json("fresh_machine.json")
-    rows = ["| step | wall time (s) | what it does |", "|---|---|---|"]
+    rows = ["| step | wall time (s) | load average before | what it does |", "|---|---|---|---|"]
     for step in data["steps"]:
-        rows.append(f"| `{step['command']}` | {step['seconds']:.0f} | {step['what']} |")
-    rows += ["", f"Measured on {data['machine']}, {data['date']}, with an empty numba cache "
-             f"({data['how']})."]
+        rows.append(f"| `{step['command']}` | {step['seconds']:.0f} | {step['load_before']:.1f} | "
+                    f"{step['what']} |")
+    first = data["first_episode"]
+    rows += ["", f"First episode after `make demo`, in a fresh process: `{first['env_id']}`, "
+             f"{first['steps']} steps in {first['first_seconds']:.2f} s (imports "
+             f"{first['import_seconds']:.1f} s before it), against "
+             f"{first['steady_steps_per_s']:,.0f} steps/s once running.",
+             "", f"Measured on {data['machine']}, {data['date']}: {data['how']}."]
     return "\n".join(rows)
 
 
