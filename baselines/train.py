@@ -411,8 +411,11 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
         _rotate(run_dir / "progress.csv")
     model.set_logger(configure(str(run_dir), ["csv", "tensorboard"] if config["tensorboard"] else ["csv"]))
 
+    # The model's metadata records the budget it trained (--timesteps overrides the YAML's
+    # n_timesteps); the run's config keeps the YAML entry as planned (a sweep's --resume checks it).
     meta = {"env_id": env_id, "algo": algo, "seed": config["seed"], "env_kwargs": env_kwargs,
-            "hyperparams": params, "timesteps": config["timesteps"], "batched": config.get("batched", False)}
+            "hyperparams": {**params, "n_timesteps": config["timesteps"]}, "timesteps": config["timesteps"],
+            "batched": config.get("batched", False)}
     if "hyperparams_file" in config:
         meta["hyperparams_file"] = config["hyperparams_file"]
     wall0, cpu0 = float(prior.get("wall_time_s", 0.0)), float(prior.get("cpu_time_s", 0.0))
@@ -552,7 +555,6 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
     total = int(special["n_timesteps"] if timesteps is None else timesteps)
     if total < 1:
         raise ValueError(f"timesteps must be >= 1; got {total}")
-    params = {**params, "n_timesteps": total}  # the recorded budget is the one trained, not the YAML's
     _check_counts(eval_freq, checkpoint_freq, threads)
     _check_time_limit(time_limit_min)
     if run_name is None:
