@@ -700,8 +700,10 @@ def run(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: 
 
 
 def plan(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: int = 100_000,
-         classes=None, n_diagnose: int = 20, chunk_size: int = DEFAULT_STRESS_CHUNK) -> Plan:
-    """The chunks of :func:`run` (same arguments); the plan's result is the study's dict.
+         classes=None, n_diagnose: int = 20, chunk_size: int = DEFAULT_STRESS_CHUNK,
+         observations=None) -> Plan:
+    """The chunks of :func:`run` (same arguments; ``observations`` limits the environment part
+    to those estimators, default all); the plan's result is the study's dict.
 
     The trials and actions are drawn here, in the order :func:`run` has always drawn them.
     """
@@ -721,7 +723,7 @@ def plan(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps:
         rng = np.random.default_rng(seeds[2 + CLASSES.index(name)])
         parts[("class", name)] = _study_plan(class_trials(name, n_per_class, rng), n_diagnose, chunk_size)
     if env_steps:
-        parts["env"] = env_plan(env_steps, seed=int(seeds[1].generate_state(1)[0]))
+        parts["env"] = env_plan(env_steps, seed=int(seeds[1].generate_state(1)[0]), observations=observations)
 
     def finish(out):
         done = dict(zip(parts, out))

@@ -28,6 +28,8 @@ def add_arguments(p):
     p.add_argument("--env-steps", type=int, default=100_000,
                    help="random-action environment steps over all IDs and observation modes "
                         "(default %(default)s; 0 skips them)")
+    p.add_argument("--observations", default=None, metavar="OBS[,OBS]",
+                   help="estimators the environment steps use (default: all of them)")
     p.add_argument("--diagnose", type=int, default=20,
                    help="failed solves per class retried with stronger settings (default %(default)s)")
     p.add_argument("--quick", action="store_true",
@@ -57,9 +59,15 @@ def run(args) -> int:
                              f"choose from {', '.join(stress.CLASSES)}")
     check_outputs(args)
     runner = runner_from_args(args, progress=not args.quiet)
-    study = stress.plan(seed=args.seed, n_random=n_random, n_per_class=n_per_class,
-                        env_steps=env_steps, classes=classes, n_diagnose=args.diagnose,
-                        chunk_size=args.chunk_size or stress.DEFAULT_STRESS_CHUNK)
+    observations = None if args.observations is None else tuple(
+        o.strip() for o in args.observations.split(",") if o.strip())
+    try:
+        study = stress.plan(seed=args.seed, n_random=n_random, n_per_class=n_per_class,
+                            env_steps=env_steps, classes=classes, n_diagnose=args.diagnose,
+                            chunk_size=args.chunk_size or stress.DEFAULT_STRESS_CHUNK,
+                            observations=observations)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     (result,) = runner.run_plans([study], desc="stress", unit="solve")
     finish(args, result, stress.format_report(result), runner)
     return 0 if result["targets"]["zero_nan"] else 1
