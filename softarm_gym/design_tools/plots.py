@@ -36,10 +36,10 @@ def _versus_size(sweeps, path) -> None:
     top = 0.0
     curves = [[(c.length_m if s.constraint != "gripping-radius" else size, c)
                for size, c in zip(s.sizes, s.best_per_size) if c is not None] for s in sweeps]
-    highest: dict = {}  # the top curve's W at each x: its labels go above, the others' below
+    at_x: dict = {}  # every curve's W at each x: the top curve labels above, the others below, in order
     for pts in curves:
         for xi, c in pts:
-            highest[round(xi, 9)] = max(highest.get(round(xi, 9), -float("inf")), c.load_n)
+            at_x.setdefault(round(xi, 9), []).append(c.load_n)
     for k, (s, pts) in enumerate(zip(sweeps, curves)):
         if not pts:
             continue
@@ -57,9 +57,9 @@ def _versus_size(sweeps, path) -> None:
             # 12 % of the curve's span (the short, crowded start keeps only its first layout).
             if c.tubes != previous and c.load_n >= 0 and xi - last_x >= 0.12 * span:
                 ax.plot([xi], [c.load_n], "o", color="k", ms=3)
-                above = c.load_n >= highest[round(xi, 9)]
+                rank = sorted(at_x[round(xi, 9)], reverse=True).index(c.load_n)
                 ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=7,
-                            textcoords="offset points", xytext=(4, 5 if above else -13),
+                            textcoords="offset points", xytext=(4, 5 if rank == 0 else 5 - 11 * rank - 8),
                             bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
                 last_x = xi
             previous = c.tubes
@@ -90,9 +90,14 @@ def _versus_parameter(sweeps, path) -> None:
     twin = ax.twinx()
     twin.plot(x, [r[1].thickness_m * 1e3 for r in rows], "ko-", mfc="none", label="tube thickness")
     twin.set_ylabel("tube thickness t (mm)")
+    if by_modulus:
+        ax.set_xscale("log")  # the moduli double from one point to the next
+        ax.set_xticks(x, [f"{v:g}" for v in x])
+        ax.minorticks_off()
     for xi, (_, c) in zip(x, rows):
-        ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=6,
-                    textcoords="offset points", xytext=(2, 4))
+        ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=7,
+                    textcoords="offset points", xytext=(-4, 6), ha="right",
+                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
     first = sweeps[0]
     ax.set_title(f"{first.fluid}, {first.constraint}, L = {first.sizes[0]:g} m")
     fig.legend(loc="outside lower center", ncols=2, fontsize=8)
