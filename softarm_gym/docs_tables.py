@@ -315,7 +315,9 @@ SECTIONS = {"ids_table": ids_table, "headline_table": headline_table, "solver_ta
 
 # ------------------------------------------------------------------------------- the files
 
-def _fill(text: str, cache: dict) -> str:
+def fill(text: str, cache: dict) -> str:
+    """``text`` with every marked section rewritten from :data:`SECTIONS` (``cache`` keeps each
+    section's Markdown between calls). An unknown section name is a ``ValueError``."""
     def body(match):
         name = match.group("name")
         if name not in SECTIONS:
@@ -334,7 +336,7 @@ def expected() -> dict[Path, str]:
     for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
         text = path.read_text(encoding="utf-8")
         if _MARK.search(text):
-            out[path] = _fill(text, cache)
+            out[path] = fill(text, cache)
     return out
 
 

@@ -31,7 +31,7 @@ NEX, NEY, QX, QY = range(4)
 # Planar record (N, 16): s, x, y, θ, m, internal force n (world x, y), strains v1, v3 and
 # curvature u; then scratch: the first variations ∂(θ, m, x, y, v1, v3)/∂m0 of the RK4 pass
 # that wrote the record, through which Newton applies its last correction
-# (:func:`solver._planar._newton`, which leaves them NaN when it returns: a stored record
+# (:func:`solver.kernels.planar.newton`, which leaves them NaN when it returns: a stored record
 # holds NaN there). Adjacent pairs are the result's (N, 2) fields as slices.
 S, X, Y, THETA, M, NX, NY, V1, V3, U, D_THETA, D_M, D_X, D_Y, D_V1, D_V3 = range(16)
 N_COLUMNS = 16

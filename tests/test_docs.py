@@ -22,10 +22,10 @@ def test_generated_tables_and_env_pages_are_what_the_registry_and_json_say(capsy
 def test_a_stale_table_is_caught(tmp_path, monkeypatch):
     page = tmp_path / "page.md"
     page.write_text("<!-- generated: ids_table -->\n| stale |\n<!-- end generated: ids_table -->\n")
-    filled = docs_tables._fill(page.read_text(), {})
+    filled = docs_tables.fill(page.read_text(), {})
     assert "| stale |" not in filled and "`SoftArm/OctArmReach-v1`" in filled
     with pytest.raises(ValueError, match="unknown generated section 'nope'"):
-        docs_tables._fill("<!-- generated: nope -->\n<!-- end generated: nope -->", {})
+        docs_tables.fill("<!-- generated: nope -->\n<!-- end generated: nope -->", {})
 
 
 def test_readme_fits_on_a_screen_and_carries_no_run_history():

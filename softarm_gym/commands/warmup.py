@@ -40,7 +40,7 @@ HELP = "compile the numba kernels the solver and the registered envs use into th
 STEPS = 3
 """Steps per warm-up episode (each kernel needs one call per argument type)."""
 
-KERNEL_MODULES = ("solver", "softarm_gym.sensing._kernels", "softarm_gym.envs.terms")
+KERNEL_MODULES = ("solver", "softarm_gym.sensing.kernels", "softarm_gym.envs.terms")
 """Modules whose import defines every project kernel (for ``--clear``)."""
 
 GROUPS = ("solver", "reach", "contact", "spatial_contact", "batch")
@@ -104,7 +104,7 @@ def _episode(env, seed: int) -> None:
     env.close()
 
 
-def _batch_kernels() -> solver.BatchStepper:
+def batch_kernels() -> solver.BatchStepper:
     """Both ways of both batch kernels (cold rows, step rows): a thread policy runs a kernel
     on the threads from its third call and measures it from its fourth
     (:class:`solver.ThreadPolicy`), and an episode resets once, so the parallel cold kernel
@@ -126,7 +126,7 @@ def warm_group(group: str) -> float:
     ``solver``: the solver's kernels on the named designs (cold, warm, spatial, batch);
     ``reach``, ``contact``, ``spatial_contact``: a short episode of each of their
     :func:`cases`; ``batch``: the batched vector env (one-thread and parallel sizes) and both
-    batch kernels both ways (:func:`_batch_kernels`).
+    batch kernels both ways (:func:`batch_kernels`).
     """
     from softarm_gym.registry import make_unwrapped
 
@@ -142,7 +142,7 @@ def warm_group(group: str) -> float:
         for num_envs in (2, solver.BatchStepper.PARALLEL_MIN):
             _episode(gym.make_vec("SoftArm/OctArmReach-v1", num_envs=num_envs,
                                   vectorization_mode="vector_entry_point"), seed=0)
-        _batch_kernels()
+        batch_kernels()
     else:
         for k, (env_id, kwargs) in enumerate(cases()):
             if group_of(env_id, kwargs) == group:

@@ -10,7 +10,7 @@ import pytest
 import softarm_gym  # noqa: F401
 from softarm_gym.benchmarks.first_episode import format_table, measure, run
 from softarm_gym.cli import main
-from softarm_gym.commands.warmup import GROUPS, _batch_kernels, cases, group_of
+from softarm_gym.commands.warmup import GROUPS, batch_kernels, cases, group_of
 from softarm_gym.registry import is_deprecated, latest, make, make_unwrapped, recommended_ids
 from softarm_gym.sensing import ESTIMATORS
 
@@ -59,10 +59,10 @@ def test_warmup_rejects_unknown_groups_and_bad_job_counts(capsys):
 @pytest.mark.skipif(numba.get_num_threads() < 2,
                     reason="one numba thread: ThreadPolicy never runs the threaded kernels, "
                            "so there is no threaded timing to check")
-def test_warmup_runs_both_batch_kernels_both_ways():
+def test_warmup_runs_bothbatch_kernels_both_ways():
     """The cold and the step rows kernels each ran, and were timed, serial and threaded: none
     is left to compile inside a user's first long batch."""
-    batch = _batch_kernels()
+    batch = batch_kernels()
     for kind, policy in batch.thread_policies.items():
         assert np.isfinite(policy.per_row_s).all(), (kind, policy.per_row_s)
 

@@ -11,7 +11,7 @@ segments.
 Law, node to curve. A node at arc length s with half-thickness h(s) meets another part
 (farther than the exclusion length along the arc) when its distance d to that part's
 nearest point p is below h(s) + h(p). Per unit length it is then pushed by
-f = k·(h(s) + h(p) − d)·(r − p)/d — the law of :func:`solver._obstacles._contact_force`
+f = k·(h(s) + h(p) − d)·(r − p)/d — the law of :func:`solver.kernels.obstacles.contact_force`
 with the partner's surface in place of a disc's, set in smoothly over the first ONSET of
 depth. The pieces' chords find the contacts (a run of consecutive chords within reach is
 one contact, so a node near a vertex is not pushed twice); p is then the nearest point of
@@ -226,7 +226,7 @@ def smallest_far_gap(positions, s, half, exclusion):
 
 
 @njit
-def _slot(segs, seg, j):
+def canonical_slot(segs, seg, j):
     """The canonical (segment, node) of node j of segment ``seg``: a segment's first node is
     the previous segment's last (except at the base)."""
     if j == 0 and seg > 0:
@@ -338,7 +338,7 @@ def _project(x, y, bounds, segs, seg, t):
 
 @njit
 def _add(loads, segs, seg, j, fx, fy):
-    a, b = _slot(segs, seg, j)
+    a, b = canonical_slot(segs, seg, j)
     loads[a, b, SELF_FX] += fx
     loads[a, b, SELF_FY] += fy
 
@@ -413,7 +413,7 @@ def self_loads(grid, pts, bounds, loads):
                         _add(loads, segs, piece, node, -0.5 * f * (1.0 - t) * ux,
                              -0.5 * f * (1.0 - t) * uy)
                         _add(loads, segs, piece, node + 1, -0.5 * f * t * ux, -0.5 * f * t * uy)
-                        a, b = _slot(segs, seg, j)
+                        a, b = canonical_slot(segs, seg, j)
                         loads[a, b, SELF_PEN] = max(loads[a, b, SELF_PEN], pen)
                         # The node's own law across the normal (∂pen/∂r = −ûᵀ), the other
                         # part held fixed: for the stability test (docs/design.md §9).
