@@ -144,7 +144,7 @@ def test_one_vocabulary_and_the_old_spellings_still_work(capsys, tmp_path):
         text = _help(command)
         assert "--quiet" in text and "--no-progress" not in text and "--json-out" not in text, command
         assert "--output" in text and "--numba-threads" in text and "--json" in text, command
-    assert "--numba-threads" in _help("bench")
+    assert "--numba-threads" in _help("bench") and "--numba-threads" in _help("fit")
 
 
 def _help(command):
