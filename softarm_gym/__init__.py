@@ -9,9 +9,47 @@ reference fails the task) (``python -m softarm_gym.benchmarks.reference``; measu
 ``docs/bench/reference_returns.json``, explained in ``docs/environments.md``).
 """
 
-from gymnasium.envs.registration import register
+import copy
+import dataclasses
+
+import gymnasium as gym
+from gymnasium.envs.registration import EnvSpec, register
 
 __version__ = "0.1.0"
+
+
+class _GoalAPISpec(EnvSpec):
+    """The registry's spec of a ``SoftArm/*`` id: its ``additional_wrappers`` end with
+    :class:`~softarm_gym.wrappers.GoalAPI`, which ``gym.make`` applies (outermost), so that
+    ``check_env(gym.make(id, observation_format="goal"))`` finds ``compute_reward``.
+
+    ``gym.make_vec`` works on a deep copy of the spec and refuses any additional wrapper in its
+    ``vector_entry_point`` mode (a custom vector env takes no wrappers); vector envs have no
+    ``compute_reward`` to forward, so the copy is a plain :class:`EnvSpec` without GoalAPI.
+    """
+
+    def __deepcopy__(self, memo):
+        fields = {f.name: copy.deepcopy(getattr(self, f.name), memo) for f in dataclasses.fields(EnvSpec)}
+        fields["additional_wrappers"] = tuple(w for w in fields["additional_wrappers"] if w.name != "GoalAPI")
+        kept = {k: v for k, v in fields.items() if k in _INIT_FIELDS}
+        spec = EnvSpec(**kept)
+        for name in set(fields) - _INIT_FIELDS:
+            setattr(spec, name, fields[name])
+        return spec
+
+
+_INIT_FIELDS = {f.name for f in dataclasses.fields(EnvSpec) if f.init}
+
+
+def _register_goal_api() -> None:
+    from softarm_gym.wrappers import GOAL_API_SPEC
+
+    for env_id, spec in list(gym.registry.items()):
+        if env_id.startswith("SoftArm/") and not isinstance(spec, _GoalAPISpec):
+            fields = {f.name: getattr(spec, f.name) for f in dataclasses.fields(EnvSpec) if f.init}
+            fields["additional_wrappers"] = (*spec.additional_wrappers, GOAL_API_SPEC)
+            gym.registry[env_id] = _GoalAPISpec(**fields)
+
 
 register(
     id="SoftArm/OctArmReach-v0",
@@ -162,3 +200,7 @@ register(
     reward_threshold=150.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
 )
+
+# Every id, whatever registered it above: gym.make adds GoalAPI outermost, so that the env it
+# returns offers compute_reward with observation_format="goal" (softarm_gym.wrappers).
+_register_goal_api()

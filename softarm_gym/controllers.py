@@ -17,7 +17,7 @@ Each step it advances its own nominal equilibrium to the commanded pressures (a 
 warm-started from its previous nominal state, so it follows the quasi-static path as the
 arm does), takes J = ∂tip/∂p of that nominal equilibrium by central finite differences
 (:func:`softarm_gym.analysis.jacobian`, the manipulability Jacobian), scaled to pressure
-fractions, J_f = J·p_max (m per unit fraction), and commands f ← f + Δf with
+fractions, J_f = J·p_max (m per unit fraction), and commands f ← f + Δf with::
 
     Δf = argmin |J_f Δ − gain·e|² + λ²|Δ|² + μ²|f + Δ − ½|²,   e = x_goal − x_tip_observed,
          subject to 0 ≤ f + Δ ≤ 1 and |Δ_k| ≤ max_step,

@@ -1,10 +1,12 @@
 """An SB3 ``VecEnv`` over the batched reach env: PPO, SAC, TD3 step N arms in one solver call.
 
+Example::
+
     from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
     from softarm_gym.sb3 import BatchedVecEnv
 
-    venv = VecNormalize(VecMonitor(BatchedVecEnv("SoftArm/OctArmReach-v0", 16, action_mode="delta")),
+    venv = VecNormalize(VecMonitor(BatchedVecEnv("SoftArm/OctArmReach-v1", 16)),
                         norm_reward=False)
     venv.seed(0)
     SAC("MlpPolicy", venv, train_freq=1, gradient_steps=4).learn(100_000)
@@ -78,8 +80,8 @@ class BatchedVecEnv(VecEnv):
     """``num_envs`` arms of a reach env id as one SB3 ``VecEnv`` (module docstring).
 
     Args:
-        env_id: a registered id with a batched vector entry point (``SoftArm/OctArmReach-v0``,
-            ``SoftArm/CTReach-v0``).
+        env_id: a registered id with a batched vector entry point (``SoftArm/OctArmReach-v1``,
+            ``SoftArm/CTReach-v1``, or the -v0 ids).
         num_envs: number of arms.
         **env_kwargs: ``gym.make`` kwargs of the id (``action_mode``, ``max_episode_steps``,
             reward weights, ...).

@@ -1,6 +1,6 @@
 """A batched vector environment: many reach tasks stepped by one parallel solver call.
 
-``gym.make_vec("SoftArm/OctArmReach-v0", num_envs=1024, vectorization_mode="vector_entry_point")``
+``gym.make_vec("SoftArm/OctArmReach-v1", num_envs=1024, vectorization_mode="vector_entry_point")``
 returns a :class:`BatchedReachVectorEnv`: all arms move together through a
 :class:`solver.BatchStepper` (numba ``prange`` over the copies), and observations, rewards
 and resets are computed for the whole batch by the batch-first functions of
@@ -65,7 +65,7 @@ def _unsupported(env: ReachEnv) -> list[str]:
         reasons.append("randomization (one arm serves every copy)")
     if env.observation_format != "flat":
         reasons.append(f"observation_format={env.observation_format!r}")
-    if env.synthesize_sensors:
+    if env.synthesize_sensors and not env.estimator.reads_sensors:  # asked for, not implied
         reasons.append("synthesize_sensors=True")
     if env.actuation != "ideal":
         reasons.append(f"actuation={env.actuation!r}")
@@ -125,8 +125,8 @@ class BatchedReachVectorEnv(VectorEnv):
         self._template = t = ReachEnv(**kwargs)
         reasons = _unsupported(t)
         if reasons:
-            raise ValueError(f"the batched vector env does not support {'; '.join(reasons)}; use "
-                             "gym.make_vec(..., vectorization_mode='sync' or 'async') for those")
+            raise ValueError(f"the batched vector env does not support {' and '.join(reasons)}: use "
+                             "gym.make_vec(..., vectorization_mode='sync' or 'async') for that")
         self.num_envs = n = int(num_envs)
         self.max_episode_steps = int(max_episode_steps)
         self.single_observation_space = t.observation_space

@@ -87,8 +87,15 @@ def test_gymnasium_vector_wrappers_accept_it():
 
 
 def test_step_before_reset_and_bad_input():
-    with pytest.raises(ValueError, match="does not support observation='load_cell'"):
+    with pytest.raises(ValueError, match="does not support observation='load_cell'") as raised:
         BatchedReachVectorEnv(num_envs=2, observation="load_cell")
+    assert "synthesize_sensors" not in str(raised.value)  # implied by the estimator, not asked for
+    with pytest.raises(ValueError, match=r"observation='cable_encoder' \(estimators need per-copy sensing; "
+                                         r"the batched env observes 'true'\): use gym.make_vec"):
+        gym.make_vec("SoftArm/OctArmReach-v1", num_envs=2, vectorization_mode="vector_entry_point",
+                     observation="cable_encoder")
+    with pytest.raises(ValueError, match="does not support synthesize_sensors=True: use"):
+        BatchedReachVectorEnv(num_envs=2, synthesize_sensors=True)
     with pytest.raises(ValueError, match="payload_kg range"):
         BatchedReachVectorEnv(num_envs=2, payload_kg=(0.0, 0.1))
     with pytest.raises(ValueError, match="randomization"):

@@ -15,6 +15,7 @@ from __future__ import annotations
 import sys
 
 from softarm_gym.cli import UsageError, emit
+from softarm_gym.commands.common import add_numba_threads_argument
 
 NAME = "bench"
 HELP = "benchmark solver speed against accuracy (and peers)"
@@ -42,6 +43,7 @@ def add_arguments(p):
                    help="where a contact step's time goes: paths, passes, kernels against Python, "
                         "beside a free reach step")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_numba_threads_argument(p)
 
 
 def run(args) -> int:
