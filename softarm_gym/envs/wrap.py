@@ -232,8 +232,9 @@ class WrapEnv(SoftArmEnv):
         self.contact_stiffness = resolve_contact_stiffness(self.arm, contact_stiffness)
         # One-row buffers of the batch-first reward (softarm_gym.envs.terms.wrap_rewards).
         self._terms = np.zeros((1, len(WRAP_TERMS)))
+        # wrap (deg), gap, success; penetration, converged, contact radius
         self._measures = (np.zeros(1), np.zeros(1), np.zeros(1, dtype=np.bool_), np.zeros(1),
-                          np.zeros(1, dtype=np.bool_))  # wrap (deg), gap, success; penetration, converged
+                          np.zeros(1, dtype=np.bool_), np.zeros(1))
 
     @property
     def wrap_rule(self) -> WrapRule:
@@ -374,15 +375,15 @@ class WrapEnv(SoftArmEnv):
     def _wrap_row(self, points, center, contact_radius, penetration, fraction, converged):
         """:func:`~softarm_gym.envs.terms.wrap_rewards` of a batch of one: (terms, success,
         measures) as dicts."""
-        wrap_deg, gap, success, pen, ok = self._measures
+        wrap_deg, gap, success, pen, ok, radius = self._measures
         pen[0] = penetration
         ok[0] = converged
-        wrap_rewards(points, center, np.array([float(contact_radius)]), pen, fraction[None], ok,
-                     self.wrap_rule, self._terms, wrap_deg, gap, success)
-        t = self._terms[0]
-        terms = {name: float(t[j]) for j, name in enumerate(WRAP_TERMS)}
-        return terms, bool(success[0]), {"wrap_angle_deg": float(wrap_deg[0]),
-                                         "penetration": float(penetration), "gap": float(gap[0])}
+        radius[0] = contact_radius
+        wrap_rewards(points, center, radius, pen, fraction.reshape(1, -1), ok, self.wrap_rule,
+                     self._terms, wrap_deg, gap, success)
+        terms = dict(zip(WRAP_TERMS, self._terms[0].tolist()))
+        return terms, bool(success[0]), {"wrap_angle_deg": wrap_deg.item(), "penetration": float(penetration),
+                                         "gap": gap.item()}
 
     def _terminated(self, success):
         return self.terminate_on_success and success
