@@ -5,7 +5,7 @@ load machine code instead of compiling it (``softarm bench --first-episode`` mea
 difference). It solves the named designs (planar, warm-started, spatial, batched), then
 runs a short episode of every registered ID in every observation mode with Table 4.3
 sensor noise and a payload range, the spatial reach task with every estimator that supports
-it, and the batched vector env. ``--clear`` first deletes every compiled file of the
+it, and the batched vector envs. ``--clear`` first deletes every compiled file of the
 project's kernels (a damaged or stale cache; damaged entries also heal on their own, see
 :mod:`solver.jit`).
 """
@@ -89,6 +89,12 @@ def warm(progress=None) -> float:
     for num_envs in (2, solver.BatchStepper.PARALLEL_MIN):
         _episode(gym.make_vec("SoftArm/OctArmReach-v0", num_envs=num_envs,
                               vectorization_mode="vector_entry_point"), seed=0)
+    # The batched contact and track envs (the contact rows' kernels, one-thread and parallel,
+    # and the batch-first terms).
+    wide = solver.BatchStepper.PARALLEL_MIN
+    for env_id, num_envs in (("SoftArm/OctArmWrap-v1", 2), ("SoftArm/OctArmWrap-v1", wide),
+                             ("SoftArm/OctArmObstacleReach-v0", 2), ("SoftArm/OctArmTrack-v0", 2)):
+        _episode(gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point"), seed=0)
     batch_kernels()
     return time.perf_counter() - start
 

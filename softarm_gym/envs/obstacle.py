@@ -152,6 +152,16 @@ class ObstacleReachEnv(ReachEnv):
     attempt on a rejected step), ``penetration`` (m, deepest, current state),
     ``in_contact``, ``contact_rejected`` and the ``reward_*`` terms.
 
+    ## Vector Environments
+
+    ``gym.make_vec(id, N, vectorization_mode="vector_entry_point")`` gives
+    :class:`softarm_gym.vector.BatchedObstacleReachVectorEnv`: N arms stepped by one contact
+    :class:`solver.BatchStepper` call, each with its episode's discs, copy i bit for bit this
+    env seeded s + i (resets by one ObstacleReachEnv per copy; ``contact="forbid"`` keeps each
+    copy's equilibrium before a step, which costs about as much as the step). It refuses
+    ``contact_stiffness="rigid"`` and what the batched envs refuse (docs/environments.md,
+    "Batched environment").
+
     ## Version History
 
     * v0: initial version (registered with delta actions).

@@ -69,6 +69,14 @@ class TrackEnv(ReachEnv):
     ReachEnv's, plus ``target_velocity`` (m/step), ``tracking_rms_m`` and ``tracking_max_m``:
     the RMS and the largest tracking error (true tip) over the episode's steps so far.
 
+    ## Vector Environments
+
+    ``gym.make_vec(id, N, vectorization_mode="vector_entry_point")`` gives
+    :class:`softarm_gym.vector.BatchedTrackVectorEnv`: the N targets' trajectories and the N
+    arms each stepped by one :class:`solver.BatchStepper` call, copy i bit for bit this env
+    seeded s + i (resets by one TrackEnv per copy). It refuses ``planar=False`` and what the
+    batched envs refuse (docs/environments.md, "Batched environment").
+
     ## Version History
 
     * v0: initial version.

@@ -184,6 +184,15 @@ class WrapEnv(SoftArmEnv):
     ``payload_kg``, ``is_success``), plus ``wrap_angle_deg``, ``penetration`` (m, deepest),
     ``gap`` (m), ``object_center``, ``object_radius``, ``contact_radius`` and the ``reward_*`` terms.
 
+    ## Vector Environments
+
+    ``gym.make_vec(id, N, vectorization_mode="vector_entry_point")`` on the planar IDs gives
+    :class:`softarm_gym.vector.BatchedWrapVectorEnv`: N arms stepped by one contact
+    :class:`solver.BatchStepper` call, each with its episode's disc, copy i bit for bit this
+    env seeded s + i (resets by one WrapEnv per copy). It refuses ``planar=False``,
+    ``contact_stiffness="rigid"`` and what the batched envs refuse (docs/environments.md,
+    "Batched environment").
+
     ## Version History
 
     * v0: initial version (OctArm V disc 9–11 cm: beyond the arm's curl on most seeds;
