@@ -272,6 +272,19 @@ class Stepper:
         measures = self._rows.contact_measures()[0]
         return float(measures[0]), float(measures[1])
 
+    def pass_costs(self, repeats: int = 20) -> dict:
+        """A profile of the current contact state (lean contact steppers whose state lies on
+        the contact layout): the seconds of a residual pass and of one with the Jacobian
+        (medians of ``repeats``), the shooting unknowns, RK4 rows and the fraction of them
+        refined near a disc. The state is untouched.
+
+        Raises:
+            ValueError: no lean contact path, or a state off the contact layout.
+        """
+        if self._rows is None:
+            raise ValueError(f"pass_costs needs the lean contact path; {self!r} has none")
+        return self._rows.pass_costs(0, repeats)
+
     def _bind_row_record(self) -> None:
         """The record and tip of the one copy of :attr:`_rows` (read-only views)."""
         record = self._rows.record(0).view()

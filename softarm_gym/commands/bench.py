@@ -35,6 +35,9 @@ def add_arguments(p):
     p.add_argument("--ids", default=None,
                    help="with --env: comma-separated IDs to time (default: every registered ID and "
                         "the batched vector env)")
+    p.add_argument("--contact-profile", action="store_true",
+                   help="where a contact step's time goes: paths, passes, kernels against Python, "
+                        "beside a free reach step")
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -56,6 +59,12 @@ def run(args) -> int:
                 lines.append(f"| {name} | {1e6 * rows['planar'][name]:.0f} | "
                              f"{'—' if not isinstance(spatial, float) else f'{1e6 * spatial:.0f}'} |")
         emit(rows, args.json, "\n".join(lines))
+        return 0
+    if args.contact_profile:
+        from softarm_gym.benchmarks import contact_profile
+
+        result = contact_profile.run(quick=args.quick, progress=progress)
+        emit(result, args.json, contact_profile.format_table(result))
         return 0
     if args.cold and not args.first_episode:
         raise UsageError("--cold only applies to --first-episode")

@@ -16,9 +16,11 @@ import numpy as np
 from gymnasium import spaces
 
 import solver
-from softarm_gym.envs.config import (
+from softarm_gym.envs.config import (  # noqa: F401  (MIN/MAX_RENDER_SIZE: still importable here)
     ACTION_MODES,
     ACTUATIONS,
+    MAX_RENDER_SIZE,
+    MIN_RENDER_SIZE,
     OBSERVATION_FORMATS,
     RENDER_MODES,
     EnvConfig,
@@ -274,9 +276,11 @@ class SoftArmEnv(gym.Env):
 
     @property
     def stepper(self) -> solver.Stepper | None:
-        """The simulated arm's :class:`solver.Stepper`, holding its current (last accepted)
-        state (None before :meth:`reset`): for analysis and for batched environments that
-        take a copy's start state from a single env; stepping it directly bypasses the env."""
+        """The solver's stepper of the episode, holding the simulated arm's current (last
+        accepted) state (None before the first reset): its path, record and profile
+        (``last_path``, ``record``, ``pass_costs``) for benchmarks and tests, and its
+        equilibrium for batched environments that take a copy's start state from a single
+        env. Stepping it directly bypasses the env."""
         return self._stepper
 
     @property

@@ -134,3 +134,25 @@ def test_an_edit_of_the_rod_equations_makes_every_cached_kernel_stale(tmp_path):
     assert _run(env, cwd=tmp_path).stdout == first.stdout
     assert index() != compiled
 
+
+
+def test_a_kernel_that_takes_a_kernel_is_compiled_again_in_every_process(tmp_path):
+    """Why the kernels repeat their RK4 and continuation loops per integrand instead of
+    taking the right-hand side as an argument (docs/design.md §13): numba keys the cache entry
+    of a function with a dispatcher argument by the dispatcher's address, so each process
+    misses it and compiles again (numba issues #2956, #9237). If this test fails, numba caches
+    such functions now, and the repeated loops listed in §13 can share one helper."""
+    (tmp_path / "takes_kernel.py").write_text(
+        "import numba\n"
+        "@numba.njit(cache=True)\n"
+        "def rhs(x):\n"
+        "    return -x\n"
+        "@numba.njit(cache=True)\n"
+        "def step(f, x, h):\n"
+        "    return x + h * f(x + 0.5 * h * f(x))\n")
+    code = ("import takes_kernel as m; m.step(m.rhs, 1.0, 0.1); m.rhs(1.0); "
+            "print(sum(m.step.stats.cache_hits.values()), sum(m.rhs.stats.cache_hits.values()))")
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(tmp_path)}
+    assert _run(env, code, cwd=tmp_path).stdout.split() == ["0", "0"]  # first process: compiled
+    # The second process loads rhs (a plain kernel) from the cache, but compiles step again.
+    assert _run(env, code, cwd=tmp_path).stdout.split() == ["0", "1"]
