@@ -419,6 +419,12 @@ class SoftArmEnv(gym.Env):
                 f"est. error {1000 * math.dist(self._shape.tip, self._eq.tip):.1f} mm")
 
     @property
+    def simulated_arm(self) -> solver.designs.ArmDesign:
+        """The design simulated this episode: the nominal ``arm``, perturbed by ``randomization``
+        at the last reset."""
+        return self._sim_arm
+
+    @property
     def observation_slices(self) -> dict[str, slice]:
         """Where each block sits in a flat observation: name → slice, in flat order
         (``tip``, ``section_ends``, ``backbone``, ``pressures``, ``goal``)."""
