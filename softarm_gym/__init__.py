@@ -92,6 +92,7 @@ register(
 register(
     id="SoftArm/OctArmTrack-v0",
     entry_point="softarm_gym.envs:TrackEnv",
+    vector_entry_point="softarm_gym.vector:BatchedTrackVectorEnv",
     max_episode_steps=200,
     reward_threshold=101.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0},
@@ -100,6 +101,7 @@ register(
 register(
     id="SoftArm/CTTrack-v0",
     entry_point="softarm_gym.envs:TrackEnv",
+    vector_entry_point="softarm_gym.vector:BatchedTrackVectorEnv",
     max_episode_steps=200,
     reward_threshold=122.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0},
@@ -108,6 +110,7 @@ register(
 register(
     id="SoftArm/OctArmWrap-v0",
     entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
     reward_threshold=143.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.09, 0.11)},
@@ -116,6 +119,7 @@ register(
 register(
     id="SoftArm/CTWrap-v0",
     entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
     reward_threshold=88.0,
     # The CT arm turns by at most ~200 deg at 70 psi (docs/environments.md): larger objects,
@@ -128,10 +132,10 @@ register(
 # place; contact costs reward in proportion to the contact force (contact="forbid" rejects it).
 # Delta actions, as the -v1 reach ids: an absolute jump across the workspace drives the arm
 # through the discs, and a step that snaps off one costs the solver seconds (docs/environments.md).
-# No vector_entry_point: the batched env has no contact kernel (gym.make_vec steps copies).
 register(
     id="SoftArm/OctArmObstacleReach-v0",
     entry_point="softarm_gym.envs:ObstacleReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
     max_episode_steps=100,
     reward_threshold=31.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
@@ -140,6 +144,7 @@ register(
 register(
     id="SoftArm/CTObstacleReach-v0",
     entry_point="softarm_gym.envs:ObstacleReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
     max_episode_steps=100,
     reward_threshold=37.0,
     # The CT arm is shorter (0.53 m) and as thick (h = 30.2 mm) as OctArm V: smaller discs and
@@ -153,6 +158,7 @@ register(
 register(
     id="SoftArm/OctArmWrap-v1",
     entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
     reward_threshold=324.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
@@ -161,6 +167,7 @@ register(
 register(
     id="SoftArm/CTWrap-v1",
     entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
     reward_threshold=214.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),

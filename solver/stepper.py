@@ -859,6 +859,15 @@ class BatchStepper:
             return np.zeros((self.n, 2))
         return self._rows.contact_measures()
 
+    def recorded(self) -> np.ndarray:
+        """(n,) bool: the copies whose current state a lean path records — their rows of
+        :meth:`backbones` and :meth:`contact_measures` are current (as a :class:`Stepper`'s
+        ``record`` is not None); read the others' from :meth:`equilibrium` (a state the
+        general path left on a grid of its own)."""
+        if not self.contact:
+            return self._ready.copy()
+        return np.array([self._rows.ready(k) for k in range(self.n)], dtype=bool)
+
     def backbones(self) -> np.ndarray:
         """(n, N, ``layout.N_COLUMNS``) every copy's current backbone in the columns
         ``layout.S`` … ``layout.U`` (with contact, those on the contact layout copied in; the

@@ -132,6 +132,52 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
     return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs, "resets": resets}
 
 
+CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
+                       ("wrap", "SoftArm/OctArmWrap-v1", {}),
+                       ("wrap delta", "SoftArm/OctArmWrap-v1", {"action_mode": "delta"}),
+                       ("obstacle reach", "SoftArm/OctArmObstacleReach-v0", {}),
+                       ("reach self-contact", "SoftArm/OctArmReach-v1", {"self_contact": True}))
+"""The single-env cases :func:`contact_ratios` times against a free ``OctArmReach-v1`` step
+(the first case): name, ID, kwargs (``true`` observations, random actions)."""
+
+
+def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASES, progress=None) -> dict:
+    """Single-env steps/s of the contact cases and of a free ``OctArmReach-v1`` step, in one
+    process, interleaved (every case once per round, ``rounds`` rounds of seeds 0, 1, ...;
+    the free step runs 3× the steps, being faster), and each case's cost as a multiple of
+    the free step: median free steps/s ÷ median case steps/s.
+
+    Returns:
+        ``{"n_steps", "rounds", "rows": [{"name", "env_id", "kwargs", "steps_per_s",
+        "runs_steps_per_s", "times_free_step"}]}``.
+    """
+    envs = [gym.make(env_id, **kwargs) for _, env_id, kwargs in cases]
+    for env in envs:
+        _time_steps(env, 20, seed=rounds)  # warm-up: kernels, first resets
+    runs = [[] for _ in cases]
+    for r in range(rounds):
+        for k, env in enumerate(envs):
+            runs[k].append(_time_steps(env, 3 * n_steps if k == 0 else n_steps, seed=r))
+        if progress:
+            progress(f"single-env contact ratios, round {r + 1} of {rounds}")
+    for env in envs:
+        env.close()
+    free = float(np.median(runs[0]))
+    rows = [{"name": name, "env_id": env_id, "kwargs": kwargs, "steps_per_s": float(np.median(rates)),
+             "runs_steps_per_s": rates, "times_free_step": free / float(np.median(rates))}
+            for (name, env_id, kwargs), rates in zip(cases, runs)]
+    return {"n_steps": n_steps, "rounds": rounds, "rows": rows}
+
+
+def format_ratio_table(result: dict) -> str:
+    lines = ["| single env (random actions, true obs.) | steps/s (median) | × a free OctArmReach-v1 step |",
+             "|---|---|---|"]
+    for r in result["rows"]:
+        extra = "".join(f" {k}={v}" for k, v in r["kwargs"].items())
+        lines.append(f"| {r['env_id']}{extra} | {r['steps_per_s']:,.0f} | {r['times_free_step']:.2f} |")
+    return "\n".join(lines)
+
+
 RESET_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
 """IDs whose resets are timed with and without domain randomisation."""
 RANDOMIZATION = {"wind_angle_deg": 2.0, "youngs_modulus_rel": 0.1}

@@ -11,7 +11,8 @@ The work is split into groups of kernels (:data:`GROUPS`) run by a pool of ``--j
 processes (default: one per core): the solver's own kernels (planar, warm-started, spatial,
 batched), the reach and track envs in every observation mode with Table 4.3 sensor noise and
 a payload range (and spatial reach with every estimator that supports 3-D), the planar
-contact envs (wrap, obstacle reach, grasp), the 3-D wrap envs, and the batched vector env.
+contact envs (wrap, obstacle reach, grasp), the 3-D wrap envs, and the batched vector envs
+(reach, and the contact rows' kernels through the batched wrap, obstacle-reach and track envs).
 Every registered ID is covered, deprecated ones included, but envs are built from their
 registry entries directly, not through ``gym.make``: a warm-up asked for no ID, so it prints
 no "out of date" warning. ``--clear`` first deletes every compiled file of the project's
@@ -138,10 +139,14 @@ def warm_group(group: str) -> float:
     elif group == "batch":
         import gymnasium as gym
 
-        # Small batches run the one-thread kernels, larger ones the parallel ones: warm both.
-        for num_envs in (2, solver.BatchStepper.PARALLEL_MIN):
-            _episode(gym.make_vec("SoftArm/OctArmReach-v1", num_envs=num_envs,
-                                  vectorization_mode="vector_entry_point"), seed=0)
+        # Small batches run the one-thread kernels, larger ones the parallel ones: warm both,
+        # for reach and for the contact rows (wrap, obstacle reach) and the track task's terms.
+        wide = solver.BatchStepper.PARALLEL_MIN
+        for env_id, num_envs in (("SoftArm/OctArmReach-v1", 2), ("SoftArm/OctArmReach-v1", wide),
+                                 ("SoftArm/OctArmWrap-v1", 2), ("SoftArm/OctArmWrap-v1", wide),
+                                 ("SoftArm/OctArmObstacleReach-v0", 2), ("SoftArm/OctArmTrack-v0", 2)):
+            _episode(gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point"),
+                     seed=0)
         batch_kernels()
     else:
         for k, (env_id, kwargs) in enumerate(cases()):
