@@ -38,7 +38,7 @@ def request(arm: ArmDesign, pressures, scene: Scene | None, model: str, planar: 
 
 
 def checked_pressures(arm: ArmDesign, pressures, planar: bool,
-                       packed: PackedArm) -> tuple[np.ndarray, np.ndarray]:
+                      packed: PackedArm) -> tuple[np.ndarray, np.ndarray]:
     """Validate input pressures and expand planar inputs to spatial channels (Pa)."""
     n = arm.n_inputs(planar)
     try:

@@ -98,7 +98,7 @@ __all__ = [
     "planar_state_jacobian", "planar_state_rk4", "planar_state_rk4_step", "spatial_rhs",
     "spatial_rk4_step",
     "integrate_spatial", "record_spatial_row", "arc_chain_planar", "arc_chain_spatial",
-    "hermite_resample", "det3",
+    "hermite_resample", "det3", "start_spatial_state",
 ]
 
 
@@ -235,7 +235,7 @@ def _same_material(j, k, tubes_f):
 @njit(inline="always")
 def _tube_stretch(k, p_channel, tubes_i, tubes_f):
     return tube_stretch(p_channel[tubes_i[k, T_CHANNEL]], tubes_f[k, TF_E], tubes_f[k, TF_AREA_RATIO],
-                    tubes_f[k, TF_COS_ALPHA])
+                        tubes_f[k, TF_COS_ALPHA])
 
 
 @njit(inline="always")
@@ -857,6 +857,18 @@ def spatial_state_rk4_step(y, h, work, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacl
         y[d] /= qn
 
 
+@njit(inline="always")
+def start_spatial_state(y, quat0, m0):
+    """The spatial state ``y`` (NSTATE,) at the base: orientation ``quat0`` (4,), moment
+    ``m0`` (3,) (N m, world); position and the sensitivities zero."""
+    for d in range(NSTATE):
+        y[d] = 0.0
+    for d in range(4):
+        y[SP_Q + d] = quat0[d]
+    for d in range(3):
+        y[SP_M + d] = m0[d]
+
+
 @njit
 def integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos, out_rot, out_m,
                       work):
@@ -873,12 +885,8 @@ def integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos,
         det ∂m(L)/∂m0.
     """
     y = work[0]
-    for d in range(NSTATE):
-        y[d] = 0.0
-    for d in range(4):
-        y[SP_Q + d] = quat0[d]
+    start_spatial_state(y, quat0, m0)
     for d in range(3):
-        y[SP_M + d] = m0[d]
         y[SP_DM + 4 * d] = 1.0  # δm(0) = identity columns
     row = 0
     for i in range(secf.shape[1]):

@@ -2,9 +2,10 @@
 
 Prints, for ``solver/``: files and lines, the import graph's depth ("floors": modules on the
 longest chain of intra-solver imports, the importing module included), its imports (one per
-imported solver module per importing module; ``solver/__init__.py`` left out of both), the largest modules and functions; and, for the
-whole project (``solver``, ``softarm_gym``, ``baselines``, ``tests``), the underscored names
-imported from another module, with the files that import them. The architecture tests
+imported solver module per importing module; ``solver/__init__.py`` left out of both), the
+largest modules and functions; and, for the whole project (``solver``, ``softarm_gym``,
+``baselines``, ``tests``), the underscored names one module takes from another
+(:func:`private_imports`), counted per package. The architecture tests
 (``tests/test_architecture.py``) parse imports the same way, with :func:`imports_of`.
 """
 
@@ -146,7 +147,7 @@ def report(root: Path) -> str:
     rows = [f"solver/: {len(files)} files, {sum(lines.values())} lines; without __init__.py: "
             f"{floors(graph)} floors, {sum(len(e) for e in graph.values())} imports",
             "largest modules: " + ", ".join(f"{p.relative_to(root / 'solver')} {n}" for p, n in
-                                             sorted(lines.items(), key=lambda kv: -kv[1])[:5]),
+                                            sorted(lines.items(), key=lambda kv: -kv[1])[:5]),
             "largest functions: " + ", ".join(f"{q} {n}" for n, q in funcs[:5]),
             f"underscored names imported across modules: {len(private)} in "
             f"{len({f for f, *_ in private})} files"]

@@ -1,4 +1,4 @@
-"""Kernel arguments as named records or not: ``python tests/record_arguments.py [REPEATS]``.
+"""Kernel arguments as named records or not: ``python -m tests.record_arguments [REPEATS]``.
 
 The measurement behind docs/design.md §13 ("Kernel arguments"). One small path-like kernel
 (a loop over sections reading ``secf`` rows and the goal level) is called four ways: loose
@@ -6,7 +6,8 @@ arrays, plain tuples unpacked by name (the solver's convention), ``namedtuple`` 
 numba ``structref``. For each, with ``cache=True`` and a fresh ``NUMBA_CACHE_DIR``, a first
 process compiles (cold) and a second loads the cache (warm); each reports the seconds from
 building the arguments to the first result, and the per-call time of a warm call (µs, best
-of 5 × 20,000). Prints the median of ``REPEATS`` (default 3) of each figure.
+of 5 × 20,000). Prints the median of ``REPEATS`` (default 3) of each figure, and for scale the
+median time of a warm :meth:`solver.Stepper.step` (2,000 small random steps of OctArm V).
 """
 
 from __future__ import annotations
@@ -107,6 +108,22 @@ def measure(kind: str) -> tuple[float, float]:
     return first, 1e6 * min(timeit.repeat(call, number=20_000, repeat=5)) / 20_000
 
 
+def stepper_step_us() -> float:
+    """Median µs of a warm lean step of :class:`solver.Stepper` (OctArm V, horizontal, 0.1 kg)."""
+    import solver
+
+    arm = solver.designs.octarm_v()
+    stepper = solver.Stepper(arm, solver.Scene(base_angle_deg=90, payload_kg=0.1))
+    stepper.reset(np.zeros(6))
+    rng, p, seconds = np.random.default_rng(0), np.zeros(6), []
+    for _ in range(2000):
+        p = np.clip(p + rng.uniform(-0.05, 0.05, 6) * arm.max_pressure, 0.0, arm.max_pressure)
+        start = time.perf_counter()
+        stepper.step(p)
+        seconds.append(time.perf_counter() - start)
+    return 1e6 * statistics.median(seconds[100:])
+
+
 def main(repeats: int) -> None:
     figures = {kind: {"cold": [], "warm": [], "call": []} for kind in KINDS}
     for _ in range(repeats):
@@ -125,6 +142,7 @@ def main(repeats: int) -> None:
     for kind, f in figures.items():
         print(f"| {kind} | {statistics.median(f['cold']):.2f} | {statistics.median(f['warm']):.2f} "
               f"| {statistics.median(f['call']):.1f} |")
+    print(f"warm Stepper.step: {stepper_step_us():.1f} µs (median)")
 
 
 if __name__ == "__main__":

@@ -115,7 +115,7 @@ def shape_from_equilibrium(eq: solver.Equilibrium, n_samples: int = DEFAULT_SAMP
         backbone = np.empty((n_samples, 2))
         section_ends = np.empty((ends.shape[0], 3))
         planar_shape(eq.s, eq.positions, eq.angles, eq.shear_stretch, ends, s_query, backbone,
-                      section_ends, np.empty((eq.s.shape[0], 2)))
+                     section_ends, np.empty((eq.s.shape[0], 2)))
         return ShapeEstimate(tip=eq.tip, section_ends=section_ends, backbone=backbone,
                              converged=bool(eq.converged))
     tangent = np.einsum("nij,nj->ni", eq.orientations, eq.shear_stretch)
@@ -421,16 +421,16 @@ class LoadCellShape(_Integrating):
         if self.planar:
             n0x, n0y, m0 = readings.base_wrench
             load_cell_planar(float(readings.inclinometers[0]), n0x, n0y, m0, self.sec_len,
-                              self.sec_steps, self.c_a, self.c_g, self.c_i, u2_rest, v_rest, self.q,
-                              self.point, self._work, self._s, self._pos, self._tan, self._ends)
+                             self.sec_steps, self.c_a, self.c_g, self.c_i, u2_rest, v_rest, self.q,
+                             self.point, self._work, self._s, self._pos, self._tan, self._ends)
         else:
             # The base tilt (elevation of d3) with the known mounting heading (d2 = +z).
             rotation_to_quaternion(base_rotation(float(readings.inclinometers[0, 0])),
                                    self._quat0)
             load_cell_spatial(self._quat0, readings.base_wrench[:3], readings.base_wrench[3:], self.sec_len,
-                               self.sec_steps, self.c_a, self.c_g, self.c_i, self.c_j, u1_rest,
-                               u2_rest, v_rest, self.q, self.point, self._work, self._s, self._pos,
-                               self._tan, self._ends, self._frames)
+                              self.sec_steps, self.c_a, self.c_g, self.c_i, self.c_j, u1_rest,
+                              u2_rest, v_rest, self.q, self.point, self._work, self._s, self._pos,
+                              self._tan, self._ends, self._frames)
         return self._shape()
 
 
@@ -544,7 +544,7 @@ class _ReducedModel(_Integrating):
             else:
                 self._jac_ok[0] &= seed is None  # a new start: a new Jacobian
                 ok, _ = reduced_spatial_newton(self._z, self.unknown_scale, self.tol, self.max_iter,
-                                                20.0, model, data, self._jac, self._jac_ok)
+                                               20.0, model, data, self._jac, self._jac_ok)
             if ok:
                 left_out = 0.0 if self.planar else self._left_out_misfit(model, data)
                 if best is None or left_out < best[0]:
@@ -558,12 +558,12 @@ class _ReducedModel(_Integrating):
             self._z[:] = 0.0
         if self.planar:
             reduced_planar(theta0, self._z[0], self._z[1:], self.sec_len, self.sec_steps, self.c_i,
-                            u2_rest, stretch, self.weight, True, self._s, self._pos, self._tan, self._ends)
+                           u2_rest, stretch, self.weight, True, self._s, self._pos, self._tan, self._ends)
         else:
             reduced_spatial(rot0, self._z[:3], self._z[3:].reshape(ns, 2), self.sec_len, self.sec_steps,
-                             self.c_i, self.c_j, u1_rest, u2_rest, stretch, self.q, True,
-                             self._kernel_work, self._s, self._pos, self._tan, self._ends,
-                             self._frames, self._curv)
+                            self.c_i, self.c_j, u1_rest, u2_rest, stretch, self.q, True,
+                            self._kernel_work, self._s, self._pos, self._tan, self._ends,
+                            self._frames, self._curv)
         return self._shape(converged=bool(ok))
 
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.layout import NSTATE, SL_N, SL_Q, SP_M, SP_Q, SP_R
+from solver.layout import SL_N, SL_Q, SP_M, SP_R
 from solver.rod import (
     hermite_resample,
     planar_state_rhs,
@@ -22,6 +22,7 @@ from solver.rod import (
     record_spatial_row,
     spatial_rhs,
     spatial_rk4_step,
+    start_spatial_state,
 )
 
 
@@ -76,7 +77,7 @@ def planar_cable_integrand(shear_stretch, curvature, radius, out):
 
 @njit
 def load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
-                      q, point, work, s_out, pos_out, tan_out, ends_out):
+                     q, point, work, s_out, pos_out, tan_out, ends_out):
     """Integrate the planar equilibrium equations base → tip from a measured base wrench (§4.2.1).
 
     The solver's rod statics (:func:`solver.rod.planar_state_rhs`, RK4 by
@@ -143,7 +144,7 @@ def _reduced_rhs(th, m, n1, ci, ur, v, w):
 
 @njit
 def reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretch, weight,
-                    record, s_out, pos_out, tan_out, ends_out):
+                   record, s_out, pos_out, tan_out, ends_out):
     """One RK4 pass of the reduced model of §4.2.2–4.2.3 (Eq. 4.17) base → tip.
 
     In section i the stretch v_i is constant (from pressurisation: measured by the encoders
@@ -208,7 +209,7 @@ def reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretc
 
 @njit
 def reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
-                      n_angles, tip_shear_weight, moment_scale, force_scale, ends, res):
+                     n_angles, tip_shear_weight, moment_scale, force_scale, ends, res):
     """Boundary residuals of the reduced model for unknowns z = (m0, n1_start[0..ns−1]).
 
     Rows: θ(s_i) − θ_target[i] for the first ``n_angles`` section ends; then, if
@@ -218,7 +219,7 @@ def reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight
     """
     ns = sec_len.shape[0]
     m_tip, n1_tip = reduced_planar(theta0, z[0], z[1:], sec_len, sec_steps, c_i, u_rest, stretch,
-                                    weight, False, ends[:, 0], ends, ends, ends)
+                                   weight, False, ends[:, 0], ends, ends, ends)
     for i in range(n_angles):
         res[i] = ends[i, 2] - theta_target[i]
     if n_angles < ns:
@@ -228,7 +229,7 @@ def reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight
 
 @njit
 def load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
-                       v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
+                      v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
     """Integrate the spatial equilibrium equations base → tip from a measured 6-axis wrench.
 
     The solver's rod statics and RK4 step (:func:`solver.rod.spatial_rhs`,
@@ -252,12 +253,8 @@ def load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_
     loads_i = work[7, :6]
     n_start = work[7, 6:9]
     moments = np.empty((sec_len.shape[0], 3))
-    for d in range(NSTATE):
-        y[d] = 0.0
-    for d in range(4):
-        y[SP_Q + d] = quat0[d]
+    start_spatial_state(y, quat0, m0)
     for d in range(3):
-        y[SP_M + d] = m0[d]
         n_start[d] = n0[d]
     row = 0
     s0 = 0.0
@@ -328,7 +325,7 @@ def _reduced_rhs_spatial(y, dy, ci, cj, u1r, u2r, v, q):
 
 @njit
 def reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch,
-                     q, record, work, s_out, pos_out, tan_out, ends_out, frames_out, curv_out):
+                    q, record, work, s_out, pos_out, tan_out, ends_out, frames_out, curv_out):
     """One RK4 pass of the spatial reduced model base → tip (see :func:`_reduced_rhs_spatial`).
 
     Args:
@@ -415,7 +412,7 @@ def reduced_spatial_residual(z, model, data, out):
     kind, target_curv, target_frames = data
     ns = sec_len.shape[0]
     reduced_spatial(rot0, z[:3], z[3:].reshape((ns, 2)), sec_len, sec_steps, c_i, c_j, u1_rest,
-                     u2_rest, stretch, q, False, work, s, pos, tan, ends, frames, curv)
+                    u2_rest, stretch, q, False, work, s, pos, tan, ends, frames, curv)
     for i in range(ns):
         if kind == CABLE_DATA:
             out[2 * i] = curv[i, 0] - target_curv[i, 0]

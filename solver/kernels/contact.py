@@ -979,7 +979,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     total += 1
     if not res <= tol:  # not an equilibrium of ``a`` (or NaN): correct it first
         ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, tol,
-                                       max_iter, max_step)
+                                      max_iter, max_step)
         total += its
         if not (ok and stable):
             return False, total, res, stable, 0.0, 0.0
@@ -1006,8 +1006,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
             Z[k] = guess[k]
         final = t_new >= 1.0
         ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights,
-                                       tol if final else 1e3 * tol, max_iter if final else 8,
-                                       max_step)
+                                      tol if final else 1e3 * tol, max_iter if final else 8,
+                                      max_step)
         total += its
         corr = 0.0
         pred = 0.0
@@ -1021,7 +1021,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
             if has_discs:
                 record_backbone(Z, grid, rest, now, rec_new)
                 through = tunnels(rec_prev[:, C_X:C_Y + 1], rec_new[:, C_X:C_Y + 1],
-                                   now[L_DISCS], TUNNEL_SLACK)
+                                  now[L_DISCS], TUNNEL_SLACK)
             if not through:
                 for k in range(n):
                     slope[k] = (Z[k] - accepted[k]) / (t_new - t)
@@ -1172,9 +1172,10 @@ def _dense_lu_solve(a, piv, b):
 
 
 @njit
-def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, check):
+def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, records, check):
     """A warm step of the contact stepper in one kernel call: from the equilibrium ``Z`` at
-    ``level`` to the pressures ``p_new``, the rest of the level (loads, discs) unchanged.
+    ``level`` to the pressures ``p_new`` and the discs ``discs_new`` (the same array as the
+    level's where they stand still; moved, as a held object moves), the loads unchanged.
 
     The factored Jacobian of the start state (``factors``, kept from the step before)
     predicts the new state to first order; Broyden corrections on it (Kelley's inverse
@@ -1192,8 +1193,10 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
         Z: (N,) the nodes of the current equilibrium (:func:`newton_system`); the new ones on
             success.
         grid: the layout tuple (``G_*``). tubes: (tubes_i, tubes_f).
-        level: the level tuple (``L_*``) of ``Z``; its pressures become ``p_new`` on success.
-        p_new: (n_channels,) the target pressures (Pa).
+        level: the level tuple (``L_*``) of ``Z``; its pressures and discs become ``p_new``
+            and ``discs_new`` on success.
+        p_new: (n_channels,) the target pressures (Pa). discs_new: (k, 4) the target discs
+            (the same law and count as the level's).
         params: (N_PARAMS,) numeric parameters (TOL, MAX_STEP, MAX_ITER are used).
         work: (rest (3, ns), weights (N,), res_weights (N,)): scratch for the rest strains,
             and the norms' weights (:func:`_path`).
@@ -1212,7 +1215,7 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
     tol = params[TOL]
     n = Z.shape[0]
     secf = grid[G_SECF]
-    now = (p_new, level[L_Q], level[L_PLATE], level[L_TARGET], level[L_DISCS])
+    now = (p_new, level[L_Q], level[L_PLATE], level[L_TARGET], discs_new)
     rest_strains_into(p_new, tubes[0], tubes[1], secf, rest)
     partners = new_partners(grid)
     no_record = np.empty((1, C_COLUMNS))
@@ -1291,8 +1294,7 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
         stable = stability_test(blocks) > 0.0
         need = np.empty(secf.shape[1])
         ok = (res <= tol and stable and regular
-              and not tunnels(rec[:, C_X:C_Y + 1], new[:, C_X:C_Y + 1], level[L_DISCS],
-                              TUNNEL_SLACK)
+              and not tunnels(rec[:, C_X:C_Y + 1], new[:, C_X:C_Y + 1], discs_new, TUNNEL_SLACK)
               and section_needs(new[:, C_U:C_U + 1], new[:, C_NX:C_NY + 1], new[:, C_V1:C_V3 + 1],
                                 check[0], secf, check[1], need) <= 1.0)
         if ok:
@@ -1303,6 +1305,7 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
             factors[4][0] = fresh[4][0]
             for c in range(p_new.shape[0]):
                 level[L_P][c] = p_new[c]
+            level[L_DISCS][:, :] = discs_new
     if not ok:
         Z[:] = start
     return ok, stable, passes, res

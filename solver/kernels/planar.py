@@ -33,7 +33,7 @@ from solver.jit import njit, prange
 from solver.kernels.grid import planar_fine
 from solver.kernels.homotopy import GIVE_UP, big_change
 from solver.kernels.obstacles import clearance, tunnels
-from solver.kernels.self_contact import smallest_far_gap
+from solver.kernels.self_contact import far_parts_clear
 from solver.kernels.spatial import planar_state_stable
 from solver.layout import (
     DT0,
@@ -71,7 +71,7 @@ LINEAR_FINISH = 1e-3
 
 @njit
 def newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out,
-            record=False, reach=math.inf):
+           record=False, reach=math.inf):
     """Newton on m(L; m0) = M_tip with the exact shooting derivative ∂m(L)/∂m0, each step
     corrected by Halley's factor from the second derivative ∂²m(L)/∂m0² where that factor is
     a correction (|r·m''| ≤ m'²).
@@ -251,7 +251,7 @@ def _bracket_root(prev_m, prev_r, mk, r, theta0, secf, steps, rest, loads, m_tip
     # (heavily loaded arms), bisect the bracket first.
     start = prev_m - prev_r * (mk - prev_m) / (r - prev_r)
     root, ok, its, res, stable, bm, x, y, th = newton(start, theta0, secf, steps, rest, loads,
-                                                       m_tip, tol, max_iter, max_step, out)
+                                                      m_tip, tol, max_iter, max_step, out)
     if not (ok and prev_m <= root <= mk):
         lo, hi, r_lo = prev_m, mk, prev_r
         for _ in range(60):
@@ -425,7 +425,7 @@ def warm_step(state, grid, tubes, a, b, params, work, memo, guard):
         h_max = 0.0
         for i in range(steps.shape[0]):
             h_max = max(h_max, secf[LEN, i] / steps[i])
-        ok = smallest_far_gap(out[:, X:Y + 1], out[:, S], half, exclusion) > h_max
+        ok = far_parts_clear(out[:, X:Y + 1], out[:, S], half, exclusion, h_max)
     if ok:
         rest_a[:, :] = rest
         if record:
@@ -533,7 +533,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         total += its
         if guard and ok and stab and abs(root - guess) <= jump:
             if c_j_3d.shape[0] > 0 and not planar_state_stable(x, y, th, m_tip, secf, steps,
-                                                                  c_j_3d, rest, loads_now):
+                                                               c_j_3d, rest, loads_now):
                 return root, False, total, snapped, False, res, x, y, th
             if discs.shape[0] > 0:
                 integrate_planar(root, theta0, secf, steps, rest, loads_now, True, rec_new)
@@ -552,7 +552,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
                 # (a fold) and Newton fell onto another stable one — a snap, if the grid
                 # resolves the state the branch ended at (else the caller refines it).
                 if not resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b,
-                                 loads_a, loads_b, mtip_a, mtip_b):
+                                loads_a, loads_b, mtip_a, mtip_b):
                     return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b,
                                       loads_a, loads_b, mtip_a, mtip_b, rest, p_now, loads_now,
                                       out, total, snapped, res)
@@ -578,18 +578,18 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         # if the grid resolves the last state before it; a fold met from a state it does not
         # resolve may be the grid's, not the rod's, and the caller refines the grid.
         if not resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
-                         loads_b, mtip_a, mtip_b):
+                        loads_b, mtip_a, mtip_b):
             return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
                               loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out, total,
                               snapped, res)
         snap_to, found, its = fold_scan(theta0, secf, steps, rest, loads_now, m_tip, params,
-                                    int(params[N_SCAN]), guess, out)
+                                        int(params[N_SCAN]), guess, out)
         total += its
         if not found:
             # Heavily loaded arms (a column far past its buckling load) have stable roots in
             # narrow windows of m0 that the default grid steps over: look once more, 8× finer.
             snap_to, found, its = fold_scan(theta0, secf, steps, rest, loads_now, m_tip, params,
-                                        8 * int(params[N_SCAN]), guess, out)
+                                            8 * int(params[N_SCAN]), guess, out)
             total += its
         if not found:
             # No stable equilibrium at this level. Report the Newton result as it stands, with
@@ -605,8 +605,8 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         snapped = True
         slope = 0.0
         m0, ok, its, res, stable, bm, x, y, th = newton(snap_to, theta0, secf, steps, rest,
-                                                         loads_now, m_tip, tol, max_iter,
-                                                         max_step, out, record and final)
+                                                        loads_now, m_tip, tol, max_iter,
+                                                        max_step, out, record and final)
         total += its
         if discs.shape[0] > 0:
             # Where the arm snaps clear of every disc, the contact path lands where this one
@@ -623,7 +623,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
 
 @njit
 def resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-              mtip_b):
+             mtip_b):
     """Whether the RK4 grid resolves the state ``m0`` at level ``t`` of the homotopy
     (:func:`solver.kernels.grid.planar_fine` of its record; one recorded pass)."""
     p_now = np.empty(p_a.shape[0])
@@ -662,7 +662,7 @@ def clear_of(rec, discs, gap):
 
 @njit(parallel=True)
 def batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, loads, mtip,
-           params, record, tips, ok, stable_out, m0_out, shapes):
+          params, record, tips, ok, stable_out, m0_out, shapes):
     """Many quasi-static solves in parallel, one per row of ``p_targets`` (n, n_channels).
 
     Row k follows the path from the equilibrium ``m0_start[k]`` at pressures ``p_start[k]``
@@ -739,7 +739,7 @@ def _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, reco
 
 @njit(parallel=True)
 def cold_rows_parallel(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
-                        record, rest_a, grad, report):
+                       record, rest_a, grad, report):
     """Cold solves of many copies in parallel (see :class:`solver.stepper.BatchStepper`).
 
     Row k follows the path from ``states[k, 0]`` (the loaded unactuated arm's m0) at zero
@@ -757,7 +757,7 @@ def cold_rows_parallel(grid, tubes, p_zero, p, loads, mtip, params, work, states
 
 @njit
 def cold_rows_serial(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
-                      record, rest_a, grad, report):
+                     record, rest_a, grad, report):
     """:func:`cold_rows_parallel` on one thread (small batches: no thread start-up)."""
     for k in range(p.shape[0]):
         _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
@@ -790,7 +790,7 @@ def _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, r
 
 @njit(parallel=True)
 def step_rows_parallel(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
-                        memo, guard, active, report):
+                       memo, guard, active, report):
     """Warm steps of many copies in parallel: :func:`warm_step` per row, from the equilibrium
     ``states[k]``/``records[k]`` at ``p_from[k]`` to ``p_to[k]`` (n, n_channels). A row
     that converged gets its new record, state and predictor memo (per-row arrays of
@@ -807,7 +807,7 @@ def step_rows_parallel(grid, tubes, p_from, p_to, loads, mtip, params, work, sta
 
 @njit
 def step_rows_serial(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
-                      memo, guard, active, report):
+                     memo, guard, active, report):
     """:func:`step_rows_parallel` on one thread."""
     for k in range(p_to.shape[0]):
         if active[k]:

@@ -205,8 +205,8 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
     # where single shooting amplifies a change of the base moment by e^(L·√(T/EI)): from
     # the previous state alone, Newton overshoots.
     if big_change(p_a, p_b, loads_a, loads_b) or (mtip_a[0] != mtip_b[0]
-                                                    or mtip_a[1] != mtip_b[1]
-                                                    or mtip_a[2] != mtip_b[2]):
+                                                  or mtip_a[1] != mtip_b[1]
+                                                  or mtip_a[2] != mtip_b[2]):
         _tangent(accepted, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a,
                  loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, rec, slope)
         total += 2
@@ -473,8 +473,8 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
             for d in range(3):
                 m0[d] = accepted[d] + sign * amp * scale * mode[d]
             ok, its, res, stable = newton(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip,
-                                           params[TOL], int(params[MAX_ITER]), params[MAX_STEP],
-                                           work, dummy)
+                                          params[TOL], int(params[MAX_ITER]), params[MAX_STEP],
+                                          work, dummy)
             total += its
             if ok and stable:
                 if mirror_symmetric(accepted, rest, loads_now, m_tip, scale):
@@ -523,8 +523,8 @@ def _scan_roots(m0, accepted, quat0, secf, steps, c_j, rest, loads, m_tip, param
                     m0[1] = accepted[1] + radius * j / norm
                     m0[2] = accepted[2] + radius * k / norm
                     ok, its, _, stable = newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip,
-                                                 params[TOL], int(params[MAX_ITER]),
-                                                 params[MAX_STEP], work, dummy)
+                                                params[TOL], int(params[MAX_ITER]),
+                                                params[MAX_STEP], work, dummy)
                     total += its
                     if ok and stable:
                         gap = math.sqrt((m0[0] - accepted[0]) ** 2 + (m0[1] - accepted[1]) ** 2

@@ -97,7 +97,7 @@ def _record_row(y, s, rec, row, ca, cg, ci, cj, u1r, u2r, v3r, obstacles):
     """Write the sample ``y`` at arc length ``s`` into row ``row`` of the record tuple
     (s, positions, frames, force, moment, contact force, penetration, strains v, u)."""
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(y[CS_Q], y[CS_Q + 1],
-                                                                 y[CS_Q + 2], y[CS_Q + 3])
+                                                                y[CS_Q + 2], y[CS_Q + 3])
     rec[0][row] = s
     rot = rec[2][row]
     rot[0, 0], rot[0, 1], rot[0, 2] = r00, r01, r02
@@ -440,7 +440,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     total = 0
     ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, scales, tol,
-                                   max_iter, max_step, NO_TETHER)
+                                  max_iter, max_step, NO_TETHER)
     total += its
     if not (ok and stable):
         return False, total, res, stable, 0.0
@@ -459,8 +459,8 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
         Z[:, :] = guess
         final = t_new >= 1.0
         ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, scales,
-                                       tol if final else 1e3 * tol, max_iter if final else 8,
-                                       max_step, NO_TETHER)
+                                      tol if final else 1e3 * tol, max_iter if final else 8,
+                                      max_step, NO_TETHER)
         total += its
         _between(Z, guess, moved)
         corr = weighted_norm(moved, weights)

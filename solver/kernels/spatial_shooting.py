@@ -340,7 +340,7 @@ def stability_test(quats, moms, segs, secf, steps, c_j, rest, loads, work):
             if not _restart_fields(y, scratch):
                 return False
         if not fields_back(y, segs[k, SEG_SECTION], segs[k, SEG_FIRST], segs[k, SEG_STEPS],
-                            secf, steps, c_j, rest, loads, work):
+                           secf, steps, c_j, rest, loads, work):
             return False
     return True
 

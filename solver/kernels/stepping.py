@@ -141,7 +141,7 @@ def contact_row(k, free, contact, p_from, p_to, report):
     report[k, 0] = 0.0
     report[k, 3] = 0.0
     if contact[CT_OK][k] and contact[CT_TOUCHING][k]:
-        _contact_step(k, free, contact, p_to, report)
+        _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
         return
     if not free[FR_OK][k]:
         return
@@ -170,21 +170,23 @@ def contact_row(k, free, contact, p_from, p_to, report):
     if not contact[CT_OK][k] and records.shape[1] == contact[CT_RECORDS].shape[1]:
         entered = _enter_contact(k, free, contact, p_from[k])
     if contact[CT_OK][k]:
-        _contact_step(k, free, contact, p_to, report)
+        _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
         if not report[k, 0] and entered:
             contact[CT_OK][k] = False  # the copy's state stays the contact-free one
 
 
 @njit(inline="always")
-def _contact_step(k, free, contact, p_to, report):
-    """:func:`solver.kernels.contact.lean_step` of copy k; on success its state, and if it
+def _contact_step(k, free, contact, p_to, discs_to, report):
+    """:func:`solver.kernels.contact.lean_step` of copy k to ``p_to[k]`` and the discs
+    ``discs_to`` (k, 4) (its own where they stand still); on success its state, and if it
     touches nothing any more, its record on the settings' grid too."""
     grid = (contact[CT_THETA0], contact[CT_SEGS], contact[CT_SECF], contact[CT_STEPS],
             contact[CT_START], contact[CT_SELF])
     nodes, p_level, records = contact[CT_NODES], contact[CT_P], contact[CT_RECORDS]
     level = (p_level[k], contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k])
     ok, stable, its, res = lean_step(
-        nodes[k], grid, (free[FR_TUBES_I], free[FR_TUBES_F]), level, p_to[k], contact[CT_PARAMS],
+        nodes[k], grid, (free[FR_TUBES_I], free[FR_TUBES_F]), level, p_to[k], discs_to,
+        contact[CT_PARAMS],
         (contact[CT_REST][k], contact[CT_WEIGHTS], contact[CT_RES_WEIGHTS]),
         (contact[CT_LU][k], contact[CT_PIV][k], contact[CT_DENSE][k], contact[CT_DENSE_PIV][k],
          contact[CT_FLAGS][k]),
@@ -255,6 +257,17 @@ def _enter_contact(k, free, contact, p_start):
     contact[CT_OK][k] = True
     contact[CT_TOUCHING][k] = touches(contact[CT_RECORDS][k])
     return True
+
+
+@njit
+def moved_contact_row(k, free, contact, p_to, discs_to, report):
+    """The lean contact step of copy k (on the contact layout) to ``p_to[k]`` with its discs
+    moved to ``discs_to`` (k, 4): an object the arm holds, moved quasi-statically
+    (:mod:`solver.grasp`). ``report[k]`` as :func:`contact_row`'s."""
+    report[k, 0] = 0.0
+    report[k, 3] = 0.0
+    if contact[CT_OK][k]:
+        _contact_step(k, free, contact, p_to, discs_to, report)
 
 
 @njit(parallel=True)

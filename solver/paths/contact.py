@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from solver import layout as L
-from solver.kernels.self_contact import smallest_far_gap
+from solver.kernels.self_contact import far_parts_clear
 from solver.paths.planar import solve_planar, solve_single
 from solver.paths.shooting import solve_shooting
 from solver.problem import Problem, contact_layout, reach
@@ -125,9 +125,8 @@ def clear_of_itself(arm, scene, eq) -> bool:
     half = np.array(arm.half_thickness())
     section = np.minimum(np.searchsorted(np.asarray(eq.section_ends), np.arange(eq.s.size)),
                          half.size - 1)
-    gap = smallest_far_gap(np.ascontiguousarray(eq.positions), eq.s, half[section],
-                           self_contact_exclusion(half))
-    return bool(gap > float(np.max(np.diff(eq.s))))
+    return bool(far_parts_clear(np.ascontiguousarray(eq.positions), eq.s, half[section],
+                                self_contact_exclusion(half), float(np.max(np.diff(eq.s)))))
 
 
 def free_contact_result(eq, scene):

@@ -71,6 +71,26 @@ def record_from_equilibrium(eq: Equilibrium, packed, rec, rest, grad) -> None:
     planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
 
 
+def _fixed_parts(problem: Problem) -> tuple:
+    """What :class:`ContactRows` needs of an arm and a scene law whatever the obstacles'
+    places: the contact layout and its context, segments and layout tuple, the level's loads
+    (endplates, tip target), the norms' weights, and the self-contact guard (half-thickness
+    per sample of the settings' grid, exclusion)."""
+    arm, packed, scene = problem.arm, problem.packed, problem.scene
+    layout, segs, sec_start = contact_layout(arm, packed, scene)
+    c_ctx = problem.on(layout).ctx
+    plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, c_ctx, False)
+    if scene.self_contact is None:
+        half, exclusion = np.empty(0), 0.0
+    else:
+        thick = np.array(arm.half_thickness())
+        section = np.minimum(np.searchsorted(np.asarray(packed.section_ends),
+                                             np.arange(packed.n_rows)), thick.size - 1)
+        half, exclusion = thick[section], self_contact_exclusion(thick)
+    grid = shooting_grid(arm, scene, layout, segs, sec_start)
+    return layout, c_ctx, segs, grid, plate, target, weights, res_weights, half, exclusion
+
+
 class ContactRows:
     """The lean paths of n copies of one arm, model and scene law (gravity, payload,
     mounting, penalty stiffness, self-contact), each copy with obstacles of its own.
@@ -98,20 +118,14 @@ class ContactRows:
         ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
         ctx = problem.ctx
         self.section_ends = packed.section_ends
-        layout, segs, sec_start = contact_layout(arm, packed, scene)
+        # What does not depend on the obstacles' places is built once per arm and law.
+        law = (scene.without_contact, scene.self_contact,
+               scene.obstacles[0].stiffness if scene.obstacles else None)
+        layout, c_ctx, _, grid, plate, target, weights, res_weights, half, exclusion = \
+            arm._solver_cache.get(("lean contact", packed.key, law), lambda: _fixed_parts(problem))
         self.layout = layout
         self.contact_section_ends = layout.section_ends
-        c_ctx = problem.on(layout).ctx
-        plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, c_ctx,
-                                                                False)
         n_nodes = weights.shape[0]
-        if scene.self_contact is None:
-            half, exclusion = np.empty(0), 0.0
-        else:
-            thick = np.array(arm.half_thickness())
-            section = np.minimum(np.searchsorted(np.asarray(packed.section_ends),
-                                                 np.arange(packed.n_rows)), thick.size - 1)
-            half, exclusion = thick[section], self_contact_exclusion(thick)
         free = [None] * stepping.N_FREE
         free[stepping.FR_THETA0] = scene.base_theta
         free[stepping.FR_SECF], free[stepping.FR_STEPS] = packed.secf, packed.sec_steps
@@ -130,7 +144,6 @@ class ContactRows:
         free[stepping.FR_GRAD] = np.full((n, 2, ns), np.nan)
         free[stepping.FR_HALF], free[stepping.FR_EXCLUSION] = half, exclusion
         free[stepping.FR_OK] = np.zeros(n, dtype=bool)
-        grid = shooting_grid(arm, scene, layout, segs, sec_start)
         m = n_nodes if scene.self_contact is not None else 0  # the full Jacobian of touching parts
         contact = [None] * stepping.N_CONTACT
         (contact[stepping.CT_THETA0], contact[stepping.CT_SEGS], contact[stepping.CT_SECF],
@@ -323,6 +336,23 @@ class ContactRows:
         done = report[:, 0] != 0.0
         self._flags[done] = report[done, :5]
         return report
+
+    def step_moved(self, k: int, p_channel: np.ndarray, scene: Scene) -> np.ndarray:
+        """The lean contact step of copy k (a state on the contact layout) to the channel
+        pressures ``p_channel`` with its discs moved to those of ``scene`` (the same count
+        and law): an object the arm holds, moved quasi-statically. Returns the report row
+        (as :meth:`step`'s); on success the copy's scene is ``scene``."""
+        report = np.zeros((self.n, 6))
+        discs = np.full((self.max_obstacles, 4), (FAR, FAR, 0.0, 0.0))
+        given = scene.discs_array()
+        discs[:given.shape[0]] = given
+        p_to = np.zeros_like(self.contact[stepping.CT_P])
+        p_to[k] = p_channel
+        stepping.moved_contact_row(k, self.free, self.contact, p_to, discs, report)
+        if report[k, 0]:
+            self.scenes[k] = scene
+            self._flags[k] = report[k, :5]
+        return report[k]
 
     def equilibrium(self, k: int, pressures: np.ndarray, channel_pressures: np.ndarray) -> Equilibrium:
         """Copy k's state as the Equilibrium the general path returns for it (arrays copied)."""

@@ -13,7 +13,7 @@ from solver.kernels import contact as contact_kernels
 from solver.kernels import planar as planar_kernels
 from solver.kernels import relax as relax_kernels
 from solver.kernels.grid import section_needs
-from solver.kernels.self_contact import smallest_far_gap
+from solver.kernels.self_contact import far_parts_clear
 from solver.paths.grid import section_rows
 from solver.problem import Problem, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
@@ -147,9 +147,9 @@ def _resolved(nodes, grid, layout, level):
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
     contact_kernels.record_backbone(nodes, grid, _level_rest(layout, level), level, out)
     return bool(section_needs(out[:, L.C_U:L.C_U + 1], out[:, L.C_NX:L.C_NY + 1],
-                                    out[:, L.C_V1:L.C_V3 + 1], np.hypot(*level[L.L_Q].T),
-                                    layout.secf, section_rows(layout.section_ends),
-                                    np.empty(layout.secf.shape[1])) <= 1.0)
+                              out[:, L.C_V1:L.C_V3 + 1], np.hypot(*level[L.L_Q].T),
+                              layout.secf, section_rows(layout.section_ends),
+                              np.empty(layout.secf.shape[1])) <= 1.0)
 
 
 def _level_span(start, goal, p_max):
@@ -218,8 +218,8 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
     if not record[:, L.C_PEN].any() and params[L.N_SCAN] > 0:
         loads = _planar_loads(layout, level)
         m0, found, _ = planar_kernels.fold_scan(theta0, layout.secf, layout.sec_steps, rest, loads,
-                                     float(target[2]), params, int(params[L.N_SCAN]),
-                                     float(nodes[2]), _NO_RECORD)
+                                                float(target[2]), params, int(params[L.N_SCAN]),
+                                                float(nodes[2]), _NO_RECORD)
         if found:
             free = np.empty((layout.n_rows, L.N_COLUMNS))
             integrate_planar(m0, theta0, layout.secf, layout.sec_steps, rest, loads, True, free)
@@ -233,9 +233,9 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
         state = relax_kernels.strains_of_record(record, layout.sec_steps)
         for lvl in (over, level) if over is not None else (level,):
             relaxed = relax_kernels.relax(state, theta0, layout.secf, layout.sec_steps,
-                                   _level_rest(layout, lvl), lvl[L.L_Q], lvl[L.L_PLATE],
-                                   lvl[L.L_TARGET][:2] - lvl[L.L_PLATE][-1], lvl[L.L_TARGET][2],
-                                   lvl[L.L_DISCS], grid[L.G_SELF])
+                                          _level_rest(layout, lvl), lvl[L.L_Q], lvl[L.L_PLATE],
+                                          lvl[L.L_TARGET][:2] - lvl[L.L_PLATE][-1], lvl[L.L_TARGET][2],
+                                          lvl[L.L_DISCS], grid[L.G_SELF])
             if relaxed is None:
                 return None
             states, state = relaxed
@@ -246,7 +246,7 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
     for stiffness in k * np.logspace(-3.0, 0.0, SELF_STAGES) if k > 0 else (k,):
         staged = (*grid[:L.G_SELF], np.concatenate([[stiffness], grid[L.G_SELF][1:]]))
         ok, _, _, stable = contact_kernels.newton(landed, staged, rest, level, weights, res_weights,
-                                            settings.tol, 4 * settings.max_iter, MAX_STEP)
+                                                  settings.tol, 4 * settings.max_iter, MAX_STEP)
         if not ok:
             return None
     return landed if stable else None
@@ -258,7 +258,7 @@ def _clear_of_itself(record, layout, sp):
     if sp[L.SC_K] <= 0:
         return True
     half = np.repeat(sp[L.SC_HALF:], layout.sec_steps + 1)
-    return smallest_far_gap(record[:, [L.X, L.Y]], record[:, L.S], half, sp[L.SC_EXCLUSION]) > 0.0
+    return far_parts_clear(record[:, [L.X, L.Y]], record[:, L.S], half, sp[L.SC_EXCLUSION], 0.0)
 
 
 # Penalty stages (log-spaced, from a thousandth to the full stiffness) that bring a snapped
@@ -372,7 +372,8 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
         ok, stable, _, its, _, _, _ = contact_kernels.follow(
             nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal,
             shooting_params(scene, settings, predict_cap=MAX_STEP),
-            (np.empty((3, len(arm.sections))), contact_kernels.new_level(goal), weights, res_weights),
+            (np.empty((3, len(arm.sections))), contact_kernels.new_level(goal), weights,
+             res_weights),
             _NO_GUARD)
         return nodes, int(its), bool(ok and stable)
 

@@ -229,9 +229,9 @@ def _loaded_nodes(arm, layout, segs, scene, ctx, kernel, work):
         quats[1:] = quats[0]
         moms = np.zeros((segs.shape[0], 3))
         p0 = np.zeros(max(arm.n_channels, 1))
-        ok, its, stable, _, snapped = shooting_kernels.follow(quats, moms, *kernel, p0, p0,
-                                                 np.zeros_like(ctx.loads), ctx.loads, np.zeros(3),
-                                                 ctx.m_tip, *work)
+        ok, its, stable, _, snapped = shooting_kernels.follow(
+            quats, moms, *kernel, p0, p0, np.zeros_like(ctx.loads), ctx.loads, np.zeros(3),
+            ctx.m_tip, *work)
         for a in (quats, moms):
             a.flags.writeable = False
         return quats, moms, int(its), bool(ok and stable), bool(snapped)
@@ -249,7 +249,7 @@ def _nodes_result(problem: Problem, quats, moms, segs, rest, loads, **fields):
     rows = layout.n_rows
     pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
     shooting_kernels.record(quats, moms, segs, layout.secf, layout.sec_steps, layout.c_j, rest,
-               loads, np.empty((6, L.NSTATE)), pos, rot, mom)
+                            loads, np.empty((6, L.NSTATE)), pos, rot, mom)
     return _spatial_result(problem, pos, rot, mom, rest, moms[0].copy(), **fields)
 
 

@@ -75,7 +75,7 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         nodes = _nodes_from_record(free, grid, layout, segs, sec_start)
         _level_rest(goal, layout, rest)
         ok, its, res, stable = kernel.newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
-                                           settings.max_iter, MAX_STEP, kernel.NO_TETHER)
+                                             settings.max_iter, MAX_STEP, kernel.NO_TETHER)
         if ok and stable:
             return _result(nodes, scene, grid, layout, goal, converged=True, stable=True,
                            snapped=free.snapped, iterations=int(free.iterations + its),
@@ -193,8 +193,8 @@ def _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
                 trial = np.empty_like(nodes)
                 kernel.retract(nodes, mode, sign * amplitude * math.sqrt(n), trial)
                 ok, _, _, stable = kernel.newton(trial, grid, rest, level, weights, res_weights,
-                                               scales, settings.tol, 4 * settings.max_iter,
-                                               MAX_STEP, kernel.NO_TETHER)
+                                                 scales, settings.tol, 4 * settings.max_iter,
+                                                 MAX_STEP, kernel.NO_TETHER)
                 if not (ok and stable):
                     continue
                 after = kernel.new_record(layout.n_rows)
@@ -260,7 +260,7 @@ def _relax(nodes, grid, layout, level, terms, settings):
         anchors = state[:, L.CS_R:L.CS_R + 3].copy()
         trial = state.copy()
         ok = kernel.newton(trial, grid, rest, level, weights, res_weights, scales, settings.tol,
-                         settings.max_iter, MAX_STEP, (np.array([stiffness]), anchors))[0]
+                           settings.max_iter, MAX_STEP, (np.array([stiffness]), anchors))[0]
         if not ok or tunnels_3d(anchors, trial[:, L.CS_R:L.CS_R + 3], level[L.L_DISCS],
                                 TUNNEL_SLACK):
             stiffness *= 4.0
@@ -274,8 +274,8 @@ def _relax(nodes, grid, layout, level, terms, settings):
             if stiffness < RELAX_END * start:
                 final = state.copy()
                 ok, _, _, stable = kernel.newton(final, grid, rest, level, weights, res_weights,
-                                               scales, settings.tol, settings.max_iter, MAX_STEP,
-                                               kernel.NO_TETHER)
+                                                 scales, settings.tol, settings.max_iter, MAX_STEP,
+                                                 kernel.NO_TETHER)
                 if ok and stable:
                     return final
     return None

@@ -10,7 +10,7 @@ import pytest
 
 import solver
 from solver import designs
-from tests.solver.test_lean_contact import K_TUBE, _curl_walk
+from tests.solver.test_lean_contact import K_TUBE, curl_walk
 
 
 def _scenes(template, n, seed):
@@ -31,7 +31,7 @@ def test_copies_step_as_single_steppers(threaded, self_contact):
     batch = solver.BatchStepper(arm, template, n)
     # The policy picks threads for batches this small only when told to.
     batch.thread_policies["step"].choose = lambda rows: threaded
-    walks = [_curl_walk(arm, 36, seed=10 + k, drift=0.05 if self_contact else 0.03)
+    walks = [curl_walk(arm, 36, seed=10 + k, drift=0.05 if self_contact else 0.03)
              for k in range(n)]
     batch.reset(np.array([w[0] for w in walks]), scenes=scenes)
     singles = [solver.Stepper(arm, scene) for scene in scenes]
@@ -57,7 +57,7 @@ def test_copies_step_as_single_steppers(threaded, self_contact):
 def test_adopt_fans_one_state_out_and_copies_keep_their_own_obstacles():
     arm = designs.octarm_v()
     template = solver.Scene(base_angle_deg=0.0, obstacles=(solver.Disc((0.16, -0.55), 0.13, K_TUBE),))
-    walk = _curl_walk(arm, 25, seed=3)
+    walk = curl_walk(arm, 25, seed=3)
     stepper = solver.Stepper(arm, template)
     stepper.reset(walk[0])
     for p in walk[1:]:

@@ -105,7 +105,7 @@ def test_conjugate_point_test_flags_straight_column():
         scene = solver.Scene(base_angle_deg=180, tip_force=(0, -load), gravity=0)
         ctx = context(rod, packed, scene, 2, solver.Settings(steps_per_section=100))
         out = planar_kernels.newton(0.0, scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads,
-                              ctx.m_tip, 1e-12, 5, 10.0, dummy)
+                                    ctx.m_tip, 1e-12, 5, 10.0, dummy)
         m0, ok, its, res, is_stable, bmin, x, y, theta = out
         assert ok and m0 == 0.0
         assert is_stable == stable

@@ -289,8 +289,8 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     rest_strains_into(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf, rest)
     out = np.empty((packed.n_rows, L.N_COLUMNS))
     m0, ok, _, _, planar_stable, *_ = planar_kernels.newton(guess, scene.base_theta, packed.secf,
-                                                       packed.sec_steps, rest, ctx.loads,
-                                                       ctx.m_tip, 1e-9, 30, 5.0, out, True)
+                                                            packed.sec_steps, rest, ctx.loads,
+                                                            ctx.m_tip, 1e-9, 30, 5.0, out, True)
     assert ok and planar_stable == stable
     layout, segs, sec_start = shooting_layout(arm, packed)
     nodes = nodes_from_states(out[:, [L.X, L.Y, L.THETA, L.NX, L.NY, L.M]], segs)

@@ -95,8 +95,8 @@ def test_no_snap_from_a_state_the_grid_does_not_resolve():
         ctx = context(ARM, packed, solver.Scene(tip_moment=moment), 2, solver.Settings())
         m0 = solver.solve(ARM, np.zeros(6), solver.Scene(tip_moment=moment)).base_moment[0]
         assert planar_kernels.resolved(m0, 1.0, -np.pi / 2, packed.secf, packed.sec_steps,
-                                 packed.tubes_i, packed.tubes_f, zeros, zeros, ctx.loads,
-                                 ctx.loads, ctx.m_tip, ctx.m_tip) == resolved
+                                       packed.tubes_i, packed.tubes_f, zeros, zeros, ctx.loads,
+                                       ctx.loads, ctx.m_tip, ctx.m_tip) == resolved
 
 
 def test_steppers_refine_as_solve_does():

@@ -17,7 +17,7 @@ from solver import layout as L
 K_TUBE = designs.octarm_v().tubes[0].material.ring_stiffness
 
 
-def _curl_walk(arm, n, seed, scale=0.1, drift=0.03):
+def curl_walk(arm, n, seed, scale=0.1, drift=0.03):
     """n pressures: a random walk of ``scale``·p_max per input that drifts towards channel
     I of every section (curls the arm one way, onto what lies on that side)."""
     rng = np.random.default_rng(seed)
@@ -51,7 +51,7 @@ def test_contact_steps_equal_warm_solves(name):
     scene = solver.Scene(base_angle_deg=base, **kwargs)
     stepper = solver.Stepper(arm, scene)
     assert stepper.lean and stepper.lean_contact
-    pressures = _curl_walk(arm, 45, seed=7, scale=scale, drift=drift)
+    pressures = curl_walk(arm, 45, seed=7, scale=scale, drift=drift)
     stepper.reset(pressures[0])
     eq = stepper.equilibrium
     paths = []
@@ -87,7 +87,7 @@ def test_a_failed_lean_contact_step_leaves_the_state_and_the_general_path_takes_
     base, kwargs, _, _ = SCENES["wrap"]
     scene = solver.Scene(base_angle_deg=base, **kwargs)
     stepper = solver.Stepper(arm, scene)
-    pressures = _curl_walk(arm, 30, seed=7)
+    pressures = curl_walk(arm, 30, seed=7)
     stepper.reset(pressures[0])
     for p in pressures[1:]:
         stepper.step(p)
@@ -108,7 +108,7 @@ def test_a_pickled_contact_stepper_steps_as_the_original():
     base, kwargs, scale, drift = SCENES["wrap"]
     arm = designs.octarm_v()
     stepper = solver.Stepper(arm, solver.Scene(base_angle_deg=base, **kwargs))
-    pressures = _curl_walk(arm, 45, seed=7, scale=scale, drift=drift)
+    pressures = curl_walk(arm, 45, seed=7, scale=scale, drift=drift)
     stepper.reset(pressures[0])
     k = 1
     while stepper.last_path != "lean contact":

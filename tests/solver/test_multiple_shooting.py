@@ -184,7 +184,7 @@ def test_spatial_multiple_shooting_stability_finds_the_euler_load(load, stable):
     rest = np.array([[0.0], [0.0], [1.0]])
     work = np.empty((6, L.NSTATE))
     assert shooting_kernels.stability_test(quats, moms, segs, layout.secf, layout.sec_steps,
-                                        layout.c_j, rest, ctx.loads, work) == stable
+                                           layout.c_j, rest, ctx.loads, work) == stable
 
 
 def _near_lockup(arm, fraction=0.999):

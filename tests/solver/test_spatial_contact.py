@@ -183,7 +183,7 @@ def test_stability_flags_a_compressed_column_past_eulers_load(load, stable):
     blocks = np.empty((segs.shape[0], L.N_CTANGENT, L.N_CTANGENT))
     rest = np.array([[0.0], [0.0], [1.0]])
     assert sc.newton_system(nodes, grid, rest, level, F, J, True, blocks, np.repeat([1.0, 1.0, 3.0, 1.0], 3),
-                      sc.NO_TETHER)
+                            sc.NO_TETHER)
     assert np.abs(F).max() < 1e-9  # the straight column is an equilibrium at every load
     assert sc.stability_test(blocks) == stable
 

@@ -47,8 +47,8 @@ def test_straight_column_in_3d_loses_stability_at_euler_load(load, stable):
     rest = np.array([[0.0], [0.0], [1.0]])
     m0 = np.zeros(3)
     ok, its, res, is_stable = spatial_kernels.newton(m0, quat0, packed.secf, packed.sec_steps,
-                                               packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-12, 5,
-                                               10.0, work, dummy)
+                                                     packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-12, 5,
+                                                     10.0, work, dummy)
     assert ok and np.all(m0 == 0.0)
     assert is_stable == stable
 
@@ -89,12 +89,12 @@ def test_3d_test_agrees_with_planar_test_on_planar_equilibria(guess, stable):
     rest = np.empty((3, len(arm.sections)))
     rest_strains_into(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf, rest)
     out = planar_kernels.newton(guess, scene.base_theta, packed.secf, packed.sec_steps, rest,
-                          ctx2.loads, ctx2.m_tip, 1e-9, 30, 5.0, np.empty((1, L.N_COLUMNS)))
+                                ctx2.loads, ctx2.m_tip, 1e-9, 30, 5.0, np.empty((1, L.N_COLUMNS)))
     assert out[1] and out[4] == stable
     m0 = np.array([0.0, 0.0, out[0]])
     ok, its, res, is_stable = spatial_kernels.newton(m0, quat0, packed.secf, packed.sec_steps,
-                                               packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8, 30,
-                                               5.0, work, dummy)
+                                                     packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8, 30,
+                                                     5.0, work, dummy)
     assert ok and m0[2] == pytest.approx(out[0], abs=1e-4)
     assert is_stable == stable
 
@@ -122,8 +122,8 @@ def test_spatial_solve_of_planar_scenes_matches_planar_solver_or_buckles_sideway
         rest_strains_into(p_channel, packed.tubes_i, packed.tubes_f, packed.secf, rest)
         m0 = np.array([0.0, 0.0, planar.base_moment[-1]])
         ok, _, _, stable_in_3d = spatial_kernels.newton(m0, quat0, packed.secf, packed.sec_steps,
-                                                  packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8,
-                                                  30, 5.0, work, dummy)
+                                                        packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8,
+                                                        30, 5.0, work, dummy)
         assert ok and abs(m0[2] - planar.base_moment[-1]) < 1e-4
         if stable_in_3d:
             np.testing.assert_allclose(spatial.tip, [*planar.tip, 0.0], atol=1e-5)
@@ -259,7 +259,7 @@ def test_sideways_buckle_takes_the_plus_z_mirror_image():
     rest_strains_into(p, packed.tubes_i, packed.tubes_f, packed.secf, rest)
     mirror = eq.base_moment * np.array([-1.0, -1.0, 1.0])
     ok, _, res, stable = spatial_kernels.newton(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j,
-                                          rest, ctx.loads, ctx.m_tip, 1e-9, 2, 1.0, work, dummy)
+                                                rest, ctx.loads, ctx.m_tip, 1e-9, 2, 1.0, work, dummy)
     assert ok and stable
     integrate_spatial(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, ctx.loads,
                       False, *dummy, work)
@@ -292,7 +292,7 @@ def test_spatial_jumps_land_where_a_fine_march_does(angle, payload):
                               ctx.loads, False, *dummy, work)
             y = work[0].copy()
             stable = spatial_kernels.stability_test(packed.secf, packed.sec_steps, packed.c_j, rest,
-                                         ctx.loads, work)
+                                                    ctx.loads, work)
             return (y[L.SP_M:L.SP_M + 3] - ctx.m_tip, y[L.SP_DM:L.SP_DM + 9].reshape(3, 3).T,
                     stable)
 
