@@ -98,8 +98,9 @@ def plan_episodes(env_id: str, seeds: list, planner_kwargs: dict) -> dict:
     after one untimed decision on an episode seeded 10,000 (kernels loaded, caches built).
 
     Returns:
-        ``{"episodes": [{"seed", "success", "decision_seconds": [s, ...], "decisions"}],
-        "module": path}``; ``decision_seconds`` lists the decisions that searched.
+        dict: ``episodes``, one dict an episode (``seed``, ``success``, ``decision_seconds``:
+        the seconds of each decision that searched, ``decisions``: all of them), and
+        ``module``, the path of the ``softarm_gym`` that ran.
     """
     import gymnasium as gym
 
@@ -187,11 +188,14 @@ def run(before: Path, rounds: int = 3, n_steps: int = 300, episodes: int = 3, ca
         progress: optional callable taking a status string.
 
     Returns:
-        dict: ``{"after", "before" (commits), "load_before", "load_after", "ratios": {"rows":
-        [{"name", "env_id", "kwargs", "unit", "after", "before" (median × unit),
-        "runs_after", "runs_before", "steps_per_s_after", "steps_per_s_before"}]},
-        "planner": {env_id: {"after", "before": {"median_decision_s", "success", "runs"},
-        "speedup", "same_success"}}}``.
+        dict: ``after`` and ``before`` (their commits), ``rounds``, ``numba_threads``, the
+        load averages ``load_before`` and ``load_after``; ``ratios`` (``n_steps``, ``rows``:
+        per case ``name``, ``env_id``, ``kwargs``, ``unit``, the median multiple of the unit
+        step per tree as ``after`` and ``before``, every round's as ``runs_after`` and
+        ``runs_before``, median steps/s as ``steps_per_s_after`` and ``steps_per_s_before``);
+        ``planner`` (``kwargs``, ``seeds``, ``ids``: per ID and tree the median decision
+        seconds, success rate and per-seed successes, every round's episodes, then
+        ``speedup`` and ``same_success``).
     """
     from softarm_gym.benchmarks.envs import CONTACT_RATIO_CASES, RATIO_UNITS
 
