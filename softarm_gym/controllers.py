@@ -337,8 +337,9 @@ class CEMPlanner(_PressureController):
     each candidate rolled out on the nominal model from the current state. Reach, obstacle
     reach, track, wrap, grasp.
 
-    What it knows, as :class:`JacobianController`: the nominal design, the base angle, p_max,
-    the action mode and ``delta_scale``, the observation layout, and the task's reward rule
+    What it knows, as :class:`JacobianController`: the nominal design, the base angle, whether
+    the arm presses on itself (``self_contact``, with its stiffness), p_max, the action mode
+    and ``delta_scale``, the observation layout, and the task's reward rule
     with the env's weights (reach: :func:`softarm_gym.envs.terms.reach_rewards`; wrap:
     :meth:`~softarm_gym.envs.WrapEnv.wrap_terms`, the disc read from the observation and the
     env's contact stiffness; obstacle reach: the reach rule plus
@@ -435,7 +436,10 @@ class CEMPlanner(_PressureController):
             raise ValueError("CEMPlanner plans reach and wrap tasks only")
         self.task = base  # the reward rule and its weights (configuration, not state)
         self.arm = base.arm
-        self.scene = solver.Scene(base_angle_deg=base.base_angle_deg, gravity=base.gravity)
+        # The env's physics, self-contact included (configuration: a wrap rollout without it
+        # passes the tip through the arm's base where the env's arm lands on itself).
+        self.scene = solver.Scene(base_angle_deg=base.base_angle_deg, gravity=base.gravity,
+                                  self_contact=base.self_contact)
         self.p_max = float(base.p_max)
         self.action_mode = base.action_mode
         self.delta_scale = float(base.delta_scale)
