@@ -42,6 +42,14 @@ FAMILIES = {
 
 ARMS = {"octarm_v": "OctArm V", "octarm_vi": "OctArm VI", "ct": "CT"}
 
+PICTURES = {
+    "wrap": (("environments/wrap_v2_sequence.png",
+              "The planner on the recommended wrap ids, from the start to the first success and the "
+              "last step (`python -m softarm_gym.benchmarks.planner --ids "
+              "SoftArm/OctArmWrap-v2,SoftArm/CTWrap-v2 --picture docs/environments/wrap_v2_sequence.png`)"),),
+}
+"""Page name → pictures under ``docs/`` shown below the success rules: (path, caption) pairs."""
+
 LEARNED = ("sac", "ppo", "td3", "sac_her")
 REFERENCE = ("jacobian", "curl", "planner")
 
@@ -135,8 +143,10 @@ def family_page(family: str) -> str:
         name = f"`{f['id']}`" + (f" (out of date: use `{latest(f['id'])}`)" if is_deprecated(f["id"]) else "")
         lines.append(f"| {name} | {f['arm']} | {f['dims']} | `{f['action_space']}`, {f['actions']} | "
                      f"`{f['observation_space']}` | {f['steps']} | {f['threshold']} | {f['vector']} |")
-    lines += ["", "Success: " + "; ".join(f"`{f['id']}` {f['success']}" for f in facts) + ".", "",
-              "Registered keyword arguments (what each id sets; everything else is the class default "
+    lines += ["", "Success: " + "; ".join(f"`{f['id']}` {f['success']}" for f in facts) + ".", ""]
+    for path, caption in PICTURES.get(family, ()):
+        lines += [f"![{caption}](../{path})", "", f"*{caption}.*", ""]
+    lines += ["Registered keyword arguments (what each id sets; everything else is the class default "
               "below):", ""]
     lines += [f"* `{f['id']}`: {f['kwargs']}" for f in facts]
     lines += ["", "Each reward threshold is floor(0.9 × the mean return of the reference controller over 20 "

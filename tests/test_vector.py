@@ -215,8 +215,9 @@ def test_forbidden_contact_is_rejected_as_in_the_single_env():
     assert sum(int(o[4]["contact_rejected"].sum()) for o in outs) >= 1
 
 
-@pytest.mark.parametrize("env_id", ["SoftArm/OctArmWrap-v2", "SoftArm/CTWrap-v2", "SoftArm/OctArmObstacleReach-v1",
-                                    "SoftArm/CTObstacleReach-v1", "SoftArm/OctArmTrack-v1", "SoftArm/CTTrack-v1"])
+@pytest.mark.parametrize("env_id", ["SoftArm/OctArmWrap-v2", "SoftArm/CTWrap-v2",
+                                    "SoftArm/OctArmObstacleReach-v1", "SoftArm/CTObstacleReach-v1",
+                                    "SoftArm/OctArmTrack-v1", "SoftArm/CTTrack-v1"])
 def test_recommended_versions_are_served_as_registered(env_id):
     """The registered defaults (self-contact, delta actions) through the batched env, equal to
     SyncVectorEnv across autoresets."""
