@@ -120,7 +120,7 @@ register(
     entry_point="softarm_gym.envs:TrackEnv",
     vector_entry_point="softarm_gym.vector:BatchedTrackVectorEnv",
     max_episode_steps=200,
-    reward_threshold=None,
+    reward_threshold=101.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0, **_SEQUENTIAL},
 )
 
@@ -129,7 +129,7 @@ register(
     entry_point="softarm_gym.envs:TrackEnv",
     vector_entry_point="softarm_gym.vector:BatchedTrackVectorEnv",
     max_episode_steps=200,
-    reward_threshold=None,
+    reward_threshold=122.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0, **_SEQUENTIAL},
 )
 
@@ -184,7 +184,7 @@ register(
     entry_point="softarm_gym.envs:ObstacleReachEnv",
     vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
     max_episode_steps=100,
-    reward_threshold=None,
+    reward_threshold=31.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0, **_SEQUENTIAL},
 )
 
@@ -193,7 +193,7 @@ register(
     entry_point="softarm_gym.envs:ObstacleReachEnv",
     vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
     max_episode_steps=100,
-    reward_threshold=None,
+    reward_threshold=37.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0, **_SEQUENTIAL,
             "obstacle_radius": (0.02, 0.04), "clearance": 0.01},
 )
@@ -224,7 +224,7 @@ register(
     entry_point="softarm_gym.envs:WrapEnv",
     vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
-    reward_threshold=None,
+    reward_threshold=217.0,
     # Self-contact caps a wrap near 360 - acos(1 - 2h/R) ~ 305 deg (the tip meets the incoming
     # arm); a curl that overshoots it lands on the arm at 165-179 deg. Success: the disc enclosed
     # (> a half-turn) clear of that branch, 200 deg (docs/environments.md, "Wrap calibration (v2)").
@@ -237,7 +237,7 @@ register(
     entry_point="softarm_gym.envs:WrapEnv",
     vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
-    reward_threshold=None,
+    reward_threshold=214.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0, **_SEQUENTIAL},
 )
