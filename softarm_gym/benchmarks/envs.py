@@ -148,9 +148,8 @@ def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASE
     the free step: median free steps/s ÷ median case steps/s.
 
     Returns:
-        A dict with keys ``n_steps``, ``rounds`` and ``rows``, a list of dicts with keys
-        ``name``, ``env_id``, ``kwargs``, ``steps_per_s``, ``runs_steps_per_s`` and
-        ``times_free_step``.
+        dict: ``{"n_steps", "rounds", "rows": [{"name", "env_id", "kwargs", "steps_per_s",
+        "runs_steps_per_s", "times_free_step"}]}``.
     """
     envs = [gym.make(env_id, **kwargs) for _, env_id, kwargs in cases]
     for env in envs:
