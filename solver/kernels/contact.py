@@ -616,14 +616,15 @@ def _orthonormalise(f):
 
 @njit
 def factor_band(ab, piv):
-    """LU-factor in place the banded shooting Jacobian A stored in ``ab`` ((BAND_ROWS, n):
-    A[i, j] at ab[BAND + i − j, j], 8 sub- and 8 super-diagonals, rows above for the fill-in
-    of partial pivoting), the row interchanges into ``piv`` (n,). Gaussian elimination with
-    partial pivoting within the band, O(n): LAPACK's dgbtrf, written out so that it runs in
-    a kernel. Returns False for a singular or non-finite A."""
+    """LU-factor in place the banded shooting Jacobian A stored in ``ab`` ((3·kl + 1, n):
+    A[i, j] at ab[2·kl + i − j, j], kl sub- and kl super-diagonals, rows above for the
+    fill-in of partial pivoting; kl = 8 in the plane, (BAND_ROWS, n), 17 in 3D), the row
+    interchanges into ``piv`` (n,). Gaussian elimination with partial pivoting within the
+    band, O(n): LAPACK's dgbtrf, written out so that it runs in a kernel. Returns False for
+    a singular or non-finite A."""
     n = ab.shape[1]
-    kl = 8
-    kv = BAND
+    kl = (ab.shape[0] - 1) // 3
+    kv = 2 * kl
     ju = 0
     for j in range(n):
         km = min(kl, n - 1 - j)
@@ -654,11 +655,11 @@ def factor_band(ab, piv):
 
 
 @njit
-def _band_lu_solve(ab, piv, b):
+def band_lu_solve(ab, piv, b):
     """Solve A x = b in place (``b`` becomes x) with the factors of :func:`factor_band`."""
     n = ab.shape[1]
-    kl = 8
-    kv = BAND
+    kl = (ab.shape[0] - 1) // 3
+    kv = 2 * kl
     for j in range(n):
         p = piv[j]
         if p != j:
@@ -680,7 +681,7 @@ def _band_solve(ab, b):
     piv = np.empty(ab.shape[1], dtype=np.int64)
     if not factor_band(ab, piv):
         return False
-    _band_lu_solve(ab, piv, b)
+    band_lu_solve(ab, piv, b)
     return True
 
 
@@ -785,7 +786,7 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
                 return False, it, res, False
             for k in range(n):
                 step[k] = F[k]
-            _band_lu_solve(J, piv, step)
+            band_lu_solve(J, piv, step)
         norm = weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         for k in range(n):
@@ -1057,7 +1058,7 @@ def _factored_solve(factors, b):
     if flags[0]:
         _dense_lu_solve(dense, dense_piv, b)
     else:
-        _band_lu_solve(lu, piv, b)
+        band_lu_solve(lu, piv, b)
 
 
 @njit

@@ -187,6 +187,52 @@ def contact_force_3d(r0, r1, r2, obstacles):
 
 
 @njit
+def contact_stiffness_3d(r0, r1, r2, obstacles):
+    """∂f/∂r of :func:`contact_force_3d` at r, f the penalty force per length: the
+    symmetric 3×3 (k00, k01, k02, k11, k12, k22) summed over the obstacles pressed,
+    k·(−ûûᵀ + (pen/|e|)(P − ûûᵀ)), û = e/|e| and P = ∂e/∂r the projection off a cylinder's
+    axis (the identity about a sphere's centre)."""
+    k00 = k01 = k02 = k11 = k12 = k22 = 0.0
+    for d in range(obstacles.shape[0]):
+        e0, e1, e2, dist = _offset_3d(r0, r1, r2, obstacles, d)
+        pen = obstacles[d, O_RADIUS] - dist
+        if pen > 0.0 and dist > 0.0:
+            k = obstacles[d, O_STIFFNESS]
+            u0 = e0 / dist
+            u1 = e1 / dist
+            u2 = e2 / dist
+            a0 = obstacles[d, O_AXIS]
+            a1 = obstacles[d, O_AXIS + 1]
+            a2 = obstacles[d, O_AXIS + 2]
+            hoop = pen / dist
+            k00 += k * (-u0 * u0 + hoop * (1.0 - a0 * a0 - u0 * u0))
+            k01 += k * (-u0 * u1 + hoop * (-a0 * a1 - u0 * u1))
+            k02 += k * (-u0 * u2 + hoop * (-a0 * a2 - u0 * u2))
+            k11 += k * (-u1 * u1 + hoop * (1.0 - a1 * a1 - u1 * u1))
+            k12 += k * (-u1 * u2 + hoop * (-a1 * a2 - u1 * u2))
+            k22 += k * (-u2 * u2 + hoop * (1.0 - a2 * a2 - u2 * u2))
+    return k00, k01, k02, k11, k12, k22
+
+
+@njit
+def nearest_surface_3d(r0, r1, r2, obstacles):
+    """(gap, u0, u1, u2): :func:`clearance_3d` at r and the outward unit normal û of the
+    nearest obstacle's surface there (∂gap/∂r; zero on a core)."""
+    gap = math.inf
+    u0 = u1 = u2 = 0.0
+    for d in range(obstacles.shape[0]):
+        e0, e1, e2, dist = _offset_3d(r0, r1, r2, obstacles, d)
+        g = dist - obstacles[d, O_RADIUS]
+        if g < gap:
+            gap = g
+            scale = 1.0 / dist if dist > 0.0 else 0.0
+            u0 = e0 * scale
+            u1 = e1 * scale
+            u2 = e2 * scale
+    return gap, u0, u1, u2
+
+
+@njit
 def clearance_3d(r0, r1, r2, obstacles):
     """Smallest signed gap (m; negative inside) from r to the spatial obstacles' surfaces."""
     gap = math.inf
