@@ -17,8 +17,12 @@ import math
 from solver.jit import njit
 from solver.layout import CX, CY, O_AXIS, O_P, O_RADIUS, O_STIFFNESS, RADIUS, STIFFNESS
 
+# A point whose squared distance from a disc's centre is at least this multiple of R² lies
+# outside it, rounding included: the penalty sums skip such discs before the square root.
+CLEAR_SQUARE = 1.0 + 1e-12
 
-@njit
+
+@njit(inline="always")
 def contact_force(x, y, discs):
     """Penalty force per length (fx, fy) and deepest penetration at backbone point (x, y).
 
@@ -30,7 +34,10 @@ def contact_force(x, y, discs):
     for d in range(discs.shape[0]):
         dx = x - discs[d, CX]
         dy = y - discs[d, CY]
-        dist = math.sqrt(dx * dx + dy * dy)
+        d2 = dx * dx + dy * dy
+        if not d2 < discs[d, RADIUS] * discs[d, RADIUS] * CLEAR_SQUARE:
+            continue
+        dist = math.sqrt(d2)
         pen = discs[d, RADIUS] - dist
         if pen > 0.0 and dist > 0.0:
             scale = discs[d, STIFFNESS] * pen / dist
@@ -47,7 +54,7 @@ def penalty_energy(pen, stiffness):
     return 0.5 * stiffness * pen * pen if pen > 0.0 else 0.0
 
 
-@njit
+@njit(inline="always")
 def contact_stiffness(x, y, discs):
     """∂f/∂r of :func:`contact_force` at (x, y), f the penalty force per length: the
     symmetric 2×2 (k00, k01, k11) summed over the discs pressed,
@@ -58,7 +65,10 @@ def contact_stiffness(x, y, discs):
     for d in range(discs.shape[0]):
         dx = x - discs[d, CX]
         dy = y - discs[d, CY]
-        dist = math.sqrt(dx * dx + dy * dy)
+        d2 = dx * dx + dy * dy
+        if not d2 < discs[d, RADIUS] * discs[d, RADIUS] * CLEAR_SQUARE:
+            continue
+        dist = math.sqrt(d2)
         pen = discs[d, RADIUS] - dist
         if pen > 0.0 and dist > 0.0:
             k = discs[d, STIFFNESS]

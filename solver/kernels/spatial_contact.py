@@ -273,7 +273,7 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
     """Integrate segment ``seg`` from the node state ``z`` (N_CSTATE,) into ``out``.
 
     Near an obstacle each RK4 step is refined into NEAR_SUBSTEPS substeps and blended with
-    the whole step by a smoothstep of the clearance, as in :func:`solver.kernels.contact._segment`.
+    the whole step by a smoothstep of the clearance, as in :func:`solver.kernels.contact._integrate`.
     At a section end (not the tip) the endplate's weight is taken off n. With ``record``,
     the samples go to the record tuple ``rec``. ``work`` (8, N_CSTATE) scratch. With ``phi``
     (12, 12) (not empty), the segment map's Jacobian in the tangent coordinates of its start
