@@ -246,13 +246,13 @@ def _prepare_partners(Z, grid, rest, level, partners):
     for seg in range(n_seg - 1):
         _start_state(Z, seg, theta0, za)
         _start_state(Z, seg + 1, theta0, zb)
-        build_piece(za, zb, seg, grid, rest, pts, bounds)
+        build_piece(za, zb, seg, grid, rest, level, pts, bounds)
     _start_state(Z, n_seg - 1, theta0, za)
     none = (pts[:0], bounds[:0], loads[:0])
     _segment(za, n_seg - 1, grid, rest, level, zb, np.empty((7, 6)), False,
              np.empty((1, C_COLUMNS)), np.empty((0, 6)), np.empty((8, 6, 6)), none)
-    build_piece(za, zb, n_seg - 1, grid, rest, pts, bounds)
-    self_loads(grid, pts, bounds, loads)
+    build_piece(za, zb, n_seg - 1, grid, rest, level, pts, bounds)
+    self_loads(grid, rest, pts, bounds, loads)
 
 
 @njit

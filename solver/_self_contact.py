@@ -41,6 +41,10 @@ from solver.layout import (
     B_AY,
     B_BX,
     B_BY,
+    B_CAX,
+    B_CAY,
+    B_CBX,
+    B_CBY,
     B_R,
     B_TAX,
     B_TAY,
@@ -51,16 +55,20 @@ from solver.layout import (
     B_Y,
     CA,
     CG,
+    CI,
     G_SECF,
     G_SEGS,
     G_SELF,
     G_START,
     G_STEPS,
+    L_DISCS,
+    L_Q,
     LEN,
     P_H,
     P_S,
     P_X,
     P_Y,
+    REST_U2,
     REST_V3,
     SC_EXCLUSION,
     SC_HALF,
@@ -78,12 +86,14 @@ from solver.layout import (
     SELF_QX,
     SELF_QY,
 )
-from solver.rod import planar_strains
+from solver.rod import planar_state_jacobian, planar_state_rhs
 
 # Depth (m) over which the law sets in smoothly: f = k·δ²/2ε below ε, then k·(δ − ε/2). Nodes
 # are an RK4 step apart, and where a contact patch spans one or two of them, a node entering
 # it with a kink in its force made Newton stall (as at the grasp's base clamp).
 ONSET = 5e-4
+# Points per RK4 step at which the law is sampled (docs/design.md §9, "Resolution").
+SUBPOINTS = 8
 
 
 @njit
@@ -101,11 +111,31 @@ def clear_pieces(bounds):
 
 
 @njit
-def build_piece(za, zb, seg, grid, rest, pts, bounds):
+def _end_derivatives(z, ell, i, grid, rest, level):
+    """(ℓ·r', ℓ²·r'') of the backbone at the state ``z`` (6,) in section ``i``: the slope
+    from the constitutive law, its derivative along the arc from the state's rate
+    (:func:`solver.rod.planar_state_rhs`, with the section's distributed load and any
+    disc's force), both per unit of a curve parameter spanning the arc length ``ell``."""
+    secf = grid[G_SECF]
+    ca = secf[CA, i]
+    cg = secf[CG, i]
+    vr = rest[REST_V3, i]
+    rate = np.empty(6)
+    planar_state_rhs(z, rate, ca, cg, secf[CI, i], rest[REST_U2, i], vr, level[L_Q][i, 0],
+                     level[L_Q][i, 1], level[L_DISCS])
+    a02, a03, a04, a12, a14, _, _, _ = planar_state_jacobian(z[2], z[3], z[4], ca, cg, vr)
+    ddx = a02 * rate[2] + a03 * rate[3] + a04 * rate[4]
+    ddy = a12 * rate[2] + a04 * rate[3] + a14 * rate[4]
+    return ell * rate[0], ell * rate[1], ell * ell * ddx, ell * ell * ddy
+
+
+@njit
+def build_piece(za, zb, seg, grid, rest, level, pts, bounds):
     """The piece of segment ``seg`` from its start state ``za`` and end state ``zb`` (6,)
-    (x, y, θ, n_x, n_y, m): a cubic Hermite curve in the segment's arc length through their
-    positions with their slopes r' (the constitutive law of the segment's section), sampled
-    at its RK4 nodes into ``pts[seg]``, its bounding circle into ``bounds[seg]``.
+    (x, y, θ, n_x, n_y, m) at the level tuple ``level``: a quintic Hermite curve in the
+    segment's arc length through their positions with their slopes r' and derivatives r''
+    (:func:`_end_derivatives`), sampled at its RK4 nodes into ``pts[seg]``, its bounding
+    circle into ``bounds[seg]``.
 
     Half-thicknesses are the section's, except at a section junction, where the node takes
     the mean of both sections' (h varies linearly over the chords on either side, so the law
@@ -118,34 +148,28 @@ def build_piece(za, zb, seg, grid, rest, pts, bounds):
     step = secf[LEN, i] / grid[G_STEPS][i]
     ell = n * step
     s0 = grid[G_START][i] + segs[seg, SEG_FIRST] * step
-    c, sn, _, _, v1, v3 = planar_strains(za[2], za[3], za[4], secf[CA, i], secf[CG, i], rest[REST_V3, i])
-    tax = ell * (v3 * c - v1 * sn)
-    tay = ell * (v3 * sn + v1 * c)
-    c, sn, _, _, v1, v3 = planar_strains(zb[2], zb[3], zb[4], secf[CA, i], secf[CG, i], rest[REST_V3, i])
-    tbx = ell * (v3 * c - v1 * sn)
-    tby = ell * (v3 * sn + v1 * c)
     half = sp[SC_HALF + i]
     h_start = 0.5 * (sp[SC_HALF + i - 1] + half) if segs[seg, SEG_FIRST] == 0 and i > 0 else half
     h_end = 0.5 * (half + sp[SC_HALF + i + 1]) \
         if segs[seg, SEG_END] == 1 and i < secf.shape[1] - 1 else half
+    bounds[seg, B_AX] = za[0]
+    bounds[seg, B_AY] = za[1]
+    bounds[seg, B_BX] = zb[0]
+    bounds[seg, B_BY] = zb[1]
+    (bounds[seg, B_TAX], bounds[seg, B_TAY], bounds[seg, B_CAX],
+     bounds[seg, B_CAY]) = _end_derivatives(za, ell, i, grid, rest, level)
+    (bounds[seg, B_TBX], bounds[seg, B_TBY], bounds[seg, B_CBX],
+     bounds[seg, B_CBY]) = _end_derivatives(zb, ell, i, grid, rest, level)
     cx = 0.0
     cy = 0.0
     for j in range(n + 1):
-        t = j / n
-        t2 = t * t
-        t3 = t2 * t
-        h00 = 2.0 * t3 - 3.0 * t2 + 1.0
-        h10 = t3 - 2.0 * t2 + t
-        h01 = 3.0 * t2 - 2.0 * t3
-        h11 = t3 - t2
-        x = h00 * za[0] + h10 * tax + h01 * zb[0] + h11 * tbx
-        y = h00 * za[1] + h10 * tay + h01 * zb[1] + h11 * tby
-        pts[seg, j, P_X] = x
-        pts[seg, j, P_Y] = y
+        p = _curve(bounds, seg, j / n)
+        pts[seg, j, P_X] = p[0]
+        pts[seg, j, P_Y] = p[1]
         pts[seg, j, P_S] = s0 + j * step
         pts[seg, j, P_H] = h_start if j == 0 else (h_end if j == n else half)
-        cx += x
-        cy += y
+        cx += p[0]
+        cy += p[1]
     cx /= n + 1
     cy /= n + 1
     radius = 0.0
@@ -155,14 +179,6 @@ def build_piece(za, zb, seg, grid, rest, pts, bounds):
     bounds[seg, B_Y] = cy
     bounds[seg, B_R] = radius
     bounds[seg, B_TOUCH] = 0.0
-    bounds[seg, B_AX] = za[0]
-    bounds[seg, B_AY] = za[1]
-    bounds[seg, B_TAX] = tax
-    bounds[seg, B_TAY] = tay
-    bounds[seg, B_BX] = zb[0]
-    bounds[seg, B_BY] = zb[1]
-    bounds[seg, B_TBX] = tbx
-    bounds[seg, B_TBY] = tby
 
 
 @njit
@@ -176,10 +192,7 @@ def may_touch(Z, grid, rest) -> bool:
     secf = grid[G_SECF]
     sp = grid[G_SELF]
     n_seg = segs.shape[0]
-    stretch = 0.0
-    for i in range(rest.shape[1]):
-        stretch = max(stretch, rest[REST_V3, i])
-    stretch *= 1.5
+    stretch = _stretch_bound(rest)
     reach = 2.0 * _largest_half(sp)
     cx = np.empty(n_seg)
     cy = np.empty(n_seg)
@@ -252,6 +265,15 @@ def _weight(segs, pts, seg, j):
 
 
 @njit
+def _stretch_bound(rest):
+    """A bound on the backbone's stretch |r'|: 1.5 × the largest rest stretch."""
+    stretch = 0.0
+    for i in range(rest.shape[1]):
+        stretch = max(stretch, rest[REST_V3, i])
+    return 1.5 * stretch
+
+
+@njit
 def _largest_half(sp):
     largest = 0.0
     for k in range(SC_HALF, sp.shape[0]):
@@ -261,9 +283,9 @@ def _largest_half(sp):
 
 @njit
 def _nearest_on_chord(x, y, h_own, pts, seg, j):
-    """(pen, ux, uy, t) of the point (x, y) against chord j of piece ``seg``: penetration
-    h_own + h(p) − |r − p| at the nearest point p = (1 − t)·a + t·b, and the unit vector
-    from p to the point (zero where they coincide)."""
+    """(pen, ux, uy, t, dist) of the point (x, y) against chord j of piece ``seg``:
+    penetration h_own + h(p) − |r − p| at the nearest point p = (1 − t)·a + t·b, the unit
+    vector from p to the point (zero where they coincide) and the distance |r − p| (m)."""
     ax = pts[seg, j, P_X]
     ay = pts[seg, j, P_Y]
     ex = pts[seg, j + 1, P_X] - ax
@@ -276,28 +298,40 @@ def _nearest_on_chord(x, y, h_own, pts, seg, j):
     dist = math.sqrt(dx * dx + dy * dy)
     reach = h_own + pts[seg, j, P_H] + t * (pts[seg, j + 1, P_H] - pts[seg, j, P_H])
     if dist > 0.0:
-        return reach - dist, dx / dist, dy / dist, t
-    return reach, 0.0, 0.0, t
+        return reach - dist, dx / dist, dy / dist, t, dist
+    return reach, 0.0, 0.0, t, dist
 
 
 @njit
 def _curve(bounds, seg, t):
     """Point, first and second derivative (in the parameter t ∈ [0, 1]) of piece ``seg``'s
-    Hermite curve: (x, y, dx, dy, ddx, ddy)."""
+    quintic Hermite curve: (x, y, dx, dy, ddx, ddy)."""
     t2 = t * t
     t3 = t2 * t
-    c = (2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + t, 3.0 * t2 - 2.0 * t3, t3 - t2)
-    d = (6.0 * t2 - 6.0 * t, 3.0 * t2 - 4.0 * t + 1.0, 6.0 * t - 6.0 * t2, 3.0 * t2 - 2.0 * t)
-    dd = (12.0 * t - 6.0, 6.0 * t - 4.0, 6.0 - 12.0 * t, 6.0 * t - 2.0)
+    t4 = t3 * t
+    t5 = t4 * t
+    # Basis for (a, ta, ca, b, tb, cb), its first and second derivatives.
+    c = (1.0 - 10.0 * t3 + 15.0 * t4 - 6.0 * t5, t - 6.0 * t3 + 8.0 * t4 - 3.0 * t5,
+         0.5 * (t2 - 3.0 * t3 + 3.0 * t4 - t5), 10.0 * t3 - 15.0 * t4 + 6.0 * t5,
+         -4.0 * t3 + 7.0 * t4 - 3.0 * t5, 0.5 * (t3 - 2.0 * t4 + t5))
+    d = (-30.0 * t2 + 60.0 * t3 - 30.0 * t4, 1.0 - 18.0 * t2 + 32.0 * t3 - 15.0 * t4,
+         0.5 * (2.0 * t - 9.0 * t2 + 12.0 * t3 - 5.0 * t4), 30.0 * t2 - 60.0 * t3 + 30.0 * t4,
+         -12.0 * t2 + 28.0 * t3 - 15.0 * t4, 0.5 * (3.0 * t2 - 8.0 * t3 + 5.0 * t4))
+    dd = (-60.0 * t + 180.0 * t2 - 120.0 * t3, -36.0 * t + 96.0 * t2 - 60.0 * t3,
+          0.5 * (2.0 - 18.0 * t + 36.0 * t2 - 20.0 * t3), 60.0 * t - 180.0 * t2 + 120.0 * t3,
+          -24.0 * t + 84.0 * t2 - 60.0 * t3, 0.5 * (6.0 * t - 24.0 * t2 + 20.0 * t3))
     out = np.empty(6)
     for axis in range(2):
-        a = bounds[seg, B_AX + axis]
-        ta = bounds[seg, B_TAX + axis]
-        b = bounds[seg, B_BX + axis]
-        tb = bounds[seg, B_TBX + axis]
-        out[axis] = c[0] * a + c[1] * ta + c[2] * b + c[3] * tb
-        out[2 + axis] = d[0] * a + d[1] * ta + d[2] * b + d[3] * tb
-        out[4 + axis] = dd[0] * a + dd[1] * ta + dd[2] * b + dd[3] * tb
+        coef = (bounds[seg, B_AX + axis], bounds[seg, B_TAX + axis], bounds[seg, B_CAX + axis],
+                bounds[seg, B_BX + axis], bounds[seg, B_TBX + axis], bounds[seg, B_CBX + axis])
+        p = dp = ddp = 0.0
+        for e in range(6):
+            p += c[e] * coef[e]
+            dp += d[e] * coef[e]
+            ddp += dd[e] * coef[e]
+        out[axis] = p
+        out[2 + axis] = dp
+        out[4 + axis] = ddp
     return out
 
 
@@ -344,13 +378,121 @@ def _add(loads, segs, seg, j, fx, fy):
 
 
 @njit
-def self_loads(grid, pts, bounds, loads):
+def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reach, exclusion, k,
+                ahead, wide):
+    """Apply the law to the point (x, y) at arc length ``s`` with half-thickness ``h_own``
+    and arc share ``w`` (m), a fraction ``share`` of the way from node j of piece ``seg`` to
+    node j + 1: every contact it makes (a run of consecutive chords of another part within
+    ``reach`` of the point, less the chord's half-thickness) is found and its load added to
+    ``loads`` (see :func:`self_loads`), the point's own half lumped onto nodes j and j + 1 by
+    ``share``.
+
+    Returns (the deepest penetration, the point's clearance): a lower bound on its distance
+    (m) to the chords that are not within ``exclusion`` of every arc length in
+    [s, s + ``ahead``] — the distance to each such chord of a piece whose bounding circle
+    comes within ``wide`` of the point, else to the circle; infinite where there is none."""
+    segs = grid[G_SEGS]
+    n_seg = segs.shape[0]
+    deepest = 0.0
+    clearance = math.inf
+    in_run = False
+    best_pen = 0.0
+    best_t = 0.0
+    best_seg = 0
+    best_j = 0
+    for other in range(n_seg + 1):
+        near = False
+        scan = False
+        if other < n_seg and bounds[other, B_R] >= 0.0:
+            gap = math.hypot(x - bounds[other, B_X], y - bounds[other, B_Y]) - bounds[other, B_R]
+            near = gap < reach
+            if pts[other, 0, P_S] < s + ahead - exclusion \
+                    or pts[other, segs[other, SEG_STEPS], P_S] > s + exclusion:
+                scan = gap < wide
+                if not scan:
+                    clearance = min(clearance, gap)
+        chords = segs[other, SEG_STEPS] if near or scan else 1
+        for c in range(chords):
+            pen = -1.0
+            ux = uy = t = 0.0
+            if near or scan:
+                s_a = pts[other, c, P_S]
+                s_b = pts[other, c + 1, P_S]
+                dist = math.inf
+                if near and abs(s - s_a) > exclusion and abs(s - s_b) > exclusion:
+                    pen, ux, uy, t, dist = _nearest_on_chord(x, y, h_own, pts, other, c)
+                if scan and not (s + ahead - exclusion <= s_a <= s + exclusion
+                                 or s + ahead - exclusion <= s_b <= s + exclusion):
+                    if dist == math.inf:
+                        dist = _nearest_on_chord(x, y, h_own, pts, other, c)[4]
+                    clearance = min(clearance, dist)
+            if pen > 0.0 and (ux != 0.0 or uy != 0.0):
+                if not in_run or pen > best_pen:
+                    best_pen, best_t = pen, t
+                    best_seg, best_j = other, c
+                in_run = True
+                continue
+            if not in_run:
+                continue
+            # A run of chords within reach ends: one contact, the nearest point of the
+            # curve, from the run's nearest chord's.
+            in_run = False
+            n_b = segs[best_seg, SEG_STEPS]
+            piece, tau = _project(x, y, bounds, segs, best_seg, (best_j + best_t) / n_b)
+            p = _curve(bounds, piece, tau)
+            dx = x - p[0]
+            dy = y - p[1]
+            dist = math.sqrt(dx * dx + dy * dy)
+            n_p = segs[piece, SEG_STEPS]
+            node = min(int(tau * n_p), n_p - 1)
+            t = tau * n_p - node
+            h_p = pts[piece, node, P_H] + t * (pts[piece, node + 1, P_H] - pts[piece, node, P_H])
+            pen = h_own + h_p - dist
+            if not (pen > 0.0 and dist > 0.0):
+                continue
+            ux = dx / dist
+            uy = dy / dist
+            f = w * (0.5 * k * pen * pen / ONSET if pen < ONSET else k * (pen - 0.5 * ONSET))
+            stiff = w * (k * pen / ONSET if pen < ONSET else k)
+            for end in range(2):
+                part = 1.0 - share if end == 0 else share
+                if part == 0.0:
+                    continue
+                a, b = _slot(segs, seg, j + end)
+                # The piece whose map applies the load (its Jacobian carries the law's
+                # stiffness, which Newton's coupled Jacobian replaces by differences).
+                bounds[a, B_TOUCH] = 1.0
+                loads[a, b, SELF_FX] += 0.5 * part * f * ux
+                loads[a, b, SELF_FY] += 0.5 * part * f * uy
+                loads[a, b, SELF_PEN] = max(loads[a, b, SELF_PEN], pen)
+                # The point's own law across the normal (∂pen/∂r = −ûᵀ), the other part
+                # held fixed, its share on the node: for the stability test
+                # (docs/design.md §9).
+                loads[a, b, SELF_K00] -= part * stiff * ux * ux
+                loads[a, b, SELF_K01] -= part * stiff * ux * uy
+                loads[a, b, SELF_K11] -= part * stiff * uy * uy
+            _add(loads, segs, piece, node, -0.5 * f * (1.0 - t) * ux, -0.5 * f * (1.0 - t) * uy)
+            _add(loads, segs, piece, node + 1, -0.5 * f * t * ux, -0.5 * f * t * uy)
+            deepest = max(deepest, pen)
+            bounds[seg, B_TOUCH] = 1.0
+            bounds[best_seg, B_TOUCH] = 1.0
+            bounds[piece, B_TOUCH] = 1.0
+    return deepest, clearance
+
+
+@njit
+def self_loads(grid, rest, pts, bounds, loads):
     """The self-contact point loads of the pieces ``pts`` (see the module docstring) into
     ``loads`` (M, segment steps + 1, N_SELF), at each node's canonical slot: SELF_FX, SELF_FY
     the point load (N), SELF_QX, SELF_QY that load per length of the node's share of the arc
     (N/m), SELF_PEN its own deepest penetration (m), SELF_K00…SELF_K11 its own law's
     stiffness across the normal with the other part fixed (N/m). Pieces in contact are marked in
-    ``bounds``. Returns the deepest penetration."""
+    ``bounds``. Returns the deepest penetration.
+
+    The law is sampled at SUBPOINTS points per RK4 step along each piece's curve (its
+    nodes among them), each with its share of the arc, and each point's load is lumped onto
+    the step's two nodes in proportion to where it lies between them (docs/design.md §9,
+    "Resolution")."""
     segs = grid[G_SEGS]
     sp = grid[G_SELF]
     k = sp[SC_K]
@@ -359,71 +501,47 @@ def self_loads(grid, pts, bounds, loads):
     loads[:, :, :] = 0.0
     deepest = 0.0
     n_seg = segs.shape[0]
+    stretch = _stretch_bound(rest)
+    clear = np.empty(segs[:, SEG_STEPS].max() + 1)
+    clear_end = math.inf  # the clearance of the previous piece's last node
     for seg in range(n_seg):
-        for j in range(0 if seg == 0 else 1, segs[seg, SEG_STEPS] + 1):
-            x = pts[seg, j, P_X]
-            y = pts[seg, j, P_Y]
-            s = pts[seg, j, P_S]
-            h_own = pts[seg, j, P_H]
+        n = segs[seg, SEG_STEPS]
+        for j in range(n + 1):
+            if j == 0 and seg > 0:  # the previous piece's last node: its law is applied there
+                clear[0] = clear_end
+                continue
             w = _weight(segs, pts, seg, j)
-            reach = h_own + largest
-            in_run = False
-            best_pen = 0.0
-            best_t = 0.0
-            best_seg = 0
-            best_j = 0
-            for other in range(n_seg + 1):
-                near = other < n_seg and bounds[other, B_R] >= 0.0 and math.hypot(
-                    x - bounds[other, B_X], y - bounds[other, B_Y]) - bounds[other, B_R] < reach
-                chords = segs[other, SEG_STEPS] if near else 1
-                for c in range(chords):
-                    pen = -1.0
-                    ux = uy = t = 0.0
-                    if near and abs(s - pts[other, c, P_S]) > exclusion \
-                            and abs(s - pts[other, c + 1, P_S]) > exclusion:
-                        pen, ux, uy, t = _nearest_on_chord(x, y, h_own, pts, other, c)
-                    if pen > 0.0 and (ux != 0.0 or uy != 0.0):
-                        if not in_run or pen > best_pen:
-                            best_pen, best_t = pen, t
-                            best_seg, best_j = other, c
-                        in_run = True
-                        continue
-                    if in_run:  # a run of chords within reach ends: one contact, the
-                        # nearest point of the curve, from the run's nearest chord's
-                        in_run = False
-                        n_b = segs[best_seg, SEG_STEPS]
-                        piece, tau = _project(x, y, bounds, segs, best_seg, (best_j + best_t) / n_b)
-                        p = _curve(bounds, piece, tau)
-                        dx = x - p[0]
-                        dy = y - p[1]
-                        dist = math.sqrt(dx * dx + dy * dy)
-                        n_p = segs[piece, SEG_STEPS]
-                        node = min(int(tau * n_p), n_p - 1)
-                        t = tau * n_p - node
-                        h_p = pts[piece, node, P_H] + t * (pts[piece, node + 1, P_H] - pts[piece, node, P_H])
-                        pen = h_own + h_p - dist
-                        if not (pen > 0.0 and dist > 0.0):
-                            continue
-                        ux = dx / dist
-                        uy = dy / dist
-                        f = w * (0.5 * k * pen * pen / ONSET if pen < ONSET
-                                 else k * (pen - 0.5 * ONSET))
-                        stiff = w * (k * pen / ONSET if pen < ONSET else k)
-                        _add(loads, segs, seg, j, 0.5 * f * ux, 0.5 * f * uy)
-                        _add(loads, segs, piece, node, -0.5 * f * (1.0 - t) * ux,
-                             -0.5 * f * (1.0 - t) * uy)
-                        _add(loads, segs, piece, node + 1, -0.5 * f * t * ux, -0.5 * f * t * uy)
-                        a, b = _slot(segs, seg, j)
-                        loads[a, b, SELF_PEN] = max(loads[a, b, SELF_PEN], pen)
-                        # The node's own law across the normal (∂pen/∂r = −ûᵀ), the other
-                        # part held fixed: for the stability test (docs/design.md §9).
-                        loads[a, b, SELF_K00] -= stiff * ux * ux
-                        loads[a, b, SELF_K01] -= stiff * ux * uy
-                        loads[a, b, SELF_K11] -= stiff * uy * uy
-                        deepest = max(deepest, pen)
-                        bounds[seg, B_TOUCH] = 1.0
-                        bounds[best_seg, B_TOUCH] = 1.0
-                        bounds[piece, B_TOUCH] = 1.0
+            # The step whose points follow this node's (the next piece's first), and the
+            # largest reach of a point on it.
+            if j < n:
+                ahead = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
+                after = max(pts[seg, j, P_H], pts[seg, j + 1, P_H]) + largest
+            elif seg + 1 < n_seg:
+                ahead = pts[seg + 1, 1, P_S] - pts[seg + 1, 0, P_S]
+                after = max(pts[seg + 1, 0, P_H], pts[seg + 1, 1, P_H]) + largest
+            else:
+                ahead = after = 0.0
+            pen, clear[j] = _contact_at(
+                pts[seg, j, P_X], pts[seg, j, P_Y], pts[seg, j, P_S], pts[seg, j, P_H],
+                w / SUBPOINTS, 0.0, seg, j, grid, pts, bounds, loads, pts[seg, j, P_H] + largest,
+                exclusion, k, ahead, after + stretch * ahead)
+            deepest = max(deepest, pen)
+        clear_end = clear[n]
+        for j in range(n):
+            step = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
+            # Every point of the step lies within stretch·step of its first node: where that
+            # node clears the other parts' chords by more than that and a point's reach, no
+            # point of the step is near one.
+            if clear[j] - stretch * step > max(pts[seg, j, P_H], pts[seg, j + 1, P_H]) + largest:
+                continue
+            for q in range(1, SUBPOINTS):
+                share = q / SUBPOINTS
+                h_own = pts[seg, j, P_H] + share * (pts[seg, j + 1, P_H] - pts[seg, j, P_H])
+                p = _curve(bounds, seg, (j + share) / n)
+                pen, _ = _contact_at(
+                    p[0], p[1], pts[seg, j, P_S] + share * step, h_own, step / SUBPOINTS, share,
+                    seg, j, grid, pts, bounds, loads, h_own + largest, exclusion, k, 0.0, 0.0)
+                deepest = max(deepest, pen)
     for seg in range(n_seg):
         for j in range(0 if seg == 0 else 1, segs[seg, SEG_STEPS] + 1):
             w = _weight(segs, pts, seg, j)

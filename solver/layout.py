@@ -68,16 +68,18 @@ G_THETA0, G_SEGS, G_SECF, G_STEPS, G_START, G_SELF = range(6)
 SC_K, SC_EXCLUSION, SC_HALF = range(3)
 
 # Self-contact, worked out from the shooting nodes at every residual: each segment's
-# backbone as a cubic Hermite curve sampled at its RK4 nodes, (M, segment steps + 1, 4)
-# points x, y, s (m) and half-thickness (m); per segment (M, 12) a bounding circle's centre
+# backbone as a quintic Hermite curve sampled at its RK4 nodes, (M, segment steps + 1, 4)
+# points x, y, s (m) and half-thickness (m); per segment (M, 16) a bounding circle's centre
 # x, y and radius (m; negative: not built), whether it is in contact (0 or 1), and the
-# curve's end points a, b and end tangents (per unit of the curve's parameter; m); and per
+# curve's end points a, b, end tangents and end second derivatives (per unit of the
+# curve's parameter; m); and per
 # RK4 node (M, segment steps + 1, 8) the point load the node carries (N), that load per
 # length (N/m), the node's penetration (m) and the load's stiffness ∂F/∂r (symmetric 2×2:
 # k00, k01, k11; N/m) with the other part held fixed.
 P_X, P_Y, P_S, P_H = range(4)
-B_X, B_Y, B_R, B_TOUCH, B_AX, B_AY, B_TAX, B_TAY, B_BX, B_BY, B_TBX, B_TBY = range(12)
-N_BOUNDS = 12
+(B_X, B_Y, B_R, B_TOUCH, B_AX, B_AY, B_TAX, B_TAY, B_BX, B_BY, B_TBX, B_TBY, B_CAX, B_CAY,
+ B_CBX, B_CBY) = range(16)
+N_BOUNDS = 16
 SELF_FX, SELF_FY, SELF_QX, SELF_QY, SELF_PEN, SELF_K00, SELF_K01, SELF_K11 = range(8)
 N_SELF = 8
 
