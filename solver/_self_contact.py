@@ -37,19 +37,7 @@ import numpy as np
 
 from solver.jit import njit
 from solver.layout import (
-    B_AX,
-    B_AY,
-    B_BX,
-    B_BY,
-    B_CAX,
-    B_CAY,
-    B_CBX,
-    B_CBY,
     B_R,
-    B_TAX,
-    B_TAY,
-    B_TBX,
-    B_TBY,
     B_TOUCH,
     B_X,
     B_Y,
@@ -62,12 +50,20 @@ from solver.layout import (
     G_START,
     G_STEPS,
     L_DISCS,
+    L_PLATE,
     L_Q,
     LEN,
+    P_CLEAR,
+    P_DXA,
+    P_DXB,
+    P_EXA,
+    P_EXB,
     P_H,
     P_S,
     P_X,
+    P_X0,
     P_Y,
+    P_Y0,
     REST_U2,
     REST_V3,
     SC_EXCLUSION,
@@ -111,22 +107,86 @@ def clear_pieces(bounds):
 
 
 @njit
-def _end_derivatives(z, ell, i, grid, rest, level):
-    """(ℓ·r', ℓ²·r'') of the backbone at the state ``z`` (6,) in section ``i``: the slope
-    from the constitutive law, its derivative along the arc from the state's rate
-    (:func:`solver.rod.planar_state_rhs`, with the section's distributed load and any
-    disc's force), both per unit of a curve parameter spanning the arc length ``ell``."""
+def moved_since(pts, segs):
+    """How far (m) the farthest node of the pieces ``pts`` is from where it was when the
+    nodes' clearances were last worked out (:func:`self_loads`); NaN if they never were."""
+    moved = 0.0
+    for seg in range(segs.shape[0]):
+        for j in range(segs[seg, SEG_STEPS] + 1):
+            move = math.hypot(pts[seg, j, P_X] - pts[seg, j, P_X0], pts[seg, j, P_Y] - pts[seg, j, P_Y0])
+            if not move < math.inf:
+                return math.nan
+            moved = max(moved, move)
+    return moved
+
+
+@njit
+def _derivatives(z, i, grid, rest, level, rate):
+    """(r'_x, r'_y, r''_x, r''_y) of the backbone at the state ``z`` (6,) in section ``i``
+    (per unit arc length): the slope from the constitutive law, its derivative along the arc
+    from the state's rate (:func:`solver.rod.planar_state_rhs`, with the section's
+    distributed load and any disc's force); ``rate`` (6,) scratch."""
     secf = grid[G_SECF]
     ca = secf[CA, i]
     cg = secf[CG, i]
     vr = rest[REST_V3, i]
-    rate = np.empty(6)
     planar_state_rhs(z, rate, ca, cg, secf[CI, i], rest[REST_U2, i], vr, level[L_Q][i, 0],
                      level[L_Q][i, 1], level[L_DISCS])
     a02, a03, a04, a12, a14, _, _, _ = planar_state_jacobian(z[2], z[3], z[4], ca, cg, vr)
-    ddx = a02 * rate[2] + a03 * rate[3] + a04 * rate[4]
-    ddy = a12 * rate[2] + a04 * rate[3] + a14 * rate[4]
-    return ell * rate[0], ell * rate[1], ell * ell * ddx, ell * ell * ddy
+    return (rate[0], rate[1], a02 * rate[2] + a03 * rate[3] + a04 * rate[4],
+            a12 * rate[2] + a04 * rate[3] + a14 * rate[4])
+
+
+@njit
+def _quintic(t):
+    """The quintic Hermite basis at t ∈ [0, 1] and its first and second derivatives, each
+    for the data (a, a', a'', b, b', b'') of the ends t = 0 and t = 1."""
+    t2 = t * t
+    t3 = t2 * t
+    t4 = t3 * t
+    t5 = t4 * t
+    c = (1.0 - 10.0 * t3 + 15.0 * t4 - 6.0 * t5, t - 6.0 * t3 + 8.0 * t4 - 3.0 * t5,
+         0.5 * (t2 - 3.0 * t3 + 3.0 * t4 - t5), 10.0 * t3 - 15.0 * t4 + 6.0 * t5,
+         -4.0 * t3 + 7.0 * t4 - 3.0 * t5, 0.5 * (t3 - 2.0 * t4 + t5))
+    d = (-30.0 * t2 + 60.0 * t3 - 30.0 * t4, 1.0 - 18.0 * t2 + 32.0 * t3 - 15.0 * t4,
+         0.5 * (2.0 * t - 9.0 * t2 + 12.0 * t3 - 5.0 * t4), 30.0 * t2 - 60.0 * t3 + 30.0 * t4,
+         -12.0 * t2 + 28.0 * t3 - 15.0 * t4, 0.5 * (3.0 * t2 - 8.0 * t3 + 5.0 * t4))
+    dd = (-60.0 * t + 180.0 * t2 - 120.0 * t3, -36.0 * t + 96.0 * t2 - 60.0 * t3,
+          0.5 * (2.0 - 18.0 * t + 36.0 * t2 - 20.0 * t3), 60.0 * t - 180.0 * t2 + 120.0 * t3,
+          -24.0 * t + 84.0 * t2 - 60.0 * t3, 0.5 * (6.0 * t - 24.0 * t2 + 20.0 * t3))
+    return c, d, dd
+
+
+@njit
+def _node_data(pts, seg, j, side, dx, dy, ex, ey):
+    """Set the slope (dx, dy) and its derivative (ex, ey) on one side of node j of piece
+    ``seg``: after it (``side`` 0), before it (1) or both (2)."""
+    for k in range(2):
+        if side == 2 or side == k:
+            col = P_DXA if k == 0 else P_DXB
+            pts[seg, j, col] = dx
+            pts[seg, j, col + 1] = dy
+            pts[seg, j, col + 2] = ex
+            pts[seg, j, col + 3] = ey
+
+
+@njit
+def _bound(seg, pts, bounds, n):
+    """The bounding circle of the nodes of piece ``seg`` (n steps) into ``bounds[seg]``."""
+    cx = 0.0
+    cy = 0.0
+    for j in range(n + 1):
+        cx += pts[seg, j, P_X]
+        cy += pts[seg, j, P_Y]
+    cx /= n + 1
+    cy /= n + 1
+    radius = 0.0
+    for j in range(n + 1):
+        radius = max(radius, math.hypot(pts[seg, j, P_X] - cx, pts[seg, j, P_Y] - cy))
+    bounds[seg, B_X] = cx
+    bounds[seg, B_Y] = cy
+    bounds[seg, B_R] = radius
+    bounds[seg, B_TOUCH] = 0.0
 
 
 @njit
@@ -134,8 +194,8 @@ def build_piece(za, zb, seg, grid, rest, level, pts, bounds):
     """The piece of segment ``seg`` from its start state ``za`` and end state ``zb`` (6,)
     (x, y, θ, n_x, n_y, m) at the level tuple ``level``: a quintic Hermite curve in the
     segment's arc length through their positions with their slopes r' and derivatives r''
-    (:func:`_end_derivatives`), sampled at its RK4 nodes into ``pts[seg]``, its bounding
-    circle into ``bounds[seg]``.
+    (:func:`_derivatives`), sampled at its RK4 nodes into ``pts[seg]`` (the same data on
+    both sides of a node), its bounding circle into ``bounds[seg]``.
 
     Half-thicknesses are the section's, except at a section junction, where the node takes
     the mean of both sections' (h varies linearly over the chords on either side, so the law
@@ -152,33 +212,96 @@ def build_piece(za, zb, seg, grid, rest, level, pts, bounds):
     h_start = 0.5 * (sp[SC_HALF + i - 1] + half) if segs[seg, SEG_FIRST] == 0 and i > 0 else half
     h_end = 0.5 * (half + sp[SC_HALF + i + 1]) \
         if segs[seg, SEG_END] == 1 and i < secf.shape[1] - 1 else half
-    bounds[seg, B_AX] = za[0]
-    bounds[seg, B_AY] = za[1]
-    bounds[seg, B_BX] = zb[0]
-    bounds[seg, B_BY] = zb[1]
-    (bounds[seg, B_TAX], bounds[seg, B_TAY], bounds[seg, B_CAX],
-     bounds[seg, B_CAY]) = _end_derivatives(za, ell, i, grid, rest, level)
-    (bounds[seg, B_TBX], bounds[seg, B_TBY], bounds[seg, B_CBX],
-     bounds[seg, B_CBY]) = _end_derivatives(zb, ell, i, grid, rest, level)
-    cx = 0.0
-    cy = 0.0
+    rate = np.empty(6)
+    dxa, dya, exa, eya = _derivatives(za, i, grid, rest, level, rate)
+    dxb, dyb, exb, eyb = _derivatives(zb, i, grid, rest, level, rate)
+    coef_x = (za[0], ell * dxa, ell * ell * exa, zb[0], ell * dxb, ell * ell * exb)
+    coef_y = (za[1], ell * dya, ell * ell * eya, zb[1], ell * dyb, ell * ell * eyb)
     for j in range(n + 1):
-        p = _curve(bounds, seg, j / n)
-        pts[seg, j, P_X] = p[0]
-        pts[seg, j, P_Y] = p[1]
+        c, d, dd = _quintic(j / n)
+        px = py = vx = vy = wx = wy = 0.0
+        for e in range(6):
+            px += c[e] * coef_x[e]
+            py += c[e] * coef_y[e]
+            vx += d[e] * coef_x[e]
+            vy += d[e] * coef_y[e]
+            wx += dd[e] * coef_x[e]
+            wy += dd[e] * coef_y[e]
+        pts[seg, j, P_X] = px
+        pts[seg, j, P_Y] = py
         pts[seg, j, P_S] = s0 + j * step
         pts[seg, j, P_H] = h_start if j == 0 else (h_end if j == n else half)
-        cx += p[0]
-        cy += p[1]
-    cx /= n + 1
-    cy /= n + 1
-    radius = 0.0
+        _node_data(pts, seg, j, 2, vx / ell, vy / ell, wx / (ell * ell), wy / (ell * ell))
+    _bound(seg, pts, bounds, n)
+
+
+@njit
+def trace_piece(seg, states, end, target, grid, rest, level, loads, pts, bounds):
+    """The piece of segment ``seg`` from the segment integrated with the self-contact loads
+    ``loads``: its RK4 nodes' states ``states`` (n + 1, ≥ 6) (x, y, θ, n_x, n_y, m), each
+    after its node's load (the base node: before it), the last one ``end`` (6,) — plus, where
+    the segment does not end at the tip, the quintic Hermite correction that takes the
+    integrated end (before its node's load) to the next segment's start ``target`` (6,)
+    (after the load and any endplate): positions, slopes and their derivatives. So the piece
+    meets the shooting nodes at both ends, and at a solution — where the integrated end is
+    the next start — it is the integrated backbone itself, with the shear and stretch kinks
+    of the point loads at its nodes. Slopes and their derivatives are kept on both sides of
+    each node (:func:`_node_data`); half-thicknesses as :func:`build_piece` set them."""
+    segs = grid[G_SEGS]
+    i = segs[seg, SEG_SECTION]
+    n = segs[seg, SEG_STEPS]
+    ell = pts[seg, n, P_S] - pts[seg, 0, P_S]
+    z = np.empty(6)
+    rate = np.empty(6)
+    mismatch = np.zeros(6)
     for j in range(n + 1):
-        radius = max(radius, math.hypot(pts[seg, j, P_X] - cx, pts[seg, j, P_Y] - cy))
-    bounds[seg, B_X] = cx
-    bounds[seg, B_Y] = cy
-    bounds[seg, B_R] = radius
-    bounds[seg, B_TOUCH] = 0.0
+        for d in range(6):
+            z[d] = end[d] if j == n else states[j, d]
+        a, b = _slot(segs, seg, j)
+        fx = loads[a, b, SELF_FX]
+        fy = loads[a, b, SELF_FY]
+        if seg == 0 and j == 0:  # recorded before the base node's load, which is the clamp's
+            z[3] -= fx
+            z[4] -= fy
+        pts[seg, j, P_X] = z[0]
+        pts[seg, j, P_Y] = z[1]
+        dx, dy, ex, ey = _derivatives(z, i, grid, rest, level, rate)
+        _node_data(pts, seg, j, 2 if fx == 0.0 and fy == 0.0 else 0, dx, dy, ex, ey)
+        if fx != 0.0 or fy != 0.0:
+            z[3] += fx  # before the node's load
+            z[4] += fy
+            dx, dy, ex, ey = _derivatives(z, i, grid, rest, level, rate)
+            _node_data(pts, seg, j, 1, dx, dy, ex, ey)
+    if seg < segs.shape[0] - 1:
+        for d in range(6):
+            z[d] = target[d]
+        a, b = _slot(segs, seg, n)
+        z[3] += loads[a, b, SELF_FX]
+        z[4] += loads[a, b, SELF_FY]
+        if segs[seg, SEG_END] == 1:
+            z[3] += level[L_PLATE][i, 0]
+            z[4] += level[L_PLATE][i, 1]
+        dx, dy, ex, ey = _derivatives(z, i, grid, rest, level, rate)
+        mismatch[0] = z[0] - pts[seg, n, P_X]
+        mismatch[1] = z[1] - pts[seg, n, P_Y]
+        mismatch[2] = ell * (dx - pts[seg, n, P_DXB])
+        mismatch[3] = ell * (dy - pts[seg, n, P_DXB + 1])
+        mismatch[4] = ell * ell * (ex - pts[seg, n, P_EXB])
+        mismatch[5] = ell * ell * (ey - pts[seg, n, P_EXB + 1])
+    for j in range(1, n + 1):
+        c, d, dd = _quintic(j / n)
+        for axis in range(2):
+            pts[seg, j, P_X + axis] += c[3] * mismatch[axis] + c[4] * mismatch[2 + axis] \
+                + c[5] * mismatch[4 + axis]
+            slope = (d[3] * mismatch[axis] + d[4] * mismatch[2 + axis]
+                     + d[5] * mismatch[4 + axis]) / ell
+            turn = (dd[3] * mismatch[axis] + dd[4] * mismatch[2 + axis]
+                    + dd[5] * mismatch[4 + axis]) / (ell * ell)
+            pts[seg, j, P_DXA + axis] += slope
+            pts[seg, j, P_DXB + axis] += slope
+            pts[seg, j, P_EXA + axis] += turn
+            pts[seg, j, P_EXB + axis] += turn
+    _bound(seg, pts, bounds, n)
 
 
 @njit
@@ -303,40 +426,38 @@ def _nearest_on_chord(x, y, h_own, pts, seg, j):
 
 
 @njit
-def _curve(bounds, seg, t):
-    """Point, first and second derivative (in the parameter t ∈ [0, 1]) of piece ``seg``'s
-    quintic Hermite curve: (x, y, dx, dy, ddx, ddy)."""
-    t2 = t * t
-    t3 = t2 * t
-    t4 = t3 * t
-    t5 = t4 * t
-    # Basis for (a, ta, ca, b, tb, cb), its first and second derivatives.
-    c = (1.0 - 10.0 * t3 + 15.0 * t4 - 6.0 * t5, t - 6.0 * t3 + 8.0 * t4 - 3.0 * t5,
-         0.5 * (t2 - 3.0 * t3 + 3.0 * t4 - t5), 10.0 * t3 - 15.0 * t4 + 6.0 * t5,
-         -4.0 * t3 + 7.0 * t4 - 3.0 * t5, 0.5 * (t3 - 2.0 * t4 + t5))
-    d = (-30.0 * t2 + 60.0 * t3 - 30.0 * t4, 1.0 - 18.0 * t2 + 32.0 * t3 - 15.0 * t4,
-         0.5 * (2.0 * t - 9.0 * t2 + 12.0 * t3 - 5.0 * t4), 30.0 * t2 - 60.0 * t3 + 30.0 * t4,
-         -12.0 * t2 + 28.0 * t3 - 15.0 * t4, 0.5 * (3.0 * t2 - 8.0 * t3 + 5.0 * t4))
-    dd = (-60.0 * t + 180.0 * t2 - 120.0 * t3, -36.0 * t + 96.0 * t2 - 60.0 * t3,
-          0.5 * (2.0 - 18.0 * t + 36.0 * t2 - 20.0 * t3), 60.0 * t - 180.0 * t2 + 120.0 * t3,
-          -24.0 * t + 84.0 * t2 - 60.0 * t3, 0.5 * (6.0 * t - 24.0 * t2 + 20.0 * t3))
-    out = np.empty(6)
-    for axis in range(2):
-        coef = (bounds[seg, B_AX + axis], bounds[seg, B_TAX + axis], bounds[seg, B_CAX + axis],
-                bounds[seg, B_BX + axis], bounds[seg, B_TBX + axis], bounds[seg, B_CBX + axis])
-        p = dp = ddp = 0.0
-        for e in range(6):
-            p += c[e] * coef[e]
-            dp += d[e] * coef[e]
-            ddp += dd[e] * coef[e]
-        out[axis] = p
-        out[2 + axis] = dp
-        out[4 + axis] = ddp
-    return out
+def _curve(pts, segs, seg, t):
+    """Point, first and second derivative (in the parameter t ∈ [0, 1] of piece ``seg``,
+    spanning its arc) of the piece's backbone: on each RK4 step the quintic Hermite curve
+    through the step's end nodes, their slopes and derivatives on the step's side
+    (x, y, dx, dy, ddx, ddy)."""
+    n = segs[seg, SEG_STEPS]
+    j = min(int(t * n), n - 1)
+    step = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
+    c, d, dd = _quintic(t * n - j)
+    x, dx, ddx = _hermite(c, d, dd, pts, seg, j, 0, step)
+    y, dy, ddy = _hermite(c, d, dd, pts, seg, j, 1, step)
+    return x, y, n * dx, n * dy, n * n * ddx, n * n * ddy
+
+
+@njit(inline="always")
+def _hermite(c, d, dd, pts, seg, j, axis, step):
+    """The coordinate ``axis`` of the quintic Hermite curve of step j of piece ``seg`` and
+    its first and second derivatives per unit of the step's parameter, from the basis
+    (:func:`_quintic`) at that parameter."""
+    a = pts[seg, j, P_X + axis]
+    ta = step * pts[seg, j, P_DXA + axis]
+    ca = step * step * pts[seg, j, P_EXA + axis]
+    b = pts[seg, j + 1, P_X + axis]
+    tb = step * pts[seg, j + 1, P_DXB + axis]
+    cb = step * step * pts[seg, j + 1, P_EXB + axis]
+    return (c[0] * a + c[1] * ta + c[2] * ca + c[3] * b + c[4] * tb + c[5] * cb,
+            d[0] * a + d[1] * ta + d[2] * ca + d[3] * b + d[4] * tb + d[5] * cb,
+            dd[0] * a + dd[1] * ta + dd[2] * ca + dd[3] * b + dd[4] * tb + dd[5] * cb)
 
 
 @njit
-def _project(x, y, bounds, segs, seg, t):
+def _project(x, y, pts, bounds, segs, seg, t):
     """The point of the backbone's Hermite curves nearest (x, y), by Newton on the parameter
     from piece ``seg`` at ``t`` (a chord's nearest point), moving on to the neighbouring
     piece where it leaves this one and stopping at the arm's ends: (seg, t). The nearest
@@ -344,7 +465,7 @@ def _project(x, y, bounds, segs, seg, t):
     point moves — a polyline's jumps where the nearest chord changes on a concave side."""
     n_seg = bounds.shape[0]
     for _ in range(12):
-        p = _curve(bounds, seg, t)
+        p = _curve(pts, segs, seg, t)
         rx = p[0] - x
         ry = p[1] - y
         g = rx * p[2] + ry * p[3]
@@ -379,7 +500,7 @@ def _add(loads, segs, seg, j, fx, fy):
 
 @njit
 def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reach, exclusion, k,
-                ahead, wide):
+                behind, ahead, wide):
     """Apply the law to the point (x, y) at arc length ``s`` with half-thickness ``h_own``
     and arc share ``w`` (m), a fraction ``share`` of the way from node j of piece ``seg`` to
     node j + 1: every contact it makes (a run of consecutive chords of another part within
@@ -389,8 +510,9 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
 
     Returns (the deepest penetration, the point's clearance): a lower bound on its distance
     (m) to the chords that are not within ``exclusion`` of every arc length in
-    [s, s + ``ahead``] — the distance to each such chord of a piece whose bounding circle
-    comes within ``wide`` of the point, else to the circle; infinite where there is none."""
+    [s − ``behind``, s + ``ahead``] — the distance to each such chord of a piece whose
+    bounding circle comes within ``wide`` of the point, else to the circle; infinite where
+    there is none."""
     segs = grid[G_SEGS]
     n_seg = segs.shape[0]
     deepest = 0.0
@@ -404,13 +526,22 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
         near = False
         scan = False
         if other < n_seg and bounds[other, B_R] >= 0.0:
-            gap = math.hypot(x - bounds[other, B_X], y - bounds[other, B_Y]) - bounds[other, B_R]
-            near = gap < reach
-            if pts[other, 0, P_S] < s + ahead - exclusion \
-                    or pts[other, segs[other, SEG_STEPS], P_S] > s + exclusion:
-                scan = gap < wide
-                if not scan:
-                    clearance = min(clearance, gap)
+            s_lo = pts[other, 0, P_S]
+            s_hi = pts[other, segs[other, SEG_STEPS], P_S]
+            relevant = s_lo < s + ahead - exclusion or s_hi > s - behind + exclusion
+            # A piece wholly within the exclusion (of the point itself) has no chord the
+            # law may use, and needs no look unless the clearance asks for it.
+            if relevant or s_lo < s - exclusion or s_hi > s + exclusion:
+                dx = x - bounds[other, B_X]
+                dy = y - bounds[other, B_Y]
+                d2 = dx * dx + dy * dy
+                far = bounds[other, B_R] + reach
+                near = d2 < far * far
+                if relevant and wide > 0.0:
+                    gap = math.sqrt(d2) - bounds[other, B_R]
+                    scan = gap < wide
+                    if not scan:
+                        clearance = min(clearance, gap)
         chords = segs[other, SEG_STEPS] if near or scan else 1
         for c in range(chords):
             pen = -1.0
@@ -421,8 +552,8 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
                 dist = math.inf
                 if near and abs(s - s_a) > exclusion and abs(s - s_b) > exclusion:
                     pen, ux, uy, t, dist = _nearest_on_chord(x, y, h_own, pts, other, c)
-                if scan and not (s + ahead - exclusion <= s_a <= s + exclusion
-                                 or s + ahead - exclusion <= s_b <= s + exclusion):
+                if scan and not (s + ahead - exclusion <= s_a <= s - behind + exclusion
+                                 or s + ahead - exclusion <= s_b <= s - behind + exclusion):
                     if dist == math.inf:
                         dist = _nearest_on_chord(x, y, h_own, pts, other, c)[4]
                     clearance = min(clearance, dist)
@@ -438,8 +569,8 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
             # curve, from the run's nearest chord's.
             in_run = False
             n_b = segs[best_seg, SEG_STEPS]
-            piece, tau = _project(x, y, bounds, segs, best_seg, (best_j + best_t) / n_b)
-            p = _curve(bounds, piece, tau)
+            piece, tau = _project(x, y, pts, bounds, segs, best_seg, (best_j + best_t) / n_b)
+            p = _curve(pts, segs, piece, tau)
             dx = x - p[0]
             dy = y - p[1]
             dist = math.sqrt(dx * dx + dy * dy)
@@ -481,7 +612,7 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
 
 
 @njit
-def self_loads(grid, rest, pts, bounds, loads):
+def self_loads(grid, rest, pts, bounds, loads, moved):
     """The self-contact point loads of the pieces ``pts`` (see the module docstring) into
     ``loads`` (M, segment steps + 1, N_SELF), at each node's canonical slot: SELF_FX, SELF_FY
     the point load (N), SELF_QX, SELF_QY that load per length of the node's share of the arc
@@ -492,7 +623,14 @@ def self_loads(grid, rest, pts, bounds, loads):
     The law is sampled at SUBPOINTS points per RK4 step along each piece's curve (its
     nodes among them), each with its share of the arc, and each point's load is lumped onto
     the step's two nodes in proportion to where it lies between them (docs/design.md §9,
-    "Resolution")."""
+    "Resolution"). Only points that may touch another part are worked out: a node's
+    clearance (P_CLEAR) bounds from below its distance to the chords of the other parts
+    over the steps either side of it, so a point of a step farther from either end node
+    than that node's clearance less the point's reach is skipped (an exact test: the chords
+    find every contact). ``moved`` < 0 or NaN: the clearances are worked out (and where the
+    nodes were, P_X0 and P_Y0); else they are those of pieces that have since moved by at
+    most ``moved`` (m) at any node (:func:`moved_since`), and count 2·``moved`` less, for
+    the point's and the other part's moves."""
     segs = grid[G_SEGS]
     sp = grid[G_SELF]
     k = sp[SC_K]
@@ -502,45 +640,62 @@ def self_loads(grid, rest, pts, bounds, loads):
     deepest = 0.0
     n_seg = segs.shape[0]
     stretch = _stretch_bound(rest)
-    clear = np.empty(segs[:, SEG_STEPS].max() + 1)
-    clear_end = math.inf  # the clearance of the previous piece's last node
+    fresh = not moved >= 0.0
+    slack = 0.0 if fresh else 2.0 * moved
     for seg in range(n_seg):
         n = segs[seg, SEG_STEPS]
-        for j in range(n + 1):
-            if j == 0 and seg > 0:  # the previous piece's last node: its law is applied there
-                clear[0] = clear_end
+        for j in range(0 if seg == 0 else 1, n + 1):
+            reach = pts[seg, j, P_H] + largest
+            if not fresh and pts[seg, j, P_CLEAR] - slack > reach:
                 continue
-            w = _weight(segs, pts, seg, j)
-            # The step whose points follow this node's (the next piece's first), and the
-            # largest reach of a point on it.
-            if j < n:
-                ahead = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
-                after = max(pts[seg, j, P_H], pts[seg, j + 1, P_H]) + largest
-            elif seg + 1 < n_seg:
-                ahead = pts[seg + 1, 1, P_S] - pts[seg + 1, 0, P_S]
-                after = max(pts[seg + 1, 0, P_H], pts[seg + 1, 1, P_H]) + largest
-            else:
-                ahead = after = 0.0
-            pen, clear[j] = _contact_at(
+            behind = ahead = wide = 0.0
+            if fresh:
+                # The steps either side of the node (the next piece's first after its last)
+                # and the farthest a point on them may be from it, with that point's reach.
+                if j > 0:
+                    behind = pts[seg, j, P_S] - pts[seg, j - 1, P_S]
+                if j < n:
+                    ahead = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
+                elif seg + 1 < n_seg:
+                    ahead = pts[seg + 1, 1, P_S] - pts[seg + 1, 0, P_S]
+                wide = 2.0 * largest + stretch * max(behind, ahead)
+            pen, clear = _contact_at(
                 pts[seg, j, P_X], pts[seg, j, P_Y], pts[seg, j, P_S], pts[seg, j, P_H],
-                w / SUBPOINTS, 0.0, seg, j, grid, pts, bounds, loads, pts[seg, j, P_H] + largest,
-                exclusion, k, ahead, after + stretch * ahead)
+                _weight(segs, pts, seg, j) / SUBPOINTS, 0.0, seg, j, grid, pts, bounds, loads,
+                reach, exclusion, k, behind, ahead, wide)
             deepest = max(deepest, pen)
-        clear_end = clear[n]
+            if fresh:
+                pts[seg, j, P_CLEAR] = clear
+                if j == n and seg + 1 < n_seg:
+                    pts[seg + 1, 0, P_CLEAR] = clear
+    if fresh:
+        for seg in range(n_seg):
+            for j in range(segs[seg, SEG_STEPS] + 1):
+                pts[seg, j, P_X0] = pts[seg, j, P_X]
+                pts[seg, j, P_Y0] = pts[seg, j, P_Y]
+    for seg in range(n_seg):
+        n = segs[seg, SEG_STEPS]
         for j in range(n):
             step = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
-            # Every point of the step lies within stretch·step of its first node: where that
-            # node clears the other parts' chords by more than that and a point's reach, no
-            # point of the step is near one.
-            if clear[j] - stretch * step > max(pts[seg, j, P_H], pts[seg, j + 1, P_H]) + largest:
+            clear_a = pts[seg, j, P_CLEAR] - slack
+            clear_b = pts[seg, j + 1, P_CLEAR] - slack
+            # A point a share σ of the way is within stretch·step·σ of the first node and
+            # stretch·step·(1 − σ) of the second: no point of the step is nearer the other
+            # parts than the mean clearance less stretch·step/2.
+            if 0.5 * (clear_a + clear_b - stretch * step) \
+                    > max(pts[seg, j, P_H], pts[seg, j + 1, P_H]) + largest:
                 continue
             for q in range(1, SUBPOINTS):
                 share = q / SUBPOINTS
                 h_own = pts[seg, j, P_H] + share * (pts[seg, j + 1, P_H] - pts[seg, j, P_H])
-                p = _curve(bounds, seg, (j + share) / n)
+                x, y, _, _, _, _ = _curve(pts, segs, seg, (j + share) / n)
+                if max(clear_a - math.hypot(x - pts[seg, j, P_X], y - pts[seg, j, P_Y]),
+                       clear_b - math.hypot(x - pts[seg, j + 1, P_X], y - pts[seg, j + 1, P_Y])) \
+                        > h_own + largest:
+                    continue
                 pen, _ = _contact_at(
-                    p[0], p[1], pts[seg, j, P_S] + share * step, h_own, step / SUBPOINTS, share,
-                    seg, j, grid, pts, bounds, loads, h_own + largest, exclusion, k, 0.0, 0.0)
+                    x, y, pts[seg, j, P_S] + share * step, h_own, step / SUBPOINTS, share, seg, j,
+                    grid, pts, bounds, loads, h_own + largest, exclusion, k, 0.0, 0.0, 0.0)
                 deepest = max(deepest, pen)
     for seg in range(n_seg):
         for j in range(0 if seg == 0 else 1, segs[seg, SEG_STEPS] + 1):
