@@ -35,6 +35,7 @@ import math
 
 import numpy as np
 
+from solver._obstacles import hermite_point, hull_circle
 from solver.jit import njit
 from solver.layout import (
     B_R,
@@ -702,4 +703,85 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
             w = _weight(segs, pts, seg, j)
             loads[seg, j, SELF_QX] = loads[seg, j, SELF_FX] / w
             loads[seg, j, SELF_QY] = loads[seg, j, SELF_FY] / w
+    return deepest
+
+
+@njit
+def _nearest_on_interval(x, y, positions, slopes, k, ds, t):
+    """The parameter (t ∈ [0, 1]) of the point of the cubic Hermite curve between samples k
+    and k + 1 nearest (x, y), by Newton on |r(t) − (x, y)|² from ``t``, kept in [0, 1]."""
+    for _ in range(30):
+        px, dx, ddx = hermite_point(positions, slopes, k, ds, t, 0)
+        py, dy, ddy = hermite_point(positions, slopes, k, ds, t, 1)
+        slope = (px - x) * dx + (py - y) * dy
+        curve = dx * dx + dy * dy + (px - x) * ddx + (py - y) * ddy
+        if not curve > 0.0:
+            break
+        t_new = min(1.0, max(0.0, t - slope / curve))
+        if abs(t_new - t) < 1e-15:
+            break
+        t = t_new
+    return t
+
+
+@njit
+def peak_overlap(positions, slopes, s, half, exclusion):
+    """The deepest overlap (m, ≥ 0) of a planar backbone with itself anywhere along it, not
+    only at its samples: the largest h(a) + h(b) − |r(a) − r(b)| over points a, b farther
+    apart along the arc than ``exclusion`` (m), h the half-thickness.
+
+    Between consecutive samples (positions (N, 2), slopes r' (N, 2) per unit arc, arc
+    lengths ``s`` (N,), half-thicknesses ``half`` (N,); samples repeated at a junction are
+    skipped) the backbone is the cubic Hermite curve through their positions with their
+    slopes, h linear. For each pair of intervals whose control-point balls come within reach,
+    from the nearest of a 5 × 5 grid of point pairs, each point is moved in turn to the
+    nearest point of the other's curve (Newton) until the pair stops moving."""
+    deepest = 0.0
+    n = s.shape[0]
+    largest = 0.0
+    for k in range(n):
+        largest = max(largest, half[k])
+    for a in range(n - 1):
+        ds_a = s[a + 1] - s[a]
+        if not ds_a > 0.0:
+            continue
+        centre_a, radius_a = hull_circle(positions, slopes, a, ds_a)
+        for b in range(a + 1, n - 1):
+            ds_b = s[b + 1] - s[b]
+            if not ds_b > 0.0 or s[b] - s[a + 1] <= exclusion:
+                continue
+            centre_b, radius_b = hull_circle(positions, slopes, b, ds_b)
+            if math.hypot(centre_a[0] - centre_b[0], centre_a[1] - centre_b[1]) \
+                    - radius_a - radius_b >= 2.0 * largest:
+                continue
+            best = math.inf  # the nearest pair of the grid, where the search starts
+            t1 = t2 = 0.0
+            for p in range(5):
+                xa = hermite_point(positions, slopes, a, ds_a, p / 4.0, 0)[0]
+                ya = hermite_point(positions, slopes, a, ds_a, p / 4.0, 1)[0]
+                for q in range(5):
+                    gap = math.hypot(xa - hermite_point(positions, slopes, b, ds_b, q / 4.0, 0)[0],
+                                     ya - hermite_point(positions, slopes, b, ds_b, q / 4.0, 1)[0])
+                    if gap < best:
+                        best = gap
+                        t1 = p / 4.0
+                        t2 = q / 4.0
+            for _ in range(50):
+                xa = hermite_point(positions, slopes, a, ds_a, t1, 0)[0]
+                ya = hermite_point(positions, slopes, a, ds_a, t1, 1)[0]
+                t2_new = _nearest_on_interval(xa, ya, positions, slopes, b, ds_b, t2)
+                xb = hermite_point(positions, slopes, b, ds_b, t2_new, 0)[0]
+                yb = hermite_point(positions, slopes, b, ds_b, t2_new, 1)[0]
+                t1_new = _nearest_on_interval(xb, yb, positions, slopes, a, ds_a, t1)
+                done = abs(t1_new - t1) < 1e-13 and abs(t2_new - t2) < 1e-13
+                t1 = t1_new
+                t2 = t2_new
+                if done:
+                    break
+            xa = hermite_point(positions, slopes, a, ds_a, t1, 0)[0]
+            ya = hermite_point(positions, slopes, a, ds_a, t1, 1)[0]
+            xb = hermite_point(positions, slopes, b, ds_b, t2, 0)[0]
+            yb = hermite_point(positions, slopes, b, ds_b, t2, 1)[0]
+            reach = half[a] + t1 * (half[a + 1] - half[a]) + half[b] + t2 * (half[b + 1] - half[b])
+            deepest = max(deepest, reach - math.hypot(xa - xb, ya - yb))
     return deepest
