@@ -43,7 +43,7 @@ def _steps(checkpoint: Path | None) -> int:
     return 0 if checkpoint is None else json.loads(sidecar_paths(checkpoint)[0].read_text())["timesteps_done"]
 
 
-def _check_folder(run: Path) -> int:
+def check_folder(run: Path) -> int:
     """Load every complete checkpoint, the best model and the evaluations; return how many failed."""
     bad = 0
     models = [p.with_suffix(".zip") for p in (run / "checkpoints").glob("model_*_steps.json")]
@@ -109,12 +109,12 @@ def drill(cycles: int = 20, timesteps: int = 20_000, seed: int = 0,
             tally["sigkill"] += 1
             # A killed session keeps what it checkpointed; it loses at most the 100 steps since.
             tally["steps_kept_by_killed_sessions"].append(_steps(after) - before)
-        tally["unloadable_files"] += _check_folder(run)
+        tally["unloadable_files"] += check_folder(run)
     done = subprocess.run([*train, "--resume", str(run)], capture_output=True, text=True, timeout=3600)
     if done.returncode != 0:
         raise RuntimeError(f"the last session failed: {done.stderr[-500:]}")
     tally["final_timesteps"] = json.loads((run / "summary.json").read_text())["timesteps_done"]
-    tally["unloadable_files"] += _check_folder(run)
+    tally["unloadable_files"] += check_folder(run)
     tally["workdir"] = str(workdir)
     return tally
 

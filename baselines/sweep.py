@@ -74,7 +74,7 @@ from baselines.config import (
     make_env,
     split_hyperparams,
 )
-from baselines.train import CONFIG_FILE, _check_counts, latest_checkpoint, resume, train
+from baselines.train import CONFIG_FILE, check_counts, latest_checkpoint, resume, train
 from softarm_gym.files import write_json
 from softarm_gym.jobs import (
     BACKENDS,
@@ -475,18 +475,12 @@ def _intro(runs: list[RunSpec], states: dict, runs_dir: Path, results_file: Path
     return lines + [""]
 
 
-def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "local",
-          address: str | None = None, cpus_per_run: int = 1, retries: int = DEFAULT_RETRIES,
-          resume: bool = False,
-          evaluate: str = "main", evaluate_episodes: int | None = None,
-          results_dir: Path | str | None = None, results_file: Path | str | None = None,
-          eval_freq: int = 10_000, eval_episodes: int = 20, checkpoint_freq: int = DEFAULT_CHECKPOINT_FREQ,
-          save_replay_buffer: bool = False, progress: bool = True, command: str | None = None) -> SweepResult:
-    """Train every run of ``runs`` (:func:`plan_runs`), evaluate them and write the results
-    document (module docstring).
+@dataclass(frozen=True)
+class SweepConfig:
+    """How a sweep runs (every argument of :func:`sweep` but the plan), checked in
+    ``__post_init__``; ``out``, ``results_dir`` and ``results_file`` resolved to absolute paths.
 
-    Args:
-        runs: the plan.
+    Attributes:
         out: output folder (runs, results, ``RESULTS.md``, ``sweep.json``).
         backend: ``"local"`` or ``"ray"``.
         address: Ray cluster (``"auto"``, ``"HOST:PORT"``); None: the Ray session this process
@@ -504,6 +498,75 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
             :func:`baselines.train.train`, for every run.
         progress: progress bars on stderr.
         command: the command line, quoted in the results document.
+    """
+
+    out: Path | str = "sweep"
+    backend: str = "local"
+    address: str | None = None
+    cpus_per_run: int = 1
+    retries: int = DEFAULT_RETRIES
+    resume: bool = False
+    evaluate: str = "main"
+    evaluate_episodes: int | None = None
+    results_dir: Path | str | None = None
+    results_file: Path | str | None = None
+    eval_freq: int = 10_000
+    eval_episodes: int = 20
+    checkpoint_freq: int = DEFAULT_CHECKPOINT_FREQ
+    save_replay_buffer: bool = False
+    progress: bool = True
+    command: str | None = None
+
+    def __post_init__(self):
+        if self.backend not in BACKENDS:
+            raise ValueError(f"unknown backend {self.backend!r}; choose one of {', '.join(BACKENDS)}")
+        if self.backend == "local" and self.address is not None:
+            raise ValueError("a Ray address was given but the backend is 'local'; use --backend ray")
+        if self.evaluate not in EVALUATE:
+            raise ValueError(f"evaluate must be one of {', '.join(EVALUATE)}; got {self.evaluate!r}")
+        for name, value, low in (("cpus_per_run", self.cpus_per_run, 1), ("retries", self.retries, 0)):
+            if isinstance(value, bool) or int(value) != value or value < low:
+                raise ValueError(f"{name} must be an integer >= {low}; got {value!r}")
+        episodes = self.evaluate_episodes
+        if episodes is not None and (int(episodes) != episodes or episodes < 1):
+            raise ValueError(f"evaluate_episodes must be an integer >= 1; got {episodes!r}")
+        check_counts(self.eval_freq, self.checkpoint_freq, self.cpus_per_run)
+        if self.eval_episodes < 1:
+            raise ValueError(f"eval_episodes must be >= 1; got {self.eval_episodes}")
+        out = Path(self.out).resolve()
+        object.__setattr__(self, "out", out)
+        object.__setattr__(self, "results_dir", out / "results" if self.results_dir is None
+                           else Path(self.results_dir).resolve())
+        object.__setattr__(self, "results_file", out / "RESULTS.md" if self.results_file is None
+                           else Path(self.results_file).resolve())
+
+    @property
+    def runs_dir(self) -> Path:
+        """Where the runs are trained."""
+        return self.out / RUNS_DIR
+
+    def run_settings(self) -> dict:
+        """The training settings every run gets (:func:`train_run`)."""
+        return {"eval_freq": self.eval_freq, "eval_episodes": self.eval_episodes,
+                "checkpoint_freq": self.checkpoint_freq, "save_replay_buffer": self.save_replay_buffer,
+                "threads": int(self.cpus_per_run)}
+
+
+def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "local",
+          address: str | None = None, cpus_per_run: int = 1, retries: int = DEFAULT_RETRIES,
+          resume: bool = False,
+          evaluate: str = "main", evaluate_episodes: int | None = None,
+          results_dir: Path | str | None = None, results_file: Path | str | None = None,
+          eval_freq: int = 10_000, eval_episodes: int = 20, checkpoint_freq: int = DEFAULT_CHECKPOINT_FREQ,
+          save_replay_buffer: bool = False, progress: bool = True, command: str | None = None) -> SweepResult:
+    """Train every run of ``runs`` (:func:`plan_runs`), evaluate them and write the results
+    document (module docstring).
+
+    Args:
+        runs: the plan.
+        out, backend, address, cpus_per_run, retries, resume, evaluate, evaluate_episodes,
+            results_dir, results_file, eval_freq, eval_episodes, checkpoint_freq,
+            save_replay_buffer, progress, command: the :class:`SweepConfig`.
 
     Returns:
         The state of every run, the evaluation cells that failed, the results file.
@@ -514,37 +577,30 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
             code or cannot see ``out``), one line saying what is kept.
         Interrupted: Ctrl-C (also a ``KeyboardInterrupt``); finished runs and checkpoints are kept.
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
-    if backend == "local" and address is not None:
-        raise ValueError("a Ray address was given but the backend is 'local'; use --backend ray")
-    if evaluate not in EVALUATE:
-        raise ValueError(f"evaluate must be one of {', '.join(EVALUATE)}; got {evaluate!r}")
-    for name, value, low in (("cpus_per_run", cpus_per_run, 1), ("retries", retries, 0)):
-        if isinstance(value, bool) or int(value) != value or value < low:
-            raise ValueError(f"{name} must be an integer >= {low}; got {value!r}")
-    if evaluate_episodes is not None and (int(evaluate_episodes) != evaluate_episodes
-                                          or evaluate_episodes < 1):
-        raise ValueError(f"evaluate_episodes must be an integer >= 1; got {evaluate_episodes!r}")
-    _check_counts(eval_freq, checkpoint_freq, cpus_per_run)
-    if eval_episodes < 1:
-        raise ValueError(f"eval_episodes must be >= 1; got {eval_episodes}")
+    config = SweepConfig(
+        out=out, backend=backend, address=address, cpus_per_run=cpus_per_run, retries=retries,
+        resume=resume, evaluate=evaluate, evaluate_episodes=evaluate_episodes,
+        results_dir=results_dir, results_file=results_file, eval_freq=eval_freq,
+        eval_episodes=eval_episodes, checkpoint_freq=checkpoint_freq,
+        save_replay_buffer=save_replay_buffer, progress=progress, command=command)
+    return run_sweep(runs, config)
+
+
+def run_sweep(runs: list[RunSpec], config: SweepConfig) -> SweepResult:
+    """:func:`sweep` of a checked :class:`SweepConfig`: train the runs, collect and evaluate
+    them, write the results document."""
     names = [spec.name for spec in runs]
     if len(set(names)) != len(names):
         raise ValueError("the plan names a run twice")
-    out = Path(out).resolve()
-    runs_dir = out / RUNS_DIR
-    results_dir = out / "results" if results_dir is None else Path(results_dir).resolve()
-    results_file = out / "RESULTS.md" if results_file is None else Path(results_file).resolve()
+    out, runs_dir, results_dir = config.out, config.runs_dir, config.results_dir
     try:
         for folder in (runs_dir, results_dir):
             folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"cannot create {folder}: {exc.strerror or exc}") from None
-    _existing(runs, runs_dir, resume)
+    _existing(runs, runs_dir, config.resume)
 
-    settings = {"eval_freq": eval_freq, "eval_episodes": eval_episodes, "checkpoint_freq": checkpoint_freq,
-                "save_replay_buffer": save_replay_buffer, "threads": int(cpus_per_run)}
+    settings = config.run_settings()
     sweep_id, fingerprint = uuid.uuid4().hex, code_fingerprint(PACKAGES)
     states = {}
     for spec in runs:
@@ -554,8 +610,9 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
 
     def record() -> None:
         write_json(out / PLAN_FILE, {
-            "id": sweep_id, "command": command, "backend": backend, "address": address,
-            "cpus_per_run": cpus_per_run, "retries": retries, "evaluate": evaluate, "settings": settings,
+            "id": sweep_id, "command": config.command, "backend": config.backend,
+            "address": config.address, "cpus_per_run": config.cpus_per_run,
+            "retries": config.retries, "evaluate": config.evaluate, "settings": settings,
             "runs": [{"name": s.name, "env_id": s.env_id, "algo": s.algo, "seed": s.seed,
                       "observation": s.observation, "timesteps": s.timesteps, **states[s.name]}
                      for s in runs]})
@@ -570,7 +627,7 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
         """Each attempted run's state from its folder and its attempts; saved to ``sweep.json``."""
         for task in tasks:
             finished = (runs_dir / task.name / "summary.json").is_file()
-            given_up = task.error is not None and task.attempts > retries
+            given_up = task.error is not None and task.attempts > config.retries
             state = "finished" if finished else "failed" if given_up else "not finished"
             states[task.name].update(attempts=task.attempts, error=None if finished else task.error,
                                      node=task.result["node"] if task.result else None,
@@ -587,9 +644,9 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
 
         def connect():
             nonlocal ray
-            if backend == "ray" and ray is None:
-                ray = stack.enter_context(ray_session(address))
-                _check_cpus(ray, int(cpus_per_run))
+            if config.backend == "ray" and ray is None:
+                ray = stack.enter_context(ray_session(config.address))
+                _check_cpus(ray, int(config.cpus_per_run))
             return ray
 
         if tasks:
@@ -597,22 +654,19 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
         try:
             if tasks:
                 with tqdm(total=len(runs), initial=len(runs) - len(tasks), unit="run", desc="train",
-                          file=sys.stderr, disable=not progress, dynamic_ncols=True) as bar:
-                    _execute(train_run, tasks, ray=connect(), cpus=int(cpus_per_run), retries=retries,
-                             bar=bar, what=", from its newest checkpoint if it has one")
+                          file=sys.stderr, disable=not config.progress, dynamic_ncols=True) as bar:
+                    _execute(train_run, tasks, ray=connect(), cpus=int(config.cpus_per_run),
+                             retries=config.retries, bar=bar,
+                             what=", from its newest checkpoint if it has one")
             settle()
             results.collect(runs_dir, results_dir)
-            if evaluate != "none":
-                envs = [e for e in dict.fromkeys(s.env_id for s in runs) if e in results.ENV_IDS]
-                jobs = results.evaluation_jobs(runs_dir, results_dir, grid=evaluate == "grid", env_ids=envs,
-                                               episodes=evaluate_episodes)
-                cells = [_Task(path.name, ((path, kwargs), str(out), sweep_id, fingerprint))
-                         for path, kwargs in jobs]
+            if config.evaluate != "none":
+                cells = _evaluation_cells(runs, config, sweep_id, fingerprint)
                 if cells:
                     with tqdm(total=len(cells), unit="cell", desc="evaluate", file=sys.stderr,
-                              disable=not progress, dynamic_ncols=True) as bar:
-                        _execute(evaluate_cell, cells, ray=connect(), cpus=1, retries=retries, bar=bar,
-                                 what="")
+                              disable=not config.progress, dynamic_ncols=True) as bar:
+                        _execute(evaluate_cell, cells, ray=connect(), cpus=1, retries=config.retries,
+                                 bar=bar, what="")
                 failed_cells = {c.name: c.error for c in cells if c.result is None}
         except KeyboardInterrupt:
             settle()
@@ -622,9 +676,20 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
         except JobError as exc:
             settle()
             raise JobError(f"{exc}; {kept()}") from None
-    results.report(results_dir, results_file, title="Sweep results",
-                   intro=_intro(runs, states, runs_dir, results_file, command, backend, evaluate))
-    return SweepResult(runs=states, failed_cells=failed_cells, results_file=results_file)
+    results.report(results_dir, config.results_file, title="Sweep results",
+                   intro=_intro(runs, states, runs_dir, config.results_file, config.command,
+                                config.backend, config.evaluate))
+    return SweepResult(runs=states, failed_cells=failed_cells, results_file=config.results_file)
+
+
+def _evaluation_cells(runs: list[RunSpec], config: SweepConfig, sweep_id: str,
+                      fingerprint: str) -> list[_Task]:
+    """The evaluation cells of the collected runs (main, or the estimator grid)."""
+    envs = [e for e in dict.fromkeys(s.env_id for s in runs) if e in results.ENV_IDS]
+    jobs = results.evaluation_jobs(config.runs_dir, config.results_dir, grid=config.evaluate == "grid",
+                                   env_ids=envs, episodes=config.evaluate_episodes)
+    return [_Task(path.name, ((path, kwargs), str(config.out), sweep_id, fingerprint))
+            for path, kwargs in jobs]
 
 
 # --------------------------------------------------------------------------- command line

@@ -229,7 +229,7 @@ class _TimeLimit(BaseCallback):
         return time.perf_counter() - self._start < self._seconds
 
 
-class _Checkpoints(BaseCallback):
+class Checkpoints(BaseCallback):
     """Calls ``save()`` whenever the step counter passes a multiple of ``freq`` (also after a resume)."""
 
     def __init__(self, freq: int, save):
@@ -437,7 +437,7 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
     if time_limit_min is not None:
         callbacks.append(_TimeLimit(60.0 * time_limit_min))
     if config["checkpoint_freq"]:
-        callbacks.append(_Checkpoints(config["checkpoint_freq"], lambda: save("checkpoint")))
+        callbacks.append(Checkpoints(config["checkpoint_freq"], lambda: save("checkpoint")))
     if eval_venv is not None:
         evaluation = _Evaluation(
             eval_venv, run_dir, lambda best: save("best", run_dir / "best_model.zip", best_mean_reward=best),
@@ -483,7 +483,7 @@ def _project_path(path: Path) -> str:
         return path.as_posix()
 
 
-def _check_counts(eval_freq: int, checkpoint_freq: int, threads: int) -> None:
+def check_counts(eval_freq: int, checkpoint_freq: int, threads: int) -> None:
     for name, value, low in (("eval_freq", eval_freq, 0), ("checkpoint_freq", checkpoint_freq, 0),
                              ("threads", threads, 1)):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
@@ -551,7 +551,7 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
     total = int(special["n_timesteps"] if timesteps is None else timesteps)
     if total < 1:
         raise ValueError(f"timesteps must be >= 1; got {total}")
-    _check_counts(eval_freq, checkpoint_freq, threads)
+    check_counts(eval_freq, checkpoint_freq, threads)
     _check_time_limit(time_limit_min)
     if run_name is None:
         run_name = f"{algo}_{env_id.split('/')[-1]}{'_batched' if batched else ''}_s{seed}"
@@ -613,7 +613,7 @@ def resume(run_dir: Path | str, *, timesteps: int | None = None, time_limit_min:
         config["timesteps"] = int(timesteps)
     if threads is not None:
         config["threads"] = threads
-    _check_counts(config["eval_freq"], config["checkpoint_freq"], config["threads"])
+    check_counts(config["eval_freq"], config["checkpoint_freq"], config["threads"])
     _check_time_limit(time_limit_min)
     write_json(config_path, config)
     return _learn(config, run_dir, checkpoint, progress=progress, time_limit_min=time_limit_min)

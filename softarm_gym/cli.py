@@ -15,7 +15,8 @@ import sys
 
 from softarm_gym.files import json_text
 
-COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators", "stress")
+COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators", "stress",
+            "fit")
 """Command modules under :mod:`softarm_gym.commands`, in help order."""
 
 

@@ -10,9 +10,9 @@ Pure numerics: numpy, scipy and numba only (never gymnasium), usable on its own:
 """
 
 from solver import actuator, designs, rod
-from solver._model import rest_strains
 from solver.actuator import PSI, pressure_from_stretch, stretch_from_pressure
 from solver.batch_spatial import SpatialBatchStepper
+from solver.problem import rest_strains
 from solver.results import BatchState, Equilibrium
 from solver.scene import Cylinder, Disc, Scene, Sphere
 from solver.settings import MODELS, Settings, SolverError

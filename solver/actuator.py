@@ -30,17 +30,17 @@ PSI = 6894.757293168361
 
 
 @njit
-def _pressure(lam, youngs_modulus, area_ratio, cos_alpha):
+def tube_pressure(lam, youngs_modulus, area_ratio, cos_alpha):
     """Pressure (Pa) holding a tube at axial stretch ``lam`` (Appendix A.1 form of Eq. 2.10).
 
     ``area_ratio`` is At/A = (Ro² − Ri²)/Ri².
     """
-    return _pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha)[0]
+    return pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha)[0]
 
 
 @njit
-def _pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha):
-    """(p, dp/dλ) at ``lam``: the pressure of :func:`_pressure` and its exact derivative."""
+def pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha):
+    """(p, dp/dλ) at ``lam``: the pressure of :func:`tube_pressure` and its exact derivative."""
     c2 = cos_alpha * cos_alpha
     c4 = c2 * c2
     c6 = c4 * c2
@@ -66,8 +66,8 @@ def _pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha):
 
 
 @njit
-def _stretch(pressure, youngs_modulus, area_ratio, cos_alpha):
-    """Axial stretch λ ∈ [1, λmax) at ``pressure`` (Pa ≥ 0): inverse of :func:`_pressure`.
+def tube_stretch(pressure, youngs_modulus, area_ratio, cos_alpha):
+    """Axial stretch λ ∈ [1, λmax) at ``pressure`` (Pa ≥ 0): inverse of :func:`tube_pressure`.
 
     Safeguarded Newton on the bracket [1, λmax) with the exact slope: a Newton step that
     leaves the current bracket is replaced by bisection, so the iteration cannot escape the
@@ -82,11 +82,11 @@ def _stretch(pressure, youngs_modulus, area_ratio, cos_alpha):
     hi = 1.0 / (math.sqrt(3.0) * cos_alpha)
     # Start from the linearisation at λ = 1 (p(1) = 0): two or three Newton steps from there
     # instead of five or six from the middle of the bracket.
-    lam = 1.0 + pressure / _pressure_and_slope(1.0, youngs_modulus, area_ratio, cos_alpha)[1]
+    lam = 1.0 + pressure / pressure_and_slope(1.0, youngs_modulus, area_ratio, cos_alpha)[1]
     if not (lo < lam < hi):
         lam = 0.5 * (lo + hi)
     for _ in range(200):
-        p, df = _pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha)
+        p, df = pressure_and_slope(lam, youngs_modulus, area_ratio, cos_alpha)
         f = p - pressure
         if f > 0.0:
             hi = lam
@@ -108,9 +108,9 @@ def _stretch(pressure, youngs_modulus, area_ratio, cos_alpha):
 
 @njit
 def _stretch_array(pressures, youngs_modulus, area_ratio, cos_alpha, out):
-    """Vectorised :func:`_stretch`: writes λ for every pressure into ``out``."""
+    """Vectorised :func:`tube_stretch`: writes λ for every pressure into ``out``."""
     for i in range(pressures.shape[0]):
-        out[i] = _stretch(pressures[i], youngs_modulus, area_ratio, cos_alpha)
+        out[i] = tube_stretch(pressures[i], youngs_modulus, area_ratio, cos_alpha)
 
 
 def pressure_from_stretch(stretch, youngs_modulus, inner_radius, outer_radius, wind_angle_deg):
@@ -130,7 +130,7 @@ def pressure_from_stretch(stretch, youngs_modulus, inner_radius, outer_radius, w
     lam_max = max_stretch(wind_angle_deg)
     if np.any(~np.isfinite(lam)) or np.any(lam < 1.0) or np.any(lam >= lam_max):
         raise ValueError(f"stretch must lie on the physical branch [1, {lam_max:.6f}); got {stretch!r}")
-    out = np.vectorize(lambda x: _pressure(x, youngs_modulus, ratio, c))(lam)
+    out = np.vectorize(lambda x: tube_pressure(x, youngs_modulus, ratio, c))(lam)
     return out if out.ndim else float(out)
 
 

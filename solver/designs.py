@@ -57,8 +57,8 @@ import math
 import numbers
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 
-from solver._cache import DesignCache
 from solver.actuator import PSI, max_stretch
+from solver.cache import DesignCache
 
 __all__ = [
     "TubeMaterial", "Section", "Tube", "ArmDesign", "octarm_v", "octarm_vi", "ct",
@@ -436,7 +436,7 @@ class ArmDesign:
         (one production batch of tubes: the perturbation of domain randomisation). Only what
         the change can break is checked (the factor, the new angles and the moduli caps), and
         the solver derives the new design's kernel arrays from this design's (see
-        :func:`solver._model.pack`) instead of packing it afresh: a per-episode perturbed arm
+        :func:`solver.problem.pack`) instead of packing it afresh: a per-episode perturbed arm
         costs microseconds, not a validated rebuild.
 
         Args:

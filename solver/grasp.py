@@ -29,12 +29,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from solver._model import context, pack
 from solver.designs import ArmDesign
+from solver.inputs import check_request, checked_pressures
+from solver.paths.dispatch import dispatch
+from solver.problem import Problem, context, pack
 from solver.results import Equilibrium
 from solver.scene import MAX_EXTENT, Disc, Scene
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
-from solver.solve import _channel_pressures, _check, _dispatch
 
 __all__ = ["FreeObject", "Grasp", "settle", "grasp_margin", "SUPPORTS"]
 
@@ -235,7 +236,7 @@ class _Balance:
     def __init__(self, arm, pressures, scene, obj, external_force, model, settings):
         if not isinstance(obj, FreeObject):
             raise ValueError(f"obj must be a solver.grasp.FreeObject; got {type(obj).__name__}")
-        _check(arm, scene, model, True)
+        check_request(arm, scene, model, True, settings)
         if model == "constant_curvature":
             raise ValueError("the constant-curvature model has no contact: a grasp needs 'full' "
                              "or 'unshearable'")
@@ -247,7 +248,7 @@ class _Balance:
             raise ValueError(f"external_force must be two finite numbers (N); got {external_force!r}")
         self.arm, self.scene, self.obj, self.model, self.settings = arm, scene, obj, model, settings
         self.packed = pack(arm, model, settings)
-        self.p_inputs, self.p_channel = _channel_pressures(arm, pressures, True, self.packed)
+        self.p_inputs, self.p_channel = checked_pressures(arm, pressures, True, self.packed)
         # D: the internal force at the base with no contact (weights and tip force).
         self.dead = context(arm, self.packed, scene, 2, settings).base_force[:2]
         self.load = np.array([0.0, -obj.mass_kg * scene.gravity]) + f
@@ -272,8 +273,8 @@ class _Balance:
             raise _Exhausted
         self.counter[0] += 1
         scene = replace(self.scene, obstacles=(self.obj.disc(center),))
-        return _dispatch(self.arm, self.packed, self.p_inputs, self.p_channel, scene, self.model,
-                         True, warm, True, self.settings, moving=True)
+        return dispatch(Problem(self.arm, self.packed, scene, self.model, True, self.settings,
+                                self.p_inputs, self.p_channel, warm), True, moving=True)
 
     def arm_force(self, eq: Equilibrium) -> np.ndarray:
         """The force of the arm in ``eq`` on the object (N): D − n(0)."""

@@ -46,10 +46,10 @@ class CacheWarning(UserWarning):
 
 
 def _sources_stamp(folder: Path) -> tuple:
-    """(latest modification time, total size, count) of the modules in ``folder`` whose code
-    kernels compile in: every module that defines kernels (``@njit``) and ``layout.py``,
-    whose constants they freeze."""
-    files = sorted(p for p in folder.glob("*.py")
+    """(latest modification time, total size, count) of the modules in ``folder`` and its
+    subpackages (``kernels/``) whose code kernels compile in: every module that defines
+    kernels (``@njit``) and ``layout.py``, whose constants they freeze."""
+    files = sorted(p for p in folder.rglob("*.py")
                    if p.name == "layout.py" or "@njit" in p.read_text(encoding="utf-8"))
     stats = [p.stat() for p in files]
     return (max((s.st_mtime_ns for s in stats), default=0), sum(s.st_size for s in stats),
@@ -68,10 +68,11 @@ class _HealingCache(FunctionCache):
 
     numba stamps an entry with its own module's file alone. The kernels inline the rod
     equations of :mod:`solver.rod` (and constants of :mod:`solver.layout`, helpers of other
-    kernel modules) into their machine code, so after an edit there an entry stamped with an
-    unchanged module of its own would still load, and run the old equations. Each entry's
-    stamp is therefore its module's and the solver's kernel modules' together: an edit of any
-    of them recompiles every kernel (``softarm warmup``).
+    kernel modules, in :mod:`solver.kernels` or not) into their machine code, so after an
+    edit there an entry stamped with an unchanged module of its own would still load, and
+    run the old equations. Each entry's stamp is therefore its module's and the solver's
+    kernel modules' together: an edit of any of them recompiles every kernel (``softarm
+    warmup``).
     """
 
     def __init__(self, py_func):

@@ -31,7 +31,7 @@ NEX, NEY, QX, QY = range(4)
 # Planar record (N, 16): s, x, y, θ, m, internal force n (world x, y), strains v1, v3 and
 # curvature u; then scratch: the first variations ∂(θ, m, x, y, v1, v3)/∂m0 of the RK4 pass
 # that wrote the record, through which Newton applies its last correction
-# (:func:`solver._planar._newton`, which leaves them NaN when it returns: a stored record
+# (:func:`solver.kernels.planar.newton`, which leaves them NaN when it returns: a stored record
 # holds NaN there). Adjacent pairs are the result's (N, 2) fields as slices.
 S, X, Y, THETA, M, NX, NY, V1, V3, U, D_THETA, D_M, D_X, D_Y, D_V1, D_V3 = range(16)
 N_COLUMNS = 16
@@ -72,7 +72,7 @@ SC_K, SC_EXCLUSION, SC_HALF = range(3)
 # half-thickness (m), then the slope r' (2) and its derivative r'' (2; 1/m) after the node
 # and the same before it (they differ by the shear and stretch of a point load on the
 # node), a lower bound on the node's distance to the other parts (m) and the node's x, y
-# (m) when that bound was worked out (see solver._self_contact.self_loads); per segment
+# (m) when that bound was worked out (see solver.kernels.self_contact.self_loads); per segment
 # (M, 4) a bounding circle's centre x, y and radius (m; negative: not built) and whether it
 # is in contact (0 or 1); and per RK4 node (M, segment steps + 1, 8) the point load the
 # node carries (N), that load per length (N/m), the node's penetration (m) and the load's

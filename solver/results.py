@@ -116,9 +116,9 @@ def peak_penetration(eq: Equilibrium, rigid_only: bool = False, scene: Scene | N
 
     Between consecutive samples the backbone is the cubic Hermite curve through their
     positions with their slopes r' (from the recorded orientation and strains), whose
-    deepest point in each obstacle (:func:`solver._obstacles.peak_depth`) and in another
+    deepest point in each obstacle (:func:`solver.kernels.obstacles.peak_depth`) and in another
     part of the arm farther along it than the self-contact exclusion
-    (:func:`solver._self_contact.peak_overlap`) is found by Newton. The samples alone can
+    (:func:`solver.kernels.self_contact.peak_overlap`) is found by Newton. The samples alone can
     miss a contact patch shorter than their spacing.
 
     Args:
@@ -133,8 +133,8 @@ def peak_penetration(eq: Equilibrium, rigid_only: bool = False, scene: Scene | N
         The depth (m); 0 where the scene has no contact (of that kind), NaN where the
         samples were not recorded.
     """
-    from solver._obstacles import peak_depth
-    from solver._self_contact import peak_overlap
+    from solver.kernels.obstacles import peak_depth
+    from solver.kernels.self_contact import peak_overlap
     from solver.scene import obstacle_row, self_contact_exclusion
 
     scene = eq.scene if scene is None else scene

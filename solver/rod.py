@@ -34,9 +34,9 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from solver._obstacles import _contact_force, contact_force_3d
-from solver.actuator import _stretch
+from solver.actuator import tube_stretch
 from solver.jit import njit
+from solver.kernels.obstacles import contact_force, contact_force_3d
 from solver.layout import (
     CA,
     CG,
@@ -97,7 +97,7 @@ __all__ = [
     "planar_rest_gradient", "planar_state_rhs",
     "planar_state_jacobian", "planar_state_rk4_step", "spatial_rhs", "spatial_rk4_step",
     "integrate_spatial", "record_spatial_row", "arc_chain_planar", "arc_chain_spatial",
-    "hermite_resample", "det3",
+    "hermite_resample", "det3", "start_spatial_state",
 ]
 
 
@@ -162,7 +162,7 @@ def _unit_quaternion(y):
 
 
 @njit
-def _rotation_rows(w, x, y, z):
+def rotation_rows(w, x, y, z):
     """The rotation matrix of the unit quaternion (w, x, y, z), row by row."""
     return (w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
             2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x),
@@ -233,8 +233,8 @@ def _same_material(j, k, tubes_f):
 
 @njit(inline="always")
 def _tube_stretch(k, p_channel, tubes_i, tubes_f):
-    return _stretch(p_channel[tubes_i[k, T_CHANNEL]], tubes_f[k, TF_E], tubes_f[k, TF_AREA_RATIO],
-                    tubes_f[k, TF_COS_ALPHA])
+    return tube_stretch(p_channel[tubes_i[k, T_CHANNEL]], tubes_f[k, TF_E], tubes_f[k, TF_AREA_RATIO],
+                        tubes_f[k, TF_COS_ALPHA])
 
 
 @njit(inline="always")
@@ -362,7 +362,7 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
         second: also integrate the second variation a2 = ∂²θ/∂m0², b2 = ∂²m/∂m0²,
             a2' = b2/EI, b2' = g_θ·a2 + g_θθ·a² (m' = g(θ)), by the midpoint rule on the RK4
             stages at the node and mid-step: second order, plenty for Halley's correction
-            factor (:func:`solver._planar._newton`), at a fraction of a pass.
+            factor (:func:`solver.kernels.planar.newton`), at a fraction of a pass.
 
     Returns:
         (θ, m, ∂m/∂m0, x, y at the tip, min over nodes of ∂m/∂m0 on (0, L], ∂²m/∂m0² at the
@@ -582,7 +582,7 @@ def planar_state_rhs(st, out, ca, cg, ci, ur, vr, qx, qy, discs):
     """Right-hand side of the planar state (x, y, θ, n_x, n_y, m), the internal force as
     state (n' = −q − f_contact), into ``out`` (6,); ``discs`` (k, 4) penalty obstacles."""
     c, sn, n1, n3, v1, v3 = planar_strains(st[2], st[3], st[4], ca, cg, vr)
-    fx, fy, pen = _contact_force(st[0], st[1], discs)
+    fx, fy, pen = contact_force(st[0], st[1], discs)
     out[0] = v3 * c - v1 * sn
     out[1] = v3 * sn + v1 * c
     out[2] = ur + st[5] * ci
@@ -673,7 +673,7 @@ def spatial_rhs(sig, y, dy, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i):
     ``sig`` into ``dy`` (NSTATE,). ``loads_i`` (6,): n_end and q of the section (``SL_*``).
     Written out in scalars: it runs 4× per RK4 step and must not allocate."""
     w, x, yy, z = _unit_quaternion(y)
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation_rows(w, x, yy, z)
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(w, x, yy, z)
     rest = length - sig
     n0 = loads_i[SL_N] + loads_i[SL_Q] * rest
     n1 = loads_i[SL_N + 1] + loads_i[SL_Q + 1] * rest
@@ -749,9 +749,9 @@ def spatial_state_rhs(y, dy, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
     """Derivative of the spatial contact state (r, β, n, m; ``CS_*``) into ``dy``
     (N_CSTATE,): the law of :func:`spatial_rhs` with the internal force as state,
     n' = −q − f_contact (``q`` (3,) the section's load per length, N/m; ``obstacles``
-    (k, 8) spatial penalty obstacles, :func:`solver._obstacles.contact_force_3d`)."""
+    (k, 8) spatial penalty obstacles, :func:`solver.kernels.obstacles.contact_force_3d`)."""
     w, x, yy, z = _unit_quaternion(y)  # the quaternion sits at CS_Q == SP_Q
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation_rows(w, x, yy, z)
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(w, x, yy, z)
     n0 = y[CS_N]
     n1 = y[CS_N + 1]
     n2 = y[CS_N + 2]
@@ -802,6 +802,18 @@ def spatial_state_rk4_step(y, h, work, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacl
         y[d] /= qn
 
 
+@njit(inline="always")
+def start_spatial_state(y, quat0, m0):
+    """The spatial state ``y`` (NSTATE,) at the base: orientation ``quat0`` (4,), moment
+    ``m0`` (3,) (N m, world); position and the sensitivities zero."""
+    for d in range(NSTATE):
+        y[d] = 0.0
+    for d in range(4):
+        y[SP_Q + d] = quat0[d]
+    for d in range(3):
+        y[SP_M + d] = m0[d]
+
+
 @njit
 def integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos, out_rot, out_m,
                       work):
@@ -818,12 +830,8 @@ def integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads, record, out_pos,
         det ∂m(L)/∂m0.
     """
     y = work[0]
-    for d in range(NSTATE):
-        y[d] = 0.0
-    for d in range(4):
-        y[SP_Q + d] = quat0[d]
+    start_spatial_state(y, quat0, m0)
     for d in range(3):
-        y[SP_M + d] = m0[d]
         y[SP_DM + 4 * d] = 1.0  # δm(0) = identity columns
     row = 0
     for i in range(secf.shape[1]):
@@ -846,7 +854,7 @@ def record_spatial_row(y, out_pos, out_rot, out_m, row):
     """Write the position, directors (columns d1 d2 d3) and moment of the spatial state
     ``y`` into row ``row`` of ``out_pos`` (N, 3), ``out_rot`` (N, 3, 3) and ``out_m``
     (N, 3)."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation_rows(*_unit_quaternion(y))
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(*_unit_quaternion(y))
     out_rot[row, 0, 0] = r00
     out_rot[row, 0, 1] = r01
     out_rot[row, 0, 2] = r02

@@ -7,7 +7,7 @@ environment calls it thousands of times a second with the same arm and scene, so
 the current equilibrium's backbone, base moment and rest strains, the actuator's λ(p) per
 tube (solved again only for channels whose pressure changed) and the base moment's gradient
 with respect to the rest strains, which predicts the next equilibrium to first order
-(:func:`solver._planar._step`).
+(:func:`solver.kernels.planar.warm_step`).
 
 Planar scenes without obstacles, solved by single shooting, take this lean path; any other
 scene (spatial, contact, constant curvature, unloaded, arms that need multiple shooting) is
@@ -25,23 +25,23 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from solver import _planar
 from solver import layout as L
-from solver._model import context, pack
-from solver._paths_planar import loaded_base_moment, not_lean, single_result
 from solver.designs import ArmDesign
+from solver.inputs import (
+    channels_of,
+    check_request,
+    check_warm_start,
+    checked_pressures,
+    explain_bad_pressures,
+)
+from solver.kernels import planar as planar_kernels
+from solver.paths.dispatch import dispatch
+from solver.paths.planar import loaded_base_moment, not_lean, single_result
+from solver.problem import Problem, pack
 from solver.results import Equilibrium
 from solver.rod import forget_first_variations, planar_rest_gradient, rest_strains_into
 from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
-from solver.solve import (
-    _channel_pressures,
-    _channels_of,
-    _check,
-    _check_warm_start,
-    _dispatch,
-    _explain_bad_pressures,
-)
 
 __all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy"]
 
@@ -63,12 +63,14 @@ class StepReport(NamedTuple):
     residual: float
 
 
-def _record_equilibrium(record, flags, m0, pressures, channel_pressures, arm, model, scene,
-                        packed, ctx) -> Equilibrium:
-    """The planar :class:`Equilibrium` of a lean-path backbone record (arrays copied)."""
+def _record_equilibrium(record, flags, m0, pressures, channel_pressures,
+                        problem: Problem) -> Equilibrium:
+    """The planar :class:`Equilibrium` of a lean-path backbone record (arrays copied), at
+    ``pressures`` in the arm, scene and grid of ``problem``."""
     converged, stable, snapped, iterations, residual = flags
-    return single_result(record.copy(), packed, arm, scene, model, np.array(pressures, dtype=float),
-                         np.array(channel_pressures, dtype=float), ctx, m0,
+    at = problem.with_inputs(np.array(pressures, dtype=float),
+                             np.array(channel_pressures, dtype=float))
+    return single_result(at, record.copy(), m0,
                          converged=bool(converged), stable=bool(stable), iterations=int(iterations),
                          residual=float(residual), snapped=bool(snapped))
 
@@ -116,14 +118,15 @@ class Stepper:
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, *, model: str = "full",
                  planar: bool = True, settings: Settings = DEFAULT_SETTINGS):
         scene = Scene() if scene is None else scene
-        _check(arm, scene, model, planar)
-        if not isinstance(settings, Settings):
-            raise ValueError(f"settings must be a solver.Settings; got {type(settings).__name__}")
+        check_request(arm, scene, model, planar, settings)
         self.arm, self.scene, self.model, self.planar, self.settings = arm, scene, model, planar, settings
         self.n_inputs = arm.n_inputs(planar)
         self._packed = packed = pack(arm, model, settings)
-        ctx = context(arm, packed, scene, 2 if planar else 3, settings)
-        self.lean = not_lean(arm, scene, model, planar, settings, ctx) is None
+        # The request at rest: each step's is this one at its pressures (the same context).
+        self._problem = problem = Problem(arm, packed, scene, model, planar, settings,
+                                          np.zeros(self.n_inputs), np.zeros(arm.n_channels))
+        ctx = problem.ctx
+        self.lean = not_lean(problem) is None
         self.section_ends = packed.section_ends
         self._p_max = arm.max_pressure * (1 + 1e-12)
         self._eq = None
@@ -160,8 +163,7 @@ class Stepper:
         copies, unaffected by later steps)."""
         if self._eq is None and self.record is not None:
             self._eq = _record_equilibrium(self.record, self._flags, self._state[0], self.pressures,
-                                           self.channel_pressures, self.arm, self.model,
-                                           self.scene, self._packed, self._ctx)
+                                           self.channel_pressures, self._problem)
         if self._eq is None:
             raise RuntimeError("call reset() before reading the stepper's equilibrium")
         return self._eq
@@ -174,11 +176,10 @@ class Stepper:
         unactuated arm), or along the path from ``warm_start`` (an equilibrium of the same
         arm, model and mode, in this or another scene). The state is adopted even if the
         solve did not converge (the report says so)."""
-        p_inputs, p_channel = _channel_pressures(self.arm, pressures, self.planar, self._packed)
+        p_inputs, p_channel = checked_pressures(self.arm, pressures, self.planar, self._packed)
         if warm_start is not None:
-            _check_warm_start(warm_start, self.arm, self.scene, self.model, self.planar)
-        eq = _dispatch(self.arm, self._packed, p_inputs, p_channel, self.scene, self.model,
-                       self.planar, warm_start, True, self.settings)
+            check_warm_start(warm_start, self.arm, self.scene, self.model, self.planar)
+        eq = dispatch(self._problem.with_inputs(p_inputs, p_channel, warm_start), True)
         self._adopt(eq)
         return StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
 
@@ -196,13 +197,13 @@ class Stepper:
         if not self.lean:
             return self._step_general(pressures)
         p = np.asarray(pressures, dtype=float)
-        if p.shape != (self.n_inputs,) or not _channels_of(p, self._index, self._p_max, self._p_new):
-            _channel_pressures(self.arm, pressures, True, self._packed)  # raises, naming the fault
-            _explain_bad_pressures(self.arm, p, True)
+        if p.shape != (self.n_inputs,) or not channels_of(p, self._index, self._p_max, self._p_new):
+            checked_pressures(self.arm, pressures, True, self._packed)  # raises, naming the fault
+            explain_bad_pressures(self.arm, p, True)
         ctx = self._ctx
         work = self._works[self._spare]
         m_start = self._state[0]
-        ok, stable, snapped, its, res, _, _ = _planar._step(
+        ok, stable, snapped, its, res, _, _ = planar_kernels.warm_step(
             self._state, self._grid, self._tubes, (self.channel_pressures, ctx.loads, ctx.m_tip),
             self._target, ctx.params, work, self._memo)
         if not ok:
@@ -221,9 +222,8 @@ class Stepper:
         return report
 
     def _step_general(self, pressures) -> StepReport:
-        p_inputs, p_channel = _channel_pressures(self.arm, pressures, self.planar, self._packed)
-        eq = _dispatch(self.arm, self._packed, p_inputs, p_channel, self.scene, self.model,
-                       self.planar, self.equilibrium, True, self.settings)
+        p_inputs, p_channel = checked_pressures(self.arm, pressures, self.planar, self._packed)
+        eq = dispatch(self._problem.with_inputs(p_inputs, p_channel, self.equilibrium), True)
         report = StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
         if eq.converged:
             self._adopt(eq)
@@ -234,7 +234,7 @@ class Stepper:
         ``record=True``), the current state."""
         if not isinstance(eq, Equilibrium):
             raise ValueError("adopt() takes an Equilibrium returned by solve()")
-        _check_warm_start(eq, self.arm, self.scene, self.model, self.planar)
+        check_warm_start(eq, self.arm, self.scene, self.model, self.planar)
         if eq.scene != self.scene:
             raise ValueError(f"the equilibrium was solved in {eq.scene}, not in this stepper's "
                              f"scene {self.scene}")
@@ -405,21 +405,21 @@ class BatchStepper:
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, n: int = 1, *,
                  model: str = "full", settings: Settings = DEFAULT_SETTINGS):
         scene = Scene() if scene is None else scene
-        _check(arm, scene, model, True)
-        if not isinstance(settings, Settings):
-            raise ValueError(f"settings must be a solver.Settings; got {type(settings).__name__}")
+        check_request(arm, scene, model, True, settings)
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"n must be an integer >= 1; got {n!r}")
         self.arm, self.scene, self.model, self.settings, self.n = arm, scene, model, settings, int(n)
         self._packed = packed = pack(arm, model, settings)
-        self._ctx = ctx = context(arm, packed, scene, 2, settings)
-        reason = not_lean(arm, scene, model, True, settings, ctx)
+        n_inputs = arm.n_inputs(True)
+        self._problem = problem = Problem(arm, packed, scene, model, True, settings,
+                                          np.zeros(n_inputs), np.zeros(arm.n_channels))
+        self._ctx = problem.ctx
+        reason = not_lean(problem)
         if reason is not None:
             raise ValueError(f"BatchStepper steps the lean planar path only, not {reason}; use "
                              "a Stepper (or solve()) per copy")
-        self._loaded = loaded_base_moment(arm, packed, scene, ctx)  # as solve_single's stage 1
+        self._loaded = loaded_base_moment(problem)  # as solve_single's stage 1
         ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
-        n_inputs = arm.n_inputs(True)
         self.n_inputs = n_inputs
         self.section_ends = packed.section_ends
         self._index = packed.spatial_of_planar
@@ -457,7 +457,7 @@ class BatchStepper:
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
             try:
-                _explain_bad_pressures(self.arm, p[k], True)
+                explain_bad_pressures(self.arm, p[k], True)
             except ValueError as exc:
                 raise ValueError(f"row {k}: {exc}") from None
         return p, np.ascontiguousarray(p[:, self._index])
@@ -474,7 +474,7 @@ class BatchStepper:
         report = np.zeros((m, 5))
         work = tuple(w[:m] if w.shape[0] >= m else np.empty((m, *w.shape[1:])) for w in self._work[:3])
         self.thread_policies["cold"].run(
-            _planar._cold_rows_parallel, _planar._cold_rows_serial, m, self._grid, self._tubes,
+            planar_kernels.cold_rows_parallel, planar_kernels.cold_rows_serial, m, self._grid, self._tubes,
             self._p_zero, p_channel, self._ctx.loads, self._ctx.m_tip, self._ctx.params, work,
             states, records, record, rest_a, grad, report)
         # As solve_single: the loaded stage's iterations count, and a snap there is a snap; a
@@ -486,8 +486,7 @@ class BatchStepper:
         return report
 
     def _solve_row(self, p_inputs, p_channel, warm_start, record) -> Equilibrium:
-        return _dispatch(self.arm, self._packed, p_inputs, p_channel, self.scene, self.model,
-                         True, warm_start, record, self.settings)
+        return dispatch(self._problem.with_inputs(p_inputs, p_channel, warm_start), record)
 
     def solve_tips(self, pressures) -> tuple[np.ndarray, BatchReport]:
         """Tips of cold equilibria at ``pressures`` (m, n_inputs) Pa, in parallel: the tips
@@ -544,7 +543,7 @@ class BatchStepper:
         candidate steps out from one state."""
         if not isinstance(eq, Equilibrium):
             raise ValueError("adopt() takes an Equilibrium returned by solve()")
-        _check_warm_start(eq, self.arm, self.scene, self.model, True)
+        check_warm_start(eq, self.arm, self.scene, self.model, True)
         if eq.scene != self.scene:
             raise ValueError(f"the equilibrium was solved in {eq.scene}, not in {self.scene}")
         if not eq.s.size:
@@ -590,7 +589,7 @@ class BatchStepper:
         report = np.zeros((self.n, 5))
         report[~active, :2] = 1.0
         self.thread_policies["step"].run(
-            _planar._step_rows_parallel, _planar._step_rows_serial, int(active.sum()), self._grid,
+            planar_kernels.step_rows_parallel, planar_kernels.step_rows_serial, int(active.sum()), self._grid,
             self._tubes, self.channel_pressures, channel, self._ctx.loads, self._ctx.m_tip,
             self._ctx.params, self._work, self._states, self.records, self._memo, active, report)
         ok = report[:, 0] != 0
@@ -616,8 +615,7 @@ class BatchStepper:
         if not self._ready[k]:
             raise RuntimeError(f"copy {k} was never reset")
         return _record_equilibrium(self.records[k], self._flags[k], self._states[k, 0],
-                                   self.pressures[k], self.channel_pressures[k], self.arm,
-                                   self.model, self.scene, self._packed, self._ctx)
+                                   self.pressures[k], self.channel_pressures[k], self._problem)
 
     def __setstate__(self, state):
         self.__dict__.update(state)

@@ -10,7 +10,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 import solver
 from softarm_gym.analysis import dexterity_map, workspace
 from softarm_gym.analysis.figures import plot_dexterity, plot_dexterous_area, plot_workspaces
-from softarm_gym.commands.demo import _shapes
+from softarm_gym.commands.demo import shapes_figure
 from softarm_gym.commands.estimators import plot_payload, plot_study
 from softarm_gym.design_tools.plots import plot_sweeps
 from softarm_gym.design_tools.sweep import sweep
@@ -95,4 +95,4 @@ def test_estimator_figures(tmp_path):
 
 
 def test_demo_shapes_figure(tmp_path):
-    assert assert_readable(_shapes(tmp_path / "shapes.png")) == 0
+    assert assert_readable(shapes_figure(tmp_path / "shapes.png")) == 0

@@ -134,7 +134,7 @@ class _Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping
     """PyElastica system collection with the modules the peer uses."""
 
 
-def _elements_per_section(arm, n_elem: int) -> np.ndarray:
+def elements_per_section(arm, n_elem: int) -> np.ndarray:
     """Element counts per section, proportional to length, at least 2 each, summing to n_elem."""
     lengths = np.array([s.length for s in arm.sections])
     counts = np.maximum(2, np.round(n_elem * lengths / lengths.sum()).astype(int))
@@ -161,7 +161,7 @@ class _Model:
 
 
 def _build(arm, scene: solver.Scene, n_elem: int, damping: float, dt: float) -> _Model:
-    counts = _elements_per_section(arm, n_elem)
+    counts = elements_per_section(arm, n_elem)
     section_of_element = np.repeat(np.arange(len(arm.sections)), counts)
     secs = arm.sections
     ea_ = np.array([s.EA for s in secs])[section_of_element]
@@ -249,7 +249,7 @@ def stable_time_step(arm, n_elem: int, safety: float = 0.5) -> float:
     module doc). Measured on OctArm V at 60 elements (inertia factor 1, where the axial limit
     dominates): stable at 0.8× the limit, divergent at 1.05×.
     """
-    counts = _elements_per_section(arm, n_elem)
+    counts = elements_per_section(arm, n_elem)
     omega2 = []
     for s, c in zip(arm.sections, counts):
         axial = 4.0 * s.EA / (s.length / c) ** 2

@@ -356,7 +356,7 @@ class _Records:
     unbalanced: list
 
 
-def _finite(eq: solver.Equilibrium) -> bool:
+def finite_result(eq: solver.Equilibrium) -> bool:
     """No NaN or inf in what a user reads of a result: tip, backbone, moments, and the residual
     of a converged one. An unconverged result whose solve found no finite state reports
     ``residual=inf`` on purpose (with the unloaded shape, finite, as its state): that is a
@@ -441,7 +441,7 @@ def run_trials(trials, settings: solver.Settings, progress=None, n_diagnose: int
                 continue
             rec.seconds.append(time.perf_counter() - start)
             rec.planar.append(trial.planar)
-            finite = _finite(eq)
+            finite = finite_result(eq)
             rec.converged.append(bool(eq.converged and finite))
             rec.finite.append(finite)
             rec.residual.append(float(eq.residual) if math.isfinite(eq.residual) else math.inf)
@@ -514,7 +514,7 @@ def _tally(diagnoses: list) -> dict:
     return out
 
 
-def _trials_chunk(trials, settings, n_diagnose):
+def trials_chunk(trials, settings, n_diagnose):
     """:func:`run_trials` on a chunk: ``{"records": JSON of the _Records}`` (exact floats, NaN/inf kept)."""
     rec = run_trials(trials, settings, None, n_diagnose)
     return {"records": np.array(json.dumps(asdict(rec), default=_json_scalar))}
@@ -526,7 +526,7 @@ def _json_scalar(obj):
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
-def _merge_records(results, n_diagnose) -> _Records:
+def merge_records(results, n_diagnose) -> _Records:
     """The chunks' records in order, as one serial run would have recorded them: each chunk
     diagnosed its first ``n_diagnose`` failures, so the first ``n_diagnose`` overall are there."""
     parts = [json.loads(str(r["records"])) for r in results]
@@ -539,10 +539,10 @@ def _study_plan(trials, n_diagnose, chunk_size) -> Plan:
     """Both columns: the solver's fallbacks on (default) and off (plain Newton)."""
     columns = []
     for settings, diag in ((solver.Settings(), n_diagnose), (solver.Settings.without_fallback(), 0)):
-        chunks = [Chunk(_trials_chunk, (tuple(trials[a:b]), settings, diag),
+        chunks = [Chunk(trials_chunk, (tuple(trials[a:b]), settings, diag),
                         size=sum(t.pressures.shape[0] for t in trials[a:b]))
                   for a, b in chunk_bounds(len(trials), chunk_size)]
-        columns.append(Plan(chunks, lambda results, _, diag=diag: summarize(_merge_records(results, diag))))
+        columns.append(Plan(chunks, lambda results, _, diag=diag: summarize(merge_records(results, diag))))
 
     def finish(out):
         summary = dict(out[0])

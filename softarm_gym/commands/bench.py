@@ -5,7 +5,9 @@ spatial, batch). ``--peer pyelastica`` settles the same OctArm V scenes with PyE
 ``--env`` times the environments instead: every registered ID and observation mode, single
 and vectorised, and the batched vector env. ``--first-episode`` times the first episode of
 every registered ID in a fresh process after ``softarm warmup`` against its steady speed
-(``--cold`` adds the same with an empty numba cache).
+(``--cold`` adds the same with an empty numba cache). ``--fit`` times the calibration
+(``softarm fit``) at the thesis's experiment size, beside one batch of its solves, and
+tabulates parameter error against noise level (docs/bench/fit.json).
 """
 
 from __future__ import annotations
@@ -28,6 +30,9 @@ def add_arguments(p):
     p.add_argument("--first-episode", action="store_true",
                    help="first episode of every ID in a fresh process (after softarm warmup) against "
                         "its steady speed")
+    p.add_argument("--fit", action="store_true",
+                   help="benchmark the calibration (softarm fit) instead: time for 64 x 7 configurations and "
+                        "nine parameters, and parameter error against noise level")
     p.add_argument("--cold", action="store_true",
                    help="with --first-episode: also with an empty numba cache (compiles; slow)")
     p.add_argument("--ids", default=None,
@@ -54,6 +59,17 @@ def run(args) -> int:
                 lines.append(f"| {name} | {1e6 * rows['planar'][name]:.0f} | "
                              f"{'—' if not isinstance(spatial, float) else f'{1e6 * spatial:.0f}'} |")
         emit(rows, args.json, "\n".join(lines))
+        return 0
+    if args.fit:
+        from softarm_gym.identify import studies
+
+        progress("fit time: 64 on/off configurations x 7 pressures, nine parameters")
+        result = {"time": studies.benchmark(repeats=1 if args.quick else 3)}
+        progress("parameter error against noise level")
+        sigmas = (2.0, 10.0) if args.quick else (1.0, 2.0, 5.0, 10.0, 20.0)
+        result["noise"] = studies.noise_study(sigmas_mm=sigmas, seeds=(0,) if args.quick else (0, 1, 2))
+        emit(result, args.json, studies.format_benchmark(result["time"]) + "\n\n"
+             + studies.format_noise(result["noise"]))
         return 0
     if args.cold and not args.first_episode:
         raise UsageError("--cold only applies to --first-episode")

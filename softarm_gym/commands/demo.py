@@ -45,11 +45,11 @@ def run(args) -> int:
           f"success={episode['success']}, median estimation error "
           f"{1000 * float(np.median(episode['estimation_errors'])):.1f} mm; wrote {episode['out']} "
           f"({time.perf_counter() - start:.1f} s)")
-    _shapes(out_dir / "demo_shapes.png")
+    shapes_figure(out_dir / "demo_shapes.png")
     return 0
 
 
-def _shapes(out):
+def shapes_figure(out):
     """Every named design under gravity at a few pressure patterns and base angles; returns the figure."""
     designs = [solver.designs.octarm_v(), solver.designs.octarm_vi(), solver.designs.ct()]
     angles = (0.0, 90.0)

@@ -28,7 +28,7 @@ STEPS = 3
 """Steps per warm-up episode (each kernel needs one call per argument type)."""
 
 
-KERNEL_MODULES = ("solver", "softarm_gym.sensing._kernels", "softarm_gym.envs.terms")
+KERNEL_MODULES = ("solver", "softarm_gym.sensing.kernels", "softarm_gym.envs.terms")
 """Modules whose import defines every project kernel (for ``--clear``)."""
 
 
@@ -89,11 +89,11 @@ def warm(progress=None) -> float:
     for num_envs in (2, solver.BatchStepper.PARALLEL_MIN):
         _episode(gym.make_vec("SoftArm/OctArmReach-v0", num_envs=num_envs,
                               vectorization_mode="vector_entry_point"), seed=0)
-    _batch_kernels()
+    batch_kernels()
     return time.perf_counter() - start
 
 
-def _batch_kernels() -> solver.BatchStepper:
+def batch_kernels() -> solver.BatchStepper:
     """Both ways of both batch kernels (cold rows, step rows): a thread policy runs a kernel
     on the threads from its third call and measures it from its fourth
     (:class:`solver.ThreadPolicy`), and an episode resets once, so the parallel cold kernel

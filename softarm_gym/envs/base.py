@@ -16,7 +16,15 @@ import numpy as np
 from gymnasium import spaces
 
 import solver
-from softarm_gym.envs.randomization import ArmRandomization
+from softarm_gym.envs.config import (  # noqa: F401  (MIN/MAX_RENDER_SIZE: still importable here)
+    ACTION_MODES,
+    ACTUATIONS,
+    MAX_RENDER_SIZE,
+    MIN_RENDER_SIZE,
+    OBSERVATION_FORMATS,
+    RENDER_MODES,
+    EnvConfig,
+)
 from softarm_gym.envs.terms import (
     clip_observations,
     fill_pressures,
@@ -25,100 +33,10 @@ from softarm_gym.envs.terms import (
     fractions_from_actions,
 )
 from softarm_gym.render import ArmRenderer, ArmRenderer3D, HumanWindow
-from softarm_gym.sensing import ESTIMATORS, SensorNoise, make_estimator, shape_from_equilibrium, synthesize
+from softarm_gym.sensing import make_estimator, shape_from_equilibrium, synthesize
 from solver import layout as L
 
 __all__ = ["SoftArmEnv", "ACTION_MODES", "OBSERVATION_FORMATS", "ACTUATIONS"]
-
-ACTION_MODES = ("absolute", "delta")
-OBSERVATION_FORMATS = ("flat", "dict", "goal")
-ACTUATIONS = ("ideal", "lag")
-"""How channel pressures follow the command: at once, or through a first-order lag."""
-MIN_RENDER_SIZE, MAX_RENDER_SIZE = 16, 4096
-"""Limits of ``render_size`` (px, the side of the square frame): 4096² RGB is 50 MB a frame."""
-
-
-def _finite_number(name: str, value, minimum: float | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number; got {value!r}")
-    if minimum is not None and value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}; got {value!r}")
-    return float(value)
-
-
-def _check_options(options, allowed: tuple[str, ...]) -> dict:
-    """``reset(options=...)`` as a dict (None → empty); unknown keys raise instead of being ignored."""
-    if options is None:
-        return {}
-    if not isinstance(options, dict):
-        raise ValueError(f"reset options must be a dict; got {options!r}")
-    unknown = sorted(map(repr, set(options) - set(allowed)))
-    if unknown:
-        raise ValueError(f"unknown reset option(s) {', '.join(unknown)}; this environment accepts "
-                         f"{', '.join(map(repr, allowed))}")
-    return options
-
-
-def _design(design) -> solver.designs.ArmDesign:
-    if isinstance(design, solver.designs.ArmDesign):
-        arm = design
-    elif isinstance(design, str):
-        arm = solver.designs.get(design)
-    else:
-        raise ValueError(f"design must be a design name ({', '.join(solver.designs.DESIGN_NAMES)}) "
-                         f"or a solver.designs.ArmDesign; got {design!r}")
-    if not arm.tubes:
-        raise ValueError(f"design {arm.name!r} has no channels to actuate")
-    return arm
-
-
-def _sensor_noise(value) -> SensorNoise:
-    if isinstance(value, SensorNoise):
-        return value
-    if value is None or value == "off":
-        return SensorNoise.off()
-    if value == "thesis":
-        return SensorNoise.thesis()
-    if isinstance(value, dict):
-        try:
-            return SensorNoise(**value)
-        except TypeError as exc:
-            raise ValueError(f"sensor_noise has unknown fields: {exc}") from None
-    raise ValueError("sensor_noise must be 'off', 'thesis', a dict of SensorNoise fields or a "
-                     f"SensorNoise; got {value!r}")
-
-
-def _range(name: str, value) -> tuple[float, float]:
-    """A number or a (low, high) pair of finite numbers >= 0, as (low, high)."""
-    if isinstance(value, (tuple, list)):
-        if len(value) != 2:
-            raise ValueError(f"{name} must be a number or a (low, high) pair; got {value!r}")
-        low = _finite_number(f"{name} low", value[0], 0.0)
-        high = _finite_number(f"{name} high", value[1], 0.0)
-        if high < low:
-            raise ValueError(f"{name} range ({low}, {high}) has high < low")
-        return low, high
-    v = _finite_number(name, value, 0.0)
-    return v, v
-
-
-def _self_contact_stiffness(value, arm, planar: bool, model: str) -> float | None:
-    """The penalty (N/m²) of a ``self_contact`` argument: False → None (off); True → the
-    ring stiffness of the arm's tubes (``TubeMaterial.ring_stiffness``, the smallest: the
-    contact law of the wrap envs' discs); a number > 0 → itself."""
-    if value is False or value is None:
-        return None
-    if not planar or model == "constant_curvature":
-        raise ValueError("self_contact needs planar=True and model 'full' or 'unshearable' "
-                         f"(got planar={planar}, model={model!r})")
-    if value is True:
-        return float(min(t.material.ring_stiffness for t in arm.tubes))
-    k = _finite_number("self_contact", value, 0.0)
-    if k <= 0:
-        raise ValueError(f"self_contact must be True, False or a penalty stiffness > 0 (N/m²); "
-                         f"got {value!r}")
-    return k
 
 
 class SoftArmEnv(gym.Env):
@@ -128,7 +46,7 @@ class SoftArmEnv(gym.Env):
     ``_fill_goal``, ``_task_reward`` and ``_task_artists``.
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 10}
 
     def __init__(self, design="octarm_v", planar: bool = True, observation: str = "true",
                  sensor_noise="off", base_angle_deg: float = 90.0, payload_kg=0.0, gravity: float = 9.81,
@@ -139,67 +57,41 @@ class SoftArmEnv(gym.Env):
                  actuation: str = "ideal", pressure_time_constant_s: float = 0.2,
                  step_dt_s: float = 0.1, self_contact=False, render_mode: str | None = None,
                  render_size: int = 400):
-        self.arm = _design(design)
-        if not isinstance(planar, (bool, np.bool_)):
-            raise ValueError(f"planar must be True or False; got {planar!r}")
-        self.planar = bool(planar)
+        config = EnvConfig(
+            design=design, planar=planar, observation=observation, sensor_noise=sensor_noise,
+            base_angle_deg=base_angle_deg, payload_kg=payload_kg, gravity=gravity,
+            randomization=randomization, action_mode=action_mode, delta_scale=delta_scale,
+            n_backbone=n_backbone, observation_format=observation_format,
+            initial_pressure_fraction=initial_pressure_fraction,
+            solver_failure_penalty=solver_failure_penalty, max_solver_failures=max_solver_failures,
+            model=model, synthesize_sensors=synthesize_sensors, actuation=actuation,
+            pressure_time_constant_s=pressure_time_constant_s, step_dt_s=step_dt_s,
+            self_contact=self_contact, render_mode=render_mode, render_size=render_size)
+        self.config = config
+        self.arm = config.arm
+        self.planar = config.planar
         self.dim = 2 if self.planar else 3
-        if observation not in ESTIMATORS:
-            raise ValueError(f"unknown observation {observation!r}; choose one of {', '.join(ESTIMATORS)}")
-        if action_mode not in ACTION_MODES:
-            raise ValueError(f"unknown action_mode {action_mode!r}; choose one of {', '.join(ACTION_MODES)}")
-        if observation_format not in OBSERVATION_FORMATS:
-            raise ValueError(f"unknown observation_format {observation_format!r}; choose one of "
-                             f"{', '.join(OBSERVATION_FORMATS)}")
-        if model not in solver.MODELS:
-            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(solver.MODELS)}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"unknown render_mode {render_mode!r}; choose one of "
-                             f"{', '.join(self.metadata['render_modes'])} or None")
-        if isinstance(n_backbone, bool) or int(n_backbone) != n_backbone or n_backbone < 2:
-            raise ValueError(f"n_backbone must be an integer >= 2; got {n_backbone!r}")
-        if isinstance(max_solver_failures, bool) or int(max_solver_failures) != max_solver_failures \
-                or max_solver_failures < 1:
-            raise ValueError(f"max_solver_failures must be an integer >= 1; got {max_solver_failures!r}")
-        self.observation_name = observation
-        self.sensor_noise = _sensor_noise(sensor_noise)
-        self.base_angle_deg = _finite_number("base_angle_deg", base_angle_deg)
-        self.payload_range = _range("payload_kg", payload_kg)
-        self.gravity = _finite_number("gravity", gravity, 0.0)
-        self.randomization = ArmRandomization.coerce(randomization)
-        self.randomization.check(self.arm)
-        self.action_mode = action_mode
-        self.delta_scale = _finite_number("delta_scale", delta_scale, 0.0)
-        if not 0.0 < self.delta_scale <= 1.0:
-            raise ValueError(f"delta_scale must lie in (0, 1] (fraction of p_max per step); "
-                             f"got {delta_scale}")
-        self.initial_pressure_fraction = _finite_number(
-            "initial_pressure_fraction", initial_pressure_fraction, 0.0)
-        if self.initial_pressure_fraction > 1.0:
-            raise ValueError(f"initial_pressure_fraction must lie in [0, 1]; got {initial_pressure_fraction}")
-        self.solver_failure_penalty = _finite_number("solver_failure_penalty", solver_failure_penalty, 0.0)
-        self.max_solver_failures = int(max_solver_failures)
-        if actuation not in ACTUATIONS:
-            raise ValueError(f"unknown actuation {actuation!r}; choose one of {', '.join(ACTUATIONS)}")
-        self.actuation = actuation
-        self.pressure_time_constant_s = _finite_number("pressure_time_constant_s",
-                                                       pressure_time_constant_s, 0.0)
-        self.step_dt_s = _finite_number("step_dt_s", step_dt_s, 0.0)
-        if self.pressure_time_constant_s <= 0 or self.step_dt_s <= 0:
-            raise ValueError(f"pressure_time_constant_s and step_dt_s must be > 0 (s); got "
-                             f"{pressure_time_constant_s}, {step_dt_s}")
-        # First-order lag sampled every step: p ← p + (1 − e^(−dt/τ))·(p_command − p).
-        self._lag_gain = -math.expm1(-self.step_dt_s / self.pressure_time_constant_s)
-        self.model = model
-        self.self_contact = _self_contact_stiffness(self_contact, self.arm, self.planar, model)
-        self.n_backbone = int(n_backbone)
-        self.observation_format = observation_format
-        self.render_mode = render_mode
-        if isinstance(render_size, bool) or not isinstance(render_size, (int, np.integer)) \
-                or not MIN_RENDER_SIZE <= render_size <= MAX_RENDER_SIZE:
-            raise ValueError(f"render_size must be an integer in [{MIN_RENDER_SIZE}, {MAX_RENDER_SIZE}] px; "
-                             f"got {render_size!r}")
-        self.render_size = int(render_size)
+        self.observation_name = config.observation
+        self.sensor_noise = config.sensor_noise
+        self.base_angle_deg = config.base_angle_deg
+        self.payload_range = config.payload_range
+        self.gravity = config.gravity
+        self.randomization = config.randomization
+        self.action_mode = config.action_mode
+        self.delta_scale = config.delta_scale
+        self.initial_pressure_fraction = config.initial_pressure_fraction
+        self.solver_failure_penalty = config.solver_failure_penalty
+        self.max_solver_failures = config.max_solver_failures
+        self.actuation = config.actuation
+        self.pressure_time_constant_s = config.pressure_time_constant_s
+        self.step_dt_s = config.step_dt_s
+        self._lag_gain = config.lag_gain
+        self.model = config.model
+        self.self_contact = config.self_contact_stiffness
+        self.n_backbone = config.n_backbone
+        self.observation_format = config.observation_format
+        self.render_mode = config.render_mode
+        self.render_size = config.render_size
 
         self.p_max = float(self.arm.max_pressure)
         self.input_names = self.arm.input_names(self.planar)
@@ -506,6 +398,12 @@ class SoftArmEnv(gym.Env):
     def _caption(self) -> str:
         return (f"{self.arm.name}  obs={self.observation_name}\n"
                 f"est. error {1000 * math.dist(self._shape.tip, self._eq.tip):.1f} mm")
+
+    @property
+    def simulated_arm(self) -> solver.designs.ArmDesign:
+        """The design simulated this episode: the nominal ``arm``, perturbed by ``randomization``
+        at the last reset."""
+        return self._sim_arm
 
     @property
     def observation_slices(self) -> dict[str, slice]:

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 import solver
-from softarm_gym.envs.base import _check_options, _finite_number, _range
+from softarm_gym.envs.config import check_options, finite_number, value_range
 from softarm_gym.envs.wrap import WrapEnv
 from solver.grasp import CLAMP_GAP, FreeObject, Grasp, grasp_margin, settle
 
@@ -102,22 +102,22 @@ class GraspEnv(WrapEnv):
         if kwargs.get("planar", True) is not True:
             raise ValueError("GraspEnv is planar only (the free object's equilibrium is planar); "
                              "use planar=True")
-        self.object_mass_range = _range("object_mass_kg", object_mass_kg)
+        self.object_mass_range = value_range("object_mass_kg", object_mass_kg)
         if self.object_mass_range[0] <= 0:
             raise ValueError(f"object_mass_kg must be > 0 (kg); got {object_mass_kg!r}")
-        self.fork_depth = _finite_number("fork_depth", fork_depth, 0.0)
+        self.fork_depth = finite_number("fork_depth", fork_depth, 0.0)
         if self.fork_depth <= 0:
             raise ValueError(f"fork_depth must be > 0 (m); got {fork_depth!r}")
-        self.success_lift = _finite_number("success_lift", success_lift, 0.0)
+        self.success_lift = finite_number("success_lift", success_lift, 0.0)
         if self.success_lift < self.fork_depth:
             raise ValueError(f"success_lift ({success_lift} m) must be at least fork_depth "
                              f"({fork_depth} m): the object is held only once out of its forks")
-        self.lift_weight = _finite_number("lift_weight", lift_weight, 0.0)
+        self.lift_weight = finite_number("lift_weight", lift_weight, 0.0)
         if isinstance(margin_directions, bool) or int(margin_directions) != margin_directions \
                 or margin_directions < 0:
             raise ValueError(f"margin_directions must be an integer >= 0; got {margin_directions!r}")
         self.margin_directions = int(margin_directions)
-        self.margin_weight = _finite_number("margin_weight", margin_weight, 0.0)
+        self.margin_weight = finite_number("margin_weight", margin_weight, 0.0)
         if self.margin_weight > 0 and self.margin_directions == 0:
             raise ValueError("margin_weight > 0 needs margin_directions > 0 (the margin is its reward)")
         if kwargs.get("contact_stiffness") == "rigid":
@@ -162,7 +162,7 @@ class GraspEnv(WrapEnv):
         return grasp.arm.scene, grasp.arm
 
     def _reset_task(self, options, start):
-        options = _check_options(options, ("object",))
+        options = check_options(options, ("object",))
         rng = self.np_random
         self._mass = float(rng.uniform(*self.object_mass_range)) \
             if self.object_mass_range[1] > self.object_mass_range[0] else self.object_mass_range[0]

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 import solver
-from softarm_gym.envs.base import _check_options, _finite_number, _range
+from softarm_gym.envs.config import check_options, finite_number, value_range
 from softarm_gym.envs.reach import ReachEnv
 from softarm_gym.envs.wrap import arm_half_thickness, check_contact_stiffness, resolve_contact_stiffness
 
@@ -163,15 +163,15 @@ class ObstacleReachEnv(ReachEnv):
                  contact_penalty: float = 1.0, contact_stiffness="tube", **kwargs):
         self.n_obstacles_range = _count_range(n_obstacles)
         self.max_obstacles = self.n_obstacles_range[1]
-        self.obstacle_radius_range = _range("obstacle_radius", obstacle_radius)
+        self.obstacle_radius_range = value_range("obstacle_radius", obstacle_radius)
         if self.obstacle_radius_range[0] <= 0:
             raise ValueError(f"obstacle_radius must be > 0 (m); got {obstacle_radius!r}")
-        self.clearance = _finite_number("clearance", clearance, 0.0)
+        self.clearance = finite_number("clearance", clearance, 0.0)
         if contact not in CONTACT_MODES:
             raise ValueError(f"unknown contact {contact!r}; choose one of {', '.join(CONTACT_MODES)}")
         self.contact = contact
-        self.contact_weight = _finite_number("contact_weight", contact_weight, 0.0)
-        self.contact_penalty = _finite_number("contact_penalty", contact_penalty, 0.0)
+        self.contact_weight = finite_number("contact_weight", contact_weight, 0.0)
+        self.contact_penalty = finite_number("contact_penalty", contact_penalty, 0.0)
         check_contact_stiffness(contact_stiffness)
         if kwargs.get("planar", True) is not True:
             raise ValueError("ObstacleReachEnv is planar only (the solver's disc contact is planar); "
@@ -212,7 +212,7 @@ class ObstacleReachEnv(ReachEnv):
     # ------------------------------------------------------------------ reset
 
     def _reset_task(self, options, start):
-        options = _check_options(options, ("target", "obstacles"))
+        options = check_options(options, ("target", "obstacles"))
         fixed_discs = self._given_discs(options["obstacles"]) if "obstacles" in options else None
         fixed_target = "target" in options
         if fixed_target:

@@ -8,7 +8,8 @@ import numpy as np
 from gymnasium import spaces
 
 import solver
-from softarm_gym.envs.base import SoftArmEnv, _check_options, _finite_number
+from softarm_gym.envs.base import SoftArmEnv
+from softarm_gym.envs.config import check_options, finite_number
 from softarm_gym.envs.terms import (
     REACH_TERMS,
     fill_reach_goals,
@@ -124,7 +125,9 @@ class ReachEnv(SoftArmEnv):
     * ``payload_kg`` (0): tip payload (kg), a number or a ``(low, high)`` range drawn per
       episode; unknown to the ``model`` estimator.
     * ``randomization`` (None): ``{"wind_angle_deg": 2.0, "youngs_modulus_rel": 0.1}`` draws
-      α ± 2° and E ± 10 % per episode for the simulated arm (``ArmRandomization``).
+      α ± 2° and E ± 10 % per episode for the simulated arm (``ArmRandomization``);
+      ``"fit.json"`` (a ``softarm fit --output`` file) draws the arm from the fitted
+      parameters' posterior (``PosteriorRandomization``, docs/identification.md).
     * ``action_mode`` (``"absolute"``; the ``-v1`` ids ``"delta"``) and ``delta_scale`` (0.1
       of p_max per step).
     * ``n_backbone`` (8): backbone samples in the observation.
@@ -176,10 +179,10 @@ class ReachEnv(SoftArmEnv):
     def __init__(self, design="octarm_v", *, distance_weight: float = 1.0, control_weight: float = 0.01,
                  success_bonus: float = 1.0, success_tolerance: float = 0.02,
                  terminate_on_success: bool = False, **kwargs):
-        self.distance_weight = _finite_number("distance_weight", distance_weight, 0.0)
-        self.control_weight = _finite_number("control_weight", control_weight, 0.0)
-        self.success_bonus = _finite_number("success_bonus", success_bonus, 0.0)
-        self.success_tolerance = _finite_number("success_tolerance", success_tolerance, 0.0)
+        self.distance_weight = finite_number("distance_weight", distance_weight, 0.0)
+        self.control_weight = finite_number("control_weight", control_weight, 0.0)
+        self.success_bonus = finite_number("success_bonus", success_bonus, 0.0)
+        self.success_tolerance = finite_number("success_tolerance", success_tolerance, 0.0)
         if self.success_tolerance <= 0:
             raise ValueError(f"success_tolerance must be > 0 (m); got {success_tolerance}")
         self.terminate_on_success = bool(terminate_on_success)
@@ -261,7 +264,7 @@ class ReachEnv(SoftArmEnv):
         return float(reward) if not batch else reward
 
     def _reset_task(self, options, start):
-        options = _check_options(options, ("target",))
+        options = check_options(options, ("target",))
         if "target" in options:
             try:
                 target = np.asarray(options["target"], dtype=float)

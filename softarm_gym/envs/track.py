@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 import solver
-from softarm_gym.envs.base import _check_options
+from softarm_gym.envs.config import check_options
 from softarm_gym.envs.reach import ReachEnv
 
 __all__ = ["TrackEnv"]
@@ -81,7 +81,7 @@ class TrackEnv(ReachEnv):
             np.concatenate([high, np.full(self.dim, self.reach)])
 
     def _reset_task(self, options, start):
-        _check_options(options, ())
+        check_options(options, ())
         rng = self.np_random
         self._waypoints = [rng.uniform(0.0, 1.0, self.n_inputs), rng.uniform(0.0, 1.0, self.n_inputs)]
         self._step_count = 0

@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 
 import solver
-from softarm_gym.envs.base import SoftArmEnv, _check_options, _finite_number, _range
+from softarm_gym.envs.base import SoftArmEnv
+from softarm_gym.envs.config import check_options, finite_number, value_range
 from softarm_gym.render import Cylinder
 
 __all__ = ["WrapEnv", "wrap_angle", "arm_half_thickness", "check_contact_stiffness",
@@ -31,7 +32,7 @@ def check_contact_stiffness(value) -> None:
     """Validate a ``contact_stiffness`` argument: ``"tube"``, ``"rigid"`` or a number > 0 (N/m²)."""
     if isinstance(value, str) and value in ("tube", "rigid"):
         return
-    _finite_number("contact_stiffness", value, 0.0)
+    finite_number("contact_stiffness", value, 0.0)
     if value <= 0:
         raise ValueError(f"contact_stiffness must be > 0 (N/m²), 'tube' or 'rigid'; got {value}")
 
@@ -187,22 +188,22 @@ class WrapEnv(SoftArmEnv):
                  penetration_tolerance: float = 0.005, control_weight: float = 0.01,
                  success_bonus: float = 1.0, success_wrap_deg: float = 270.0,
                  terminate_on_success: bool = False, **kwargs):
-        self.object_radius_range = _range("object_radius", object_radius)
+        self.object_radius_range = value_range("object_radius", object_radius)
         if self.object_radius_range[0] <= 0:
             raise ValueError(f"object_radius must be > 0 (m); got {object_radius!r}")
         check_contact_stiffness(contact_stiffness)
-        self.contact_margin = _finite_number("contact_margin", contact_margin, 0.0)
-        self.placement_gap = _finite_number("placement_gap", placement_gap, 0.0)
-        self.placement_wrap_deg = _finite_number("placement_wrap_deg", placement_wrap_deg, 0.0)
-        self.wrap_weight = _finite_number("wrap_weight", wrap_weight, 0.0)
-        self.approach_weight = _finite_number("approach_weight", approach_weight, 0.0)
-        self.penetration_weight = _finite_number("penetration_weight", penetration_weight, 0.0)
-        self.penetration_tolerance = _finite_number("penetration_tolerance", penetration_tolerance, 0.0)
+        self.contact_margin = finite_number("contact_margin", contact_margin, 0.0)
+        self.placement_gap = finite_number("placement_gap", placement_gap, 0.0)
+        self.placement_wrap_deg = finite_number("placement_wrap_deg", placement_wrap_deg, 0.0)
+        self.wrap_weight = finite_number("wrap_weight", wrap_weight, 0.0)
+        self.approach_weight = finite_number("approach_weight", approach_weight, 0.0)
+        self.penetration_weight = finite_number("penetration_weight", penetration_weight, 0.0)
+        self.penetration_tolerance = finite_number("penetration_tolerance", penetration_tolerance, 0.0)
         if self.penetration_tolerance <= 0:
             raise ValueError(f"penetration_tolerance must be > 0 (m); got {penetration_tolerance}")
-        self.control_weight = _finite_number("control_weight", control_weight, 0.0)
-        self.success_bonus = _finite_number("success_bonus", success_bonus, 0.0)
-        self.success_wrap_deg = _finite_number("success_wrap_deg", success_wrap_deg, 0.0)
+        self.control_weight = finite_number("control_weight", control_weight, 0.0)
+        self.success_bonus = finite_number("success_bonus", success_bonus, 0.0)
+        self.success_wrap_deg = finite_number("success_wrap_deg", success_wrap_deg, 0.0)
         self.terminate_on_success = bool(terminate_on_success)
         self._object_radius = self.object_radius_range[0]
         self._contact_radius = self.object_radius_range[0]
@@ -226,7 +227,7 @@ class WrapEnv(SoftArmEnv):
         return np.array([-r, -r, -r, -1.0, -1.0, -1.0, 0.0]), np.array([r, r, r, 1.0, 1.0, 1.0, r])
 
     def _reset_task(self, options, start):
-        options = _check_options(options, ("object",))
+        options = check_options(options, ("object",))
         if "object" in options:
             obj = np.asarray(options["object"], dtype=float)
             size = 3 if self.planar else 7

@@ -19,18 +19,18 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 import solver
-from softarm_gym.sensing._kernels import (
+from softarm_gym.sensing.kernels import (
     CABLE_DATA,
     IMU_DATA,
     REDUCED_STATE,
-    _load_cell_planar,
-    _load_cell_spatial,
-    _planar_shape,
-    _reduced_planar,
-    _reduced_residual,
-    _reduced_spatial,
-    _reduced_spatial_newton,
-    _reduced_spatial_residual,
+    load_cell_planar,
+    load_cell_spatial,
+    planar_shape,
+    reduced_planar,
+    reduced_residual,
+    reduced_spatial,
+    reduced_spatial_newton,
+    reduced_spatial_residual,
 )
 from softarm_gym.sensing.sensors import SensorReadings, cable_angles, cable_radius, imu_frames
 from solver.layout import NSTATE
@@ -114,8 +114,8 @@ def shape_from_equilibrium(eq: solver.Equilibrium, n_samples: int = DEFAULT_SAMP
     if eq.planar:
         backbone = np.empty((n_samples, 2))
         section_ends = np.empty((ends.shape[0], 3))
-        _planar_shape(eq.s, eq.positions, eq.angles, eq.shear_stretch, ends, s_query, backbone,
-                      section_ends, np.empty((eq.s.shape[0], 2)))
+        planar_shape(eq.s, eq.positions, eq.angles, eq.shear_stretch, ends, s_query, backbone,
+                     section_ends, np.empty((eq.s.shape[0], 2)))
         return ShapeEstimate(tip=eq.tip, section_ends=section_ends, backbone=backbone,
                              converged=bool(eq.converged))
     tangent = np.einsum("nij,nj->ni", eq.orientations, eq.shear_stretch)
@@ -420,17 +420,17 @@ class LoadCellShape(_Integrating):
         u1_rest, u2_rest, v_rest = self._rest(pressures)
         if self.planar:
             n0x, n0y, m0 = readings.base_wrench
-            _load_cell_planar(float(readings.inclinometers[0]), n0x, n0y, m0, self.sec_len,
-                              self.sec_steps, self.c_a, self.c_g, self.c_i, u2_rest, v_rest, self.q,
-                              self.point, self._work, self._s, self._pos, self._tan, self._ends)
+            load_cell_planar(float(readings.inclinometers[0]), n0x, n0y, m0, self.sec_len,
+                             self.sec_steps, self.c_a, self.c_g, self.c_i, u2_rest, v_rest, self.q,
+                             self.point, self._work, self._s, self._pos, self._tan, self._ends)
         else:
             # The base tilt (elevation of d3) with the known mounting heading (d2 = +z).
             rotation_to_quaternion(base_rotation(float(readings.inclinometers[0, 0])),
                                    self._quat0)
-            _load_cell_spatial(self._quat0, readings.base_wrench[:3], readings.base_wrench[3:], self.sec_len,
-                               self.sec_steps, self.c_a, self.c_g, self.c_i, self.c_j, u1_rest,
-                               u2_rest, v_rest, self.q, self.point, self._work, self._s, self._pos,
-                               self._tan, self._ends, self._frames)
+            load_cell_spatial(self._quat0, readings.base_wrench[:3], readings.base_wrench[3:], self.sec_len,
+                              self.sec_steps, self.c_a, self.c_g, self.c_i, self.c_j, u1_rest,
+                              u2_rest, v_rest, self.q, self.point, self._work, self._s, self._pos,
+                              self._tan, self._ends, self._frames)
         return self._shape()
 
 
@@ -476,7 +476,7 @@ class _ReducedModel(_Integrating):
                                       + [ei_max / arm.length**2] * (n_shear * ns))
         self._z = np.zeros(self.unknown_scale.size)
         self._res = np.empty(self._z.size)
-        # The spatial Newton's Jacobian, kept between estimates (see _reduced_spatial_newton).
+        # The spatial Newton's Jacobian, kept between estimates (see reduced_spatial_newton).
         self._jac = np.empty((self._z.size, self._z.size))
         self._jac_ok = np.zeros(1, dtype=np.bool_)
         self._curv = np.empty((ns, 2))
@@ -509,7 +509,7 @@ class _ReducedModel(_Integrating):
         return 0.0
 
     def _spatial_data(self, target) -> tuple:
-        """Spatial: the data argument of :func:`_reduced_spatial_residual`; here the
+        """Spatial: the data argument of :func:`reduced_spatial_residual`; here the
         sections' integrated curvatures (∫u1, ∫u2), ``target`` (ns, 2)."""
         return CABLE_DATA, np.ascontiguousarray(target, dtype=float), np.zeros((len(self.sec_len), 3, 3))
 
@@ -522,7 +522,7 @@ class _ReducedModel(_Integrating):
                      n_angles, self.tip_weight, self.moment_scale, self.force_scale, self._ends)
 
             def residual(z):
-                _reduced_residual(z, *fixed, self._res)
+                reduced_residual(z, *fixed, self._res)
                 return self._res.copy()
         else:
             rot0 = self._base_frame(readings)
@@ -543,8 +543,8 @@ class _ReducedModel(_Integrating):
                 ok, _ = damped_newton(residual, self._z, self.unknown_scale, self.tol, self.max_iter)
             else:
                 self._jac_ok[0] &= seed is None  # a new start: a new Jacobian
-                ok, _ = _reduced_spatial_newton(self._z, self.unknown_scale, self.tol, self.max_iter,
-                                                20.0, model, data, self._jac, self._jac_ok)
+                ok, _ = reduced_spatial_newton(self._z, self.unknown_scale, self.tol, self.max_iter,
+                                               20.0, model, data, self._jac, self._jac_ok)
             if ok:
                 left_out = 0.0 if self.planar else self._left_out_misfit(model, data)
                 if best is None or left_out < best[0]:
@@ -557,13 +557,13 @@ class _ReducedModel(_Integrating):
         if not np.all(np.isfinite(self._z)):
             self._z[:] = 0.0
         if self.planar:
-            _reduced_planar(theta0, self._z[0], self._z[1:], self.sec_len, self.sec_steps, self.c_i,
-                            u2_rest, stretch, self.weight, True, self._s, self._pos, self._tan, self._ends)
+            reduced_planar(theta0, self._z[0], self._z[1:], self.sec_len, self.sec_steps, self.c_i,
+                           u2_rest, stretch, self.weight, True, self._s, self._pos, self._tan, self._ends)
         else:
-            _reduced_spatial(rot0, self._z[:3], self._z[3:].reshape(ns, 2), self.sec_len, self.sec_steps,
-                             self.c_i, self.c_j, u1_rest, u2_rest, stretch, self.q, True,
-                             self._kernel_work, self._s, self._pos, self._tan, self._ends,
-                             self._frames, self._curv)
+            reduced_spatial(rot0, self._z[:3], self._z[3:].reshape(ns, 2), self.sec_len, self.sec_steps,
+                            self.c_i, self.c_j, u1_rest, u2_rest, stretch, self.q, True,
+                            self._kernel_work, self._s, self._pos, self._tan, self._ends,
+                            self._frames, self._curv)
         return self._shape(converged=bool(ok))
 
 
@@ -663,7 +663,7 @@ class InclinometerShape(_ReducedModel):
 
     def _left_out_misfit(self, model, data) -> float:
         # The fit matches each end axis d3; the IMU also measures the twist about it (d1).
-        _reduced_spatial_residual(self._z, model, data, np.empty(self._z.size))
+        reduced_spatial_residual(self._z, model, data, np.empty(self._z.size))
         measured = data[2]
         d1 = self._frames[:, :, 0]
         twist = np.arctan2(np.einsum("ki,ki->k", d1, measured[:, :, 1]),

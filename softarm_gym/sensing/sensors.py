@@ -45,7 +45,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 import solver
-from softarm_gym.sensing._kernels import _planar_cable_integrand, _section_integrals
+from softarm_gym.sensing.kernels import planar_cable_integrand, section_integrals
 
 __all__ = ["SensorNoise", "SensorReadings", "synthesize", "cable_angles", "cable_radius", "imu_frames"]
 
@@ -247,14 +247,14 @@ def _cable_lengths(eq: solver.Equilibrium, radius: float) -> np.ndarray:
     ends = np.asarray(eq.section_ends, dtype=np.int64)
     if eq.planar:
         integrand = np.empty((eq.s.size, 2))
-        _planar_cable_integrand(eq.shear_stretch, eq.curvature, radius, integrand)
+        planar_cable_integrand(eq.shear_stretch, eq.curvature, radius, integrand)
     else:
         phi = cable_angles(False)
         rho = radius * np.column_stack([np.cos(phi), np.sin(phi), np.zeros(3)])  # (3 cables, 3)
         cross = np.cross(eq.curvature[:, None, :], rho[None, :, :])  # (N, cables, 3)
         integrand = np.linalg.norm(eq.shear_stretch[:, None, :] + cross, axis=2)
     lengths = np.empty((ends.size, integrand.shape[1]))
-    _section_integrals(eq.s, integrand, ends, lengths)
+    section_integrals(eq.s, integrand, ends, lengths)
     return lengths
 
 

@@ -117,14 +117,14 @@ def test_kill_9_leaves_complete_checkpoints_that_resume(tmp_path):
 
 def test_python_api_raises_training_interrupted_after_saving(tmp_path, monkeypatch):
     """What a sweep (e.g. on Ray) sees when a trial is cancelled with KeyboardInterrupt."""
-    original = train_module._Checkpoints._on_step
+    original = train_module.Checkpoints._on_step
 
     def interrupt_at_150(self):
         if self.model.num_timesteps >= 150:
             raise KeyboardInterrupt
         return original(self)
 
-    monkeypatch.setattr(train_module._Checkpoints, "_on_step", interrupt_at_150)
+    monkeypatch.setattr(train_module.Checkpoints, "_on_step", interrupt_at_150)
     with pytest.raises(TrainingInterrupted) as info:
         train(ENV_ID, "sac", seed=2, log_dir=tmp_path, hyperparams=TINY["sac"], eval_freq=0,
               checkpoint_freq=100, progress=False, tensorboard=False)
@@ -180,9 +180,9 @@ def test_fault_drill_counts_what_it_checks(tiny_sac_run, tmp_path):
 
     run = tmp_path / "run"
     shutil.copytree(tiny_sac_run, run)
-    assert faults._check_folder(run) == 0
+    assert faults.check_folder(run) == 0
     (run / "checkpoints" / "model_100_steps.zip").write_bytes(b"half a zip")
-    assert faults._check_folder(run) == 1
+    assert faults.check_folder(run) == 1
     tally = faults.drill(cycles=1, timesteps=1500, workdir=tmp_path / "drill")
     assert tally["sigint"] == tally["clean_sigint_exits"] == tally["sigint_saved_at_stop"] == 1
     assert tally["unloadable_files"] == 0 and tally["final_timesteps"] == 1500

@@ -8,7 +8,7 @@ import pytest
 import softarm_gym  # noqa: F401
 from softarm_gym.benchmarks.first_episode import format_table, measure, run
 from softarm_gym.cli import main
-from softarm_gym.commands.warmup import _batch_kernels, cases
+from softarm_gym.commands.warmup import batch_kernels, cases
 from softarm_gym.sensing import ESTIMATORS
 
 
@@ -29,7 +29,7 @@ def test_warmup_runs_every_registered_id_in_every_observation_mode():
 def test_warmup_runs_both_batch_kernels_both_ways():
     """The cold and the step rows kernels each ran, and were timed, serial and threaded: none
     is left to compile inside a user's first long batch."""
-    batch = _batch_kernels()
+    batch = batch_kernels()
     for kind, policy in batch.thread_policies.items():
         assert np.isfinite(policy.per_row_s).all(), (kind, policy.per_row_s)
 

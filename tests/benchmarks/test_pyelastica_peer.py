@@ -32,7 +32,7 @@ def test_unloaded_arc_differs_from_closed_form_only_by_the_clamp_offset():
     result = peer.settle(arm, p, scene, n_elem=20, tol=1e-5)
     assert result.settled
     u_base = solver.rest_strains(arm, solver.channel_pressures(arm, p))[1][0]
-    dx_base = arm.sections[0].length / peer._elements_per_section(arm, 20)[0]
+    dx_base = arm.sections[0].length / peer.elements_per_section(arm, 20)[0]
     clamp_offset = _rotation(-u_base * dx_base / 2.0) @ exact
     error = np.linalg.norm(result.tip - exact)
     # The discretisation error is large at 20 elements (≈13 % of L here) ...
@@ -98,7 +98,7 @@ def test_peer_result_validates():
 
 @pytest.mark.parametrize("n_elem", [6, 20, 60, 121])
 def test_elements_follow_section_lengths_and_end_on_section_ends(n_elem):
-    counts = peer._elements_per_section(ARM, n_elem)
+    counts = peer.elements_per_section(ARM, n_elem)
     lengths = np.array([s.length for s in ARM.sections])
     assert counts.sum() == n_elem and np.all(counts >= 2)
     assert np.all(np.abs(counts - n_elem * lengths / lengths.sum()) <= 1.0)

@@ -71,8 +71,8 @@ def test_chunked_records_merge_into_the_serial_ones():
     trials = stress.random_trials(8, np.random.default_rng(5))
     settings = solver.Settings.without_fallback(max_iter=1)
     serial = asdict(stress.run_trials(trials, settings, n_diagnose=3))
-    chunks = [stress._trials_chunk(tuple(trials[a:a + 3]), settings, 3) for a in range(0, 8, 3)]
-    merged = asdict(stress._merge_records(chunks, 3))
+    chunks = [stress.trials_chunk(tuple(trials[a:a + 3]), settings, 3) for a in range(0, 8, 3)]
+    merged = asdict(stress.merge_records(chunks, 3))
     assert len(serial["failures"]) > 3 and len(serial["diagnoses"]) == 3
     for key in serial:
         if key != "seconds":
@@ -172,9 +172,9 @@ def test_a_flagged_infinite_residual_is_not_a_leak():
     one with an infinite residual, or any NaN in the state, is a leak."""
     arm = solver.designs.get("octarm_v")
     eq = solver.solve(arm, np.zeros(arm.n_inputs(True)))
-    assert stress._finite(eq)
-    assert stress._finite(dataclasses.replace(eq, converged=False, residual=math.inf))
-    assert not stress._finite(dataclasses.replace(eq, residual=math.inf))
+    assert stress.finite_result(eq)
+    assert stress.finite_result(dataclasses.replace(eq, converged=False, residual=math.inf))
+    assert not stress.finite_result(dataclasses.replace(eq, residual=math.inf))
     positions = eq.positions.copy()
     positions[3, 0] = math.nan
-    assert not stress._finite(dataclasses.replace(eq, converged=False, positions=positions))
+    assert not stress.finite_result(dataclasses.replace(eq, converged=False, positions=positions))

@@ -3,7 +3,7 @@
 import numpy as np
 
 import solver
-from solver._model import context, pack
+from solver.problem import context, pack
 
 
 def planar_case(design: str, payload_kg: float, base_angle_deg: float):

@@ -87,15 +87,15 @@ def test_bad_stretch_and_geometry():
 @pytest.mark.parametrize("alpha", [60.0, 70.0, 80.0])
 def test_pressure_slope_is_the_derivative(alpha):
     """The exact dp/dλ that drives the inversion agrees with a central difference."""
-    from solver.actuator import _pressure, _pressure_and_slope
+    from solver.actuator import pressure_and_slope, tube_pressure
 
     c = math.cos(math.radians(alpha))
     lam_max = 1.0 / (math.sqrt(3.0) * c)
     for lam in np.linspace(1.0, lam_max, 12)[:-1]:
-        p, slope = _pressure_and_slope(lam, 1.2e6, 2.5, c)
+        p, slope = pressure_and_slope(lam, 1.2e6, 2.5, c)
         h = 1e-6 * lam
-        fd = (_pressure(lam + h, 1.2e6, 2.5, c) - _pressure(lam - h, 1.2e6, 2.5, c)) / (2 * h)
-        assert p == _pressure(lam, 1.2e6, 2.5, c)
+        fd = (tube_pressure(lam + h, 1.2e6, 2.5, c) - tube_pressure(lam - h, 1.2e6, 2.5, c)) / (2 * h)
+        assert p == tube_pressure(lam, 1.2e6, 2.5, c)
         assert slope == pytest.approx(fd, rel=1e-6)
 
 
@@ -119,7 +119,7 @@ def test_cached_rest_strains_equal_fresh_ones_bit_for_bit(design):
     tubes of one material at one pressure: the rest strains are those of a fresh solve of
     every tube, bit for bit, as pressures repeat across channels and from call to call."""
     from solver import designs, rod
-    from solver._model import pack
+    from solver.problem import pack
     from solver.settings import Settings
 
     arm = _mixed_materials() if design == "mixed" else designs.get(design)

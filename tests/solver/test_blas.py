@@ -1,4 +1,4 @@
-"""The solver's dense algebra runs on one BLAS thread (solver._blas; docs/design.md §8)."""
+"""The solver's dense algebra runs on one BLAS thread (solver.blas; docs/design.md §8)."""
 
 import importlib
 
@@ -9,9 +9,9 @@ from threadpoolctl import threadpool_info, threadpool_limits
 
 import solver
 from solver import PSI, designs
-from solver._blas import single_blas_thread
+from solver.blas import single_blas_thread
 
-solve_module = importlib.import_module("solver.solve")  # solver.solve is the function
+solve_module = importlib.import_module("solver.paths.dispatch")  # where solve() picks its path
 
 
 def _blas_threads() -> set[int]:

@@ -53,7 +53,7 @@ def test_pressurised_section_without_load_is_an_arc(monkeypatch):
     """Closed-form arcs (shortcut) and shooting (general path) both give the rest shape."""
     import importlib
 
-    module = importlib.import_module("solver.solve")
+    module = importlib.import_module("solver.paths.dispatch")
     calls = []
     original = module.closed_form
     monkeypatch.setattr(module, "closed_form", lambda *a: calls.append(1) or original(*a))
@@ -93,8 +93,9 @@ def test_greenhill_column(ratio, buckled):
 
 def test_conjugate_point_test_flags_straight_column():
     """The straight state past Euler's load is an equilibrium, but unstable."""
-    from solver import _planar, layout
-    from solver._model import context, pack
+    from solver import layout
+    from solver.kernels import planar as planar_kernels
+    from solver.problem import context, pack
 
     rod = designs.rod(length=1.0, EI=1.0, EA=1e10, GA=1e10)
     packed = pack(rod, "full", solver.Settings(steps_per_section=100))
@@ -103,8 +104,8 @@ def test_conjugate_point_test_flags_straight_column():
     for load, stable in ((2.3, True), (2.6, False)):  # π²/4 = 2.467
         scene = solver.Scene(base_angle_deg=180, tip_force=(0, -load), gravity=0)
         ctx = context(rod, packed, scene, 2, solver.Settings(steps_per_section=100))
-        out = _planar._newton(0.0, scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads,
-                              ctx.m_tip, 1e-12, 5, 10.0, dummy)
+        out = planar_kernels.newton(0.0, scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads,
+                                    ctx.m_tip, 1e-12, 5, 10.0, dummy)
         m0, ok, its, res, is_stable, bmin, x, y, theta = out
         assert ok and m0 == 0.0
         assert is_stable == stable

@@ -273,10 +273,11 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     unstable, one hanging and stable), judged by the planar single-shooting test
     (∂m(s)/∂m0 > 0, exact for dead loads) and by the multiple-shooting test (the free tip's
     Jacobi fields carried to the base), which must agree."""
-    from solver import _contact, _planar
     from solver import layout as L
-    from solver._model import context, pack, shooting_layout, shooting_terms
-    from solver._paths_shooting import nodes_from_states, shooting_grid
+    from solver.kernels import contact as contact_kernels
+    from solver.kernels import planar as planar_kernels
+    from solver.paths.shooting import nodes_from_states, shooting_grid
+    from solver.problem import context, pack, shooting_layout, shooting_terms
     from solver.rod import rest_strains_into
 
     arm = designs.get("octarm_vi")
@@ -287,9 +288,9 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     rest = np.empty((3, len(arm.sections)))
     rest_strains_into(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf, rest)
     out = np.empty((packed.n_rows, L.N_COLUMNS))
-    m0, ok, _, _, planar_stable, *_ = _planar._newton(guess, scene.base_theta, packed.secf,
-                                                       packed.sec_steps, rest, ctx.loads,
-                                                       ctx.m_tip, 1e-9, 30, 5.0, out, True)
+    m0, ok, _, _, planar_stable, *_ = planar_kernels.newton(guess, scene.base_theta, packed.secf,
+                                                            packed.sec_steps, rest, ctx.loads,
+                                                            ctx.m_tip, 1e-9, 30, 5.0, out, True)
     assert ok and planar_stable == stable
     layout, segs, sec_start = shooting_layout(arm, packed)
     nodes = nodes_from_states(out[:, [L.X, L.Y, L.THETA, L.NX, L.NY, L.M]], segs)
@@ -297,10 +298,11 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     level = (np.zeros(arm.n_channels), ctx.q, plate, target, np.empty((0, 4)))
     grid = shooting_grid(arm, scene, layout, segs, sec_start)
     F = np.empty(nodes.size)
-    J = np.empty((_contact.BAND_ROWS, nodes.size))
+    J = np.empty((contact_kernels.BAND_ROWS, nodes.size))
     blocks = np.empty((segs.shape[0], 6, 6))
-    _contact._system(nodes, grid, rest, level, F, J, True, blocks, _contact._new_partners(grid))
-    measure = _contact._stability(blocks)
+    contact_kernels.newton_system(nodes, grid, rest, level, F, J, True, blocks,
+                                  contact_kernels.new_partners(grid))
+    measure = contact_kernels.stability_test(blocks)
     assert np.abs(F).max() < 1e-6  # the planar equilibrium, in multiple-shooting form
     assert (measure > 0) == stable
 

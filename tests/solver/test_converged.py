@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 import solver
-from solver import PSI, _planar, designs
-from solver._model import context, pack
+from solver import PSI, designs
+from solver.kernels import planar as planar_kernels
+from solver.problem import context, pack
 from tests.solver import naive
 
 ARM = designs.octarm_v()
@@ -93,9 +94,9 @@ def test_no_snap_from_a_state_the_grid_does_not_resolve():
     for moment, resolved in ((5.0, True), (100.0, False)):
         ctx = context(ARM, packed, solver.Scene(tip_moment=moment), 2, solver.Settings())
         m0 = solver.solve(ARM, np.zeros(6), solver.Scene(tip_moment=moment)).base_moment[0]
-        assert _planar._resolved(m0, 1.0, -np.pi / 2, packed.secf, packed.sec_steps,
-                                 packed.tubes_i, packed.tubes_f, zeros, zeros, ctx.loads,
-                                 ctx.loads, ctx.m_tip, ctx.m_tip) == resolved
+        assert planar_kernels.resolved(m0, 1.0, -np.pi / 2, packed.secf, packed.sec_steps,
+                                       packed.tubes_i, packed.tubes_f, zeros, zeros, ctx.loads,
+                                       ctx.loads, ctx.m_tip, ctx.m_tip) == resolved
 
 
 def test_steppers_refine_as_solve_does():

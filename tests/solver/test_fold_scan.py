@@ -1,4 +1,4 @@
-"""The fold scan (``solver._planar._scan``) visits its grid nearest the guess first and stops
+"""The fold scan (``solver.kernels.planar.fold_scan``) visits its grid nearest the guess first and stops
 early; it must pick the root a scan of every interval picks (``naive.py``). Newton gives up
 on a continuation step whose iterate leaves its ``reach``, and its last correction, applied
 through the pass's first variations, is the pass it saves."""
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import solver
-from solver import _planar
 from solver import layout as L
+from solver.kernels import planar as planar_kernels
 from solver.rod import integrate_planar
 from tests.solver import naive
 from tests.solver.planar_case import planar_case, planar_grid
@@ -45,7 +45,7 @@ def test_scan_picks_the_nearest_stable_root_of_the_full_scan(design, payload, an
     passes = []
     for guess in guesses:
         expected, roots = naive.nearest_stable_root_full_scan(residual, stable, bound, n_scan, guess)
-        root, found, its = _planar._scan(*grid, ctx.m_tip, ctx.params, n_scan, guess, out)
+        root, found, its = planar_kernels.fold_scan(*grid, ctx.m_tip, ctx.params, n_scan, guess, out)
         assert found == math.isfinite(expected), (guess, roots)
         if found:
             assert root == pytest.approx(expected, abs=1e-9 * bound), (guess, roots)
@@ -59,20 +59,20 @@ def test_newton_gives_up_once_an_iterate_would_leave_its_reach():
     out = np.empty((packed.n_rows, L.N_COLUMNS))
     args = (*planar_grid(arm, scene, packed, ctx, np.full(arm.n_channels, 0.5 * arm.max_pressure)),
             ctx.m_tip, ctx.params[L.TOL], 12, ctx.params[L.MAX_STEP], out, False)
-    root, ok, its, *_ = _planar._newton(0.0, *args)
+    root, ok, its, *_ = planar_kernels.newton(0.0, *args)
     assert ok and abs(root) > 0.0
     # A reach short of the root: the first step would leave it, so one pass and no more.
-    gave_up, ok, its, *_ = _planar._newton(0.0, *args, 0.5 * abs(root))
+    gave_up, ok, its, *_ = planar_kernels.newton(0.0, *args, 0.5 * abs(root))
     assert not ok and its == 0 and gave_up == 0.0
     # A reach past the root changes nothing.
-    same, ok, *_ = _planar._newton(0.0, *args, 2.0 * abs(root))
+    same, ok, *_ = planar_kernels.newton(0.0, *args, 2.0 * abs(root))
     assert ok and same == root
 
 
 @pytest.mark.parametrize("design, payload, angle", [
     ("octarm_v", 0.1, 90.0), ("ct", 0.3, 90.0), ("octarm_v", 0.0, 135.0)])
 def test_newton_finishing_through_first_variations_is_a_pass_there(design, payload, angle):
-    """Where Newton's last correction is tiny, ``_newton`` returns the last pass moved along its
+    """Where Newton's last correction is tiny, ``newton`` returns the last pass moved along its
     first variations (no further pass): a pass from the returned moment meets the tolerance,
     gives the returned tip and record to far below the tolerance."""
     arm, scene, packed, ctx = planar_case(design, payload, angle)
@@ -83,12 +83,12 @@ def test_newton_finishing_through_first_variations_is_a_pass_there(design, paylo
         grid = planar_grid(arm, scene, packed, ctx, fraction * arm.max_pressure)
         out = np.empty((packed.n_rows, L.N_COLUMNS))
         args = (*grid, ctx.m_tip, tol, 12, ctx.params[L.MAX_STEP], out, True)
-        root, ok, *_ = _planar._newton(0.0, *args)
+        root, ok, *_ = planar_kernels.newton(0.0, *args)
         if not ok:  # plain Newton from zero does not reach every state; the others do
             continue
         # Start a small step off the root: the first correction is tiny.
         for offset in (30.0, -300.0, 3000.0):
-            m0, ok, its, res, stable, _, x, y, th = _planar._newton(root + offset * tol, *args)
+            m0, ok, its, res, stable, _, x, y, th = planar_kernels.newton(root + offset * tol, *args)
             fresh = np.empty_like(out)
             th_p, m_p, _, x_p, y_p, *_ = integrate_planar(m0, *grid, True, fresh)
             assert ok and abs(m_p - ctx.m_tip) <= tol

@@ -141,9 +141,10 @@ def test_not_held_has_zero_margin():
 def test_moving_disc_ramp_ends_where_a_plain_warm_solve_does():
     """A disc moved a millimetre against the curled arm: the ramped path (``moving``) and the
     plain warm solve (the disc jumps, Newton corrects) reach the same equilibrium."""
-    from solver._model import pack
+    from solver.inputs import checked_pressures
+    from solver.paths.dispatch import dispatch
+    from solver.problem import Problem, pack
     from solver.settings import DEFAULT_SETTINGS
-    from solver.solve import _channel_pressures, _dispatch
 
     disc = solver.Disc(center=(-0.16, -0.25), radius=0.1, stiffness=STIFFNESS)
     p = _channels_i(0.6)
@@ -151,11 +152,10 @@ def test_moving_disc_ramp_ends_where_a_plain_warm_solve_does():
     assert eq.converged and eq.in_contact
     moved = solver.Scene(obstacles=(replace(disc, center=(-0.159, -0.249)),))
     packed = pack(ARM, "full", DEFAULT_SETTINGS)
-    p_inputs, p_channel = _channel_pressures(ARM, p, True, packed)
-    ramped = _dispatch(ARM, packed, p_inputs, p_channel, moved, "full", True, eq, True,
-                       DEFAULT_SETTINGS, moving=True)
-    jumped = _dispatch(ARM, packed, p_inputs, p_channel, moved, "full", True, eq, True,
-                       DEFAULT_SETTINGS)
+    p_inputs, p_channel = checked_pressures(ARM, p, True, packed)
+    problem = Problem(ARM, packed, moved, "full", True, DEFAULT_SETTINGS, p_inputs, p_channel, eq)
+    ramped = dispatch(problem, True, moving=True)
+    jumped = dispatch(problem, True)
     assert ramped.converged and jumped.converged
     np.testing.assert_allclose(ramped.tip, jumped.tip, atol=1e-9)
     np.testing.assert_allclose(ramped.base_force, jumped.base_force, atol=1e-7)

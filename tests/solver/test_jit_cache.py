@@ -17,7 +17,7 @@ from solver import jit
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = "import solver; print(solver.pressure_from_stretch(1.1, 2e6, 9.3e-3, 14e-3, 78.0))"
-"""Compiles two small kernels of solver.actuator (_pressure and _pressure_and_slope)."""
+"""Compiles two small kernels of solver.actuator (tube_pressure and pressure_and_slope)."""
 
 
 def _run(env_changes: dict, code: str = SCRIPT, cwd=None, remove=()) -> subprocess.CompletedProcess:
@@ -29,7 +29,7 @@ def _run(env_changes: dict, code: str = SCRIPT, cwd=None, remove=()) -> subproce
     return proc
 
 
-@pytest.mark.parametrize("damaged", ["actuator._pressure-*.nbi", "actuator._pressure-*.1.nbc"])
+@pytest.mark.parametrize("damaged", ["actuator.tube_pressure-*.nbi", "actuator.tube_pressure-*.1.nbc"])
 def test_damaged_cache_file_is_removed_and_recompiled(tmp_path, damaged):
     env = {"NUMBA_CACHE_DIR": str(tmp_path)}
     first = _run(env)
@@ -38,7 +38,8 @@ def test_damaged_cache_file_is_removed_and_recompiled(tmp_path, damaged):
     path.write_bytes(path.read_bytes()[:20])  # truncated, as by a full disk or a killed writer
     second = _run(env)
     assert second.stdout == first.stdout
-    assert "CacheWarning: numba cache of _pressure" in second.stderr and "could not be read" in second.stderr
+    assert "CacheWarning: numba cache of tube_pressure" in second.stderr \
+        and "could not be read" in second.stderr
     assert path.stat().st_size > 20  # written afresh
     third = _run(env)
     assert third.stdout == first.stdout and "CacheWarning" not in third.stderr
@@ -46,7 +47,7 @@ def test_damaged_cache_file_is_removed_and_recompiled(tmp_path, damaged):
 
 def test_read_only_install_without_home_caches_in_a_private_temp_dir(tmp_path):
     """No writable ``__pycache__`` next to the sources and no HOME: numba alone fails with
-    "cannot cache function '_pressure': no locator available"."""
+    "cannot cache function 'tube_pressure': no locator available"."""
     package = tmp_path / "site-packages"
     shutil.copytree(ROOT / "solver", package / "solver", ignore=shutil.ignore_patterns("__pycache__"))
     # Unwritable even for root (who ignores permission bits): __pycache__ is a file, HOME is
@@ -69,7 +70,7 @@ def test_read_only_install_without_home_caches_in_a_private_temp_dir(tmp_path):
     assert second.stdout == first.stdout and second.stderr == ""  # said once; the cache is reused
     (cache,) = temp.glob("softarm-numba-*")
     assert stat.S_IMODE(cache.stat().st_mode) == 0o700
-    assert list(cache.glob("*/actuator._pressure-*.nbi"))
+    assert list(cache.glob("*/actuator.tube_pressure-*.nbi"))
 
 
 def test_fallback_dir_that_others_can_write_is_not_used(tmp_path, monkeypatch):
@@ -95,7 +96,8 @@ def test_warmup_clear_deletes_the_cache_and_compiles_it_again(tmp_path):
     removed = int(proc.stdout.split("removed ")[1].split()[0])
     assert removed >= 5 and not stale.exists()  # 2 kernels × (index + data) + the stale index
     assert "numba kernels ready" in proc.stdout
-    assert len(list(folder.glob("_planar.*.nbi"))) > 3  # the solver's kernels, compiled again
+    (kernels,) = tmp_path.glob("kernels_*")  # solver/kernels/
+    assert len(list(kernels.glob("planar.*.nbi"))) > 3  # the solver's kernels, compiled again
 
 
 def test_an_edit_of_the_rod_equations_makes_every_cached_kernel_stale(tmp_path):
@@ -103,14 +105,15 @@ def test_an_edit_of_the_rod_equations_makes_every_cached_kernel_stale(tmp_path):
     equations of solver/rod.py, so an edit there must not leave their old machine code in
     use. On a copy of the package: a second run loads the cache; after an edit of rod.py
     the kernels of solver.actuator (a module that did not change) are compiled again; an
-    edit of a module without kernels (solver/scene.py) leaves them cached."""
+    edit of a module without kernels (solver/scene.py) leaves them cached; an edit of a kernel
+    module in the subpackage solver/kernels/ recompiles them too."""
     shutil.copytree(ROOT / "solver", tmp_path / "solver",
                     ignore=shutil.ignore_patterns("__pycache__", "*.nb[ic]"))
     cache = tmp_path / "cache"
     env = {"NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tmp_path)}
 
     def index():
-        (path,) = cache.glob("*/actuator._pressure-*.nbi")
+        (path,) = cache.glob("*/actuator.tube_pressure-*.nbi")
         return path.read_bytes()
 
     first = _run(env, cwd=tmp_path)
@@ -124,4 +127,32 @@ def test_an_edit_of_the_rod_equations_makes_every_cached_kernel_stale(tmp_path):
         f.write("\n# an edit\n")
     assert _run(env, cwd=tmp_path).stdout == first.stdout
     assert index() != compiled  # the stamp stored with the recompiled entry is new
+    # A kernel module in the subpackage solver/kernels/ counts too.
+    compiled = index()
+    with open(tmp_path / "solver" / "kernels" / "obstacles.py", "a") as f:
+        f.write("\n# an edit\n")
+    assert _run(env, cwd=tmp_path).stdout == first.stdout
+    assert index() != compiled
 
+
+
+def test_a_kernel_that_takes_a_kernel_is_compiled_again_in_every_process(tmp_path):
+    """Why the kernels repeat their RK4 and continuation loops per integrand instead of
+    taking the right-hand side as an argument (docs/design.md §13): numba keys the cache entry
+    of a function with a dispatcher argument by the dispatcher's address, so each process
+    misses it and compiles again (numba issues #2956, #9237). If this test fails, numba caches
+    such functions now, and the repeated loops listed in §13 can share one helper."""
+    (tmp_path / "takes_kernel.py").write_text(
+        "import numba\n"
+        "@numba.njit(cache=True)\n"
+        "def rhs(x):\n"
+        "    return -x\n"
+        "@numba.njit(cache=True)\n"
+        "def step(f, x, h):\n"
+        "    return x + h * f(x + 0.5 * h * f(x))\n")
+    code = ("import takes_kernel as m; m.step(m.rhs, 1.0, 0.1); m.rhs(1.0); "
+            "print(sum(m.step.stats.cache_hits.values()), sum(m.rhs.stats.cache_hits.values()))")
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(tmp_path)}
+    assert _run(env, code, cwd=tmp_path).stdout.split() == ["0", "0"]  # first process: compiled
+    # The second process loads rhs (a plain kernel) from the cache, but compiles step again.
+    assert _run(env, code, cwd=tmp_path).stdout.split() == ["0", "1"]

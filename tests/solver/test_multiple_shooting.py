@@ -3,24 +3,23 @@ shooting is ill-conditioned (L·√(N/EI) large), checked against scipy's colloc
 against single shooting where both apply, and against the global moment balance."""
 
 import dataclasses
-import importlib
 
 import numpy as np
 import pytest
 from scipy.integrate import simpson
 
 import solver
-from solver import PSI, _spatial_shooting, designs
+from solver import PSI, designs
 from solver import layout as L
-from solver._homotopy import ramp_crowding
-from solver._model import context, pack, shooting_layout
-from solver._paths_planar import solve_single
-from solver._paths_shooting import solve_multiple
-from solver._paths_spatial import solve_spatial_multiple, solve_spatial_single
+from solver.inputs import request
+from solver.kernels import spatial_shooting as shooting_kernels
+from solver.kernels.homotopy import ramp_crowding
+from solver.paths.planar import solve_single
+from solver.paths.shooting import solve_multiple
+from solver.paths.spatial import solve_spatial_multiple, solve_spatial_single
+from solver.problem import context, pack, shooting_layout
 from solver.rod import base_rotation, rotation_to_quaternion
 from tests.solver import naive
-
-S = importlib.import_module("solver.solve")
 
 
 def _long(arm, factor):
@@ -40,11 +39,9 @@ def test_multiple_equals_single_shooting_on_a_well_conditioned_arm():
     arm = designs.octarm_v()
     scene = solver.Scene(base_angle_deg=45, payload_kg=0.1)
     p = np.array([0, 60, 20, 0, 80, 10]) * PSI
-    settings = solver.Settings()
-    packed = pack(arm, "full", settings)
-    p_inputs, p_channel = S._channel_pressures(arm, p, True, packed)
-    single = solve_single(arm, packed, p_inputs, p_channel, scene, "full", None, settings)
-    multiple = solve_multiple(arm, packed, p_inputs, p_channel, scene, "full", None, settings)
+    problem = request(arm, p, scene, "full", True, None, solver.Settings())
+    single = solve_single(problem)
+    multiple = solve_multiple(problem)
     assert single.converged and multiple.converged and multiple.stable
     np.testing.assert_allclose(multiple.positions, single.positions, atol=1e-9)
     np.testing.assert_allclose(multiple.internal_moment, single.internal_moment, atol=1e-8)
@@ -97,11 +94,8 @@ def test_long_heavy_arm_agrees_with_solve_bvp(factor, payload):
 
 
 def _spatial_paths(arm, pressures, scene, model="full"):
-    settings = solver.Settings()
-    packed = pack(arm, model, settings)
-    p_inputs, p_channel = S._channel_pressures(arm, pressures, False, packed)
-    args = (arm, packed, p_inputs, p_channel, scene, model, None, settings)
-    return solve_spatial_single(*args), solve_spatial_multiple(*args)
+    problem = request(arm, pressures, scene, model, False, None, solver.Settings())
+    return solve_spatial_single(problem), solve_spatial_multiple(problem)
 
 
 def _global_moment_balance(arm, scene, eq):
@@ -189,8 +183,8 @@ def test_spatial_multiple_shooting_stability_finds_the_euler_load(load, stable):
     moms = np.zeros((segs.shape[0], 3))
     rest = np.array([[0.0], [0.0], [1.0]])
     work = np.empty((6, L.NSTATE))
-    assert _spatial_shooting._stability(quats, moms, segs, layout.secf, layout.sec_steps,
-                                        layout.c_j, rest, ctx.loads, work) == stable
+    assert shooting_kernels.stability_test(quats, moms, segs, layout.secf, layout.sec_steps,
+                                           layout.c_j, rest, ctx.loads, work) == stable
 
 
 def _near_lockup(arm, fraction=0.999):

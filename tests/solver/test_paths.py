@@ -62,7 +62,7 @@ def _same(a, b):
 
 @pytest.mark.parametrize("record", [True, False])
 def test_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
-    """solve()'s fast path (solver._paths_planar.solve_lean), warm and cold, returns exactly
+    """solve()'s fast path (solver.paths.planar.solve_lean), warm and cold, returns exactly
     what the general path returns, and hands over to it where it does not apply (a snap, a
     scene it does not solve, a grid too coarse)."""
     rng = np.random.default_rng(5)
@@ -94,9 +94,9 @@ def test_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
 
 def _fast_path_is_the_general_path(monkeypatch, name, cases, record, planar):
     """Solve ``cases`` (arm, pressures, scene, warm start, settings) with solve()'s fast path
-    ``name`` (in solver.solve) and without it: the same results bit for bit, the fast path
+    ``name`` (in solver.paths.dispatch) and without it: the same results bit for bit, the fast path
     returning some and handing the others over."""
-    solve_module = importlib.import_module("solver.solve")  # the module, not solver.solve()
+    solve_module = importlib.import_module("solver.paths.dispatch")
     outcomes = []
     fast_path = getattr(solve_module, name)
 
@@ -119,7 +119,7 @@ def _fast_path_is_the_general_path(monkeypatch, name, cases, record, planar):
 
 @pytest.mark.parametrize("record", [True, False])
 def test_spatial_warm_solve_in_one_kernel_call_is_the_general_path(monkeypatch, record):
-    """solve()'s spatial fast path (solver._paths_spatial.solve_spatial_lean) returns exactly
+    """solve()'s spatial fast path (solver.paths.spatial.solve_spatial_lean) returns exactly
     what the general path returns, and hands over to it where it does not apply (a cold
     solve, a warm start in the plane or from another scene, a grid too coarse)."""
     rng = np.random.default_rng(6)
@@ -250,20 +250,18 @@ def test_both_methods_failing_fall_back_to_finer_continuation():
     from dataclasses import replace
 
     from softarm_gym.benchmarks.stress import scaled
-    from solver._model import pack
-    from solver._paths_planar import solve_single
-    from solver._paths_shooting import solve_multiple
-    from solver.solve import _channel_pressures
+    from solver.inputs import request
+    from solver.paths.planar import solve_single
+    from solver.paths.shooting import solve_multiple
 
     arm = scaled(designs.octarm_v(), stiffness=0.0322149580125922 / 0.6961461434850154)
     scene = solver.Scene(base_angle_deg=178.7332626375461, payload_kg=0.04136377153946509)
     p = np.array([11728.26612917, 18468.84957647, 28964.7243914, 11622.80110374, 29000.42015825,
                   17154.45569641])
     settings = solver.Settings()
-    packed = pack(arm, "full", settings)
-    p_inputs, p_channel = _channel_pressures(arm, p, True, packed)
+    problem = request(arm, p, scene, "full", True, None, settings)
     for method in (solve_single, solve_multiple):
-        plain = method(arm, packed, p_inputs, p_channel, scene, "full", None, settings)
+        plain = method(problem)
         assert not plain.converged
     eq = solver.solve(arm, p, scene)
     assert eq.converged and eq.stable

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import solver
-from solver._model import _build_pack, context, pack
-from solver._paths_planar import loaded_base_moment
+from solver.inputs import request
+from solver.paths.planar import loaded_base_moment
+from solver.problem import build_pack, pack
 from solver.settings import DEFAULT_SETTINGS
 
 FIELDS = ("secf", "tubes_f", "c_j", "mass_per_length", "endplate", "tubes_i", "sec_steps",
@@ -39,7 +40,7 @@ def test_scaled_design_equals_a_validated_rebuild_and_packs_alike(design, f, d):
     scaled, rebuilt = arm.scaled(f, d), _rebuilt(arm, f, d)
     assert scaled == rebuilt
     for model in ("full", "unshearable"):
-        a, b = pack(scaled, model, DEFAULT_SETTINGS), _build_pack(rebuilt, model, DEFAULT_SETTINGS)
+        a, b = pack(scaled, model, DEFAULT_SETTINGS), build_pack(rebuilt, model, DEFAULT_SETTINGS)
         for name in FIELDS:
             np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-14, atol=0)
         assert a.moment_scale == pytest.approx(b.moment_scale, rel=1e-14)
@@ -55,8 +56,8 @@ def test_loading_stage_and_solves_match_a_fresh_design(design, base_angle, f):
     scaled, rebuilt = arm.scaled(f, 1.0), _rebuilt(arm, f, 1.0)
     loaded = []
     for a in (scaled, rebuilt):
-        packed = pack(a, "full", DEFAULT_SETTINGS)
-        loaded.append(loaded_base_moment(a, packed, scene, context(a, packed, scene, 2, DEFAULT_SETTINGS)))
+        loaded.append(loaded_base_moment(request(a, np.zeros(a.n_inputs(True)), scene, "full", True,
+                                                 None, DEFAULT_SETTINGS)))
     assert loaded[0].converged and loaded[0].resolved and not loaded[0].snapped
     scale = abs(loaded[1].m0) + 1e-3
     assert loaded[0].m0 == pytest.approx(loaded[1].m0, abs=1e-7 * scale)

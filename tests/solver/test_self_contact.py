@@ -8,7 +8,7 @@ import pytest
 
 import solver
 from softarm_gym.benchmarks.stress import moment_balance_error
-from solver._model import context, pack
+from solver.problem import context, pack
 
 ARM = solver.designs.octarm_v()
 # The outer tubes' ring stiffness: the penalty the wrap env gives contact (N/m²).

@@ -1,4 +1,4 @@
-"""Spatial contact: cylinders, spheres and discs in 3D (solver._spatial_contact)."""
+"""Spatial contact: cylinders, spheres and discs in 3D (solver.kernels.spatial_contact)."""
 
 import math
 
@@ -158,9 +158,9 @@ def test_stability_flags_a_compressed_column_past_eulers_load(load, stable):
     """The straight column under an axial tip load of ``load`` × Euler's π²EI/4L² has a
     double conjugate point (in-plane and out-of-plane at once), whose signs cancel in a
     determinant: the contact kernels' test must still call it unstable past the load."""
-    from solver import _spatial_contact as sc
     from solver import layout as L
-    from solver._model import contact_layout, pack
+    from solver.kernels import spatial_contact as sc
+    from solver.problem import contact_layout, pack
 
     rod = designs.rod(length=1.0, EI=1.0, EA=1e8, GA=1e8, GJ=0.7)
     force = load * math.pi ** 2 / 4.0
@@ -182,10 +182,10 @@ def test_stability_flags_a_compressed_column_past_eulers_load(load, stable):
     F, J = np.empty(n), np.empty((n, n))
     blocks = np.empty((segs.shape[0], L.N_CTANGENT, L.N_CTANGENT))
     rest = np.array([[0.0], [0.0], [1.0]])
-    assert sc._system(nodes, grid, rest, level, F, J, True, blocks, np.repeat([1.0, 1.0, 3.0, 1.0], 3),
-                      sc.NO_TETHER)
+    assert sc.newton_system(nodes, grid, rest, level, F, J, True, blocks, np.repeat([1.0, 1.0, 3.0, 1.0], 3),
+                            sc.NO_TETHER)
     assert np.abs(F).max() < 1e-9  # the straight column is an equilibrium at every load
-    assert sc._stability(blocks) == stable
+    assert sc.stability_test(blocks) == stable
 
 
 @pytest.mark.parametrize("where", [0.6, 0.8])

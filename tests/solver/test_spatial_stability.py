@@ -1,4 +1,4 @@
-"""The spatial conjugate-point test (:func:`solver._spatial._stability`) and fold passing.
+"""The spatial conjugate-point test (:func:`solver.kernels.spatial.stability_test`) and fold passing.
 
 Oracles: Euler's critical load (with its double conjugate point in 3D, which a determinant
 test cannot see) and the planar solver's own conjugate-point test on planar equilibria,
@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 
 import solver
-from solver import _planar, _spatial, designs
+from solver import designs
 from solver import layout as L
-from solver._model import context, pack
+from solver.kernels import planar as planar_kernels
+from solver.kernels import spatial as spatial_kernels
+from solver.problem import context, pack
 from solver.rod import (
     base_rotation,
     det3,
@@ -44,9 +46,9 @@ def test_straight_column_in_3d_loses_stability_at_euler_load(load, stable):
     packed, ctx, quat0, work, dummy = _kernel_inputs(rod, scene, settings)
     rest = np.array([[0.0], [0.0], [1.0]])
     m0 = np.zeros(3)
-    ok, its, res, is_stable = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
-                                               packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-12, 5,
-                                               10.0, work, dummy)
+    ok, its, res, is_stable = spatial_kernels.newton(m0, quat0, packed.secf, packed.sec_steps,
+                                                     packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-12, 5,
+                                                     10.0, work, dummy)
     assert ok and np.all(m0 == 0.0)
     assert is_stable == stable
 
@@ -70,7 +72,7 @@ def test_negative_eigenvalue_test_against_numpy():
         expected = bool(np.any((np.abs(ev.imag) < 1e-9) & (ev.real < 0)))
         seen.add((expected, bool(np.linalg.det(d) < 0)))
         cols = d.T.ravel().copy()
-        assert _spatial._has_negative_eigenvalue(cols, det3(cols)) == expected, ev
+        assert spatial_kernels.has_negative_eigenvalue(cols, det3(cols)) == expected, ev
     assert seen == {(True, True), (True, False), (False, False)}
 
 
@@ -86,13 +88,13 @@ def test_3d_test_agrees_with_planar_test_on_planar_equilibria(guess, stable):
     ctx2 = context(arm, packed, scene, 2, settings)
     rest = np.empty((3, len(arm.sections)))
     rest_strains_into(np.zeros(arm.n_channels), packed.tubes_i, packed.tubes_f, packed.secf, rest)
-    out = _planar._newton(guess, scene.base_theta, packed.secf, packed.sec_steps, rest,
-                          ctx2.loads, ctx2.m_tip, 1e-9, 30, 5.0, np.empty((1, L.N_COLUMNS)))
+    out = planar_kernels.newton(guess, scene.base_theta, packed.secf, packed.sec_steps, rest,
+                                ctx2.loads, ctx2.m_tip, 1e-9, 30, 5.0, np.empty((1, L.N_COLUMNS)))
     assert out[1] and out[4] == stable
     m0 = np.array([0.0, 0.0, out[0]])
-    ok, its, res, is_stable = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
-                                               packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8, 30,
-                                               5.0, work, dummy)
+    ok, its, res, is_stable = spatial_kernels.newton(m0, quat0, packed.secf, packed.sec_steps,
+                                                     packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8, 30,
+                                                     5.0, work, dummy)
     assert ok and m0[2] == pytest.approx(out[0], abs=1e-4)
     assert is_stable == stable
 
@@ -119,9 +121,9 @@ def test_spatial_solve_of_planar_scenes_matches_planar_solver_or_buckles_sideway
         rest = np.empty((3, len(arm.sections)))
         rest_strains_into(p_channel, packed.tubes_i, packed.tubes_f, packed.secf, rest)
         m0 = np.array([0.0, 0.0, planar.base_moment[-1]])
-        ok, _, _, stable_in_3d = _spatial._newton(m0, quat0, packed.secf, packed.sec_steps,
-                                                  packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8,
-                                                  30, 5.0, work, dummy)
+        ok, _, _, stable_in_3d = spatial_kernels.newton(m0, quat0, packed.secf, packed.sec_steps,
+                                                        packed.c_j, rest, ctx.loads, ctx.m_tip, 1e-8,
+                                                        30, 5.0, work, dummy)
         assert ok and abs(m0[2] - planar.base_moment[-1]) < 1e-4
         if stable_in_3d:
             np.testing.assert_allclose(spatial.tip, [*planar.tip, 0.0], atol=1e-5)
@@ -149,10 +151,10 @@ def test_cramer_solve_matches_lapack_and_flags_singular():
     x = np.empty(3)
     for _ in range(50):
         a, b = rng.normal(size=(3, 3)), rng.normal(size=3)
-        _spatial._cramer3(a.T.ravel().copy(), b, x)
+        spatial_kernels.cramer3(a.T.ravel().copy(), b, x)
         np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-9, atol=1e-12)
     singular = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]])
-    assert _spatial._cramer3(singular.T.ravel().copy(), np.ones(3), x) == 0.0
+    assert spatial_kernels.cramer3(singular.T.ravel().copy(), np.ones(3), x) == 0.0
     assert not np.isfinite(x).any()
 
 
@@ -256,8 +258,8 @@ def test_sideways_buckle_takes_the_plus_z_mirror_image():
     rest = np.empty((3, len(arm.sections)))
     rest_strains_into(p, packed.tubes_i, packed.tubes_f, packed.secf, rest)
     mirror = eq.base_moment * np.array([-1.0, -1.0, 1.0])
-    ok, _, res, stable = _spatial._newton(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j,
-                                          rest, ctx.loads, ctx.m_tip, 1e-9, 2, 1.0, work, dummy)
+    ok, _, res, stable = spatial_kernels.newton(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j,
+                                                rest, ctx.loads, ctx.m_tip, 1e-9, 2, 1.0, work, dummy)
     assert ok and stable
     integrate_spatial(mirror, quat0, packed.secf, packed.sec_steps, packed.c_j, rest, ctx.loads,
                       False, *dummy, work)
@@ -289,8 +291,8 @@ def test_spatial_jumps_land_where_a_fine_march_does(angle, payload):
             integrate_spatial(m0, quat0, packed.secf, packed.sec_steps, packed.c_j, rest,
                               ctx.loads, False, *dummy, work)
             y = work[0].copy()
-            stable = _spatial._stability(packed.secf, packed.sec_steps, packed.c_j, rest,
-                                         ctx.loads, work)
+            stable = spatial_kernels.stability_test(packed.secf, packed.sec_steps, packed.c_j, rest,
+                                                    ctx.loads, work)
             return (y[L.SP_M:L.SP_M + 3] - ctx.m_tip, y[L.SP_DM:L.SP_DM + 9].reshape(3, 3).T,
                     stable)
 

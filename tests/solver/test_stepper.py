@@ -13,7 +13,7 @@ import pytest
 import solver
 from solver import PSI, designs
 from solver import layout as L
-from solver._model import context, pack
+from solver.problem import context, pack
 from solver.rod import integrate_planar
 from tests.solver import naive
 

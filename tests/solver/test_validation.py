@@ -155,7 +155,7 @@ def test_no_exception_and_no_nan_escapes_a_solve(monkeypatch, failure):
     strict=True, and the same from a stepper (which keeps the state)."""
     import importlib
 
-    api = importlib.import_module("solver.solve")  # the module (solver.solve is the function)
+    api = importlib.import_module("solver.paths.dispatch")  # where solve() picks its path
 
     def breaking(path):
         def broken(*args):
@@ -166,7 +166,7 @@ def test_no_exception_and_no_nan_escapes_a_solve(monkeypatch, failure):
         return broken
 
     # Both paths to the kernels: the general one and the one-call planar one.
-    monkeypatch.setattr(api, "_path", breaking(api._path))
+    monkeypatch.setattr(api, "path", breaking(api.path))
     monkeypatch.setattr(api, "solve_lean", breaking(api.solve_lean))
     scene = solver.Scene(base_angle_deg=90, payload_kg=0.2)
     p = np.array([30, 0, 0, 0, 0, 0]) * PSI

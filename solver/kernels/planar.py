@@ -29,11 +29,11 @@ import math
 
 import numpy as np
 
-from solver._grid import planar_fine
-from solver._homotopy import GIVE_UP, _big_change
-from solver._obstacles import _clearance, _tunnels
-from solver._spatial import _planar_state_stable
 from solver.jit import njit, prange
+from solver.kernels.grid import planar_fine
+from solver.kernels.homotopy import GIVE_UP, big_change
+from solver.kernels.obstacles import clearance, tunnels
+from solver.kernels.spatial import planar_state_stable
 from solver.layout import (
     DT0,
     DT_MIN,
@@ -68,8 +68,8 @@ LINEAR_FINISH = 1e-3
 
 
 @njit
-def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out,
-            record=False, reach=math.inf):
+def newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out,
+           record=False, reach=math.inf):
     """Newton on m(L; m0) = M_tip with the exact shooting derivative ∂m(L)/∂m0, each step
     corrected by Halley's factor from the second derivative ∂²m(L)/∂m0² where that factor is
     a correction (|r·m''| ≤ m'²).
@@ -103,7 +103,7 @@ def _newton(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step
 @njit
 def _newton_passes(m0, theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out,
                    record, reach):
-    """:func:`_newton` but for clearing the record's first variations."""
+    """:func:`newton` but for clearing the record's first variations."""
     res = math.inf
     bmin = 1.0
     th = x = y = math.nan
@@ -162,7 +162,7 @@ def _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now):
 
 
 @njit
-def _scan(theta0, secf, steps, rest, loads, m_tip, params, n_scan, guess, out):
+def fold_scan(theta0, secf, steps, rest, loads, m_tip, params, n_scan, guess, out):
     """Stable root of m(L; m0) = M_tip nearest ``guess``, by a scan of ``n_scan`` intervals
     over |m0| ≤ M_BOUND.
 
@@ -248,8 +248,8 @@ def _bracket_root(prev_m, prev_r, mk, r, theta0, secf, steps, rest, loads, m_tip
     # Secant start inside the bracket, then Newton; where the residual is too steep for Newton
     # (heavily loaded arms), bisect the bracket first.
     start = prev_m - prev_r * (mk - prev_m) / (r - prev_r)
-    root, ok, its, res, stable, bm, x, y, th = _newton(start, theta0, secf, steps, rest, loads,
-                                                       m_tip, tol, max_iter, max_step, out)
+    root, ok, its, res, stable, bm, x, y, th = newton(start, theta0, secf, steps, rest, loads,
+                                                      m_tip, tol, max_iter, max_step, out)
     if not (ok and prev_m <= root <= mk):
         lo, hi, r_lo = prev_m, mk, prev_r
         for _ in range(60):
@@ -266,7 +266,7 @@ def _bracket_root(prev_m, prev_r, mk, r, theta0, secf, steps, rest, loads, m_tip
                 hi = mid
             if hi - lo <= 1e-12 * params[M_BOUND]:
                 break
-        root, ok, n_it, res, stable, bm, x, y, th = _newton(
+        root, ok, n_it, res, stable, bm, x, y, th = newton(
             0.5 * (lo + hi), theta0, secf, steps, rest, loads, m_tip, tol, max_iter, max_step, out)
         its += n_it
     return root, ok and stable, its
@@ -294,7 +294,7 @@ def _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
 
 
 @njit
-def _follow(state, grid, tubes, a, b, params, work, guard):
+def follow(state, grid, tubes, a, b, params, work, guard):
     """Planar dead-load path following, in the signature the path-following kernels share.
 
     Args:
@@ -310,9 +310,15 @@ def _follow(state, grid, tubes, a, b, params, work, guard):
         (converged, stable, snapped, iterations, residual, t, dt): t is 1 when converged
         (NaN otherwise: the planar path does not report how far it got), dt 0.
     """
+    theta0, secf, steps = grid
+    tubes_i, tubes_f = tubes
+    p_a, loads_a, mtip_a = a
+    p_b, loads_b, mtip_b = b
+    rest, p_now, loads_now, out, record = work
+    c_j_3d, discs = guard
     m0, ok, total, snapped, stable, res, x, y, th = _path(
-        state[0], grid[0], grid[1], grid[2], tubes[0], tubes[1], a[0], b[0], a[1], b[1], a[2],
-        b[2], params, work[0], work[1], work[2], work[3], work[4], guard[0], guard[1])
+        state[0], theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+        mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs)
     state[0] = m0
     state[1] = x
     state[2] = y
@@ -326,8 +332,8 @@ DIRECT_ITER = 6
 
 
 @njit
-def _step(state, grid, tubes, a, b, params, work, memo):
-    """A warm step of the stepper (:class:`solver.stepper.Stepper`): :func:`_follow` from an
+def warm_step(state, grid, tubes, a, b, params, work, memo):
+    """A warm step of the stepper (:class:`solver.stepper.Stepper`): :func:`follow` from an
     equilibrium at ``a`` to the pressures of ``b`` (the same loads), first tried as one
     Newton solve from a first-order prediction.
 
@@ -335,19 +341,19 @@ def _step(state, grid, tubes, a, b, params, work, memo):
     (:func:`solver.rod.planar_rest_gradient`) times the change of the rest strains. It is
     accepted on the terms :func:`_path` accepts a continuation step: Newton converged on a
     stable state that moved from the prediction by at most ``JUMP`` plus half the predicted
-    move. Otherwise the step is :func:`_follow`'s (continuation, fold scan), with the same
+    move. Otherwise the step is :func:`follow`'s (continuation, fold scan), with the same
     prediction as its first tangent.
 
     Args:
-        state, grid, tubes, a, b, params, work: as :func:`_follow`.
+        state, grid, tubes, a, b, params, work: as :func:`follow`.
         memo: (p_seen (n_tubes,), stretch (n_tubes,), rest_a (3, ns), grad (2, ns)): the
             λ(p) cache (:func:`solver.rod.rest_strains_cached`), the start state's rest
             strains and gradient (NaN: unknown). Updated to the returned state when it
             converged; the gradient is computed only if ``work`` records.
 
     Returns:
-        As :func:`_follow`; with ``record`` (as the steppers call it), a state the RK4 grid
-        does not resolve (:func:`solver._grid.planar_fine`) is not converged: the caller's
+        As :func:`follow`; with ``record`` (as the steppers call it), a state the RK4 grid
+        does not resolve (:func:`solver.kernels.grid.planar_fine`) is not converged: the caller's
         general path solves it on a finer grid.
     """
     theta0, secf, steps = grid
@@ -365,7 +371,7 @@ def _step(state, grid, tubes, a, b, params, work, memo):
     guess = m_start + (slope if math.isfinite(slope) else 0.0)
     jump = params[JUMP] + 0.5 * abs(guess - m_start)
     n_direct = min(int(params[MAX_ITER]), DIRECT_ITER)
-    root, ok, its, res, stable, bm, x, y, th = _newton(
+    root, ok, its, res, stable, bm, x, y, th = newton(
         guess, theta0, secf, steps, rest, loads, m_tip, params[TOL], n_direct, params[MAX_STEP],
         out, record, GIVE_UP * jump)
     snapped = False
@@ -411,7 +417,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
     predicts m0 by secant, corrects by Newton, and is accepted only if Newton converged,
     landed on a stable equilibrium and did not jump far from the prediction; otherwise the
-    step is halved. Below ``DT_MIN`` a fold (or bifurcation) has been passed: :func:`_scan`
+    step is halved. Below ``DT_MIN`` a fold (or bifurcation) has been passed: :func:`fold_scan`
     picks the stable equilibrium nearest the prediction and the result is flagged as a snap.
 
     Scratch/outputs: ``rest`` (3, ns), ``p_now`` (n_channels,), ``loads_now`` (ns, 4) hold
@@ -422,13 +428,13 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
 
     ``c_j_3d`` (ns,) 1/GJ, or empty: when given, the path is followed for a spatial solve
     of an in-plane scene, and every accepted state must also pass the 3D stability test
-    (:func:`solver._spatial._planar_state_stable`). The first that does not — and any fold
+    (:func:`solver.kernels.spatial.planar_state_stable`). The first that does not — and any fold
     or snap, where the 3D path may leave the plane — ends the path unconverged, so that the
     caller hands the solve to the spatial kernels: the planar shortcut never changes the
     answer. ``discs`` ((k, 4) obstacles, or empty) guards a contact-free solve of a scene
     with obstacles the same way: the backbone must stay clear of every disc by half an RK4
     step at every accepted state, and no sample may pass through a disc between accepted
-    states (:func:`solver._obstacles._tunnels`; a step that fails only that is halved).
+    states (:func:`solver.kernels.obstacles.tunnels`; a step that fails only that is halved).
 
     ``slope0``: dm0/dt at the start, if the caller knows it (the stepper's rest-strain
     gradient); otherwise a large change gets a finite-difference tangent (two passes).
@@ -465,12 +471,12 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
-        if not _clear_of(rec_prev, discs, half_h):
+        if not clear_of(rec_prev, discs, half_h):
             return m0, False, 1, snapped, False, math.inf, x, y, th
     # Tangent predictor for the first step (the later steps use the secant through accepted
     # points). Small warm steps (env steps) start from the previous state directly, so the
     # two extra passes are spent only on large changes (cold ramps, big jumps, new loads).
-    big = mtip_a != mtip_b or _big_change(p_a, p_b, loads_a, loads_b)
+    big = mtip_a != mtip_b or big_change(p_a, p_b, loads_a, loads_b)
     slope = 0.0
     eps = 1e-6
     if math.isfinite(slope0):
@@ -492,21 +498,21 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         # means Newton left the branch: retry with a smaller step. At the smallest step a
         # far root is a snap, so Newton is given its whole budget there.
         jump = params[JUMP] + 0.5 * abs(guess - m0)
-        root, ok, its, res, stab, bm, x, y, th = _newton(
+        root, ok, its, res, stab, bm, x, y, th = newton(
             guess, theta0, secf, steps, rest, loads_now, m_tip, tol if final else 1e3 * tol,
             max_iter if final else min(max_iter, 6), max_step, out, record and final,
             GIVE_UP * jump if dt > dt_min else math.inf)
         total += its
         if guard and ok and stab and abs(root - guess) <= jump:
-            if c_j_3d.shape[0] > 0 and not _planar_state_stable(x, y, th, m_tip, secf, steps,
-                                                                  c_j_3d, rest, loads_now):
+            if c_j_3d.shape[0] > 0 and not planar_state_stable(x, y, th, m_tip, secf, steps,
+                                                               c_j_3d, rest, loads_now):
                 return root, False, total, snapped, False, res, x, y, th
             if discs.shape[0] > 0:
                 integrate_planar(root, theta0, secf, steps, rest, loads_now, True, rec_new)
                 total += 1
-                if not _clear_of(rec_new, discs, half_h):
+                if not clear_of(rec_new, discs, half_h):
                     return root, False, total, snapped, False, res, x, y, th
-                if _tunnels(rec_prev[:, X:Y + 1], rec_new[:, X:Y + 1], discs, -half_h):
+                if tunnels(rec_prev[:, X:Y + 1], rec_new[:, X:Y + 1], discs, -half_h):
                     if dt > dt_min:
                         dt *= 0.5
                         continue
@@ -517,8 +523,8 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
                 # Converged far from the prediction at the smallest step: the branch ended
                 # (a fold) and Newton fell onto another stable one — a snap, if the grid
                 # resolves the state the branch ended at (else the caller refines it).
-                if not _resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b,
-                                 loads_a, loads_b, mtip_a, mtip_b):
+                if not resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b,
+                                loads_a, loads_b, mtip_a, mtip_b):
                     return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b,
                                       loads_a, loads_b, mtip_a, mtip_b, rest, p_now, loads_now,
                                       out, total, snapped, res)
@@ -543,19 +549,19 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         # A fold or bifurcation lies between t and t_new: snap to the nearest stable state —
         # if the grid resolves the last state before it; a fold met from a state it does not
         # resolve may be the grid's, not the rod's, and the caller refines the grid.
-        if not _resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
-                         loads_b, mtip_a, mtip_b):
+        if not resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
+                        loads_b, mtip_a, mtip_b):
             return _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a,
                               loads_b, mtip_a, mtip_b, rest, p_now, loads_now, out, total,
                               snapped, res)
-        snap_to, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params,
-                                    int(params[N_SCAN]), guess, out)
+        snap_to, found, its = fold_scan(theta0, secf, steps, rest, loads_now, m_tip, params,
+                                        int(params[N_SCAN]), guess, out)
         total += its
         if not found:
             # Heavily loaded arms (a column far past its buckling load) have stable roots in
             # narrow windows of m0 that the default grid steps over: look once more, 8× finer.
-            snap_to, found, its = _scan(theta0, secf, steps, rest, loads_now, m_tip, params,
-                                        8 * int(params[N_SCAN]), guess, out)
+            snap_to, found, its = fold_scan(theta0, secf, steps, rest, loads_now, m_tip, params,
+                                            8 * int(params[N_SCAN]), guess, out)
             total += its
         if not found:
             # No stable equilibrium at this level. Report the Newton result as it stands, with
@@ -570,9 +576,9 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
                               snapped, res)
         snapped = True
         slope = 0.0
-        m0, ok, its, res, stable, bm, x, y, th = _newton(snap_to, theta0, secf, steps, rest,
-                                                         loads_now, m_tip, tol, max_iter,
-                                                         max_step, out, record and final)
+        m0, ok, its, res, stable, bm, x, y, th = newton(snap_to, theta0, secf, steps, rest,
+                                                        loads_now, m_tip, tol, max_iter,
+                                                        max_step, out, record and final)
         total += its
         t = t_new
         dt = dt0
@@ -580,10 +586,10 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
 
 
 @njit
-def _resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-              mtip_b):
+def resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+             mtip_b):
     """Whether the RK4 grid resolves the state ``m0`` at level ``t`` of the homotopy
-    (:func:`solver._grid.planar_fine` of its record; one recorded pass)."""
+    (:func:`solver.kernels.grid.planar_fine` of its record; one recorded pass)."""
     p_now = np.empty(p_a.shape[0])
     loads_now = np.empty(loads_a.shape)
     rest = np.empty((3, secf.shape[1]))
@@ -610,24 +616,24 @@ def _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
 
 
 @njit
-def _clear_of(rec, discs, gap):
+def clear_of(rec, discs, gap):
     """True when every recorded sample of ``rec`` clears every disc by more than ``gap`` (m)."""
     for r in range(rec.shape[0]):
-        if not _clearance(rec[r, X], rec[r, Y], discs) > gap:
+        if not clearance(rec[r, X], rec[r, Y], discs) > gap:
             return False
     return True
 
 
 @njit(parallel=True)
-def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, loads, mtip,
-           params, record, tips, ok, stable_out, m0_out, shapes):
+def batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, loads, mtip,
+          params, record, tips, ok, stable_out, m0_out, shapes):
     """Many quasi-static solves in parallel, one per row of ``p_targets`` (n, n_channels).
 
     Row k follows the path from the equilibrium ``m0_start[k]`` at pressures ``p_start[k]``
     (cold solves: the loaded, unactuated state at zero pressure for every row, as
     :func:`solver.solve` does, so a sweep's result does not depend on its order). Writes the
     tips (n, 2), convergence and stability flags and the new base moments. A row that does
-    not converge, or whose state the RK4 grid does not resolve (:func:`solver._grid.planar_fine`),
+    not converge, or whose state the RK4 grid does not resolve (:func:`solver.kernels.grid.planar_fine`),
     keeps its start state (``m0_out[k] = m0_start[k]``, its tip and shape).
     With ``record`` each row's backbone is written to ``shapes[k]`` ((rows, N_COLUMNS));
     otherwise ``shapes`` is an (n, 1, N_COLUMNS) scratch.
@@ -651,7 +657,7 @@ def _batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, 
         out = shapes[k] if record else np.empty((rows, N_COLUMNS))
         state = np.empty(4)
         state[0] = m0_start[k]
-        conv, stab, snapped, its, res, t, dt = _follow(
+        conv, stab, snapped, its, res, t, dt = follow(
             state, grid, tubes, (p_start[k], loads, mtip), (p_targets[k], loads, mtip), params,
             (rest, p_now, loads_now, out, True), (no_guard, no_discs))
         root, x, y = state[0], state[1], state[2]
@@ -679,9 +685,9 @@ def _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, reco
     (not converged, too, where the grid does not resolve the state: the caller's general path
     refines it)."""
     rest, p_now, loads_now = work
-    secf, steps = grid[1], grid[2]
+    _, secf, steps = grid
     out = records[k] if record else np.empty(((steps + 1).sum(), N_COLUMNS))
-    ok, stable, snapped, its, res, _, _ = _follow(
+    ok, stable, snapped, its, res, _, _ = follow(
         states[k], grid, tubes, (p_zero, loads, mtip), (p[k], loads, mtip), params,
         (rest[k], p_now[k], loads_now[k], out, True), (np.empty(0), np.empty((0, 4))))
     ok = ok and planar_fine(out, secf, steps, loads)
@@ -696,12 +702,12 @@ def _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, reco
 
 
 @njit(parallel=True)
-def _cold_rows_parallel(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
-                        record, rest_a, grad, report):
+def cold_rows_parallel(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
+                       record, rest_a, grad, report):
     """Cold solves of many copies in parallel (see :class:`solver.stepper.BatchStepper`).
 
     Row k follows the path from ``states[k, 0]`` (the loaded unactuated arm's m0) at zero
-    pressure to ``p[k]``, exactly as :func:`solver._paths_planar.solve_single` does, so that
+    pressure to ``p[k]``, exactly as :func:`solver.paths.planar.solve_single` does, so that
     a row gives the bits a single solve gives. Writes ``states`` (n, 4), ``report`` (n, 5):
     converged, stable, snapped, iterations, residual; with ``record`` the backbone into
     ``records[k]`` (otherwise an (n, 1, N_COLUMNS) scratch) and, where converged, the rest
@@ -714,9 +720,9 @@ def _cold_rows_parallel(grid, tubes, p_zero, p, loads, mtip, params, work, state
 
 
 @njit
-def _cold_rows_serial(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
-                      record, rest_a, grad, report):
-    """:func:`_cold_rows_parallel` on one thread (small batches: no thread start-up)."""
+def cold_rows_serial(grid, tubes, p_zero, p, loads, mtip, params, work, states, records,
+                     record, rest_a, grad, report):
+    """:func:`cold_rows_parallel` on one thread (small batches: no thread start-up)."""
     for k in range(p.shape[0]):
         _cold_row(k, grid, tubes, p_zero, p, loads, mtip, params, work, states, records, record,
                   rest_a, grad, report)
@@ -725,11 +731,11 @@ def _cold_rows_serial(grid, tubes, p_zero, p, loads, mtip, params, work, states,
 @njit(inline="always")
 def _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records, memo,
               report):
-    """Row k of :func:`_step_rows`: :func:`_step`, the record kept only if it converged."""
+    """Row k of :func:`_step_rows`: :func:`warm_step`, the record kept only if it converged."""
     rest, p_now, loads_now, scratch = work
     p_seen, stretch, rest_a, grad = memo
     m_start = states[k, 0]
-    ok, stable, snapped, its, res, _, _ = _step(
+    ok, stable, snapped, its, res, _, _ = warm_step(
         states[k], grid, tubes, (p_from[k], loads, mtip), (p_to[k], loads, mtip), params,
         (rest[k], p_now[k], loads_now[k], scratch[k], True),
         (p_seen[k], stretch[k], rest_a[k], grad[k]))
@@ -745,14 +751,14 @@ def _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, r
 
 
 @njit(parallel=True)
-def _step_rows_parallel(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
-                        memo, active, report):
-    """Warm steps of many copies in parallel: :func:`_step` per row, from the equilibrium
+def step_rows_parallel(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                       memo, active, report):
+    """Warm steps of many copies in parallel: :func:`warm_step` per row, from the equilibrium
     ``states[k]``/``records[k]`` at ``p_from[k]`` to ``p_to[k]`` (n, n_channels). A row
     that converged gets its new record, state and predictor memo (per-row arrays of
-    :func:`_step`'s ``memo``); one that did not keeps its equilibrium. ``work``: per-row
+    :func:`warm_step`'s ``memo``); one that did not keeps its equilibrium. ``work``: per-row
     scratch (rest, p_now, loads_now, scratch records). Rows where ``active`` (n,) is False
-    are skipped. ``report`` as :func:`_cold_rows_parallel`.
+    are skipped. ``report`` as :func:`cold_rows_parallel`.
     """
     for k in prange(p_to.shape[0]):
         if active[k]:
@@ -761,9 +767,9 @@ def _step_rows_parallel(grid, tubes, p_from, p_to, loads, mtip, params, work, st
 
 
 @njit
-def _step_rows_serial(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
-                      memo, active, report):
-    """:func:`_step_rows_parallel` on one thread."""
+def step_rows_serial(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
+                     memo, active, report):
+    """:func:`step_rows_parallel` on one thread."""
     for k in range(p_to.shape[0]):
         if active[k]:
             _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
@@ -771,7 +777,7 @@ def _step_rows_serial(grid, tubes, p_from, p_to, loads, mtip, params, work, stat
 
 
 @njit(parallel=True)
-def _arc_tips(theta0, secf, tubes_i, tubes_f, p_channels, tips):
+def arc_tips(theta0, secf, tubes_i, tubes_f, p_channels, tips):
     """Tips of many unloaded (or constant-curvature) arms, in parallel: each section a
     circular arc of its rest curvature u2* and stretch v3* (exact without loads).
 

@@ -16,7 +16,7 @@ class DesignCache:
     def __init__(self, scaled_from: tuple | None = None):
         self._store = {}
         # (nominal design, modulus factor) of a design made by ArmDesign.scaled: its kernel
-        # arrays are derived from the nominal's (solver._model.pack).
+        # arrays are derived from the nominal's (solver.problem.pack).
         self.scaled_from = scaled_from
 
     def get(self, key, build):

@@ -9,11 +9,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from solver import _planar
 from solver import layout as L
-from solver._grid import on_grid, planar_fine
-from solver._model import MULTIPLE_SHOOTING_INDEX, SceneContext, context, pack, refined, rest_strains
-from solver._paths_shooting import solve_multiple
+from solver.kernels import planar as planar_kernels
+from solver.kernels.grid import planar_fine
+from solver.paths.grid import on_grid
+from solver.paths.shooting import solve_multiple
+from solver.problem import MULTIPLE_SHOOTING_INDEX, Problem, SceneContext, pack, refined, rest_strains
 from solver.results import Equilibrium
 from solver.rod import arc_chain_planar, arc_chain_spatial, base_rotation, integrate_planar
 
@@ -24,13 +25,16 @@ NO_DISCS = np.empty((0, 4))
 _NO_RECORD = np.empty((1, L.N_COLUMNS))
 
 
-def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
+def closed_form(problem: Problem, record: bool) -> Equilibrium:
     """Unloaded arm (or the constant-curvature model): each section a circular arc.
 
     With no external load the internal force and moment vanish everywhere, so each section
     takes its rest strains exactly: curvature u*, stretch v*, no shear. Exact for every
-    model; the ``constant_curvature`` model applies it whatever the loads.
+    model; the ``constant_curvature`` model applies it whatever the loads. ``record``: with
+    backbone samples (else the tip only).
     """
+    arm, packed, scene, planar = problem.arm, problem.packed, problem.scene, problem.planar
+    p_channel = problem.p_channel
     u1, u2, v3 = rest_strains(arm, p_channel, packed)
     ns = len(arm.sections)
     seg = np.repeat(np.arange(ns), packed.sec_steps + 1)
@@ -38,8 +42,7 @@ def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
     s = np.concatenate([np.linspace(0.0, length, k + 1) + off for length, k, off in
                         zip(packed.sec_len, packed.sec_steps, starts)]) if record else np.empty(0)
     n = s.size
-    common = dict(converged=True, stable=True, iterations=0, residual=0.0, model=model,
-                  planar=planar, scene=scene, arm=arm, pressures=p_inputs, channel_pressures=p_channel,
+    common = dict(converged=True, stable=True, iterations=0, residual=0.0,
                   base_moment=np.zeros(1 if planar else 3), base_force=np.zeros(2 if planar else 3))
     ends = np.empty((ns, 3))
     if planar:
@@ -47,8 +50,8 @@ def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
         arc_chain_planar(scene.base_theta, packed.sec_len, u2, v3, s, positions, angles, ends)
         tip = ends[-1, :2].copy()
         if not record:
-            return Equilibrium._make(tip=tip, **common)
-        return Equilibrium._make(
+            return problem.equilibrium(tip=tip, **common)
+        return problem.equilibrium(
             tip=tip, s=s, positions=positions, angles=angles,
             shear_stretch=np.column_stack([np.zeros(n), v3[seg]]), curvature=u2[seg].copy(),
             internal_force=np.zeros((n, 2)), internal_moment=np.zeros(n),
@@ -59,8 +62,8 @@ def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
                       np.empty((4, 3, 3)), positions, frames, ends, np.empty((ns, 3, 3)))
     tip = ends[-1].copy()
     if not record:
-        return Equilibrium._make(tip=tip, **common)
-    return Equilibrium._make(
+        return problem.equilibrium(tip=tip, **common)
+    return problem.equilibrium(
         tip=tip, s=s, positions=positions, orientations=frames,
         shear_stretch=np.column_stack([np.zeros(n), np.zeros(n), v3[seg]]),
         curvature=np.column_stack([u1[seg], u2[seg], np.zeros(n)]),
@@ -70,7 +73,7 @@ def closed_form(arm, packed, p_inputs, p_channel, scene, model, planar, record):
 
 def follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None, guard_3d=False,
            guard_discs=NO_DISCS):
-    """Run :func:`solver._planar._follow` from base moment ``m0``.
+    """Run :func:`solver.kernels.planar.follow` from base moment ``m0``.
 
     With ``out`` ((n_rows, N_COLUMNS)) a converged result's backbone is recorded into it;
     with ``guard_3d`` every accepted state must be stable in 3D too (the in-plane shortcut
@@ -84,7 +87,7 @@ def follow(packed, scene, p_start, p_target, start_ctx, ctx, m0, out=None, guard
     ns = packed.secf.shape[1]
     rest, p_now, loads_now = np.empty((3, ns)), np.empty(p_target.shape[0]), np.empty((ns, 4))
     state = np.array([m0, 0.0, 0.0, 0.0])
-    ok, stable, snapped, its, res, _, _ = _planar._follow(
+    ok, stable, snapped, its, res, _, _ = planar_kernels.follow(
         state, (scene.base_theta, packed.secf, packed.sec_steps), (packed.tubes_i, packed.tubes_f),
         (p_start, start_ctx.loads, start_ctx.m_tip), (p_target, ctx.loads, ctx.m_tip), ctx.params,
         (rest, p_now, loads_now, _NO_RECORD if out is None else out, out is not None),
@@ -98,7 +101,7 @@ class Loaded(NamedTuple):
     Attributes:
         m0: the base moment reached (N m). iterations, snapped: as an Equilibrium's.
         converged: the loads were ramped in (with a guard: and the guard held all along).
-        resolved: the RK4 grid resolves that state (:func:`solver._grid.planar_fine`); a
+        resolved: the RK4 grid resolves that state (:func:`solver.kernels.grid.planar_fine`); a
             cold path that starts from a state it does not resolve is not trusted.
     """
 
@@ -109,15 +112,18 @@ class Loaded(NamedTuple):
     resolved: bool
 
 
-def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False, guard_discs=NO_DISCS) -> Loaded:
-    """Stage 1 of a cold solve: the unactuated arm under its loads ramped from zero (cached).
+def loaded_base_moment(problem: Problem, guard_3d=False, guard_discs=NO_DISCS) -> Loaded:
+    """Stage 1 of a cold solve of a planar ``problem``: the unactuated arm under its loads
+    ramped from zero (cached; the pressures of ``problem`` do not enter).
 
     With a guard (see :func:`follow`) converged means also that the guard held all along.
     """
+    arm, packed, scene, ctx = problem.arm, problem.packed, problem.scene, problem.ctx
+
     def build():
         zeros = np.zeros(max(arm.n_channels, 1))
         if not guard_3d and not guard_discs.size:
-            scaled = _scaled_loaded(arm, packed, scene, ctx)
+            scaled = _scaled_loaded(problem)
             if scaled is not None:
                 return scaled
         unloaded = SceneContext(n_end=ctx.n_end * 0, q=ctx.q * 0, loads=ctx.loads * 0,
@@ -135,7 +141,7 @@ def loaded_base_moment(arm, packed, scene, ctx, guard_3d=False, guard_discs=NO_D
     return arm._solver_cache.get(key, build)
 
 
-def _scaled_loaded(arm, packed, scene, ctx) -> Loaded | None:
+def _scaled_loaded(problem: Problem) -> Loaded | None:
     """Stage 1 of a design made by ``ArmDesign.scaled`` from its nominal's (None: not one,
     or the similarity does not apply).
 
@@ -147,14 +153,17 @@ def _scaled_loaded(arm, packed, scene, ctx) -> Loaded | None:
     Newton steps instead of a whole ramp (docs/design.md §10). Applies when the nominal
     ramp did not snap (no fold, so the family is one branch) and the load change converges.
     """
+    arm, packed, scene, ctx = problem.arm, problem.packed, problem.scene, problem.ctx
     scaled_from = arm._solver_cache.scaled_from
     if scaled_from is None or packed.key[0] != "pack":
         return None
     nominal, f = scaled_from
     _, model, settings = packed.key
-    npacked = pack(nominal, model, settings)
-    nctx = context(nominal, npacked, scene, 2, settings)
-    base = loaded_base_moment(nominal, npacked, scene, nctx)
+    # The same request of the nominal design (its pressures do not enter stage 1).
+    of_nominal = replace(problem, arm=nominal, packed=pack(nominal, model, settings),
+                         settings=settings)
+    npacked, nctx = of_nominal.packed, of_nominal.ctx
+    base = loaded_base_moment(of_nominal)
     if not (base.converged and base.resolved) or base.snapped:
         return None
     target = replace(nctx, n_end=nctx.n_end / f, q=nctx.q / f, loads=nctx.loads / f,
@@ -179,18 +188,20 @@ def _loaded_record(arm, packed, scene, ctx, m0):
     return out, bmin
 
 
-def not_lean(arm, scene, model, planar, settings, ctx) -> str | None:
-    """Why the lean planar kernels (:func:`solver._planar._step`, :func:`solve_lean`) cannot
-    solve this arm in this scene (None: they can): they are single shooting without
-    contact, on a loaded arm with channels."""
-    if not planar:
+def not_lean(problem: Problem) -> str | None:
+    """Why the lean planar kernels (:func:`solver.kernels.planar.warm_step`,
+    :func:`solve_lean`) cannot solve this request (None: they can): they are single shooting
+    without contact, on a loaded arm with channels."""
+    if not problem.planar:
         return "a spatial solve (planar=False)"
-    return not_single(arm, scene, model, settings, ctx)
+    return not_single(problem)
 
 
-def not_single(arm, scene, model, settings, ctx) -> str | None:
-    """Why a solve of this arm in this scene is not plain single shooting, planar or
-    spatial (None: it is): what :func:`not_lean` asks besides the plane."""
+def not_single(problem: Problem) -> str | None:
+    """Why a solve of this request is not plain single shooting, planar or spatial (None: it
+    is): what :func:`not_lean` asks besides the plane."""
+    arm, scene, model, settings, ctx = (problem.arm, problem.scene, problem.model,
+                                        problem.settings, problem.ctx)
     if not arm.n_channels:
         return "a passive arm (no channels)"
     if scene.has_contact:
@@ -204,9 +215,9 @@ def not_single(arm, scene, model, settings, ctx) -> str | None:
     return None
 
 
-def solve_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings, record):
+def solve_lean(problem: Problem, record: bool) -> Equilibrium | None:
     """The common planar solve in one kernel call, where the scene is lean (:func:`not_lean`):
-    :func:`solver._planar._follow` from the warm start (solved in the same scene) or, cold,
+    :func:`solver.kernels.planar.follow` from the warm start (solved in the same scene) or, cold,
     from the cached loaded arm, as :func:`solve_single` calls it, with the grid check in the
     kernel.
 
@@ -215,16 +226,18 @@ def solve_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, setti
         and resolved by the grid (the general path would return it as it is); else None
         (the general path, with its fallbacks and refinement, takes over).
     """
-    ctx = context(arm, packed, scene, 2, settings)
-    if not_lean(arm, scene, model, True, settings, ctx) is not None:
+    if not_lean(problem) is not None:
         return None
+    packed, scene, warm_start, p_channel = (problem.packed, problem.scene, problem.warm_start,
+                                            problem.p_channel)
+    ctx = problem.ctx
     if warm_start is not None:
         if warm_start.scene != scene:
             return None
         m0, iterations, snapped = float(warm_start.base_moment[-1]), 0, False
         p_start = warm_start.channel_pressures
     else:
-        m0, iterations, snapped, loaded, resolved = loaded_base_moment(arm, packed, scene, ctx)
+        m0, iterations, snapped, loaded, resolved = loaded_base_moment(problem)
         if not resolved:
             return None
         p_start = np.zeros_like(p_channel)
@@ -233,20 +246,18 @@ def solve_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, setti
                                                               ctx, ctx, m0, out)
     if not (ok and stable and planar_fine(out, packed.secf, packed.sec_steps, loads_now)):
         return None
-    return single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, state[0],
-                         record, converged=True, stable=True, iterations=int(iterations + its),
-                         residual=float(res), snapped=bool(snapped or snap))
+    return single_result(problem, out, state[0], record, converged=True, stable=True,
+                         iterations=int(iterations + its), residual=float(res),
+                         snapped=bool(snapped or snap))
 
 
-def solve_planar(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+def solve_planar(problem: Problem) -> Equilibrium:
     """Planar dead-load solve: single shooting, or multiple shooting where that is
     ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``)."""
-    return solve_either(solve_single, solve_multiple, 2, arm, packed, p_inputs, p_channel, scene,
-                        model, warm_start, settings)
+    return solve_either(solve_single, solve_multiple, problem)
 
 
-def solve_either(single, multiple, dim, arm, packed, p_inputs, p_channel, scene, model, warm_start,
-                 settings):
+def solve_either(single, multiple, problem: Problem) -> Equilibrium:
     """Solve by ``single`` shooting, or by ``multiple`` shooting first where single shooting
     is ill-conditioned (index above MULTIPLE_SHOOTING_INDEX); with the fallbacks on
     (``settings.n_scan > 0``) the other method runs where the first did not return a stable
@@ -256,12 +267,12 @@ def solve_either(single, multiple, dim, arm, packed, p_inputs, p_channel, scene,
     twice the steps (returned on this one; docs/design.md §8), then with both; still
     failing, the result of these settings with the smallest residual is returned,
     unconverged (on this grid: where it does not resolve that state, the caller refines)."""
+    arm, packed, model, settings = problem.arm, problem.packed, problem.model, problem.settings
     fallbacks = settings.n_scan > 0 and model != "constant_curvature"
     methods = (single, multiple)
-    if fallbacks and context(arm, packed, scene, dim, settings).shooting_index > MULTIPLE_SHOOTING_INDEX:
+    if fallbacks and problem.ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
         methods = methods[::-1]
-    args = (arm, packed, p_inputs, p_channel, scene, model, warm_start, settings)
-    eq = methods[0](*args)
+    eq = methods[0](problem)
     if not fallbacks or (eq.converged and eq.stable):
         return eq
     iterations = eq.iterations
@@ -275,7 +286,7 @@ def solve_either(single, multiple, dim, arm, packed, p_inputs, p_channel, scene,
     tries += [(method, tried, layout) for tried, layout in stages for method in methods]
     best = eq
     for method, tried, layout in tries:
-        other = method(arm, layout, p_inputs, p_channel, scene, model, warm_start, tried)
+        other = method(problem.on(layout, tried))
         iterations += other.iterations
         if not np.array_equal(layout.sec_steps, packed.sec_steps):
             other = on_grid(other, layout.sec_steps, packed.sec_steps)
@@ -298,27 +309,26 @@ def _packed_for(arm, packed, model, settings):
     return refined(arm, base, packed.sec_steps)
 
 
-def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                 guard_3d=False, guard_discs=NO_DISCS):
-    """Planar dead-load solve by single shooting on m0 (:func:`solver._planar._follow`).
+def solve_single(problem: Problem, guard_3d=False, guard_discs=NO_DISCS) -> Equilibrium:
+    """Planar dead-load solve by single shooting on m0 (:func:`solver.kernels.planar.follow`).
 
     With ``guard_3d`` (the in-plane shortcut of a spatial solve) the result is unconverged
     as soon as the path leaves the states that are stable in 3D, loading stage included;
     with ``guard_discs`` (the contact-free shortcut) as soon as it comes within half an RK4
     step of a disc.
     """
-    ctx = context(arm, packed, scene, 2, settings)
-    p_target = p_channel if arm.n_channels else np.zeros(1)
+    arm, packed, scene, warm_start, ctx = (problem.arm, problem.packed, problem.scene,
+                                           problem.warm_start, problem.ctx)
+    p_target = problem.p_target
     iterations = 0
     snapped = False
     if warm_start is not None and warm_start.scene is not None:
-        start_ctx = ctx if warm_start.scene == scene else \
-            context(arm, packed, warm_start.scene, 2, settings)
+        start_ctx = ctx if warm_start.scene == scene else problem.in_scene(warm_start.scene).ctx
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         m0 = float(warm_start.base_moment[-1])  # planar m_z, or z of a spatial m0
     else:
-        m0, iterations, snapped, loaded, resolved = loaded_base_moment(
-            arm, packed, scene, ctx, guard_3d, guard_discs)
+        m0, iterations, snapped, loaded, resolved = loaded_base_moment(problem, guard_3d,
+                                                                       guard_discs)
         if (guard_3d or guard_discs.size) and not loaded:
             return Equilibrium._make(tip=np.full(2, np.nan), converged=False, stable=False,
                                iterations=iterations, residual=math.inf)
@@ -326,10 +336,9 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, set
             # The loaded arm is beyond this grid: the ramp from it is not trusted. Its state,
             # unconverged (the caller refines the grid).
             out, bmin = _loaded_record(arm, packed, scene, ctx, m0)
-            return single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx,
-                                  m0, converged=False, stable=bool(bmin > 0.0),
-                                  iterations=iterations, snapped=snapped,
-                                  residual=float(abs(out[-1, L.M] - ctx.m_tip)))
+            return single_result(problem, out, m0, converged=False, stable=bool(bmin > 0.0),
+                                 iterations=iterations, snapped=snapped,
+                                 residual=float(abs(out[-1, L.M] - ctx.m_tip)))
         start_ctx, p_start = ctx, np.zeros_like(p_target)
     out = np.empty((packed.n_rows, L.N_COLUMNS))
     state, ok, stable, snap, its, res, rest, loads_now = follow(
@@ -337,21 +346,22 @@ def solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, set
     if not ok:  # the returned (last good) state was not recorded by a final Newton pass
         integrate_planar(state[0], scene.base_theta, packed.secf, packed.sec_steps, rest,
                          loads_now, True, out)
-    return single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, state[0],
-                          converged=bool(ok), stable=bool(stable), iterations=int(iterations + its),
-                          residual=float(res), snapped=bool(snapped or snap))
+    return single_result(problem, out, state[0], converged=bool(ok), stable=bool(stable),
+                         iterations=int(iterations + its), residual=float(res),
+                         snapped=bool(snapped or snap))
 
 
-def single_result(out, packed, arm, scene, model, p_inputs, p_channel, ctx, m0, record=True,
-                  **flags):
-    """The planar Equilibrium of a backbone record ``out`` (its arrays views into it); without
-    ``record``, its tip only."""
+def single_result(problem: Problem, out, m0, record=True, **flags) -> Equilibrium:
+    """The planar Equilibrium of ``problem`` of a backbone record ``out`` (its arrays views
+    into it), base moment ``m0``; without ``record``, its tip only."""
+    packed = problem.packed
     samples = dict(
         s=out[:, L.S], positions=out[:, L.X:L.Y + 1], angles=out[:, L.THETA],
         shear_stretch=out[:, L.V1:L.V3 + 1], curvature=out[:, L.U],
         internal_force=out[:, L.NX:L.NY + 1], internal_moment=out[:, L.M],
         section_ends=packed.section_ends) if record else {}
     return Equilibrium._make(
-        tip=out[-1, L.X:L.Y + 1].copy(), model=model, planar=True, scene=scene,
-        pressures=p_inputs, channel_pressures=p_channel, base_moment=np.array([float(m0)]),
-        base_force=ctx.base_force, arm=arm, **samples, **flags)
+        tip=out[-1, L.X:L.Y + 1].copy(), model=problem.model, planar=True, scene=problem.scene,
+        pressures=problem.p_inputs, channel_pressures=problem.p_channel,
+        base_moment=np.array([float(m0)]), base_force=problem.ctx.base_force, arm=problem.arm,
+        **samples, **flags)

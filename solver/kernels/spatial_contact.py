@@ -1,7 +1,7 @@
 """Spatial kernels for an arm pressed against rigid cylinders and spheres (penalty contact),
 multiple shooting (docs/design.md §9).
 
-The planar contact kernels (:mod:`solver._contact`) carried to 3D. With contact the internal
+The planar contact kernels (:mod:`solver.kernels.contact`) carried to 3D. With contact the internal
 force is not known from global equilibrium, so the whole state — position r, directors
 (a unit quaternion β), internal force n and moment m, world frame — is integrated
 (:func:`solver.rod.spatial_state_rhs`):
@@ -10,18 +10,18 @@ force is not known from global equilibrium, so the whole state — position r, d
     f_c = k · max(0, R_o − |e|) · e/|e|   (e: r less the nearest point of the obstacle's core)
 
 The arm is cut into the segments of the planar contact layout
-(:func:`solver._model.contact_layout`: the same RK4 grid, refined NEAR_SUBSTEPS-fold near an
+(:func:`solver.problem.contact_layout`: the same RK4 grid, refined NEAR_SUBSTEPS-fold near an
 obstacle with the same smoothstep blend). The unknowns are (n, m) at the clamped base and
 the 12 tangent coordinates (δr, world rotation δφ, δn, δm) of every later segment start;
 the residuals are the jumps at segment ends (the rotation jump as the rotation vector of
 R_end R_nextᵀ) and n(L⁻), m(L) against the tip loads. Each segment map's Jacobian is formed
 by forward differences in those tangent coordinates (13 passes over the segment), which
 also carries the blend and the contact law's kink without special cases; the block-banded
-Newton system is solved by :func:`solver._spatial_shooting._banded_solve`.
+Newton system is solved by :func:`solver.kernels.spatial_shooting.banded_solve`.
 
 Stability is the planar contact test in 3D: the Jacobi fields of the free tip, δ(r, φ)(L) = I
 and δ(n, m)(L) = 0, carried back to the base through the inverse segment maps; no real
-eigenvalue of their δ(r, φ) block may cross zero (:func:`_stability`).
+eigenvalue of their δ(r, φ) block may cross zero (:func:`stability_test`).
 """
 
 from __future__ import annotations
@@ -30,11 +30,14 @@ import math
 
 import numpy as np
 
-from solver._contact import NEAR_SUBSTEPS, TUNNEL_SLACK, _set_level, _weighted_norm
-from solver._obstacles import clearance_3d, contact_force_3d, tunnels_3d
-from solver._spatial_shooting import _banded_solve, _rotate_node, _rotation_gap
 from solver.jit import njit
+from solver.kernels.contact import NEAR_SUBSTEPS, TUNNEL_SLACK, set_level, weighted_norm
+from solver.kernels.obstacles import clearance_3d, contact_force_3d, tunnels_3d
+from solver.kernels.spatial_shooting import banded_solve, rotate_node, rotation_gap
 from solver.layout import (
+    CA,
+    CG,
+    CI,
     CS_M,
     CS_N,
     CS_Q,
@@ -53,6 +56,7 @@ from solver.layout import (
     L_PLATE,
     L_Q,
     L_TARGET,
+    LEN,
     N_CSTATE,
     N_CTANGENT,
     REST_U1,
@@ -64,10 +68,10 @@ from solver.layout import (
     SEG_SECTION,
     SEG_STEPS,
 )
-from solver.rod import _rotation_rows, rest_strains_into, rotation_to_quaternion, spatial_state_rk4_step
+from solver.rod import rest_strains_into, rotation_rows, rotation_to_quaternion, spatial_state_rk4_step
 
 NO_TETHER = (np.zeros(1), np.zeros((0, 3)))
-"""The ``tether`` of an ordinary solve: no springs (:func:`_system`)."""
+"""The ``tether`` of an ordinary solve: no springs (:func:`newton_system`)."""
 
 # Forward-difference steps of the segment Jacobians, relative to the tangent coordinates'
 # weights (the square root of the machine epsilon: half the digits of the derivative).
@@ -92,8 +96,8 @@ def _column(seg, c):
 def _record_row(y, s, rec, row, ca, cg, ci, cj, u1r, u2r, v3r, obstacles):
     """Write the sample ``y`` at arc length ``s`` into row ``row`` of the record tuple
     (s, positions, frames, force, moment, contact force, penetration, strains v, u)."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation_rows(y[CS_Q], y[CS_Q + 1],
-                                                                 y[CS_Q + 2], y[CS_Q + 3])
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(y[CS_Q], y[CS_Q + 1],
+                                                                y[CS_Q + 2], y[CS_Q + 3])
     rec[0][row] = s
     rot = rec[2][row]
     rot[0, 0], rot[0, 1], rot[0, 2] = r00, r01, r02
@@ -128,7 +132,7 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec):
     """Integrate segment ``seg`` from the node state ``z`` (N_CSTATE,) into ``out``.
 
     Near an obstacle each RK4 step is refined into NEAR_SUBSTEPS substeps and blended with
-    the whole step by a smoothstep of the clearance, as in :func:`solver._contact._segment`.
+    the whole step by a smoothstep of the clearance, as in :func:`solver.kernels.contact._segment`.
     At a section end (not the tip) the endplate's weight is taken off n. With ``record``,
     the samples go to the record tuple ``rec``. ``work`` (8, N_CSTATE) scratch.
     """
@@ -138,10 +142,10 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec):
     obstacles = level[L_DISCS]
     i = segs[seg, SEG_SECTION]
     first = segs[seg, SEG_FIRST]
-    h = secf[0, i] / steps[i]
-    ca = secf[1, i]
-    cg = secf[2, i]
-    ci = secf[3, i]
+    h = secf[LEN, i] / steps[i]
+    ca = secf[CA, i]
+    cg = secf[CG, i]
+    ci = secf[CI, i]
     cj = grid[GS_CJ][i]
     u1r = rest[REST_U1, i]
     u2r = rest[REST_U2, i]
@@ -181,7 +185,7 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec):
             out[d] /= norm
     if segs[seg, SEG_END] == 1:
         if record:
-            _record_row(out, s0 + secf[0, i], rec, segs[seg, SEG_ROW0] + steps[i], ca, cg, ci, cj,
+            _record_row(out, s0 + secf[LEN, i], rec, segs[seg, SEG_ROW0] + steps[i], ca, cg, ci, cj,
                         u1r, u2r, v3r, obstacles)
         if i < secf.shape[1] - 1:
             for d in range(3):
@@ -196,7 +200,7 @@ def _nudge(z, c, amount, out):
     if CT_PHI <= c < CT_PHI + 3:
         phi = np.zeros(3)
         phi[c - CT_PHI] = 1.0
-        _rotate_node(out[CS_Q:CS_Q + 4], phi, amount)
+        rotate_node(out[CS_Q:CS_Q + 4], phi, amount)
     elif c < CT_PHI:
         out[CS_R + c] += amount
     else:
@@ -210,11 +214,11 @@ def _difference(a, b, out):
         out[CT_R + d] = a[CS_R + d] - b[CS_R + d]
         out[CT_N + d] = a[CS_N + d] - b[CS_N + d]
         out[CT_M + d] = a[CS_M + d] - b[CS_M + d]
-    _rotation_gap(a[CS_Q:CS_Q + 4], b[CS_Q:CS_Q + 4], 1.0, out[CT_PHI:CT_PHI + 3])
+    rotation_gap(a[CS_Q:CS_Q + 4], b[CS_Q:CS_Q + 4], 1.0, out[CT_PHI:CT_PHI + 3])
 
 
 @njit
-def _system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
+def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
     """Residuals F of the node states ``Z`` (K, N_CSTATE) and, with ``want_jac``, their
     Jacobian J (dense (n, n), zero off the band) and the segment maps' Jacobians ``blocks``
     (K, 12, 12) in tangent coordinates. ``scales`` (12,) the tangent coordinates' weights
@@ -277,13 +281,13 @@ def _system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
 
 
 @njit
-def _stability(blocks):
+def stability_test(blocks):
     """The conjugate-point test of the equilibrium whose segment maps have the Jacobians
     ``blocks`` (K, 12, 12): True if stable (see the module docstring).
 
     The Jacobi fields F (12×6) of the free tip, δ(r, φ)(L) = I and δ(n, m)(L) = 0, are
     carried back through the inverse segment maps. As in the spatial dead-load test
-    (:func:`solver._spatial_shooting._stability`) they are restarted at every segment
+    (:func:`solver.kernels.spatial_shooting.stability_test`) they are restarted at every segment
     start as F·T⁻¹, T their δ(r, φ) block, so that over the next segment that block runs
     from I, and no real eigenvalue of it may turn negative: counting eigenvalues, not the
     determinant's sign, catches the near-coincident pairs of conjugate points of a round
@@ -309,7 +313,7 @@ def _stability(blocks):
 
 
 @njit
-def _retract(base, delta, amount, Z):
+def retract(base, delta, amount, Z):
     """Node states ``Z`` = ``base`` moved by ``amount`` × ``delta`` (the unknowns' order)."""
     for k in range(base.shape[0]):
         for d in range(N_CSTATE):
@@ -326,7 +330,7 @@ def _retract(base, delta, amount, Z):
                 Z[k, CS_N + c - CT_N] += amount * delta[col]
         if k > 0:
             col = _column(k, CT_PHI)
-            _rotate_node(Z[k, CS_Q:CS_Q + 4], delta[col:col + 3], amount)
+            rotate_node(Z[k, CS_Q:CS_Q + 4], delta[col:col + 3], amount)
 
 
 @njit
@@ -342,12 +346,12 @@ def _between(a, b, out):
 
 
 @njit
-def _newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step, tether):
+def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step, tether):
     """Damped Newton on the spatial contact system at ``level``; ``Z`` updated in place.
 
-    As :func:`solver._contact._newton`: weighted RMS norms, steps clipped to ``max_step``
+    As :func:`solver.kernels.contact.newton`: weighted RMS norms, steps clipped to ``max_step``
     and halved until the residual falls; a fresh Jacobian at every iteration. ``tether``:
-    see :func:`_system` (:data:`NO_TETHER`: none). Returns (converged, iterations, |F|,
+    see :func:`newton_system` (:data:`NO_TETHER`: none). Returns (converged, iterations, |F|,
     stable) — stable by the test of the untethered problem.
     """
     n = weights.shape[0]
@@ -359,44 +363,44 @@ def _newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, m
     step = np.empty(n)
     rhs = np.empty(n)
     base = Z.copy()
-    if not _system(Z, grid, rest, level, F, J, True, blocks, scales, tether):
+    if not newton_system(Z, grid, rest, level, F, J, True, blocks, scales, tether):
         return False, 0, math.inf, False
-    res = _weighted_norm(F, res_weights)
+    res = weighted_norm(F, res_weights)
     for it in range(max_iter + 1):
         if not math.isfinite(res):
             return False, it, math.inf, False
         if res <= tol:
-            return True, it, res, _stability(blocks)
+            return True, it, res, stability_test(blocks)
         if it == max_iter:
             break
         for k in range(n):
             rhs[k] = F[k]
-        if not _banded_solve(J, rhs, step):
+        if not banded_solve(J, rhs, step):
             return False, it, res, False
-        norm = _weighted_norm(step, weights)
+        norm = weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         base[:, :] = Z
         res_try = math.inf
         for _ in range(8):
-            _retract(base, step, -alpha, Z)
-            if _system(Z, grid, rest, level, F_try, J, False, blocks, scales, tether):
-                res_try = _weighted_norm(F_try, res_weights)
+            retract(base, step, -alpha, Z)
+            if newton_system(Z, grid, rest, level, F_try, J, False, blocks, scales, tether):
+                res_try = weighted_norm(F_try, res_weights)
                 if res_try < res:
                     break
             alpha *= 0.5
         if not res_try < res:
             Z[:, :] = base
             return False, it + 1, res, False
-        if not _system(Z, grid, rest, level, F, J, True, blocks, scales, tether):
+        if not newton_system(Z, grid, rest, level, F, J, True, blocks, scales, tether):
             return False, it + 1, math.inf, False
-        res = _weighted_norm(F, res_weights)
-    return False, max_iter, res, _stability(blocks)
+        res = weighted_norm(F, res_weights)
+    return False, max_iter, res, stability_test(blocks)
 
 
 @njit
 def _at_level(t, a, b, now, tubes_i, tubes_f, secf, rest):
     """Interpolate the levels at ``t`` into ``now``, and its rest strains into ``rest``."""
-    _set_level(t, a, b, now)
+    set_level(t, a, b, now)
     rest_strains_into(now[L_P], tubes_i, tubes_f, secf, rest)
 
 
@@ -415,10 +419,10 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
            max_step, dt0, dt_min, rest, now):
     """Quasi-static ramp from level ``a`` to level ``b`` (tuples ``L_*``: pressures, loads
     per length (ns, 3), endplate weights (ns, 3), tip target (6,): n(L⁻), M_tip, obstacles
-    (k, 8)), all linear in t, as :func:`solver._contact._path`: the start ``Z`` corrected
+    (k, 8)), all linear in t, as :func:`solver.kernels.contact._path`: the start ``Z`` corrected
     by Newton first; a step is accepted if Newton converges on a stable state with a
     correction small against the secant prediction and no sample tunnelled through an
-    obstacle (:func:`solver._obstacles.tunnels_3d`); otherwise it is halved, down to
+    obstacle (:func:`solver.kernels.obstacles.tunnels_3d`); otherwise it is halved, down to
     ``dt_min``. No fold is passed: the last accepted state is then returned, unconverged.
 
     Returns (converged, iterations, |residual|, stable, t): ``Z`` holds the returned state,
@@ -435,8 +439,8 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     has_obstacles = a[L_DISCS].shape[0] > 0
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     total = 0
-    ok, its, res, stable = _newton(Z, grid, rest, now, weights, res_weights, scales, tol,
-                                   max_iter, max_step, NO_TETHER)
+    ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, scales, tol,
+                                  max_iter, max_step, NO_TETHER)
     total += its
     if not (ok and stable):
         return False, total, res, stable, 0.0
@@ -451,17 +455,17 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     while t < 1.0:
         t_new = min(1.0, t + dt)
         _at_level(t_new, a, b, now, tubes_i, tubes_f, secf, rest)
-        _retract(accepted, slope, t_new - t, guess)
+        retract(accepted, slope, t_new - t, guess)
         Z[:, :] = guess
         final = t_new >= 1.0
-        ok, its, res, stable = _newton(Z, grid, rest, now, weights, res_weights, scales,
-                                       tol if final else 1e3 * tol, max_iter if final else 8,
-                                       max_step, NO_TETHER)
+        ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, scales,
+                                      tol if final else 1e3 * tol, max_iter if final else 8,
+                                      max_step, NO_TETHER)
         total += its
         _between(Z, guess, moved)
-        corr = _weighted_norm(moved, weights)
+        corr = weighted_norm(moved, weights)
         _between(guess, accepted, moved)
-        pred = _weighted_norm(moved, weights)
+        pred = weighted_norm(moved, weights)
         if ok and stable and (corr <= 0.05 + 0.5 * pred or dt <= dt_min):
             through = False
             if has_obstacles:

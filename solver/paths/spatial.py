@@ -9,12 +9,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from solver import _spatial
-from solver import _spatial_shooting as _ms
 from solver import layout as L
-from solver._grid import needs
-from solver._model import MULTIPLE_SHOOTING_INDEX, context, rest_strains, shooting_layout
-from solver._paths_planar import NO_DISCS, NO_GUARD, not_single, solve_either, solve_single
+from solver.kernels import spatial as spatial_kernels
+from solver.kernels import spatial_shooting as shooting_kernels
+from solver.paths.grid import needs
+from solver.paths.planar import NO_DISCS, NO_GUARD, not_single, solve_either, solve_single
+from solver.problem import MULTIPLE_SHOOTING_INDEX, Problem, rest_strains, shooting_layout
 from solver.results import Equilibrium, tip_only
 from solver.rod import base_rotation, rotation_to_quaternion, spatial_strains_into
 
@@ -22,16 +22,15 @@ from solver.rod import base_rotation, rotation_to_quaternion, spatial_strains_in
 _NO_RECORD = (np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)))
 
 
-def in_plane_shortcut(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+def in_plane_shortcut(problem: Problem) -> Equilibrium | None:
     """A spatial solve of an in-plane scene by the planar kernel, or None where that could
     differ from the spatial path: the planar path must stay stable in 3D at every accepted
     state (an arm curled in a vertical plane may buckle sideways), pass no fold, and single
     shooting must suit the arm; otherwise the spatial kernels solve it (None)."""
-    ctx = context(arm, packed, scene, 2, settings)
-    if ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
+    planar_problem = replace(problem, planar=True)  # with the planar context
+    if planar_problem.ctx.shooting_index > MULTIPLE_SHOOTING_INDEX:
         return None
-    eq = solve_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                      guard_3d=True)
+    eq = solve_single(planar_problem, guard_3d=True)
     return _embed(eq) if eq.converged and eq.stable else None
 
 
@@ -41,9 +40,9 @@ def in_plane_state(eq: Equilibrium) -> bool:
                 and eq.base_moment[1] == 0.0)
 
 
-def in_plane(arm, packed, p_channel) -> bool:
+def in_plane(problem: Problem) -> bool:
     """True when the pressures bend every section in the x–y plane only (u1* = 0)."""
-    u1, u2, _ = rest_strains(arm, p_channel, packed)
+    u1, u2, _ = rest_strains(problem.arm, problem.p_channel, problem.packed)
     return bool(np.all(np.abs(u1) <= 1e-12 * (1.0 + np.abs(u2))))
 
 
@@ -86,22 +85,21 @@ def _samples(arm, packed, scene, ctx):
     return arm._solver_cache.get(("spatial samples", packed.key, scene), build)
 
 
-def solve_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+def solve_spatial(problem: Problem) -> Equilibrium:
     """Spatial dead-load solve: single shooting, or multiple shooting where that is
     ill-conditioned or has failed (with the fallbacks on: ``settings.n_scan > 0``), as
-    :func:`solver._paths_planar.solve_planar` does in the plane."""
-    return solve_either(solve_spatial_single, solve_spatial_multiple, 3, arm, packed, p_inputs,
-                        p_channel, scene, model, warm_start, settings)
+    :func:`solver.paths.planar.solve_planar` does in the plane."""
+    return solve_either(solve_spatial_single, solve_spatial_multiple, problem)
 
 
-def solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                         ctx=None):
-    """Spatial dead-load solve by single shooting on m0 (:func:`solver._spatial._follow`):
+def solve_spatial_single(problem: Problem) -> Equilibrium:
+    """Spatial dead-load solve by single shooting on m0 (:func:`solver.kernels.spatial.follow`):
     the loading stage of a cold solve, then the pressure ramp, whose kernel also records
-    the backbone of the state it returns. ``ctx``: the scene's context, if at hand."""
-    ctx = context(arm, packed, scene, 3, settings) if ctx is None else ctx
+    the backbone of the state it returns."""
+    arm, packed, scene, warm_start, ctx = (problem.arm, problem.packed, problem.scene,
+                                           problem.warm_start, problem.ctx)
     quat0 = _base_quaternion(scene.base_theta)
-    p_target = p_channel if arm.n_channels else np.zeros(1)
+    p_target = problem.p_target
     ns = len(arm.sections)
     rest, p_now, loads_now, m_tip = (np.empty((3, ns)), np.empty(p_target.shape[0]),
                                      np.empty((ns, 6)), np.empty(3))
@@ -115,35 +113,32 @@ def solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_st
     snap_load = False
     m0 = np.zeros(3)
     if warm_start is not None and warm_start.scene is not None:
-        start_ctx = ctx if warm_start.scene is scene else context(arm, packed, warm_start.scene, 3,
-                                                                  settings)
+        start_ctx = ctx if warm_start.scene is scene else problem.in_scene(warm_start.scene).ctx
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         m0[-warm_start.base_moment.size:] = warm_start.base_moment
         start = (p_start, start_ctx.loads, start_ctx.m_tip)
     else:
         # Stage 1: load the unactuated arm (loads ramped from zero, straight rod, m0 = 0).
         p_start = np.zeros_like(p_target)
-        _, _, snap_load, its, _, _, _ = _spatial._follow(
+        _, _, snap_load, its, _, _, _ = spatial_kernels.follow(
             m0, grid, tubes, (p_start, np.zeros_like(ctx.loads), np.zeros(3)),
             (p_start, ctx.loads, ctx.m_tip), ctx.params,
             (rest, p_now, loads_now, m_tip, _NO_RECORD, False), guard)
         iterations += its
         start = (p_start, ctx.loads, ctx.m_tip)
-    ok, stable, snapped, its, res, _, _ = _spatial._follow(
+    ok, stable, snapped, its, res, _, _ = spatial_kernels.follow(
         m0, grid, tubes, start, (p_target, ctx.loads, ctx.m_tip), ctx.params,
         (rest, p_now, loads_now, m_tip, rec, True), guard)
     iterations += its
     # ``stable`` is the stability of the returned state, from the Newton pass that converged
     # on it.
-    return _spatial_result(arm, packed, scene, ctx, *rec, rest, m0,
+    return _spatial_result(problem, *rec, rest, m0,
                            converged=bool(ok and res <= 10 * ctx.tol), stable=bool(stable),
                            iterations=int(iterations), residual=float(res),
-                           snapped=bool(snapped or snap_load), model=model,
-                           pressures=p_inputs, channel_pressures=p_channel)
+                           snapped=bool(snapped or snap_load))
 
 
-def solve_spatial_lean(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                       record):
+def solve_spatial_lean(problem: Problem, record: bool) -> Equilibrium | None:
     """The common spatial solve, a warm one in the scene of its warm start, without the
     layers of the general path: :func:`solve_spatial_single` and the grid check.
 
@@ -152,14 +147,13 @@ def solve_spatial_lean(arm, packed, p_inputs, p_channel, scene, model, warm_star
         shooting and return its result as it is (converged, stable, resolved by the grid,
         no in-plane shortcut); else None (the general path takes over).
     """
+    packed, scene, warm_start = problem.packed, problem.scene, problem.warm_start
     if warm_start is None or in_plane_state(warm_start) or not (
             warm_start.scene is scene or warm_start.scene == scene):
         return None
-    ctx = context(arm, packed, scene, 3, settings)
-    if not_single(arm, scene, model, settings, ctx) is not None:
+    if not_single(problem) is not None:
         return None
-    eq = solve_spatial_single(arm, packed, p_inputs, p_channel, scene, model, warm_start,
-                              settings, ctx)
+    eq = solve_spatial_single(problem)
     if not (eq.converged and eq.stable):
         return None
     if not needs(eq, packed.secf, packed.mass_per_length * scene.gravity)[1] <= 1.0:
@@ -177,13 +171,15 @@ def _base_quaternion(theta0: float) -> np.ndarray:
     return quat0
 
 
-def solve_spatial_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
-    """Spatial dead-load solve by multiple shooting (:mod:`solver._spatial_shooting`): from
+def solve_spatial_multiple(problem: Problem) -> Equilibrium:
+    """Spatial dead-load solve by multiple shooting (:mod:`solver.kernels.spatial_shooting`): from
     the nodes of a recorded warm start on this grid, or else from the arm loaded from
     straight (cached per scene), along the pressure ramp."""
-    layout, segs, _ = shooting_layout(arm, packed)
-    ctx = context(arm, layout, scene, 3, settings)
-    p_target = p_channel if arm.n_channels else np.zeros(1)
+    arm, scene, warm_start = problem.arm, problem.scene, problem.warm_start
+    layout, segs, _ = shooting_layout(arm, problem.packed)
+    on_layout = problem.on(layout)
+    ctx = on_layout.ctx
+    p_target = problem.p_target
     ns = len(arm.sections)
     rest, p_now, loads_now, m_tip = (np.empty((3, ns)), np.empty(p_target.shape[0]),
                                      np.empty((ns, 6)), np.empty(3))
@@ -194,7 +190,7 @@ def solve_spatial_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_
     if warm_start is not None and warm_start.scene is not None \
             and warm_start.orientations.shape[0] == layout.n_rows:
         quats, moms = _nodes_of(warm_start, segs, scene)
-        start_ctx = context(arm, layout, warm_start.scene, 3, settings)
+        start_ctx = on_layout.in_scene(warm_start.scene).ctx
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
         start = (p_start, start_ctx.loads, start_ctx.m_tip)
     else:
@@ -202,17 +198,14 @@ def solve_spatial_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_
                                                                       kernel, work)
         start = (np.zeros_like(p_target), ctx.loads, ctx.m_tip)
         if not loaded:
-            return _nodes_result(arm, layout, scene, ctx, quats, moms, segs, rest, loads_now,
+            return _nodes_result(on_layout, quats, moms, segs, rest, loads_now,
                                  converged=False, stable=False, iterations=iterations,
-                                 residual=math.inf, snapped=load_snapped, model=model,
-                                 pressures=p_inputs, channel_pressures=p_channel)
-    ok, its, stable, res, snapped = _ms.follow(quats, moms, *kernel, start[0], p_target, start[1],
-                                               ctx.loads, start[2], ctx.m_tip, *work)
-    return _nodes_result(arm, layout, scene, ctx, quats, moms, segs, rest, loads_now,
+                                 residual=math.inf, snapped=load_snapped)
+    ok, its, stable, res, snapped = shooting_kernels.follow(
+        quats, moms, *kernel, start[0], p_target, start[1], ctx.loads, start[2], ctx.m_tip, *work)
+    return _nodes_result(on_layout, quats, moms, segs, rest, loads_now,
                          converged=bool(ok), stable=bool(stable), iterations=iterations + its,
-                         residual=float(res), snapped=bool(snapped or load_snapped), model=model,
-                         pressures=p_inputs,
-                         channel_pressures=p_channel)
+                         residual=float(res), snapped=bool(snapped or load_snapped))
 
 
 def _nodes_of(eq, segs, scene):
@@ -236,9 +229,9 @@ def _loaded_nodes(arm, layout, segs, scene, ctx, kernel, work):
         quats[1:] = quats[0]
         moms = np.zeros((segs.shape[0], 3))
         p0 = np.zeros(max(arm.n_channels, 1))
-        ok, its, stable, _, snapped = _ms.follow(quats, moms, *kernel, p0, p0,
-                                                 np.zeros_like(ctx.loads), ctx.loads, np.zeros(3),
-                                                 ctx.m_tip, *work)
+        ok, its, stable, _, snapped = shooting_kernels.follow(
+            quats, moms, *kernel, p0, p0, np.zeros_like(ctx.loads), ctx.loads, np.zeros(3),
+            ctx.m_tip, *work)
         for a in (quats, moms):
             a.flags.writeable = False
         return quats, moms, int(its), bool(ok and stable), bool(snapped)
@@ -248,25 +241,28 @@ def _loaded_nodes(arm, layout, segs, scene, ctx, kernel, work):
     return quats.copy(), moms.copy(), its, ok, snapped
 
 
-def _nodes_result(arm, layout, scene, ctx, quats, moms, segs, rest, loads, **fields):
-    """The Equilibrium of multiple-shooting nodes at the level of rest strains ``rest`` and
-    loads ``loads`` (the backbone recorded segment by segment)."""
+def _nodes_result(problem: Problem, quats, moms, segs, rest, loads, **fields):
+    """The Equilibrium of ``problem`` (on the nodes' layout) of multiple-shooting nodes at the
+    level of rest strains ``rest`` and loads ``loads`` (the backbone recorded segment by
+    segment)."""
+    layout = problem.packed
     rows = layout.n_rows
     pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
-    _ms.record(quats, moms, segs, layout.secf, layout.sec_steps, layout.c_j, rest,
-               loads, np.empty((6, L.NSTATE)), pos, rot, mom)
-    return _spatial_result(arm, layout, scene, ctx, pos, rot, mom, rest, moms[0].copy(), **fields)
+    shooting_kernels.record(quats, moms, segs, layout.secf, layout.sec_steps, layout.c_j, rest,
+                            loads, np.empty((6, L.NSTATE)), pos, rot, mom)
+    return _spatial_result(problem, pos, rot, mom, rest, moms[0].copy(), **fields)
 
 
-def _spatial_result(arm, packed, scene, ctx, pos, rot, mom, rest, m0, **fields):
-    """The spatial Equilibrium of a recorded backbone: positions, frames and moments (N, ·)
-    at the rest strains ``rest`` and base moment ``m0``; strains from the constitutive law."""
-    seg, s, force = _samples(arm, packed, scene, ctx)
+def _spatial_result(problem: Problem, pos, rot, mom, rest, m0, **fields):
+    """The spatial Equilibrium of ``problem`` of a recorded backbone: positions, frames and
+    moments (N, ·) at the rest strains ``rest`` and base moment ``m0``; strains from the
+    constitutive law."""
+    packed, ctx = problem.packed, problem.ctx
+    seg, s, force = _samples(problem.arm, packed, problem.scene, ctx)
     strain_v, strain_u = np.empty((s.size, 3)), np.empty((s.size, 3))
     spatial_strains_into(rot, force, mom, rest, seg, packed.c_a, packed.c_g, packed.c_i,
                          packed.c_j, strain_v, strain_u)
-    return Equilibrium._make(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
-                             curvature=strain_u, internal_force=force, internal_moment=mom,
-                             section_ends=packed.section_ends, tip=pos[-1].copy(),
-                             planar=False, scene=scene, base_moment=m0.copy(),
-                             base_force=ctx.base_force, arm=arm, **fields)
+    return problem.equilibrium(s=s, positions=pos, orientations=rot, shear_stretch=strain_v,
+                               curvature=strain_u, internal_force=force, internal_moment=mom,
+                               section_ends=packed.section_ends, tip=pos[-1].copy(),
+                               base_moment=m0.copy(), base_force=ctx.base_force, **fields)

@@ -1,8 +1,8 @@
 """Spatial multiple shooting under dead loads (docs/design.md §6).
 
-Single shooting (:mod:`solver._spatial`) amplifies an error of the base moment by up to
+Single shooting (:mod:`solver.kernels.spatial`) amplifies an error of the base moment by up to
 e^(L·√(N/EI)) along a rod in tension: past an index of about 20 it cannot converge. Here the
-rod is cut into the segments of :func:`solver._model.shooting_layout` (a few RK4 steps
+rod is cut into the segments of :func:`solver.problem.shooting_layout` (a few RK4 steps
 each), and the unknowns are the base moment m0 and, at every later segment start k, the
 orientation R_k (a unit quaternion, corrected by world-frame rotations δφ) and the moment m_k.
 With dead loads the internal force is known, and the position does not enter the equations
@@ -13,7 +13,7 @@ come from the variational equations of :func:`solver.rod.spatial_rhs`, integrate
 (δm(start) = I, then δφ(start) = I); the block-banded Newton system is solved by banded
 Gaussian elimination with partial pivoting.
 
-Stability is the conjugate-point test of :func:`solver._spatial._stability`, with the
+Stability is the conjugate-point test of :func:`solver.kernels.spatial.stability_test`, with the
 Jacobi fields carried from the tip to the base segment by segment, each segment restarted
 from its node (integrating the state itself back over the whole rod would be single
 shooting again).
@@ -25,9 +25,9 @@ import math
 
 import numpy as np
 
-from solver._homotopy import smallest_step
-from solver._spatial import _fields_back, _mirror_symmetric, _set_level
 from solver.jit import njit
+from solver.kernels.homotopy import smallest_step
+from solver.kernels.spatial import fields_back, mirror_symmetric, set_level
 from solver.layout import (
     CA,
     CG,
@@ -99,7 +99,7 @@ def _run_segment(k, quat, mom, pos, by, segs, secf, steps, c_j, rest, loads, wor
 
 
 @njit
-def _rotation_gap(qa, qb, scale, out):
+def rotation_gap(qa, qb, scale, out):
     """``scale`` × the rotation vector of R(qa) R(qb)ᵀ (world frame), into ``out[0:3]``."""
     aw, ax, ay, az = qa[0], qa[1], qa[2], qa[3]
     bw, bx, by, bz = qb[0], -qb[1], -qb[2], -qb[3]
@@ -117,7 +117,7 @@ def _rotation_gap(qa, qb, scale, out):
 
 
 @njit
-def _rotate_node(quat, phi, amount):
+def rotate_node(quat, phi, amount):
     """quat ← exp(amount · [φ]×) ⊗ quat (a world-frame rotation), renormalised."""
     px, py, pz = amount * phi[0], amount * phi[1], amount * phi[2]
     angle = math.sqrt(px * px + py * py + pz * pz)
@@ -168,7 +168,7 @@ def _system(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, scale, jaco
                     for d in range(3):
                         res[row + d] = y[SP_M + d] - m_tip[d]
                 else:
-                    _rotation_gap(y[SP_Q:SP_Q + 4], quats[k + 1], scale, res[row:row + 3])
+                    rotation_gap(y[SP_Q:SP_Q + 4], quats[k + 1], scale, res[row:row + 3])
                     for d in range(3):
                         res[row + 3 + d] = y[SP_M + d] - moms[k + 1, d]
             if not with_jacobian:
@@ -189,7 +189,7 @@ def _system(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, scale, jaco
 
 
 @njit
-def _banded_solve(a, b, x):
+def banded_solve(a, b, x):
     """Solve a x = b for the block-banded multiple-shooting matrix ``a`` (n, n), destroyed,
     by Gaussian elimination with partial pivoting that visits only each row's nonzero span
     (O(n·bandwidth²)). Returns False for a singular or non-finite matrix."""
@@ -248,7 +248,7 @@ def _apply(quats, moms, base_q, base_m, dx, amount):
         moms[0, d] += amount * dx[d]
     for k in range(1, quats.shape[0]):
         col = 3 + 6 * (k - 1)
-        _rotate_node(quats[k], dx[col:col + 3], amount)
+        rotate_node(quats[k], dx[col:col + 3], amount)
         for d in range(3):
             moms[k, d] += amount * dx[col + 3 + d]
 
@@ -295,7 +295,7 @@ def _newton(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, scale, tol,
         base_q[:, :] = quats
         base_m[:, :] = moms
         rhs = -res
-        if not _banded_solve(jacobian, rhs, dx):
+        if not banded_solve(jacobian, rhs, dx):
             break
         size = _step_size(dx, scale)
         amount = max_step / size if size > max_step else 1.0
@@ -306,8 +306,8 @@ def _newton(quats, moms, segs, secf, steps, c_j, rest, loads, m_tip, scale, tol,
 
 
 @njit
-def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, work):
-    """Conjugate-point test (:func:`solver._spatial._stability`) of converged nodes: the
+def stability_test(quats, moms, segs, secf, steps, c_j, rest, loads, work):
+    """Conjugate-point test (:func:`solver.kernels.spatial.stability_test`) of converged nodes: the
     Jacobi fields δφ(L) = I, δm(L) = 0 are integrated from the tip to the base, each segment
     from its own end node (the tip's end state for the last).
 
@@ -339,8 +339,8 @@ def _stability(quats, moms, segs, secf, steps, c_j, rest, loads, work):
                 y[SP_M + d] = moms[k + 1, d]
             if not _restart_fields(y, scratch):
                 return False
-        if not _fields_back(y, segs[k, SEG_SECTION], segs[k, SEG_FIRST], segs[k, SEG_STEPS],
-                            secf, steps, c_j, rest, loads, work):
+        if not fields_back(y, segs[k, SEG_SECTION], segs[k, SEG_FIRST], segs[k, SEG_STEPS],
+                           secf, steps, c_j, rest, loads, work):
             return False
     return True
 
@@ -398,7 +398,7 @@ def _distance(quats_a, moms_a, quats_b, moms_b, scale):
     gap = np.empty(3)
     size = 0.0
     for k in range(quats_a.shape[0]):
-        _rotation_gap(quats_a[k], quats_b[k], scale, gap)
+        rotation_gap(quats_a[k], quats_b[k], scale, gap)
         dm = 0.0
         for d in range(3):
             dm += (moms_a[k, d] - moms_b[k, d]) ** 2
@@ -410,8 +410,8 @@ def _distance(quats_a, moms_a, quats_b, moms_b, scale):
 def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
            mtip_a, mtip_b, params, scale, rest, p_now, loads_now, m_tip):
     """Quasi-static path following of the nodes from level a to level b, as
-    :func:`solver._spatial._path`: secant predictor, step halving down to the smallest step
-    (a share of the rest-strain change, :func:`solver._homotopy.ramp_crowding`), a corrector
+    :func:`solver.kernels.spatial._path`: secant predictor, step halving down to the smallest step
+    (a share of the rest-strain change, :func:`solver.kernels.homotopy.ramp_crowding`), a corrector
     that must stay near its prediction, and where stability is lost between two levels a
     switch to the stable branch (:func:`_switch_branch`). ``quats`` (K, 4) and ``moms``
     (K, 3) are updated in place; ``rest``, ``p_now``, ``loads_now``, ``m_tip`` hold the
@@ -439,7 +439,7 @@ def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, load
     while t < 1.0:
         dt_min = smallest_step(dt, dt_min, params, p_a, p_b, tubes_i, tubes_f)
         t_new = min(1.0, t + dt)
-        _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+        set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         # Secant predictor through the last two accepted states.
         w = (t_new - t) / (t - t_prev) if t_prev >= 0.0 else 0.0
@@ -456,7 +456,7 @@ def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, load
         ok, its, res = _newton(quats, moms, segs, secf, steps, c_j, rest, loads_now, m_tip, scale,
                                tol, max_iter, max_step, work)
         total += its
-        stable = ok and _stability(quats, moms, segs, secf, steps, c_j, rest, loads_now, work)
+        stable = ok and stability_test(quats, moms, segs, secf, steps, c_j, rest, loads_now, work)
         jump = _distance(quats, moms, guess_q, guess_m, scale)
         pred = _distance(guess_q, guess_m, acc_q, acc_m, scale)
         if ok and stable and (jump <= params[JUMP] + 0.5 * pred or dt <= dt_min):
@@ -492,7 +492,7 @@ def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, load
     if t < 1.0:
         quats[:, :] = acc_q
         moms[:, :] = acc_m
-        _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+        set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         return False, total, False, res, snaps > 0
     return ok, total, stable, res, snaps > 0
@@ -502,7 +502,7 @@ def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, load
 def _switch_branch(quats, moms, t, t_new, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b,
                    loads_a, loads_b, mtip_a, mtip_b, params, scale, rest, p_now, loads_now,
                    m_tip, work):
-    """Branch switching of the multiple-shooting path, as :func:`solver._spatial._switch_branch`:
+    """Branch switching of the multiple-shooting path, as :func:`solver.kernels.spatial._switch_branch`:
     the critical mode is the right singular vector of the shooting Jacobian for its
     smallest singular value at the last stable state (``quats``, ``moms`` at level t); Newton
     at level t_new starts from that state moved along ± the mode (largest node move 0.03 …
@@ -514,7 +514,7 @@ def _switch_branch(quats, moms, t, t_new, segs, secf, steps, c_j, tubes_i, tubes
     n = n_unknowns(segs.shape[0])
     jacobian = np.empty((n, n))
     res = np.empty(n)
-    _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     base_q, base_m = quats.copy(), moms.copy()
     if not _system(quats, moms, segs, secf, steps, c_j, rest, loads_now, m_tip, scale, jacobian,
@@ -527,8 +527,8 @@ def _switch_branch(quats, moms, t, t_new, segs, secf, steps, c_j, tubes_i, tubes
             big = d
     if mode[big] < 0.0:
         mode = -mode
-    symmetric = _mirror_symmetric(moms[0], rest, loads_now, m_tip, 4.0 * params[JUMP])
-    _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    symmetric = mirror_symmetric(moms[0], rest, loads_now, m_tip, 4.0 * params[JUMP])
+    set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     unit = 4.0 * params[JUMP] / _step_size(mode, scale)
     total = 1
@@ -539,7 +539,7 @@ def _switch_branch(quats, moms, t, t_new, segs, secf, steps, c_j, tubes_i, tubes
             ok, its, _ = _newton(quats, moms, segs, secf, steps, c_j, rest, loads_now, m_tip,
                                  scale, params[TOL], int(params[MAX_ITER]), params[MAX_STEP], work)
             total += its
-            if ok and _stability(quats, moms, segs, secf, steps, c_j, rest, loads_now, work):
+            if ok and stability_test(quats, moms, segs, secf, steps, c_j, rest, loads_now, work):
                 if symmetric and _tip_z(quats, moms, segs, secf, steps, c_j, rest, loads_now,
                                         work) < 0.0:
                     # A pitchfork out of the x–y plane: reflect z → −z (m → (−m_x, −m_y, m_z),

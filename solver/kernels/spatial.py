@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
-from solver._homotopy import GIVE_UP, _big_change, smallest_step
 from solver.jit import njit
+from solver.kernels.homotopy import GIVE_UP, big_change, smallest_step
 from solver.layout import (
     CA,
     CG,
@@ -64,10 +64,10 @@ from solver.rod import (
 
 
 @njit
-def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step, work, dummy):
+def newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step, work, dummy):
     """Newton on m(L; m0) = M_tip (3 unknowns, updated in place) with the exact Jacobian.
 
-    Returns (converged, iterations, |residual|, stable), stability by :func:`_stability`.
+    Returns (converged, iterations, |residual|, stable), stability by :func:`stability_test`.
     """
     return _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step,
                          work, dummy, False, np.empty(3), math.inf)
@@ -76,7 +76,7 @@ def _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_
 @njit
 def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter, max_step, work,
                   rec, record, first, reach):
-    """:func:`_newton`, also writing its first iterate to ``first`` (3,) (``m0`` itself when
+    """:func:`newton`, also writing its first iterate to ``first`` (3,) (``m0`` itself when
     the start already meets ``tol``): the linearised response to the change of level from
     ``m0``, the prediction a continuation step without a tangent measures its jump from.
     With ``record`` every pass records into ``rec`` = (positions, frames, moments), so on
@@ -84,7 +84,7 @@ def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter
     cent; a separate recording pass would cost a whole one).
 
     ``reach`` (N m): give up, unconverged, as soon as an iterate would leave that distance of
-    the start ``m0``, as the planar Newton does (:func:`solver._planar._newton`): a
+    the start ``m0``, as the planar Newton does (:func:`solver.kernels.planar.newton`): a
     continuation step that will reject a root that far from its prediction saves the rest
     of the passes.
     """
@@ -104,7 +104,7 @@ def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter
             r[d] = y[SP_M + d] - m_tip[d]
         res = math.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2)
         if res <= tol:
-            return True, it, res, _stability(secf, steps, c_j, rest, loads, work)
+            return True, it, res, stability_test(secf, steps, c_j, rest, loads, work)
         if 0 < it < max_iter and not res < res_base and math.sqrt(
                 (m0[0] - base[0]) ** 2 + (m0[1] - base[1]) ** 2 + (m0[2] - base[2]) ** 2) > tol:
             # Backtracking: the full step did not reduce the residual. Arms in tension
@@ -122,7 +122,7 @@ def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter
             break
         # Cramer's rule on the 3×3 shooting Jacobian (columns ∂m(L)/∂m0_j): a nearly
         # singular matrix ends the iteration above instead of raising.
-        _cramer3(y[SP_DM:SP_DM + 9], r, step)
+        cramer3(y[SP_DM:SP_DM + 9], r, step)
         norm = math.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
         shrink = max_step / norm if norm > max_step else 1.0
         if math.sqrt((m0[0] - shrink * step[0] - c0) ** 2 + (m0[1] - shrink * step[1] - c1) ** 2
@@ -137,7 +137,7 @@ def _newton_first(m0, quat0, secf, steps, c_j, rest, loads, m_tip, tol, max_iter
 
 
 @njit
-def _follow(state, grid, tubes, a, b, params, work, guard):
+def follow(state, grid, tubes, a, b, params, work, guard):
     """Spatial dead-load path following, in the signature the path-following kernels share.
 
     Args:
@@ -151,18 +151,23 @@ def _follow(state, grid, tubes, a, b, params, work, guard):
 
     Returns:
         (converged, stable, snapped, iterations, residual, t, dt) (t: 1 when converged, else
-        NaN; dt 0), as :func:`solver._planar._follow`; the residual is the returned state's.
+        NaN; dt 0), as :func:`solver.kernels.planar.follow`; the residual is the returned state's.
     """
+    quat0, secf, steps, c_j = grid
+    tubes_i, tubes_f = tubes
+    p_a, loads_a, mtip_a = a
+    p_b, loads_b, mtip_b = b
+    rest, p_now, loads_now, m_tip, rec, record = work
     ok, total, stable, res, snapped = _path(
-        state, grid[0], grid[1], grid[2], grid[3], tubes[0], tubes[1], a[0], b[0], a[1], b[1],
-        a[2], b[2], params, work[0], work[1], work[2], work[3], work[4], work[5])
+        state, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
+        mtip_b, params, rest, p_now, loads_now, m_tip, rec, record)
     return ok, stable, snapped, total, res, 1.0 if ok else math.nan, 0.0
 
 
 @njit
 def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
           mtip_b, params, rest, p_now, loads_now, m_tip, rec, record):
-    """Spatial quasi-static path following (see :func:`solver._planar._path`).
+    """Spatial quasi-static path following (see :func:`solver.kernels.planar._path`).
 
     ``m0`` (3,) is updated in place. Where the step falls below ``DT_MIN`` without a stable
     converged equilibrium, stability is lost between the last two levels (a bifurcation or
@@ -199,16 +204,16 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
     # through accepted points), as in the planar kernel. Heavy hanging arms are in tension,
     # where single shooting amplifies a change of the base moment by e^(L·√(T/EI)): from
     # the previous state alone, Newton overshoots.
-    if _big_change(p_a, p_b, loads_a, loads_b) or (mtip_a[0] != mtip_b[0]
-                                                    or mtip_a[1] != mtip_b[1]
-                                                    or mtip_a[2] != mtip_b[2]):
+    if big_change(p_a, p_b, loads_a, loads_b) or (mtip_a[0] != mtip_b[0]
+                                                  or mtip_a[1] != mtip_b[1]
+                                                  or mtip_a[2] != mtip_b[2]):
         _tangent(accepted, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a,
                  loads_b, mtip_a, mtip_b, rest, p_now, loads_now, m_tip, work, rec, slope)
         total += 2
     while t < 1.0:
         dt_min = smallest_step(dt, dt_min, params, p_a, p_b, tubes_i, tubes_f)
         t_new = min(1.0, t + dt)
-        _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+        set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         predicted = slope[0] != 0.0 or slope[1] != 0.0 or slope[2] != 0.0
         for d in range(3):
@@ -279,7 +284,7 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
     if t < 1.0:
         for d in range(3):
             m0[d] = accepted[d]
-        _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+        set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         ok = False
         stable = False
@@ -292,7 +297,7 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
 
 
 @njit
-def _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip):
+def set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip):
     for c in range(p_a.shape[0]):
         p_now[c] = p_a[c] + t * (p_b[c] - p_a[c])
     for i in range(loads_now.shape[0]):
@@ -303,7 +308,7 @@ def _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, 
 
 
 @njit
-def _has_negative_eigenvalue(d, det):
+def has_negative_eigenvalue(d, det):
     """True when the 3×3 matrix stored column-wise in ``d`` (9,), of determinant ``det``,
     has a real negative eigenvalue; in arithmetic alone (it runs at every node of the
     stability pass, where root-finding by cube roots and cosines cost a third of the pass).
@@ -333,7 +338,7 @@ def _has_negative_eigenvalue(d, det):
 
 
 @njit
-def _stability(secf, steps, c_j, rest, loads, work):
+def stability_test(secf, steps, c_j, rest, loads, work):
     """Conjugate-point test of the equilibrium whose tip state is ``work[0]`` (after
     :func:`_integrate`): stable iff True.
 
@@ -353,7 +358,7 @@ def _stability(secf, steps, c_j, rest, loads, work):
     negative real axis without crossing zero (a strongly twisted rod) would be a false
     alarm; it is conservative. With a dead tip *moment* in 3D (``Scene.tip_moment``) the
     sub-rods are not conservative either, and the test is the natural extension rather
-    than a theorem (as for contact in :mod:`solver._contact`).
+    than a theorem (as for contact in :mod:`solver.kernels.contact`).
 
     Args:
         secf, steps, c_j, rest, loads: as for :func:`_integrate`.
@@ -365,13 +370,13 @@ def _stability(secf, steps, c_j, rest, loads, work):
     for d in range(3):
         y[SP_DPHI + 4 * d] = 1.0  # δφ(L) = identity columns, δm(L) = 0
     for i in range(secf.shape[1] - 1, -1, -1):
-        if not _fields_back(y, i, 0, steps[i], secf, steps, c_j, rest, loads, work):
+        if not fields_back(y, i, 0, steps[i], secf, steps, c_j, rest, loads, work):
             return False
     return True
 
 
 @njit
-def _fields_back(y, i, first, count, secf, steps, c_j, rest, loads, work):
+def fields_back(y, i, first, count, secf, steps, c_j, rest, loads, work):
     """Integrate the state and Jacobi fields ``y`` back over ``count`` RK4 steps of section
     i, from the end of step ``first + count − 1`` to the start of step ``first``; False as
     soon as a real eigenvalue of δφ is negative (or δφ is not finite)."""
@@ -383,14 +388,14 @@ def _fields_back(y, i, first, count, secf, steps, c_j, rest, loads, work):
                          c_j[i], rest[REST_U1, i], rest[REST_U2, i], rest[REST_V3, i], loads[i])
         dphi = y[SP_DPHI:SP_DPHI + 9]
         det = det3(dphi)
-        if not math.isfinite(det) or _has_negative_eigenvalue(dphi, det):
+        if not math.isfinite(det) or has_negative_eigenvalue(dphi, det):
             return False
     return True
 
 
 @njit
-def _planar_state_stable(x, y, theta, m_z, secf, steps, c_j, rest, loads_planar):
-    """The 3D test (:func:`_stability`) of a planar equilibrium, from its tip state.
+def planar_state_stable(x, y, theta, m_z, secf, steps, c_j, rest, loads_planar):
+    """The 3D test (:func:`stability_test`) of a planar equilibrium, from its tip state.
 
     A planar equilibrium can pass the planar conjugate-point test and still buckle out of
     its plane (an arm curled in a vertical plane twisting sideways). The tip state (x, y,
@@ -400,7 +405,7 @@ def _planar_state_stable(x, y, theta, m_z, secf, steps, c_j, rest, loads_planar)
     Args:
         x, y, theta, m_z: tip position (m), tip orientation θ(L) (rad), tip moment (N m).
         secf, steps, c_j, rest: as for :func:`_integrate`.
-        loads_planar: (ns, 4) planar loads (n_end x, y; q x, y) of :mod:`solver._planar`.
+        loads_planar: (ns, 4) planar loads (n_end x, y; q x, y) of :mod:`solver.kernels.planar`.
     """
     work = np.empty((6, NSTATE))
     loads = np.zeros((loads_planar.shape[0], 6))
@@ -417,7 +422,7 @@ def _planar_state_stable(x, y, theta, m_z, secf, steps, c_j, rest, loads_planar)
     tip[SP_M] = 0.0
     tip[SP_M + 1] = 0.0
     tip[SP_M + 2] = m_z
-    return _stability(secf, steps, c_j, rest, loads, work)
+    return stability_test(secf, steps, c_j, rest, loads, work)
 
 
 @njit
@@ -439,7 +444,7 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
     Returns (found, iterations); ``m0`` (3,) holds the state found.
     """
     scale = 4.0 * params[JUMP]
-    _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     integrate_spatial(accepted, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1],
                dummy[2], work)
@@ -460,19 +465,19 @@ def _switch_branch(m0, accepted, t, t_new, quat0, secf, steps, c_j, tubes_i, tub
     if mode[big] < 0.0:
         for d in range(3):
             mode[d] = -mode[d]
-    _set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    set_level(t_new, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     amp = 0.03
     while amp < 4.0:
         for sign in (1.0, -1.0):
             for d in range(3):
                 m0[d] = accepted[d] + sign * amp * scale * mode[d]
-            ok, its, res, stable = _newton(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip,
-                                           params[TOL], int(params[MAX_ITER]), params[MAX_STEP],
-                                           work, dummy)
+            ok, its, res, stable = newton(m0, quat0, secf, steps, c_j, rest, loads_now, m_tip,
+                                          params[TOL], int(params[MAX_ITER]), params[MAX_STEP],
+                                          work, dummy)
             total += its
             if ok and stable:
-                if _mirror_symmetric(accepted, rest, loads_now, m_tip, scale):
+                if mirror_symmetric(accepted, rest, loads_now, m_tip, scale):
                     # A pitchfork out of the x–y plane: both mirror images are equilibria
                     # (reflection z → −z maps m to (−m_x, −m_y, m_z)). Take the +z one.
                     integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0],
@@ -497,7 +502,7 @@ _SCAN_SHELLS = (0.05, 0.15, 0.4, 1.0, 2.0)
 def _scan_roots(m0, accepted, quat0, secf, steps, c_j, rest, loads, m_tip, params, work, dummy):
     """Where the critical mode leads to no stable state (the arm snaps far): the stable
     equilibrium nearest the last base moment ``accepted``, as the planar fold scan finds it
-    (:func:`solver._planar._scan`) — Newton from ``accepted`` moved by shells of growing
+    (:func:`solver.kernels.planar.fold_scan`) — Newton from ``accepted`` moved by shells of growing
     radius (:data:`_SCAN_SHELLS` of M_BOUND) in the 26 directions of a cube's faces, edges
     and corners; the nearest stable root of the first shell that has one.
 
@@ -517,9 +522,9 @@ def _scan_roots(m0, accepted, quat0, secf, steps, c_j, rest, loads, m_tip, param
                     m0[0] = accepted[0] + radius * i / norm
                     m0[1] = accepted[1] + radius * j / norm
                     m0[2] = accepted[2] + radius * k / norm
-                    ok, its, _, stable = _newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip,
-                                                 params[TOL], int(params[MAX_ITER]),
-                                                 params[MAX_STEP], work, dummy)
+                    ok, its, _, stable = newton(m0, quat0, secf, steps, c_j, rest, loads, m_tip,
+                                                params[TOL], int(params[MAX_ITER]),
+                                                params[MAX_STEP], work, dummy)
                     total += its
                     if ok and stable:
                         gap = math.sqrt((m0[0] - accepted[0]) ** 2 + (m0[1] - accepted[1]) ** 2
@@ -536,7 +541,7 @@ def _scan_roots(m0, accepted, quat0, secf, steps, c_j, rest, loads, m_tip, param
 
 
 @njit
-def _mirror_symmetric(m0, rest, loads, m_tip, scale):
+def mirror_symmetric(m0, rest, loads, m_tip, scale):
     """True when the x–y plane is a mirror plane of the problem and of the state ``m0``:
     in-plane base moment, rest curvatures and loads (u1* = 0, no z loads, tip moment along z)."""
     tiny = 1e-9 * scale
@@ -557,19 +562,19 @@ def _tangent(m0, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a
     r = np.empty(3)
     for d in range(3):
         slope[d] = 0.0
-    _set_level(t + eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    set_level(t + eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1], dummy[2],
                work)
     for d in range(3):
         r[d] = work[0, SP_M + d] - m_tip[d]
-    _set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
+    set_level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now, m_tip)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     integrate_spatial(m0, quat0, secf, steps, c_j, rest, loads_now, False, dummy[0], dummy[1], dummy[2],
                work)
     for d in range(3):
         r[d] = -((r[d] - (work[0, SP_M + d] - m_tip[d])) / eps)
-    _cramer3(work[0, SP_DM:SP_DM + 9], r, slope)
+    cramer3(work[0, SP_DM:SP_DM + 9], r, slope)
     for d in range(3):
         if not math.isfinite(slope[d]):
             for k in range(3):
@@ -579,7 +584,7 @@ def _tangent(m0, t, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a
 
 
 @njit
-def _cramer3(cols, rhs, x):
+def cramer3(cols, rhs, x):
     """Solve the 3×3 system with columns ``cols`` (9,) for ``rhs`` into ``x`` by Cramer's
     rule, in scalars: no allocation and no LAPACK call, so a singular matrix gives
     non-finite ``x`` (checked by callers) rather than an exception. Returns the determinant."""

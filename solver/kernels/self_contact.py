@@ -11,7 +11,7 @@ segments.
 Law, node to curve. A node at arc length s with half-thickness h(s) meets another part
 (farther than the exclusion length along the arc) when its distance d to that part's
 nearest point p is below h(s) + h(p). Per unit length it is then pushed by
-f = k·(h(s) + h(p) − d)·(r − p)/d — the law of :func:`solver._obstacles._contact_force`
+f = k·(h(s) + h(p) − d)·(r − p)/d — the law of :func:`solver.kernels.obstacles.contact_force`
 with the partner's surface in place of a disc's, set in smoothly over the first ONSET of
 depth. The pieces' chords find the contacts (a run of consecutive chords within reach is
 one contact, so a node near a vertex is not pushed twice); p is then the nearest point of
@@ -35,8 +35,8 @@ import math
 
 import numpy as np
 
-from solver._obstacles import hermite_point, hull_circle
 from solver.jit import njit
+from solver.kernels.obstacles import hermite_point, hull_circle
 from solver.layout import (
     B_R,
     B_TOUCH,
@@ -258,7 +258,7 @@ def trace_piece(seg, states, end, target, grid, rest, level, loads, pts, bounds)
     for j in range(n + 1):
         for d in range(6):
             z[d] = end[d] if j == n else states[j, d]
-        a, b = _slot(segs, seg, j)
+        a, b = canonical_slot(segs, seg, j)
         fx = loads[a, b, SELF_FX]
         fy = loads[a, b, SELF_FY]
         if seg == 0 and j == 0:  # recorded before the base node's load, which is the clamp's
@@ -276,7 +276,7 @@ def trace_piece(seg, states, end, target, grid, rest, level, loads, pts, bounds)
     if seg < segs.shape[0] - 1:
         for d in range(6):
             z[d] = target[d]
-        a, b = _slot(segs, seg, n)
+        a, b = canonical_slot(segs, seg, n)
         z[3] += loads[a, b, SELF_FX]
         z[4] += loads[a, b, SELF_FY]
         if segs[seg, SEG_END] == 1:
@@ -363,7 +363,7 @@ def smallest_far_gap(positions, s, half, exclusion):
 
 
 @njit
-def _slot(segs, seg, j):
+def canonical_slot(segs, seg, j):
     """The canonical (segment, node) of node j of segment ``seg``: a segment's first node is
     the previous segment's last (except at the base)."""
     if j == 0 and seg > 0:
@@ -494,7 +494,7 @@ def _project(x, y, pts, bounds, segs, seg, t):
 
 @njit
 def _add(loads, segs, seg, j, fx, fy):
-    a, b = _slot(segs, seg, j)
+    a, b = canonical_slot(segs, seg, j)
     loads[a, b, SELF_FX] += fx
     loads[a, b, SELF_FY] += fy
 
@@ -590,7 +590,7 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
                 part = 1.0 - share if end == 0 else share
                 if part == 0.0:
                     continue
-                a, b = _slot(segs, seg, j + end)
+                a, b = canonical_slot(segs, seg, j + end)
                 # The piece whose map applies the load (its Jacobian carries the law's
                 # stiffness, which Newton's coupled Jacobian replaces by differences).
                 bounds[a, B_TOUCH] = 1.0

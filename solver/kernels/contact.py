@@ -26,7 +26,7 @@ split points move with the state, the map gets kinks where one crosses a step bo
 Newton stalls on them along deep wraps.
 
 Stability: the Jacobi fields of the free tip are carried back to the base through the
-segment maps' Jacobians (:func:`_stability`): the conjugate-point test of the spatial
+segment maps' Jacobians (:func:`stability_test`): the conjugate-point test of the spatial
 kernels, in the plane. It is exact for conservative loads, penalty contact included.
 """
 
@@ -36,10 +36,11 @@ import math
 
 import numpy as np
 
-from solver._obstacles import _contact_force, _contact_stiffness, _nearest_surface, _tunnels
-from solver._self_contact import (
-    _slot,
+from solver.jit import njit
+from solver.kernels.obstacles import contact_force, contact_stiffness, nearest_surface, tunnels
+from solver.kernels.self_contact import (
     build_piece,
+    canonical_slot,
     clear_pieces,
     may_touch,
     moved_since,
@@ -47,7 +48,6 @@ from solver._self_contact import (
     self_loads,
     trace_piece,
 )
-from solver.jit import njit
 from solver.layout import (
     B_TOUCH,
     C_COLUMNS,
@@ -60,6 +60,9 @@ from solver.layout import (
     C_V3,
     C_X,
     C_Y,
+    CA,
+    CG,
+    CI,
     DT0,
     DT_MIN,
     G_SECF,
@@ -72,6 +75,7 @@ from solver.layout import (
     L_PLATE,
     L_Q,
     L_TARGET,
+    LEN,
     MAX_ITER,
     MAX_STEP,
     N_BOUNDS,
@@ -124,7 +128,7 @@ TUNNEL_SLACK = 2e-3
 
 @njit
 def _write_row(st, s, out, row, ca, cg, ci, ur, vr, discs):
-    fx, fy, pen = _contact_force(st[0], st[1], discs)
+    fx, fy, pen = contact_force(st[0], st[1], discs)
     c, sn, n1, n3, v1, v3 = planar_strains(st[2], st[3], st[4], ca, cg, vr)
     out[row, C_S] = s
     for d in range(6):
@@ -142,7 +146,7 @@ def _tangent_rhs(st, P, dP, ca, cg, ci, vr, discs):
     """dP = A(st)·P for the tangent P (6, 6) of the state, A = ∂(state')/∂(state) of
     :func:`solver.rod.planar_state_rhs`, written out over A's non-zeros (14 of 36)."""
     a02, a03, a04, a12, a14, a52, a53, a54 = planar_state_jacobian(st[2], st[3], st[4], ca, cg, vr)
-    k00, k01, k11 = _contact_stiffness(st[0], st[1], discs)
+    k00, k01, k11 = contact_stiffness(st[0], st[1], discs)
     for j in range(6):
         p0 = P[0, j]
         p1 = P[1, j]
@@ -199,8 +203,8 @@ def _rk4_tangent(st, P, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs):
 
 
 @njit
-def _new_partners(grid):
-    """Scratch for self-contact (:mod:`solver._self_contact`) on ``grid``: (points
+def new_partners(grid):
+    """Scratch for self-contact (:mod:`solver.kernels.self_contact`) on ``grid``: (points
     (M, c + 1, N_POINT), bounds (M, N_BOUNDS), loads (M, c + 1, N_SELF)), c the longest
     segment's steps; empty without self-contact."""
     segs = grid[G_SEGS]
@@ -236,7 +240,7 @@ def _node_load(loads, seg, node, st, phi, tangent):
 def _self_row(loads, segs, seg, node, out, row):
     """Add the self-contact load per length and penetration of node ``node`` of segment
     ``seg`` (its canonical slot) to the record row ``row``."""
-    a, b = _slot(segs, seg, node)
+    a, b = canonical_slot(segs, seg, node)
     out[row, C_FX] += loads[a, b, SELF_QX]
     out[row, C_FY] += loads[a, b, SELF_QY]
     out[row, C_PEN] = max(out[row, C_PEN], loads[a, b, SELF_PEN])
@@ -246,21 +250,21 @@ def _self_row(loads, segs, seg, node, out, row):
 def _prepare_partners(Z, grid, rest, level, partners):
     """The self-contact loads of the state ``Z`` into ``partners`` (nothing without
     self-contact). Functions of Z alone. Skipped (no loads) where no part can be near another
-    (:func:`solver._self_contact.may_touch`).
+    (:func:`solver.kernels.self_contact.may_touch`).
 
     The backbone the law sees is drawn first as each segment's quintic Hermite piece from
     its start node to the next one's — the tip segment's to its end integrated without
-    self-contact loads (:func:`solver._self_contact.build_piece`) — and the loads worked
-    out on it (:func:`solver._self_contact.self_loads`). Then GEOMETRY_PASSES times each
+    self-contact loads (:func:`solver.kernels.self_contact.build_piece`) — and the loads worked
+    out on it (:func:`solver.kernels.self_contact.self_loads`). Then GEOMETRY_PASSES times each
     segment that carries loads is integrated with them, its piece redrawn through the
-    integrated nodes (:func:`solver._self_contact.trace_piece`), and the loads worked out
+    integrated nodes (:func:`solver.kernels.self_contact.trace_piece`), and the loads worked out
     again: a Hermite piece misses the kinks that the shear and stretch of point loads put
     into the backbone at loaded nodes (tens of micrometres on OctArm V at the ring
     stiffness, against a penetration of 2 mm), a traced one carries them; an unloaded
     piece has none (docs/design.md §9, "Resolution"). The nodes' clearances, which spare
     the law the points far from any other part, are reused from the last call while the
     nodes have moved less than REUSE_CLEARANCE since (a Newton step's difference columns
-    and line search), at a slack of the move (:func:`solver._self_contact.self_loads`)."""
+    and line search), at a slack of the move (:func:`solver.kernels.self_contact.self_loads`)."""
     pts, bounds, loads = partners
     n_seg = bounds.shape[0]
     if n_seg == 0:
@@ -310,7 +314,7 @@ def _prepare_partners(Z, grid, rest, level, partners):
 
 @njit
 def _reuse(pts, segs):
-    """The ``moved`` argument of :func:`solver._self_contact.self_loads` for the pieces
+    """The ``moved`` argument of :func:`solver.kernels.self_contact.self_loads` for the pieces
     ``pts``: how far their nodes moved since their clearances were worked out, or −1 (work
     them out afresh) past REUSE_CLEARANCE."""
     moved = moved_since(pts, segs)
@@ -334,7 +338,7 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
     ``grid`` (the layout tuple, ``G_*``) and ``level`` (a level tuple, see ``L_P``…) give
     the layout and loads. Applies the endplate jump n(s⁺) = n(s⁻) − W at a section end (not
     at the tip: that is the boundary condition), and the self-contact point loads of
-    ``partners`` (:func:`_new_partners`, worked out by :func:`_prepare_partners`; none if
+    ``partners`` (:func:`new_partners`, worked out by :func:`_prepare_partners`; none if
     empty) at the RK4 nodes, the tip's included. ``work`` is (7, 6) scratch. With
     ``record``, writes the segment's nodes (and the section's last node) into ``out``. With
     ``phi`` (6, 6) (not empty), the segment map's Jacobian ∂out_state/∂z is integrated into
@@ -357,10 +361,10 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
     i = segs[seg, SEG_SECTION]
     first = segs[seg, SEG_FIRST]
     nst = segs[seg, SEG_STEPS]
-    h = secf[0, i] / steps[i]
-    ca = secf[1, i]
-    cg = secf[2, i]
-    ci = secf[3, i]
+    h = secf[LEN, i] / steps[i]
+    ca = secf[CA, i]
+    cg = secf[CG, i]
+    ci = secf[CI, i]
     ur = rest[REST_U2, i]
     vr = rest[REST_V3, i]
     qx = q[i, 0]
@@ -402,7 +406,7 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
         rx = work[0, 0]
         ry = work[0, 1]
         speed = math.sqrt(rx * rx + ry * ry)
-        gap, ux, uy = _nearest_surface(start[0], start[1], discs)
+        gap, ux, uy = nearest_surface(start[0], start[1], discs)
         clear = gap - h * speed
         if clear >= h:
             continue
@@ -447,7 +451,7 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
     if segs[seg, SEG_END] == 1:
         if record:
             row = segs[seg, SEG_ROW0] + steps[i]
-            _write_row(st, sec_start[i] + secf[0, i], out, row, ca, cg, ci, ur, vr, discs)
+            _write_row(st, sec_start[i] + secf[LEN, i], out, row, ca, cg, ci, ur, vr, discs)
             if own:
                 _self_row(loads, segs, seg, nst, out, row)
         if i < secf.shape[1] - 1:
@@ -484,7 +488,7 @@ def _start_state(Z, seg, theta0, z):
 
 
 @njit
-def _system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
+def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
     """Residuals F (N,) of the multiple-shooting system and, if ``want_jac``, its Jacobian J.
 
     Unknowns Z: (n0x, n0y, m0), then the 6-state at the start of segments 1..M−1. Rows: the
@@ -493,8 +497,8 @@ def _system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
     in the band form of :func:`_band_solve`, ``(BAND_ROWS, N)``: with self-contact, the
     Jacobian at fixed self-contact loads (their dependence on the nodes: :func:`_coupled`).
     The segment maps' Jacobians are integrated with the segments (:func:`_segment`) into
-    ``blocks`` (M, 6, 6) (their stability test: :func:`_stability`). The self-contact
-    loads of Z are worked out into ``partners`` (:func:`_new_partners`) first.
+    ``blocks`` (M, 6, 6) (their stability test: :func:`stability_test`). The self-contact
+    loads of Z are worked out into ``partners`` (:func:`new_partners`) first.
     """
     segs = grid[G_SEGS]
     target = level[L_TARGET]
@@ -540,11 +544,11 @@ def _system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
 
 
 @njit
-def _stability(blocks):
+def stability_test(blocks):
     """The conjugate-point test of the equilibrium whose segment maps have the Jacobians
     ``blocks`` (M, 6, 6): positive if stable, ≤ 0 if not.
 
-    As the spatial test (:func:`solver._spatial._stability`) does, the Jacobi fields of the
+    As the spatial test (:func:`solver.kernels.spatial.stability_test`) does, the Jacobi fields of the
     free tip — δn(L) = δm(L) = 0, δ(x, y, θ)(L) = I — are carried from the tip to the base
     (through the inverse segment maps), and the 3×3 matrix δ(x, y, θ)(s) must not become
     singular on [0, L): the sub-rod [s, L], clamped at s and carrying its own loads, has no
@@ -721,7 +725,7 @@ def _band_solve(ab, b):
 
 
 @njit
-def _weighted_norm(v, weights):
+def weighted_norm(v, weights):
     acc = 0.0
     for k in range(v.shape[0]):
         acc += (v[k] / weights[k]) ** 2
@@ -760,7 +764,7 @@ def _coupled(Z, grid, rest, level, F, J, partners, weights, A):
                 elif node < n_seg:
                     columns[3 + 6 * (node - 1):3 + 6 * node] = True
     # The pieces' nodes (and the clearances worked out on them) are copied: a column's
-    # state is a small move from Z's (solver._self_contact.self_loads).
+    # state is a small move from Z's (solver.kernels.self_contact.self_loads).
     scratch = (partners[0].copy(), np.empty_like(partners[1]), np.empty_like(partners[2]))
     moved = Z.copy()
     F_moved = np.empty(n)
@@ -770,14 +774,14 @@ def _coupled(Z, grid, rest, level, F, J, partners, weights, A):
             continue
         eps = 1e-7 * max(abs(Z[c]), weights[c])
         moved[c] = Z[c] + eps
-        _system(moved, grid, rest, level, F_moved, J, False, no_blocks, scratch)
+        newton_system(moved, grid, rest, level, F_moved, J, False, no_blocks, scratch)
         moved[c] = Z[c]
         for i in range(n):
             A[i, c] = (F_moved[i] - F[i]) / eps
 
 
 @njit
-def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
+def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     """Damped Newton on the multiple-shooting system at ``level``; ``Z`` is updated in place.
 
     Residuals and steps are measured in weighted RMS norms (weights: metres for positions,
@@ -798,19 +802,19 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
     blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
     base = np.empty(n)
     step = np.empty(n)
-    partners = _new_partners(grid)
+    partners = new_partners(grid)
     dense = np.empty((n, n)) if partners[1].shape[0] else np.empty((0, 0))
-    _system(Z, grid, rest, level, F, J, True, blocks, partners)
+    newton_system(Z, grid, rest, level, F, J, True, blocks, partners)
     fresh = True
     coupled = _touched(partners)
-    res = _weighted_norm(F, res_weights)
+    res = weighted_norm(F, res_weights)
     for it in range(max_iter + 1):
         if not math.isfinite(res):
             return False, it, math.inf, False
         if res <= tol:
             if not fresh:
-                _system(Z, grid, rest, level, F, J, True, blocks, partners)
-            return True, it, res, _stability(blocks) > 0.0
+                newton_system(Z, grid, rest, level, F, J, True, blocks, partners)
+            return True, it, res, stability_test(blocks) > 0.0
         if it == max_iter:
             break
         if coupled:
@@ -824,7 +828,7 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
             for k in range(n):
                 step[k] = F[k]
             _band_lu_solve(J, piv, step)
-        norm = _weighted_norm(step, weights)
+        norm = weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         for k in range(n):
             base[k] = Z[k]
@@ -832,8 +836,8 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
         for _ in range(8):
             for k in range(n):
                 Z[k] = base[k] - alpha * step[k]
-            _system(Z, grid, rest, level, F_try, J, False, blocks, partners)
-            res_try = _weighted_norm(F_try, res_weights)
+            newton_system(Z, grid, rest, level, F_try, J, False, blocks, partners)
+            res_try = weighted_norm(F_try, res_weights)
             if res_try < res:
                 break
             alpha *= 0.5
@@ -843,17 +847,17 @@ def _newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step)
             F[k] = F_try[k]
         fresh = False
         if slow or coupled or _touched(partners):
-            _system(Z, grid, rest, level, F, J, True, blocks, partners)
-            res = _weighted_norm(F, res_weights)
+            newton_system(Z, grid, rest, level, F, J, True, blocks, partners)
+            res = weighted_norm(F, res_weights)
             fresh = True
             coupled = _touched(partners)
     if not fresh:
-        _system(Z, grid, rest, level, F, J, True, blocks, partners)
-    return False, max_iter, res, _stability(blocks) > 0.0
+        newton_system(Z, grid, rest, level, F, J, True, blocks, partners)
+    return False, max_iter, res, stability_test(blocks) > 0.0
 
 
 @njit
-def _set_level(t, a, b, now):
+def set_level(t, a, b, now):
     """Interpolate the homotopy between level tuples ``a`` and ``b`` at ``t`` into ``now``
     (planar or spatial: the widths are the arrays')."""
     for k in range(a[L_P].shape[0]):
@@ -870,7 +874,7 @@ def _set_level(t, a, b, now):
 
 
 @njit
-def _new_level(a):
+def new_level(a):
     """Scratch arrays shaped like the level tuple ``a``."""
     return (np.empty_like(a[L_P]), np.empty_like(a[L_Q]), np.empty_like(a[L_PLATE]),
             np.empty_like(a[L_TARGET]), np.empty_like(a[L_DISCS]))
@@ -878,17 +882,17 @@ def _new_level(a):
 
 @njit
 def _at_level(t, a, b, now, tubes_i, tubes_f, secf, rest):
-    """:func:`_set_level`, then the rest strains of its pressures into ``rest``."""
-    _set_level(t, a, b, now)
+    """:func:`set_level`, then the rest strains of its pressures into ``rest``."""
+    set_level(t, a, b, now)
     rest_strains_into(now[L_P], tubes_i, tubes_f, secf, rest)
 
 
 @njit
-def _follow(Z, grid, tubes, a, b, params, work, guard):
+def follow(Z, grid, tubes, a, b, params, work, guard):
     """Multiple-shooting path following, in the signature the path-following kernels share.
 
     Args:
-        Z: (N,) the nodes of the start state (see :func:`_system`), updated in place.
+        Z: (N,) the nodes of the start state (see :func:`newton_system`), updated in place.
         grid: the layout tuple (``G_*``). tubes: (tubes_i, tubes_f).
         a, b: start and goal level tuples (``L_*``).
         params: (N_PARAMS,) numeric parameters (TOL, MAX_STEP, DT0, DT_MIN, MAX_ITER,
@@ -898,7 +902,7 @@ def _follow(Z, grid, tubes, a, b, params, work, guard):
 
     Returns:
         (converged, stable, snapped, iterations, residual, t, dt), as
-        :func:`solver._planar._follow`: t the level reached, dt the step that failed
+        :func:`solver.kernels.planar.follow`: t the level reached, dt the step that failed
         beyond it (0 if the start itself could not be corrected). Snaps are the caller's.
     """
     ok, total, res, stable, t, dt = _path(
@@ -911,7 +915,7 @@ def _follow(Z, grid, tubes, a, b, params, work, guard):
 def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, max_step, dt0,
           dt_min, rest, now, predict_cap):
     """Quasi-static ramp from level ``a`` to level ``b`` (tuples, see ``L_P``…``L_DISCS``;
-    cf. :func:`solver._planar._follow`): pressures, distributed loads, endplate weights, tip
+    cf. :func:`solver.kernels.planar.follow`): pressures, distributed loads, endplate weights, tip
     targets and obstacles all linear in t.
 
     The start ``Z`` is first corrected by Newton at t = 0 (it need not be an equilibrium of
@@ -919,7 +923,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     Newton converged on a stable state whose correction is small against the step predicted
     (tangent predictor for the first step, then secant, on all node states; a predicted
     move longer than ``predict_cap`` in the weighted RMS norm is shortened to it) and no
-    backbone sample tunnelled through a disc on the way (:func:`solver._obstacles._tunnels`:
+    backbone sample tunnelled through a disc on the way (:func:`solver.kernels.obstacles.tunnels`:
     a penalty disc stops pushing once the backbone has crossed it, so a long step could
     land beyond an obstacle that the quasi-static path runs into). No fold scan: if the step
     falls below ``dt_min`` the last accepted state is returned, flagged unconverged.
@@ -945,12 +949,12 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     has_discs = a[L_DISCS].shape[0] > 0
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
-    _system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)), _new_partners(grid))
-    res = _weighted_norm(F, res_weights)
+    newton_system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)), new_partners(grid))
+    res = weighted_norm(F, res_weights)
     total += 1
     if not res <= tol:  # not an equilibrium of ``a`` (or NaN): correct it first
-        ok, its, res, stable = _newton(Z, grid, rest, now, weights, res_weights, tol,
-                                       max_iter, max_step)
+        ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, tol,
+                                      max_iter, max_step)
         total += its
         if not (ok and stable):
             return False, total, res, stable, 0.0, 0.0
@@ -958,7 +962,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     stable = True
     accepted = Z.copy()
     if has_discs:
-        _record(Z, grid, rest, now, rec_prev)
+        record_backbone(Z, grid, rest, now, rec_prev)
     # Tangent predictor for the first step. Without it the first step's correction is
     # judged against a zero prediction, and a large pressure change is halved until its
     # correction is small in absolute terms — five or six converged steps thrown away.
@@ -976,9 +980,9 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
             guess[k] = accepted[k] + cap * slope[k] * (t_new - t)
             Z[k] = guess[k]
         final = t_new >= 1.0
-        ok, its, res, stable = _newton(Z, grid, rest, now, weights, res_weights,
-                                       tol if final else 1e3 * tol, max_iter if final else 8,
-                                       max_step)
+        ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights,
+                                      tol if final else 1e3 * tol, max_iter if final else 8,
+                                      max_step)
         total += its
         corr = 0.0
         pred = 0.0
@@ -990,9 +994,9 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
         if ok and stable and (corr <= 0.05 + 0.5 * pred or dt <= dt_min):
             through = False
             if has_discs:
-                _record(Z, grid, rest, now, rec_new)
-                through = _tunnels(rec_prev[:, C_X:C_Y + 1], rec_new[:, C_X:C_Y + 1],
-                                   now[L_DISCS], TUNNEL_SLACK)
+                record_backbone(Z, grid, rest, now, rec_new)
+                through = tunnels(rec_prev[:, C_X:C_Y + 1], rec_new[:, C_X:C_Y + 1],
+                                  now[L_DISCS], TUNNEL_SLACK)
             if not through:
                 for k in range(n):
                     slope[k] = (Z[k] - accepted[k]) / (t_new - t)
@@ -1014,14 +1018,14 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
 
 
 @njit
-def _record(Z, grid, rest, level, out):
+def record_backbone(Z, grid, rest, level, out):
     """Write the backbone of the state ``Z`` into ``out`` (rows Σ(steps + 1), C_COLUMNS)."""
     z = np.empty(6)
     end = np.empty(6)
     work = np.empty((7, 6))
     no_tangent = np.empty((0, 6))
     tw = np.empty((0, 6, 6))
-    partners = _new_partners(grid)
+    partners = new_partners(grid)
     _prepare_partners(Z, grid, rest, level, partners)
     for seg in range(grid[G_SEGS].shape[0]):
         _start_state(Z, seg, grid[G_THETA0], z)
@@ -1039,11 +1043,11 @@ def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, slope):
     F1 = np.empty(n)
     J = np.empty((BAND_ROWS, n))
     blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
-    partners = _new_partners(grid)
+    partners = new_partners(grid)
     _at_level(eps_t, a, b, now, tubes_i, tubes_f, secf, rest)
-    _system(Z, grid, rest, now, F1, J, False, blocks, partners)
+    newton_system(Z, grid, rest, now, F1, J, False, blocks, partners)
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
-    _system(Z, grid, rest, now, F0, J, True, blocks, partners)
+    newton_system(Z, grid, rest, now, F0, J, True, blocks, partners)
     for k in range(n):
         F1[k] = -(F1[k] - F0[k]) / eps_t
     slope[:] = F1

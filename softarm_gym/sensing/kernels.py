@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.layout import NSTATE, SL_N, SL_Q, SP_M, SP_Q, SP_R
+from solver.layout import SL_N, SL_Q, SP_M, SP_R
 from solver.rod import (
     hermite_resample,
     planar_state_rhs,
@@ -22,11 +22,12 @@ from solver.rod import (
     record_spatial_row,
     spatial_rhs,
     spatial_rk4_step,
+    start_spatial_state,
 )
 
 
 @njit
-def _section_integrals(s, integrand, ends, out):
+def section_integrals(s, integrand, ends, out):
     """Cumulative integrals of sampled functions over consecutive sections.
 
     Composite Simpson's rule on the uniform samples of each section (Simpson 3/8 on the last
@@ -64,7 +65,7 @@ def _section_integrals(s, integrand, ends, out):
 
 
 @njit
-def _planar_cable_integrand(shear_stretch, curvature, radius, out):
+def planar_cable_integrand(shear_stretch, curvature, radius, out):
     """Planar cable integrands √((v3 ∓ R·u)² + v1²) for the +R·d1 and −R·d1 cables, (N, 2)."""
     for k in range(curvature.shape[0]):
         v1 = shear_stretch[k, 0]
@@ -75,8 +76,8 @@ def _planar_cable_integrand(shear_stretch, curvature, radius, out):
 
 
 @njit
-def _load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
-                      q, point, work, s_out, pos_out, tan_out, ends_out):
+def load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_rest, v_rest,
+                     q, point, work, s_out, pos_out, tan_out, ends_out):
     """Integrate the planar equilibrium equations base → tip from a measured base wrench (§4.2.1).
 
     The solver's rod statics (:func:`solver.rod.planar_state_rhs`, RK4 by
@@ -142,8 +143,8 @@ def _reduced_rhs(th, m, n1, ci, ur, v, w):
 
 
 @njit
-def _reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretch, weight,
-                    record, s_out, pos_out, tan_out, ends_out):
+def reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stretch, weight,
+                   record, s_out, pos_out, tan_out, ends_out):
     """One RK4 pass of the reduced model of §4.2.2–4.2.3 (Eq. 4.17) base → tip.
 
     In section i the stretch v_i is constant (from pressurisation: measured by the encoders
@@ -207,8 +208,8 @@ def _reduced_planar(theta0, m0, n1_start, sec_len, sec_steps, c_i, u_rest, stret
 
 
 @njit
-def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
-                      n_angles, tip_shear_weight, moment_scale, force_scale, ends, res):
+def reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weight, theta_target,
+                     n_angles, tip_shear_weight, moment_scale, force_scale, ends, res):
     """Boundary residuals of the reduced model for unknowns z = (m0, n1_start[0..ns−1]).
 
     Rows: θ(s_i) − θ_target[i] for the first ``n_angles`` section ends; then, if
@@ -217,8 +218,8 @@ def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weigh
     scaled by ``moment_scale``. Residuals are in rad.
     """
     ns = sec_len.shape[0]
-    m_tip, n1_tip = _reduced_planar(theta0, z[0], z[1:], sec_len, sec_steps, c_i, u_rest, stretch,
-                                    weight, False, ends[:, 0], ends, ends, ends)
+    m_tip, n1_tip = reduced_planar(theta0, z[0], z[1:], sec_len, sec_steps, c_i, u_rest, stretch,
+                                   weight, False, ends[:, 0], ends, ends, ends)
     for i in range(n_angles):
         res[i] = ends[i, 2] - theta_target[i]
     if n_angles < ns:
@@ -227,8 +228,8 @@ def _reduced_residual(z, theta0, sec_len, sec_steps, c_i, u_rest, stretch, weigh
 
 
 @njit
-def _load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
-                       v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
+def load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1_rest, u2_rest,
+                      v_rest, q, point, work, s_out, pos_out, tan_out, ends_out, frames_out):
     """Integrate the spatial equilibrium equations base → tip from a measured 6-axis wrench.
 
     The solver's rod statics and RK4 step (:func:`solver.rod.spatial_rhs`,
@@ -252,12 +253,8 @@ def _load_cell_spatial(quat0, n0, m0, sec_len, sec_steps, c_a, c_g, c_i, c_j, u1
     loads_i = work[7, :6]
     n_start = work[7, 6:9]
     moments = np.empty((sec_len.shape[0], 3))
-    for d in range(NSTATE):
-        y[d] = 0.0
-    for d in range(4):
-        y[SP_Q + d] = quat0[d]
+    start_spatial_state(y, quat0, m0)
     for d in range(3):
-        y[SP_M + d] = m0[d]
         n_start[d] = n0[d]
     row = 0
     s0 = 0.0
@@ -327,8 +324,8 @@ def _reduced_rhs_spatial(y, dy, ci, cj, u1r, u2r, v, q):
 
 
 @njit
-def _reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch,
-                     q, record, work, s_out, pos_out, tan_out, ends_out, frames_out, curv_out):
+def reduced_spatial(rot0, m0, shear_start, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch,
+                    q, record, work, s_out, pos_out, tan_out, ends_out, frames_out, curv_out):
     """One RK4 pass of the spatial reduced model base → tip (see :func:`_reduced_rhs_spatial`).
 
     Args:
@@ -398,14 +395,14 @@ their end axes d3 in measured frames (IMUs)."""
 
 
 @njit
-def _reduced_spatial_residual(z, model, data, out):
+def reduced_spatial_residual(z, model, data, out):
     """Boundary residual (2·ns + 3,) of the spatial reduced model at unknowns ``z`` (3 + 2·ns:
     m0, then (n1, n2) per section start), in rad: the misfit to the data per section, then
     m(L) over the moment scale.
 
     Args:
         model: (rot0, sec_len, sec_steps, c_i, c_j, u1_rest, u2_rest, stretch, q, work, s, pos,
-            tan, ends, frames, curv, moment_scale) as :func:`_reduced_spatial` takes them.
+            tan, ends, frames, curv, moment_scale) as :func:`reduced_spatial` takes them.
         data: (kind, target_curv (ns, 2), target_frames (ns, 3, 3)): ``CABLE_DATA`` matches
             ∫u1, ∫u2; ``IMU_DATA`` the two angles of each estimated end axis d3 off the
             measured frame's (atan2, so a reversed axis is no root).
@@ -414,8 +411,8 @@ def _reduced_spatial_residual(z, model, data, out):
      frames, curv, moment_scale) = model
     kind, target_curv, target_frames = data
     ns = sec_len.shape[0]
-    _reduced_spatial(rot0, z[:3], z[3:].reshape((ns, 2)), sec_len, sec_steps, c_i, c_j, u1_rest,
-                     u2_rest, stretch, q, False, work, s, pos, tan, ends, frames, curv)
+    reduced_spatial(rot0, z[:3], z[3:].reshape((ns, 2)), sec_len, sec_steps, c_i, c_j, u1_rest,
+                    u2_rest, stretch, q, False, work, s, pos, tan, ends, frames, curv)
     for i in range(ns):
         if kind == CABLE_DATA:
             out[2 * i] = curv[i, 0] - target_curv[i, 0]
@@ -433,9 +430,9 @@ def _reduced_spatial_residual(z, model, data, out):
 
 
 @njit
-def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, data, jac, jac_ok):
+def reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, data, jac, jac_ok):
     """:func:`softarm_gym.sensing.estimators.damped_newton` on
-    :func:`_reduced_spatial_residual`, compiled (the spatial reduced model's Python Newton
+    :func:`reduced_spatial_residual`, compiled (the spatial reduced model's Python Newton
     spent most of an estimate in calls): forward-difference Jacobian, steps clipped to
     ``max_step`` units of ``unknown_scale`` then halved until the residual's 2-norm falls.
 
@@ -454,7 +451,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
     trial = np.empty(n)
     probe = np.empty(n)
     start = np.empty(n)
-    _reduced_spatial_residual(z, model, data, res)
+    reduced_spatial_residual(z, model, data, res)
     merit = 0.0
     for k in range(n):
         merit += res[k] * res[k]
@@ -474,7 +471,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
                 h = 1e-6 * unknown_scale[j]
                 keep = z[j]
                 z[j] = keep + h
-                _reduced_spatial_residual(z, model, data, probe)
+                reduced_spatial_residual(z, model, data, probe)
                 for k in range(n):
                     jac[k, j] = (probe[k] - res[k]) / h
                 z[j] = keep
@@ -501,7 +498,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
         for _ in range(21):
             for k in range(n):
                 z[k] = start[k] + scale * step[k]
-            _reduced_spatial_residual(z, model, data, trial)
+            reduced_spatial_residual(z, model, data, trial)
             trial_merit = 0.0
             for k in range(n):
                 trial_merit += trial[k] * trial[k]
@@ -549,7 +546,7 @@ def _reduced_spatial_newton(z, unknown_scale, tol, max_iter, max_step, model, da
 
 
 @njit
-def _planar_shape(s, pos, theta, strain, ends, s_query, backbone, section_ends, tangent):
+def planar_shape(s, pos, theta, strain, ends, s_query, backbone, section_ends, tangent):
     """The ``true`` shape of a recorded planar equilibrium in one pass.
 
     Tangent dr/ds = v3 d3 + v1 d1 at every sample (``strain`` columns v1, v3), section-end

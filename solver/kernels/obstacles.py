@@ -21,7 +21,7 @@ from solver.layout import CX, CY, O_AXIS, O_P, O_RADIUS, O_STIFFNESS, RADIUS, ST
 
 
 @njit
-def _contact_force(x, y, discs):
+def contact_force(x, y, discs):
     """Penalty force per length (fx, fy) and deepest penetration at backbone point (x, y).
 
     f = k · max(0, R − |r − c|) · (r − c)/|r − c| summed over the discs (N/m).
@@ -44,14 +44,14 @@ def _contact_force(x, y, discs):
 
 
 @njit
-def _penalty_energy(pen, stiffness):
+def penalty_energy(pen, stiffness):
     """Potential (J/m) of the penalty force per length: ½ k pen² inside, 0 outside."""
     return 0.5 * stiffness * pen * pen if pen > 0.0 else 0.0
 
 
 @njit
-def _contact_stiffness(x, y, discs):
-    """∂f/∂r of :func:`_contact_force` at (x, y), f the penalty force per length: the
+def contact_stiffness(x, y, discs):
+    """∂f/∂r of :func:`contact_force` at (x, y), f the penalty force per length: the
     symmetric 2×2 (k00, k01, k11) summed over the discs pressed,
     −k ûûᵀ + (k·pen/|d|)(I − ûûᵀ), û = d/|d|, d = r − c."""
     k00 = 0.0
@@ -74,7 +74,7 @@ def _contact_stiffness(x, y, discs):
 
 
 @njit
-def _nearest_surface(x, y, discs):
+def nearest_surface(x, y, discs):
     """(gap, ux, uy): the smallest signed gap from (x, y) to a disc surface (m; negative
     inside) and the outward unit normal of that disc there (∂gap/∂(x, y))."""
     gap = math.inf
@@ -93,7 +93,7 @@ def _nearest_surface(x, y, discs):
 
 
 @njit
-def _clearance(x, y, discs):
+def clearance(x, y, discs):
     """Smallest signed gap from (x, y) to the disc surfaces (m; negative inside a disc)."""
     gap = math.inf
     for d in range(discs.shape[0]):
@@ -116,7 +116,7 @@ def _segment_depth(ax, ay, bx, by, cx, cy, radius):
 
 
 @njit
-def _tunnels(prev_xy, new_xy, discs, slack):
+def tunnels(prev_xy, new_xy, discs, slack):
     """True when a backbone sample crossed into a disc between two states, deeper than at
     either end.
 
@@ -210,7 +210,7 @@ def smallest_clearance_3d(points, obstacles):
 
 @njit
 def tunnels_3d(prev, new, obstacles, slack):
-    """:func:`_tunnels` against spatial obstacles: True when a sample, moved along the
+    """:func:`tunnels` against spatial obstacles: True when a sample, moved along the
     straight segment between its positions in ``prev`` and ``new`` (N, ≥3; m), goes deeper
     into an obstacle, at any of TUNNEL_SAMPLES points, than the deeper of its two ends by
     more than ``slack`` (m)."""

@@ -9,11 +9,11 @@ from dataclasses import replace
 import numpy as np
 
 from solver import layout as L
-from solver._model import contact_layout, reach
-from solver._paths_planar import solve_planar, solve_single
-from solver._paths_shooting import solve_shooting
-from solver._self_contact import smallest_far_gap
-from solver.results import peak_penetration
+from solver.kernels.self_contact import smallest_far_gap
+from solver.paths.planar import solve_planar, solve_single
+from solver.paths.shooting import solve_shooting
+from solver.problem import Problem, contact_layout, reach
+from solver.results import Equilibrium, peak_penetration
 from solver.scene import self_contact_exclusion
 
 # Penalty continuation for rigid obstacles (Disc(stiffness=math.inf)): the first penalty
@@ -24,12 +24,11 @@ RIGID_GROWTH = 10.0
 RIGID_MAX_STIFFNESS = 1e11
 
 
-def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                contact=None):
+def solve_rigid(problem: Problem, contact=None) -> Equilibrium:
     """A solve with rigid obstacles or rigid self-contact (hard contact) by penalty
     continuation, each stage solved by ``contact`` (a penalty-contact path:
     :func:`solve_contact`, the default, or the spatial
-    :func:`solver._paths_spatial_contact.solve_contact_spatial`).
+    :func:`solver.paths.spatial_contact.solve_contact_spatial`).
 
     The rigid discs (and the self-contact, if rigid) get a finite penalty k: from a warm
     start its final one, else the k at which the decay length (EI_min/k)^¼ is L/20. After
@@ -37,12 +36,13 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, sett
     self-contact, into the arm itself) anywhere along the backbone — between the samples
     too (:func:`solver.results.peak_penetration`) — exceeds ``settings.gap_tol``, k is multiplied
     by RIGID_GROWTH and the solve continues from the last state, the penalty ramped up along
-    the path (the homotopy of :func:`solver._paths_shooting.solve_shooting`). The
+    the path (the homotopy of :func:`solver.paths.shooting.solve_shooting`). The
     penetration falls as 1/k and the state converges to the hard-contact limit (tested).
     If the penetration is still above ``gap_tol`` where the next stage would pass
     RIGID_MAX_STIFFNESS, or a stage does not converge (the last converged stage is then
     returned), the result is reported unconverged.
     """
+    arm, scene, warm_start, settings = problem.arm, problem.scene, problem.warm_start, problem.settings
     warm_k = warm_start.penalty_stiffness if warm_start is not None else math.nan
     stiffness = warm_k if math.isfinite(warm_k) else min(
         s.EI for s in arm.sections) * (20.0 / arm.length) ** 4
@@ -53,8 +53,7 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, sett
             replace(d, stiffness=stiffness) if d.stiffness == math.inf else d
             for d in scene.obstacles),
             self_contact=stiffness if scene.self_contact == math.inf else scene.self_contact)
-        attempt = (contact or solve_contact)(arm, packed, p_inputs, p_channel, stage, model, eq,
-                                             settings)
+        attempt = (contact or solve_contact)(problem.in_scene(stage, eq))
         iterations += attempt.iterations
         if not attempt.converged:
             # Keep the last stage that converged (stiffness one step back), reported as not
@@ -75,49 +74,46 @@ def solve_rigid(arm, packed, p_inputs, p_channel, scene, model, warm_start, sett
                    converged=bool(eq.converged and met))
 
 
-def solve_contact(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings,
-                  moving=False):
-    """Planar solve with penalty contact against the scene's discs (:mod:`solver._contact`).
+def solve_contact(problem: Problem, moving: bool = False) -> Equilibrium:
+    """Planar solve with penalty contact against the scene's discs (:mod:`solver.kernels.contact`).
 
-    Multiple shooting at the contact resolution (:func:`solver._model.contact_layout`),
+    Multiple shooting at the contact resolution (:func:`solver.problem.contact_layout`),
     obstacles present all along the quasi-static path
-    (:func:`solver._paths_shooting.solve_shooting`).
+    (:func:`solver.paths.shooting.solve_shooting`).
 
     Shortcuts (``settings.shortcuts``), each exact:
 
-    * no disc within the arm's reach (:func:`solver._model.reach`): the contact-free solve,
+    * no disc within the arm's reach (:func:`solver.problem.reach`): the contact-free solve,
       if no part of its backbone comes near another (:func:`clear_of_itself`; always, without
       self-contact);
     * a cold solve, or a warm step from a state that touched nothing: single shooting
       without contact, guarded — if the backbone stays clear of every disc by half an RK4
       step at every accepted state (loading stage included) and no sample passes through a
-      disc between them (:func:`solver._planar._follow`), the contact-free path *is* the
+      disc between them (:func:`solver.kernels.planar.follow`), the contact-free path *is* the
       path with obstacles (every penalty force is zero along it), obtained in tens of
       microseconds instead of milliseconds. Otherwise the contact kernels follow the path.
       The shortcut solves at the settings' resolution, the contact kernels at the finer
       contact resolution; the two agree to the coarser one's discretisation error.
 
     ``moving``: the warm start's discs are ramped to the scene's positions
-    (:func:`solver._paths_shooting.solve_shooting`); the guarded shortcut, which checks the
+    (:func:`solver.paths.shooting.solve_shooting`); the guarded shortcut, which checks the
     path against the final discs only, is then skipped.
     """
+    arm, packed, scene, warm_start = problem.arm, problem.packed, problem.scene, problem.warm_start
     free_scene = scene.without_contact
-    if settings.shortcuts:
+    if problem.settings.shortcuts:
         discs = scene.discs_array()
         if np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]
                   > reach(arm, packed, scene)):
-            free = solve_planar(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
-                                settings)
+            free = solve_planar(problem.in_scene(free_scene, warm_start))
             if clear_of_itself(arm, scene, free):
                 return _free_contact_result(free, scene)
         elif not moving and (warm_start is None or not warm_start.in_contact):
-            free = solve_single(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
-                                settings, guard_discs=discs)
+            free = solve_single(problem.in_scene(free_scene, warm_start), guard_discs=discs)
             if free.converged and free.stable and clear_of_itself(arm, scene, free):
                 return _free_contact_result(free, scene)
-    layout, segs, sec_start = contact_layout(arm, packed, scene)
-    return solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
-                          warm_start, settings, load_moments=False, moving=moving)
+    return solve_shooting(problem, contact_layout(arm, packed, scene), load_moments=False,
+                          moving=moving)
 
 
 def clear_of_itself(arm, scene, eq) -> bool:

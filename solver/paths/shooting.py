@@ -8,10 +8,14 @@ import math
 
 import numpy as np
 
-from solver import _contact, _grid, _planar, _relax
 from solver import layout as L
-from solver._model import context, rest_strains, shooting_layout, shooting_terms
-from solver._self_contact import smallest_far_gap
+from solver.kernels import contact as contact_kernels
+from solver.kernels import planar as planar_kernels
+from solver.kernels import relax as relax_kernels
+from solver.kernels.grid import section_needs
+from solver.kernels.self_contact import smallest_far_gap
+from solver.paths.grid import section_rows
+from solver.problem import Problem, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
 from solver.rod import integrate_planar, rest_strains_into
 from solver.scene import self_contact_exclusion
@@ -31,19 +35,17 @@ _NO_RECORD = np.empty((1, L.N_COLUMNS))
 _NO_GUARD = (np.empty(0), np.empty((0, 4)))
 
 
-def solve_multiple(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+def solve_multiple(problem: Problem) -> Equilibrium:
     """Planar dead-load solve by multiple shooting (the contact kernels, with no discs).
 
-    For arms whose single shooting is ill-conditioned (:func:`solver._model.shooting_index`), and
+    For arms whose single shooting is ill-conditioned (:func:`solver.problem.shooting_index`), and
     as the fallback of a failed single-shooting solve; see :func:`solve_shooting`.
     """
-    layout, segs, sec_start = shooting_layout(arm, packed)
-    return solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model,
-                          warm_start, settings, load_moments=True)
+    return solve_shooting(problem, shooting_layout(problem.arm, problem.packed), load_moments=True)
 
 
-def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, model, warm_start,
-                   settings, load_moments, moving=False):
+def solve_shooting(problem: Problem, shooting: tuple, load_moments: bool,
+                   moving: bool = False) -> Equilibrium:
     """Planar multiple-shooting solve along the quasi-static path, the scene's obstacles (if
     any) present all along it.
 
@@ -51,15 +53,25 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
     nodes; any other warm start from its own base moment, re-integrated at this resolution
     (corrected by Newton at the start of the ramp); a cold solve from the arm loaded with
     the obstacles in place (:func:`_loaded_nodes`). Then pressures and loads are ramped from
-    the start's to the target's (:func:`solver._contact._follow`, which never lets the
+    the start's to the target's (:func:`solver.kernels.contact.follow`, which never lets the
     backbone tunnel through a disc). ``moving``: the warm start's discs are the scene's, moved
     (same count, radii and stiffness): their centres are ramped too, as an object the arm
     holds moves quasi-statically (:mod:`solver.grasp`); otherwise obstacles that differ from
     the warm start's stand at their places from the start.
+
+    Args:
+        problem: the request. shooting: its (layout, segment table, section start arc
+            lengths) (:func:`solver.problem.shooting_layout`, :func:`solver.problem.contact_layout`).
+        load_moments: scale moments by the loads' (:func:`solver.problem.shooting_terms`).
+        moving: the warm start's discs move to the scene's.
     """
+    arm, scene, model, warm_start, settings = (problem.arm, problem.scene, problem.model,
+                                               problem.warm_start, problem.settings)
+    p_inputs, p_channel, p_target = problem.p_inputs, problem.p_channel, problem.p_target
+    layout, segs, sec_start = shooting
+    on_layout = problem.on(layout)
     free_scene = scene.without_contact
-    ctx = context(arm, layout, free_scene, 2, settings)
-    p_target = p_channel if arm.n_channels else np.zeros(1)
+    ctx = on_layout.ctx  # (a context does not depend on obstacles)
     plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, ctx,
                                                             load_moments)
     goal = (p_target, ctx.q, plate, target, scene.discs_array())
@@ -67,8 +79,7 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
     if warm_start is not None and warm_start.scene is not None:
         start_scene = warm_start.scene.without_contact
         p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
-        start_ctx = ctx if start_scene == free_scene else \
-            context(arm, layout, start_scene, 2, settings)
+        start_ctx = ctx if start_scene == free_scene else on_layout.in_scene(start_scene).ctx
         if warm_start.shooting_nodes.shape == weights.shape:
             nodes = warm_start.shooting_nodes.copy()
         elif warm_start.s.size:
@@ -99,13 +110,13 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
                                     converged=False, stable=False, iterations=iterations,
                                     residual=math.inf, model=model, pressures=p_inputs,
                                     channel_pressures=p_channel, arm=arm)
-    now = _contact._new_level(goal)
+    now = contact_kernels.new_level(goal)
     rest = np.empty((3, len(arm.sections)))
     grid = shooting_grid(arm, scene, layout, segs, sec_start)
     snapped = False
     params = shooting_params(scene, settings)
     for _ in range(MAX_SNAPS + 1):
-        ok, stable, _, its, res, t, dt = _contact._follow(
+        ok, stable, _, its, res, t, dt = contact_kernels.follow(
             nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal, params,
             (rest, now, weights, res_weights), _NO_GUARD)
         iterations += its
@@ -114,7 +125,7 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
         # The path cannot go on past level t (a fold): the arm snaps. Find the stable
         # equilibrium it lands on a little further on and continue from there — if the grid
         # resolves the state the fold was met from: a fold met from a state it does not
-        # resolve may be the grid's, and the caller refines the grid (solver._grid).
+        # resolve may be the grid's, and the caller refines the grid (solver.kernels.grid).
         if not _resolved(nodes, grid, layout, now):
             break
         landed, level = _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, weights,
@@ -132,13 +143,13 @@ def solve_shooting(arm, layout, segs, sec_start, p_inputs, p_channel, scene, mod
 
 def _resolved(nodes, grid, layout, level):
     """Whether the RK4 grid of ``layout`` resolves the multiple-shooting state ``nodes`` at
-    ``level`` (:func:`solver._grid.section_needs` of its record)."""
+    ``level`` (:func:`solver.kernels.grid.section_needs` of its record)."""
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
-    _contact._record(nodes, grid, _level_rest(layout, level), level, out)
-    return bool(_grid.section_needs(out[:, L.C_U:L.C_U + 1], out[:, L.C_NX:L.C_NY + 1],
-                                    out[:, L.C_V1:L.C_V3 + 1], np.hypot(*level[L.L_Q].T),
-                                    layout.secf, _grid.section_rows(layout.section_ends),
-                                    np.empty(layout.secf.shape[1])) <= 1.0)
+    contact_kernels.record_backbone(nodes, grid, _level_rest(layout, level), level, out)
+    return bool(section_needs(out[:, L.C_U:L.C_U + 1], out[:, L.C_NX:L.C_NY + 1],
+                              out[:, L.C_V1:L.C_V3 + 1], np.hypot(*level[L.L_Q].T),
+                              layout.secf, section_rows(layout.section_ends),
+                              np.empty(layout.secf.shape[1])) <= 1.0)
 
 
 def _level_span(start, goal, p_max):
@@ -190,10 +201,10 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
     that the arm, at ``nodes`` (level ``now``), snaps to; None if none is found.
 
     Clear of every obstacle, the arm snaps as the single-shooting path does: to the stable
-    root of the level nearest its base moment (:func:`solver._planar._scan`, ``params`` its
+    root of the level nearest its base moment (:func:`solver.kernels.planar.fold_scan`, ``params`` its
     parameters), if that is clear of the obstacles and of itself too (with self-contact).
     Otherwise, a local minimum of the
-    discrete rod's energy reached from the last state (:func:`solver._relax.relax`) — from
+    discrete rod's energy reached from the last state (:func:`solver.kernels.relax.relax`) — from
     the scan's root if it lands in an obstacle; with ``over`` (a level past the ramp's end)
     it relaxes there first and then back at ``level``. Either is polished by Newton on the
     shooting system and must be stable.
@@ -202,29 +213,29 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
     target = level[L.L_TARGET]
     rest = _level_rest(layout, level)
     record = np.zeros((layout.n_rows, L.C_COLUMNS))
-    _contact._record(nodes, grid, _level_rest(layout, now), now, record)
+    contact_kernels.record_backbone(nodes, grid, _level_rest(layout, now), now, record)
     landed = None
     if not record[:, L.C_PEN].any() and params[L.N_SCAN] > 0:
         loads = _planar_loads(layout, level)
-        m0, found, _ = _planar._scan(theta0, layout.secf, layout.sec_steps, rest, loads,
-                                     float(target[2]), params, int(params[L.N_SCAN]),
-                                     float(nodes[2]), _NO_RECORD)
+        m0, found, _ = planar_kernels.fold_scan(theta0, layout.secf, layout.sec_steps, rest, loads,
+                                                float(target[2]), params, int(params[L.N_SCAN]),
+                                                float(nodes[2]), _NO_RECORD)
         if found:
             free = np.empty((layout.n_rows, L.N_COLUMNS))
             integrate_planar(m0, theta0, layout.secf, layout.sec_steps, rest, loads, True, free)
             landed = nodes_from_states(free[:, _FREE_STATE], segs)
-            if not (_planar._clear_of(free, level[L.L_DISCS], 0.0)
+            if not (planar_kernels.clear_of(free, level[L.L_DISCS], 0.0)
                     and _clear_of_itself(free, layout, grid[L.G_SELF])):
                 record[:, [L.C_X, L.C_Y, L.C_TH, L.C_V1, L.C_V3]] = free[:, [L.X, L.Y, L.THETA,
                                                                            L.V1, L.V3]]
                 landed = None
     if landed is None:
-        state = _relax.strains_of_record(record, layout.sec_steps)
+        state = relax_kernels.strains_of_record(record, layout.sec_steps)
         for lvl in (over, level) if over is not None else (level,):
-            relaxed = _relax.relax(state, theta0, layout.secf, layout.sec_steps,
-                                   _level_rest(layout, lvl), lvl[L.L_Q], lvl[L.L_PLATE],
-                                   lvl[L.L_TARGET][:2] - lvl[L.L_PLATE][-1], lvl[L.L_TARGET][2],
-                                   lvl[L.L_DISCS], grid[L.G_SELF])
+            relaxed = relax_kernels.relax(state, theta0, layout.secf, layout.sec_steps,
+                                          _level_rest(layout, lvl), lvl[L.L_Q], lvl[L.L_PLATE],
+                                          lvl[L.L_TARGET][:2] - lvl[L.L_PLATE][-1], lvl[L.L_TARGET][2],
+                                          lvl[L.L_DISCS], grid[L.G_SELF])
             if relaxed is None:
                 return None
             states, state = relaxed
@@ -234,8 +245,8 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
     k = grid[L.G_SELF][L.SC_K]
     for stiffness in k * np.logspace(-3.0, 0.0, SELF_STAGES) if k > 0 else (k,):
         staged = (*grid[:L.G_SELF], np.concatenate([[stiffness], grid[L.G_SELF][1:]]))
-        ok, _, _, stable = _contact._newton(landed, staged, rest, level, weights, res_weights,
-                                            settings.tol, 4 * settings.max_iter, MAX_STEP)
+        ok, _, _, stable = contact_kernels.newton(landed, staged, rest, level, weights, res_weights,
+                                                  settings.tol, 4 * settings.max_iter, MAX_STEP)
         if not ok:
             return None
     return landed if stable else None
@@ -256,7 +267,7 @@ SELF_STAGES = 7
 
 
 def _planar_loads(layout, level):
-    """The (ns, 4) loads array of :mod:`solver._planar` (n_end, q) of a level tuple."""
+    """The (ns, 4) loads array of :mod:`solver.kernels.planar` (n_end, q) of a level tuple."""
     q, plate = level[L.L_Q], level[L.L_PLATE]
     loads = np.empty((q.shape[0], 4))
     running = level[L.L_TARGET][:2].copy()  # n(L⁻): tip load and the last endplate
@@ -358,10 +369,11 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
         start = (p0, np.zeros_like(ctx.q), np.zeros_like(plate), np.zeros(3), grown)
         goal = (p0, ctx.q, plate, target, discs)
         grid = shooting_grid(arm, scene, layout, segs, sec_start)
-        ok, stable, _, its, _, _, _ = _contact._follow(
+        ok, stable, _, its, _, _, _ = contact_kernels.follow(
             nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal,
             shooting_params(scene, settings, predict_cap=MAX_STEP),
-            (np.empty((3, len(arm.sections))), _contact._new_level(goal), weights, res_weights),
+            (np.empty((3, len(arm.sections))), contact_kernels.new_level(goal), weights,
+             res_weights),
             _NO_GUARD)
         return nodes, int(its), bool(ok and stable)
 
@@ -376,7 +388,7 @@ def _shooting_result(nodes, scene, grid, layout, level, **fields):
     contact fields if the scene has obstacles or self-contact."""
     contact = scene.has_contact
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
-    _contact._record(nodes, grid, _level_rest(layout, level), level, out)
+    contact_kernels.record_backbone(nodes, grid, _level_rest(layout, level), level, out)
     common = dict(tip=out[-1, [L.C_X, L.C_Y]].copy(), planar=True, scene=scene,
                   base_moment=np.array([nodes[2]]), base_force=nodes[:2].copy(),
                   shooting_nodes=nodes, in_contact=bool(contact and out[:, L.C_PEN].max() > 0.0),

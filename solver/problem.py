@@ -1,21 +1,25 @@
-"""A design unpacked for the kernels, and everything the solver derives from it per scene.
+"""A design unpacked for the kernels, everything the solver derives from it per scene, and
+the request the solver's paths take.
 
 :class:`PackedArm` holds a design's kernel arrays for one model and settings (or a contact
 or multiple-shooting layout of them); :class:`SceneContext` the dead loads and numeric
-parameters of one scene. Both, and the loading stages and layouts built from them, are
-memoised in the design's :class:`solver._cache.DesignCache`; cache keys name their inputs
+parameters of one scene; :class:`Problem` one validated solve request (built by
+:func:`solver.inputs.request`), the one argument of every path in :mod:`solver.paths`. The
+first two, and the loading stages and layouts built from them, are
+memoised in the design's :class:`solver.cache.DesignCache`; cache keys name their inputs
 by value (``PackedArm.key``), never by object identity.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from solver import layout as L
 from solver.designs import ArmDesign
+from solver.results import Equilibrium
 from solver.rod import rest_strains_into
 from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
@@ -26,7 +30,7 @@ from solver.settings import DEFAULT_SETTINGS, Settings
 MULTIPLE_SHOOTING_INDEX = 20.0
 
 # RK4 step in contact, as a fraction of the decay length ℓ = (EI/k)^¼ (see contact_layout);
-# the kernel refines steps that may reach a disc (solver._contact.NEAR_SUBSTEPS).
+# the kernel refines steps that may reach a disc (solver.kernels.contact.NEAR_SUBSTEPS).
 CONTACT_STEP = 0.5
 
 # Steps per multiple-shooting segment: no segment amplifies errors much.
@@ -96,7 +100,7 @@ def pack(arm: ArmDesign, model: str, settings: Settings) -> PackedArm:
     design made by :meth:`ArmDesign.scaled` gets its nominal's, rescaled."""
     scaled_from = arm._solver_cache.scaled_from
     if scaled_from is None:
-        build = lambda: _build_pack(arm, model, settings)  # noqa: E731
+        build = lambda: build_pack(arm, model, settings)  # noqa: E731
     else:
         build = lambda: _scaled_pack(arm, pack(scaled_from[0], model, settings), scaled_from[1])  # noqa: E731
     return arm._solver_cache.get(("pack", model, settings), build)
@@ -105,7 +109,7 @@ def pack(arm: ArmDesign, model: str, settings: Settings) -> PackedArm:
 def _scaled_pack(arm: ArmDesign, nominal: PackedArm, factor: float) -> PackedArm:
     """The kernel arrays of ``arm`` = ``nominal``'s design scaled by :meth:`ArmDesign.scaled`:
     stiffness columns times ``factor``, compliances divided by it, the braid cosines of
-    ``arm``'s tubes (equal to :func:`_build_pack` of ``arm`` to rounding)."""
+    ``arm``'s tubes (equal to :func:`build_pack` of ``arm`` to rounding)."""
     secf = nominal.secf.copy()
     secf[L.EA] *= factor
     secf[L.EI] *= factor
@@ -120,7 +124,7 @@ def _scaled_pack(arm: ArmDesign, nominal: PackedArm, factor: float) -> PackedArm
                    moment_scale=nominal.moment_scale * factor)
 
 
-def _build_pack(arm: ArmDesign, model: str, settings: Settings) -> PackedArm:
+def build_pack(arm: ArmDesign, model: str, settings: Settings) -> PackedArm:
     secs = arm.sections
     ns = len(secs)
     steps = np.full(ns, int(settings.steps_per_section), dtype=np.int64)
@@ -341,7 +345,7 @@ def contact_layout(arm, packed, scene):
 
     In contact, deflections vary over ℓ_i = (EI_i/k)^¼; RK4 steps are refined to
     h ≤ CONTACT_STEP·ℓ_i (at least the setting's count, at most 1024 per section; steps
-    near a disc are subdivided further by the kernel, see :mod:`solver._contact`) and
+    near a disc are subdivided further by the kernel, see :mod:`solver.kernels.contact`) and
     multiple-shooting segments span SEGMENT_STEPS steps.
     """
     stiffness = max([d.stiffness for d in scene.obstacles]
@@ -359,7 +363,7 @@ def contact_layout(arm, packed, scene):
 
 def refined(arm, packed, steps):
     """``packed`` with ``steps`` (ns,) RK4 steps per section (cached): the finer grid a solve
-    takes where the step-size check fails (:mod:`solver._grid`)."""
+    takes where the step-size check fails (:mod:`solver.kernels.grid`)."""
     steps = tuple(int(v) for v in steps)
     key = (*packed.key, "steps", steps)
     return arm._solver_cache.get(key, lambda: packed.with_steps(np.array(steps), key))
@@ -404,3 +408,70 @@ def shooting_terms(arm, layout, segs, scene, ctx, load_moments):
     weights = np.concatenate([state_w[3:], np.tile(state_w, segs.shape[0] - 1)])
     res_weights = np.concatenate([np.tile(state_w, segs.shape[0] - 1), state_w[3:]])
     return plate, target, state_w, weights, res_weights
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """One solve request, validated (:func:`solver.inputs.request`): what every path of
+    :mod:`solver.paths` takes instead of loose arguments.
+
+    Attributes:
+        arm: the design. packed: its kernel arrays for ``model`` and ``settings`` (or a
+            refinement or layout of them).
+        scene: mounting, loads and obstacles. model: one of :data:`solver.settings.MODELS`.
+        planar: a planar (x–y) or a spatial solve.
+        settings: the numerical settings ``packed`` was built with.
+        p_inputs: (n_inputs,) input pressures (Pa). p_channel: (n_channels,) the spatial
+            channels' (Pa).
+        warm_start: the equilibrium the path starts from, or None (a cold solve).
+        ctx: the :class:`SceneContext` of ``scene`` for ``packed`` in 2 (planar) or 3
+            dimensions, derived: a problem made by :meth:`on` or :meth:`in_scene` (or
+            ``dataclasses.replace``) gets its own.
+    """
+
+    arm: ArmDesign
+    packed: PackedArm
+    scene: Scene
+    model: str
+    planar: bool
+    settings: Settings
+    p_inputs: np.ndarray
+    p_channel: np.ndarray
+    warm_start: Equilibrium | None = None
+    ctx: SceneContext = field(init=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "ctx", context(self.arm, self.packed, self.scene,
+                                                2 if self.planar else 3, self.settings))
+
+    @property
+    def p_target(self) -> np.ndarray:
+        """The channel pressures the kernels ramp to: ``p_channel``, or the (1,) placeholder
+        of a passive rod."""
+        return self.p_channel if self.arm.n_channels else np.zeros(1)
+
+    def on(self, packed: PackedArm, settings: Settings | None = None) -> Problem:
+        """This request on another grid or layout (``packed``), with its ``settings``."""
+        if packed is self.packed and settings in (None, self.settings):
+            return self
+        return replace(self, packed=packed, settings=self.settings if settings is None else settings)
+
+    def with_inputs(self, p_inputs: np.ndarray, p_channel: np.ndarray,
+                    warm_start: Equilibrium | None = None) -> Problem:
+        """This request at other (validated) pressures, from ``warm_start``: the same arm,
+        grid and scene, so the same context (not looked up again)."""
+        other = object.__new__(Problem)
+        other.__dict__.update(self.__dict__, p_inputs=p_inputs, p_channel=p_channel,
+                              warm_start=warm_start)
+        return other
+
+    def in_scene(self, scene: Scene, warm_start: Equilibrium | None = None) -> Problem:
+        """This request in another scene (and from another warm start)."""
+        return replace(self, scene=scene, warm_start=warm_start)
+
+    def equilibrium(self, **fields) -> Equilibrium:
+        """An :class:`Equilibrium` of this request: its arm, scene, model, mode and pressures,
+        and ``fields``."""
+        return Equilibrium._make(arm=self.arm, scene=self.scene, model=self.model,
+                                 planar=self.planar, pressures=self.p_inputs,
+                                 channel_pressures=self.p_channel, **fields)

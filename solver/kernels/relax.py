@@ -1,7 +1,7 @@
 """Energy of the planar discrete rod, for snapping where path following cannot go on.
 
 Where a quasi-static path reaches a fold the arm snaps: it moves dynamically to another
-stable equilibrium. The multiple-shooting kernels of :mod:`solver._contact` find equilibria
+stable equilibrium. The multiple-shooting kernels of :mod:`solver.kernels.contact` find equilibria
 by Newton, which needs a start inside the basin of the state the arm lands in; they have no
 way to look for it. This module gives them one: the total potential energy of the rod,
 discretised on the shooting grid, whose local minimisation from the last state before the
@@ -19,7 +19,7 @@ mid angle (θ_e + θ_{e+1})/2. Energy
     + Σ_k ω_k Φ(pen_d(r_k))                                                (penalty contact)
 
 with ω_k the trapezoid weights and Φ the penalty potential ½ k pen²
-(:func:`solver._obstacles._penalty_energy`). The unshearable model (1/GA = 0) fixes v1 = 0.
+(:func:`solver.kernels.obstacles.penalty_energy`). The unshearable model (1/GA = 0) fixes v1 = 0.
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ import math
 
 import numpy as np
 
-from solver._blas import single_blas_thread
-from solver._obstacles import _penalty_energy
+from solver.blas import single_blas_thread
 from solver.jit import njit
+from solver.kernels.obstacles import penalty_energy
 from solver.layout import (
     C_TH,
     C_V1,
@@ -75,7 +75,7 @@ def _self_contact(pos, h, node_s, node_h, self_k, exclusion, force, sign):
     ``exclusion`` (m), and its forces added to ``force`` times ``sign`` (−1: dV/dr, +1: the
     external force): a pair (a, b) within h_a + h_b of each other stores
     ½ (k/R) w_a w_b (R − d)², R = h_a + h_b, w the nodes' shares of the arc. A node-to-node
-    stand-in for the solver's node-to-curve law (:mod:`solver._self_contact`), which the
+    stand-in for the solver's node-to-curve law (:mod:`solver.kernels.self_contact`), which the
     Newton polish of a relaxed state then applies: it only has to keep the relaxation from
     passing the arm through itself."""
     n = h.shape[0]
@@ -151,7 +151,7 @@ def energy_and_gradient(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at,
             dist = math.sqrt(dx * dx + dy * dy)
             pen = discs[dd, RADIUS] - dist
             if pen > 0.0 and dist > 0.0:
-                e_total += w * _penalty_energy(pen, discs[dd, STIFFNESS])
+                e_total += w * penalty_energy(pen, discs[dd, STIFFNESS])
                 push = w * discs[dd, STIFFNESS] * pen / dist
                 force[k, 0] -= push * dx
                 force[k, 1] -= push * dy
@@ -259,7 +259,7 @@ def strains_of_record(record, steps):
     θ_1..θ_N, and per element the shear v1 and stretch v3 (means of its end samples).
 
     Args:
-        record: (Σ(steps + 1), ≥13) a :mod:`solver._contact` record (columns x, y, θ, …, v1,
+        record: (Σ(steps + 1), ≥13) a :mod:`solver.kernels.contact` record (columns x, y, θ, …, v1,
             v3), junction samples repeated. steps: (ns,) RK4 steps per section.
     """
     rows = np.concatenate([np.arange(k) + 1 + off for k, off in

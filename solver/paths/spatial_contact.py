@@ -8,25 +8,25 @@ from dataclasses import replace
 
 import numpy as np
 
-from solver import _spatial_contact as _sc
 from solver import layout as L
-from solver._contact import TUNNEL_SLACK
-from solver._model import contact_layout, context, reach
-from solver._obstacles import smallest_clearance_3d, tunnels_3d
-from solver._paths_shooting import MAX_STEP
-from solver._paths_spatial import solve_spatial
+from solver.kernels import spatial_contact as kernel
+from solver.kernels.contact import TUNNEL_SLACK
+from solver.kernels.obstacles import smallest_clearance_3d, tunnels_3d
+from solver.paths.shooting import MAX_STEP
+from solver.paths.spatial import solve_spatial
+from solver.problem import Problem, contact_layout, reach
 from solver.results import Equilibrium
 from solver.rod import base_rotation, rest_strains_into, rotation_to_quaternion
 from solver.scene import core_distance
 
 
-def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_start, settings):
+def solve_contact_spatial(problem: Problem) -> Equilibrium:
     """Spatial solve with penalty contact against the scene's obstacles
-    (:mod:`solver._spatial_contact`), the obstacles present all along the quasi-static path.
+    (:mod:`solver.kernels.spatial_contact`), the obstacles present all along the quasi-static path.
 
-    Obstacles beyond the arm's reach (:func:`solver._model.reach`): the contact-free spatial
+    Obstacles beyond the arm's reach (:func:`solver.problem.reach`): the contact-free spatial
     solve (``settings.shortcuts``). Otherwise multiple shooting at the planar contact
-    resolution (:func:`solver._model.contact_layout`). Start: a spatial contact
+    resolution (:func:`solver.problem.contact_layout`). Start: a spatial contact
     ``warm_start`` on this grid continues from its nodes, another recorded spatial warm start
     from its samples interpolated to the nodes (Newton corrects them at the start of the
     ramp); a cold solve from the arm loaded with the obstacles in place
@@ -38,20 +38,22 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
     lands there: the obstacles are grown in from the radius at which they touch it. Failing
     all of these, the solve is reported unconverged at the last state it reached.
     """
+    arm, packed, scene, model, warm_start, settings = (
+        problem.arm, problem.packed, problem.scene, problem.model, problem.warm_start,
+        problem.settings)
+    p_inputs, p_channel = problem.p_inputs, problem.p_channel
     free_scene = replace(scene, obstacles=())
     obstacles = scene.obstacles_array()
     if settings.shortcuts and all(core_distance(o, np.zeros(3))[0] - o.radius
                                   > reach(arm, packed, scene) for o in scene.obstacles):
-        free = solve_spatial(arm, packed, p_inputs, p_channel, free_scene, model,
-                             warm_start if warm_start is not None and not warm_start.in_contact
-                             else None, settings)
+        free = solve_spatial(problem.in_scene(
+            free_scene, warm_start if warm_start is not None and not warm_start.in_contact else None))
         n = free.positions.shape[0]
         return replace(free, scene=scene, contact_force=np.zeros((n, 3)), penetration=np.zeros(n))
     free, near = None, False
     if settings.shortcuts and warm_start is not None and warm_start.s.size \
             and not warm_start.in_contact:
-        free = solve_spatial(arm, packed, p_inputs, p_channel, free_scene, model, warm_start,
-                             settings)
+        free = solve_spatial(problem.in_scene(free_scene, warm_start))
         gap = _free_step_gap(free, warm_start, obstacles) if free.converged and free.stable \
             else -math.inf
         if gap > float(np.max(np.diff(free.s))):
@@ -60,9 +62,10 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
                            penetration=np.zeros(n))
         near = gap > 0.0
     layout, segs, sec_start = contact_layout(arm, packed, scene)
-    ctx = context(arm, layout, free_scene, 3, settings)
+    on_layout = problem.on(layout)
+    ctx = on_layout.ctx  # (a context does not depend on obstacles)
     grid, terms = _grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
-    p_target = p_channel if arm.n_channels else np.zeros(1)
+    p_target = problem.p_target
     goal = (p_target, ctx.q, terms[0], terms[1], obstacles)
     rest = np.empty((3, len(arm.sections)))
     if near:
@@ -71,8 +74,8 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
         # (where a stage point may graze the obstacle), is the answer.
         nodes = _nodes_from_record(free, grid, layout, segs, sec_start)
         _level_rest(goal, layout, rest)
-        ok, its, res, stable = _sc._newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
-                                           settings.max_iter, MAX_STEP, _sc.NO_TETHER)
+        ok, its, res, stable = kernel.newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
+                                             settings.max_iter, MAX_STEP, kernel.NO_TETHER)
         if ok and stable:
             return _result(nodes, scene, grid, layout, goal, converged=True, stable=True,
                            snapped=free.snapped, iterations=int(free.iterations + its),
@@ -83,8 +86,7 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
     snapped = False
     if warm_start is not None and warm_start.scene is not None:
         start_scene = replace(warm_start.scene, obstacles=())
-        start_ctx = ctx if start_scene == free_scene else context(arm, layout, start_scene, 3,
-                                                                 settings)
+        start_ctx = ctx if start_scene == free_scene else on_layout.in_scene(start_scene).ctx
         if warm_start.shooting_nodes.shape == (segs.shape[0] * L.N_CSTATE,):
             nodes = warm_start.shooting_nodes.reshape(-1, L.N_CSTATE).copy()
         elif warm_start.s.size:
@@ -114,7 +116,7 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
         grown = obstacles.copy()
         for k, o in enumerate(scene.obstacles):
             grown[k, L.O_RADIUS] = min(o.radius, float(core_distance(o, free.positions).min()))
-        ok, its, res, stable, _ = _sc.follow(
+        ok, its, res, stable, _ = kernel.follow(
             landed, grid, layout.tubes_i, layout.tubes_f, (*goal[:L.L_DISCS], grown), goal,
             *terms[2:], settings.tol, settings.max_iter, MAX_STEP, settings.dt0,
             settings.contact_dt_min, rest, now)
@@ -128,14 +130,14 @@ def solve_contact_spatial(arm, packed, p_inputs, p_channel, scene, model, warm_s
 
 def _ramp(nodes, grid, layout, start, goal, terms, settings, rest, now):
     """The quasi-static ramp from ``nodes`` at level ``start`` to ``goal``
-    (:func:`solver._spatial_contact.follow`), snapping where it ends short of the goal
+    (:func:`solver.kernels.spatial_contact.follow`), snapping where it ends short of the goal
     (:func:`_switch_branch`, at most MAX_SNAPS times). Returns (nodes, converged, iterations,
     |residual|, stable, snapped); ``now`` and ``rest`` hold the level reached."""
     snapped = False
     iterations = 0
     origin = (nodes.copy(), start)
     for _ in range(MAX_SNAPS + 1):
-        ok, its, res, stable, t = _sc.follow(
+        ok, its, res, stable, t = kernel.follow(
             nodes, grid, layout.tubes_i, layout.tubes_f, start, goal, *terms[2:], settings.tol,
             settings.max_iter, MAX_STEP, settings.dt0, settings.contact_dt_min, rest, now)
         iterations += its
@@ -177,9 +179,9 @@ def _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
     weights, res_weights, scales = terms[2:]
     n = weights.size
     rest = np.empty((3, layout.secf.shape[1]))
-    before = _sc.new_record(layout.n_rows)
+    before = kernel.new_record(layout.n_rows)
     _level_rest(_level_at(start, goal, t), layout, rest)
-    _sc.record(nodes, grid, rest, _level_at(start, goal, t), before)
+    kernel.record(nodes, grid, rest, _level_at(start, goal, t), before)
     for ahead in SNAP_AHEAD if push else ():
         level = _level_at(start, goal, min(1.0, t + ahead))
         _level_rest(level, layout, rest)
@@ -189,14 +191,14 @@ def _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
         for amplitude in SNAP_AMPLITUDES:
             for sign in (1.0, -1.0):
                 trial = np.empty_like(nodes)
-                _sc._retract(nodes, mode, sign * amplitude * math.sqrt(n), trial)
-                ok, _, _, stable = _sc._newton(trial, grid, rest, level, weights, res_weights,
-                                               scales, settings.tol, 4 * settings.max_iter,
-                                               MAX_STEP, _sc.NO_TETHER)
+                kernel.retract(nodes, mode, sign * amplitude * math.sqrt(n), trial)
+                ok, _, _, stable = kernel.newton(trial, grid, rest, level, weights, res_weights,
+                                                 scales, settings.tol, 4 * settings.max_iter,
+                                                 MAX_STEP, kernel.NO_TETHER)
                 if not (ok and stable):
                     continue
-                after = _sc.new_record(layout.n_rows)
-                _sc.record(trial, grid, rest, level, after)
+                after = kernel.new_record(layout.n_rows)
+                kernel.record(trial, grid, rest, level, after)
                 if not tunnels_3d(before[1], after[1], level[L.L_DISCS], TUNNEL_SLACK):
                     return trial, level
     level = _level_at(start, goal, min(1.0, t + SNAP_AHEAD[1]))
@@ -220,11 +222,11 @@ def _critical_mode(nodes, grid, rest, level, terms):
     n = weights.size
     F, J = np.empty(n), np.empty((n, n))
     blocks = np.empty((nodes.shape[0], L.N_CTANGENT, L.N_CTANGENT))
-    if not _sc._system(nodes, grid, rest, level, F, J, True, blocks, scales, _sc.NO_TETHER):
+    if not kernel.newton_system(nodes, grid, rest, level, F, J, True, blocks, scales, kernel.NO_TETHER):
         return None
     mode = np.linalg.svd(J * weights[None, :] / res_weights[:, None])[2][-1] * weights
     lift = np.empty_like(nodes)
-    _sc._retract(nodes, mode, 1e-6, lift)
+    kernel.retract(nodes, mode, 1e-6, lift)
     return -mode if np.sum(lift[:, L.CS_R + 2] - nodes[:, L.CS_R + 2]) < 0.0 else mode
 
 
@@ -257,8 +259,8 @@ def _relax(nodes, grid, layout, level, terms, settings):
     for _ in range(RELAX_STEPS):
         anchors = state[:, L.CS_R:L.CS_R + 3].copy()
         trial = state.copy()
-        ok = _sc._newton(trial, grid, rest, level, weights, res_weights, scales, settings.tol,
-                         settings.max_iter, MAX_STEP, (np.array([stiffness]), anchors))[0]
+        ok = kernel.newton(trial, grid, rest, level, weights, res_weights, scales, settings.tol,
+                           settings.max_iter, MAX_STEP, (np.array([stiffness]), anchors))[0]
         if not ok or tunnels_3d(anchors, trial[:, L.CS_R:L.CS_R + 3], level[L.L_DISCS],
                                 TUNNEL_SLACK):
             stiffness *= 4.0
@@ -271,9 +273,9 @@ def _relax(nodes, grid, layout, level, terms, settings):
             stiffness *= 0.25
             if stiffness < RELAX_END * start:
                 final = state.copy()
-                ok, _, _, stable = _sc._newton(final, grid, rest, level, weights, res_weights,
-                                               scales, settings.tol, settings.max_iter, MAX_STEP,
-                                               _sc.NO_TETHER)
+                ok, _, _, stable = kernel.newton(final, grid, rest, level, weights, res_weights,
+                                                 scales, settings.tol, settings.max_iter, MAX_STEP,
+                                                 kernel.NO_TETHER)
                 if ok and stable:
                     return final
     return None
@@ -282,7 +284,7 @@ def _relax(nodes, grid, layout, level, terms, settings):
 def _tip_direction(nodes, mode):
     """Unit tip displacement (3,) of the nodes moved along ``mode`` (zero if none)."""
     moved = np.empty_like(nodes)
-    _sc._retract(nodes, mode, 1e-6, moved)
+    kernel.retract(nodes, mode, 1e-6, moved)
     direction = moved[-1, L.CS_R:L.CS_R + 3] - nodes[-1, L.CS_R:L.CS_R + 3]
     norm = np.linalg.norm(direction)
     return direction / norm if norm > 0.0 else direction
@@ -311,7 +313,7 @@ def _imperfect_path(nodes, grid, layout, level, goal, direction, terms, settings
                       (_pushed(goal, push), goal))
             for a, b in stages:
                 now = tuple(np.empty_like(x) for x in b)
-                ok, _, _, stable, _ = _sc.follow(
+                ok, _, _, stable, _ = kernel.follow(
                     trial, grid, layout.tubes_i, layout.tubes_f, a, b, weights, res_weights,
                     scales, settings.tol, settings.max_iter, MAX_STEP, settings.dt0,
                     settings.contact_dt_min, rest, now)
@@ -344,7 +346,7 @@ def _free_step_gap(free, start, obstacles) -> float:
     obstacles: the smallest gap (m) of either backbone's samples to an obstacle's surface
     (``start`` resampled at ``free``'s arc lengths if on another grid), or −inf where a
     sample moving straight between them passes through one
-    (:func:`solver._obstacles.tunnels_3d`, no slack). A contact-free path that leaves the
+    (:func:`solver.kernels.obstacles.tunnels_3d`, no slack). A contact-free path that leaves the
     obstacles' reach of either end and comes back is not caught (a warm step seldom does)."""
     before = start.positions
     if before.shape != free.positions.shape:  # a contact state, on the finer contact grid
@@ -443,8 +445,8 @@ def _result(nodes, scene, grid, layout, level, **fields):
     """The spatial Equilibrium of the node states ``nodes`` at ``level``."""
     rest = np.empty((3, layout.secf.shape[1]))
     _level_rest(level, layout, rest)
-    rec = _sc.new_record(layout.n_rows)
-    _sc.record(nodes, grid, rest, level, rec)
+    rec = kernel.new_record(layout.n_rows)
+    kernel.record(nodes, grid, rest, level, rec)
     s, pos, rot, force, mom, contact, pen, strain_v, strain_u = rec
     return Equilibrium._make(
         s=s, positions=pos, orientations=rot, shear_stretch=strain_v, curvature=strain_u,

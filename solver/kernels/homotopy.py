@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from solver.actuator import _pressure_and_slope, _stretch
+from solver.actuator import pressure_and_slope, tube_stretch
 from solver.jit import njit
 from solver.layout import DT_MIN, T_CHANNEL, TF_AREA_RATIO, TF_COS_ALPHA, TF_E
 
@@ -17,7 +17,7 @@ GIVE_UP = 2.0
 
 
 @njit
-def _big_change(p_a, p_b, loads_a, loads_b):
+def big_change(p_a, p_b, loads_a, loads_b):
     """A ramp worth a tangent predictor: new loads, or a pressure moving by > 5 % of the
     largest. Small warm steps (env steps) are predicted well enough by the start state."""
     scale = 0.0
@@ -52,14 +52,14 @@ def ramp_crowding(p_a, p_b, tubes_i, tubes_f):
         if not hi > lo:
             continue
         e, ratio, cos_alpha = tubes_f[k, TF_E], tubes_f[k, TF_AREA_RATIO], tubes_f[k, TF_COS_ALPHA]
-        lam_lo = _stretch(lo, e, ratio, cos_alpha)
-        change = _stretch(hi, e, ratio, cos_alpha) - lam_lo
+        lam_lo = tube_stretch(lo, e, ratio, cos_alpha)
+        change = tube_stretch(hi, e, ratio, cos_alpha) - lam_lo
         if not change > 0.0:
             continue
         slope = math.inf
         for j in range(_SLOPE_SAMPLES):
             lam = lam_lo + change * j / (_SLOPE_SAMPLES - 1)
-            slope = min(slope, _pressure_and_slope(lam, e, ratio, cos_alpha)[1])
+            slope = min(slope, pressure_and_slope(lam, e, ratio, cos_alpha)[1])
         if slope > 0.0 and math.isfinite(slope):
             crowding = max(crowding, (hi - lo) / (slope * change))
     return crowding
