@@ -255,13 +255,14 @@ def _prepare_partners(Z, grid, rest, level, partners):
     The backbone the law sees is drawn first as each segment's quintic Hermite piece from
     its start node to the next one's — the tip segment's to its end integrated without
     self-contact loads (:func:`solver.kernels.self_contact.build_piece`) — and the loads worked
-    out on it (:func:`solver.kernels.self_contact.self_loads`). Then GEOMETRY_PASSES times each
-    segment that carries loads is integrated with them, its piece redrawn through the
-    integrated nodes (:func:`solver.kernels.self_contact.trace_piece`), and the loads worked out
-    again: a Hermite piece misses the kinks that the shear and stretch of point loads put
-    into the backbone at loaded nodes (tens of micrometres on OctArm V at the ring
-    stiffness, against a penetration of 2 mm), a traced one carries them; an unloaded
-    piece has none (docs/design.md §9, "Resolution"). The nodes' clearances, which spare
+    out on it (:func:`solver.kernels.self_contact.self_loads`). Then GEOMETRY_PASSES times every
+    segment is integrated with them, its piece redrawn through the integrated nodes
+    (:func:`solver.kernels.self_contact.trace_piece`), and the loads worked out again: a
+    Hermite piece misses the kinks that the shear and stretch of point loads put into the
+    backbone at loaded nodes (tens of micrometres on OctArm V at the ring stiffness, against
+    a penetration of 2 mm), a traced one carries them. (Tracing only the loaded segments
+    put a jump into the loads where a segment's first load appeared: its piece switched
+    from one curve to the other, a micrometre apart.) The nodes' clearances, which spare
     the law the points far from any other part, are reused from the last call while the
     nodes have moved less than REUSE_CLEARANCE since (a Newton step's difference columns
     and line search), at a slack of the move (:func:`solver.kernels.self_contact.self_loads`)."""
@@ -296,8 +297,6 @@ def _prepare_partners(Z, grid, rest, level, partners):
     record = np.empty((rows, C_COLUMNS))
     for _ in range(GEOMETRY_PASSES):
         for seg in range(n_seg):
-            if not _loaded(loads, segs, seg):
-                continue
             _start_state(Z, seg, theta0, za)
             _segment(za, seg, grid, rest, level, zb, work, True, record, no_tangent, tw,
                      partners)
@@ -319,16 +318,6 @@ def _reuse(pts, segs):
     them out afresh) past REUSE_CLEARANCE."""
     moved = moved_since(pts, segs)
     return moved if moved < REUSE_CLEARANCE else -1.0
-
-
-@njit
-def _loaded(loads, segs, seg) -> bool:
-    """Whether a node of segment ``seg`` carries a self-contact load in its own slots (the
-    base node's included; its first node's load belongs to the segment before)."""
-    for j in range(0 if seg == 0 else 1, segs[seg, SEG_STEPS] + 1):
-        if loads[seg, j, SELF_FX] != 0.0 or loads[seg, j, SELF_FY] != 0.0:
-            return True
-    return False
 
 
 @njit

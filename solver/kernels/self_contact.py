@@ -501,11 +501,13 @@ def _add(loads, segs, seg, j, fx, fy):
 
 @njit
 def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reach, exclusion, k,
-                behind, ahead, wide):
+                behind, ahead, wide, bulge):
     """Apply the law to the point (x, y) at arc length ``s`` with half-thickness ``h_own``
     and arc share ``w`` (m), a fraction ``share`` of the way from node j of piece ``seg`` to
     node j + 1: every contact it makes (a run of consecutive chords of another part within
-    ``reach`` of the point, less the chord's half-thickness) is found and its load added to
+    ``reach`` of the point, less the chord's half-thickness, and ``bulge`` — how far the
+    curves stand off their chords (:func:`_bulge`): the curve decides, not the chord) is
+    found and its load added to
     ``loads`` (see :func:`self_loads`), the point's own half lumped onto nodes j and j + 1 by
     ``share``.
 
@@ -536,7 +538,7 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
                 dx = x - bounds[other, B_X]
                 dy = y - bounds[other, B_Y]
                 d2 = dx * dx + dy * dy
-                far = bounds[other, B_R] + reach
+                far = bounds[other, B_R] + reach + bulge
                 near = d2 < far * far
                 if relevant and wide > 0.0:
                     gap = math.sqrt(d2) - bounds[other, B_R]
@@ -558,7 +560,7 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
                     if dist == math.inf:
                         dist = _nearest_on_chord(x, y, h_own, pts, other, c)[4]
                     clearance = min(clearance, dist)
-            if pen > 0.0 and (ux != 0.0 or uy != 0.0):
+            if pen > -bulge and (ux != 0.0 or uy != 0.0):
                 if not in_run or pen > best_pen:
                     best_pen, best_t = pen, t
                     best_seg, best_j = other, c
@@ -613,6 +615,30 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
 
 
 @njit
+def _bulge(pts, segs):
+    """How far (m) the pieces' curves stand off their chords, at most: 1.5 × the largest
+    distance of a curve's quarter, half and three-quarter points from its step's chord. The
+    chords find the contacts, so a point the curve reaches but a chord does not would set
+    in with a jump of its depth (a sagitta, 0.2 mm on a scaled arm's coarse steps) as the
+    chord came within reach."""
+    largest = 0.0
+    for seg in range(segs.shape[0]):
+        n = segs[seg, SEG_STEPS]
+        for j in range(n):
+            ax = pts[seg, j, P_X]
+            ay = pts[seg, j, P_Y]
+            ex = pts[seg, j + 1, P_X] - ax
+            ey = pts[seg, j + 1, P_Y] - ay
+            length = math.hypot(ex, ey)
+            if not length > 0.0:
+                continue
+            for q in range(1, 4):
+                x, y, _, _, _, _ = _curve(pts, segs, seg, (j + 0.25 * q) / n)
+                largest = max(largest, abs((x - ax) * ey - (y - ay) * ex) / length)
+    return 1.5 * largest
+
+
+@njit
 def self_loads(grid, rest, pts, bounds, loads, moved):
     """The self-contact point loads of the pieces ``pts`` (see the module docstring) into
     ``loads`` (M, segment steps + 1, N_SELF), at each node's canonical slot: SELF_FX, SELF_FY
@@ -627,8 +653,9 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
     "Resolution"). Only points that may touch another part are worked out: a node's
     clearance (P_CLEAR) bounds from below its distance to the chords of the other parts
     over the steps either side of it, so a point of a step farther from either end node
-    than that node's clearance less the point's reach is skipped (an exact test: the chords
-    find every contact). ``moved`` < 0 or NaN: the clearances are worked out (and where the
+    than that node's clearance less the point's reach and the curves' bulge off their chords
+    is skipped (an exact test: the chords, widened by the bulge, find every contact).
+    ``moved`` < 0 or NaN: the clearances are worked out (and where the
     nodes were, P_X0 and P_Y0); else they are those of pieces that have since moved by at
     most ``moved`` (m) at any node (:func:`moved_since`), and count 2·``moved`` less, for
     the point's and the other part's moves."""
@@ -641,8 +668,9 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
     deepest = 0.0
     n_seg = segs.shape[0]
     stretch = _stretch_bound(rest)
+    bulge = _bulge(pts, segs)
     fresh = not moved >= 0.0
-    slack = 0.0 if fresh else 2.0 * moved
+    slack = (0.0 if fresh else 2.0 * moved) + bulge
     for seg in range(n_seg):
         n = segs[seg, SEG_STEPS]
         for j in range(0 if seg == 0 else 1, n + 1):
@@ -659,11 +687,11 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
                     ahead = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
                 elif seg + 1 < n_seg:
                     ahead = pts[seg + 1, 1, P_S] - pts[seg + 1, 0, P_S]
-                wide = 2.0 * largest + stretch * max(behind, ahead)
+                wide = 2.0 * largest + stretch * max(behind, ahead) + bulge
             pen, clear = _contact_at(
                 pts[seg, j, P_X], pts[seg, j, P_Y], pts[seg, j, P_S], pts[seg, j, P_H],
                 _weight(segs, pts, seg, j) / SUBPOINTS, 0.0, seg, j, grid, pts, bounds, loads,
-                reach, exclusion, k, behind, ahead, wide)
+                reach, exclusion, k, behind, ahead, wide, bulge)
             deepest = max(deepest, pen)
             if fresh:
                 pts[seg, j, P_CLEAR] = clear
@@ -696,7 +724,7 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
                     continue
                 pen, _ = _contact_at(
                     x, y, pts[seg, j, P_S] + share * step, h_own, step / SUBPOINTS, share, seg, j,
-                    grid, pts, bounds, loads, h_own + largest, exclusion, k, 0.0, 0.0, 0.0)
+                    grid, pts, bounds, loads, h_own + largest, exclusion, k, 0.0, 0.0, 0.0, bulge)
                 deepest = max(deepest, pen)
     for seg in range(n_seg):
         for j in range(0 if seg == 0 else 1, segs[seg, SEG_STEPS] + 1):
