@@ -32,6 +32,7 @@ import numpy as np
 from solver.designs import ArmDesign
 from solver.inputs import check_request, checked_pressures
 from solver.paths.dispatch import dispatch
+from solver.paths.lean_contact import ContactRows, lean_contact_reason
 from solver.problem import Problem, context, pack
 from solver.results import Equilibrium
 from solver.scene import MAX_EXTENT, Disc, Scene
@@ -254,6 +255,13 @@ class _Balance:
         self.load = np.array([0.0, -obj.mass_kg * scene.gravity]) + f
         self.counter = [0]  # contact solves, shared with the copies of at()
         self.budget = math.inf
+        # The lean contact path of the arm's solves (shared with the copies of at()): row 0
+        # holds the warm start last adopted, row 1 takes each step from a copy of it.
+        template = replace(scene, obstacles=(obj.disc(obj.seat),))
+        problem = Problem(arm, self.packed, template, model, True, settings, self.p_inputs,
+                          self.p_channel)
+        self.lean = [ContactRows(problem, 2, 1), None] if lean_contact_reason(problem) is None \
+            else None
 
     def at(self, p_inputs) -> _Balance:
         """This balance at other (valid) input pressures; the solve count is shared."""
@@ -273,8 +281,30 @@ class _Balance:
             raise _Exhausted
         self.counter[0] += 1
         scene = replace(self.scene, obstacles=(self.obj.disc(center),))
+        lean = self._lean_step(scene, warm)
+        if lean is not None:
+            return lean
         return dispatch(Problem(self.arm, self.packed, scene, self.model, True, self.settings,
                                 self.p_inputs, self.p_channel, warm), True, moving=True)
+
+    def _lean_step(self, scene, warm: Equilibrium) -> Equilibrium | None:
+        """The arm's equilibrium in ``scene`` (the object's disc moved) by one lean contact
+        step from ``warm`` (:mod:`solver.paths.lean_contact`), or None where that cannot
+        take it (the general path's moving-obstacle ramp then does)."""
+        if self.lean is None or warm is None:
+            return None
+        rows, adopted = self.lean
+        if adopted is not warm:
+            rows.set_scene(0, warm.scene)
+            rows.adopt(0, warm)
+            self.lean[1] = warm
+        if not rows.on_contact_layout(0):
+            return None
+        rows.copy_rows(0, [1])
+        report = rows.step_moved(1, self.p_channel, scene)
+        if not report[0]:
+            return None
+        return rows.equilibrium(1, self.p_inputs, self.p_channel)
 
     def arm_force(self, eq: Equilibrium) -> np.ndarray:
         """The force of the arm in ``eq`` on the object (N): D − n(0)."""

@@ -44,8 +44,10 @@ NSTATE = 28
 # Spatial dead loads (ns, 6): n_end (x, y, z; N) and q (x, y, z; N/m).
 SL_N, SL_Q = 0, 3
 
-# Contact record (N, 13): s, x, y, θ, n_x, n_y, m, f_x, f_y, penetration, v1, v3, u.
-C_S, C_X, C_Y, C_TH, C_NX, C_NY, C_M, C_FX, C_FY, C_PEN, C_V1, C_V3, C_U = range(13)
+# Contact record (N, 13): s, x, y, θ, m, n_x, n_y, v1, v3, u — the columns of the planar
+# record, in its places, so that what reads a planar record's backbone reads this one's —
+# then the contact load per reference length f_x, f_y and the penetration.
+C_S, C_X, C_Y, C_TH, C_M, C_NX, C_NY, C_V1, C_V3, C_U, C_FX, C_FY, C_PEN = range(13)
 C_COLUMNS = 13
 
 # Multiple-shooting segment table (M, 5): section, first local step, steps, ends the

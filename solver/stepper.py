@@ -36,11 +36,16 @@ from solver.inputs import (
 )
 from solver.kernels import planar as planar_kernels
 from solver.paths.dispatch import dispatch
+from solver.paths.lean_contact import (
+    PATHS,
+    ContactRows,
+    lean_contact_reason,
+    record_from_equilibrium,
+)
 from solver.paths.planar import loaded_base_moment, not_lean, single_result
 from solver.problem import Problem, pack
 from solver.results import Equilibrium
-from solver.rod import forget_first_variations, planar_rest_gradient, rest_strains_into
-from solver.scene import Scene
+from solver.scene import Disc, Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
 
 __all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy"]
@@ -75,19 +80,8 @@ def _record_equilibrium(record, flags, m0, pressures, channel_pressures,
                          residual=float(residual), snapped=bool(snapped))
 
 
-def _write_record(eq: Equilibrium, packed, rec, rest, grad) -> None:
-    """Write a recorded planar equilibrium into a lean-path record (N, N_COLUMNS), with its
-    rest strains ``rest`` (3, ns) and the predictor's gradient ``grad`` (2, ns)."""
-    rec[:, L.S] = eq.s
-    rec[:, L.X:L.Y + 1] = eq.positions
-    rec[:, L.THETA] = eq.angles
-    rec[:, L.M] = eq.internal_moment
-    rec[:, L.NX:L.NY + 1] = eq.internal_force
-    rec[:, L.V1:L.V3 + 1] = eq.shear_stretch
-    rec[:, L.U] = eq.curvature
-    forget_first_variations(rec)  # as a record Newton returns
-    rest_strains_into(eq.channel_pressures, packed.tubes_i, packed.tubes_f, packed.secf, rest)
-    planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
+_ONE = np.ones(1, dtype=bool)  # the active mask of a stepper's one copy
+_NO_GUARD = (np.empty((0, 4)), np.empty((1, L.N_COLUMNS)), np.empty(0), 0.0)  # no contact
 
 
 class Stepper:
@@ -108,11 +102,17 @@ class Stepper:
     Attributes:
         tip: (2|3,) tip position of the current equilibrium (m); read-only view.
         pressures: (n_inputs,) its input pressures (Pa), ``channel_pressures`` per channel.
-        record: planar lean path: (N, ``layout.N_COLUMNS``) its backbone record (columns
-            ``layout.S`` … ``layout.U``; read-only, replaced at every converged step), else
-            None.
+        record: the current state's backbone record where a lean path keeps one, else None:
+            (N, ``layout.N_COLUMNS``) on the settings' grid, (N, ``layout.C_COLUMNS``) on the
+            contact layout; either way columns ``layout.S`` … ``layout.U`` are the samples'
+            s, x, y, θ, m, n, v and u (read-only, replaced at every converged step).
         section_ends: the record's rows at the section ends.
-        lean: whether steps take the lean planar path.
+        lean: whether steps take the lean planar path (in a scene with contact, the steps
+            that touch nothing).
+        lean_contact: whether steps in contact take the lean contact path
+            (:mod:`solver.paths.lean_contact`: planar penalty contact).
+        last_path: the path of the last step or reset: ``"lean"`` (the lean planar kernel),
+            ``"lean contact"`` or ``"general"`` (:func:`solver.solve`'s paths).
     """
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, *, model: str = "full",
@@ -126,16 +126,21 @@ class Stepper:
         self._problem = problem = Problem(arm, packed, scene, model, planar, settings,
                                           np.zeros(self.n_inputs), np.zeros(arm.n_channels))
         ctx = problem.ctx
-        self.lean = not_lean(problem) is None
-        self.section_ends = packed.section_ends
+        # With contact, one copy of the batch machinery (the same kernels as BatchStepper).
+        self._rows = ContactRows(problem, 1, len(scene.obstacles)) \
+            if lean_contact_reason(problem) is None else None
+        self.lean_contact = self._rows is not None
+        self.lean = self.lean_contact or not_lean(problem) is None
+        self._section_ends = packed.section_ends
         self._p_max = arm.max_pressure * (1 + 1e-12)
         self._eq = None
         self.record = None
+        self.last_path = "general"
         self.tip = np.zeros(2 if planar else 3)
         self.tip.flags.writeable = False
         self.pressures = np.zeros(self.n_inputs)
         self.channel_pressures = np.zeros(arm.n_channels)
-        if not self.lean:
+        if not self.lean or self.lean_contact:
             return
         ns = len(arm.sections)
         n_tubes = packed.tubes_i.shape[0]
@@ -158,9 +163,19 @@ class Stepper:
     # ------------------------------------------------------------------ state
 
     @property
+    def section_ends(self) -> tuple:
+        """The rows of :attr:`record` at the section ends (of the settings' grid where there
+        is no record)."""
+        if self._rows is not None and self._rows.on_contact_layout(0):
+            return self._rows.contact_section_ends
+        return self._section_ends
+
+    @property
     def equilibrium(self) -> Equilibrium:
         """The current equilibrium (built on first access after a step; its arrays are
         copies, unaffected by later steps)."""
+        if self._eq is None and self._rows is not None and self.record is not None:
+            self._eq = self._rows.equilibrium(0, self.pressures, self.channel_pressures)
         if self._eq is None and self.record is not None:
             self._eq = _record_equilibrium(self.record, self._flags, self._state[0], self.pressures,
                                            self.channel_pressures, self._problem)
@@ -180,6 +195,7 @@ class Stepper:
         if warm_start is not None:
             check_warm_start(warm_start, self.arm, self.scene, self.model, self.planar)
         eq = dispatch(self._problem.with_inputs(p_inputs, p_channel, warm_start), True)
+        self.last_path = "general"
         self._adopt(eq)
         return StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
 
@@ -194,6 +210,8 @@ class Stepper:
         """
         if self._eq is None and self.record is None:
             raise RuntimeError("call reset() before step()")
+        if self._rows is not None:
+            return self._step_rows(pressures)
         if not self.lean:
             return self._step_general(pressures)
         p = np.asarray(pressures, dtype=float)
@@ -205,13 +223,14 @@ class Stepper:
         m_start = self._state[0]
         ok, stable, snapped, its, res, _, _ = planar_kernels.warm_step(
             self._state, self._grid, self._tubes, (self.channel_pressures, ctx.loads, ctx.m_tip),
-            self._target, ctx.params, work, self._memo)
+            self._target, ctx.params, work, self._memo, _NO_GUARD)
         if not ok:
             # The lean path failed (rare: see softarm stress); the general one has fallbacks
             # (multiple shooting) the single-shooting kernel does not.
             self._state[0] = m_start
             report = self._step_general(p)
             return report._replace(iterations=report.iterations + int(its))
+        self.last_path = "lean"
         self.record = work[3]
         self._spare ^= 1
         self.pressures = p.copy()
@@ -221,7 +240,60 @@ class Stepper:
         self._eq = None
         return report
 
+    def _step_rows(self, pressures) -> StepReport:
+        """A step in a scene with contact: the lean paths of :class:`ContactRows` (one copy),
+        or where they cannot take it, the general path from the same state."""
+        p_inputs, p_channel = checked_pressures(self.arm, pressures, True, self._packed)
+        rows = self._rows
+        if not rows.ready(0):
+            return self._step_general(p_inputs)
+        report = rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
+        if not report[0]:
+            general = self._step_general(p_inputs)
+            return general._replace(iterations=general.iterations + int(report[3]))
+        self.last_path = PATHS[int(report[5])]
+        self.pressures = p_inputs
+        self.channel_pressures = p_channel
+        self._eq = None
+        self._bind_row_record()
+        return StepReport(True, bool(report[1]), bool(report[2]), int(report[3]), float(report[4]))
+
+    def contact_measures(self) -> tuple[float, float]:
+        """The current state's deepest penetration at its samples (m) and total contact
+        force ∫|f| ds (N, trapezoidal on the samples): zeros without contact (the numbers
+        :meth:`BatchStepper.contact_measures` gives a copy). Steppers with the lean contact
+        path only (:attr:`lean_contact`).
+
+        Raises:
+            ValueError: a stepper without it.
+        """
+        if self._rows is None:
+            raise ValueError(f"contact_measures needs the lean contact path; {self!r} has none")
+        measures = self._rows.contact_measures()[0]
+        return float(measures[0]), float(measures[1])
+
+    def pass_costs(self, repeats: int = 20) -> dict:
+        """A profile of the current contact state (lean contact steppers whose state lies on
+        the contact layout): the seconds of a residual pass and of one with the Jacobian
+        (medians of ``repeats``), the shooting unknowns, RK4 rows and the fraction of them
+        refined near a disc. The state is untouched.
+
+        Raises:
+            ValueError: no lean contact path, or a state off the contact layout.
+        """
+        if self._rows is None:
+            raise ValueError(f"pass_costs needs the lean contact path; {self!r} has none")
+        return self._rows.pass_costs(0, repeats)
+
+    def _bind_row_record(self) -> None:
+        """The record and tip of the one copy of :attr:`_rows` (read-only views)."""
+        record = self._rows.record(0).view()
+        record.flags.writeable = False
+        self.record = record
+        self.tip = record[-1, L.X:L.Y + 1]
+
     def _step_general(self, pressures) -> StepReport:
+        self.last_path = "general"
         p_inputs, p_channel = checked_pressures(self.arm, pressures, self.planar, self._packed)
         eq = dispatch(self._problem.with_inputs(p_inputs, p_channel, self.equilibrium), True)
         report = StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
@@ -249,10 +321,16 @@ class Stepper:
         self.channel_pressures = eq.channel_pressures.copy()
         self.tip = eq.tip.copy()
         self.tip.flags.writeable = False
+        if self._rows is not None:
+            self._rows.adopt(0, eq)
+            self.record = None
+            if self._rows.ready(0):
+                self._bind_row_record()
+            return
         if not self.lean:
             return
         rec = self._buffers[self._spare]
-        _write_record(eq, self._packed, rec, self._memo[2], self._memo[3])
+        record_from_equilibrium(eq, self._packed, rec, self._memo[2], self._memo[3])
         self.record = rec
         self._spare ^= 1
         self._state[0] = eq.base_moment[-1]
@@ -267,6 +345,10 @@ class Stepper:
 
     def __setstate__(self, state):
         self.__dict__.update(state)
+        if self._rows is not None:
+            if self.record is not None:
+                self._bind_row_record()  # (a pickle copies views apart)
+            return
         if self.lean:
             self._target = (self._p_new, self._ctx.loads, self._ctx.m_tip)
             self._bind_tips()
@@ -279,7 +361,7 @@ class Stepper:
 
     def __repr__(self) -> str:
         return (f"Stepper({self.arm.name!r}, {self.scene}, model={self.model!r}, "
-                f"planar={self.planar}, lean={self.lean})")
+                f"planar={self.planar}, lean={self.lean}, lean_contact={self.lean_contact})")
 
 
 class ThreadPolicy:
@@ -289,10 +371,15 @@ class ThreadPolicy:
     region waits at its barrier for a thread the OS has descheduled, and a batch can take
     ten times longer on two threads than on one. So the choice is measured, not assumed:
     the first batches run once each way (the very first run of each only loads its kernel
-    and is not counted), then the faster per-row time wins, and the other way is tried
-    again after ``interval`` batches — an interval that doubles (up to ``MAX_INTERVAL``)
-    each time the other way loses again, so a losing probe costs little, and resets when
-    it wins. Batches below ``min_rows`` and single-thread configurations run serially.
+    and is not counted), then the faster per-row time wins, and the choice is re-checked
+    while the batches run: the way in use is timed at every batch, and the other way is tried
+    again after ``interval`` batches. The interval doubles (up to ``MAX_INTERVAL``) each time
+    the other way loses again, and is at least the loser's slowdown over ``PROBE_BUDGET``:
+    a threaded probe on a contended machine can take tens of serial batches, and probing
+    it every 16 batches would then cost more than the threads could ever save. So on a busy
+    machine the threads cost at most ``PROBE_BUDGET`` over one thread, and when they win
+    again (the machine got quiet) the next probe finds it and the interval resets.
+    Batches below ``min_rows`` and single-thread configurations run serially.
 
     Args:
         min_rows: the smallest batch that may run threaded.
@@ -302,7 +389,10 @@ class ThreadPolicy:
     """
 
     START_INTERVAL = 16
-    MAX_INTERVAL = 1024
+    MAX_INTERVAL = 4096
+    PROBE_BUDGET = 0.05
+    """Most of the run time losing probes may take: a probe of a way ``r`` times slower waits
+    at least ``r / PROBE_BUDGET`` batches."""
     SMOOTHING = 0.3
 
     def __init__(self, min_rows: int):
@@ -352,7 +442,9 @@ class ThreadPolicy:
         if self._probing:
             serial, par = self.per_row_s
             won = (par < serial) == threaded
-            self._interval = self.START_INTERVAL if won else min(2 * self._interval, self.MAX_INTERVAL)
+            slowdown = max(serial, par) / min(serial, par)
+            self._interval = self.START_INTERVAL if won else min(
+                max(2 * self._interval, math.ceil(slowdown / self.PROBE_BUDGET)), self.MAX_INTERVAL)
             self._countdown = self._interval
             self._probing = False
 
@@ -374,8 +466,15 @@ class BatchStepper:
     Each copy is stepped by the kernel of a lean :class:`Stepper` (and, where that fails, by
     the same fallback), so copy k gives, bit for bit, the equilibria a :class:`Stepper` fed
     copy k's pressures gives: a batched environment and n single ones agree exactly. Only
-    scenes a stepper steps lean are accepted (planar, channels, no obstacles, loaded, single
-    shooting); the constructor says which condition fails otherwise.
+    scenes a stepper steps lean are accepted (planar, channels, loaded, single shooting;
+    contact by penalty); the constructor says which condition fails otherwise.
+
+    With contact (discs, self-contact) every copy may hold obstacles of its own, up to
+    ``max_obstacles``, under the scene's law (its gravity, payload, mounting, self-contact
+    and obstacle stiffness): :meth:`reset` and :meth:`adopt` take the copies' scenes. A copy
+    touching nothing is stepped by the lean planar kernel, guarded; one on the contact
+    layout by the lean contact kernel (:mod:`solver.kernels.stepping`); cold solves and the
+    steps those cannot take by the general path, one copy at a time.
 
     Example::
 
@@ -387,12 +486,17 @@ class BatchStepper:
     Args:
         arm, scene, model, settings: as :class:`Stepper` (planar only).
         n: number of copies.
+        max_obstacles: with contact, the most obstacles a copy may hold (default: the
+            scene's count).
 
     Attributes:
-        records: (n, N, ``layout.N_COLUMNS``) every copy's backbone record (read-only).
-        tips: (n, 2) tip positions (m), a view of ``records``.
+        records: (n, N, ``layout.N_COLUMNS``) every copy's backbone record (read-only); with
+            contact, the records of the copies on the settings' grid (see
+            :meth:`backbones`).
+        tips: (n, 2) tip positions (m).
         pressures: (n, n_inputs) input pressures (Pa); ``channel_pressures`` (n, n_channels).
         section_ends: the records' rows at the section ends.
+        contact: whether the scene has contact (discs or self-contact).
     """
 
     PARALLEL_MIN = 64
@@ -403,7 +507,8 @@ class BatchStepper:
     one, whichever :class:`ThreadPolicy` has measured faster."""
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, n: int = 1, *,
-                 model: str = "full", settings: Settings = DEFAULT_SETTINGS):
+                 model: str = "full", settings: Settings = DEFAULT_SETTINGS,
+                 max_obstacles: int | None = None):
         scene = Scene() if scene is None else scene
         check_request(arm, scene, model, True, settings)
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
@@ -414,11 +519,23 @@ class BatchStepper:
         self._problem = problem = Problem(arm, packed, scene, model, True, settings,
                                           np.zeros(n_inputs), np.zeros(arm.n_channels))
         self._ctx = problem.ctx
-        reason = not_lean(problem)
+        self.contact = scene.has_contact
+        reason = lean_contact_reason(problem) if self.contact else not_lean(problem)
         if reason is not None:
-            raise ValueError(f"BatchStepper steps the lean planar path only, not {reason}; use "
-                             "a Stepper (or solve()) per copy")
-        self._loaded = loaded_base_moment(problem)  # as solve_single's stage 1
+            raise ValueError(f"BatchStepper steps the lean planar and contact paths only, not "
+                             f"{reason}; use a Stepper (or solve()) per copy")
+        if max_obstacles is None:
+            max_obstacles = len(scene.obstacles)
+        if isinstance(max_obstacles, bool) or not isinstance(max_obstacles, (int, np.integer)) \
+                or max_obstacles < len(scene.obstacles):
+            raise ValueError(f"max_obstacles must be an integer >= the scene's {len(scene.obstacles)} "
+                             f"obstacles; got {max_obstacles!r}")
+        if max_obstacles and not scene.obstacles:
+            raise ValueError("max_obstacles needs a scene with an obstacle: its stiffness is the "
+                             "copies' law")
+        self._rows = ContactRows(problem, self.n, int(max_obstacles)) if self.contact else None
+        if not self.contact:
+            self._loaded = loaded_base_moment(problem)  # as solve_single's stage 1
         ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
         self.n_inputs = n_inputs
         self.section_ends = packed.section_ends
@@ -428,8 +545,8 @@ class BatchStepper:
         self._tubes = (packed.tubes_i, packed.tubes_f)
         self._p_zero = np.zeros(nc)
         n = self.n
-        self.records = np.zeros((n, packed.n_rows, L.N_COLUMNS))
-        self.tips = self.records[:, -1, L.X:L.Y + 1]  # a view (rebound on unpickling)
+        self.records = self._rows.free_records if self.contact else np.zeros((n, packed.n_rows, L.N_COLUMNS))
+        self.tips = np.zeros((n, 2)) if self.contact else self.records[:, -1, L.X:L.Y + 1]
         self.pressures = np.zeros((n, n_inputs))
         self.channel_pressures = np.zeros((n, nc))
         self._states = np.zeros((n, 4))
@@ -439,6 +556,8 @@ class BatchStepper:
         self._memo = (np.full((n, n_tubes), np.nan), np.empty((n, n_tubes)), np.empty((n, 3, ns)),
                       np.full((n, 2, ns), np.nan))
         self._ready = np.zeros(n, dtype=bool)
+        self._no_guard = (np.empty((n, 0, 4)), np.empty(0), 0.0)
+        self._eqs = [None] * n  # with contact: each copy's Equilibrium, once built
         # Cold solves and warm steps cost very different times per row: one policy each.
         self.thread_policies = {"cold": ThreadPolicy(self.PARALLEL_MIN),
                                 "step": ThreadPolicy(self.PARALLEL_MIN)}
@@ -509,14 +628,18 @@ class BatchStepper:
             report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
         return tips, self._report(report)
 
-    def reset(self, pressures, rows=None) -> BatchReport:
+    def reset(self, pressures, rows=None, scenes=None) -> BatchReport:
         """Cold equilibria at ``pressures`` (len(rows), n_inputs) Pa become the current
         states of ``rows`` (default: every copy), as :meth:`Stepper.reset` does for each: a
-        state is adopted even if its solve did not converge (the report says so)."""
-        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.int64).reshape(-1)
-        if rows.size and (rows.min() < 0 or rows.max() >= self.n):
-            raise ValueError(f"rows must index the {self.n} copies; got {rows.tolist()}")
+        state is adopted even if its solve did not converge (the report says so). With
+        contact, ``scenes`` (one per row, or None: keep each copy's) gives the copies their
+        obstacles (the scene's law; at most ``max_obstacles``)."""
+        rows = self._rows_of(rows)
         p, channel = self._inputs(pressures, rows.size)
+        if self.contact:
+            return self._reset_contact(rows, p, channel, scenes)
+        if scenes is not None:
+            raise ValueError("scenes apply to a scene with contact; this batch has none")
         states = np.zeros((rows.size, 4))
         records = np.empty((rows.size, *self.records.shape[1:]))
         rest_a = self._memo[2][rows]
@@ -524,7 +647,7 @@ class BatchStepper:
         report = self._cold(channel, states, records, True, rest_a, grad)
         for j in np.flatnonzero((report[:, 0] == 0) | (report[:, 1] == 0)):
             eq = self._solve_row(p[j], channel[j], None, True)
-            _write_record(eq, self._packed, records[j], rest_a[j], grad[j])
+            record_from_equilibrium(eq, self._packed, records[j], rest_a[j], grad[j])
             states[j, 0] = eq.base_moment[-1]
             report[j] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
         self.records[rows] = records
@@ -539,18 +662,25 @@ class BatchStepper:
 
     def adopt(self, eq: Equilibrium, rows=None) -> None:
         """Make ``eq`` (an equilibrium of this arm and model solved in this scene with
-        ``record=True``) the current state of ``rows`` (default: every copy) — e.g. to roll
-        candidate steps out from one state."""
+        ``record=True``; with contact, in a scene of its law, whose obstacles the rows take)
+        the current state of ``rows`` (default: every copy) — e.g. to roll candidate steps
+        out from one state."""
         if not isinstance(eq, Equilibrium):
             raise ValueError("adopt() takes an Equilibrium returned by solve()")
         check_warm_start(eq, self.arm, self.scene, self.model, True)
-        if eq.scene != self.scene:
+        if self.contact:
+            self._check_copy_scene(eq.scene)
+        elif eq.scene != self.scene:
             raise ValueError(f"the equilibrium was solved in {eq.scene}, not in {self.scene}")
         if not eq.s.size:
             raise ValueError("the equilibrium was solved with record=False; adopt needs its backbone")
-        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.int64).reshape(-1)
+        rows = self._rows_of(rows)
+        if self.contact:
+            self._adopt_contact(eq, rows)
+            return
         first = int(rows[0])
-        _write_record(eq, self._packed, self.records[first], self._memo[2][first], self._memo[3][first])
+        record_from_equilibrium(eq, self._packed, self.records[first], self._memo[2][first],
+                                self._memo[3][first])
         self.records[rows] = self.records[first]
         self.pressures[rows] = eq.pressures
         self.channel_pressures[rows] = eq.channel_pressures
@@ -586,12 +716,15 @@ class BatchStepper:
         if p.shape == (self.n, self.n_inputs) and not active.all():
             p = np.where(active[:, None], p, self.pressures)  # idle rows: no check, no step
         p, channel = self._inputs(p, self.n)
+        if self.contact:
+            return self._step_contact(p, channel, active)
         report = np.zeros((self.n, 5))
         report[~active, :2] = 1.0
         self.thread_policies["step"].run(
             planar_kernels.step_rows_parallel, planar_kernels.step_rows_serial, int(active.sum()), self._grid,
             self._tubes, self.channel_pressures, channel, self._ctx.loads, self._ctx.m_tip,
-            self._ctx.params, self._work, self._states, self.records, self._memo, active, report)
+            self._ctx.params, self._work, self._states, self.records, self._memo, self._no_guard,
+            active, report)
         ok = report[:, 0] != 0
         for k in np.flatnonzero(~ok):
             # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.
@@ -599,7 +732,7 @@ class BatchStepper:
             report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations + report[k, 3],
                          eq.residual)
             if eq.converged:
-                _write_record(eq, self._packed, self.records[k], self._memo[2][k], self._memo[3][k])
+                record_from_equilibrium(eq, self._packed, self.records[k], self._memo[2][k], self._memo[3][k])
                 self._states[k, 0] = eq.base_moment[-1]
                 ok[k] = True
         moved = ok & active
@@ -614,12 +747,134 @@ class BatchStepper:
             raise ValueError(f"copy {k} does not exist; n = {self.n}")
         if not self._ready[k]:
             raise RuntimeError(f"copy {k} was never reset")
+        if self.contact:
+            if self._eqs[k] is None:
+                self._eqs[k] = self._rows.equilibrium(k, self.pressures[k], self.channel_pressures[k])
+            return self._eqs[k]
         return _record_equilibrium(self.records[k], self._flags[k], self._states[k, 0],
                                    self.pressures[k], self.channel_pressures[k], self._problem)
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self.tips = self.records[:, -1, L.X:L.Y + 1]
+        if not self.contact:
+            self.tips = self.records[:, -1, L.X:L.Y + 1]
+
+    # ------------------------------------------------------------------ contact
+
+    def _rows_of(self, rows) -> np.ndarray:
+        """``rows`` (None: every copy) as an index array, checked."""
+        rows = np.arange(self.n) if rows is None else np.asarray(rows, dtype=np.int64).reshape(-1)
+        if rows.size and (rows.min() < 0 or rows.max() >= self.n):
+            raise ValueError(f"rows must index the {self.n} copies; got {rows.tolist()}")
+        return rows
+
+    def _check_copy_scene(self, scene) -> None:
+        """A copy's scene must be the batch scene's law with obstacles of its own: the same
+        mounting, loads and self-contact, discs of the template's stiffness, at most
+        ``max_obstacles``."""
+        if not isinstance(scene, Scene):
+            raise ValueError(f"a copy's scene must be a solver.Scene; got {type(scene).__name__}")
+        if scene.without_contact != self.scene.without_contact or \
+                scene.self_contact != self.scene.self_contact:
+            raise ValueError(f"a copy's scene may differ from the batch's only in its obstacles; "
+                             f"got {scene} for {self.scene}")
+        law = self.scene.obstacles[0].stiffness if self.scene.obstacles else None
+        bad = [d for d in scene.obstacles if not isinstance(d, Disc) or d.stiffness != law]
+        if bad:
+            raise ValueError(f"a copy's obstacles must be discs of the batch's stiffness {law}; "
+                             f"got {bad[0]}")
+        if len(scene.obstacles) > self._rows.max_obstacles:
+            raise ValueError(f"a copy's scene holds {len(scene.obstacles)} obstacles; this batch "
+                             f"takes at most {self._rows.max_obstacles} (max_obstacles)")
+
+    def _solve_in(self, k, p_inputs, p_channel, warm_start, scene) -> Equilibrium:
+        problem = self._problem.in_scene(scene).with_inputs(p_inputs, p_channel, warm_start)
+        return dispatch(problem, True)
+
+    def _take(self, k, eq: Equilibrium) -> None:
+        """Copy k's state becomes ``eq`` (solved in its scene by the general path)."""
+        self._rows.adopt(k, eq)
+        self._eqs[k] = eq
+        self.tips[k] = eq.tip
+        self.pressures[k] = eq.pressures
+        self.channel_pressures[k] = eq.channel_pressures
+
+    def _reset_contact(self, rows, p, channel, scenes) -> BatchReport:
+        if scenes is not None:
+            scenes = list(scenes)
+            if len(scenes) != rows.size:
+                raise ValueError(f"scenes must hold one scene per row ({rows.size}); got {len(scenes)}")
+            for scene in scenes:
+                self._check_copy_scene(scene)
+        report = np.zeros((rows.size, 5))
+        for j, k in enumerate(rows):
+            if scenes is not None:
+                self._rows.set_scene(k, scenes[j])
+            eq = self._solve_in(k, p[j], channel[j], None, self._rows.scenes[k])
+            self._take(k, eq)
+            report[j] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
+        self._ready[rows] = True
+        return self._report(report)
+
+    def _adopt_contact(self, eq, rows) -> None:
+        first = int(rows[0])
+        self._rows.set_scene(first, eq.scene)
+        self._take(first, eq)
+        self._rows.copy_rows(first, rows[1:])
+        for k in rows[1:]:
+            self._eqs[k] = eq
+            self.tips[k] = eq.tip
+            self.pressures[k] = eq.pressures
+            self.channel_pressures[k] = eq.channel_pressures
+        self._ready[rows] = True
+
+    def _step_contact(self, p, channel, active) -> BatchReport:
+        lean = active & np.array([self._rows.ready(k) for k in range(self.n)])
+        report = self._rows.step(self.channel_pressures, channel, lean,
+                                 self.thread_policies["step"].run)[:, :5]
+        report[~active, :2] = 1.0
+        moved = lean & (report[:, 0] != 0)
+        for k in np.flatnonzero(moved):
+            self._eqs[k] = None
+            self.tips[k] = self._rows.record(k)[-1, L.X:L.Y + 1]
+        self.pressures[moved] = p[moved]
+        self.channel_pressures[moved] = channel[moved]
+        for k in np.flatnonzero(active & ~moved):
+            # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.
+            eq = self._solve_in(k, p[k], channel[k], self.equilibrium(k), self._rows.scenes[k])
+            report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations + report[k, 3],
+                         eq.residual)
+            if eq.converged:
+                self._take(k, eq)
+        return self._report(report)
+
+    def scene_of(self, k: int) -> Scene:
+        """Copy k's scene (with its obstacles)."""
+        return self._rows.scenes[k] if self.contact else self.scene
+
+    def contact_measures(self) -> np.ndarray:
+        """(n, 2) every copy's deepest penetration at its samples (m) and total contact force
+        ∫|f| ds (N, trapezoidal on the samples); zeros without contact."""
+        if not self.contact:
+            return np.zeros((self.n, 2))
+        return self._rows.contact_measures()
+
+    def recorded(self) -> np.ndarray:
+        """(n,) bool: the copies whose current state a lean path records — their rows of
+        :meth:`backbones` and :meth:`contact_measures` are current (as a :class:`Stepper`'s
+        ``record`` is not None); read the others' from :meth:`equilibrium` (a state the
+        general path left on a grid of its own)."""
+        if not self.contact:
+            return self._ready.copy()
+        return np.array([self._rows.ready(k) for k in range(self.n)], dtype=bool)
+
+    def backbones(self) -> np.ndarray:
+        """(n, N, ``layout.N_COLUMNS``) every copy's current backbone in the columns
+        ``layout.S`` … ``layout.U`` (with contact, those on the contact layout copied in; the
+        grids must have the same rows, as they do at the tube stiffness of OctArm V and CT)."""
+        if not self.contact:
+            return self.records
+        return self._rows.backbones()
 
     def __repr__(self) -> str:
         return f"BatchStepper({self.arm.name!r}, {self.scene}, n={self.n}, model={self.model!r})"

@@ -3,11 +3,13 @@
 Default: the solver (RK4 resolution sweep, warm and cold solves, scipy solve_bvp reference,
 spatial, batch). ``--peer pyelastica`` settles the same OctArm V scenes with PyElastica.
 ``--env`` times the environments instead: every registered ID and observation mode, single
-and vectorised, and the batched vector env. ``--first-episode`` times the first episode of
-every registered ID in a fresh process after ``softarm warmup`` against its steady speed
-(``--cold`` adds the same with an empty numba cache). ``--fit`` times the calibration
-(``softarm fit``) at the thesis's experiment size, beside one batch of its solves, and
-tabulates parameter error against noise level (docs/bench/fit.json).
+and vectorised; the single-env contact cases as multiples of a free reach step; the batched
+reach env by size, and the batched wrap and obstacle-reach envs beside it at 1024 arms.
+``--first-episode`` times the first episode of every registered ID in a fresh process after
+``softarm warmup`` against its steady speed (``--cold`` adds the same with an empty numba
+cache). ``--fit`` times the calibration (``softarm fit``) at the thesis's experiment size,
+beside one batch of its solves, and tabulates parameter error against noise level
+(docs/bench/fit.json).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 import sys
 
 from softarm_gym.cli import UsageError, emit
+from softarm_gym.commands.common import add_numba_threads_argument
 
 NAME = "bench"
 HELP = "benchmark solver speed against accuracy (and peers)"
@@ -38,7 +41,11 @@ def add_arguments(p):
     p.add_argument("--ids", default=None,
                    help="with --env: comma-separated IDs to time (default: every registered ID and "
                         "the batched vector env)")
+    p.add_argument("--contact-profile", action="store_true",
+                   help="where a contact step's time goes: paths, passes, kernels against Python, "
+                        "beside a free reach step")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_numba_threads_argument(p)
 
 
 def run(args) -> int:
@@ -59,6 +66,12 @@ def run(args) -> int:
                 lines.append(f"| {name} | {1e6 * rows['planar'][name]:.0f} | "
                              f"{'—' if not isinstance(spatial, float) else f'{1e6 * spatial:.0f}'} |")
         emit(rows, args.json, "\n".join(lines))
+        return 0
+    if args.contact_profile:
+        from softarm_gym.benchmarks import contact_profile
+
+        result = contact_profile.run(quick=args.quick, progress=progress)
+        emit(result, args.json, contact_profile.format_table(result))
         return 0
     if args.fit:
         from softarm_gym.identify import studies
@@ -96,11 +109,17 @@ def run(args) -> int:
             emit(result, args.json, envs.format_table(result))
             return 0
         sizes = (4, 256) if args.quick else (4, 16, 256, 1024, 4096)
+        result["contact_ratios"] = envs.contact_ratios(60 if args.quick else 300, progress=progress)
         result["batched_vector"] = vector_bench.run(sizes, progress=progress)
+        result["batched_contact"] = vector_bench.run_contact(64 if args.quick else 1024,
+                                                             steps=10 if args.quick else 40,
+                                                             progress=progress)
         result["batched_vector_3d"] = vector_bench.run_spatial((4,) if args.quick else (4, 16, 64),
                                                                progress=progress)
         emit(result, args.json, envs.format_table(result) + "\n\n"
+             + envs.format_ratio_table(result["contact_ratios"]) + "\n\n"
              + vector_bench.format_table(result["batched_vector"]) + "\n\n"
+             + vector_bench.format_contact_table(result["batched_contact"]) + "\n\n"
              + vector_bench.format_spatial_table(result["batched_vector_3d"]))
         return 0
     result = solver_bench.run(quick=args.quick, progress=progress)

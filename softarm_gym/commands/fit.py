@@ -24,7 +24,12 @@ from tqdm import tqdm
 import solver
 import solver.identify
 from softarm_gym.cli import UsageError, emit
-from softarm_gym.commands.common import add_design_arguments, design_from_args, parse_floats
+from softarm_gym.commands.common import (
+    add_design_arguments,
+    add_numba_threads_argument,
+    design_from_args,
+    parse_floats,
+)
 from softarm_gym.commands.long_jobs import check_outputs, save_plot
 
 NAME = "fit"
@@ -88,6 +93,7 @@ def add_arguments(p):
                    help="write the fitted design (a design file for --design-file)")
     p.add_argument("--plot", metavar="FILE.png", default=None, help="save the residual figure")
     p.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
+    add_numba_threads_argument(p)
 
 
 def _noise(args):

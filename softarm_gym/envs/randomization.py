@@ -16,6 +16,7 @@ Two kinds, chosen by the ``randomization`` argument of the environments
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -68,10 +69,12 @@ class ArmRandomization:
         if isinstance(value, cls):
             return value
         if isinstance(value, dict):
-            try:
-                return cls(**value)
-            except TypeError as exc:
-                raise ValueError(f"randomization has unknown fields: {exc}") from None
+            valid = [f.name for f in dataclasses.fields(cls)]
+            unknown = [repr(k) for k in value if k not in valid]
+            if unknown:
+                raise ValueError(f"randomization has unknown field(s) {', '.join(unknown)}; valid fields: "
+                                 f"{', '.join(valid)}")
+            return cls(**value)
         raise ValueError("randomization must be None, a dict with wind_angle_deg / "
                          f"youngs_modulus_rel, or an ArmRandomization; got {value!r}")
 

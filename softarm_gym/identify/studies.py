@@ -223,6 +223,7 @@ def sensitivity(levels=LEVELS_PSI, base_angle_deg: float = 90.0) -> dict:
     """Why the wind angle dominates (docs/identification.md, the thesis note).
 
     Returns:
+        A dict,
         ``{"actuator": per braid angle α its λmax, dλmax/dα and, per pressure, λ and the
         relative change of the extension λ − 1 for +1° of α (and for +10 % of E), "arm": per
         parameter change the tip displacement (mm) of the on/off configurations along their

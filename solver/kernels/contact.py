@@ -37,6 +37,7 @@ import math
 import numpy as np
 
 from solver.jit import njit
+from solver.kernels.grid import section_needs
 from solver.kernels.obstacles import contact_force, contact_stiffness, nearest_surface, tunnels
 from solver.kernels.self_contact import (
     build_piece,
@@ -53,8 +54,12 @@ from solver.layout import (
     C_COLUMNS,
     C_FX,
     C_FY,
+    C_M,
+    C_NX,
+    C_NY,
     C_PEN,
     C_S,
+    C_TH,
     C_U,
     C_V1,
     C_V3,
@@ -131,8 +136,12 @@ def _write_row(st, s, out, row, ca, cg, ci, ur, vr, discs):
     fx, fy, pen = contact_force(st[0], st[1], discs)
     c, sn, n1, n3, v1, v3 = planar_strains(st[2], st[3], st[4], ca, cg, vr)
     out[row, C_S] = s
-    for d in range(6):
-        out[row, C_X + d] = st[d]
+    out[row, C_X] = st[0]
+    out[row, C_Y] = st[1]
+    out[row, C_TH] = st[2]
+    out[row, C_NX] = st[3]
+    out[row, C_NY] = st[4]
+    out[row, C_M] = st[5]
     out[row, C_FX] = fx
     out[row, C_FY] = fy
     out[row, C_PEN] = pen
@@ -379,24 +388,31 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
                 _self_row(loads, segs, seg, j - first, out, row)
         if own and seg == 0 and j == first:  # the base node's load, into the clamp's reaction
             _node_load(loads, 0, 0, st, phi, tangent)
-        if discs.shape[0] > 0:
-            for d in range(6):
-                start[d] = st[d]
-                if tangent:
-                    for e in range(6):
-                        tw[5, d, e] = phi[d, e]
-        if tangent:
-            _rk4_tangent(st, phi, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
-        else:
-            planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
         if discs.shape[0] == 0:
+            if tangent:
+                _rk4_tangent(st, phi, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
+            else:
+                planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
             continue
-        # work[0] holds the slope at the start: r' its first two entries.
+        for d in range(6):
+            start[d] = st[d]
+            if tangent:
+                for e in range(6):
+                    tw[5, d, e] = phi[d, e]
+        # The slope at the start (r' its first two entries) says how near a disc the step
+        # may come; a step that starts inside one (clear <= 0) is taken in substeps alone,
+        # so its whole step, which would be discarded, is not taken.
+        planar_state_rhs(st, work[0], ca, cg, ci, ur, vr, qx, qy, discs)
         rx = work[0, 0]
         ry = work[0, 1]
         speed = math.sqrt(rx * rx + ry * ry)
         gap, ux, uy = nearest_surface(start[0], start[1], discs)
         clear = gap - h * speed
+        if clear > 0.0:
+            if tangent:
+                _rk4_tangent(st, phi, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
+            else:
+                planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
         if clear >= h:
             continue
         for d in range(6):
@@ -489,6 +505,15 @@ def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
     ``blocks`` (M, 6, 6) (their stability test: :func:`stability_test`). The self-contact
     loads of Z are worked out into ``partners`` (:func:`new_partners`) first.
     """
+    recorded_system(Z, grid, rest, level, F, J, want_jac, blocks, partners,
+                    np.empty((1, C_COLUMNS)))
+
+
+@njit
+def recorded_system(Z, grid, rest, level, F, J, want_jac, blocks, partners, out):
+    """:func:`newton_system`, recording the backbone of ``Z`` into ``out`` (rows Σ(steps + 1),
+    C_COLUMNS) by the same pass, as :func:`record_backbone` would; an ``out`` of one row
+    records nothing."""
     segs = grid[G_SEGS]
     target = level[L_TARGET]
     n_seg = segs.shape[0]
@@ -497,14 +522,14 @@ def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
     work = np.empty((7, 6))
     tw = np.empty((8, 6, 6))
     no_tangent = np.empty((0, 6))
-    dummy = np.empty((1, C_COLUMNS))
+    record = out.shape[0] > 1
     _prepare_partners(Z, grid, rest, level, partners)
     if want_jac:
         J[:, :] = 0.0  # band storage: A[i, j] at J[BAND + i − j, j]
     for seg in range(n_seg):
         _start_state(Z, seg, grid[G_THETA0], z)
         block = blocks[seg] if want_jac else no_tangent
-        _segment(z, seg, grid, rest, level, end, work, False, dummy, block, tw, partners)
+        _segment(z, seg, grid, rest, level, end, work, record, out, block, tw, partners)
         row = 6 * seg
         last = seg == n_seg - 1
         if not last:
@@ -644,7 +669,7 @@ def _orthonormalise(f):
 
 
 @njit
-def _band_factor(ab, piv):
+def factor_band(ab, piv):
     """LU-factor in place the banded shooting Jacobian A stored in ``ab`` ((BAND_ROWS, n):
     A[i, j] at ab[BAND + i − j, j], 8 sub- and 8 super-diagonals, rows above for the fill-in
     of partial pivoting), the row interchanges into ``piv`` (n,). Gaussian elimination with
@@ -684,7 +709,7 @@ def _band_factor(ab, piv):
 
 @njit
 def _band_lu_solve(ab, piv, b):
-    """Solve A x = b in place (``b`` becomes x) with the factors of :func:`_band_factor`."""
+    """Solve A x = b in place (``b`` becomes x) with the factors of :func:`factor_band`."""
     n = ab.shape[1]
     kl = 8
     kv = BAND
@@ -707,7 +732,7 @@ def _band_lu_solve(ab, piv, b):
 def _band_solve(ab, b):
     """Solve A x = b in place for the banded A in ``ab`` (overwritten by its factors)."""
     piv = np.empty(ab.shape[1], dtype=np.int64)
-    if not _band_factor(ab, piv):
+    if not factor_band(ab, piv):
         return False
     _band_lu_solve(ab, piv, b)
     return True
@@ -812,7 +837,7 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
                 return False, it, res, False
             step[:] = np.linalg.solve(dense, F)
         else:
-            if fresh and not _band_factor(J, piv):
+            if fresh and not factor_band(J, piv):
                 return False, it, res, False
             for k in range(n):
                 step[k] = F[k]
@@ -1042,3 +1067,241 @@ def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, slope):
     slope[:] = F1
     if not (np.all(np.isfinite(F1)) and _band_solve(J, slope) and np.all(np.isfinite(slope))):
         slope[:] = 0.0
+
+
+# Residual passes a lean step spends on quasi-Newton corrections before it falls back to
+# full Newton; and the least fall of the residual per correction that keeps them going.
+LEAN_ITER = 12
+LEAN_RATE = 0.25
+
+
+@njit
+def new_factors(n, coupled):
+    """Scratch for the factored Jacobian of a lean state (:func:`factor_state`): (band
+    factors (BAND_ROWS, n), their pivots (n,), dense factors (n, n), their pivots (n,),
+    flags (1,)); the dense ones (for states where parts of the arm touch each other) are
+    empty unless ``coupled`` (a scene with self-contact)."""
+    m = n if coupled else 0
+    return (np.empty((BAND_ROWS, n)), np.empty(n, dtype=np.int64), np.empty((m, m)),
+            np.empty(m, dtype=np.int64), np.zeros(1, dtype=np.int64))
+
+
+@njit
+def factor_state(Z, grid, rest, level, weights, F, blocks, out, factors):
+    """One pass at the state ``Z`` (``level``, ``rest`` its rest strains) that records its
+    backbone into ``out``, its residual into ``F`` and its segment maps into ``blocks``,
+    and factors its Jacobian into ``factors`` (:func:`new_factors`): the band one, and where
+    parts of the arm touch each other the full one (:func:`_coupled`), which the next
+    solves from this state use instead (flags[0] = 1). Returns whether the Jacobian is
+    regular."""
+    lu, piv, dense, dense_piv, flags = factors
+    partners = new_partners(grid)
+    recorded_system(Z, grid, rest, level, F, lu, True, blocks, partners, out)
+    flags[0] = 0
+    if dense.shape[0] > 0 and _touched(partners):
+        _coupled(Z, grid, rest, level, F, lu, partners, weights, dense)
+        if not _dense_factor(dense, dense_piv):
+            return False
+        flags[0] = 1
+    return factor_band(lu, piv)
+
+
+@njit
+def _factored_solve(factors, b):
+    """Solve J x = b in place with the factors of :func:`factor_state`."""
+    lu, piv, dense, dense_piv, flags = factors
+    if flags[0]:
+        _dense_lu_solve(dense, dense_piv, b)
+    else:
+        _band_lu_solve(lu, piv, b)
+
+
+@njit
+def _dense_factor(a, piv):
+    """LU-factor the square ``a`` in place with partial pivoting (rows ``piv``); False if
+    it is singular or not finite."""
+    n = a.shape[0]
+    for j in range(n):
+        p = j
+        best = abs(a[j, j])
+        for i in range(j + 1, n):
+            if abs(a[i, j]) > best:
+                best = abs(a[i, j])
+                p = i
+        if not (best > 0.0) or not math.isfinite(best):
+            return False
+        piv[j] = p
+        if p != j:
+            for c in range(n):
+                tmp = a[j, c]
+                a[j, c] = a[p, c]
+                a[p, c] = tmp
+        for i in range(j + 1, n):
+            factor = a[i, j] / a[j, j]
+            a[i, j] = factor
+            if factor != 0.0:
+                for c in range(j + 1, n):
+                    a[i, c] -= factor * a[j, c]
+    return True
+
+
+@njit
+def _dense_lu_solve(a, piv, b):
+    """Solve with the factors of :func:`_dense_factor`, ``b`` in place."""
+    n = a.shape[0]
+    for j in range(n):
+        p = piv[j]
+        if p != j:
+            tmp = b[p]
+            b[p] = b[j]
+            b[j] = tmp
+    for i in range(n):
+        acc = b[i]
+        for c in range(i):
+            acc -= a[i, c] * b[c]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for c in range(i + 1, n):
+            acc -= a[i, c] * b[c]
+        b[i] = acc / a[i, i]
+
+
+@njit
+def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, records, check):
+    """A warm step of the contact stepper in one kernel call: from the equilibrium ``Z`` at
+    ``level`` to the pressures ``p_new`` and the discs ``discs_new`` (the same array as the
+    level's where they stand still; moved, as a held object moves), the loads unchanged.
+
+    The factored Jacobian of the start state (``factors``, kept from the step before)
+    predicts the new state to first order; Broyden corrections on it (Kelley's inverse
+    form, a factored solve and a residual pass each) take it to the tolerance while the
+    residual falls at least fourfold a pass, and damped Newton (:func:`newton`) takes over
+    where it does not. The step is accepted on the terms :func:`_path` accepts a
+    continuation step — converged, stable, within ``0.05 + 0.5·|prediction|`` of its
+    prediction (weighted RMS), no sample tunnelled through a disc — and then its Jacobian,
+    stability test and backbone come from one more pass (:func:`factor_state`), and the RK4
+    grid must resolve that backbone (:func:`solver.kernels.grid.section_needs`, the general
+    path's check). Anything else leaves every input untouched and returns ``ok = False``:
+    the caller's general path (continuation, snaps, refinement) takes the step.
+
+    Args:
+        Z: (N,) the nodes of the current equilibrium (:func:`newton_system`); the new ones on
+            success.
+        grid: the layout tuple (``G_*``). tubes: (tubes_i, tubes_f).
+        level: the level tuple (``L_*``) of ``Z``; its pressures and discs become ``p_new``
+            and ``discs_new`` on success.
+        p_new: (n_channels,) the target pressures (Pa). discs_new: (k, 4) the target discs
+            (the same law and count as the level's).
+        params: (N_PARAMS,) numeric parameters (TOL, MAX_STEP, MAX_ITER are used).
+        work: (rest (3, ns), weights (N,), res_weights (N,)): scratch for the rest strains,
+            and the norms' weights (:func:`_path`).
+        factors: the factored Jacobian at ``Z`` (:func:`factor_state`); the new state's on
+            success.
+        records: (rec (rows, C_COLUMNS), new (rows, C_COLUMNS)): the backbone of ``Z``, and
+            scratch that receives the new state's backbone on success.
+        check: (q (ns,) |distributed load| (N/m), ends (ns,) the records' section-end rows)
+            for the grid check.
+
+    Returns:
+        (ok, stable, iterations, residual): iterations counts the passes of the step.
+    """
+    rest, weights, res_weights = work
+    rec, new = records
+    tol = params[TOL]
+    n = Z.shape[0]
+    secf = grid[G_SECF]
+    now = (p_new, level[L_Q], level[L_PLATE], level[L_TARGET], discs_new)
+    rest_strains_into(p_new, tubes[0], tubes[1], secf, rest)
+    partners = new_partners(grid)
+    no_record = np.empty((1, C_COLUMNS))
+    no_blocks = np.empty((0, 6, 6))
+    unused = np.empty((1, n))
+    F = np.empty(n)
+    start = Z.copy()
+    recorded_system(Z, grid, rest, now, F, unused, False, no_blocks, partners, no_record)
+    res = weighted_norm(F, res_weights)
+    passes = 1
+    # Broyden steps s_k (rows) and their squared norms; S[0] is the prediction.
+    steps = np.empty((LEAN_ITER + 1, n))
+    norms = np.empty(LEAN_ITER + 1)
+    z = np.empty(n)
+    k = 0
+    ok = res <= tol
+    if not ok and math.isfinite(res):
+        for i in range(n):
+            steps[0, i] = -F[i]
+        _factored_solve(factors, steps[0])
+        while True:
+            norms[k] = 0.0
+            for i in range(n):
+                norms[k] += steps[k, i] * steps[k, i]
+                Z[i] += steps[k, i]
+            recorded_system(Z, grid, rest, now, F, unused, False, no_blocks, partners,
+                            no_record)
+            passes += 1
+            r = weighted_norm(F, res_weights)
+            if r <= tol:
+                ok = True
+                break
+            if not r <= LEAN_RATE * res or k == LEAN_ITER - 1 or norms[k] == 0.0:
+                break
+            res = r
+            for i in range(n):
+                z[i] = -F[i]
+            _factored_solve(factors, z)
+            for j in range(k):
+                c = 0.0
+                for i in range(n):
+                    c += steps[j, i] * z[i]
+                c /= norms[j]
+                for i in range(n):
+                    z[i] += steps[j + 1, i] * c
+            c = 0.0
+            for i in range(n):
+                c += steps[k, i] * z[i]
+            denom = 1.0 - c / norms[k]
+            if denom == 0.0:
+                break
+            k += 1
+            for i in range(n):
+                steps[k, i] = z[i] / denom
+        if not ok:
+            ok, its, r, stable = newton(Z, grid, rest, now, weights, res_weights, tol,
+                                        int(params[MAX_ITER]), params[MAX_STEP])
+            passes += its
+            ok = ok and stable
+    if ok:
+        # The prediction is the start moved by the first step (none if the start held).
+        corr = 0.0
+        pred = 0.0
+        for i in range(n):
+            guess = start[i] + (steps[0, i] if passes > 1 else 0.0)
+            corr += ((Z[i] - guess) / weights[i]) ** 2
+            pred += ((guess - start[i]) / weights[i]) ** 2
+        ok = math.sqrt(corr / n) <= 0.05 + 0.5 * math.sqrt(pred / n)
+    stable = False
+    if ok:
+        blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
+        fresh = new_factors(n, factors[2].shape[0] > 0)
+        regular = factor_state(Z, grid, rest, now, weights, F, blocks, new, fresh)
+        passes += 1
+        res = weighted_norm(F, res_weights)
+        stable = stability_test(blocks) > 0.0
+        need = np.empty(secf.shape[1])
+        ok = (res <= tol and stable and regular
+              and not tunnels(rec[:, C_X:C_Y + 1], new[:, C_X:C_Y + 1], discs_new, TUNNEL_SLACK)
+              and section_needs(new[:, C_U:C_U + 1], new[:, C_NX:C_NY + 1], new[:, C_V1:C_V3 + 1],
+                                check[0], secf, check[1], need) <= 1.0)
+        if ok:
+            factors[0][:, :] = fresh[0]
+            factors[1][:] = fresh[1]
+            factors[2][:, :] = fresh[2]
+            factors[3][:] = fresh[3]
+            factors[4][0] = fresh[4][0]
+            for c in range(p_new.shape[0]):
+                level[L_P][c] = p_new[c]
+            level[L_DISCS][:, :] = discs_new
+    if not ok:
+        Z[:] = start
+    return ok, stable, passes, res

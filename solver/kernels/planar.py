@@ -33,6 +33,7 @@ from solver.jit import njit, prange
 from solver.kernels.grid import planar_fine
 from solver.kernels.homotopy import GIVE_UP, big_change
 from solver.kernels.obstacles import clearance, tunnels
+from solver.kernels.self_contact import far_parts_clear
 from solver.kernels.spatial import planar_state_stable
 from solver.layout import (
     DT0,
@@ -47,6 +48,7 @@ from solver.layout import (
     REST_U2,
     REST_V3,
     TOL,
+    S,
     X,
     Y,
 )
@@ -332,7 +334,7 @@ DIRECT_ITER = 6
 
 
 @njit
-def warm_step(state, grid, tubes, a, b, params, work, memo):
+def warm_step(state, grid, tubes, a, b, params, work, memo, guard):
     """A warm step of the stepper (:class:`solver.stepper.Stepper`): :func:`follow` from an
     equilibrium at ``a`` to the pressures of ``b`` (the same loads), first tried as one
     Newton solve from a first-order prediction.
@@ -351,14 +353,27 @@ def warm_step(state, grid, tubes, a, b, params, work, memo):
             strains and gradient (NaN: unknown). Updated to the returned state when it
             converged; the gradient is computed only if ``work`` records.
 
+        guard: (discs (k, 4), prev (rows, N_COLUMNS), half (rows,), exclusion): the
+            contact-free step of a scene with obstacles (``discs``, else empty) or
+            self-contact (``half`` the samples' half-thicknesses, else empty; ``exclusion``
+            the self-contact exclusion length, m), which holds only while no contact comes
+            into play (:func:`solver.paths.contact.solve_contact`): the returned state must
+            clear every disc by half an RK4 step, no sample may pass through a disc from
+            ``prev`` (the start's record, as the stepper keeps it) and, with self-contact, no
+            two parts farther apart than the exclusion may come within their half-thicknesses
+            plus an RK4 step of each other; the continuation is guarded the same way
+            (:func:`_path`). Then ``work`` must record.
+
     Returns:
         As :func:`follow`; with ``record`` (as the steppers call it), a state the RK4 grid
         does not resolve (:func:`solver.kernels.grid.planar_fine`) is not converged: the caller's
-        general path solves it on a finer grid.
+        general path solves it on a finer grid. A guarded step that would touch is not
+        converged either: the caller's general path takes it with contact.
     """
     theta0, secf, steps = grid
     rest, p_now, loads_now, out, record = work
     p_seen, stretch, rest_a, grad = memo
+    discs, prev, half, exclusion = guard
     p_b, loads, m_tip = b
     m_start = state[0]
     rest_strains_cached(p_b, tubes[0], tubes[1], secf, p_seen, stretch, rest)
@@ -375,7 +390,14 @@ def warm_step(state, grid, tubes, a, b, params, work, memo):
         guess, theta0, secf, steps, rest, loads, m_tip, params[TOL], n_direct, params[MAX_STEP],
         out, record, GIVE_UP * jump)
     snapped = False
-    if ok and stable and abs(root - guess) <= jump:
+    direct = ok and stable and abs(root - guess) <= jump
+    if direct and discs.shape[0] > 0:
+        half_h = 0.0
+        for i in range(steps.shape[0]):
+            half_h = max(half_h, 0.5 * secf[LEN, i] / steps[i])
+        direct = clear_of(out, discs, half_h) and not tunnels(prev[:, X:Y + 1], out[:, X:Y + 1],
+                                                              discs, -half_h)
+    if direct:
         state[0] = root
         state[1] = x
         state[2] = y
@@ -390,8 +412,8 @@ def warm_step(state, grid, tubes, a, b, params, work, memo):
         dt_first = 0.5 * params[DT0] if its < n_direct and params[DT0] >= 1.0 else math.nan
         m_end, ok, more, snapped, stable, res, x, y, th = _path(
             m_start, theta0, secf, steps, tubes[0], tubes[1], a[0], p_b, a[1], loads, a[2],
-            m_tip, params, rest, p_now, loads_now, out, record, np.empty(0), np.empty((0, 4)),
-            slope, dt_first)
+            m_tip, params, rest, p_now, loads_now, out, record, np.empty(0), discs, slope,
+            dt_first)
         state[0] = m_end
         state[1] = x
         state[2] = y
@@ -399,6 +421,11 @@ def warm_step(state, grid, tubes, a, b, params, work, memo):
         its += more
     if ok and record and not planar_fine(out, secf, steps, loads):
         ok = False
+    if ok and half.shape[0] > 0:
+        h_max = 0.0
+        for i in range(steps.shape[0]):
+            h_max = max(h_max, secf[LEN, i] / steps[i])
+        ok = far_parts_clear(out[:, X:Y + 1], out[:, S], half, exclusion, h_max)
     if ok:
         rest_a[:, :] = rest
         if record:
@@ -432,9 +459,10 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     or snap, where the 3D path may leave the plane — ends the path unconverged, so that the
     caller hands the solve to the spatial kernels: the planar shortcut never changes the
     answer. ``discs`` ((k, 4) obstacles, or empty) guards a contact-free solve of a scene
-    with obstacles the same way: the backbone must stay clear of every disc by half an RK4
-    step at every accepted state, and no sample may pass through a disc between accepted
-    states (:func:`solver.kernels.obstacles.tunnels`; a step that fails only that is halved).
+    with obstacles: the backbone must stay clear of every disc by half an RK4 step at every
+    accepted state, and no sample may pass through a disc between accepted states
+    (:func:`solver.kernels.obstacles.tunnels`; a step that fails only that is halved); a
+    snap must land clear of them as well (the contact path's snap lands there too).
 
     ``slope0``: dm0/dt at the start, if the caller knows it (the stepper's rest-strain
     gradient); otherwise a large change gets a finite-difference tangent (two passes).
@@ -538,7 +566,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
         if dt > dt_min:
             dt *= 0.5
             continue
-        if guard:  # a fold or bifurcation: the guarded path may leave its assumptions here
+        if c_j_3d.shape[0] > 0:  # a fold or bifurcation: the 3D path may leave the plane here
             return root, False, total, snapped, False, res, x, y, th
         if params[N_SCAN] == 0:
             if ok:
@@ -580,6 +608,14 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
                                                         loads_now, m_tip, tol, max_iter,
                                                         max_step, out, record and final)
         total += its
+        if discs.shape[0] > 0:
+            # Where the arm snaps clear of every disc, the contact path lands where this one
+            # does (solver.paths.shooting); where it would land on one, the contact path's
+            # relaxation finds where it comes to rest.
+            integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
+            total += 1
+            if not (ok and clear_of(rec_prev, discs, half_h)):
+                return m0, False, total, snapped, False, res, x, y, th
         t = t_new
         dt = dt0
     return m0, ok, total, snapped, stable, res, x, y, th
@@ -730,15 +766,17 @@ def cold_rows_serial(grid, tubes, p_zero, p, loads, mtip, params, work, states, 
 
 @njit(inline="always")
 def _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records, memo,
-              report):
-    """Row k of :func:`_step_rows`: :func:`warm_step`, the record kept only if it converged."""
+              guard, report):
+    """Row k of :func:`_step_rows`: :func:`warm_step`, the record kept only if it converged;
+    ``guard`` (discs (n, k, 4), half, exclusion) gives row k's guard of :func:`warm_step`
+    (its discs, its record as ``prev``)."""
     rest, p_now, loads_now, scratch = work
     p_seen, stretch, rest_a, grad = memo
     m_start = states[k, 0]
     ok, stable, snapped, its, res, _, _ = warm_step(
         states[k], grid, tubes, (p_from[k], loads, mtip), (p_to[k], loads, mtip), params,
         (rest[k], p_now[k], loads_now[k], scratch[k], True),
-        (p_seen[k], stretch[k], rest_a[k], grad[k]))
+        (p_seen[k], stretch[k], rest_a[k], grad[k]), (guard[0][k], records[k], guard[1], guard[2]))
     report[k, 0] = ok
     report[k, 1] = stable
     report[k, 2] = snapped
@@ -752,28 +790,29 @@ def _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, r
 
 @njit(parallel=True)
 def step_rows_parallel(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
-                       memo, active, report):
+                       memo, guard, active, report):
     """Warm steps of many copies in parallel: :func:`warm_step` per row, from the equilibrium
     ``states[k]``/``records[k]`` at ``p_from[k]`` to ``p_to[k]`` (n, n_channels). A row
     that converged gets its new record, state and predictor memo (per-row arrays of
     :func:`warm_step`'s ``memo``); one that did not keeps its equilibrium. ``work``: per-row
-    scratch (rest, p_now, loads_now, scratch records). Rows where ``active`` (n,) is False
-    are skipped. ``report`` as :func:`cold_rows_parallel`.
+    scratch (rest, p_now, loads_now, scratch records). ``guard``: (discs (n, k, 4), half,
+    exclusion), as :func:`warm_step`'s (no discs and an empty half: none). Rows where
+    ``active`` (n,) is False are skipped. ``report`` as :func:`cold_rows_parallel`.
     """
     for k in prange(p_to.shape[0]):
         if active[k]:
             _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
-                      memo, report)
+                      memo, guard, report)
 
 
 @njit
 def step_rows_serial(grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
-                     memo, active, report):
+                     memo, guard, active, report):
     """:func:`step_rows_parallel` on one thread."""
     for k in range(p_to.shape[0]):
         if active[k]:
             _step_row(k, grid, tubes, p_from, p_to, loads, mtip, params, work, states, records,
-                      memo, report)
+                      memo, guard, report)
 
 
 @njit(parallel=True)

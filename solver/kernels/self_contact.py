@@ -348,18 +348,62 @@ def may_touch(Z, grid, rest) -> bool:
     return False
 
 
+# Samples per chunk of :func:`far_parts_clear`'s bounding circles.
+CLEAR_CHUNK = 8
+
+
 @njit
-def smallest_far_gap(positions, s, half, exclusion):
-    """The smallest surface gap (m; negative: overlap) between backbone samples ``positions``
-    (N, 2) at arc lengths ``s`` (N,) with half-thicknesses ``half`` (N,), over the pairs
-    farther apart along the arc than ``exclusion`` (m); inf if there is none."""
-    gap = math.inf
-    for a in range(s.shape[0]):
-        for b in range(a + 1, s.shape[0]):
-            if abs(s[b] - s[a]) > exclusion:
-                d = math.hypot(positions[a, 0] - positions[b, 0], positions[a, 1] - positions[b, 1])
-                gap = min(gap, d - half[a] - half[b])
-    return gap
+def far_parts_clear(positions, s, half, exclusion, margin) -> bool:
+    """Whether every two backbone samples farther apart along the arc than ``exclusion`` (m)
+    are farther apart in space than their half-thicknesses plus ``margin`` (m): the surface
+    gap of every such pair exceeds ``margin``.
+
+    Runs of :data:`CLEAR_CHUNK` samples are bounded by circles: a pair of runs whose circles
+    lie apart by more than their largest half-thicknesses plus ``margin`` holds no closer pair,
+    and is not looked into (an arm that is not curled onto itself costs a few dozen circle
+    tests, not N² sample pairs).
+
+    Args:
+        positions: (N, 2) samples (m). s: (N,) their arc lengths (m). half: (N,) their
+            half-thicknesses (m).
+    """
+    n = s.shape[0]
+    m = (n + CLEAR_CHUNK - 1) // CLEAR_CHUNK
+    circles = np.empty((m, 6))  # centre x, y, radius, largest half, first and last arc length
+    for c in range(m):
+        lo, hi = c * CLEAR_CHUNK, min(n, (c + 1) * CLEAR_CHUNK)
+        x0 = x1 = positions[lo, 0]
+        y0 = y1 = positions[lo, 1]
+        biggest = half[lo]
+        for r in range(lo + 1, hi):
+            x0 = min(x0, positions[r, 0])
+            x1 = max(x1, positions[r, 0])
+            y0 = min(y0, positions[r, 1])
+            y1 = max(y1, positions[r, 1])
+            biggest = max(biggest, half[r])
+        circles[c, 0] = 0.5 * (x0 + x1)
+        circles[c, 1] = 0.5 * (y0 + y1)
+        circles[c, 2] = 0.5 * math.hypot(x1 - x0, y1 - y0)
+        circles[c, 3] = biggest
+        circles[c, 4] = s[lo]
+        circles[c, 5] = s[hi - 1]
+    for a in range(m):
+        for b in range(a, m):
+            if abs(circles[b, 5] - circles[a, 4]) <= exclusion and \
+                    abs(circles[a, 5] - circles[b, 4]) <= exclusion:
+                continue  # no pair of these runs is far enough apart along the arc
+            apart = math.hypot(circles[a, 0] - circles[b, 0], circles[a, 1] - circles[b, 1])
+            if apart - circles[a, 2] - circles[b, 2] - circles[a, 3] - circles[b, 3] > margin:
+                continue
+            for i in range(a * CLEAR_CHUNK, min(n, (a + 1) * CLEAR_CHUNK)):
+                first = i + 1 if a == b else b * CLEAR_CHUNK
+                for j in range(first, min(n, (b + 1) * CLEAR_CHUNK)):
+                    if abs(s[j] - s[i]) > exclusion:
+                        d = math.hypot(positions[i, 0] - positions[j, 0],
+                                       positions[i, 1] - positions[j, 1])
+                        if not d - half[i] - half[j] > margin:
+                            return False
+    return True
 
 
 @njit

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from solver import layout as L
-from solver.kernels.self_contact import smallest_far_gap
+from solver.kernels.self_contact import far_parts_clear
 from solver.paths.planar import solve_planar, solve_single
 from solver.paths.shooting import solve_shooting
 from solver.problem import Problem, contact_layout, reach
@@ -107,11 +107,11 @@ def solve_contact(problem: Problem, moving: bool = False) -> Equilibrium:
                   > reach(arm, packed, scene)):
             free = solve_planar(problem.in_scene(free_scene, warm_start))
             if clear_of_itself(arm, scene, free):
-                return _free_contact_result(free, scene)
+                return free_contact_result(free, scene)
         elif not moving and (warm_start is None or not warm_start.in_contact):
             free = solve_single(problem.in_scene(free_scene, warm_start), guard_discs=discs)
             if free.converged and free.stable and clear_of_itself(arm, scene, free):
-                return _free_contact_result(free, scene)
+                return free_contact_result(free, scene)
     return solve_shooting(problem, contact_layout(arm, packed, scene), load_moments=False,
                           moving=moving)
 
@@ -127,12 +127,11 @@ def clear_of_itself(arm, scene, eq) -> bool:
     half = np.array(arm.half_thickness())
     section = np.minimum(np.searchsorted(np.asarray(eq.section_ends), np.arange(eq.s.size)),
                          half.size - 1)
-    gap = smallest_far_gap(np.ascontiguousarray(eq.positions), eq.s, half[section],
-                           self_contact_exclusion(half))
-    return bool(gap > float(np.max(np.diff(eq.s))))
+    return bool(far_parts_clear(np.ascontiguousarray(eq.positions), eq.s, half[section],
+                                self_contact_exclusion(half), float(np.max(np.diff(eq.s)))))
 
 
-def _free_contact_result(eq, scene):
+def free_contact_result(eq, scene):
     """A contact-free equilibrium as the result of a solve in ``scene`` (zero contact)."""
     n = eq.positions.shape[0]
     return replace(eq, scene=scene, contact_force=np.zeros((n, 2)), penetration=np.zeros(n))

@@ -13,7 +13,7 @@ from solver.kernels import contact as contact_kernels
 from solver.kernels import planar as planar_kernels
 from solver.kernels import relax as relax_kernels
 from solver.kernels.grid import section_needs
-from solver.kernels.self_contact import smallest_far_gap
+from solver.kernels.self_contact import far_parts_clear
 from solver.paths.grid import section_rows
 from solver.problem import Problem, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
@@ -258,7 +258,7 @@ def _clear_of_itself(record, layout, sp):
     if sp[L.SC_K] <= 0:
         return True
     half = np.repeat(sp[L.SC_HALF:], layout.sec_steps + 1)
-    return smallest_far_gap(record[:, [L.X, L.Y]], record[:, L.S], half, sp[L.SC_EXCLUSION]) > 0.0
+    return far_parts_clear(record[:, [L.X, L.Y]], record[:, L.S], half, sp[L.SC_EXCLUSION], 0.0)
 
 
 # Penalty stages (log-spaced, from a thousandth to the full stiffness) that bring a snapped
@@ -386,9 +386,16 @@ def _shooting_result(nodes, scene, grid, layout, level, **fields):
     """The Equilibrium of a multiple-shooting state ``nodes`` at ``level`` (a level tuple,
     ``L_*``; ``grid`` its layout tuple): the backbone integrated from the nodes, with the
     contact fields if the scene has obstacles or self-contact."""
-    contact = scene.has_contact
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
     contact_kernels.record_backbone(nodes, grid, _level_rest(layout, level), level, out)
+    return shooting_equilibrium(out, nodes, scene, layout, **fields)
+
+
+def shooting_equilibrium(out, nodes, scene, layout, **fields) -> Equilibrium:
+    """The Equilibrium of the multiple-shooting state ``nodes`` on ``layout`` whose backbone
+    ``out`` (rows, C_COLUMNS) records (its arrays copied), with the contact fields if the
+    scene has obstacles or self-contact; ``fields`` the solve's flags and inputs."""
+    contact = scene.has_contact
     common = dict(tip=out[-1, [L.C_X, L.C_Y]].copy(), planar=True, scene=scene,
                   base_moment=np.array([nodes[2]]), base_force=nodes[:2].copy(),
                   shooting_nodes=nodes, in_contact=bool(contact and out[:, L.C_PEN].max() > 0.0),

@@ -1,0 +1,373 @@
+"""The steppers' lean paths in scenes with contact: what n copies of one arm keep between
+steps so that a warm step is one kernel call (:mod:`solver.kernels.stepping`).
+
+The general path of such a step (:func:`solver.paths.contact.solve_contact`) builds the
+contact layout, the level tuples, the norms' weights and the start state's Jacobian anew at
+every call and follows the quasi-static path from the warm start by continuation; a step of
+an environment is a small move from the last equilibrium. :class:`ContactRows` builds the
+fixed parts once and keeps each copy's state on the grid it lives on — the settings' grid
+for a state that touches nothing (stepped by the lean planar kernel, guarded), the contact
+layout for one that came from the contact paths (its nodes, level, factored Jacobian and
+backbone) — and the kernel takes the step from there, or says it cannot, and the caller's
+general path takes it from the same state (docs/design.md §10). :class:`solver.Stepper`
+keeps one copy, :class:`solver.BatchStepper` n of them: one kernel, the same numbers.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from solver import layout as L
+from solver.kernels import contact as contact_kernels
+from solver.kernels import stepping
+from solver.paths.contact import free_contact_result
+from solver.paths.grid import section_rows
+from solver.paths.planar import not_lean, single_result
+from solver.paths.shooting import shooting_equilibrium, shooting_grid, shooting_params
+from solver.problem import Problem, contact_layout, shooting_terms
+from solver.results import Equilibrium
+from solver.rod import forget_first_variations, planar_rest_gradient, rest_strains_into
+from solver.scene import Scene, self_contact_exclusion
+
+# Where a copy with fewer obstacles than the most keeps its unused disc rows: so far away
+# that no sample comes near one (its force is an exact zero, it never sets a step's
+# refinement or a tunnel).
+FAR = 1e6
+
+# The kernels' path codes.
+PATHS = {int(stepping.PATH_LEAN): "lean", int(stepping.PATH_CONTACT): "lean contact"}
+
+
+def lean_contact_reason(problem: Problem) -> str | None:
+    """Why steppers in this problem's scene cannot take lean steps with contact (None:
+    they can): planar penalty contact (discs, self-contact) of a loaded arm with channels
+    that single shooting suits, on the full or unshearable model."""
+    scene = problem.scene
+    if not problem.planar:
+        return "a spatial solve (planar=False)"
+    if not scene.has_contact:
+        return "a scene without obstacles or self-contact"
+    if scene.has_rigid_obstacles or scene.self_contact == math.inf:
+        return "rigid contact (penalty continuation)"
+    return not_lean(problem.in_scene(scene.without_contact))
+
+
+def record_from_equilibrium(eq: Equilibrium, packed, rec, rest, grad) -> None:
+    """Write a recorded planar equilibrium on the settings' grid into a lean-path record
+    ``rec`` (N, N_COLUMNS), with its rest strains ``rest`` (3, ns) and the predictor's
+    gradient ``grad`` (2, ns)."""
+    rec[:, L.S] = eq.s
+    rec[:, L.X:L.Y + 1] = eq.positions
+    rec[:, L.THETA] = eq.angles
+    rec[:, L.M] = eq.internal_moment
+    rec[:, L.NX:L.NY + 1] = eq.internal_force
+    rec[:, L.V1:L.V3 + 1] = eq.shear_stretch
+    rec[:, L.U] = eq.curvature
+    forget_first_variations(rec)  # as a record Newton returns
+    rest_strains_into(eq.channel_pressures, packed.tubes_i, packed.tubes_f, packed.secf, rest)
+    planar_rest_gradient(rec, packed.secf, packed.sec_steps, rest, grad)
+
+
+def _fixed_parts(problem: Problem) -> tuple:
+    """What :class:`ContactRows` needs of an arm and a scene law whatever the obstacles'
+    places: the contact layout and its context, segments and layout tuple, the level's loads
+    (endplates, tip target), the norms' weights, and the self-contact guard (half-thickness
+    per sample of the settings' grid, exclusion)."""
+    arm, packed, scene = problem.arm, problem.packed, problem.scene
+    layout, segs, sec_start = contact_layout(arm, packed, scene)
+    c_ctx = problem.on(layout).ctx
+    plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, c_ctx, False)
+    if scene.self_contact is None:
+        half, exclusion = np.empty(0), 0.0
+    else:
+        thick = np.array(arm.half_thickness())
+        section = np.minimum(np.searchsorted(np.asarray(packed.section_ends),
+                                             np.arange(packed.n_rows)), thick.size - 1)
+        half, exclusion = thick[section], self_contact_exclusion(thick)
+    grid = shooting_grid(arm, scene, layout, segs, sec_start)
+    return layout, c_ctx, segs, grid, plate, target, weights, res_weights, half, exclusion
+
+
+class ContactRows:
+    """The lean paths of n copies of one arm, model and scene law (gravity, payload,
+    mounting, penalty stiffness, self-contact), each copy with obstacles of its own.
+
+    Args:
+        problem: a request in the template scene (its pressures and warm start unused);
+            its obstacles are every copy's until :meth:`set_scene`.
+        n: copies. max_obstacles: the most obstacles a copy may hold.
+
+    Attributes:
+        scenes: (n,) each copy's scene.
+        section_ends, contact_section_ends: the records' rows at the section ends, on the
+            settings' grid and on the contact layout.
+    """
+
+    def __init__(self, problem: Problem, n: int, max_obstacles: int):
+        reason = lean_contact_reason(problem)
+        if reason is not None:
+            raise ValueError(f"no lean contact path for {reason}")
+        arm, packed, scene, settings = problem.arm, problem.packed, problem.scene, problem.settings
+        self._problem = problem
+        self.n = n
+        self.max_obstacles = max_obstacles
+        self.scenes = [scene] * n
+        ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
+        ctx = problem.ctx
+        self.section_ends = packed.section_ends
+        # What does not depend on the obstacles' places is built once per arm and law.
+        law = (scene.without_contact, scene.self_contact,
+               scene.obstacles[0].stiffness if scene.obstacles else None)
+        layout, c_ctx, _, grid, plate, target, weights, res_weights, half, exclusion = \
+            arm._solver_cache.get(("lean contact", packed.key, law), lambda: _fixed_parts(problem))
+        self.layout = layout
+        self.contact_section_ends = layout.section_ends
+        n_nodes = weights.shape[0]
+        free = [None] * stepping.N_FREE
+        free[stepping.FR_THETA0] = scene.base_theta
+        free[stepping.FR_SECF], free[stepping.FR_STEPS] = packed.secf, packed.sec_steps
+        free[stepping.FR_TUBES_I], free[stepping.FR_TUBES_F] = packed.tubes_i, packed.tubes_f
+        free[stepping.FR_LOADS], free[stepping.FR_M_TIP] = ctx.loads, ctx.m_tip
+        free[stepping.FR_PARAMS] = ctx.params
+        free[stepping.FR_STATES] = np.zeros((n, 4))
+        free[stepping.FR_RECORDS] = np.zeros((n, packed.n_rows, L.N_COLUMNS))
+        free[stepping.FR_SCRATCH] = np.zeros((n, packed.n_rows, L.N_COLUMNS))
+        free[stepping.FR_REST] = np.empty((n, 3, ns))
+        free[stepping.FR_P_NOW] = np.empty((n, nc))
+        free[stepping.FR_LOADS_NOW] = np.empty((n, ns, 4))
+        free[stepping.FR_P_SEEN] = np.full((n, n_tubes), np.nan)
+        free[stepping.FR_STRETCH] = np.empty((n, n_tubes))
+        free[stepping.FR_REST_A] = np.empty((n, 3, ns))
+        free[stepping.FR_GRAD] = np.full((n, 2, ns), np.nan)
+        free[stepping.FR_HALF], free[stepping.FR_EXCLUSION] = half, exclusion
+        free[stepping.FR_OK] = np.zeros(n, dtype=bool)
+        m = n_nodes if scene.self_contact is not None else 0  # the full Jacobian of touching parts
+        contact = [None] * stepping.N_CONTACT
+        (contact[stepping.CT_THETA0], contact[stepping.CT_SEGS], contact[stepping.CT_SECF],
+         contact[stepping.CT_STEPS], contact[stepping.CT_START], contact[stepping.CT_SELF]) = grid
+        contact[stepping.CT_PARAMS] = shooting_params(scene, settings)
+        contact[stepping.CT_WEIGHTS], contact[stepping.CT_RES_WEIGHTS] = weights, res_weights
+        contact[stepping.CT_NODES] = np.zeros((n, n_nodes))
+        contact[stepping.CT_P] = np.zeros((n, max(nc, 1)))
+        contact[stepping.CT_Q], contact[stepping.CT_PLATE] = c_ctx.q, plate
+        contact[stepping.CT_TARGET] = target
+        contact[stepping.CT_DISCS] = np.zeros((n, max_obstacles, 4))
+        contact[stepping.CT_REST] = np.empty((n, 3, ns))
+        contact[stepping.CT_LU] = np.empty((n, contact_kernels.BAND_ROWS, n_nodes))
+        contact[stepping.CT_PIV] = np.empty((n, n_nodes), dtype=np.int64)
+        contact[stepping.CT_DENSE] = np.empty((n, m, m))
+        contact[stepping.CT_DENSE_PIV] = np.empty((n, m), dtype=np.int64)
+        contact[stepping.CT_FLAGS] = np.zeros((n, 1), dtype=np.int64)
+        contact[stepping.CT_RECORDS] = np.zeros((n, layout.n_rows, L.C_COLUMNS))
+        contact[stepping.CT_SCRATCH] = np.zeros((n, layout.n_rows, L.C_COLUMNS))
+        contact[stepping.CT_CHECK_Q] = layout.mass_per_length * scene.gravity
+        contact[stepping.CT_CHECK_ENDS] = section_rows(layout.section_ends)
+        contact[stepping.CT_OK] = np.zeros(n, dtype=bool)
+        contact[stepping.CT_TOUCHING] = np.zeros(n, dtype=bool)
+        self.free, self.contact = tuple(free), tuple(contact)
+        self._flags = np.zeros((n, 5))
+        # Every array with a row per copy (what copy_rows copies).
+        self._per_copy = [free[i] for i in range(stepping.FR_STATES, stepping.FR_HALF)]
+        self._per_copy += [free[stepping.FR_OK], self._flags]
+        self._per_copy += [contact[i] for i in (stepping.CT_NODES, stepping.CT_P, stepping.CT_DISCS)]
+        self._per_copy += [contact[i] for i in range(stepping.CT_REST, stepping.CT_CHECK_Q)]
+        self._per_copy += [contact[stepping.CT_OK], contact[stepping.CT_TOUCHING]]
+        for k in range(n):
+            self.set_scene(k, scene)
+
+    # ------------------------------------------------------------------ copies
+
+    def set_scene(self, k: int, scene: Scene) -> None:
+        """Give copy k the obstacles of ``scene`` (the template's law; checked by the
+        caller). Its state is not changed: adopt one solved in that scene next."""
+        discs = scene.discs_array()
+        if discs.shape[0] > self.max_obstacles:
+            raise ValueError(f"copy {k}: {discs.shape[0]} obstacles, more than the "
+                             f"{self.max_obstacles} this batch holds")
+        rows = self.contact[stepping.CT_DISCS][k]
+        rows[:] = (FAR, FAR, 0.0, 0.0)
+        rows[:discs.shape[0]] = discs
+        self.scenes[k] = scene
+
+    def adopt(self, k: int, eq: Equilibrium) -> None:
+        """Make ``eq`` (solved in copy k's scene, with a record) copy k's state, as the
+        general path left it: on the contact layout if it lies there (converged and stable),
+        and — unless it touches — its record on the settings' grid for the contact-free
+        step, which tries first from a state that touches nothing."""
+        free, contact = self.free, self.contact
+        free[stepping.FR_OK][k] = contact[stepping.CT_OK][k] = contact[stepping.CT_TOUCHING][k] = False
+        self._flags[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
+        nodes = contact[stepping.CT_NODES][k]
+        record = contact[stepping.CT_RECORDS][k]
+        if eq.converged and eq.stable and eq.shooting_nodes.shape == nodes.shape:
+            nodes[:] = eq.shooting_nodes
+            p_level = contact[stepping.CT_P][k]
+            p_level[:] = eq.channel_pressures
+            rest = contact[stepping.CT_REST][k]
+            layout = self.layout
+            rest_strains_into(p_level, layout.tubes_i, layout.tubes_f, layout.secf, rest)
+            level = (p_level, contact[stepping.CT_Q], contact[stepping.CT_PLATE],
+                     contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k])
+            factors = tuple(contact[i][k] for i in range(stepping.CT_LU, stepping.CT_FLAGS + 1))
+            grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
+            blocks = np.empty((contact[stepping.CT_SEGS].shape[0], 6, 6))
+            if contact_kernels.factor_state(nodes, grid, rest, level, contact[stepping.CT_WEIGHTS],
+                                            np.empty_like(nodes), blocks, record, factors):
+                contact[stepping.CT_OK][k] = True
+                contact[stepping.CT_TOUCHING][k] = stepping.touches(record)
+                if contact[stepping.CT_TOUCHING][k]:
+                    return
+        packed = self._problem.packed
+        if eq.s.size == packed.n_rows:
+            record_from_equilibrium(eq, packed, free[stepping.FR_RECORDS][k],
+                                    free[stepping.FR_REST_A][k], free[stepping.FR_GRAD][k])
+            free[stepping.FR_STATES][k, 0] = eq.base_moment[-1]
+        elif contact[stepping.CT_OK][k]:
+            stepping.free_record_of(record, float(eq.base_moment[-1]), eq.channel_pressures, free, k)
+        else:
+            return
+        free[stepping.FR_OK][k] = True
+
+    def copy_rows(self, src: int, dst) -> None:
+        """Copies ``dst`` take copy ``src``'s scene and state."""
+        for k in dst:
+            self.scenes[k] = self.scenes[src]
+        for array in self._per_copy:
+            array[dst] = array[src]
+
+    def backbones(self) -> np.ndarray:
+        """(n, N, N_COLUMNS) every copy's record on the settings' grid, with the columns S …
+        U of the copies on the contact layout copied in (the two grids must have the same
+        rows)."""
+        records = self.free[stepping.FR_RECORDS]
+        crecords = self.contact[stepping.CT_RECORDS]
+        if crecords.shape[1] != records.shape[1]:
+            raise ValueError(f"the contact layout has {crecords.shape[1]} rows, the settings' grid "
+                             f"{records.shape[1]}: backbones on one grid need a contact stiffness "
+                             f"whose decay length the settings' steps resolve")
+        out = records.copy()
+        on = self.contact[stepping.CT_OK]
+        out[on, :, L.S:L.U + 1] = crecords[on, :, L.S:L.U + 1]
+        return out
+
+    @property
+    def free_records(self) -> np.ndarray:
+        """(n, rows, N_COLUMNS) the copies' records on the settings' grid."""
+        return self.free[stepping.FR_RECORDS]
+
+    def pass_costs(self, k: int, repeats: int) -> dict:
+        """What one pass over copy k's contact state costs: a residual pass and a pass with
+        the Jacobian (seconds, the median of ``repeats``), the unknowns, the RK4 rows and the
+        fraction of them refined near a disc (a profile's figures; the state is untouched)."""
+        contact = self.contact
+        if not contact[stepping.CT_OK][k]:
+            raise ValueError(f"copy {k} is not on the contact layout")
+        grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
+        nodes = contact[stepping.CT_NODES][k].copy()
+        level = (contact[stepping.CT_P][k], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
+                 contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k])
+        rest = np.empty_like(contact[stepping.CT_REST][k])
+        rest_strains_into(level[L.L_P], self.layout.tubes_i, self.layout.tubes_f, self.layout.secf,
+                          rest)
+        F = np.empty_like(nodes)
+        J = np.empty((contact_kernels.BAND_ROWS, nodes.size))
+        blocks = np.empty((contact[stepping.CT_SEGS].shape[0], 6, 6))
+        partners = contact_kernels.new_partners(grid)
+        seconds = {}
+        for name, jacobian in (("residual_pass_s", False), ("jacobian_pass_s", True)):
+            times = []
+            for _ in range(repeats + 1):
+                start = time.perf_counter()
+                contact_kernels.newton_system(nodes, grid, rest, level, F, J, jacobian, blocks, partners)
+                times.append(time.perf_counter() - start)
+            seconds[name] = float(np.median(times[1:]))  # (the first may load the kernel)
+        record = contact[stepping.CT_RECORDS][k]
+        discs = level[L.L_DISCS]
+        gap = np.min(np.hypot(record[:, L.C_X, None] - discs[None, :, L.CX],
+                              record[:, L.C_Y, None] - discs[None, :, L.CY]) - discs[None, :, L.RADIUS],
+                     axis=1)
+        h = (self.layout.sec_len / self.layout.sec_steps)[np.minimum(
+            np.searchsorted(np.asarray(self.layout.section_ends), np.arange(record.shape[0])),
+            len(self.layout.sec_steps) - 1)]
+        speed = np.hypot(record[:, L.C_V1], record[:, L.C_V3])
+        return {**seconds, "unknowns": int(nodes.size), "rows": int(record.shape[0]),
+                "refined_fraction": float(np.mean(gap - h * speed < h))}
+
+    def contact_measures(self) -> np.ndarray:
+        """(n, 2) every copy's deepest penetration (m) and total contact force (N)
+        (:func:`solver.kernels.stepping.measure_contact`)."""
+        out = np.zeros((self.n, 2))
+        stepping.measure_contact(self.contact[stepping.CT_RECORDS], self.contact[stepping.CT_OK], out)
+        return out
+
+    def ready(self, k: int) -> bool:
+        """Whether copy k has a state the lean paths can step from."""
+        return bool(self.free[stepping.FR_OK][k] or self.contact[stepping.CT_OK][k])
+
+    def on_contact_layout(self, k: int) -> bool:
+        """Whether copy k's state lies on the contact layout."""
+        return bool(self.contact[stepping.CT_OK][k])
+
+    def record(self, k: int) -> np.ndarray:
+        """Copy k's record: on the contact layout (rows, C_COLUMNS) or the settings' grid
+        (rows, N_COLUMNS); columns S … U are the same either way (a view)."""
+        if self.contact[stepping.CT_OK][k]:
+            return self.contact[stepping.CT_RECORDS][k]
+        return self.free[stepping.FR_RECORDS][k]
+
+    def step(self, p_from: np.ndarray, p_to: np.ndarray, active: np.ndarray, run) -> np.ndarray:
+        """Warm steps of the ``active`` copies from the channel pressures ``p_from`` to
+        ``p_to`` (n, n_channels) by the lean paths; ``run`` calls the parallel or the serial
+        kernel (a :meth:`ThreadPolicy.run`-like callable, or None: serial).
+
+        Returns:
+            (n, 6) report rows (converged, stable, snapped, iterations, residual, path code
+            of :data:`PATHS`); an unconverged row kept its state (the general path's turn).
+        """
+        report = np.zeros((self.n, 6))
+        args = (self.free, self.contact, p_from, p_to, active, report)
+        if run is None:
+            stepping.contact_rows_serial(*args)
+        else:
+            run(stepping.contact_rows_parallel, stepping.contact_rows_serial, int(active.sum()), *args)
+        done = report[:, 0] != 0.0
+        self._flags[done] = report[done, :5]
+        return report
+
+    def step_moved(self, k: int, p_channel: np.ndarray, scene: Scene) -> np.ndarray:
+        """The lean contact step of copy k (a state on the contact layout) to the channel
+        pressures ``p_channel`` with its discs moved to those of ``scene`` (the same count
+        and law): an object the arm holds, moved quasi-statically. Returns the report row
+        (as :meth:`step`'s); on success the copy's scene is ``scene``."""
+        report = np.zeros((self.n, 6))
+        discs = np.full((self.max_obstacles, 4), (FAR, FAR, 0.0, 0.0))
+        given = scene.discs_array()
+        discs[:given.shape[0]] = given
+        p_to = np.zeros_like(self.contact[stepping.CT_P])
+        p_to[k] = p_channel
+        stepping.moved_contact_row(k, self.free, self.contact, p_to, discs, report)
+        if report[k, 0]:
+            self.scenes[k] = scene
+            self._flags[k] = report[k, :5]
+        return report[k]
+
+    def equilibrium(self, k: int, pressures: np.ndarray, channel_pressures: np.ndarray) -> Equilibrium:
+        """Copy k's state as the Equilibrium the general path returns for it (arrays copied)."""
+        converged, stable, snapped, iterations, residual = self._flags[k]
+        flags = dict(converged=bool(converged), stable=bool(stable), snapped=bool(snapped),
+                     iterations=int(iterations), residual=float(residual))
+        problem = self._problem.in_scene(self.scenes[k]).with_inputs(
+            np.array(pressures, dtype=float), np.array(channel_pressures, dtype=float))
+        if self.contact[stepping.CT_OK][k]:
+            return shooting_equilibrium(self.contact[stepping.CT_RECORDS][k],
+                                        self.contact[stepping.CT_NODES][k].copy(),
+                                        self.scenes[k], self.layout, model=problem.model,
+                                        pressures=problem.p_inputs,
+                                        channel_pressures=problem.p_channel, arm=problem.arm,
+                                        **flags)
+        eq = single_result(problem, self.free[stepping.FR_RECORDS][k].copy(),
+                           self.free[stepping.FR_STATES][k, 0], **flags)
+        return free_contact_result(eq, self.scenes[k])

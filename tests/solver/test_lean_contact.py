@@ -1,0 +1,123 @@
+"""The stepper's lean contact path (:mod:`solver.paths.lean_contact`) and its guarded
+contact-free steps, against the friendly API they shortcut.
+
+Oracle: ``solve(arm, p, scene, warm_start=previous)``, which builds the contact layout and
+levels anew and follows the quasi-static path by continuation. A step must land on the same
+equilibrium to the solver's tolerance on every path the stepper takes — lean contact, guarded
+lean, general — and the walks below must take each of them.
+"""
+
+import numpy as np
+import pytest
+
+import solver
+from solver import PSI, designs
+from solver import layout as L
+
+K_TUBE = designs.octarm_v().tubes[0].material.ring_stiffness
+
+
+def curl_walk(arm, n, seed, scale=0.1, drift=0.03):
+    """n pressures: a random walk of ``scale``·p_max per input that drifts towards channel
+    I of every section (curls the arm one way, onto what lies on that side)."""
+    rng = np.random.default_rng(seed)
+    k = arm.n_inputs(True)
+    toward = np.zeros(k)
+    toward[::2] = drift
+    p = [np.zeros(k)]
+    for _ in range(n - 1):
+        step = rng.uniform(-scale, scale, k) + toward
+        p.append(np.clip(p[-1] + step * arm.max_pressure, 0.0, arm.max_pressure))
+    return p
+
+
+# (base angle, scene arguments, walk step, walk drift)
+SCENES = {
+    # The hanging arm curling onto a disc beside it (the wrap task's geometry).
+    "wrap": (0.0, dict(obstacles=(solver.Disc((0.16, -0.55), 0.13, K_TUBE),)), 0.1, 0.03),
+    # A horizontal arm bending onto two discs (obstacle reach), one of a stiffer penalty.
+    "obstacles": (90.0, dict(obstacles=(solver.Disc((0.2, -0.45), 0.07, 1e6),
+                                        solver.Disc((0.45, -0.75), 0.05, K_TUBE))), 0.1, 0.03),
+    # Curled onto itself (self-contact, the full Jacobian of touching parts), past a disc.
+    "self": (13.44, dict(obstacles=(solver.Disc((0.1, -0.3), 0.04, K_TUBE),),
+                         self_contact=K_TUBE), 0.05, 0.05),
+}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_contact_steps_equal_warm_solves(name):
+    base, kwargs, scale, drift = SCENES[name]
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=base, **kwargs)
+    stepper = solver.Stepper(arm, scene)
+    assert stepper.lean and stepper.lean_contact
+    pressures = curl_walk(arm, 45, seed=7, scale=scale, drift=drift)
+    stepper.reset(pressures[0])
+    eq = stepper.equilibrium
+    paths = []
+    for p in pressures[1:]:
+        report = stepper.step(p)
+        paths.append(stepper.last_path)
+        ref = solver.solve(arm, p, scene, warm_start=eq)
+        assert report.converged == ref.converged
+        if not report.converged:
+            continue
+        got = stepper.equilibrium
+        np.testing.assert_allclose(stepper.tip, ref.tip, atol=1e-9)
+        np.testing.assert_allclose(got.positions, ref.positions, atol=1e-9)
+        np.testing.assert_allclose(got.penetration, ref.penetration, atol=1e-10)
+        np.testing.assert_allclose(got.contact_force, ref.contact_force, atol=1e-5)
+        assert (got.in_contact, got.stable) == (ref.in_contact, ref.stable)
+        np.testing.assert_array_equal(stepper.record[:, L.C_X:L.C_Y + 1], got.positions)
+        eq = got
+    assert {"lean", "lean contact"} <= set(paths), paths
+
+
+def test_contact_record_columns_are_the_planar_record_columns():
+    """What reads a planar record's backbone (the envs' true observations) reads a contact
+    record's: the columns s … u share their places."""
+    assert (L.C_S, L.C_X, L.C_Y, L.C_TH, L.C_M, L.C_NX, L.C_NY, L.C_V1, L.C_V3, L.C_U) == (
+        L.S, L.X, L.Y, L.THETA, L.M, L.NX, L.NY, L.V1, L.V3, L.U)
+
+
+def test_a_failed_lean_contact_step_leaves_the_state_and_the_general_path_takes_it():
+    """A jump across the pressure range from a state in contact (a snap the lean step
+    cannot take): the general path takes it from the same state, as solve() does."""
+    arm = designs.octarm_v()
+    base, kwargs, _, _ = SCENES["wrap"]
+    scene = solver.Scene(base_angle_deg=base, **kwargs)
+    stepper = solver.Stepper(arm, scene)
+    pressures = curl_walk(arm, 30, seed=7)
+    stepper.reset(pressures[0])
+    for p in pressures[1:]:
+        stepper.step(p)
+    assert stepper.last_path == "lean contact"
+    start = stepper.equilibrium
+    jump = np.array([0, 100, 0, 100, 0, 100]) * PSI
+    report = stepper.step(jump)
+    assert stepper.last_path == "general"
+    ref = solver.solve(arm, jump, scene, warm_start=start)
+    assert report.converged == ref.converged
+    np.testing.assert_allclose(stepper.tip, ref.tip, atol=1e-9)
+
+
+def test_a_pickled_contact_stepper_steps_as_the_original():
+    """Pickling keeps the lean contact state: the copy's next steps are the original's."""
+    import pickle
+
+    base, kwargs, scale, drift = SCENES["wrap"]
+    arm = designs.octarm_v()
+    stepper = solver.Stepper(arm, solver.Scene(base_angle_deg=base, **kwargs))
+    pressures = curl_walk(arm, 45, seed=7, scale=scale, drift=drift)
+    stepper.reset(pressures[0])
+    k = 1
+    while stepper.last_path != "lean contact":
+        stepper.step(pressures[k])
+        k += 1
+    copy = pickle.loads(pickle.dumps(stepper))
+    np.testing.assert_array_equal(copy.tip, stepper.tip)
+    for p in pressures[k:]:
+        a, b = stepper.step(p), copy.step(p)
+        assert a == b and copy.last_path == stepper.last_path
+        np.testing.assert_array_equal(copy.tip, stepper.tip)
+        np.testing.assert_array_equal(copy.record, stepper.record)
