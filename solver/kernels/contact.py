@@ -304,20 +304,35 @@ def _prepare_partners(Z, grid, rest, level, partners):
     for i in range(grid[G_STEPS].shape[0]):
         rows += grid[G_STEPS][i] + 1
     record = np.empty((rows, C_COLUMNS))
+    states = np.empty((pts.shape[1], 6))
     for _ in range(GEOMETRY_PASSES):
         for seg in range(n_seg):
             _start_state(Z, seg, theta0, za)
             _segment(za, seg, grid, rest, level, zb, work, True, record, no_tangent, tw,
                      partners)
             first = segs[seg, SEG_ROW0] + segs[seg, SEG_FIRST]
+            nst = segs[seg, SEG_STEPS]
+            _record_states(record, first, nst + 1, states)
             if segs[seg, SEG_END] == 1:  # before the endplate's weight
-                for d in range(6):
-                    zb[d] = record[first + segs[seg, SEG_STEPS], C_X + d]
+                zb[:] = states[nst]
             if seg < n_seg - 1:
                 _start_state(Z, seg + 1, theta0, za)
-            trace_piece(seg, record[first:, C_X:C_X + 6], zb, za, grid, rest, level, loads, pts,
-                        bounds)
+            trace_piece(seg, states, zb, za, grid, rest, level, loads, pts, bounds)
         self_loads(grid, rest, pts, bounds, loads, _reuse(pts, segs))
+
+
+@njit
+def _record_states(record, first, n, states):
+    """The states (x, y, θ, n_x, n_y, m) of the ``n`` record rows from ``first`` into
+    ``states`` (≥ n, 6): the record keeps them in other columns (solver.layout, C_*)."""
+    for j in range(n):
+        row = first + j
+        states[j, 0] = record[row, C_X]
+        states[j, 1] = record[row, C_Y]
+        states[j, 2] = record[row, C_TH]
+        states[j, 3] = record[row, C_NX]
+        states[j, 4] = record[row, C_NY]
+        states[j, 5] = record[row, C_M]
 
 
 @njit

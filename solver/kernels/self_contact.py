@@ -239,7 +239,7 @@ def build_piece(za, zb, seg, grid, rest, level, pts, bounds):
 @njit
 def trace_piece(seg, states, end, target, grid, rest, level, loads, pts, bounds):
     """The piece of segment ``seg`` from the segment integrated with the self-contact loads
-    ``loads``: its RK4 nodes' states ``states`` (n + 1, ≥ 6) (x, y, θ, n_x, n_y, m), each
+    ``loads``: its RK4 nodes' states ``states`` (≥ n + 1, 6) (x, y, θ, n_x, n_y, m), each
     after its node's load (the base node: before it), the last one ``end`` (6,) — plus, where
     the segment does not end at the tip, the quintic Hermite correction that takes the
     integrated end (before its node's load) to the next segment's start ``target`` (6,)
