@@ -12,6 +12,10 @@ compare trees measured in one run, never runs with each other.
 
     python -m softarm_gym.benchmarks.self_contact_bench --against ../old-checkout \\
         --out docs/bench/self_contact.json
+
+``--reach-cost`` instead times warm ``OctArmReach-v1`` steps with ``self_contact=True``
+against without, side by side in one process (:func:`reach_cost`); ``--penetration`` the
+sampled and peak penetration of contact scenes (:func:`penetration`).
 """
 
 from __future__ import annotations
@@ -19,10 +23,12 @@ from __future__ import annotations
 import argparse
 import inspect
 import json
+import math
 import os
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +92,77 @@ def measure(scenes: dict, accuracy: bool) -> dict:
     return out
 
 
+def reach_cost(rounds: int = 7, steps: int = 300) -> dict:
+    """Warm ``OctArmReach-v1`` steps with ``self_contact=True`` against without, side by side
+    in this process: both envs take the same seeded random actions in blocks of ``steps``,
+    in turns, ``rounds`` times (after a warm-up block each). Returns the per-block µs per
+    step of each and the ratio of their medians."""
+    import gymnasium as gym
+
+    import softarm_gym  # noqa: F401  (registers the ids)
+
+    envs = {on: gym.make("SoftArm/OctArmReach-v1", self_contact=on) for on in (False, True)}
+
+    def block(env, seed, n):
+        env.reset(seed=seed)
+        actions = np.random.default_rng(seed).uniform(-1.0, 1.0, (n, *env.action_space.shape))
+        start = time.perf_counter()
+        for action in actions.astype(np.float32):
+            if any(env.step(action)[2:4]):
+                env.reset()
+        return 1e6 * (time.perf_counter() - start) / n
+
+    for env in envs.values():
+        block(env, rounds, 50)
+    us = {on: [] for on in envs}
+    for r in range(rounds):
+        for on, env in envs.items():
+            us[on].append(block(env, r, steps))
+    free, touching = float(np.median(us[False])), float(np.median(us[True]))
+    return {"free_us": us[False], "self_contact_us": us[True], "free_median_us": free,
+            "self_contact_median_us": touching, "ratio": touching / free}
+
+
+def penetration() -> dict:
+    """Per scene of tests/solver/test_penetration.py, and two rigid discs at the default
+    ``gap_tol``: the sampled depth and the peak between samples at the default resolution,
+    and a 512-step solve's sampled depth (the rigid discs' at the penalty the default solve
+    ended with), in m."""
+    import solver
+
+    arm = solver.designs.octarm_v()
+    rod = solver.designs.rod(length=1.0, EI=1.0, EA=1e3, GA=1e3, GJ=0.7)
+    pushed = dict(base_angle_deg=90, gravity=0.0, tip_force=(0.0, -3.0, 0.5))
+    small, curl = (0.07, -0.70, 0.05), (-0.16, -0.062, 0.15)
+    last = np.array([0, 0, 0, 0, 0, 100]) * solver.PSI
+    all_i = np.array([100, 0, 100, 0, 100, 0]) * solver.PSI
+
+    def disc(where, k):
+        return solver.Scene(obstacles=(solver.Disc(where[:2], where[2], k),))
+
+    cases = {  # name: (arm, pressures, scene, planar, rigid)
+        "disc": (arm, last, disc(small, 2e4), True, False),
+        "disc_in_3d": (arm, solver.channel_pressures(arm, last), disc(small, 2e4), False, False),
+        "sphere": (rod, np.zeros(rod.n_inputs(False)), solver.Scene(**pushed, obstacles=(
+            solver.Sphere((0.7, -0.3, 0.12), 0.2, 2e3),)), False, False),
+        "cylinder": (rod, np.zeros(rod.n_inputs(False)), solver.Scene(**pushed, obstacles=(
+            solver.Cylinder((0.6, -0.3, 0.0), (1.0, 0.3, 1.0), 0.15, 2e3),)), False, False),
+        "rigid_disc_small_patch": (arm, last, disc(small, math.inf), True, True),
+        "rigid_disc_full_curl": (arm, all_i, disc(curl, math.inf), True, True),
+    }
+    out = {}
+    for name, (body, p, scene, planar, rigid) in cases.items():
+        eq = solver.solve(body, p, scene, planar=planar)
+        if rigid:
+            scene = disc(small if "small" in name else curl, eq.penalty_stiffness)
+        fine = solver.solve(body, p, scene, planar=planar,
+                            settings=solver.Settings(steps_per_section=512))
+        out[name] = {"samples": float(eq.penetration.max()), "peak": float(eq.peak_penetration),
+                     "fine_samples": float(fine.penetration.max()),
+                     "converged": bool(eq.converged and fine.converged)}
+    return out
+
+
 def _run(tree: Path, scenes: dict, accuracy: bool) -> dict:
     """:func:`measure` in a fresh process importing ``tree``'s ``solver``."""
     code = textwrap.dedent(inspect.getsource(measure)) + (
@@ -143,9 +220,29 @@ def main(argv=None) -> int:
                         help="another checkout to measure side by side (repeatable)")
     parser.add_argument("--rounds", type=int, default=2, help="turns each tree takes (2)")
     parser.add_argument("--out", type=Path, help="write the result as JSON here")
+    parser.add_argument("--reach-cost", action="store_true",
+                        help="only time OctArmReach-v1 steps with self_contact=True against "
+                             "without, in this process")
+    parser.add_argument("--penetration", action="store_true",
+                        help="only the sampled and peak penetration of contact scenes")
     args = parser.parse_args(argv)
+    if args.penetration:
+        result = penetration()
+        for name, row in result.items():
+            print(f"{name:24s} samples {1e3 * row['samples']:.4f} mm  peak {1e3 * row['peak']:.4f}"
+                  f" mm  512-step samples {1e3 * row['fine_samples']:.4f} mm")
+        if args.out:
+            args.out.write_text(json.dumps(result, indent=1) + "\n")
+        return 0
     if args.rounds < 1:
         parser.error(f"--rounds must be >= 1; got {args.rounds}")
+    if args.reach_cost:
+        result = reach_cost()
+        print(f"OctArmReach-v1 warm step: {result['free_median_us']:.1f} us without self-contact, "
+              f"{result['self_contact_median_us']:.1f} us with it: {result['ratio']:.2f}x")
+        if args.out:
+            args.out.write_text(json.dumps(result, indent=1) + "\n")
+        return 0
     trees = [Path(__file__).resolve().parents[2]] + [Path(t).resolve() for t in args.against]
     for tree in trees[1:]:
         if not (tree / "solver" / "__init__.py").is_file():
