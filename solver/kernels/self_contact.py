@@ -1,32 +1,42 @@
 """Self-contact of the planar backbone: parts of the arm farther apart along the arc than an
 exclusion length press on each other by the discs' penalty law (docs/design.md §9).
 
-Geometry from the shooting unknowns alone. Each segment's backbone is drawn as a cubic
-Hermite curve through its end states (positions and slopes r' from the constitutive law),
-sampled at its RK4 nodes: the next segment's start for all but the tip segment, whose end
-comes from integrating it (without self-contact loads). The curve's error is Hermite's,
-O((κℓ)⁴·ℓ) for a segment of length ℓ and curvature κ: below a micrometre on OctArm-sized
-segments.
+Geometry from the shooting unknowns alone, in two passes (see
+:func:`solver.kernels.contact._prepare_partners`). First each segment's backbone is drawn
+as a quintic Hermite piece through its end states — positions, slopes r' from the
+constitutive law and their derivatives r'' from the state's rate (:func:`build_piece`) —
+the next segment's start for all but the tip segment, whose end comes from integrating it
+without self-contact loads, and the loads are worked out on these pieces. Then every
+segment is integrated with those loads and its piece redrawn through the integrated RK4
+nodes (:func:`trace_piece`): on each RK4 step the quintic Hermite curve through the step's
+end nodes, with the slopes and their derivatives on each side of a loaded node (a point
+load's shear and stretch kink the backbone there), plus the quintic correction that takes
+the integrated end to the next shooting node; and the loads are worked out again on the
+traced pieces. At a solution the traced piece is the integrated backbone itself.
 
-Law, node to curve. A node at arc length s with half-thickness h(s) meets another part
-(farther than the exclusion length along the arc) when its distance d to that part's
-nearest point p is below h(s) + h(p). Per unit length it is then pushed by
-f = k·(h(s) + h(p) − d)·(r − p)/d — the law of :func:`solver.kernels.obstacles.contact_force`
-with the partner's surface in place of a disc's, set in smoothly over the first ONSET of
-depth. The pieces' chords find the contacts (a run of consecutive chords within reach is
-one contact, so a node near a vertex is not pushed twice); p is then the nearest point of
-the Hermite curve itself, whose normal turns smoothly as the node moves.
+Law, point to curve. The law is sampled at SUBPOINTS points per RK4 step along the pieces
+(the nodes among them), each with its share of the arc (:func:`self_loads`). A point at arc
+length s with half-thickness h(s) meets another part (farther than the exclusion length
+along the arc) when its distance d to that part's nearest point p is below h(s) + h(p). Per
+unit length it is then pushed by f = k·(h(s) + h(p) − d)·(r − p)/d — the law of
+:func:`solver.kernels.obstacles.contact_force` with the partner's surface in place of a
+disc's, set in smoothly over the first ONSET of depth. The pieces' chords, widened by how
+far the curves stand off them (:func:`_bulge`), find the contacts (a run of consecutive
+chords within reach is one contact, so a point near a vertex is not pushed twice); p is then
+the nearest point of the curve itself (:func:`_project`), whose normal turns smoothly as the
+point moves. Points far from every other part are skipped by clearance bounds worked out at
+the nodes.
 
-Action and reaction. The node's force f·w (w its share of the arc, the trapezoid weight of
-the RK4 grid) acts on it as a point load, and its reaction −f·w on the partner, split
-between the two nodes either side of p in proportion to where p lies between them (their
+Action and reaction. A point's force f·w (w its share of the arc) is lumped onto the two
+nodes of its step in proportion to where it lies between them, and its reaction −f·w onto
+the partner's two nodes either side of p in proportion to where p lies between them (their
 resultant acts on the line of f, within the chord's sagitta of p: the pair carries no net
-force, and a net moment only of the sagitta's component across f). Every node plays both parts,
-so each pair is counted from either side, and every node carries half the sum of its own
-forces and the reactions it receives: for parts pressed side by side this is the disc law;
-where the contact is one-sided (a part pressed against the arm's end) the pair still
-balances exactly. The loads are point loads at RK4 nodes, applied as jumps in the internal
-force between steps (as the endplates' weights are).
+force, and a net moment only of the sagitta's component across f). Every point plays both
+parts, so each pair is counted from either side, and every node carries half the sum of
+the forces lumped onto it and the reactions it receives: for parts pressed side by side
+this is the disc law; where the contact is one-sided (a part pressed against the arm's end)
+the pair still balances exactly. The loads are point loads at RK4 nodes, applied as jumps in
+the internal force between steps (as the endplates' weights are).
 """
 
 from __future__ import annotations
