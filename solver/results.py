@@ -45,7 +45,9 @@ class Equilibrium:
         penetration: (N,) depth of the backbone inside the nearest obstacle, or with
             self-contact inside another part of the arm, at each sample (m, ≥ 0); between
             samples it can be deeper: see :attr:`peak_penetration`.
-        in_contact: the backbone presses on an obstacle somewhere (False without obstacles).
+        in_contact: the backbone presses on an obstacle somewhere (False without obstacles),
+            read off the samples: a patch narrower than the steps (a stiff penalty's) can
+            fall between them, which :attr:`peak_penetration` sees.
         base_force: internal force n(0) at the base (N, world frame).
         pressures: the pressures solved for (Pa), in the order of ``design.input_names``.
         penalty_stiffness: with rigid obstacles, the penalty stiffness (N/m²) that met
