@@ -143,7 +143,8 @@ def _derivatives(z, i, grid, rest, level, rate):
     vr = rest[REST_V3, i]
     planar_state_rhs(z, rate, ca, cg, secf[CI, i], rest[REST_U2, i], vr, level[L_Q][i, 0],
                      level[L_Q][i, 1], level[L_DISCS])
-    a02, a03, a04, a12, a14, _, _, _ = planar_state_jacobian(z[2], z[3], z[4], ca, cg, vr)
+    a02, a03, a04, a12, a14, _, _, _ = planar_state_jacobian(math.cos(z[2]), math.sin(z[2]), z[3],
+                                                             z[4], ca, cg, vr)
     return (rate[0], rate[1], a02 * rate[2] + a03 * rate[3] + a04 * rate[4],
             a12 * rate[2] + a04 * rate[3] + a14 * rate[4])
 
