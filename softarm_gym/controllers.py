@@ -605,8 +605,9 @@ class CEMPlanner(_PressureController):
         return solver.Disc(center=(float(row[0]), float(row[1])), radius=float(row[2]),
                            stiffness=self.task.contact_stiffness)
 
-    def _score_batch(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
-        """Summed task rewards of (m, horizon, n) action sequences, one row of the batched model
+    def _score_batch(self, actions: np.ndarray, fraction: np.ndarray, final: bool = False) -> np.ndarray:
+        """Summed task rewards of (m, horizon, n) action sequences (``final``: the last step's
+        reward alone), one row of the batched model
         each (m <= the batch's rows; the others idle), every row from the nominal state. An
         unconverged step keeps its row's state, a step that touches under
         ``contact="forbid"`` is rejected, as the env does; rewards by the env's rules
@@ -639,7 +640,7 @@ class CEMPlanner(_PressureController):
                     accepted &= ~rejected
             fractions = np.where(accepted[:, None], new, fractions)
             self._step_rewards(report.converged, fractions, rejected, reward)
-            total += reward
+            total = reward.copy() if final else total + reward
         return total[:m]
 
     def _step_rewards(self, converged, fractions, rejected, out) -> None:
@@ -669,7 +670,7 @@ class CEMPlanner(_PressureController):
         obstacle_terms(terms, contact, all_terms)
         reward_sums(all_terms, out)
 
-    def _score_stepper(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+    def _score_stepper(self, actions: np.ndarray, fraction: np.ndarray, final: bool = False) -> np.ndarray:
         """:meth:`_score_batch` in a contact scene the batch does not take (3D wrap, rigid
         contact): the sequences rolled out one by one on a :class:`solver.Stepper`, scored by
         the env's per-equilibrium rules (``wrap_terms``, ``contact_reward``)."""
@@ -695,7 +696,8 @@ class CEMPlanner(_PressureController):
                     else:
                         current = new[0].copy()
                 reward = self._wrap_reward if self.wrap else self._reach_reward
-                totals[j] += contact + reward(rollout.equilibrium, current, report.converged)
+                step = contact + reward(rollout.equilibrium, current, report.converged)
+                totals[j] = step if final else totals[j] + step
         return totals
 
     def _reach_reward(self, eq: solver.Equilibrium, fraction: np.ndarray, converged: bool) -> float:
@@ -800,17 +802,18 @@ class CEMPlanner(_PressureController):
     def _search_ramps(self, fraction: np.ndarray, score) -> np.ndarray | None:
         """Where a search found nothing better than holding: the cross-entropy method over the
         pressures a straight ramp from ``fraction`` ends at (:meth:`_ramps`), each ramp scored
-        over ceil(1/delta_scale) steps against holding as long. The best ramp's actions if it
-        beats holding, else None.
+        by the task's reward where it ends (the last of ceil(1/delta_scale) steps), against
+        holding. The best ramp's actions if it ends better than holding, else None.
 
         Why: a tip behind a disc, with the target beyond it, has every single rate-limited step
         farther from the target (or pressing on the disc) than holding, and sequences of
         independent draws rarely make the coherent detour; a ramp to other pressures is the
-        detour a rate-limited arm makes, the way the obstacle reach's targets are drawn."""
+        detour a rate-limited arm makes, the way the obstacle reach's targets are drawn. Scored
+        where it ends, not summed along the way: a detour first moves away from the target."""
         rows = self._batch.n if self._batch is not None else self.samples
 
         def scored(candidates):
-            return np.concatenate([score(candidates[i:i + rows], fraction)
+            return np.concatenate([score(candidates[i:i + rows], fraction, final=True)
                                    for i in range(0, len(candidates), rows)])
 
         corners = ((np.arange(2 ** self._n)[:, None] >> np.arange(self._n)) & 1).astype(float) \
