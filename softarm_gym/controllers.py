@@ -332,6 +332,11 @@ def _section_corners(arm) -> np.ndarray:
     return np.unique(np.array(rows), axis=0)
 
 
+def _corner_bits(n: int) -> np.ndarray:
+    """(2^n, n) every corner of the unit cube [0, 1]^n (rows: the binary digits of 0 .. 2^n − 1)."""
+    return ((np.arange(2 ** n)[:, None] >> np.arange(n)) & 1).astype(float)
+
+
 class CEMPlanner(_PressureController):
     """Sampling-based model-predictive control: the cross-entropy method over action sequences,
     each candidate rolled out on the nominal model from the current state. Reach, obstacle
@@ -371,6 +376,9 @@ class CEMPlanner(_PressureController):
     3. The first command of the best sequence seen is sent; the rest seeds the next decision
        (with ``commit``, the rest is sent step by step without searching, stopping where the
        nominal state succeeds).
+    4. With ``escape``, where the best is holding: the best straight pressure ramp of
+       ceil(1/delta_scale) steps, scored where it ends (:meth:`_search_ramps`), is followed
+       as a committed sequence if it ends better than holding.
 
     Where the nominal state already succeeds (reach: the tip within half the success
     tolerance of the target; wrap: the success rule), it holds without searching, and so it
@@ -491,7 +499,7 @@ class CEMPlanner(_PressureController):
         # spatial arm with too many, the section-wise ones; each held over the horizon.
         corners = None
         if all_corners:
-            corners = 2.0 * ((np.arange(2 ** self._n)[:, None] >> np.arange(self._n)) & 1) - 1.0
+            corners = 2.0 * _corner_bits(self._n) - 1.0
         elif not self.planar and self.action_mode == "absolute":
             corners = _section_corners(self.arm)
         self._corners = None if corners is None else np.repeat(corners[:, None], self.horizon,
@@ -816,8 +824,8 @@ class CEMPlanner(_PressureController):
             return np.concatenate([score(candidates[i:i + rows], fraction, final=True)
                                    for i in range(0, len(candidates), rows)])
 
-        corners = ((np.arange(2 ** self._n)[:, None] >> np.arange(self._n)) & 1).astype(float) \
-            if 2 ** self._n <= _MAX_CORNERS else self.rng.integers(0, 2, (self.samples, self._n)).astype(float)
+        corners = _corner_bits(self._n) if 2 ** self._n <= _MAX_CORNERS else \
+            self.rng.integers(0, 2, (self.samples, self._n)).astype(float)
         hold = self._ramps(fraction, fraction[None])
         goals = np.vstack([corners, self.rng.uniform(0.0, 1.0, (self.samples, self._n))])
         best, best_score = None, float(scored(hold)[0])
