@@ -33,7 +33,9 @@ import numpy as np
 from solver.jit import njit
 from solver.kernels.contact import (
     LEAN_ITER,
+    LEAN_JACOBIANS,
     LEAN_RATE,
+    LEAN_TRIES,
     NEAR_SUBSTEPS,
     TUNNEL_SLACK,
     band_lu_solve,
@@ -920,13 +922,6 @@ def broyden(Z, grid, rest, level, F, scales, res_weights, tol, factors, res):
         k += 1
         for i in range(n):
             steps[k, i] = z[i] / denom
-
-
-# What a lean 3D contact step may spend before it hands the step to the general path: steps
-# of its path tried (accepted or halved), and Jacobians formed (its Newton iterations and
-# the pass of each accepted state).
-LEAN_TRIES = 32
-LEAN_JACOBIANS = 64
 
 
 @njit
