@@ -42,6 +42,14 @@ FAMILIES = {
 
 ARMS = {"octarm_v": "OctArm V", "octarm_vi": "OctArm VI", "ct": "CT"}
 
+PICTURES = {
+    "wrap": (("environments/wrap_v2_sequence.png", "CEMPlanner on OctArmWrap-v2 and CTWrap-v2",
+              "The planner on the recommended wrap ids, from the start to the first success and the "
+              "last step (`python -m softarm_gym.benchmarks.planner --ids "
+              "SoftArm/OctArmWrap-v2,SoftArm/CTWrap-v2 --picture docs/environments/wrap_v2_sequence.png`)"),),
+}
+"""Page name → pictures under ``docs/`` shown below the success rules: (path, alt text, caption)."""
+
 LEARNED = ("sac", "ppo", "td3", "sac_her")
 REFERENCE = ("jacobian", "curl", "planner")
 
@@ -135,8 +143,10 @@ def family_page(family: str) -> str:
         name = f"`{f['id']}`" + (f" (out of date: use `{latest(f['id'])}`)" if is_deprecated(f["id"]) else "")
         lines.append(f"| {name} | {f['arm']} | {f['dims']} | `{f['action_space']}`, {f['actions']} | "
                      f"`{f['observation_space']}` | {f['steps']} | {f['threshold']} | {f['vector']} |")
-    lines += ["", "Success: " + "; ".join(f"`{f['id']}` {f['success']}" for f in facts) + ".", "",
-              "Registered keyword arguments (what each id sets; everything else is the class default "
+    lines += ["", "Success: " + "; ".join(f"`{f['id']}` {f['success']}" for f in facts) + ".", ""]
+    for path, alt, caption in PICTURES.get(family, ()):
+        lines += [f"![{alt}](../{path})", "", f"*{caption}.*", ""]
+    lines += ["Registered keyword arguments (what each id sets; everything else is the class default "
               "below):", ""]
     lines += [f"* `{f['id']}`: {f['kwargs']}" for f in facts]
     lines += ["", "Each reward threshold is floor(0.9 × the mean return of the reference controller over 20 "
@@ -244,6 +254,8 @@ def thresholds_table() -> str:
         rows.append(f"| `{env_id}` | `{row['controller']}` | {row['mean']:.1f} ± {row['std']:.1f} | "
                     f"{row['success_rate']:.0%} | {threshold} |")
     rows += ["", f"`{data['command']}`, {data['date']}. Rule: {data['rule']}."]
+    for run in data.get("added", ()):
+        rows += ["", f"Rows of {', '.join(f'`{i}`' for i in run['ids'])}: `{run['command']}`, {run['date']}."]
     return "\n".join(rows)
 
 
