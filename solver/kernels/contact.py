@@ -1179,6 +1179,31 @@ def _dense_lu_solve(a, piv, b):
 
 
 @njit
+def broyden_update(steps, norms, k, z):
+    """The next quasi-Newton step by Broyden's updates of an inverse Jacobian (Kelley's
+    form): ``z`` (N,), the stored Jacobian's solve of −F, updated by the steps so far
+    ``steps[0..k]`` (rows) with their squared norms ``norms``, scaled and written into
+    ``steps[k + 1]``. Returns False where the update is singular (nothing written)."""
+    n = z.shape[0]
+    for j in range(k):
+        c = 0.0
+        for i in range(n):
+            c += steps[j, i] * z[i]
+        c /= norms[j]
+        for i in range(n):
+            z[i] += steps[j + 1, i] * c
+    c = 0.0
+    for i in range(n):
+        c += steps[k, i] * z[i]
+    denom = 1.0 - c / norms[k]
+    if denom == 0.0:
+        return False
+    for i in range(n):
+        steps[k + 1, i] = z[i] / denom
+    return True
+
+
+@njit
 def _broyden(Z, grid, rest, level, F, res_weights, tol, factors, res, partners):
     """Quasi-Newton corrections of the nodes ``Z`` at ``level`` from their residual ``F``
     (its weighted norm ``res``): the first step by the factored Jacobian ``factors`` (of a
@@ -1219,22 +1244,9 @@ def _broyden(Z, grid, rest, level, F, res_weights, tol, factors, res, partners):
         for i in range(n):
             z[i] = -F[i]
         _factored_solve(factors, z)
-        for j in range(k):
-            c = 0.0
-            for i in range(n):
-                c += steps[j, i] * z[i]
-            c /= norms[j]
-            for i in range(n):
-                z[i] += steps[j + 1, i] * c
-        c = 0.0
-        for i in range(n):
-            c += steps[k, i] * z[i]
-        denom = 1.0 - c / norms[k]
-        if denom == 0.0:
+        if not broyden_update(steps, norms, k, z):
             return False, passes, first
         k += 1
-        for i in range(n):
-            steps[k, i] = z[i] / denom
 
 
 @njit

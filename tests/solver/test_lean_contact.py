@@ -31,6 +31,18 @@ def curl_walk(arm, n, seed, scale=0.1, drift=0.03):
     return p
 
 
+def assert_lands_on(stepper, ref):
+    """The stepper's state is ``ref`` (a warm solve()'s) to the solver's tolerance; returns
+    the stepper's equilibrium."""
+    got = stepper.equilibrium
+    np.testing.assert_allclose(stepper.tip, ref.tip, atol=1e-9)
+    np.testing.assert_allclose(got.positions, ref.positions, atol=1e-9)
+    np.testing.assert_allclose(got.penetration, ref.penetration, atol=1e-10)
+    np.testing.assert_allclose(got.contact_force, ref.contact_force, atol=1e-5)
+    assert (got.in_contact, got.stable) == (ref.in_contact, ref.stable)
+    return got
+
+
 # (base angle, scene arguments, walk step, walk drift)
 SCENES = {
     # The hanging arm curling onto a disc beside it (the wrap task's geometry).
@@ -62,12 +74,7 @@ def test_contact_steps_equal_warm_solves(name):
         assert report.converged == ref.converged
         if not report.converged:
             continue
-        got = stepper.equilibrium
-        np.testing.assert_allclose(stepper.tip, ref.tip, atol=1e-9)
-        np.testing.assert_allclose(got.positions, ref.positions, atol=1e-9)
-        np.testing.assert_allclose(got.penetration, ref.penetration, atol=1e-10)
-        np.testing.assert_allclose(got.contact_force, ref.contact_force, atol=1e-5)
-        assert (got.in_contact, got.stable) == (ref.in_contact, ref.stable)
+        got = assert_lands_on(stepper, ref)
         np.testing.assert_array_equal(stepper.record[:, L.C_X:L.C_Y + 1], got.positions)
         eq = got
     assert {"lean", "lean contact"} <= set(paths), paths
@@ -101,12 +108,7 @@ def test_large_jumps_in_contact_take_the_lean_continuation_and_equal_warm_solves
             continue
         if touching and stepper.last_path == "lean contact":
             jumps.append(jump)
-        got = stepper.equilibrium
-        np.testing.assert_allclose(stepper.tip, ref.tip, atol=1e-9)
-        np.testing.assert_allclose(got.positions, ref.positions, atol=1e-9)
-        np.testing.assert_allclose(got.penetration, ref.penetration, atol=1e-10)
-        np.testing.assert_allclose(got.contact_force, ref.contact_force, atol=1e-5)
-        assert (got.in_contact, got.stable) == (ref.in_contact, ref.stable)
+        got = assert_lands_on(stepper, ref)
         eq = got
     assert jumps and max(jumps) > 0.5, jumps
 
