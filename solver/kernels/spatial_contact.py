@@ -33,10 +33,13 @@ import numpy as np
 from solver.jit import njit
 from solver.kernels.contact import (
     LEAN_ITER,
+    LEAN_JACOBIANS,
     LEAN_RATE,
+    LEAN_TRIES,
     NEAR_SUBSTEPS,
     TUNNEL_SLACK,
     band_lu_solve,
+    broyden_update,
     factor_band,
     set_level,
     weighted_norm,
@@ -904,29 +907,9 @@ def broyden(Z, grid, rest, level, F, scales, res_weights, tol, factors, res):
         for i in range(n):
             z[i] = -F[i]
         band_lu_solve(lu, piv, z)
-        for j in range(k):
-            c = 0.0
-            for i in range(n):
-                c += steps[j, i] * z[i]
-            c /= norms[j]
-            for i in range(n):
-                z[i] += steps[j + 1, i] * c
-        c = 0.0
-        for i in range(n):
-            c += steps[k, i] * z[i]
-        denom = 1.0 - c / norms[k]
-        if denom == 0.0:
+        if not broyden_update(steps, norms, k, z):
             return False, res, passes, first
         k += 1
-        for i in range(n):
-            steps[k, i] = z[i] / denom
-
-
-# What a lean 3D contact step may spend before it hands the step to the general path: steps
-# of its path tried (accepted or halved), and Jacobians formed (its Newton iterations and
-# the pass of each accepted state).
-LEAN_TRIES = 32
-LEAN_JACOBIANS = 64
 
 
 @njit
