@@ -22,6 +22,12 @@ made with :func:`njit`.
 A kernel missing from the cache compiles on its first call (seconds, once): the first such
 compile in a process prints one line on stderr saying so, and where the result is cached
 (:func:`announce_compiles` turns that off).
+
+A kernel called from another kernel is compiled for the plain types of its arguments, not their
+literal values: numba otherwise compiles a callee once per constant a caller passes (``record=True``
+here, a variable flag there, ``0`` for a start index: four copies of the contact integrator, a third
+of all compile time). A callee that only types with the value itself (an index into a
+heterogeneous tuple) is still compiled for it (:func:`_typed_without_literals`).
 """
 
 from __future__ import annotations
@@ -36,7 +42,7 @@ import warnings
 from pathlib import Path
 
 import numba
-from numba.core import config
+from numba.core import config, errors, types
 from numba.core.caching import FunctionCache
 
 __all__ = ["njit", "prange", "CacheWarning", "clear_cache", "fallback_cache_dir", "announce_compiles"]
@@ -164,9 +170,33 @@ def _cache_for(dispatcher) -> _HealingCache:
         return _HealingCache(dispatcher.py_func)
 
 
+def _typed_without_literals(dispatcher) -> None:
+    """Make calls from other kernels compile ``dispatcher`` for their arguments' plain types.
+
+    Branch pruning on a literal flag saves a predictable branch at run time, but each literal
+    combination costs a full compile of the callee and of everything it inlines; the floating
+    point operations are the same either way, so results do not change. Where the plain types
+    do not type (a literal index into a heterogeneous tuple), the literal call is compiled as
+    numba would have.
+    """
+    get_call_template = dispatcher.get_call_template
+
+    def plain_call_template(args, kws):
+        plain = tuple(types.unliteral(a) for a in args)
+        if plain == tuple(args) and not kws:
+            return get_call_template(args, kws)
+        try:
+            return get_call_template(plain, {k: types.unliteral(v) for k, v in kws.items()})
+        except errors.TypingError:
+            return get_call_template(args, kws)
+
+    dispatcher.get_call_template = plain_call_template
+
+
 def _compile(fn, flags):
     cache = flags.pop("cache")
     dispatcher = numba.njit(**flags)(fn)
+    _typed_without_literals(dispatcher)
     if cache:
         dispatcher._cache = _cache_for(dispatcher)  # what ``enable_caching`` sets, healing
         _KERNELS.append(dispatcher)

@@ -98,7 +98,19 @@ from solver.rod import (
     spatial_state_rk4_step,
 )
 
-NO_TETHER = (np.zeros(1), np.zeros((0, 3)))
+
+
+def tether(k: float, anchors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ``tether`` argument of :func:`newton`: springs of ``k`` N/m tying each node after
+    the base to ``anchors`` (K, 3) (m), as read-only copies: the type numba gives
+    :data:`NO_TETHER` inside a kernel (a global array is a constant there), so that a call
+    from Python and one from a kernel share one compiled :func:`newton`."""
+    k_array, anchor_array = np.array([float(k)]), np.array(anchors, dtype=np.float64)
+    k_array.flags.writeable = anchor_array.flags.writeable = False
+    return k_array, anchor_array
+
+
+NO_TETHER = tether(0.0, np.zeros((0, 3)))
 """The ``tether`` of an ordinary solve: no springs (:func:`newton_system`)."""
 
 # Forward-difference steps of the segment Jacobians, relative to the tangent coordinates'

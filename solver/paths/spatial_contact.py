@@ -265,7 +265,7 @@ def _relax(nodes, grid, layout, level, terms, settings):
         anchors = state[:, L.CS_R:L.CS_R + 3].copy()
         trial = state.copy()
         ok = kernel.newton(trial, grid, rest, level, weights, res_weights, scales, settings.tol,
-                           settings.max_iter, MAX_STEP, (np.array([stiffness]), anchors))[0]
+                           settings.max_iter, MAX_STEP, kernel.tether(stiffness, anchors))[0]
         if not ok or tunnels_3d(anchors, trial[:, L.CS_R:L.CS_R + 3], level[L.L_DISCS],
                                 TUNNEL_SLACK):
             stiffness *= 4.0
