@@ -38,7 +38,15 @@ import numpy as np
 
 from solver.jit import njit
 from solver.kernels.grid import section_needs
-from solver.kernels.obstacles import contact_force, contact_stiffness, nearest_surface, tunnels
+from solver.kernels.obstacles import (
+    accept_friction,
+    contact_force,
+    contact_stiffness,
+    friction_impulse,
+    friction_untouched,
+    nearest_surface,
+    tunnels,
+)
 from solver.kernels.self_contact import (
     build_piece,
     canonical_slot,
@@ -68,12 +76,16 @@ from solver.layout import (
     CI,
     DT0,
     DT_MIN,
+    FS_F,
+    FS_WORK,
     G_SECF,
     G_SEGS,
     G_START,
     G_STEPS,
     G_THETA0,
     L_DISCS,
+    L_FRICTION,
+    L_MU,
     L_P,
     L_PLATE,
     L_Q,
@@ -291,7 +303,10 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
 
     Near a disc every RK4 step is refined into NEAR_SUBSTEPS substeps: the penalty's kink at
     the disc surface, and contact patches shorter than a step, cost RK4 its accuracy there,
-    and only there. A step that cannot reach a disc (its start clears every disc by more
+    and only there. Friction (the level's samples, ``L_FRICTION``, if it has any) acts at the
+    refinement's nodes as point loads, each the trapezoid rule's share of the substeps either
+    side (:func:`_friction_node`); a step that is not refined reaches no disc and carries
+    none. A step that cannot reach a disc (its start clears every disc by more
     than the step's reach, h·|r'|, plus h) is taken whole; in between, the two results are
     blended with a smoothstep weight of that clearance, so the map stays smooth in the
     state (a switch would put jumps of RK4's truncation size into it, which stall Newton).
@@ -302,10 +317,13 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
     sec_start = grid[G_START]
     q = level[L_Q]
     discs = level[L_DISCS]
+    fs = level[L_FRICTION]
+    friction = fs.shape[0] > 0
     i = segs[seg, SEG_SECTION]
     first = segs[seg, SEG_FIRST]
     nst = segs[seg, SEG_STEPS]
     h = secf[LEN, i] / steps[i]
+    h_sub = h / NEAR_SUBSTEPS
     ca = secf[CA, i]
     cg = secf[CG, i]
     ci = secf[CI, i]
@@ -359,19 +377,28 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
                 _rk4_tangent(st, phi, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
             else:
                 planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
+        at = segs[seg, SEG_ROW0] + j
         if clear >= h:
+            if friction and record:
+                friction_untouched(fs, at)
             continue
         for d in range(6):
             fine[d] = start[d]
             if tangent:
                 for e in range(6):
                     tw[6, d, e] = tw[5, d, e]
-        for _ in range(NEAR_SUBSTEPS):
+        for sub in range(NEAR_SUBSTEPS):
+            if friction:
+                _friction_node(fine, tw[6], tangent, level, at, sub,
+                               (0.5 if sub == 0 else 1.0) * h_sub, record)
             if tangent:
-                _rk4_tangent(fine, tw[6], h / NEAR_SUBSTEPS, work, tw, ca, cg, ci, ur, vr, qx, qy,
-                             discs)
+                _rk4_tangent(fine, tw[6], h_sub, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
             else:
-                planar_state_rk4_step(fine, h / NEAR_SUBSTEPS, work, ca, cg, ci, ur, vr, qx, qy, discs)
+                planar_state_rk4_step(fine, h_sub, work, ca, cg, ci, ur, vr, qx, qy, discs)
+        if friction:
+            _friction_node(fine, tw[6], tangent, level, at, NEAR_SUBSTEPS, 0.5 * h_sub, record)
+            if record:
+                _friction_row(fs, at, 0, h_sub, out, at)
         if clear <= 0.0:
             for d in range(6):
                 st[d] = fine[d]
@@ -405,9 +432,39 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
             _write_row(st, sec_start[i] + secf[LEN, i], out, row, ca, cg, ci, ur, vr, discs)
             if own:
                 _self_row(loads, segs, seg, nst, out, row)
+            if friction:
+                _friction_row(fs, row - 1, NEAR_SUBSTEPS, h_sub, out, row)
         if i < secf.shape[1] - 1:
             st[3] -= level[L_PLATE][i, 0]
             st[4] -= level[L_PLATE][i, 1]
+
+
+@njit
+def _friction_node(st, phi, tangent, level, row, node, weight, record):
+    """Apply the friction impulse of sample (row, node) (:func:`solver.kernels.obstacles.
+    friction_impulse`, its share ``weight`` of the length) to the state ``st`` as a point
+    load, n⁺ = n⁻ − F; with ``tangent``, to its Jacobian ``phi`` too (δn⁺ = δn⁻ − ∂F/∂r·δr)."""
+    fx, fy, k00, k01, k10, k11 = friction_impulse(st[0], st[1], level[L_DISCS], level[L_MU],
+                                                  level[L_FRICTION], row, node, weight, record,
+                                                  tangent)
+    st[3] -= fx
+    st[4] -= fy
+    if tangent:
+        for e in range(6):
+            p0 = phi[0, e]
+            p1 = phi[1, e]
+            phi[3, e] -= k00 * p0 + k01 * p1
+            phi[4, e] -= k10 * p0 + k11 * p1
+
+
+@njit
+def _friction_row(fs, row, node, h_sub, out, out_row):
+    """Add the friction force per length of sample (row, node) (an end node of its step's
+    refinement, which carries half a substep) to the contact force of record row
+    ``out_row``."""
+    for d in range(fs.shape[2]):
+        out[out_row, C_FX] += fs[row, node, d, FS_F] / (0.5 * h_sub)
+        out[out_row, C_FY] += fs[row, node, d, FS_F + 1] / (0.5 * h_sub)
 
 
 @njit
@@ -817,7 +874,8 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
 @njit
 def set_level(t, a, b, now):
     """Interpolate the homotopy between level tuples ``a`` and ``b`` at ``t`` into ``now``
-    (planar or spatial: the widths are the arrays')."""
+    (planar or spatial: the widths are the arrays'); its friction (``L_MU``,
+    ``L_FRICTION``) is the path's tangential state, not interpolated."""
     for k in range(a[L_P].shape[0]):
         now[L_P][k] = a[L_P][k] + t * (b[L_P][k] - a[L_P][k])
     for i in range(a[L_Q].shape[0]):
@@ -833,9 +891,23 @@ def set_level(t, a, b, now):
 
 @njit
 def new_level(a):
-    """Scratch arrays shaped like the level tuple ``a``."""
+    """Scratch arrays shaped like the level tuple ``a``, with copies of its friction."""
     return (np.empty_like(a[L_P]), np.empty_like(a[L_Q]), np.empty_like(a[L_PLATE]),
-            np.empty_like(a[L_TARGET]), np.empty_like(a[L_DISCS]))
+            np.empty_like(a[L_TARGET]), np.empty_like(a[L_DISCS]), a[L_MU].copy(),
+            a[L_FRICTION].copy())
+
+
+@njit
+def start_friction(a, now):
+    """A path from level ``a`` starts from its tangential state: ``a``'s friction samples
+    into ``now``'s, the work dissipated so far cleared (a path counts its own)."""
+    now[L_MU][:] = a[L_MU]
+    fs = now[L_FRICTION]
+    fs[...] = a[L_FRICTION]
+    for row in range(fs.shape[0]):
+        for node in range(fs.shape[1]):
+            for d in range(fs.shape[2]):
+                fs[row, node, d, FS_WORK] = 0.0
 
 
 @njit
@@ -905,6 +977,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     rec_prev = np.empty((rows, C_COLUMNS))
     rec_new = np.empty((rows, C_COLUMNS))
     has_discs = a[L_DISCS].shape[0] > 0
+    friction = a[L_FRICTION].shape[0] > 0
+    start_friction(a, now)
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
     newton_system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)), new_partners(grid))
@@ -921,6 +995,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     accepted = Z.copy()
     if has_discs:
         record_backbone(Z, grid, rest, now, rec_prev)
+        if friction:  # the start, corrected, is the path's first accepted state
+            accept_friction(now[L_FRICTION])
     # Tangent predictor for the first step. Without it the first step's correction is
     # judged against a zero prediction, and a large pressure change is halved until its
     # correction is small in absolute terms — five or six converged steps thrown away.
@@ -956,6 +1032,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
                 through = tunnels(rec_prev[:, C_X:C_Y + 1], rec_new[:, C_X:C_Y + 1],
                                   now[L_DISCS], TUNNEL_SLACK)
             if not through:
+                if friction:
+                    accept_friction(now[L_FRICTION])
                 for k in range(n):
                     slope[k] = (Z[k] - accepted[k]) / (t_new - t)
                     accepted[k] = Z[k]
@@ -1155,7 +1233,8 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     tol = params[TOL]
     n = Z.shape[0]
     secf = grid[G_SECF]
-    now = (p_new, level[L_Q], level[L_PLATE], level[L_TARGET], discs_new)
+    now = (p_new, level[L_Q], level[L_PLATE], level[L_TARGET], discs_new, level[L_MU],
+           level[L_FRICTION])
     rest_strains_into(p_new, tubes[0], tubes[1], secf, rest)
     partners = new_partners(grid)
     no_record = np.empty((1, C_COLUMNS))
@@ -1246,6 +1325,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             for c in range(p_new.shape[0]):
                 level[L_P][c] = p_new[c]
             level[L_DISCS][:, :] = discs_new
+            accept_friction(level[L_FRICTION])
     if not ok:
         Z[:] = start
     return ok, stable, passes, res

@@ -10,8 +10,9 @@ import numpy as np
 
 from solver import layout as L
 from solver.kernels import spatial_contact as kernel
-from solver.kernels.contact import TUNNEL_SLACK
-from solver.kernels.obstacles import smallest_clearance_3d, tunnels_3d
+from solver.kernels.contact import TUNNEL_SLACK, new_level
+from solver.kernels.obstacles import accept_friction, smallest_clearance_3d, tunnels_3d
+from solver.paths.friction import friction_fields, landed, start_samples
 from solver.paths.shooting import MAX_STEP
 from solver.paths.spatial import solve_spatial
 from solver.problem import Problem, contact_layout, reach
@@ -66,7 +67,8 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
     ctx = on_layout.ctx  # (a context does not depend on obstacles)
     grid, terms = _grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
     p_target = problem.p_target
-    goal = (p_target, ctx.q, terms[0], terms[1], obstacles)
+    mu, samples = start_samples(scene, layout, sec_start, warm_start)
+    goal = (p_target, ctx.q, terms[0], terms[1], obstacles, mu, samples)
     rest = np.empty((3, len(arm.sections)))
     if near:
         # The free step ends within an RK4 step of an obstacle, clear of it, and got there
@@ -77,7 +79,10 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         ok, its, res, stable = kernel.newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
                                              settings.max_iter, MAX_STEP, kernel.NO_TETHER)
         if ok and stable:
-            return _result(nodes, scene, grid, layout, goal, converged=True, stable=True,
+            if samples.shape[0]:  # the state is accepted: its samples take their anchors
+                kernel.record(nodes, grid, rest, goal, kernel.new_record(layout.n_rows))
+                accept_friction(samples)
+            return _result(nodes, scene, grid, layout, goal, warm_start, converged=True, stable=True,
                            snapped=free.snapped, iterations=int(free.iterations + its),
                            residual=float(res), model=model, pressures=p_inputs,
                            channel_pressures=p_channel, arm=arm)
@@ -94,16 +99,16 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         if nodes is not None:
             start_terms = _grid_and_terms(arm, layout, segs, sec_start, start_scene, start_ctx)[1]
             p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
-            start = (p_start, start_ctx.q, start_terms[0], start_terms[1], obstacles)
+            start = (p_start, start_ctx.q, start_terms[0], start_terms[1], obstacles, mu, samples)
     if nodes is None:
-        nodes, iterations, loaded, snapped = _loaded_nodes(arm, layout, segs, sec_start, scene,
-                                                           ctx, settings)
-        start = (np.zeros_like(p_target), *goal[1:])
+        nodes, iterations, loaded, snapped, samples = _loaded_nodes(arm, layout, segs, sec_start,
+                                                                    scene, ctx, settings)
+        start = (np.zeros_like(p_target), *goal[1:L.L_FRICTION], samples)
         if not loaded:
-            return _result(nodes, scene, grid, layout, start, converged=False, stable=False,
+            return _result(nodes, scene, grid, layout, start, None, converged=False, stable=False,
                            iterations=iterations, residual=math.inf, model=model,
                            pressures=p_inputs, channel_pressures=p_channel, arm=arm)
-    now = tuple(np.empty_like(a) for a in goal)
+    now = new_level(goal)
     nodes, ok, its, res, stable, jumped = _ramp(nodes, grid, layout, start, goal, terms, settings,
                                                 rest, now)
     iterations += its
@@ -112,18 +117,20 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
             and not tunnels_3d(warm_start.positions, free.positions, obstacles, TUNNEL_SLACK):
         # The arm snapped through free space (the free path's own branch switch) into the
         # obstacles: it lands on them, the obstacles grown in from where they touch it.
-        landed = _nodes_from_record(free, grid, layout, segs, sec_start)
+        arrived = _nodes_from_record(free, grid, layout, segs, sec_start)
         grown = obstacles.copy()
         for k, o in enumerate(scene.obstacles):
             grown[k, L.O_RADIUS] = min(o.radius, float(core_distance(o, free.positions).min()))
         ok, its, res, stable, _ = kernel.follow(
-            landed, grid, layout.tubes_i, layout.tubes_f, (*goal[:L.L_DISCS], grown), goal,
+            arrived, grid, layout.tubes_i, layout.tubes_f,
+            landed((*goal[:L.L_DISCS], grown, *goal[L.L_MU:])), goal,
             *terms[2:], settings.tol, settings.max_iter, MAX_STEP, settings.dt0,
             settings.contact_dt_min, rest, now)
         iterations += its
         if ok:
-            nodes, snapped = landed, True
-    return _result(nodes, scene, grid, layout, now, converged=bool(ok), stable=bool(stable),
+            nodes, snapped = arrived, True
+    return _result(nodes, scene, grid, layout, now, warm_start, converged=bool(ok),
+                   stable=bool(stable),
                    snapped=snapped, iterations=int(iterations), residual=float(res),
                    model=model, pressures=p_inputs, channel_pressures=p_channel, arm=arm)
 
@@ -144,11 +151,11 @@ def _ramp(nodes, grid, layout, start, goal, terms, settings, rest, now):
         if ok or t >= 1.0 or settings.n_scan == 0:
             break
         # A landing the path cannot leave (t = 0: at a fold again) asks for a real snap.
-        landed = _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
-                                push=not (snapped and t == 0.0))
-        if landed is None:
+        switched = _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
+                                  push=not (snapped and t == 0.0))
+        if switched is None:
             break
-        nodes, start = landed
+        nodes, start = switched
         snapped = True
     return nodes, ok, iterations, res, stable, snapped
 
@@ -312,7 +319,7 @@ def _imperfect_path(nodes, grid, layout, level, goal, direction, terms, settings
             stages = ((level, _pushed(level, push)), (_pushed(level, push), _pushed(goal, push)),
                       (_pushed(goal, push), goal))
             for a, b in stages:
-                now = tuple(np.empty_like(x) for x in b)
+                now = new_level(b)
                 ok, _, _, stable, _ = kernel.follow(
                     trial, grid, layout.tubes_i, layout.tubes_f, a, b, weights, res_weights,
                     scales, settings.tol, settings.max_iter, MAX_STEP, settings.dt0,
@@ -332,8 +339,10 @@ def _pushed(level, push):
 
 
 def _level_at(start, goal, t):
-    """The level tuple a fraction ``t`` of the way from ``start`` to ``goal``."""
-    return tuple(a + t * (b - a) for a, b in zip(start, goal))
+    """The level tuple a fraction ``t`` of the way from ``start`` to ``goal``, with no
+    tangential state (a snap's: :func:`solver.paths.friction.landed`)."""
+    return landed((*(a + t * (b - a) for a, b in zip(start[:L.L_MU], goal[:L.L_MU])),
+                   *goal[L.L_MU:]))
 
 
 def _level_rest(level, layout, rest):
@@ -415,7 +424,7 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings):
     arm the loads are ramped in with the obstacles in place; an obstacle that overlaps the
     straight arm grows in from the radius at which it touches the arm's axis; the arm may
     snap on the way (:func:`_ramp`). Returns a copy of the nodes, the iterations, whether it
-    converged and whether it snapped."""
+    converged, whether it snapped and (a copy of) the friction samples it ends with."""
     def build():
         grid, terms = _grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
         axis = base_rotation(scene.base_theta)[:, 2]
@@ -428,25 +437,29 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings):
         for k, o in enumerate(scene.obstacles):
             grown[k, L.O_RADIUS] = min(o.radius, float(core_distance(o, straight).min()))
         p0 = np.zeros(max(arm.n_channels, 1))
-        start = (p0, np.zeros_like(ctx.q), np.zeros_like(terms[0]), np.zeros(6), grown)
-        goal = (p0, ctx.q, terms[0], terms[1], obstacles)
-        now = tuple(np.empty_like(a) for a in goal)
+        mu, samples = start_samples(scene, layout, sec_start, None)
+        start = (p0, np.zeros_like(ctx.q), np.zeros_like(terms[0]), np.zeros(6), grown, mu, samples)
+        goal = (p0, ctx.q, terms[0], terms[1], obstacles, mu, samples)
+        now = new_level(goal)
         nodes, ok, its, _, stable, snapped = _ramp(nodes, grid, layout, start, goal, terms,
                                                    settings, np.empty((3, len(arm.sections))), now)
         nodes.flags.writeable = False
-        return nodes, int(its), bool(ok and stable), snapped
+        return nodes, int(its), bool(ok and stable), snapped, now[L.L_FRICTION]
 
-    nodes, its, ok, snapped = arm._solver_cache.get(
+    nodes, its, ok, snapped, samples = arm._solver_cache.get(
         ("spatial loaded contact nodes", layout.key, scene), build)
-    return nodes.copy(), its, ok, snapped
+    return nodes.copy(), its, ok, snapped, samples.copy()
 
 
-def _result(nodes, scene, grid, layout, level, **fields):
-    """The spatial Equilibrium of the node states ``nodes`` at ``level``."""
+def _result(nodes, scene, grid, layout, level, warm_start, **fields):
+    """The spatial Equilibrium of the node states ``nodes`` at ``level`` on the path from
+    ``warm_start`` (None: cold), with its friction
+    (:func:`solver.paths.friction.friction_fields`)."""
     rest = np.empty((3, layout.secf.shape[1]))
     _level_rest(level, layout, rest)
     rec = kernel.new_record(layout.n_rows)
     kernel.record(nodes, grid, rest, level, rec)
+    fields.update(friction_fields(level[L.L_FRICTION], warm_start))
     s, pos, rot, force, mom, contact, pen, strain_v, strain_u = rec
     return Equilibrium._make(
         s=s, positions=pos, orientations=rot, shear_stretch=strain_v, curvature=strain_u,
