@@ -1,28 +1,33 @@
 # Two commands do all the set-up on a fresh machine:
-#   make demo   creates .venv, installs the package, compiles the kernels, runs the main job
-#   make test   creates .venv, installs the package, runs every test
+#   make demo   creates .venv, installs the package, runs the main job (compiling only what it uses)
+#   make test   creates .venv, installs the package, compiles every kernel in parallel, runs every test
+# make docs builds the documentation site into docs/_build/html.
 PYTHON ?= python3
 VENV   ?= .venv
 BIN     = $(VENV)/bin
 STAMP   = $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test docs lint bench clean
 
 $(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	# The local CPU wheel; any other torch spec pulls gigabytes of CUDA packages.
 	$(BIN)/pip install -q torch==2.13.0
-	$(BIN)/pip install -q -e ".[dev,baselines,ray]"
+	$(BIN)/pip install -q -e ".[dev,baselines,ray,docs]"
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/softarm warmup
 	$(BIN)/softarm demo
 
+# The warm-up compiles every kernel once, in parallel processes, so that the two test workers
+# load machine code instead of each compiling the same kernels.
 test: $(STAMP)
-	$(BIN)/softarm warmup
+	$(BIN)/softarm warmup --quiet
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html
 
 lint: $(STAMP)
 	$(BIN)/ruff check solver softarm_gym baselines tests
@@ -31,5 +36,5 @@ bench: $(STAMP)
 	$(BIN)/softarm bench
 
 clean:
-	rm -rf $(VENV) .pytest_cache
+	rm -rf $(VENV) .pytest_cache docs/_build
 	find . -name __pycache__ -prune -exec rm -rf {} +

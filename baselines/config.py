@@ -64,7 +64,7 @@ from softarm_gym.wrappers import CornerActions
 
 __all__ = ["ACTION_WRAPPERS", "ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams",
            "split_hyperparams", "make_env",
-           "check_env_id", "is_grasp", "is_wrap", "registered_equivalent", "sidecar_paths",
+           "check_env_id", "check_model_env", "is_grasp", "is_wrap", "registered_equivalent", "sidecar_paths",
            "legacy_normalization_path",
            "policy_metadata",
            "save_normalization", "load_normalization", "restore_normalization", "read_metadata",
@@ -209,6 +209,57 @@ def registered_equivalent(env_id: str, env_kwargs: dict | None = None) -> tuple[
         if (other.version or 0) > best[0]:
             best = (other.version or 0, other.id, left)
     return best[1], best[2]
+
+
+def _describe_env(env: gym.Env) -> dict:
+    """What a policy depends on in ``env``: the action semantics (mode and step size), the
+    action and observation spaces, and the action wrapper, as comparable, printable values."""
+    base = env.unwrapped
+    mode = getattr(base, "action_mode", None)
+    semantics = f"{mode} actions" + (f" (delta_scale {base.delta_scale:g})" if mode == "delta" else "")
+    wrapper = type(env).__name__ if isinstance(env, tuple(ACTION_WRAPPERS.values())) else "no action wrapper"
+    return {"action semantics": semantics, "action space": _space_text(env.action_space),
+            "observation space": _space_text(env.observation_space), "wrapper": wrapper}
+
+
+def _space_text(space) -> str:
+    if isinstance(space, spaces.Dict):
+        return "Dict(" + ", ".join(f"{k}: {_space_text(v)}" for k, v in space.spaces.items()) + ")"
+    if isinstance(space, spaces.Discrete):
+        return f"Discrete({space.n})"
+    return f"{type(space).__name__}{tuple(space.shape)}"
+
+
+def check_model_env(meta: dict, env: gym.Env, env_id: str, force: bool = False) -> list[str]:
+    """Compare the env a model was trained on (its metadata) with ``env``, the env asked for.
+
+    A policy acts on what its actions mean and reads what its observations hold: a delta-action
+    policy on an absolute-action env, or a 39-value policy on a 61-value observation, gives
+    numbers without meaning (or an error deep in numpy). So a different action semantics,
+    action or observation space, or action wrapper is refused in one line naming both envs.
+
+    Args:
+        meta: the model's metadata (``env_id``, ``env_kwargs``).
+        env: the env the model is about to act in (``make_env`` of ``env_id``).
+        env_id: the id ``env`` was made from (for the message).
+        force: report the differences instead of refusing them.
+
+    Returns:
+        The differences (empty when the envs agree), each ``"what: model's vs env's"``.
+
+    Raises:
+        ValueError: the envs differ and ``force`` is False.
+    """
+    trained = make_env(meta["env_id"], meta.get("env_kwargs", {}))
+    try:
+        ours, theirs = _describe_env(trained), _describe_env(env)
+    finally:
+        trained.close()
+    differences = [f"{what}: {ours[what]} vs {theirs[what]}" for what in ours if ours[what] != theirs[what]]
+    if differences and not force:
+        raise ValueError(f"the model was trained on {meta['env_id']} and {env_id} differs: "
+                         f"{'; '.join(differences)} (model vs env); pass --force to evaluate anyway")
+    return differences
 
 
 def sidecar_paths(model_path: Path | str) -> tuple[Path, Path]:

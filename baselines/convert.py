@@ -1,6 +1,6 @@
 """Convert models saved with pickled sidecars to the safe format — for files you trust.
 
-    python -m baselines.convert runs/sac_OctArmReach-v0_s0/best_model.zip [...] [--remove-pickle]
+    python -m baselines.convert runs/sac_OctArmReach-v1_s0/best_model.zip [...] [--remove-pickle]
 
 Models saved before the safe format keep their observation statistics in
 ``FILE_vecnormalize.pkl`` and lack the policy description in ``FILE.json``, so

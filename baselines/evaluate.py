@@ -1,9 +1,11 @@
 """Evaluate a trained policy or a model-based controller, optionally with an estimator in the loop.
 
+Usage::
+
     python -m baselines.evaluate --model baselines/trained/sac_OctArmReach-v1.zip --episodes 100 --json
     python -m baselines.evaluate --model FILE.zip --observation cable_encoder --sensor-noise thesis \\
         --payload-kg 0,0.5 --json
-    python -m baselines.evaluate --controller jacobian --env SoftArm/OctArmReach-v0 --json
+    python -m baselines.evaluate --controller jacobian --env SoftArm/OctArmReach-v1 --json
     python -m baselines.evaluate --controller planner --env SoftArm/OctArmWrap-v1 --episodes 20 --json
 
 Models load safely (:func:`baselines.config.load_policy`): only the weights of the zip, read
@@ -52,7 +54,13 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from baselines.config import load_policy, make_env
+from baselines.config import check_model_env, load_policy, make_env
+from softarm_gym.commands.common import (
+    add_numba_threads_argument,
+    add_output_argument,
+    add_quiet_argument,
+    apply_numba_threads,
+)
 from softarm_gym.controllers import CEMPlanner, CurlController, JacobianController
 from softarm_gym.files import json_text, write_json
 from softarm_gym.sensing import ESTIMATORS
@@ -176,7 +184,7 @@ def _payload(text: str | None):
 def evaluate(*, model: str | Path | None = None, controller: str | None = None, env_id: str | None = None,
              observation: str = "true", sensor_noise: str = "off", payload_kg=None,
              env_kwargs: dict | None = None, episodes: int = 100, seed: int = 0,
-             progress: bool = False, trust_pickle: bool = False) -> dict:
+             progress: bool = False, trust_pickle: bool = False, force: bool = False) -> dict:
     """Evaluate a saved model or a controller; returns the :func:`summarize` metrics plus the setup.
 
     Args:
@@ -191,6 +199,9 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
         seed: episode ``i`` uses seed ``seed + i``.
         progress: tqdm bar on stderr.
         trust_pickle: load ``model`` with SB3's pickle-based loader (module docstring).
+        force: evaluate ``model`` even on an env whose action semantics, spaces or action
+            wrapper differ from its training env's (:func:`baselines.config.check_model_env`);
+            the differences are then listed in the result's ``model_env_differences``.
 
     Raises:
         ValueError: bad or conflicting arguments, or an unreadable or unsafe model.
@@ -218,7 +229,14 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
     if payload_kg is not None:
         kwargs["payload_kg"] = payload_kg
     env = make_env(env_id, kwargs)
+    differences = []
     if model is not None:
+        try:
+            differences = check_model_env(meta, env, env_id, force=force)
+        except ValueError:
+            env.close()
+            raise
+
         def act(obs):
             if vecnorm is not None:
                 obs = vecnorm.normalize_obs(obs)
@@ -240,7 +258,8 @@ def evaluate(*, model: str | Path | None = None, controller: str | None = None, 
                  else {"success_tolerance_m": float(base.success_tolerance)})
     return {"agent": agent, "env_id": env_id, "observation": observation, "sensor_noise": sensor_noise,
             "payload_kg": list(base.payload_range), "seed": seed, **criterion,
-            **summarize(record), "wall_time_s": wall}
+            **summarize(record), "wall_time_s": wall,
+            **({"model_env_differences": differences} if differences else {})}
 
 
 def _seeded_planner(env, seed: int):
@@ -286,27 +305,32 @@ def main(argv=None) -> int:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
-    parser.add_argument("--out", default=None, help="also write the JSON result to this file")
-    parser.add_argument("--no-progress", action="store_true")
+    add_output_argument(parser, old=("--out",))
+    add_quiet_argument(parser)
+    add_numba_threads_argument(parser)
+    parser.add_argument("--force", action="store_true",
+                        help="evaluate a model on an env whose actions or observations differ from its "
+                             "training env's (refused otherwise)")
     parser.add_argument("--trust-pickle", action="store_true",
                         help="load the model with SB3's pickle-based loader; pickles can run arbitrary "
                              "code, so only for files you made yourself")
     args = parser.parse_args(argv)
     try:
+        apply_numba_threads(args.numba_threads)
         env_kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
         if env_kwargs is not None and not isinstance(env_kwargs, dict):
             raise ValueError("--env-kwargs must be a JSON object")
         result = evaluate(model=args.model, controller=args.controller, env_id=args.env,
                           observation=args.observation, sensor_noise=args.sensor_noise,
                           payload_kg=_payload(args.payload_kg), env_kwargs=env_kwargs,
-                          episodes=args.episodes, seed=args.seed, progress=not args.no_progress,
-                          trust_pickle=args.trust_pickle)
+                          episodes=args.episodes, seed=args.seed, progress=not args.quiet,
+                          trust_pickle=args.trust_pickle, force=args.force)
     except (ValueError, json.JSONDecodeError) as exc:
         print(f"baselines.evaluate: error: {exc}", file=sys.stderr)
         return 2
-    if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        write_json(args.out, result)
+    if args.output:
+        Path(args.output).parent.mkdir(parents=True, exist_ok=True)
+        write_json(args.output, result)
     print(json_text(result) if args.json else _text(result))
     return 0
 

@@ -1,5 +1,7 @@
 """Collect training runs, run the evaluation grid, and regenerate ``baselines/RESULTS.md``.
 
+Usage::
+
     python -m baselines.results collect  --runs runs            # runs/* → baselines/results/training
     python -m baselines.results evaluate --runs runs --workers 2  # → baselines/results/eval/*.json
     python -m baselines.results evaluate --runs runs --main-only --only sac_  # main cells only

@@ -1,7 +1,9 @@
 """Training sweeps — environments × algorithms × seeds × observation modes — run one after another
 here or as Ray tasks on a cluster, every run resumable, then evaluated and written up.
 
-    python -m baselines.sweep --envs SoftArm/OctArmReach-v0,SoftArm/CTReach-v0 --algos sac,ppo,td3 \\
+Usage::
+
+    python -m baselines.sweep --envs SoftArm/OctArmReach-v1,SoftArm/CTReach-v1 --algos sac,ppo,td3 \\
         --seeds 0-9 --observations true,cable_encoder --backend ray --address auto
     python -m baselines.sweep ...same options... --resume   # after Ctrl-C, a lost driver or failed runs
 
@@ -75,6 +77,7 @@ from baselines.config import (
     split_hyperparams,
 )
 from baselines.train import CONFIG_FILE, check_counts, latest_checkpoint, resume, train
+from softarm_gym.commands.common import add_numba_threads_argument, add_quiet_argument, apply_numba_threads
 from softarm_gym.files import write_json
 from softarm_gym.jobs import (
     BACKENDS,
@@ -564,9 +567,10 @@ def sweep(runs: list[RunSpec], out: Path | str = "sweep", *, backend: str = "loc
 
     Args:
         runs: the plan.
-        out, backend, address, cpus_per_run, retries, resume, evaluate, evaluate_episodes,
-            results_dir, results_file, eval_freq, eval_episodes, checkpoint_freq,
-            save_replay_buffer, progress, command: the :class:`SweepConfig`.
+        out: and the other keyword arguments (backend, address, cpus_per_run, retries, resume,
+            evaluate, evaluate_episodes, results_dir, results_file, eval_freq, eval_episodes,
+            checkpoint_freq, save_replay_buffer, progress, command): the fields of
+            :class:`SweepConfig`.
 
     Returns:
         The state of every run, the evaluation cells that failed, the results file.
@@ -742,7 +746,8 @@ def main(argv=None) -> int:
                                "%(default)s)")
     training.add_argument("--save-replay-buffer", action="store_true",
                           help="save the off-policy replay buffer with checkpoints")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    add_quiet_argument(parser, help="hide the progress bars")
+    add_numba_threads_argument(parser)
     args = parser.parse_args(argv)
     received = []
 
@@ -752,6 +757,7 @@ def main(argv=None) -> int:
 
     previous = signal.signal(signal.SIGTERM, stop)
     try:
+        apply_numba_threads(args.numba_threads)
         if args.address is not None and args.backend != "ray":
             raise ValueError("--address needs --backend ray")
         if args.results is not None:
@@ -767,7 +773,7 @@ def main(argv=None) -> int:
                        evaluate_episodes=args.evaluate_episodes, results_dir=args.results_dir,
                        results_file=args.results, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                        checkpoint_freq=args.checkpoint_freq, save_replay_buffer=args.save_replay_buffer,
-                       progress=not args.no_progress,
+                       progress=not args.quiet,
                        command="python -m baselines.sweep " + shlex.join(argv))
     except (ValueError, JobError) as exc:
         print(f"baselines.sweep: error: {exc}", file=sys.stderr)

@@ -1,8 +1,8 @@
 """Train an SB3 agent on a soft-arm environment with the hyperparameters of ``baselines/hyperparams``.
 
-    python -m baselines.train --env SoftArm/OctArmReach-v0 --algo sac --timesteps 300000 --seed 0
-    python -m baselines.train --resume runs/sac_OctArmReach-v0_s0      # after Ctrl-C or a crash
-    python -m baselines.train --env SoftArm/OctArmReach-v0 --algo ppo --batched   # N arms per call
+    python -m baselines.train --env SoftArm/OctArmReach-v1 --algo sac --timesteps 150000 --seed 0
+    python -m baselines.train --resume runs/sac_OctArmReach-v1_s0      # after Ctrl-C or a crash
+    python -m baselines.train --env SoftArm/OctArmReach-v1 --algo ppo --batched --numba-threads 1
 
 writes into ``<log-dir>/<algo>_<env>_s<seed>/`` (``<algo>_<env>_batched_s<seed>/`` with
 ``--batched``, which trains on one :class:`softarm_gym.sb3.BatchedVecEnv` of ``n_envs`` arms
@@ -84,6 +84,7 @@ from baselines.config import (
     sidecar_paths,
     split_hyperparams,
 )
+from softarm_gym.commands.common import add_numba_threads_argument, add_quiet_argument, apply_numba_threads
 from softarm_gym.files import atomic_write, write_json
 from softarm_gym.sb3 import BatchedVecEnv
 
@@ -410,8 +411,11 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
         _rotate(run_dir / "progress.csv")
     model.set_logger(configure(str(run_dir), ["csv", "tensorboard"] if config["tensorboard"] else ["csv"]))
 
+    # The model's metadata records the budget it trained (--timesteps overrides the YAML's
+    # n_timesteps); the run's config keeps the YAML entry as planned (a sweep's --resume checks it).
     meta = {"env_id": env_id, "algo": algo, "seed": config["seed"], "env_kwargs": env_kwargs,
-            "hyperparams": params, "timesteps": config["timesteps"], "batched": config.get("batched", False)}
+            "hyperparams": {**params, "n_timesteps": config["timesteps"]}, "timesteps": config["timesteps"],
+            "batched": config.get("batched", False)}
     if "hyperparams_file" in config:
         meta["hyperparams_file"] = config["hyperparams_file"]
     wall0, cpu0 = float(prior.get("wall_time_s", 0.0)), float(prior.get("cpu_time_s", 0.0))
@@ -505,7 +509,7 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
     """Train ``algo`` on ``env_id`` and save everything under ``log_dir`` (module docstring).
 
     Args:
-        env_id: registered environment id (e.g. ``"SoftArm/OctArmReach-v0"``).
+        env_id: registered environment id (e.g. ``"SoftArm/OctArmReach-v1"``).
         algo: one of :data:`baselines.config.ALGOS`.
         timesteps: environment steps; default the YAML's ``n_timesteps``.
         seed: seeds the algorithm, the environments and torch.
@@ -621,7 +625,7 @@ def resume(run_dir: Path | str, *, timesteps: int | None = None, time_limit_min:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m baselines.train", description=__doc__.splitlines()[0])
-    parser.add_argument("--env", help="environment id, e.g. SoftArm/OctArmReach-v0")
+    parser.add_argument("--env", help="environment id, e.g. SoftArm/OctArmReach-v1")
     parser.add_argument("--algo", choices=tuple(ALGOS))
     parser.add_argument("--resume", metavar="RUN_DIR", default=None,
                         help="continue this run from its newest checkpoint (--env/--algo not needed)")
@@ -642,9 +646,10 @@ def main(argv=None) -> int:
     parser.add_argument("--save-replay-buffer", action="store_true",
                         help="save the off-policy replay buffer with checkpoints (resume continues with it)")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default 1)")
+    add_numba_threads_argument(parser)
     parser.add_argument("--time-limit-min", type=float, default=None,
                         help="stop training after this many minutes of wall time")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_quiet_argument(parser, help="hide the progress bar")
     args = parser.parse_args(argv)
     if args.resume is None and (args.env is None or args.algo is None):
         parser.error("--env and --algo are required (or --resume RUN_DIR)")
@@ -656,15 +661,16 @@ def main(argv=None) -> int:
 
     signal.signal(signal.SIGTERM, stop)
     try:
+        apply_numba_threads(args.numba_threads)
         if args.resume is not None:
             run_dir = resume(args.resume, timesteps=args.timesteps, time_limit_min=args.time_limit_min,
-                             threads=args.threads, progress=not args.no_progress)
+                             threads=args.threads, progress=not args.quiet)
         else:
             run_dir = train(args.env, args.algo, timesteps=args.timesteps, seed=args.seed,
                             log_dir=args.log_dir, hyperparams_dir=args.hyperparams_dir,
                             eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                             checkpoint_freq=args.checkpoint_freq, threads=args.threads or 1,
-                            progress=not args.no_progress, time_limit_min=args.time_limit_min,
+                            progress=not args.quiet, time_limit_min=args.time_limit_min,
                             save_replay_buffer=args.save_replay_buffer, batched=args.batched,
                             run_name=args.run_name)
     except ValueError as exc:

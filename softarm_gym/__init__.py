@@ -9,9 +9,47 @@ reference fails the task) (``python -m softarm_gym.benchmarks.reference``; measu
 ``docs/bench/reference_returns.json``, explained in ``docs/environments.md``).
 """
 
-from gymnasium.envs.registration import register
+import copy
+import dataclasses
+
+import gymnasium as gym
+from gymnasium.envs.registration import EnvSpec, register
 
 __version__ = "0.1.0"
+
+
+class _GoalAPISpec(EnvSpec):
+    """The registry's spec of a ``SoftArm/*`` id: its ``additional_wrappers`` end with
+    :class:`~softarm_gym.wrappers.GoalAPI`, which ``gym.make`` applies (outermost), so that
+    ``check_env(gym.make(id, observation_format="goal"))`` finds ``compute_reward``.
+
+    ``gym.make_vec`` works on a deep copy of the spec and refuses any additional wrapper in its
+    ``vector_entry_point`` mode (a custom vector env takes no wrappers); vector envs have no
+    ``compute_reward`` to forward, so the copy is a plain :class:`EnvSpec` without GoalAPI.
+    """
+
+    def __deepcopy__(self, memo):
+        fields = {f.name: copy.deepcopy(getattr(self, f.name), memo) for f in dataclasses.fields(EnvSpec)}
+        fields["additional_wrappers"] = tuple(w for w in fields["additional_wrappers"] if w.name != "GoalAPI")
+        kept = {k: v for k, v in fields.items() if k in _INIT_FIELDS}
+        spec = EnvSpec(**kept)
+        for name in set(fields) - _INIT_FIELDS:
+            setattr(spec, name, fields[name])
+        return spec
+
+
+_INIT_FIELDS = {f.name for f in dataclasses.fields(EnvSpec) if f.init}
+
+
+def _register_goal_api() -> None:
+    from softarm_gym.wrappers import GOAL_API_SPEC
+
+    for env_id, spec in list(gym.registry.items()):
+        if env_id.startswith("SoftArm/") and not isinstance(spec, _GoalAPISpec):
+            fields = {f.name: getattr(spec, f.name) for f in dataclasses.fields(EnvSpec) if f.init}
+            fields["additional_wrappers"] = (*spec.additional_wrappers, GOAL_API_SPEC)
+            gym.registry[env_id] = _GoalAPISpec(**fields)
+
 
 register(
     id="SoftArm/OctArmReach-v0",
@@ -54,6 +92,7 @@ register(
 register(
     id="SoftArm/OctArmTrack-v0",
     entry_point="softarm_gym.envs:TrackEnv",
+    vector_entry_point="softarm_gym.vector:BatchedTrackVectorEnv",
     max_episode_steps=200,
     reward_threshold=101.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0},
@@ -62,6 +101,7 @@ register(
 register(
     id="SoftArm/CTTrack-v0",
     entry_point="softarm_gym.envs:TrackEnv",
+    vector_entry_point="softarm_gym.vector:BatchedTrackVectorEnv",
     max_episode_steps=200,
     reward_threshold=122.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0},
@@ -70,6 +110,7 @@ register(
 register(
     id="SoftArm/OctArmWrap-v0",
     entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
     reward_threshold=143.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.09, 0.11)},
@@ -78,6 +119,7 @@ register(
 register(
     id="SoftArm/CTWrap-v0",
     entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
     reward_threshold=88.0,
     # The CT arm turns by at most ~200 deg at 70 psi (docs/environments.md): larger objects,
@@ -90,10 +132,10 @@ register(
 # place; contact costs reward in proportion to the contact force (contact="forbid" rejects it).
 # Delta actions, as the -v1 reach ids: an absolute jump across the workspace drives the arm
 # through the discs, and a step that snaps off one costs the solver seconds (docs/environments.md).
-# No vector_entry_point: the batched env has no contact kernel (gym.make_vec steps copies).
 register(
     id="SoftArm/OctArmObstacleReach-v0",
     entry_point="softarm_gym.envs:ObstacleReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
     max_episode_steps=100,
     reward_threshold=31.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
@@ -102,6 +144,7 @@ register(
 register(
     id="SoftArm/CTObstacleReach-v0",
     entry_point="softarm_gym.envs:ObstacleReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
     max_episode_steps=100,
     reward_threshold=37.0,
     # The CT arm is shorter (0.53 m) and as thick (h = 30.2 mm) as OctArm V: smaller discs and
@@ -115,6 +158,7 @@ register(
 register(
     id="SoftArm/OctArmWrap-v1",
     entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
     reward_threshold=324.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
@@ -123,6 +167,7 @@ register(
 register(
     id="SoftArm/CTWrap-v1",
     entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
     max_episode_steps=200,
     reward_threshold=214.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),
@@ -162,3 +207,7 @@ register(
     reward_threshold=150.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
 )
+
+# Every id, whatever registered it above: gym.make adds GoalAPI outermost, so that the env it
+# returns offers compute_reward with observation_format="goal" (softarm_gym.wrappers).
+_register_goal_api()

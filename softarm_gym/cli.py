@@ -1,8 +1,10 @@
 """The ``softarm`` command line: one subcommand per module in :mod:`softarm_gym.commands`.
 
 Each command module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and
-``run(args) -> int``. Long work shows a progress bar on stderr, so ``--json`` output on
-stdout stays machine-readable. Bad input exits with status 2 and a one-line message.
+``run(args) -> int``. Long work shows a progress bar on stderr (``--quiet`` hides it), so
+``--json`` output on stdout stays machine-readable; ``--output FILE.json`` also writes it to a
+file; masses are ``--payload-kg``; long commands take ``--numba-threads N``. Bad input exits
+with status 2 and a one-line message.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ import sys
 
 from softarm_gym.files import json_text
 
-COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators", "stress")
+COMMANDS = ("solve", "bench", "demo", "warmup", "design", "workspace", "dexterity", "estimators", "stress",
+            "fit")
 """Command modules under :mod:`softarm_gym.commands`, in help order."""
 
 
@@ -54,6 +57,10 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(_attach_negative_values(sys.argv[1:] if argv is None else list(argv)))
     try:
+        if getattr(args, "numba_threads", None) is not None:
+            from softarm_gym.commands.common import apply_numba_threads
+
+            apply_numba_threads(args.numba_threads)
         code = int(args._run(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
         return code

@@ -17,7 +17,7 @@ Each step it advances its own nominal equilibrium to the commanded pressures (a 
 warm-started from its previous nominal state, so it follows the quasi-static path as the
 arm does), takes J = ∂tip/∂p of that nominal equilibrium by central finite differences
 (:func:`softarm_gym.analysis.jacobian`, the manipulability Jacobian), scaled to pressure
-fractions, J_f = J·p_max (m per unit fraction), and commands f ← f + Δf with
+fractions, J_f = J·p_max (m per unit fraction), and commands f ← f + Δf with::
 
     Δf = argmin |J_f Δ − gain·e|² + λ²|Δ|² + μ²|f + Δ − ½|²,   e = x_goal − x_tip_observed,
          subject to 0 ≤ f + Δ ≤ 1 and |Δ_k| ≤ max_step,
@@ -44,7 +44,17 @@ from scipy.optimize import lsq_linear
 
 import solver
 from softarm_gym.analysis import jacobian
-from softarm_gym.envs.terms import fractions_from_actions, reach_reward_sum, reach_rewards
+from softarm_gym.envs.terms import (
+    OBSTACLE_TERMS,
+    WRAP_TERMS,
+    batch_contact,
+    batch_wrap_rewards,
+    contact_rewards,
+    fractions_from_actions,
+    obstacle_terms,
+    reach_rewards,
+    reward_sums,
+)
 from solver.grasp import CLAMP_GAP, FreeObject, settle
 
 __all__ = ["JacobianController", "CurlController", "CEMPlanner", "observation_slices"]
@@ -363,10 +373,13 @@ class CEMPlanner(_PressureController):
     tolerance of the target; wrap: the success rule), it holds without searching, and so it
     does when the observation is the one from which its last search found nothing better
     than holding. Rollouts
-    run on :class:`solver.BatchStepper` (all candidates in one parallel call) for reach; for
-    wrap and obstacle reach, whose contact has no batched kernel, one :class:`solver.Stepper`
-    in the scene with the discs steps them in turn (its start, like the envs', solved cold
-    without the discs and then in their scene); for grasp each rollout step is
+    run on :class:`solver.BatchStepper`, all candidates of a round in one parallel call, each
+    a row adopted from the nominal state and scored by the env's batch-first reward rules
+    (:mod:`softarm_gym.envs.terms`): for reach and track, and for planar wrap and obstacle
+    reach with the batch's lean contact step in the scene with the discs (the nominal start,
+    like the envs', solved cold without the discs and then in their scene); where the scene
+    has no lean contact step (3D wrap, rigid contact) one :class:`solver.Stepper` steps the
+    candidates in turn; for grasp each rollout step is
     :func:`solver.grasp.settle` of arm and free object together, on at most
     ``grasp_solves`` contact solves (a snap that would cost more counts as unconverged).
     Its randomness comes from its own generator
@@ -430,7 +443,6 @@ class CEMPlanner(_PressureController):
         self.horizon, self.init_std, self.seed = int(horizon), float(init_std), seed
         self._slices = observation_slices(env)
         self._n = base.n_inputs
-        self._batch = None if self.contact else solver.BatchStepper(self.arm, self.scene, self.samples)
         if all_corners is None:
             all_corners = self.action_mode == "absolute" and 2 ** self._n <= _MAX_CORNERS
         elif not isinstance(all_corners, bool):
@@ -444,6 +456,11 @@ class CEMPlanner(_PressureController):
             corners = _section_corners(self.arm)
         self._corners = None if corners is None else np.repeat(corners[:, None], self.horizon,
                                                                 axis=1)
+        # A round's candidates: hold, the rounded mean, a quarter of the samples at corners (or
+        # every corner in the first round), the rest drawn: one batch row each.
+        self._rows = self.samples if corners is None else \
+            max(self.samples, self.samples - self.samples // 4 + corners.shape[0])
+        self._batch = None if self.contact else solver.BatchStepper(self.arm, self.scene, self._rows)
         self.rng = np.random.default_rng(seed)
         self.reset()
 
@@ -479,7 +496,14 @@ class CEMPlanner(_PressureController):
             free = solver.solve(self.arm, fraction * self.p_max, self.scene, planar=self.planar) \
                 if scene.obstacles else None
             self._nominal.reset(fraction * self.p_max, warm_start=free)
-            if self.contact:
+            if self.contact and self._nominal.lean_contact:
+                # Every candidate a row of one contact batch in the episode's scene.
+                self._batch = solver.BatchStepper(self.arm, scene, self._rows,
+                                                  max_obstacles=len(scene.obstacles))
+                self._measures = np.zeros((self._rows, 2))  # penetration, contact force per row
+            elif self.contact:
+                # 3D or rigid contact (no lean contact step): one stepper steps them in turn.
+                self._batch = None
                 self._rollout = solver.Stepper(self.arm, scene, planar=self.planar)
         elif np.any(self._nominal.pressures != fraction * self.p_max):
             self._nominal.step(fraction * self.p_max)
@@ -539,43 +563,74 @@ class CEMPlanner(_PressureController):
         return solver.Disc(center=(float(row[0]), float(row[1])), radius=float(row[2]),
                            stiffness=self.task.contact_stiffness)
 
-    def _score_reach(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
-        """Summed reach rewards of (m, horizon, n) action sequences on the batched model, in
-        chunks of the batch's size (the last one padded with copies of its last sequence)."""
-        n = self._batch.n
-        totals = []
-        for start in range(0, actions.shape[0], n):
-            chunk = actions[start:start + n]
-            padded = np.concatenate([chunk, np.repeat(chunk[-1:], n - chunk.shape[0], axis=0)])
-            totals.append(self._score_batch(padded, fraction)[:chunk.shape[0]])
-        return np.concatenate(totals)
-
     def _score_batch(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
-        """Summed reach rewards of (batch size, horizon, n) action sequences."""
-        batch = self._batch
+        """Summed task rewards of (m, horizon, n) action sequences, one row of the batched model
+        each (m <= the batch's rows; the others idle), every row from the nominal state. An
+        unconverged step keeps its row's state, a step that touches under
+        ``contact="forbid"`` is rejected, as the env does; rewards by the env's rules
+        (:mod:`softarm_gym.envs.terms`)."""
+        batch, task = self._batch, self.task
+        n, m = batch.n, actions.shape[0]
+        active = np.arange(n) < m
+        padded = np.zeros((n, *actions.shape[1:]))
+        padded[:m] = actions
         batch.adopt(self._nominal.equilibrium)
-        fractions = np.repeat(fraction[None], batch.n, axis=0)
+        fractions = np.repeat(fraction[None], n, axis=0)
         new = np.empty_like(fractions)
-        total = np.zeros(batch.n)
-        targets = np.repeat(self._goal[None], batch.n, axis=0)
-        terms, distance = np.empty((batch.n, 4)), np.empty(batch.n)
-        success = np.empty(batch.n, dtype=bool)
-        task = self.task
+        total, reward = np.zeros(n), np.empty(n)
+        forbid = self.obstacles and task.contact == "forbid"
+        rejected = np.zeros(n, dtype=bool)
         for h in range(self.horizon):
-            fractions_from_actions(actions[:, h], fractions, self.action_mode == "delta",
+            fractions_from_actions(padded[:, h], fractions, self.action_mode == "delta",
                                    self.delta_scale, new)
-            report = batch.step(new * self.p_max)
-            fractions = np.where(report.converged[:, None], new, fractions)
-            reach_rewards(batch.tips, targets, fractions, report.converged, task.distance_weight,
-                          task.control_weight, task.success_bonus, task.success_tolerance,
-                          task.solver_failure_penalty, terms, distance, success)
-            total += reach_reward_sum(terms)
-        return total
+            previous = [batch.equilibrium(k) for k in range(m)] if forbid else None
+            report = batch.step(new * self.p_max, active=active)
+            accepted = report.converged.copy()
+            if self.contact:
+                self._recorded = batch_contact(batch, self._measures)
+                if forbid:
+                    rejected = accepted & active & (self._measures[:, 0] > 0.0)
+                    for k in np.flatnonzero(rejected):
+                        batch.adopt(previous[k], rows=[k])
+                    if rejected.any():
+                        self._recorded = batch_contact(batch, self._measures)
+                    accepted &= ~rejected
+            fractions = np.where(accepted[:, None], new, fractions)
+            self._step_rewards(report.converged, fractions, rejected, reward)
+            total += reward
+        return total[:m]
 
-    def _score_contact(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
-        """Summed wrap or obstacle-reach rewards of (m, horizon, n) action sequences in the
-        contact scene, rolled out one by one (a step that touches under ``contact="forbid"``
-        is rejected as the env rejects it)."""
+    def _step_rewards(self, converged, fractions, rejected, out) -> None:
+        """The task's rewards ``out`` (batch rows,) of the batch's states after a step, by the
+        env's rules; ``rejected``: steps a forbidden contact turned back."""
+        batch, task = self._batch, self.task
+        n = batch.n
+        if self.wrap:
+            terms = np.empty((n, len(WRAP_TERMS)))
+            centre, radius, _ = self._wrap_object()
+            batch_wrap_rewards(batch, batch.backbones(), self._recorded, np.repeat(centre[None], n, axis=0),
+                               np.full(n, radius), self._measures[:, 0], fractions, converged,
+                               task.wrap_rule, terms, np.empty(n), np.empty(n), np.empty(n, dtype=bool))
+            reward_sums(terms, out)
+            return
+        terms, distance = np.empty((n, 4)), np.empty(n)
+        reach_rewards(batch.tips, np.repeat(self._goal[None], n, axis=0), fractions, converged,
+                      task.distance_weight, task.control_weight, task.success_bonus,
+                      task.success_tolerance, task.solver_failure_penalty, terms, distance,
+                      np.empty(n, dtype=bool))
+        if not self.obstacles:
+            reward_sums(terms, out)
+            return
+        contact, all_terms = np.empty(n), np.empty((n, len(OBSTACLE_TERMS)))
+        contact_rewards(self._measures[:, 1], rejected | (self._measures[:, 0] > 0.0),
+                        task.contact == "forbid", task.contact_weight, task.contact_penalty, contact)
+        obstacle_terms(terms, contact, all_terms)
+        reward_sums(all_terms, out)
+
+    def _score_stepper(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+        """:meth:`_score_batch` in a contact scene the batch does not take (3D wrap, rigid
+        contact): the sequences rolled out one by one on a :class:`solver.Stepper`, scored by
+        the env's per-equilibrium rules (``wrap_terms``, ``contact_reward``)."""
         rollout, start = self._rollout, self._nominal.equilibrium
         new = np.empty((1, self._n))
         totals = np.zeros(actions.shape[0])
@@ -608,7 +663,9 @@ class CEMPlanner(_PressureController):
                       task.distance_weight, task.control_weight, task.success_bonus,
                       task.success_tolerance, task.solver_failure_penalty, terms, distance,
                       np.empty(1, dtype=bool))
-        return float(reach_reward_sum(terms)[0])
+        reward = np.empty(1)
+        reward_sums(terms, reward)
+        return float(reward[0])
 
     def _wrap_reward(self, eq: solver.Equilibrium, fraction: np.ndarray, converged: bool) -> float:
         penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
@@ -642,8 +699,8 @@ class CEMPlanner(_PressureController):
         self.last_searched = False
         if self._succeeds(fraction):
             return fraction
-        score = self._score_grasp if self.grasp else self._score_contact if self.contact \
-            else self._score_reach
+        score = self._score_grasp if self.grasp else self._score_batch if self._batch is not None \
+            else self._score_stepper
         hold = self._hold(fraction)
         mean = np.vstack([self._plan[1:], self._plan[-1:]]) if self._plan.any() else hold
         std = np.full_like(mean, self.init_std)

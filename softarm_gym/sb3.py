@@ -1,16 +1,19 @@
-"""An SB3 ``VecEnv`` over the batched reach env: PPO, SAC, TD3 step N arms in one solver call.
+"""An SB3 ``VecEnv`` over the batched vector envs: PPO, SAC, TD3 step N arms in one solver call.
+
+Example::
 
     from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
     from softarm_gym.sb3 import BatchedVecEnv
 
-    venv = VecNormalize(VecMonitor(BatchedVecEnv("SoftArm/OctArmReach-v0", 16, action_mode="delta")),
+    venv = VecNormalize(VecMonitor(BatchedVecEnv("SoftArm/OctArmReach-v1", 16)),
                         norm_reward=False)
     venv.seed(0)
     SAC("MlpPolicy", venv, train_freq=1, gradient_steps=4).learn(100_000)
 
-:class:`BatchedVecEnv` puts Stable-Baselines3's ``VecEnv`` API on a
-:class:`~softarm_gym.vector.BatchedReachVectorEnv` run with ``SAME_STEP`` autoreset:
+:class:`BatchedVecEnv` puts Stable-Baselines3's ``VecEnv`` API on a batched vector env
+(:mod:`softarm_gym.vector`: reach, track, obstacle reach, planar wrap) run with ``SAME_STEP``
+autoreset:
 
 * ``step`` returns ``(obs, rewards, dones, infos)`` with ``dones = terminated | truncated``;
   a finished copy is already reset: its ``obs`` row is the next episode's first
@@ -21,8 +24,10 @@
   bools, ints, and arrays for the tip, target and pressures);
 * ``reset()`` returns the observations only; ``seed(s)`` seeds copy i with s + i at the
   next ``reset()`` (without it, a reset continues each copy's random stream);
+  ``set_options(options)`` passes the same options to every copy's next reset (where the
+  env takes options: not reach), different options per copy are refused;
 * ``get_attr``, ``set_attr`` and ``env_method`` act on the configuration every copy shares
-  (one :class:`~softarm_gym.envs.ReachEnv` that is never stepped: its spaces, weights,
+  (one single env of the ID that is never stepped: its spaces, weights,
   ``p_max``, ...); per-copy state is in the infos. ``set_attr`` sets all copies or none, and
   ``env_method`` refuses ``reset``, ``step``, ``render`` and ``close``, which would act on
   that template instead of the arms.
@@ -30,8 +35,8 @@
 Copy i seeded s is, step for step and bit for bit, ``DummyVecEnv`` over ``gym.make(env_id)``
 seeded s + i (observations, rewards, dones, infos, ``terminal_observation``), so a policy
 trained on either runs on the other; ``tests/test_sb3.py`` holds it to that. The batched
-env's limits apply (true observations, planar arms, one payload and no randomisation; see
-:mod:`softarm_gym.vector`): other settings raise its ``ValueError``; use ``DummyVecEnv``.
+env's limits apply (true observations, one payload and no randomisation, planar contact;
+see :mod:`softarm_gym.vector`): other settings raise its ``ValueError``; use ``DummyVecEnv``.
 Wrap it in ``VecMonitor`` for episode statistics and in ``VecNormalize`` as any ``VecEnv``.
 """
 
@@ -48,8 +53,6 @@ try:
 except ImportError as exc:  # pragma: no cover - the baselines extra is missing
     raise ImportError("softarm_gym.sb3 needs stable-baselines3: pip install 'softarm-gym[baselines]' "
                       f"({exc})") from None
-
-from softarm_gym.vector import BatchedReachVectorEnv
 
 __all__ = ["BatchedVecEnv"]
 
@@ -78,8 +81,8 @@ class BatchedVecEnv(VecEnv):
     """``num_envs`` arms of a reach env id as one SB3 ``VecEnv`` (module docstring).
 
     Args:
-        env_id: a registered id with a batched vector entry point (``SoftArm/OctArmReach-v0``,
-            ``SoftArm/CTReach-v0``).
+        env_id: a registered id with a batched vector entry point (the reach, track, obstacle
+            reach and planar wrap IDs).
         num_envs: number of arms.
         **env_kwargs: ``gym.make`` kwargs of the id (``action_mode``, ``max_episode_steps``,
             reward weights, ...).
@@ -92,7 +95,7 @@ class BatchedVecEnv(VecEnv):
         spec = gym.spec(env_id)
         if spec.vector_entry_point is None:
             raise ValueError(f"{env_id} has no batched vector env; wrap single envs in SB3's DummyVecEnv")
-        self.batched: BatchedReachVectorEnv = gym.make_vec(
+        self.batched = gym.make_vec(
             env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
             autoreset_mode=AutoresetMode.SAME_STEP, **env_kwargs)
         self.spec = spec
@@ -100,10 +103,12 @@ class BatchedVecEnv(VecEnv):
         self._actions: np.ndarray | None = None
 
     def reset(self):
-        if any(self._options):
-            raise ValueError(f"the batched env takes no reset options; got {self._options[0]!r}")
+        options = self._options[0]
+        if any(o != options for o in self._options):
+            raise ValueError(f"the batched env resets every copy with the same options; got "
+                             f"{self._options!r}")
         seeds = None if all(s is None for s in self._seeds) else list(self._seeds)
-        obs, infos = self.batched.reset(seed=seeds)
+        obs, infos = self.batched.reset(seed=seeds, options=options or None)
         self.reset_infos = _per_copy(infos, self.num_envs)
         self._reset_seeds()
         self._reset_options()

@@ -1,4 +1,10 @@
-"""Action wrappers for the soft-arm environments.
+"""Wrappers for the soft-arm environments.
+
+:class:`GoalAPI` forwards a goal env's ``compute_reward`` through the wrappers ``gym.make``
+adds (every ``SoftArm/*`` id is registered with it, outermost), so that SB3's ``check_env`` and
+``HerReplayBuffer`` find it on the env ``gym.make`` returns: Gymnasium's wrappers forward no
+attribute a Gymnasium env does not define, and SB3 looks for ``compute_reward`` on
+``env.unwrapped`` but calls it on the env itself.
 
 :class:`CornerActions` turns the continuous pressure box into its corners: every channel
 either vented or at p_max. The wrap task's optimum can lie there: on ``OctArmWrap-v1`` seeds
@@ -17,10 +23,33 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["CornerActions", "MAX_CORNER_INPUTS"]
+__all__ = ["CornerActions", "GoalAPI", "MAX_CORNER_INPUTS", "GOAL_API_SPEC"]
 
 MAX_CORNER_INPUTS = 12
 """The most action dimensions :class:`CornerActions` takes (4,096 corners)."""
+
+
+class GoalAPI(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """The wrapped env, with the goal env's ``compute_reward`` reachable from outside.
+
+    ``compute_reward`` is the unwrapped env's (``observation_format="goal"``); like the
+    env's own, the attribute does not exist for the other formats, which are not goal envs
+    (``hasattr`` is False), so libraries that test for it see the right kind of env.
+    """
+
+    def __init__(self, env: gym.Env):
+        gym.utils.RecordConstructorArgs.__init__(self)
+        gym.Wrapper.__init__(self, env)
+
+    @property
+    def compute_reward(self):
+        """``compute_reward(achieved_goal, desired_goal, info)`` of the unwrapped goal env."""
+        return self.env.unwrapped.compute_reward
+
+
+GOAL_API_SPEC = gym.envs.registration.WrapperSpec(name="GoalAPI", entry_point="softarm_gym.wrappers:GoalAPI",
+                                                  kwargs={})
+"""The registry's entry for :class:`GoalAPI` (``EnvSpec.additional_wrappers``)."""
 
 
 class CornerActions(gym.ActionWrapper, gym.utils.RecordConstructorArgs):

@@ -35,19 +35,19 @@ sections and :data:`MAX_TUBES` tubes (and channels), and a design file at most
 :data:`MAX_FILE_BYTES`; each limit is named in the error it raises. Every problem is a
 one-line ``ValueError`` saying which field of which entry is wrong.
 
-=====================================  ===========================
-field                                  accepted range
-=====================================  ===========================
-lengths (section ``length``)           (0, 100] m
-radii (tube ``radius`` ≥ 0, material)  (0, 10] m
-``EA``, ``GA`` / ``EI``, ``GJ``        (0, 1e15] N / N m²
-moduli                                 (0, 1e12] Pa
-``density``                            (0, 1e5] kg/m³
-``mass_per_length`` / ``endplate_mass``  [0, 1e6] kg/m / kg
-``angle_deg``                          [-360, 360] deg
-``max_pressure``                       [0, 1e12] Pa (> 0 with tubes)
-names                                  1–100 characters; ``source`` up to 10,000
-=====================================  ===========================
+=========================================  ================================
+field                                      accepted range
+=========================================  ================================
+lengths (section ``length``)               (0, 100] m
+radii (tube ``radius`` ≥ 0, material)      (0, 10] m
+``EA``, ``GA`` / ``EI``, ``GJ``            (0, 1e15] N / N m²
+moduli                                     (0, 1e12] Pa
+``density``                                (0, 1e5] kg/m³
+``mass_per_length`` / ``endplate_mass``    [0, 1e6] kg/m / kg
+``angle_deg``                              [-360, 360] deg
+``max_pressure``                           [0, 1e12] Pa (> 0 with tubes)
+names                                      1–100 characters; ``source`` up to 10,000
+=========================================  ================================
 """
 
 from __future__ import annotations
@@ -56,6 +56,7 @@ import json
 import math
 import numbers
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
+from pathlib import Path
 
 from solver.actuator import PSI, max_stretch
 from solver.cache import DesignCache
@@ -63,7 +64,7 @@ from solver.cache import DesignCache
 __all__ = [
     "TubeMaterial", "Section", "Tube", "ArmDesign", "octarm_v", "octarm_vi", "ct",
     "octarm_two_section", "rod", "pneumatic", "hydraulic", "fluid_arm", "FluidDesign",
-    "from_json", "load", "get",
+    "from_json", "load", "get", "example_file", "EXAMPLES_DIR",
     "DESIGN_NAMES", "MAX_SECTIONS", "MAX_TUBES", "MAX_FILE_BYTES",
 ]
 
@@ -510,6 +511,23 @@ def from_json(text: str) -> ArmDesign:
     if not isinstance(data, dict):
         raise ValueError("design file must hold a JSON object")
     return _build(ArmDesign, data, "design file")
+
+
+EXAMPLES_DIR = Path(__file__).resolve().parent / "examples"
+"""Example design files shipped with the package (``solver/examples/*.json``)."""
+
+
+def example_file(name: str = "two_section_pneumatic") -> Path:
+    """The path of a shipped example design, e.g. ``load(example_file())``.
+
+    Raises:
+        ValueError: no example of that name (the message lists the ones there are).
+    """
+    path = EXAMPLES_DIR / f"{name}.json"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in EXAMPLES_DIR.glob("*.json")))
+        raise ValueError(f"no example design {name!r}; examples: {known}")
+    return path
 
 
 def load(path) -> ArmDesign:

@@ -18,6 +18,10 @@ The on-disk cache heals itself:
 
 :func:`clear_cache` (``softarm warmup --clear``) deletes the compiled files of every kernel
 made with :func:`njit`.
+
+A kernel missing from the cache compiles on its first call (seconds, once): the first such
+compile in a process prints one line on stderr saying so, and where the result is cached
+(:func:`announce_compiles` turns that off).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import functools
 import glob
 import os
 import stat
+import sys
 import tempfile
 import warnings
 from pathlib import Path
@@ -34,11 +39,28 @@ import numba
 from numba.core import config
 from numba.core.caching import FunctionCache
 
-__all__ = ["njit", "prange", "CacheWarning", "clear_cache", "fallback_cache_dir"]
+__all__ = ["njit", "prange", "CacheWarning", "clear_cache", "fallback_cache_dir", "announce_compiles"]
 
 _FLAGS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 _KERNELS: list = []
 """Every dispatcher made by :func:`njit` with caching on (for :func:`clear_cache`)."""
+
+
+_ANNOUNCE = {"enabled": True, "done": False}
+"""Whether the first compile of a process prints its line, and whether it has."""
+
+
+def announce_compiles(enabled: bool = True) -> None:
+    """Print (the default) or not the one line on stderr with which a process's first
+    compile of a kernel missing from the cache says that it compiles, and where it caches."""
+    _ANNOUNCE["enabled"] = bool(enabled)
+
+
+def _announce_compile(cache_path: str) -> None:
+    if _ANNOUNCE["enabled"] and not _ANNOUNCE["done"]:
+        _ANNOUNCE["done"] = True
+        print(f"softarm: compiling numba kernels on first use (once; cached in {cache_path}; "
+              "`softarm warmup` compiles them all up front)", file=sys.stderr, flush=True)
 
 
 class CacheWarning(UserWarning):
@@ -81,10 +103,13 @@ class _HealingCache(FunctionCache):
 
     def load_overload(self, sig, target_context):
         try:
-            return super().load_overload(sig, target_context)
+            loaded = super().load_overload(sig, target_context)
         except Exception as exc:  # UnpicklingError, EOFError, ...: whatever a damaged file raises
             self._discard(f"could not be read ({type(exc).__name__}: {exc})")
-            return None  # numba compiles it, then saves a fresh entry
+            loaded = None  # numba compiles it, then saves a fresh entry
+        if loaded is None:
+            _announce_compile(self.cache_path)
+        return loaded
 
     def save_overload(self, sig, data):
         try:

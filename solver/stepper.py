@@ -371,10 +371,15 @@ class ThreadPolicy:
     region waits at its barrier for a thread the OS has descheduled, and a batch can take
     ten times longer on two threads than on one. So the choice is measured, not assumed:
     the first batches run once each way (the very first run of each only loads its kernel
-    and is not counted), then the faster per-row time wins, and the other way is tried
-    again after ``interval`` batches — an interval that doubles (up to ``MAX_INTERVAL``)
-    each time the other way loses again, so a losing probe costs little, and resets when
-    it wins. Batches below ``min_rows`` and single-thread configurations run serially.
+    and is not counted), then the faster per-row time wins, and the choice is re-checked
+    while the batches run: the way in use is timed at every batch, and the other way is tried
+    again after ``interval`` batches. The interval doubles (up to ``MAX_INTERVAL``) each time
+    the other way loses again, and is at least the loser's slowdown over ``PROBE_BUDGET``:
+    a threaded probe on a contended machine can take tens of serial batches, and probing
+    it every 16 batches would then cost more than the threads could ever save. So on a busy
+    machine the threads cost at most ``PROBE_BUDGET`` over one thread, and when they win
+    again (the machine got quiet) the next probe finds it and the interval resets.
+    Batches below ``min_rows`` and single-thread configurations run serially.
 
     Args:
         min_rows: the smallest batch that may run threaded.
@@ -384,7 +389,10 @@ class ThreadPolicy:
     """
 
     START_INTERVAL = 16
-    MAX_INTERVAL = 1024
+    MAX_INTERVAL = 4096
+    PROBE_BUDGET = 0.05
+    """Most of the run time losing probes may take: a probe of a way ``r`` times slower waits
+    at least ``r / PROBE_BUDGET`` batches."""
     SMOOTHING = 0.3
 
     def __init__(self, min_rows: int):
@@ -434,7 +442,9 @@ class ThreadPolicy:
         if self._probing:
             serial, par = self.per_row_s
             won = (par < serial) == threaded
-            self._interval = self.START_INTERVAL if won else min(2 * self._interval, self.MAX_INTERVAL)
+            slowdown = max(serial, par) / min(serial, par)
+            self._interval = self.START_INTERVAL if won else min(
+                max(2 * self._interval, math.ceil(slowdown / self.PROBE_BUDGET)), self.MAX_INTERVAL)
             self._countdown = self._interval
             self._probing = False
 
@@ -848,6 +858,15 @@ class BatchStepper:
         if not self.contact:
             return np.zeros((self.n, 2))
         return self._rows.contact_measures()
+
+    def recorded(self) -> np.ndarray:
+        """(n,) bool: the copies whose current state a lean path records — their rows of
+        :meth:`backbones` and :meth:`contact_measures` are current (as a :class:`Stepper`'s
+        ``record`` is not None); read the others' from :meth:`equilibrium` (a state the
+        general path left on a grid of its own)."""
+        if not self.contact:
+            return self._ready.copy()
+        return np.array([self._rows.ready(k) for k in range(self.n)], dtype=bool)
 
     def backbones(self) -> np.ndarray:
         """(n, N, ``layout.N_COLUMNS``) every copy's current backbone in the columns

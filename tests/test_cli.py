@@ -119,6 +119,45 @@ def test_pressures_that_are_not_numbers(capsys, command, text):
 def test_solve_bad_pressures(capsys, text, match):
     lines = _fails_cleanly(capsys, ["solve", f"--pressures-psi={text}"], match)
     assert len(lines) == 1
+    assert "Pa" not in lines[-1].replace("psi", "")  # in the unit the user typed
+
+
+def test_pressure_errors_quote_the_psi_the_user_typed(capsys):
+    lines = _fails_cleanly(capsys, ["solve", "--pressures-psi", "30,0,30"], "expects 6 pressures")
+    assert lines[-1].endswith("got 3 (30,0,30 psi)")
+    lines = _fails_cleanly(capsys, ["solve", "--pressures-psi", "300,0,30,0,0,0"], "rated maximum 100 psi")
+    assert "'s1_I' (300 psi)" in lines[-1]
+    _fails_cleanly(capsys, ["solve", "--design", "ct", "--pressures-psi", "0,71,0,0"], "rated maximum 70 psi")
+
+
+def test_one_vocabulary_and_the_old_spellings_still_work(capsys, tmp_path):
+    out = tmp_path / "solve.json"
+    argv = ["solve", "--pressures-psi", "30,0,30,0,0,0"]
+    assert main([*argv, "--payload-kg", "0.2", "--output", str(out)]) == 0
+    tip = capsys.readouterr().out
+    assert main([*argv, "--payload", "0.2"]) == 0
+    assert capsys.readouterr().out == tip and '"converged": true' in out.read_text()
+    for command in ("solve", "workspace", "dexterity", "estimators"):
+        text = _help(command)
+        assert "--payload-kg" in text and "--payload " not in text.replace("--payload-kg", ""), command
+    for command in ("workspace", "dexterity", "design", "stress", "estimators"):
+        text = _help(command)
+        assert "--quiet" in text and "--no-progress" not in text and "--json-out" not in text, command
+        assert "--output" in text and "--numba-threads" in text and "--json" in text, command
+    assert "--numba-threads" in _help("bench") and "--numba-threads" in _help("fit")
+
+
+def _help(command):
+    from softarm_gym.cli import build_parser
+
+    parser = build_parser()
+    return parser._subparsers._group_actions[0].choices[command].format_help()
+
+
+@pytest.mark.parametrize("value", ["0", "99"])
+def test_numba_threads_out_of_range_is_one_line(capsys, value):
+    _fails_cleanly(capsys, ["workspace", "--levels", "2", "--quiet", "--numba-threads", value],
+                   "--numba-threads must be between 1 and")
 
 
 @pytest.mark.parametrize("option, value, match", [

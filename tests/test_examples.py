@@ -1,7 +1,6 @@
-"""The custom-design example of the README loads, solves, drives an env and the CLI."""
+"""The shipped custom-design example loads, solves, drives an env and the CLI."""
 
 import json
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -11,7 +10,7 @@ import solver
 from softarm_gym.cli import main
 from softarm_gym.controllers import JacobianController
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "two_section_pneumatic.json"
+EXAMPLE = solver.designs.example_file()
 
 
 def test_example_design_loads_and_round_trips():

@@ -33,6 +33,9 @@ def _dummy(env_id, n, **kwargs):
 @pytest.mark.parametrize("env_id, kwargs", [
     ("SoftArm/OctArmReach-v0", {"action_mode": "delta"}),
     ("SoftArm/CTReach-v0", {"terminate_on_success": True, "success_tolerance": 0.15}),
+    ("SoftArm/CTTrack-v0", {"segment_steps": 3}),
+    ("SoftArm/OctArmObstacleReach-v0", {}),
+    ("SoftArm/OctArmWrap-v1", {}),
 ])
 def test_copy_i_seeded_s_is_dummy_vec_env_copy_i_seeded_s_plus_i(env_id, kwargs):
     """Observations, rewards, dones, infos (terminal_observation, TimeLimit.truncated) and
@@ -54,6 +57,19 @@ def test_copy_i_seeded_s_is_dummy_vec_env_copy_i_seeded_s_plus_i(env_id, kwargs)
     assert ended >= n
     # Without a new seed() a reset continues each copy's stream, as DummyVecEnv's does.
     _assert_same(batched.reset(), dummy.reset(), "unseeded reset")
+
+
+def test_options_reach_every_copy_alike():
+    batched = BatchedVecEnv("SoftArm/OctArmWrap-v1", 2)
+    dummy = _dummy("SoftArm/OctArmWrap-v1", 2)
+    for venv in (batched, dummy):
+        venv.seed(3)
+        venv.set_options({"object": (0.2, -0.4, 0.1)})
+    _assert_same(batched.reset(), dummy.reset(), "reset with options")
+    _assert_same(batched.reset_infos, dummy.reset_infos, "reset infos")
+    batched.set_options([{"object": (0.2, -0.4, 0.1)}, {}])
+    with pytest.raises(ValueError, match="same options"):
+        batched.reset()
 
 
 def test_wrappers_and_sb3_nan_check():
@@ -95,7 +111,7 @@ def test_attributes_methods_and_refusals():
     with pytest.raises(ValueError, match="no reset options"):
         venv.reset()
     with pytest.raises(ValueError, match="no batched vector env"):
-        BatchedVecEnv("SoftArm/OctArmWrap-v0", 2)
+        BatchedVecEnv("SoftArm/OctArmWrap3D-v0", 2)
     with pytest.raises(ValueError, match="observation='load_cell'"):
         BatchedVecEnv("SoftArm/OctArmReach-v0", 2, observation="load_cell")
     with pytest.raises(RuntimeError, match="step_async"):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 from scipy.ndimage import gaussian_filter
 
 from softarm_gym.analysis.manipulability import MEASURES
@@ -24,19 +25,24 @@ _MEASURE_LABELS = {
 
 def draw_workspace(ax, ws: Workspace, label: str | None = None, density_cell: float = 0.02) -> None:
     """Tips as grey dots with density contours (tips per cm², smoothed over one cell, with a
-    colourbar), the base as a black square and the highest tip as a red triangle."""
+    colourbar ticked at round numbers), the base as a black square and the highest tip as a
+    red triangle, both in a legend."""
     pts = ws.plane_tips
     ax.plot(pts[:, 0], pts[:, 1], ".", color="0.55", ms=1.0, alpha=0.6, rasterized=True)
     dens, xe, ye = ws.density(density_cell)
     dens = gaussian_filter(dens, 1.0)  # smooth over one cell so the contours are readable
     if dens.shape[0] > 1 and dens.shape[1] > 1 and dens.max() > 0:
         xc, yc = 0.5 * (xe[1:] + xe[:-1]), 0.5 * (ye[1:] + ye[:-1])
-        cs = ax.contour(xc, yc, dens.T, levels=np.linspace(dens.max() / 6, dens.max(), 5),
-                        linewidths=0.9, cmap=SEQUENTIAL_CMAP)
+        # Round contour levels (MaxNLocator), so the colourbar reads 10, 20, 30 and not 12.62.
+        levels = [v for v in MaxNLocator(6).tick_values(dens.max() / 6, dens.max())
+                  if dens.max() / 8 <= v <= dens.max()]
+        cs = ax.contour(xc, yc, dens.T, levels=levels, linewidths=0.9, cmap=SEQUENTIAL_CMAP)
         ax.figure.colorbar(cs, ax=ax, shrink=0.8, label="tip density (tips per cm²)")
     top = ws.highest_tip
-    ax.plot([top[0]], [top[1]], "^", color="tab:red", ms=6)
-    ax.plot([0], [0], "ks", ms=5)
+    ax.plot([top[0]], [top[1]], "^", color="tab:red", ms=6, label="highest tip")
+    ax.plot([0], [0], "ks", ms=5, label="base")
+    ax.plot([], [], ".", color="0.55", label="tips of the grid")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncols=3, fontsize=7, frameon=False)
     ax.set_aspect("equal")
     few_ticks(ax)
     ax.grid(alpha=0.3)
@@ -74,8 +80,14 @@ def plot_dexterity(maps, path, labels=None):
     """
     maps = list(maps)
     labels = list(labels) if labels else [dm.design for dm in maps]
-    fig, axes = figure(len(maps), len(MEASURES), figsize=(3.3 * len(MEASURES), 2.9 * len(maps)),
-                       squeeze=False)
+    # One arm: its five measures on a 2 x 3 grid (not a 5-panel strip). Several arms: measures
+    # in columns (named on each panel), arms in rows (named on the left). Each colourbar is a
+    # slim bar under its panel.
+    single = len(maps) == 1
+    shape = (2, 3) if single else (len(maps), len(MEASURES))
+    fig, axes = figure(*shape, figsize=(3.4 * shape[1], 3.3 * shape[0]), squeeze=False)
+    if single:
+        axes[1, 2].set_axis_off()
     for row, dm in enumerate(maps):
         pts = dm.tips[dm.valid, :2]
         for col, name in enumerate(MEASURES):
@@ -85,18 +97,21 @@ def plot_dexterity(maps, path, labels=None):
                 values = np.sqrt(values)  # the thesis plots the geometric mean √(σ1σ2)
             elif name == "manipulability":
                 label, unit = "(c) σ1···σk", "σ1···σk ((m/Pa)^k)"
-            ax = axes[row, col]
+            ax = axes[divmod(col, 3)] if single else axes[row, col]
             hi = np.nanpercentile(values / scale, 98) if values.size else 1.0
             sc = ax.scatter(pts[:, 0], pts[:, 1], c=values / scale, s=2, cmap=SEQUENTIAL_CMAP,
                             vmin=np.nanmin(values / scale) if values.size else 0, vmax=hi,
                             rasterized=True)
-            fig.colorbar(sc, ax=ax, shrink=0.9, label=unit)
+            bar = fig.colorbar(sc, ax=ax, location="bottom", fraction=0.05, pad=0.02, aspect=30)
+            bar.set_label(unit, fontsize=7)
+            bar.ax.tick_params(labelsize=6)
+            bar.ax.xaxis.set_major_locator(MaxNLocator(4))
             ax.set_aspect("equal")
             few_ticks(ax, 4)
-            ax.set_xlabel("x (m)", fontsize=8)
-            ax.set_ylabel("y (m)", fontsize=8)
             ax.tick_params(labelsize=7)
-            ax.set_title(f"{labels[row]}\n{label}", fontsize=8)
+            ax.set_xlabel("x (m)", fontsize=7, labelpad=1)
+            ax.set_ylabel("y (m)" if single or col else f"{labels[row]}\ny (m)", fontsize=8)
+            ax.set_title(f"{labels[row]}: {label}" if single else label, fontsize=9)
             ax.grid(alpha=0.3)
     return save(fig, path)
 

@@ -74,6 +74,8 @@ def run(episodes: int = 20, ids=None, progress: bool = True) -> dict:
         progress: a progress bar on stderr.
 
     Returns:
+        A dict,
+
         ``{env_id: {"knob", "levels": [{"level", "kwargs", "success_rate", "mean_return",
         "seconds"}]}}``.
 

@@ -20,6 +20,8 @@ import gymnasium as gym
 import numpy as np
 
 import softarm_gym  # noqa: F401  (registers the IDs)
+from softarm_gym import registry
+from softarm_gym.registry import make
 from softarm_gym.sensing import ESTIMATORS
 
 TARGETS = {"reach_true": 5000.0, "estimator": 1000.0, "wrap": 500.0, "reach_true_3d": 3000.0}
@@ -40,8 +42,8 @@ SINGLE_REPEATS = 3
 
 
 def env_ids() -> tuple[str, ...]:
-    """Registered soft-arm environment IDs."""
-    return tuple(env_id for env_id in gym.registry if env_id.startswith("SoftArm/"))
+    """Registered soft-arm environment IDs (out-of-date versions included: the benchmark times them)."""
+    return registry.env_ids()
 
 
 def target_for(env_id: str, observation: str, planar: bool = True) -> float:
@@ -83,6 +85,8 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
         progress: optional callable taking a status string.
 
     Returns:
+        A dict,
+
         ``{"cases": [{"env_id", "observation", "planar", "self_contact", "single_steps_per_s",
         "single_runs_steps_per_s", "vector_steps_per_s", "n_envs", "target_steps_per_s"}],
         "n_steps": ..., "n_envs": ...}``; ``single_steps_per_s`` is the median of the
@@ -107,13 +111,13 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
         kwargs = {"observation": obs, **extra}
         if progress:
             progress(f"{env_id} observation={obs}{''.join(f' {k}={v}' for k, v in extra.items())}")
-        env = gym.make(env_id, **kwargs)
+        env = make(env_id, quiet=True, **kwargs)
         planar = env.unwrapped.planar  # a 3D id (OctArmWrap3D-v0) is spatial without the kwarg
         _time_steps(env, min(20, n_steps), seed=SINGLE_REPEATS)  # warm-up: kernels, first resets
         runs = [_time_steps(env, n_steps, seed=seed) for seed in range(SINGLE_REPEATS)]
         single = float(np.median(runs))
         env.close()
-        vec = gym.vector.AsyncVectorEnv([lambda i=env_id, k=kwargs: gym.make(i, **k)] * n_envs)
+        vec = gym.vector.AsyncVectorEnv([lambda i=env_id, k=kwargs: make(i, quiet=True, **k)] * n_envs)
         try:
             _time_steps(vec, min(10, n_steps), seed=1)
             vector = _time_steps(vec, max(1, n_steps // n_envs), seed=0)
@@ -128,6 +132,52 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
     return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs, "resets": resets}
 
 
+CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
+                       ("wrap", "SoftArm/OctArmWrap-v1", {}),
+                       ("wrap delta", "SoftArm/OctArmWrap-v1", {"action_mode": "delta"}),
+                       ("obstacle reach", "SoftArm/OctArmObstacleReach-v0", {}),
+                       ("reach self-contact", "SoftArm/OctArmReach-v1", {"self_contact": True}))
+"""The single-env cases :func:`contact_ratios` times against a free ``OctArmReach-v1`` step
+(the first case): name, ID, kwargs (``true`` observations, random actions)."""
+
+
+def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASES, progress=None) -> dict:
+    """Single-env steps/s of the contact cases and of a free ``OctArmReach-v1`` step, in one
+    process, interleaved (every case once per round, ``rounds`` rounds of seeds 0, 1, ...;
+    the free step runs 3× the steps, being faster), and each case's cost as a multiple of
+    the free step: median free steps/s ÷ median case steps/s.
+
+    Returns:
+        ``{"n_steps", "rounds", "rows": [{"name", "env_id", "kwargs", "steps_per_s",
+        "runs_steps_per_s", "times_free_step"}]}``.
+    """
+    envs = [gym.make(env_id, **kwargs) for _, env_id, kwargs in cases]
+    for env in envs:
+        _time_steps(env, 20, seed=rounds)  # warm-up: kernels, first resets
+    runs = [[] for _ in cases]
+    for r in range(rounds):
+        for k, env in enumerate(envs):
+            runs[k].append(_time_steps(env, 3 * n_steps if k == 0 else n_steps, seed=r))
+        if progress:
+            progress(f"single-env contact ratios, round {r + 1} of {rounds}")
+    for env in envs:
+        env.close()
+    free = float(np.median(runs[0]))
+    rows = [{"name": name, "env_id": env_id, "kwargs": kwargs, "steps_per_s": float(np.median(rates)),
+             "runs_steps_per_s": rates, "times_free_step": free / float(np.median(rates))}
+            for (name, env_id, kwargs), rates in zip(cases, runs)]
+    return {"n_steps": n_steps, "rounds": rounds, "rows": rows}
+
+
+def format_ratio_table(result: dict) -> str:
+    lines = ["| single env (random actions, true obs.) | steps/s (median) | × a free OctArmReach-v1 step |",
+             "|---|---|---|"]
+    for r in result["rows"]:
+        extra = "".join(f" {k}={v}" for k, v in r["kwargs"].items())
+        lines.append(f"| {r['env_id']}{extra} | {r['steps_per_s']:,.0f} | {r['times_free_step']:.2f} |")
+    return "\n".join(lines)
+
+
 RESET_IDS = ("SoftArm/OctArmReach-v0", "SoftArm/CTReach-v0")
 """IDs whose resets are timed with and without domain randomisation."""
 RANDOMIZATION = {"wind_angle_deg": 2.0, "youngs_modulus_rel": 0.1}
@@ -139,9 +189,11 @@ def reset_times(env_id: str, n_resets: int = 200) -> dict:
     the two envs reset alternately (seeds 0, 1, ...) so both see the same machine load.
 
     Returns:
+        A dict,
+
         ``{"env_id", "plain_s", "randomized_s", "ratio", "n_resets"}``.
     """
-    envs = [gym.make(env_id), gym.make(env_id, randomization=RANDOMIZATION)]
+    envs = [make(env_id, quiet=True), make(env_id, quiet=True, randomization=RANDOMIZATION)]
     times = [[], []]
     for seed in range(-20, n_resets):  # 20 warm-up resets (kernels, nominal caches)
         for k, env in enumerate(envs):

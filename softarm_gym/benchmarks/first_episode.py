@@ -40,6 +40,7 @@ def measure(env_id: str, episodes: int = 3, seed: int = 0) -> dict:
     import numpy as np
 
     import softarm_gym  # noqa: F401  (registers the IDs)
+    from softarm_gym.registry import make
 
     importlib.import_module(gym.spec(env_id).entry_point.split(":")[0])
     imports = time.perf_counter() - start
@@ -56,7 +57,7 @@ def measure(env_id: str, episodes: int = 3, seed: int = 0) -> dict:
         return steps
 
     start = time.perf_counter()
-    env = gym.make(env_id)
+    env = make(env_id, quiet=True)
     steps = episode(env, seed)
     first = time.perf_counter() - start
     start = time.perf_counter()
@@ -91,6 +92,8 @@ def run(ids=None, episodes: int = 3, cold: bool = False, progress=None) -> dict:
         progress: a callable taking a message, or None.
 
     Returns:
+        A dict,
+
         ``{"goal": GOAL, "rows": {env_id: {"warm": measure(...), "ratio": first/steady,
         ["cold": measure(...)]}}}``.
     """

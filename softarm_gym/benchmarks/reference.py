@@ -21,13 +21,13 @@ import math
 import sys
 import time
 
-import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
 import softarm_gym  # noqa: F401  (registers the IDs)
 from softarm_gym.benchmarks.envs import env_ids
 from softarm_gym.controllers import CurlController, JacobianController
+from softarm_gym.registry import make
 
 __all__ = ["THRESHOLD_FRACTION", "reward_threshold", "threshold_of", "reference_controller", "episode", "run",
            "main"]
@@ -67,7 +67,7 @@ def episode(env_id: str, seed: int, env_kwargs: dict | None = None) -> dict:
     Returns:
         ``return`` (undiscounted), ``length``, ``success`` (``is_success`` of the last step).
     """
-    env = gym.make(env_id, **(env_kwargs or {}))
+    env = make(env_id, quiet=True, **(env_kwargs or {}))
     controller = reference_controller(env)
     obs, _ = env.reset(seed=seed)
     controller.reset()
@@ -85,6 +85,8 @@ def run(episodes: int = 20, ids=None, progress: bool = True) -> dict:
     """Reference returns of ``episodes`` seeded episodes (seeds 0 … episodes−1) per ID.
 
     Returns:
+        A dict,
+
         ``{env_id: {"controller", "returns", "mean", "std", "success_rate", "mean_length",
         "threshold"}}``.
     """
@@ -98,7 +100,7 @@ def run(episodes: int = 20, ids=None, progress: bool = True) -> dict:
         returns = np.array([r["return"] for r in rows])
         mean = float(returns.mean())
         result[env_id] = {
-            "controller": type(reference_controller(gym.make(env_id))).__name__,
+            "controller": type(reference_controller(make(env_id, quiet=True))).__name__,
             "returns": returns.tolist(), "mean": mean, "std": float(returns.std()),
             "success_rate": float(np.mean([r["success"] for r in rows])),
             "mean_length": float(np.mean([r["length"] for r in rows])),

@@ -319,6 +319,8 @@ def diagnose(trial: Trial, pressures: np.ndarray, previous, eq) -> dict:
         eq: the failed result (None if it raised).
 
     Returns:
+        A dict,
+
         ``{"returned_unstable": bool, "spatial": bool, "converges_with": [names...],
         "stronger_errors": [messages...]}``; ``converges_with`` empty means no tried setting
         found a converged equilibrium.
@@ -574,16 +576,14 @@ def _finite_obs(obs) -> bool:
 
 def _env_case(env_id, observation, observation_format, reset_seed, actions):
     """Random-action steps on one (ID, observation) case: ``{"case": JSON {"row", "message"}}``."""
-    import gymnasium as gym
-
-    import softarm_gym  # noqa: F401 - registers the SoftArm/* IDs in a fresh Ray worker
+    from softarm_gym.registry import make  # registers the SoftArm/* IDs in a fresh Ray worker
 
     row = dict(env_id=env_id, observation=observation, steps=0, exceptions=0, nan_observations=0,
                nan_rewards=0, solver_failures=0, failure_truncations=0, resets=0)
     message = None
     start = time.perf_counter()
     try:
-        env = gym.make(env_id, observation=observation, observation_format=observation_format)
+        env = make(env_id, quiet=True, observation=observation, observation_format=observation_format)
         obs, _ = env.reset(seed=reset_seed)
         row["nan_observations"] += not _finite_obs(obs)
         for action in actions:
@@ -611,9 +611,8 @@ def env_plan(n_steps: int, seed: int = 0, ids=None, observations=None) -> Plan:
     The actions and reset seeds of every case are drawn here, in case order from one
     generator, so a case's steps do not depend on where it runs.
     """
-    import gymnasium as gym
-
     from softarm_gym.benchmarks.envs import env_ids
+    from softarm_gym.registry import make
     from softarm_gym.sensing import ESTIMATORS
 
     if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 0:
@@ -630,7 +629,7 @@ def env_plan(n_steps: int, seed: int = 0, ids=None, observations=None) -> Plan:
     chunks = []
     for k, (env_id, obs) in enumerate(cases if per_case else ()):
         if env_id not in spaces:
-            probe = gym.make(env_id)
+            probe = make(env_id, quiet=True)
             spaces[env_id] = probe.action_space
             probe.close()
         reset_seed = int(rng.integers(2**31))
@@ -658,6 +657,8 @@ def run_env_steps(n_steps: int, seed: int = 0, ids=None, observations=None,
     cases alternate the flat and dict observation formats. Episodes reset when they end.
 
     Returns:
+        A dict,
+
         ``{"steps", "cases", "exceptions", "nan_observations", "nan_rewards",
         "solver_failures", "failure_truncations", "resets", "seconds", "per_case": [...],
         "exception_messages": [...]}``; ``seconds`` is the summed time of the cases.
@@ -687,6 +688,8 @@ def run(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: 
         chunk_size: trials per chunk.
 
     Returns:
+        A dict,
+
         ``{"seed", "random": {...}, "classes": {name: {...}}, "env": {...}, "targets": {...}}``;
         each solver entry holds the fields of :func:`summarize` (with fallbacks) and
         ``without_fallback`` (the same fields with plain Newton). For chunks kept on disk and
@@ -697,8 +700,10 @@ def run(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: 
 
 
 def plan(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps: int = 100_000,
-         classes=None, n_diagnose: int = 20, chunk_size: int = DEFAULT_STRESS_CHUNK) -> Plan:
-    """The chunks of :func:`run` (same arguments); the plan's result is the study's dict.
+         classes=None, n_diagnose: int = 20, chunk_size: int = DEFAULT_STRESS_CHUNK,
+         observations=None) -> Plan:
+    """The chunks of :func:`run` (same arguments; ``observations`` limits the environment part
+    to those estimators, default all); the plan's result is the study's dict.
 
     The trials and actions are drawn here, in the order :func:`run` has always drawn them.
     """
@@ -718,7 +723,7 @@ def plan(seed: int = 0, n_random: int = 5000, n_per_class: int = 200, env_steps:
         rng = np.random.default_rng(seeds[2 + CLASSES.index(name)])
         parts[("class", name)] = _study_plan(class_trials(name, n_per_class, rng), n_diagnose, chunk_size)
     if env_steps:
-        parts["env"] = env_plan(env_steps, seed=int(seeds[1].generate_state(1)[0]))
+        parts["env"] = env_plan(env_steps, seed=int(seeds[1].generate_state(1)[0]), observations=observations)
 
     def finish(out):
         done = dict(zip(parts, out))

@@ -1,4 +1,5 @@
-"""Aggregate steps per second of the batched reach vector env (planar and 3D)."""
+"""Aggregate steps per second of the batched vector envs: reach (planar and 3D), and the contact
+envs (wrap, obstacle reach) beside reach in the same run."""
 
 from __future__ import annotations
 
@@ -72,6 +73,82 @@ def run(sizes=(4, 16, 256, 1024, 4096), steps: int = 100, action_mode: str = "de
         if progress:
             progress(f"batched vector env {n}")
     return rows
+
+
+CONTACT_CASES = (("reach", "SoftArm/OctArmReach-v1", {}),
+                 ("wrap", "SoftArm/OctArmWrap-v1", {}),
+                 ("wrap delta", "SoftArm/OctArmWrap-v1", {"action_mode": "delta"}),
+                 ("obstacle reach", "SoftArm/OctArmObstacleReach-v0", {}))
+"""The batched envs :func:`run_contact` times side by side (name, ID, kwargs): reach, wrap
+with its registered absolute actions and with delta actions, obstacle reach (delta)."""
+
+
+def run_contact(n: int = 1024, steps: int = 40, repeats: int = 3, cases=CONTACT_CASES,
+                progress=None) -> dict:
+    """Aggregate arm-steps/s of the batched contact envs beside the batched reach env, in one
+    process, their timed blocks interleaved (reach, wrap, ..., reach, wrap, ...) so that each
+    sees the same machine load; ratios to reach.
+
+    Each env is made once with ``n`` arms (and episodes longer than the run: resets are timed
+    apart, as seconds per copy — a contact env resets each copy by its single env's solver
+    calls), reset with seed 0 and stepped once untimed; then ``repeats`` rounds of ``steps``
+    random actions (uniform in [−1, 1], seeded) per env. numba's full thread pool.
+
+    Returns:
+        ``{"num_envs", "steps", "repeats", "threads", "rows": [{"name", "env_id", "kwargs",
+        "env_steps_per_s" (median), "runs_env_steps_per_s", "ratio_to_reach",
+        "converged_fraction", "reset_s_per_copy"}]}``.
+    """
+    import gymnasium as gym
+
+    import softarm_gym  # noqa: F401  (registers the IDs)
+
+    envs, rows = [], []
+    for name, env_id, kwargs in cases:
+        start = time.perf_counter()
+        env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                           max_episode_steps=10 ** 9, **kwargs)
+        made = time.perf_counter()
+        env.reset(seed=0)
+        reset = time.perf_counter() - made
+        actions = np.random.default_rng(0).uniform(-1, 1, (repeats * steps + 1, n,
+                                                           env.single_action_space.shape[0]))
+        env.step(actions[0])
+        envs.append((env, actions[1:]))
+        rows.append({"name": name, "env_id": env_id, "kwargs": kwargs, "runs_env_steps_per_s": [],
+                     "converged": 0, "reset_s_per_copy": reset / n, "make_s": made - start})
+        if progress:
+            progress(f"batched {name} env, {n} arms: made and reset")
+    for r in range(repeats):
+        for (env, actions), row in zip(envs, rows):
+            block = actions[r * steps:(r + 1) * steps]
+            start = time.perf_counter()
+            for a in block:
+                *_, info = env.step(a)
+                row["converged"] += int(info["converged"].sum())
+            row["runs_env_steps_per_s"].append(n * steps / (time.perf_counter() - start))
+        if progress:
+            progress(f"batched contact envs, round {r + 1} of {repeats}")
+    for env, _ in envs:
+        env.close()
+    reach = float(np.median(rows[0]["runs_env_steps_per_s"]))
+    for row in rows:
+        row["env_steps_per_s"] = float(np.median(row["runs_env_steps_per_s"]))
+        row["ratio_to_reach"] = row["env_steps_per_s"] / reach
+        row["converged_fraction"] = row.pop("converged") / (n * steps * repeats)
+    return {"num_envs": n, "steps": steps, "repeats": repeats, "threads": numba.get_num_threads(),
+            "rows": rows}
+
+
+def format_contact_table(result: dict) -> str:
+    lines = [f"| batched env, {result['num_envs']} arms (random actions, {result['threads']} threads) "
+             "| arm-steps/s (median) | × reach | converged | reset (ms per copy) |",
+             "|---|---|---|---|---|"]
+    for r in result["rows"]:
+        lines.append(f"| {r['name']} ({r['env_id']}) | {r['env_steps_per_s']:,.0f} | "
+                     f"{r['ratio_to_reach']:.2f} | {100 * r['converged_fraction']:.2f} % | "
+                     f"{1e3 * r['reset_s_per_copy']:.2f} |")
+    return "\n".join(lines)
 
 
 def run_spatial(sizes=(4, 16, 64), steps: int = 20, action_mode: str = "delta",

@@ -3,9 +3,13 @@
 Default: the solver (RK4 resolution sweep, warm and cold solves, scipy solve_bvp reference,
 spatial, batch). ``--peer pyelastica`` settles the same OctArm V scenes with PyElastica.
 ``--env`` times the environments instead: every registered ID and observation mode, single
-and vectorised, and the batched vector env. ``--first-episode`` times the first episode of
-every registered ID in a fresh process after ``softarm warmup`` against its steady speed
-(``--cold`` adds the same with an empty numba cache).
+and vectorised; the single-env contact cases as multiples of a free reach step; the batched
+reach env by size, and the batched wrap and obstacle-reach envs beside it at 1024 arms.
+``--first-episode`` times the first episode of every registered ID in a fresh process after
+``softarm warmup`` against its steady speed (``--cold`` adds the same with an empty numba
+cache). ``--fit`` times the calibration (``softarm fit``) at the thesis's experiment size,
+beside one batch of its solves, and tabulates parameter error against noise level
+(docs/bench/fit.json).
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ from __future__ import annotations
 import sys
 
 from softarm_gym.cli import UsageError, emit
+from softarm_gym.commands.common import add_numba_threads_argument
 
 NAME = "bench"
 HELP = "benchmark solver speed against accuracy (and peers)"
@@ -28,6 +33,9 @@ def add_arguments(p):
     p.add_argument("--first-episode", action="store_true",
                    help="first episode of every ID in a fresh process (after softarm warmup) against "
                         "its steady speed")
+    p.add_argument("--fit", action="store_true",
+                   help="benchmark the calibration (softarm fit) instead: time for 64 x 7 configurations and "
+                        "nine parameters, and parameter error against noise level")
     p.add_argument("--cold", action="store_true",
                    help="with --first-episode: also with an empty numba cache (compiles; slow)")
     p.add_argument("--ids", default=None,
@@ -37,6 +45,7 @@ def add_arguments(p):
                    help="where a contact step's time goes: paths, passes, kernels against Python, "
                         "beside a free reach step")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_numba_threads_argument(p)
 
 
 def run(args) -> int:
@@ -64,6 +73,17 @@ def run(args) -> int:
         result = contact_profile.run(quick=args.quick, progress=progress)
         emit(result, args.json, contact_profile.format_table(result))
         return 0
+    if args.fit:
+        from softarm_gym.identify import studies
+
+        progress("fit time: 64 on/off configurations x 7 pressures, nine parameters")
+        result = {"time": studies.benchmark(repeats=1 if args.quick else 3)}
+        progress("parameter error against noise level")
+        sigmas = (2.0, 10.0) if args.quick else (1.0, 2.0, 5.0, 10.0, 20.0)
+        result["noise"] = studies.noise_study(sigmas_mm=sigmas, seeds=(0,) if args.quick else (0, 1, 2))
+        emit(result, args.json, studies.format_benchmark(result["time"]) + "\n\n"
+             + studies.format_noise(result["noise"]))
+        return 0
     if args.cold and not args.first_episode:
         raise UsageError("--cold only applies to --first-episode")
     if args.ids and not args.env:
@@ -89,11 +109,17 @@ def run(args) -> int:
             emit(result, args.json, envs.format_table(result))
             return 0
         sizes = (4, 256) if args.quick else (4, 16, 256, 1024, 4096)
+        result["contact_ratios"] = envs.contact_ratios(60 if args.quick else 300, progress=progress)
         result["batched_vector"] = vector_bench.run(sizes, progress=progress)
+        result["batched_contact"] = vector_bench.run_contact(64 if args.quick else 1024,
+                                                             steps=10 if args.quick else 40,
+                                                             progress=progress)
         result["batched_vector_3d"] = vector_bench.run_spatial((4,) if args.quick else (4, 16, 64),
                                                                progress=progress)
         emit(result, args.json, envs.format_table(result) + "\n\n"
+             + envs.format_ratio_table(result["contact_ratios"]) + "\n\n"
              + vector_bench.format_table(result["batched_vector"]) + "\n\n"
+             + vector_bench.format_contact_table(result["batched_contact"]) + "\n\n"
              + vector_bench.format_spatial_table(result["batched_vector_3d"]))
         return 0
     result = solver_bench.run(quick=args.quick, progress=progress)

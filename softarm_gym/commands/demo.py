@@ -1,6 +1,6 @@
 """``softarm demo``: the main job of ``make demo``.
 
-Runs a reach episode on ``SoftArm/OctArmReach-v0`` (a damped least-squares Jacobian
+Runs a reach episode on ``SoftArm/OctArmReach-v1`` (a damped least-squares Jacobian
 controller on the nominal model, acting on the estimator's observation), prints its metrics
 and saves it as a GIF; then solves each named design under gravity at a few pressure
 patterns and base angles and saves a picture of the shapes.

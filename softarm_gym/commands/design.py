@@ -6,7 +6,7 @@ import numpy as np
 
 from softarm_gym import design_tools
 from softarm_gym.cli import UsageError
-from softarm_gym.commands.common import parse_floats
+from softarm_gym.commands.common import add_quiet_argument, parse_floats
 from softarm_gym.commands.long_jobs import (
     add_job_arguments,
     check_outputs,
@@ -38,7 +38,7 @@ def add_arguments(p):
     p.add_argument("--tapered", action="store_true",
                    help="only layouts whose tube count never grows towards the tip")
     p.add_argument("--plot", metavar="FILE.png", help="plot the load capacity of the best layouts")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_quiet_argument(p)
     p.add_argument("--json", action="store_true", help="machine-readable output")
     add_job_arguments(p, "(size, layout) evaluations per chunk (default %(default)s: ~1 s)",
                       DEFAULT_DESIGN_CHUNK)
@@ -66,7 +66,7 @@ def run(args) -> int:
     moduli = [None] if args.youngs_modulus is None else list(
         parse_floats(args.youngs_modulus, "--youngs-modulus"))
     check_outputs(args, images=("plot",))
-    runner = runner_from_args(args, progress=not args.no_progress)
+    runner = runner_from_args(args, progress=not args.quiet)
     plans = [sweep_plan(args.fluid, args.constraint, n, sizes, tapered=args.tapered,
                         template_pressure=args.template_pressure, youngs_modulus=modulus,
                         chunk_size=args.chunk_size)
@@ -97,8 +97,10 @@ def _text(sweeps, best) -> str:
                 lines.append(f"  {size_name} = {size:6.3f} m   no feasible layout")
                 continue
             fold = "  (fold)" if c.fold_limited else ""
+            # The swept size is the length itself except under the gripping-radius constraint.
+            length = "" if size_name == "L" else f"   L = {c.length_m:6.3f} m"
             lines.append(f"  {size_name} = {size:6.3f} m   best {'-'.join(map(str, c.tubes)):>14}"
-                         f"   L = {c.length_m:6.3f} m   t = {c.thickness_m * 1e3:6.2f} mm"
+                         f"{length}   t = {c.thickness_m * 1e3:6.2f} mm"
                          f"   W = {c.load_n:9.2f} N{fold}")
     if best is None:
         lines.append("no feasible layout")

@@ -67,7 +67,7 @@ def run(args) -> int:
                                               chunk_size=args.chunk_size)
     else:
         arm = design_from_args(args)
-        scene = solver.Scene(base_angle_deg=args.base_angle, payload_kg=args.payload,
+        scene = solver.Scene(base_angle_deg=args.base_angle, payload_kg=args.payload_kg,
                              gravity=args.gravity)
         max_pressure = None if args.max_psi is None else args.max_psi * solver.PSI
         plan = dexterity_plan(arm, scene, levels=args.levels, max_pressure=max_pressure,

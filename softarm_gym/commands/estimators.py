@@ -8,12 +8,23 @@ import numpy as np
 from tqdm import tqdm
 
 from softarm_gym.cli import UsageError, emit
-from softarm_gym.commands.common import parse_floats
+from softarm_gym.commands.common import (
+    add_numba_threads_argument,
+    add_output_argument,
+    add_payload_argument,
+    add_quiet_argument,
+    parse_floats,
+)
 from softarm_gym.files import write_json
 
 NAME = "estimators"
 HELP = ("RMS tip error of every shape estimator over the 64 on/off configurations of OctArm VI "
         "(0-90 psi, horizontal and vertical base, with and without sensor noise, unknown payload)")
+
+STUDY_PAYLOAD_N = 10.0
+"""The unknown tip payload of the thesis's Fig. 4.6 study (N)."""
+STANDARD_GRAVITY = 9.81
+"""g (m/s²) turning ``--payload-kg`` into the study's payload weight."""
 
 STYLE = {"model": ":", "constant_curvature": "-.", "cable_encoder": "-", "inclinometer": "--",
          "load_cell": (0, (5, 1, 1, 1))}
@@ -24,16 +35,18 @@ SENSING = {"perfect": "perfect sensors", "table4.3": "Table 4.3 resolution (simu
 def add_arguments(p):
     p.add_argument("--pressures-psi", default="0,10,20,30,40,50,60,70,80,90",
                    help="pressure levels in psi (default %(default)s)")
-    p.add_argument("--payload", type=float, default=10.0,
-                   help="weight of the unknown tip payload of the Fig. 4.6 study (N, default 10)")
+    add_payload_argument(p, default=STUDY_PAYLOAD_N / STANDARD_GRAVITY,
+                         help="mass of the unknown tip payload of the Fig. 4.6 study (kg; default "
+                              f"{STUDY_PAYLOAD_N / STANDARD_GRAVITY:.4g}, the thesis's 10 N)")
     p.add_argument("--base-inclinometer-deg", type=float, default=None,
                    help="base inclinometer resolution (deg) of the noisy sensors (default: the "
                         "0.05 deg USD-T2 of §4.3; Table 4.3's 2.5 deg applies to the others)")
-    p.add_argument("--json-out", metavar="PATH", help="write the full result table as JSON")
+    add_output_argument(p, help="write the full result table as JSON", old=("--json-out",))
     p.add_argument("--plot", metavar="PATH", help="Figs. 4.4-4.5 style plot (PNG)")
     p.add_argument("--payload-plot", metavar="PATH", help="Fig. 4.6 style payload plot (PNG)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_quiet_argument(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    add_numba_threads_argument(p)
 
 
 def run(args) -> int:
@@ -49,16 +62,17 @@ def run(args) -> int:
         noise = SensorNoise.thesis(**overrides)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    bar = tqdm(total=total_steps(levels.size), file=sys.stderr, disable=args.no_progress,
+    bar = tqdm(total=total_steps(levels.size), file=sys.stderr, disable=args.quiet,
                desc="estimators")
     try:
-        result = run_study(pressures_psi=levels, payload_n=args.payload, noise=noise, progress=bar)
+        result = run_study(pressures_psi=levels, payload_n=args.payload_kg * STANDARD_GRAVITY, noise=noise,
+                           progress=bar)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     finally:
         bar.close()
-    if args.json_out:
-        write_json(args.json_out, result, indent=1)
+    if args.output:
+        write_json(args.output, result, indent=1)
     if args.plot:
         plot_study(result, args.plot)
     if args.payload_plot:
@@ -101,6 +115,11 @@ def format_table(result: dict) -> str:
     return "\n".join(lines)
 
 
+BANDS = ("Lines: RMS tip error / L over the 64 on/off configurations at each pressure level. "
+         "Bands: ± one standard deviation of the tip error / L over those configurations.")
+"""The caption of the study's figures (what the lines and the shaded bands are)."""
+
+
 def _panel(ax, levels, table, names):
     for name in names:
         rms = np.array(table[name]["rms_over_L"])
@@ -128,6 +147,7 @@ def plot_study(result: dict, path):
             ax.set_title(f"{label} base: {title}", fontsize=9)
             ax.set_ylabel("RMS tip error / L (–)")
     axes[0, 0].legend(fontsize=8)
+    fig.suptitle(BANDS, fontsize=8, wrap=True)
     return save(fig, path)
 
 
@@ -150,4 +170,5 @@ def plot_payload(result: dict, path):
             ax.set_title(f"{label} base: {title}", fontsize=9)
             ax.set_ylabel("RMS tip error / L (–)")
     axes[0, 0].legend(fontsize=8)
+    fig.suptitle(BANDS, fontsize=8, wrap=True)
     return save(fig, path)

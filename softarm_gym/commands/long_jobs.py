@@ -1,7 +1,7 @@
 """Options and output handling shared by the sweep commands (workspace, dexterity, design, stress).
 
 Every sweep command takes ``--backend local|ray``, ``--address``, ``--chunk-size``,
-``--resume``, ``--chunk-dir``, ``--retries`` and ``--output FILE.json``. Output paths are
+``--resume``, ``--chunk-dir``, ``--retries``, ``--output FILE.json`` and ``--numba-threads``. Output paths are
 checked before any work starts; results and pictures are written atomically (temporary file
 + rename); finished chunks stay on disk until the output is written, so Ctrl-C, a killed
 process or a lost Ray worker costs at most the chunks in flight (``--resume`` continues).
@@ -17,6 +17,7 @@ import tempfile
 from pathlib import Path
 
 from softarm_gym.cli import UsageError, emit
+from softarm_gym.commands.common import add_numba_threads_argument
 from softarm_gym.jobs import (
     BACKENDS,
     DEFAULT_RETRIES,
@@ -45,6 +46,7 @@ def add_job_arguments(p, chunk_help: str, chunk_default=None) -> None:
                    help="times Ray reruns a chunk whose worker died (default %(default)s)")
     g.add_argument("--output", metavar="FILE.json", default=None,
                    help="also write the JSON result to FILE (atomically)")
+    add_numba_threads_argument(g)
 
 
 def _tilde(path: Path) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from softarm_gym.cli import UsageError
+from softarm_gym.commands.common import add_quiet_argument
 from softarm_gym.commands.long_jobs import (
     add_job_arguments,
     check_outputs,
@@ -27,11 +28,13 @@ def add_arguments(p):
     p.add_argument("--env-steps", type=int, default=100_000,
                    help="random-action environment steps over all IDs and observation modes "
                         "(default %(default)s; 0 skips them)")
+    p.add_argument("--observations", default=None, metavar="OBS[,OBS]",
+                   help="estimators the environment steps use (default: all of them)")
     p.add_argument("--diagnose", type=int, default=20,
                    help="failed solves per class retried with stronger settings (default %(default)s)")
     p.add_argument("--quick", action="store_true",
                    help="smoke run: 200 random solves, 10 per class, 480 env steps")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    add_quiet_argument(p, help="no progress bars on stderr")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     add_job_arguments(p, "trials per chunk (default: about 1 s of solves); an env case is one chunk")
 
@@ -55,10 +58,16 @@ def run(args) -> int:
             raise UsageError(f"unknown stress class {', '.join(unknown) or repr(args.classes)}; "
                              f"choose from {', '.join(stress.CLASSES)}")
     check_outputs(args)
-    runner = runner_from_args(args, progress=not args.no_progress)
-    study = stress.plan(seed=args.seed, n_random=n_random, n_per_class=n_per_class,
-                        env_steps=env_steps, classes=classes, n_diagnose=args.diagnose,
-                        chunk_size=args.chunk_size or stress.DEFAULT_STRESS_CHUNK)
+    runner = runner_from_args(args, progress=not args.quiet)
+    observations = None if args.observations is None else tuple(
+        o.strip() for o in args.observations.split(",") if o.strip())
+    try:
+        study = stress.plan(seed=args.seed, n_random=n_random, n_per_class=n_per_class,
+                            env_steps=env_steps, classes=classes, n_diagnose=args.diagnose,
+                            chunk_size=args.chunk_size or stress.DEFAULT_STRESS_CHUNK,
+                            observations=observations)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     (result,) = runner.run_plans([study], desc="stress", unit="solve")
     finish(args, result, stress.format_report(result), runner)
     return 0 if result["targets"]["zero_nan"] else 1

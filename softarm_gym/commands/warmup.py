@@ -1,25 +1,39 @@
-"""``softarm warmup``: compile every numba kernel the registered environments use into the on-disk cache.
+"""``softarm warmup``: compile every numba kernel the solver and the registered environments use
+into the on-disk cache, in parallel processes.
 
-``make demo`` and ``make test`` run it first, so a user's first episode and each test worker
-load machine code instead of compiling it (``softarm bench --first-episode`` measures the
-difference). It solves the named designs (planar, warm-started, spatial, batched), then
-runs a short episode of every registered ID in every observation mode with Table 4.3
-sensor noise and a payload range, the spatial reach task with every estimator that supports
-it, and the batched vector env. ``--clear`` first deletes every compiled file of the
-project's kernels (a damaged or stale cache; damaged entries also heal on their own, see
+Nothing needs it: a kernel compiles on first use, into the same cache, with one line on stderr
+saying so (:func:`solver.jit.announce_compiles`), so ``make demo`` compiles only what the demo
+runs. ``make test`` runs it first, so that the test workers load machine code instead of each
+compiling the same kernels; a user who wants every first episode fast runs it once
+(``softarm bench --first-episode`` measures the difference).
+
+The work is split into groups of kernels (:data:`GROUPS`) run by a pool of ``--jobs``
+processes (default: one per core): the solver's own kernels (planar, warm-started, spatial,
+batched), the reach and track envs in every observation mode with Table 4.3 sensor noise and
+a payload range (and spatial reach with every estimator that supports 3-D), the planar
+contact envs (wrap, obstacle reach, grasp), the 3-D wrap envs, and the batched vector envs
+(reach, and the contact rows' kernels through the batched wrap, obstacle-reach and track envs).
+Every registered ID is covered, deprecated ones included, but envs are built from their
+registry entries directly, not through ``gym.make``: a warm-up asked for no ID, so it prints
+no "out of date" warning. ``--clear`` first deletes every compiled file of the project's
+kernels (a damaged or stale cache; damaged entries also heal on their own, see
 :mod:`solver.jit`).
 """
 
 from __future__ import annotations
 
 import importlib
+import multiprocessing
+import os
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 
 import numpy as np
 
 import solver
-from solver.jit import clear_cache
+from softarm_gym.cli import UsageError
+from solver.jit import announce_compiles, clear_cache
 
 NAME = "warmup"
 HELP = "compile the numba kernels the solver and the registered envs use into the on-disk cache"
@@ -27,26 +41,32 @@ HELP = "compile the numba kernels the solver and the registered envs use into th
 STEPS = 3
 """Steps per warm-up episode (each kernel needs one call per argument type)."""
 
-
 KERNEL_MODULES = ("solver", "softarm_gym.sensing.kernels", "softarm_gym.envs.terms")
 """Modules whose import defines every project kernel (for ``--clear``)."""
 
+GROUPS = ("solver", "reach", "contact", "spatial_contact", "batch")
+"""Warm-up groups, each one process's work: see :func:`warm_group`."""
+
 
 def add_arguments(p):
-    p.add_argument("--quiet", action="store_true", help="no line per case on stderr")
+    p.add_argument("--quiet", action="store_true", help="no line per group on stderr")
     p.add_argument("--clear", action="store_true",
                    help="delete the cached kernels first, then compile them afresh")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="processes compiling in parallel (default: one per core)")
+    p.add_argument("--only", default=None, metavar="GROUP[,GROUP]",
+                   help=f"compile only these groups, of {', '.join(GROUPS)}")
 
 
 def cases() -> list[tuple[str, dict]]:
-    """(env_id, gym.make kwargs) of every warm-up episode: each registered ID × observation mode
+    """(env_id, env kwargs) of every env warm-up episode: each registered ID × observation mode
     (planar), and spatial reach with every estimator that supports 3-D."""
     import gymnasium as gym
 
-    import softarm_gym  # noqa: F401  (registers the IDs)
+    from softarm_gym.registry import env_ids
     from softarm_gym.sensing import ESTIMATORS
 
-    ids = [env_id for env_id in gym.registry if env_id.startswith("SoftArm/")]
+    ids = env_ids()
     out = [(env_id, {"observation": obs, "sensor_noise": "thesis", "payload_kg": (0.0, 0.1)})
            for env_id in ids for obs in ESTIMATORS]
     # Spatial: the reach IDs (ReachEnv; the contact tasks are planar only).
@@ -54,6 +74,17 @@ def cases() -> list[tuple[str, dict]]:
             for env_id in ids if gym.spec(env_id).entry_point == "softarm_gym.envs:ReachEnv"
             for obs in ESTIMATORS if obs != "inclinometer"]
     return out
+
+
+def group_of(env_id: str, kwargs: dict) -> str:
+    """The warm-up group whose process runs the case (env_id, kwargs) of :func:`cases`."""
+    import gymnasium as gym
+
+    spec = gym.spec(env_id)
+    if spec.entry_point.endswith((":WrapEnv", ":ObstacleReachEnv", ":GraspEnv")):
+        planar = kwargs.get("planar", spec.kwargs.get("planar", True))
+        return "contact" if planar else "spatial_contact"
+    return "reach"
 
 
 def _solver_kernels() -> None:
@@ -74,25 +105,6 @@ def _episode(env, seed: int) -> None:
     env.close()
 
 
-def warm(progress=None) -> float:
-    """Run every warm-up case; ``progress(message)`` after each. Returns the seconds taken."""
-    import gymnasium as gym
-
-    start = time.perf_counter()
-    _solver_kernels()
-    for k, (env_id, kwargs) in enumerate(cases()):
-        t = time.perf_counter()
-        _episode(gym.make(env_id, **kwargs), seed=k)
-        if progress:
-            progress(f"{env_id} {kwargs} ({time.perf_counter() - t:.1f} s)")
-    # Small batches run the one-thread kernels, larger ones the parallel ones: warm both.
-    for num_envs in (2, solver.BatchStepper.PARALLEL_MIN):
-        _episode(gym.make_vec("SoftArm/OctArmReach-v0", num_envs=num_envs,
-                              vectorization_mode="vector_entry_point"), seed=0)
-    batch_kernels()
-    return time.perf_counter() - start
-
-
 def batch_kernels() -> solver.BatchStepper:
     """Both ways of both batch kernels (cold rows, step rows): a thread policy runs a kernel
     on the threads from its third call and measures it from its fourth
@@ -109,7 +121,76 @@ def batch_kernels() -> solver.BatchStepper:
     return batch
 
 
+def warm_group(group: str) -> float:
+    """Compile one group's kernels in this process; returns the seconds taken.
+
+    ``solver``: the solver's kernels on the named designs (cold, warm, spatial, batch);
+    ``reach``, ``contact``, ``spatial_contact``: a short episode of each of their
+    :func:`cases`; ``batch``: the batched vector env (one-thread and parallel sizes) and both
+    batch kernels both ways (:func:`batch_kernels`).
+    """
+    from softarm_gym.registry import make_unwrapped
+
+    if group not in GROUPS:
+        raise ValueError(f"unknown warm-up group {group!r}; groups: {', '.join(GROUPS)}")
+    start = time.perf_counter()
+    if group == "solver":
+        _solver_kernels()
+    elif group == "batch":
+        import gymnasium as gym
+
+        # Small batches run the one-thread kernels, larger ones the parallel ones: warm both,
+        # for reach and for the contact rows (wrap, obstacle reach) and the track task's terms.
+        wide = solver.BatchStepper.PARALLEL_MIN
+        for env_id, num_envs in (("SoftArm/OctArmReach-v1", 2), ("SoftArm/OctArmReach-v1", wide),
+                                 ("SoftArm/OctArmWrap-v1", 2), ("SoftArm/OctArmWrap-v1", wide),
+                                 ("SoftArm/OctArmObstacleReach-v0", 2), ("SoftArm/OctArmTrack-v0", 2)):
+            _episode(gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point"),
+                     seed=0)
+        batch_kernels()
+    else:
+        for k, (env_id, kwargs) in enumerate(cases()):
+            if group_of(env_id, kwargs) == group:
+                _episode(make_unwrapped(env_id, **kwargs), seed=k)
+    return time.perf_counter() - start
+
+
+def _warm_group_quietly(group: str) -> tuple[str, float]:
+    announce_compiles(False)  # the warm-up says what it compiles itself
+    return group, warm_group(group)
+
+
+def warm(progress=None, groups=GROUPS, jobs: int = 1) -> float:
+    """Compile the kernels of ``groups``, ``jobs`` processes at a time (1: in this process);
+    ``progress(message)`` after each group. Returns the seconds taken."""
+    start = time.perf_counter()
+    if jobs <= 1:
+        for group in groups:
+            seconds = warm_group(group)
+            if progress:
+                progress(f"{group} ({seconds:.1f} s)")
+        return time.perf_counter() - start
+    # spawn: a fork would copy this process's numba and thread-pool state into the workers.
+    with ProcessPoolExecutor(max_workers=min(jobs, len(groups)),
+                             mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(_warm_group_quietly, group) for group in groups]
+        for future in as_completed(futures):
+            group, seconds = future.result()
+            if progress:
+                progress(f"{group} ({seconds:.1f} s)")
+    return time.perf_counter() - start
+
+
 def run(args) -> int:
+    groups = GROUPS
+    if args.only:
+        groups = tuple(g.strip() for g in args.only.split(","))
+        unknown = [g for g in groups if g not in GROUPS]
+        if unknown:
+            raise UsageError(f"--only: unknown group(s) {', '.join(unknown)}; groups: {', '.join(GROUPS)}")
+    jobs = (os.cpu_count() or 1) if args.jobs is None else args.jobs
+    if jobs < 1:
+        raise UsageError(f"--jobs must be at least 1; got {args.jobs}")
     if args.clear:
         for module in KERNEL_MODULES:
             importlib.import_module(module)
@@ -120,6 +201,9 @@ def run(args) -> int:
     def progress(message):
         print(f"[warmup] {message}", file=sys.stderr, flush=True)
 
-    seconds = warm(None if args.quiet else progress)
+    if not args.quiet:
+        progress(f"compiling the kernels of {', '.join(groups)} in {min(jobs, len(groups))} process(es)")
+    announce_compiles(False)
+    seconds = warm(None if args.quiet else progress, groups=groups, jobs=jobs)
     print(f"numba kernels ready in {seconds:.1f} s")
     return 0

@@ -16,7 +16,12 @@ from softarm_gym.analysis import reproduce
 from softarm_gym.analysis.sweep import DEFAULT_CHUNK, DEFAULT_SPATIAL_CHUNK
 from softarm_gym.analysis.workspace import workspace_plan
 from softarm_gym.cli import UsageError
-from softarm_gym.commands.common import add_design_arguments, design_from_args
+from softarm_gym.commands.common import (
+    add_design_arguments,
+    add_payload_argument,
+    add_quiet_argument,
+    design_from_args,
+)
 from softarm_gym.commands.long_jobs import (
     add_job_arguments,
     check_outputs,
@@ -50,13 +55,13 @@ def add_grid_arguments(p):
     """Scene and grid options shared with ``softarm dexterity``."""
     p.add_argument("--base-angle", type=float, default=0.0,
                    help="deg from the downward vertical towards +x (0 hangs, 90 horizontal)")
-    p.add_argument("--payload", type=float, default=0.0, help="tip payload (kg)")
+    add_payload_argument(p)
     p.add_argument("--gravity", type=float, default=9.81, help="m/s^2 (0 switches it off)")
     p.add_argument("--model", default="full", choices=solver.MODELS)
     p.add_argument("--levels", type=int, default=7, help="pressure levels per channel (default 7)")
     p.add_argument("--max-psi", type=float, default=None,
                    help="top pressure level in psi (default: the design's rated maximum)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
+    add_quiet_argument(p)
 
 
 @interruptible
@@ -73,7 +78,7 @@ def run(args) -> int:
                    planar=not args.spatial, alpha=args.alpha, chunk_size=args.chunk_size)
     if args.reproduce == "fig-2.7":
         return _fig_2_7(args, runner, arm, options)
-    scene = solver.Scene(base_angle_deg=args.base_angle, payload_kg=args.payload,
+    scene = solver.Scene(base_angle_deg=args.base_angle, payload_kg=args.payload_kg,
                          gravity=args.gravity)
     (ws,) = runner.run_plans([workspace_plan(arm, scene, **options)], desc=f"{arm.name} sweep")
     payload = ws.summary()
@@ -127,7 +132,7 @@ def _table_2_2(args, runner) -> int:
 
 
 def _fig_2_7(args, runner, arm, options) -> int:
-    if args.payload or args.gravity != 9.81:
+    if args.payload_kg or args.gravity != 9.81:
         raise UsageError("--reproduce fig-2.7 sets gravity and payload itself; drop --payload/--gravity")
     scenes = {"no loading": solver.Scene(base_angle_deg=args.base_angle, gravity=0.0),
               "self-weight": solver.Scene(base_angle_deg=args.base_angle),

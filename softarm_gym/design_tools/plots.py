@@ -34,9 +34,13 @@ def plot_sweeps(sweeps, path):
 def _versus_size(sweeps, path) -> None:
     fig, ax = figure(figsize=(7, 4.5))
     top = 0.0
-    for k, s in enumerate(sweeps):
-        pts = [(c.length_m if s.constraint != "gripping-radius" else size, c)
-               for size, c in zip(s.sizes, s.best_per_size) if c is not None]
+    curves = [[(c.length_m if s.constraint != "gripping-radius" else size, c)
+               for size, c in zip(s.sizes, s.best_per_size) if c is not None] for s in sweeps]
+    at_x: dict = {}  # every curve's W at each x: the top curve labels above, the others below, in order
+    for pts in curves:
+        for xi, c in pts:
+            at_x.setdefault(round(xi, 9), []).append(c.load_n)
+    for k, (s, pts) in enumerate(zip(sweeps, curves)):
         if not pts:
             continue
         x = [p[0] for p in pts]
@@ -46,20 +50,28 @@ def _versus_size(sweeps, path) -> None:
         if len({t.params.youngs_modulus for t in sweeps}) > 1:
             label += f", E = {s.params.youngs_modulus / 1e6:.3g} MPa"
         ax.plot(x, y, _STYLES[k % len(_STYLES)], color="k", lw=1.2, label=label)
-        previous = None
+        previous, last_x = None, -float("inf")
+        span = max(x) - min(x) if len(x) > 1 else 1.0
         for xi, (_, c) in zip(x, pts):
-            if c.tubes != previous and c.load_n >= 0:  # label layouts where the arm lifts
-                ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=6,
-                            textcoords="offset points", xytext=(2, 4))
-                previous = c.tubes
+            # Label where the best layout changes and the arm lifts, at most one label per
+            # 12 % of the curve's span (the short, crowded start keeps only its first layout).
+            if c.tubes != previous and c.load_n >= 0 and xi - last_x >= 0.12 * span:
+                ax.plot([xi], [c.load_n], "o", color="k", ms=3)
+                rank = sorted(at_x[round(xi, 9)], reverse=True).index(c.load_n)
+                ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=7,
+                            textcoords="offset points", xytext=(4, 5 if rank == 0 else 5 - 11 * rank - 8),
+                            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
+                last_x = xi
+            previous = c.tubes
     ax.axhline(0.0, color="0.6", lw=0.8)
     if top > 0:  # like Figs. 3.4-3.5: show where W > 0, and only the start of the fall below
         ax.set_ylim(-0.25 * top, 1.1 * top)
     first = sweeps[0]
     ax.set_xlabel("last section length L_N (m)" if first.constraint == "gripping-radius"
                   else "arm length L (m)")
-    ax.set_ylabel("load capacity W at p_test (N)")
-    ax.set_title(f"{first.fluid}, {first.constraint} (template at p_{first.template_pressure})")
+    ax.set_ylabel("load capacity W at the test pressure p_test (N)")
+    ax.set_title(f"{first.fluid} arms, {first.constraint} constraint\n(layouts sized by the shape template "
+                 f"at p_{first.template_pressure}; labels: best tube layout, base to tip)", fontsize=10)
     ax.legend(fontsize=8)
     return save(fig, path)
 
@@ -74,13 +86,18 @@ def _versus_parameter(sweeps, path) -> None:
     fig, ax = figure(figsize=(6.5, 4.2))
     ax.plot(x, [r[1].load_n for r in rows], "k^--", label="load capacity")
     ax.set_xlabel("Young's modulus E (MPa)" if by_modulus else "number of sections N (–)")
-    ax.set_ylabel("load capacity W at p_test (N)")
+    ax.set_ylabel("load capacity W at the test pressure p_test (N)")
     twin = ax.twinx()
     twin.plot(x, [r[1].thickness_m * 1e3 for r in rows], "ko-", mfc="none", label="tube thickness")
     twin.set_ylabel("tube thickness t (mm)")
+    if by_modulus:
+        ax.set_xscale("log")  # the moduli double from one point to the next
+        ax.set_xticks(x, [f"{v:g}" for v in x])
+        ax.minorticks_off()
     for xi, (_, c) in zip(x, rows):
-        ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=6,
-                    textcoords="offset points", xytext=(2, 4))
+        ax.annotate("-".join(map(str, c.tubes)), (xi, c.load_n), fontsize=7,
+                    textcoords="offset points", xytext=(-4, 6), ha="right",
+                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
     first = sweeps[0]
     ax.set_title(f"{first.fluid}, {first.constraint}, L = {first.sizes[0]:g} m")
     fig.legend(loc="outside lower center", ncols=2, fontsize=8)

@@ -15,11 +15,12 @@ from softarm_gym.envs.base import ACTION_MODES, OBSERVATION_FORMATS, SoftArmEnv
 from softarm_gym.envs.demo import run_demo_episode
 from softarm_gym.envs.grasp import GraspEnv
 from softarm_gym.envs.obstacle import ObstacleReachEnv
-from softarm_gym.envs.randomization import ArmRandomization
+from softarm_gym.envs.randomization import ArmRandomization, PosteriorRandomization, coerce_randomization
 from softarm_gym.envs.reach import ReachEnv
 from softarm_gym.envs.track import TrackEnv
 from softarm_gym.envs.wrap import WrapEnv, arm_half_thickness, wrap_angle
 
 __all__ = ["SoftArmEnv", "ReachEnv", "ObstacleReachEnv", "TrackEnv", "WrapEnv", "GraspEnv",
-           "ArmRandomization", "wrap_angle", "arm_half_thickness", "run_demo_episode", "ACTION_MODES",
+           "ArmRandomization", "PosteriorRandomization", "coerce_randomization", "wrap_angle",
+           "arm_half_thickness", "run_demo_episode", "ACTION_MODES",
            "OBSERVATION_FORMATS"]

@@ -138,6 +138,7 @@ class SoftArmEnv(gym.Env):
         self._sim_arm = self.arm
         self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, gravity=self.gravity)
         self._stepper = None
+        self._record_grid = None
         self._fraction = np.zeros(self.n_inputs)
         self._command = self._fraction
         self._failures = 0
@@ -226,12 +227,7 @@ class SoftArmEnv(gym.Env):
             stepper.adopt(eq)
         self._scene = scene
         self._stepper = stepper
-        if stepper.record is not None:
-            # Scratch of the lean ``true`` observation (:meth:`_sense`), for this arm's record.
-            self._s_query = np.linspace(0.0, float(stepper.record[-1, L.S]), self.n_backbone)
-            self._section_rows = np.array(stepper.section_ends, dtype=np.int64)
-            self._tangent = np.empty((1, stepper.record.shape[0], 2))
-            self._backbone = np.empty((1, self.n_backbone, 2))
+        self._record_grid = None  # the lean ``true`` observation's scratch is for another grid
         self._failures = 0
         self.estimator.reset()
         self._sense()
@@ -280,9 +276,18 @@ class SoftArmEnv(gym.Env):
 
     @property
     def stepper(self) -> solver.Stepper | None:
-        """The solver's stepper of the episode (None before the first reset): its path, record
-        and profile (``last_path``, ``record``, ``pass_costs``) for benchmarks and tests."""
+        """The solver's stepper of the episode, holding the simulated arm's current (last
+        accepted) state (None before the first reset): its path, record and profile
+        (``last_path``, ``record``, ``pass_costs``) for benchmarks and tests, and its
+        equilibrium for batched environments that take a copy's start state from a single
+        env. Stepping it directly bypasses the env."""
         return self._stepper
+
+    @property
+    def pressure_fractions(self) -> np.ndarray:
+        """(n_inputs,) the current channel pressures as fractions of p_max (a copy: the exact
+        numbers the observation's ``pressures`` block and the rewards are made from)."""
+        return self._fraction.copy()
 
     @property
     def _eq(self) -> solver.Equilibrium | None:
@@ -319,14 +324,22 @@ class SoftArmEnv(gym.Env):
         """Readings of the current equilibrium and the estimator's shape from them, written to
         the shape blocks of the observation (tip, section ends, backbone)."""
         stepper = self._stepper
-        if self.observation_name == "true" and stepper.record is not None \
-                and not self.synthesize_sensors:
+        record = stepper.record
+        if self.observation_name == "true" and record is not None and not self.synthesize_sensors:
             # The lean path: the true shape straight from the solver's record.
             self._readings = None
             self._shape_estimate = None
-            fill_true_shapes(stepper.record[None], self._section_rows,
-                             self._s_query, self._shape_starts, self._obs_row, self._tip_row,
-                             self._tangent, self._backbone)
+            ends = stepper.section_ends
+            if self._record_grid is not ends:
+                # Scratch for this grid (in contact a state moves between the settings' grid
+                # and the contact layout, which may have other rows).
+                self._record_grid = ends
+                self._s_query = np.linspace(0.0, float(record[-1, L.S]), self.n_backbone)
+                self._section_rows = np.array(ends, dtype=np.int64)
+                self._tangent = np.empty((1, record.shape[0], 2))
+                self._backbone = np.empty((1, self.n_backbone, 2))
+            fill_true_shapes(record[None], self._section_rows, self._s_query, self._shape_starts,
+                             self._obs_row, self._tip_row, self._tangent, self._backbone)
             return
         eq = self._eq
         self._readings = synthesize(eq, self._sim_arm, self.sensor_noise, self.np_random) \
@@ -404,6 +417,12 @@ class SoftArmEnv(gym.Env):
     def _caption(self) -> str:
         return (f"{self.arm.name}  obs={self.observation_name}\n"
                 f"est. error {1000 * math.dist(self._shape.tip, self._eq.tip):.1f} mm")
+
+    @property
+    def simulated_arm(self) -> solver.designs.ArmDesign:
+        """The design simulated this episode: the nominal ``arm``, perturbed by ``randomization``
+        at the last reset."""
+        return self._sim_arm
 
     @property
     def observation_slices(self) -> dict[str, slice]:

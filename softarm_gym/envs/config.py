@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import solver
-from softarm_gym.envs.randomization import ArmRandomization
+from softarm_gym.envs.randomization import coerce_randomization
 from softarm_gym.sensing import ESTIMATORS, SensorNoise
 
 __all__ = ["EnvConfig", "ACTION_MODES", "OBSERVATION_FORMATS", "ACTUATIONS", "RENDER_MODES",
@@ -165,7 +165,7 @@ class EnvConfig:
                   base_angle_deg=finite_number("base_angle_deg", self.base_angle_deg),
                   payload_range=value_range("payload_kg", self.payload_kg),
                   gravity=finite_number("gravity", self.gravity, 0.0))
-        randomization = ArmRandomization.coerce(self.randomization)
+        randomization = coerce_randomization(self.randomization)
         randomization.check(arm)
         self._set(randomization=randomization)
         self._check_fractions()

@@ -15,7 +15,7 @@ import numpy as np
 __all__ = ["run_demo_episode"]
 
 
-def run_demo_episode(out: str | Path = "reach_demo.gif", env_id: str = "SoftArm/OctArmReach-v0",
+def run_demo_episode(out: str | Path = "reach_demo.gif", env_id: str = "SoftArm/OctArmReach-v1",
                      steps: int = 30, seed: int = 0, fps: int = 8, **env_kwargs) -> dict:
     """Run one reach episode with the Jacobian controller and save it as a GIF or PNG strip.
 

@@ -11,6 +11,7 @@ import numpy as np
 import solver
 from softarm_gym.envs.config import check_options, finite_number, value_range
 from softarm_gym.envs.reach import ReachEnv
+from softarm_gym.envs.terms import contact_rewards, equilibrium_contact
 from softarm_gym.envs.wrap import arm_half_thickness, check_contact_stiffness, resolve_contact_stiffness
 from solver.scene import check_friction
 
@@ -34,11 +35,9 @@ PLACEMENT_SPAN = (0.2, 0.8)
 
 def total_contact_force(eq: solver.Equilibrium) -> float:
     """The total contact force on the arm (N): ∫ |f(s)| ds of the penalty force per reference
-    length over the backbone (trapezoidal rule on the solver's samples); 0 without contact."""
-    if not eq.in_contact or not eq.contact_force.size:
-        return 0.0
-    f = np.hypot(eq.contact_force[:, 0], eq.contact_force[:, 1])
-    return float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(eq.s)))
+    length over the backbone (trapezoidal rule on the solver's samples,
+    :func:`softarm_gym.envs.terms.contact_forces`); 0 without contact."""
+    return equilibrium_contact(eq)[1]
 
 
 def _count_range(value) -> tuple[int, int]:
@@ -155,6 +154,16 @@ class ObstacleReachEnv(ReachEnv):
     attempt on a rejected step), ``penetration`` (m, deepest, current state),
     ``in_contact``, ``contact_rejected`` and the ``reward_*`` terms.
 
+    ## Vector Environments
+
+    ``gym.make_vec(id, N, vectorization_mode="vector_entry_point")`` gives
+    :class:`softarm_gym.vector.BatchedObstacleReachVectorEnv`: N arms stepped by one contact
+    :class:`solver.BatchStepper` call, each with its episode's discs, copy i bit for bit this
+    env seeded s + i (resets by one ObstacleReachEnv per copy; ``contact="forbid"`` keeps each
+    copy's equilibrium before a step, which costs about as much as the step). It refuses
+    ``contact_stiffness="rigid"`` and what the batched envs refuse (docs/environments.md,
+    "Batched environment").
+
     ## Version History
 
     * v0: initial version (registered with delta actions).
@@ -193,6 +202,7 @@ class ObstacleReachEnv(ReachEnv):
         self._discs = np.zeros((0, 3))
         self._rejected = False
         self._rejected_force = 0.0
+        self._contact_row = (np.zeros(1), np.zeros(1, dtype=np.bool_), np.zeros(1))  # F, touching, reward
 
     # ------------------------------------------------------------------ layout
 
@@ -359,33 +369,49 @@ class ObstacleReachEnv(ReachEnv):
             return super()._advance(pressures)
         previous = self._stepper.equilibrium
         report, accepted = super()._advance(pressures)
-        reached = self._stepper.equilibrium
-        self._rejected = accepted and reached.in_contact
+        penetration, force = self._contact_state()
+        self._rejected = accepted and penetration > 0.0
         if self._rejected:
-            self._rejected_force = total_contact_force(reached)
+            self._rejected_force = force
             self._stepper.adopt(previous)
         return report, accepted and not self._rejected
+
+    def _contact_state(self) -> tuple[float, float]:
+        """The current state's deepest penetration (m) and total contact force (N): from the
+        solver's record where the stepper keeps one, else from the equilibrium."""
+        stepper = self._stepper
+        if stepper.record is not None:
+            return stepper.contact_measures()
+        return equilibrium_contact(self._eq)
 
     def contact_reward(self, eq: solver.Equilibrium) -> tuple[float, float]:
         """``reward_contact`` of an equilibrium a step reached, and its total contact force (N).
 
         The rule of the env card's Rewards, for this env's weights, before a forbidden contact
-        is rejected (planners evaluate it on model rollouts): ``penalize``: −contact_weight·F;
+        is rejected (planners evaluate it on model rollouts;
+        :func:`softarm_gym.envs.terms.contact_rewards`): ``penalize``: −contact_weight·F;
         ``forbid``: −contact_penalty if ``eq`` touches a disc, else 0.
         """
         force = total_contact_force(eq)
-        if self.contact == "forbid":
-            return (-self.contact_penalty if eq.in_contact else 0.0), force
-        return -self.contact_weight * force, force
+        return self._contact_term(force, eq.in_contact), force
+
+    def _contact_term(self, force: float, touching: bool) -> float:
+        """:func:`~softarm_gym.envs.terms.contact_rewards` of a batch of one."""
+        forces, touches, out = self._contact_row
+        forces[0] = force
+        touches[0] = touching
+        contact_rewards(forces, touches, self.contact == "forbid", self.contact_weight,
+                        self.contact_penalty, out)
+        return float(out[0])
 
     def _task_reward(self, converged):
         terms, success, info = super()._task_reward(converged)
         solver_term = terms.pop("reward_solver")
-        eq = self._eq
+        penetration, force = self._contact_state()
+        in_contact = penetration > 0.0
         if self._rejected:
-            contact, force = -self.contact_penalty, self._rejected_force
-        else:
-            contact, force = self.contact_reward(eq)
+            force = self._rejected_force
+        contact = self._contact_term(force, self._rejected or in_contact)
         terms["reward_contact"] = contact
         terms["reward_solver"] = solver_term
         # Fixed shapes (one row per slot, unused rows zero, as in the observation) so that
@@ -397,8 +423,8 @@ class ObstacleReachEnv(ReachEnv):
         radii[:n] = self._discs[:, 2] + self.half_thickness
         info.update({
             "obstacles": discs, "contact_radii": radii, "n_obstacles": n, "contact_force": force,
-            "penetration": float(eq.penetration.max()) if eq.penetration.size else 0.0,
-            "in_contact": bool(eq.in_contact), "contact_rejected": bool(self._rejected)})
+            "penetration": penetration, "in_contact": in_contact,
+            "contact_rejected": bool(self._rejected)})
         self._rejected = False
         return terms, success, info
 

@@ -125,7 +125,9 @@ class ReachEnv(SoftArmEnv):
     * ``payload_kg`` (0): tip payload (kg), a number or a ``(low, high)`` range drawn per
       episode; unknown to the ``model`` estimator.
     * ``randomization`` (None): ``{"wind_angle_deg": 2.0, "youngs_modulus_rel": 0.1}`` draws
-      α ± 2° and E ± 10 % per episode for the simulated arm (``ArmRandomization``).
+      α ± 2° and E ± 10 % per episode for the simulated arm (``ArmRandomization``);
+      ``"fit.json"`` (a ``softarm fit --output`` file) draws the arm from the fitted
+      parameters' posterior (``PosteriorRandomization``, docs/identification.md).
     * ``action_mode`` (``"absolute"``; the ``-v1`` ids ``"delta"``) and ``delta_scale`` (0.1
       of p_max per step).
     * ``n_backbone`` (8): backbone samples in the observation.

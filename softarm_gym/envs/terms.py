@@ -12,6 +12,7 @@ Planar backbone records are the solver's (:mod:`solver.layout`: columns ``S`` �
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,10 +22,36 @@ from solver.rod import hermite_resample, turned
 
 __all__ = ["fractions_from_actions", "fill_true_shapes", "fill_true_shapes_parallel", "fill_shape",
            "fill_pressures", "clip_observations", "fill_reach_goals", "goal_rewards", "reach_rewards",
-           "reach_reward_sum", "REACH_TERMS"]
+           "reach_reward_sum", "reward_sums", "REACH_TERMS", "WRAP_TERMS", "WrapRule", "wrap_measures",
+           "wrap_rewards", "contact_forces", "contact_rewards", "obstacle_terms", "OBSTACLE_TERMS",
+           "tracking_errors", "equilibrium_contact", "batch_contact", "batch_wrap_rewards"]
 
 REACH_TERMS = ("reward_distance", "reward_control", "reward_success", "reward_solver")
 """The reward terms of the reach task, in the column order of :func:`reach_rewards`."""
+
+WRAP_TERMS = ("reward_wrap", "reward_approach", "reward_penetration", "reward_control",
+              "reward_success", "reward_solver")
+"""The reward terms of the wrap task, in the column order of :func:`wrap_rewards`."""
+
+
+OBSTACLE_TERMS = ("reward_distance", "reward_control", "reward_success", "reward_contact",
+                  "reward_solver")
+"""The reward terms of the obstacle-reach task, in the column order of :func:`obstacle_terms`."""
+
+
+class WrapRule(NamedTuple):
+    """The wrap task's measures and reward weights (the arguments of
+    :class:`~softarm_gym.envs.WrapEnv` of the same names; its env card's Rewards)."""
+
+    contact_margin: float
+    wrap_weight: float
+    approach_weight: float
+    penetration_weight: float
+    penetration_tolerance: float
+    control_weight: float
+    success_bonus: float
+    success_wrap_deg: float
+    solver_failure_penalty: float
 
 
 @njit
@@ -161,6 +188,15 @@ def fill_reach_goals(targets, tips, start, obs):
             obs[e, start + dim + c] = targets[e, c] - tips[e, c]
 
 
+@njit(inline="always")
+def _control_term(fraction, control_weight):
+    """``reward_control`` of one copy: −w_c·mean(fraction²) of its (k,) pressure fractions."""
+    effort = 0.0
+    for c in range(fraction.shape[0]):
+        effort += fraction[c] * fraction[c]
+    return -control_weight * effort / fraction.shape[0]
+
+
 @njit
 def goal_rewards(tips, targets, distance_weight, success_bonus, success_tolerance, terms, distance,
                  success):
@@ -196,13 +232,203 @@ def reach_rewards(tips, targets, fractions, converged, distance_weight, control_
     goal_rewards(tips, targets, distance_weight, success_bonus, success_tolerance, terms, distance,
                  success)
     for e in range(tips.shape[0]):
-        effort = 0.0
-        for c in range(fractions.shape[1]):
-            effort += fractions[e, c] * fractions[e, c]
-        terms[e, 1] = -control_weight * effort / fractions.shape[1]
+        terms[e, 1] = _control_term(fractions[e], control_weight)
         terms[e, 3] = 0.0 if converged[e] else -failure_penalty
 
 
 def reach_reward_sum(terms: np.ndarray) -> np.ndarray:
-    """Rewards (n,) from the (n, 4) terms, summed in the column order."""
-    return terms[:, 0] + terms[:, 1] + terms[:, 2] + terms[:, 3]
+    """Rewards (n,) from the (n, 4) terms, summed in the column order (:func:`reward_sums`)."""
+    out = np.empty(terms.shape[0])
+    reward_sums(terms, out)
+    return out
+
+
+@njit
+def reward_sums(terms, out):
+    """``out`` (n,) = the rewards of the (n, k) ``terms``: 0 plus each term in the column
+    order, as a single env sums its ``reward_*`` terms."""
+    for e in range(terms.shape[0]):
+        total = 0.0
+        for j in range(terms.shape[1]):
+            total += terms[e, j]
+        out[e] = total
+
+
+@njit
+def wrap_measures(positions, centers, contact_radii, margin, wrap, gap):
+    """The wrap angle and gap of backbones about discs.
+
+    A sample within ``contact_radii + margin`` of its disc's centre is in contact; the polar
+    angles of those samples about the centre, in arc-length order and unwrapped (the rule of
+    ``numpy.unwrap``: a jump of at least π between consecutive ones is taken the short way
+    round), span the wrap angle, max − min (a spiral passing a point twice counts beyond 2π;
+    0 with fewer than two contact samples). The gap is the smallest distance from a sample to
+    the contact circle, 0 when touching.
+
+    Args:
+        positions: (n, N, 2) backbone samples, base to tip (m); any strides (e.g. the ``X``,
+            ``Y`` columns of backbone records).
+        centers: (n, 2) disc centres (m). contact_radii: (n,) contact radii (m).
+        margin: gap still counted as contact (m).
+        wrap: (n,) written (rad). gap: (n,) written (m).
+    """
+    for e in range(positions.shape[0]):
+        wrap[e], gap[e] = _wrap_measure(positions[e], centers[e, 0], centers[e, 1], contact_radii[e],
+                                        margin)
+
+
+@njit(inline="always")
+def _wrap_measure(positions, cx, cy, contact_radius, margin):
+    """(wrap angle (rad), gap (m)) of one backbone ``positions`` (N, 2) about the disc at
+    (cx, cy): :func:`wrap_measures`."""
+    limit = contact_radius + margin
+    closest = math.inf
+    count = 0
+    previous = 0.0
+    correction = 0.0
+    low = math.inf
+    high = -math.inf
+    for r in range(positions.shape[0]):
+        dx = positions[r, 0] - cx
+        dy = positions[r, 1] - cy
+        distance = math.hypot(dx, dy)
+        closest = min(closest, distance)
+        if distance <= limit:
+            phi = math.atan2(dy, dx)
+            if count:
+                jump = phi - previous
+                if abs(jump) >= math.pi:
+                    turned_back = (jump + math.pi) % (2.0 * math.pi) - math.pi
+                    if turned_back == -math.pi and jump > 0.0:
+                        turned_back = math.pi
+                    correction += turned_back - jump
+            previous = phi
+            unwrapped = phi + correction
+            low = min(low, unwrapped)
+            high = max(high, unwrapped)
+            count += 1
+    return (high - low if count >= 2 else 0.0), max(closest - contact_radius, 0.0)
+
+
+@njit
+def wrap_rewards(positions, centers, contact_radii, penetration, fractions, converged, rule, terms,
+                 wrap_deg, gap, success):
+    """Wrap rewards (the env card's Rewards of :class:`~softarm_gym.envs.WrapEnv`):
+    w_wrap·min(wrap, 2π)/2π − w_approach·gap − w_pen·penetration/tolerance − w_c·mean(fraction²)
+    + bonus on success − the solver-failure penalty on an unconverged step, the wrap angle and
+    gap by :func:`wrap_measures`. Success: wrap >= ``success_wrap_deg`` with penetration <=
+    ``penetration_tolerance``.
+
+    Args:
+        positions, centers, contact_radii: as :func:`wrap_measures`.
+        penetration: (n,) deepest penetration (m). fractions: (n, k) pressures / p_max.
+        converged: (n,) bool. rule: the :class:`WrapRule`.
+        terms: (n, 6) written, columns :data:`WRAP_TERMS`. wrap_deg: (n,) written (deg).
+        gap: (n,) written (m). success: (n,) written.
+    """
+    for e in range(positions.shape[0]):
+        wrap, gap[e] = _wrap_measure(positions[e], centers[e, 0], centers[e, 1], contact_radii[e],
+                                     rule.contact_margin)
+        degrees = math.degrees(wrap)
+        wrap_deg[e] = degrees
+        success[e] = degrees >= rule.success_wrap_deg and penetration[e] <= rule.penetration_tolerance
+        terms[e, 0] = rule.wrap_weight * min(wrap, 2.0 * math.pi) / (2.0 * math.pi)
+        terms[e, 1] = -rule.approach_weight * gap[e]
+        terms[e, 2] = -rule.penetration_weight * penetration[e] / rule.penetration_tolerance
+        terms[e, 3] = _control_term(fractions[e], rule.control_weight)
+        terms[e, 4] = rule.success_bonus if success[e] else 0.0
+        terms[e, 5] = 0.0 if converged[e] else -rule.solver_failure_penalty
+
+
+@njit
+def contact_forces(s, forces, out):
+    """Total contact force ∫ |f| ds (N) of penalty force densities ``forces`` (n, N, 2) (N/m)
+    at arc lengths ``s`` (n, N) (m), by the trapezoidal rule in arc-length order (the
+    solver's rule for :meth:`solver.Stepper.contact_measures`); ``out`` (n,) written."""
+    for e in range(forces.shape[0]):
+        previous = math.hypot(forces[e, 0, 0], forces[e, 0, 1])
+        total = 0.0
+        for r in range(1, forces.shape[1]):
+            f = math.hypot(forces[e, r, 0], forces[e, r, 1])
+            total += 0.5 * (f + previous) * (s[e, r] - s[e, r - 1])
+            previous = f
+        out[e] = total
+
+
+@njit
+def contact_rewards(forces, touching, forbid, contact_weight, contact_penalty, out):
+    """``reward_contact`` of the states steps reached (before a forbidden contact is
+    rejected): with ``forbid``, −``contact_penalty`` where the state touches an obstacle,
+    else 0; otherwise −``contact_weight``·F.
+
+    Args:
+        forces: (n,) total contact forces F (N). touching: (n,) bool. out: (n,) written.
+    """
+    for e in range(forces.shape[0]):
+        if forbid:
+            out[e] = -contact_penalty if touching[e] else 0.0
+        else:
+            out[e] = -contact_weight * forces[e]
+
+
+@njit
+def obstacle_terms(reach_terms, contact, out):
+    """The obstacle-reach terms (n, 5), columns :data:`OBSTACLE_TERMS`, from the reach terms
+    (n, 4) of :func:`reach_rewards` and ``reward_contact`` (n,) of :func:`contact_rewards`."""
+    for e in range(reach_terms.shape[0]):
+        out[e, 0] = reach_terms[e, 0]
+        out[e, 1] = reach_terms[e, 1]
+        out[e, 2] = reach_terms[e, 2]
+        out[e, 3] = contact[e]
+        out[e, 4] = reach_terms[e, 3]
+
+
+@njit
+def tracking_errors(distance, steps, squares, largest, rms):
+    """Running tracking statistics after a step: ``squares`` (n,) += distance², ``largest``
+    (n,) = max(largest, distance), ``rms`` (n,) = sqrt(squares / steps) — the RMS and the
+    largest of the distances (m) of an episode's ``steps`` (n,) steps so far."""
+    for e in range(distance.shape[0]):
+        squares[e] += distance[e] * distance[e]
+        largest[e] = max(largest[e], distance[e])
+        rms[e] = math.sqrt(squares[e] / steps[e])
+
+
+# ------------------------------------------------------------------ batched states
+
+
+def equilibrium_contact(eq) -> tuple[float, float]:
+    """A :class:`solver.Equilibrium`'s deepest penetration (m) and total contact force ∫|f| ds
+    (N, :func:`contact_forces`); zeros without contact."""
+    if not eq.in_contact or not eq.contact_force.size:
+        return (float(eq.penetration.max()) if eq.penetration.size else 0.0), 0.0
+    out = np.empty(1)
+    contact_forces(eq.s[None], eq.contact_force[None], out)
+    return float(eq.penetration.max()), float(out[0])
+
+
+def batch_contact(batch, measures: np.ndarray) -> np.ndarray:
+    """Which copies of a contact :class:`solver.BatchStepper` hold a lean record, and every
+    copy's deepest penetration and total contact force into ``measures`` (n, 2): from the
+    batch's records, or for a copy without one (a state the general path left on a grid of
+    its own), from its equilibrium — as a single env reads its stepper. Returns the (n,) bool
+    mask of :meth:`solver.BatchStepper.recorded`."""
+    recorded = batch.recorded()
+    measures[:] = batch.contact_measures()
+    for k in np.flatnonzero(~recorded):
+        measures[k] = equilibrium_contact(batch.equilibrium(k))
+    return recorded
+
+
+def batch_wrap_rewards(batch, backbones, recorded, centers, contact_radii, penetration, fractions,
+                       converged, rule, terms, wrap_deg, gap, success) -> None:
+    """:func:`wrap_rewards` of every copy of a contact :class:`solver.BatchStepper`: from its
+    backbones (n, N, N_COLUMNS), or for a copy not ``recorded``, from its equilibrium's
+    backbone (as a single env without a record)."""
+    wrap_rewards(backbones[:, :, X:Y + 1], centers, contact_radii, penetration, fractions, converged,
+                 rule, terms, wrap_deg, gap, success)
+    for k in np.flatnonzero(~recorded):
+        row = slice(k, k + 1)
+        wrap_rewards(batch.equilibrium(k).positions[None], centers[row], contact_radii[row],
+                     penetration[row], fractions[row], converged[row], rule, terms[row], wrap_deg[row],
+                     gap[row], success[row])

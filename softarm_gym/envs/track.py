@@ -9,8 +9,16 @@ import numpy as np
 import solver
 from softarm_gym.envs.config import check_options
 from softarm_gym.envs.reach import ReachEnv
+from softarm_gym.envs.terms import tracking_errors
 
-__all__ = ["TrackEnv"]
+__all__ = ["TrackEnv", "path_easing"]
+
+
+def path_easing(within: int, segment_steps: int) -> float:
+    """The trajectory's progress from one waypoint to the next after ``within`` of its
+    ``segment_steps`` steps: cosine easing, ½(1 − cos(π·within/segment_steps)) ∈ [0, 1), zero
+    pressure rate at each waypoint."""
+    return 0.5 * (1.0 - math.cos(math.pi * within / segment_steps))
 
 
 class TrackEnv(ReachEnv):
@@ -61,6 +69,14 @@ class TrackEnv(ReachEnv):
     ReachEnv's, plus ``target_velocity`` (m/step), ``tracking_rms_m`` and ``tracking_max_m``:
     the RMS and the largest tracking error (true tip) over the episode's steps so far.
 
+    ## Vector Environments
+
+    ``gym.make_vec(id, N, vectorization_mode="vector_entry_point")`` gives
+    :class:`softarm_gym.vector.BatchedTrackVectorEnv`: the N targets' trajectories and the N
+    arms each stepped by one :class:`solver.BatchStepper` call, copy i bit for bit this env
+    seeded s + i (resets by one TrackEnv per copy). It refuses ``planar=False`` and what the
+    batched envs refuse (docs/environments.md, "Batched environment").
+
     ## Version History
 
     * v0: initial version.
@@ -73,6 +89,9 @@ class TrackEnv(ReachEnv):
         super().__init__(design, **kwargs)
         self._velocity = np.zeros(self.dim)
         self._path = None
+        # Running tracking statistics (softarm_gym.envs.terms.tracking_errors): steps,
+        # sum of squared errors, largest error, RMS.
+        self._tracking = (np.zeros(1, dtype=np.int64), np.zeros(1), np.zeros(1), np.zeros(1))
 
     def _goal_bounds(self):
         low, high = super()._goal_bounds()
@@ -93,22 +112,36 @@ class TrackEnv(ReachEnv):
         self._target[:] = self._path.tip
         self.target_pressures_pa = self._path.pressures.copy()
         self._velocity = np.zeros(self.dim)
-        self._errors = []
+        for value in self._tracking:
+            value[:] = 0
         return self._scene, start
+
+    @property
+    def target_stepper(self) -> solver.Stepper | None:
+        """The second solver's :class:`solver.Stepper`, whose tip is the target (None before
+        :meth:`reset`): for batched environments that take a copy's start from a single env."""
+        return self._path
 
     def path_fraction(self, step: int) -> np.ndarray:
         """The trajectory's pressures (fractions of p_max, (n_inputs,)) at episode step
         ``step`` >= 0 — for analysis and tests, not observed. Waypoints are drawn as the
         trajectory reaches them (so asking ahead draws them early, changing nothing else)."""
+        start, end, ease = self.path_segment(step)
+        return start + ease * (end - start)
+
+    def path_segment(self, step: int) -> tuple[np.ndarray, np.ndarray, float]:
+        """The waypoints (fractions of p_max, (n_inputs,) each) the trajectory moves between at
+        episode step ``step`` >= 0, and its progress between them (:func:`path_easing`):
+        :meth:`path_fraction` is start + ease·(end − start). Draws waypoints as
+        :meth:`path_fraction` does."""
         if isinstance(step, bool) or int(step) != step or step < 0:
             raise ValueError(f"step must be an integer >= 0; got {step!r}")
         if self._path is None:
-            raise RuntimeError("call reset() before path_fraction()")
+            raise RuntimeError("call reset() before path_fraction() or path_segment()")
         k, within = divmod(int(step), self.segment_steps)
         while len(self._waypoints) < k + 2:
             self._waypoints.append(self.np_random.uniform(0.0, 1.0, self.n_inputs))
-        ease = 0.5 * (1.0 - math.cos(math.pi * within / self.segment_steps))
-        return self._waypoints[k] + ease * (self._waypoints[k + 1] - self._waypoints[k])
+        return self._waypoints[k], self._waypoints[k + 1], path_easing(within, self.segment_steps)
 
     def _advance_target(self) -> None:
         """Move the target one step along the pressure path (the path's solver follows it)."""
@@ -127,10 +160,11 @@ class TrackEnv(ReachEnv):
         self._action_to_fraction(action)  # bad actions raise before the target moves
         self._advance_target()
         obs, reward, terminated, truncated, info = super().step(action)
-        self._errors.append(info["distance"])
-        errors = np.asarray(self._errors)
-        info["tracking_rms_m"] = float(np.sqrt(np.mean(errors ** 2)))
-        info["tracking_max_m"] = float(errors.max())
+        steps, squares, largest, rms = self._tracking
+        steps += 1
+        tracking_errors(self._distance, steps, squares, largest, rms)
+        info["tracking_rms_m"] = float(rms[0])
+        info["tracking_max_m"] = float(largest[0])
         return obs, reward, terminated, truncated, info
 
     def _fill_goal(self, obs):

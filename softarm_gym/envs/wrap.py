@@ -10,7 +10,9 @@ import numpy as np
 import solver
 from softarm_gym.envs.base import SoftArmEnv
 from softarm_gym.envs.config import check_options, finite_number, value_range
+from softarm_gym.envs.terms import WRAP_TERMS, WrapRule, wrap_measures, wrap_rewards
 from softarm_gym.render import Cylinder
+from solver import layout as L
 from solver.scene import check_friction
 
 __all__ = ["WrapEnv", "wrap_angle", "arm_half_thickness", "check_contact_stiffness",
@@ -70,7 +72,8 @@ def wrap_angle(positions: np.ndarray, center, contact_radius: float, margin: flo
     The backbone samples within ``contact_radius + margin`` of the centre (in 3D: of the
     axis) are in contact; their polar angles about it (in 3D: in the plane normal to the
     axis), taken in arc-length order and unwrapped, span the wrap angle (max − min). A spiral
-    that passes a point twice counts beyond 2π.
+    that passes a point twice counts beyond 2π. The rule of
+    :func:`softarm_gym.envs.terms.wrap_measures`, which the environments use.
 
     Args:
         positions: (N, 2) planar or (N, 3) spatial backbone samples, base to tip (m).
@@ -82,12 +85,20 @@ def wrap_angle(positions: np.ndarray, center, contact_radius: float, margin: flo
     Returns:
         The wrap angle (rad), 0 with fewer than two contact samples.
     """
+    points, center = _planar_points(positions, center, axis)
+    wrap, gap = np.empty(1), np.empty(1)
+    wrap_measures(points, center, np.array([float(contact_radius)]), float(margin), wrap, gap)
+    return float(wrap[0])
+
+
+def _planar_points(positions: np.ndarray, center, axis) -> tuple[np.ndarray, np.ndarray]:
+    """A batch of one for :mod:`softarm_gym.envs.terms`' wrap rules: the samples (1, N, 2)
+    and the centre (1, 2) in the plane of the measure (3D: the coordinates about the axis,
+    centred on it)."""
+    if axis is None:
+        return np.asarray(positions, dtype=float)[None], np.asarray(center, dtype=float).reshape(1, 2)
     x, y = _axial_coordinates(positions, center, axis)
-    near = np.hypot(x, y) <= contact_radius + margin
-    if np.count_nonzero(near) < 2:
-        return 0.0
-    phi = np.unwrap(np.arctan2(y[near], x[near]))
-    return float(phi.max() - phi.min())
+    return np.column_stack([x, y])[None], np.zeros((1, 2))
 
 
 class WrapEnv(SoftArmEnv):
@@ -175,6 +186,15 @@ class WrapEnv(SoftArmEnv):
     ``payload_kg``, ``is_success``), plus ``wrap_angle_deg``, ``penetration`` (m, deepest),
     ``gap`` (m), ``object_center``, ``object_radius``, ``contact_radius`` and the ``reward_*`` terms.
 
+    ## Vector Environments
+
+    ``gym.make_vec(id, N, vectorization_mode="vector_entry_point")`` on the planar IDs gives
+    :class:`softarm_gym.vector.BatchedWrapVectorEnv`: N arms stepped by one contact
+    :class:`solver.BatchStepper` call, each with its episode's disc, copy i bit for bit this
+    env seeded s + i (resets by one WrapEnv per copy). It refuses ``planar=False``,
+    ``contact_stiffness="rigid"`` and what the batched envs refuse (docs/environments.md,
+    "Batched environment").
+
     ## Version History
 
     * v0: initial version (OctArm V disc 9–11 cm: beyond the arm's curl on most seeds;
@@ -223,6 +243,19 @@ class WrapEnv(SoftArmEnv):
                              f"the arm's length {self.arm.length:.3f} m")
         self.half_thickness = arm_half_thickness(self.arm)
         self.contact_stiffness = resolve_contact_stiffness(self.arm, contact_stiffness)
+        # One-row buffers of the batch-first reward (softarm_gym.envs.terms.wrap_rewards).
+        self._terms = np.zeros((1, len(WRAP_TERMS)))
+        # wrap (deg), gap, success; penetration, converged, contact radius
+        self._measures = (np.zeros(1), np.zeros(1), np.zeros(1, dtype=np.bool_), np.zeros(1),
+                          np.zeros(1, dtype=np.bool_), np.zeros(1))
+
+    @property
+    def wrap_rule(self) -> WrapRule:
+        """The wrap measures' and rewards' settings (:class:`~softarm_gym.envs.terms.WrapRule`),
+        from this env's arguments."""
+        return WrapRule(self.contact_margin, self.wrap_weight, self.approach_weight,
+                        self.penetration_weight, self.penetration_tolerance, self.control_weight,
+                        self.success_bonus, self.success_wrap_deg, self.solver_failure_penalty)
 
     def _goal_bounds(self):
         r = self.reach
@@ -310,11 +343,18 @@ class WrapEnv(SoftArmEnv):
         out[-1] = self._contact_radius
 
     def _task_reward(self, converged):
-        eq = self._eq
-        penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
-        terms, success, info = self.wrap_terms(eq.positions, penetration, self._fraction,
-                                               self._center, self._contact_radius, self._axis)
-        terms["reward_solver"] = self._solver_term(converged)
+        stepper = self._stepper
+        if self.planar and stepper.record is not None:
+            # The lean path: the backbone and contact straight from the solver's record.
+            points = stepper.record[None, :, L.X:L.Y + 1]
+            center = self._center[None]
+            penetration = stepper.contact_measures()[0]
+        else:
+            eq = self._eq
+            points, center = _planar_points(eq.positions, self._center, self._axis)
+            penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0
+        terms, success, info = self._wrap_row(points, center, self._contact_radius, penetration,
+                                              self._fraction, converged)
         info.update({"object_center": self._center.copy(), "object_radius": self._object_radius,
                      "contact_radius": self._contact_radius})
         if not self.planar:
@@ -324,7 +364,8 @@ class WrapEnv(SoftArmEnv):
     def wrap_terms(self, positions: np.ndarray, penetration: float, fraction: np.ndarray,
                    center, contact_radius: float, axis=None) -> tuple[dict[str, float], bool, dict]:
         """The task's reward terms (all but ``reward_solver``), success and measures of a
-        backbone: the rule of the env card's Rewards, for this env's weights.
+        backbone: the rule of the env card's Rewards, for this env's weights
+        (:func:`softarm_gym.envs.terms.wrap_rewards`).
 
         A pure function of its arguments (planners evaluate it on model rollouts).
 
@@ -338,19 +379,24 @@ class WrapEnv(SoftArmEnv):
         Returns:
             (terms, success, {"wrap_angle_deg", "penetration", "gap"}).
         """
-        wrap = wrap_angle(positions, center, contact_radius, self.contact_margin, axis)
-        gap = max(float(np.hypot(*_axial_coordinates(positions, center, axis)).min())
-                  - contact_radius, 0.0)
-        wrap_deg = math.degrees(wrap)
-        success = wrap_deg >= self.success_wrap_deg and penetration <= self.penetration_tolerance
-        terms = {
-            "reward_wrap": self.wrap_weight * min(wrap, 2.0 * math.pi) / (2.0 * math.pi),
-            "reward_approach": -self.approach_weight * gap,
-            "reward_penetration": -self.penetration_weight * penetration / self.penetration_tolerance,
-            "reward_control": -self.control_weight * float(fraction @ fraction) / self.n_inputs,
-            "reward_success": self.success_bonus if success else 0.0,
-        }
-        return terms, success, {"wrap_angle_deg": wrap_deg, "penetration": penetration, "gap": gap}
+        points, center = _planar_points(positions, center, axis)
+        terms, success, info = self._wrap_row(points, center, contact_radius, penetration,
+                                              np.asarray(fraction, dtype=float), True)
+        del terms[WRAP_TERMS[-1]]
+        return terms, success, info
+
+    def _wrap_row(self, points, center, contact_radius, penetration, fraction, converged):
+        """:func:`~softarm_gym.envs.terms.wrap_rewards` of a batch of one: (terms, success,
+        measures) as dicts."""
+        wrap_deg, gap, success, pen, ok, radius = self._measures
+        pen[0] = penetration
+        ok[0] = converged
+        radius[0] = contact_radius
+        wrap_rewards(points, center, radius, pen, fraction.reshape(1, -1), ok, self.wrap_rule,
+                     self._terms, wrap_deg, gap, success)
+        terms = dict(zip(WRAP_TERMS, self._terms[0].tolist()))
+        return terms, bool(success[0]), {"wrap_angle_deg": wrap_deg.item(), "penetration": float(penetration),
+                                         "gap": gap.item()}
 
     def _terminated(self, success):
         return self.terminate_on_success and success

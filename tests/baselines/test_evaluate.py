@@ -1,6 +1,7 @@
 """The evaluation script on a tiny saved model, and its bad-input handling."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,3 +85,30 @@ def test_evaluate_records_the_track_and_obstacle_measures(env_id, keys):
     assert keys <= set(result) and "median_final_error_m" in result
     for key in keys:
         assert 0.0 <= result[key] <= 1.0  # metres or a fraction
+
+
+SHIPPED = Path(__file__).resolve().parents[2] / "baselines" / "trained"
+
+
+@pytest.mark.parametrize(("model", "env", "message"), [
+    ("sac_OctArmReach-v1.zip", "SoftArm/OctArmReach-v0",
+     "action semantics: delta actions (delta_scale 0.1) vs absolute actions"),
+    ("sac_OctArmWrap3D-v0.zip", "SoftArm/OctArmWrap-v1",
+     "action space: Box(9,) vs Box(6,); observation space: Box(61,) vs Box(39,)"),
+    ("ppo_OctArmWrap-v1.zip", "SoftArm/CTWrap-v1", "action space: Discrete(64) vs Discrete(16)"),
+])
+def test_a_model_on_an_env_it_was_not_trained_for_is_refused_in_one_line(model, env, message, capsys):
+    argv = ["--model", str(SHIPPED / model), "--env", env, "--episodes", "1", "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and env in err[0] and "--force" in err[0], err
+
+
+def test_force_evaluates_anyway_and_lists_the_differences():
+    result = evaluate(model=SHIPPED / "sac_OctArmReach-v1.zip", env_id="SoftArm/OctArmReach-v0", episodes=1,
+                      force=True)
+    assert result["model_env_differences"] == [
+        "action semantics: delta actions (delta_scale 0.1) vs absolute actions"]
+    same = evaluate(model=SHIPPED / "sac_OctArmReach-v1.zip", env_id="SoftArm/OctArmReach-v0", episodes=1,
+                    env_kwargs={"action_mode": "delta", "delta_scale": 0.1})
+    assert "model_env_differences" not in same  # the same env under its old id

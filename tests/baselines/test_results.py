@@ -1,6 +1,7 @@
 """Collecting runs, shipping the best policy and regenerating RESULTS.md from saved files."""
 
 import json
+from pathlib import Path
 
 import pandas as pd
 
@@ -115,3 +116,14 @@ def test_report_has_track_and_obstacle_sections(tmp_path):
     assert "| **sac mean ± std over 2 seeds** | | | | | **60 ± 14 %** | 10.0 | 50.0 | 30 % | |" in text
     assert results.task(track) == "track" and results.task(obstacle) == "obstacle"
     assert results.task("SoftArm/CTReach-v1") == "reach" and results.task("SoftArm/CTWrap-v1") == "wrap"
+
+
+def test_shipped_metadata_records_the_budget_that_was_trained():
+    """``hyperparams.n_timesteps`` is the run's budget (``timesteps``), not a YAML default it
+    overrode; ``timesteps_done`` may be less (a time limit)."""
+    shipped = sorted((Path(__file__).resolve().parents[2] / "baselines" / "trained").glob("*.json"))
+    metadata = [json.loads(p.read_text()) for p in shipped if not p.name.endswith("_vecnormalize.json")]
+    assert len(metadata) >= 5
+    for meta in metadata:
+        budget = meta["hyperparams"]["n_timesteps"]
+        assert budget == meta["timesteps"] >= meta["timesteps_done"], meta["env_id"]

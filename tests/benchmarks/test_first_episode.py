@@ -1,5 +1,7 @@
 """``softarm warmup`` covers every registered env configuration; the first-episode benchmark."""
 
+import warnings
+
 import gymnasium as gym
 import numba
 import numpy as np
@@ -8,7 +10,8 @@ import pytest
 import softarm_gym  # noqa: F401
 from softarm_gym.benchmarks.first_episode import format_table, measure, run
 from softarm_gym.cli import main
-from softarm_gym.commands.warmup import batch_kernels, cases
+from softarm_gym.commands.warmup import GROUPS, batch_kernels, cases, group_of
+from softarm_gym.registry import is_deprecated, latest, make, make_unwrapped, recommended_ids
 from softarm_gym.sensing import ESTIMATORS
 
 
@@ -20,13 +23,43 @@ def test_warmup_runs_every_registered_id_in_every_observation_mode():
     assert {env_id for env_id, _ in spatial} == {env_id for env_id in ids
                                                  if "Reach" in env_id and "Obstacle" not in env_id}
     for env_id, kwargs in cases():  # every case is a valid configuration
-        gym.make(env_id, **kwargs).close()
+        make(env_id, quiet=True, **kwargs).close()
+
+
+def test_every_warmup_case_belongs_to_a_group_and_every_env_group_has_cases():
+    groups = {group_of(env_id, kw) for env_id, kw in cases()}
+    assert groups == set(GROUPS) - {"solver", "batch"}
+    assert group_of("SoftArm/OctArmWrap3D-v0", {}) == "spatial_contact"
+    assert group_of("SoftArm/OctArmWrap-v1", {}) == "contact"
+    assert group_of("SoftArm/CTReach-v1", {"planar": False}) == "reach"
+
+
+def test_warmup_builds_out_of_date_ids_without_a_deprecation_warning():
+    assert is_deprecated("SoftArm/OctArmReach-v0")
+    assert latest("SoftArm/OctArmReach-v0") == "SoftArm/OctArmReach-v1"
+    assert not is_deprecated("SoftArm/OctArmGrasp-v0")
+    assert "SoftArm/OctArmReach-v1" in recommended_ids() and "SoftArm/OctArmReach-v0" not in recommended_ids()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env = make_unwrapped("SoftArm/OctArmReach-v0", observation="model")
+        env.close()
+        make("SoftArm/CTWrap-v0", quiet=True).close()
+    assert env.action_mode == "absolute" and env.arm.name == "octarm_v"
+    with pytest.warns(DeprecationWarning, match="out of date"):
+        gym.make("SoftArm/CTWrap-v0").close()  # a user who types an old id is told
+
+
+def test_warmup_rejects_unknown_groups_and_bad_job_counts(capsys):
+    assert main(["warmup", "--only", "solver,nope"]) == 2
+    assert "unknown group(s) nope" in capsys.readouterr().err
+    assert main(["warmup", "--jobs", "0"]) == 2
+    assert "--jobs must be at least 1" in capsys.readouterr().err
 
 
 @pytest.mark.skipif(numba.get_num_threads() < 2,
                     reason="one numba thread: ThreadPolicy never runs the threaded kernels, "
                            "so there is no threaded timing to check")
-def test_warmup_runs_both_batch_kernels_both_ways():
+def test_warmup_runs_bothbatch_kernels_both_ways():
     """The cold and the step rows kernels each ran, and were timed, serial and threaded: none
     is left to compile inside a user's first long batch."""
     batch = batch_kernels()

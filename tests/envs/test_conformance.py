@@ -10,6 +10,7 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import softarm_gym  # noqa: F401  (registers the IDs)
+from softarm_gym.envs import OBSERVATION_FORMATS
 from softarm_gym.sensing import ESTIMATORS
 
 ENV_IDS = tuple(env_id for env_id in gym.registry if env_id.startswith("SoftArm/"))
@@ -44,6 +45,34 @@ def test_check_env_dict_observations(env_id):
         warnings.simplefilter("error")
         check_env(env.unwrapped)
         sb3_check_env(env.unwrapped, warn=True)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_sb3_check_env_passes_on_what_gym_make_returns_in_every_format(env_id):
+    """Users call ``check_env(gym.make(id, ...))``, wrappers and all: with the goal format SB3
+    calls ``compute_reward`` on that env (:class:`softarm_gym.wrappers.GoalAPI` forwards it).
+    The goal format is the reach and track tasks' (a target point); the others refuse it in one
+    line naming the formats they have."""
+    assert gym.spec(env_id).additional_wrappers[-1].entry_point == "softarm_gym.wrappers:GoalAPI"
+    for observation_format in OBSERVATION_FORMATS:
+        try:
+            env = gym.make(env_id, observation_format=observation_format)
+        except ValueError as exc:
+            assert observation_format == "goal" and "'flat' or 'dict'" in str(exc), exc
+            continue
+        assert hasattr(env, "compute_reward") == (observation_format == "goal")
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            sb3_check_env(env, warn=True)
+        env.close()
+
+
+def test_vector_entry_point_and_sync_vectors_still_build_with_the_goal_wrapper_registered():
+    batched = gym.make_vec("SoftArm/OctArmReach-v1", num_envs=2, vectorization_mode="vector_entry_point")
+    sync = gym.make_vec("SoftArm/OctArmReach-v1", num_envs=2, vectorization_mode="sync")
+    obs_b, _ = batched.reset(seed=3)
+    obs_s, _ = sync.reset(seed=3)
+    np.testing.assert_array_equal(obs_b, obs_s)
 
 
 def _rollout(env, seed, n_steps, action_seed=7):

@@ -168,10 +168,13 @@ def test_reset_options_fix_target_and_discs():
         env.reset(options={"disc": (0.1, 0.1, 0.1)})
 
 
-def test_no_batched_vector_env_but_copies_vectorise():
+def test_make_vec_gives_the_batched_env():
+    from softarm_gym.vector import BatchedObstacleReachVectorEnv
+
     for env_id in IDS:
-        assert gym.spec(env_id).vector_entry_point is None
+        assert gym.spec(env_id).vector_entry_point == "softarm_gym.vector:BatchedObstacleReachVectorEnv"
     vec = gym.make_vec(IDS[1], num_envs=2)
+    assert isinstance(vec, BatchedObstacleReachVectorEnv)
     obs, _ = vec.reset(seed=[0, 1])
     assert obs.shape == (2, *gym.make(IDS[1]).observation_space.shape)
     vec.close()
@@ -206,7 +209,7 @@ def test_planner_scores_an_action_as_the_env_rewards_it(contact):
     fraction = 0.5 * (obs[env.observation_slices["pressures"]] + 1.0)
     planner._track(obs, fraction)
     np.testing.assert_allclose(planner._nominal.tip, env._eq.tip, atol=1e-6)
-    score = planner._score_contact(np.asarray(action, dtype=float)[None, None], fraction)[0]
+    score = planner._score_batch(np.asarray(action, dtype=float)[None, None], fraction)[0]
     _, reward, _, _, info = env.step(action)
     assert info["in_contact"] or info["contact_rejected"]
     assert score == pytest.approx(reward, rel=1e-3, abs=1e-4)

@@ -68,3 +68,68 @@ def test_width_that_breaks_the_braid_is_rejected():
         ArmRandomization(wind_angle_deg=12.0).check(solver.designs.octarm_v())
     with pytest.raises(ValueError, match="randomization must be"):
         ArmRandomization.coerce(0.1)
+
+
+def _posterior():
+    from solver.identify import Posterior, parse_parameters
+
+    arm = solver.designs.octarm_v()
+    params = parse_parameters(arm, "wind_angle:s1,E,mass_scale")
+    cov = np.array([[0.09, -1.2e4, 0.0], [-1.2e4, 4e9, 1e2], [0.0, 1e2, 1e-4]])
+    return Posterior(arm, params, np.array([76.9, 2.15e6, 1.04]), cov)
+
+
+def _values(arm):
+    return np.array([arm.tubes[0].material.wind_angle_deg, arm.tubes[0].material.youngs_modulus,
+                     arm.sections[0].mass_per_length / solver.designs.octarm_v().sections[0].mass_per_length])
+
+
+def test_posterior_randomization_draws_the_fitted_distribution_from_the_env_generator():
+    from softarm_gym.envs import PosteriorRandomization, ReachEnv
+
+    post = _posterior()
+    rand = PosteriorRandomization(post)
+    envs = [ReachEnv(post.mean_design, randomization=rand) for _ in range(2)]
+    runs = []
+    for env in envs:
+        env.reset(seed=11)
+        arms = [env.simulated_arm]
+        for _ in range(3):
+            env.reset()
+            arms.append(env.simulated_arm)
+        runs.append(arms)
+    assert runs[0] == runs[1]  # the same seed, the same arms: nothing but np_random draws them
+    assert len({_values(a)[0] for a in runs[0]}) == 4
+    # Many draws (from the generator an env seeds) keep the fitted means and correlations.
+    env = envs[0]
+    env.reset(seed=3)
+    draws = np.array([_values(rand.sample(env.arm, env.np_random)) for _ in range(4000)])
+    sd = np.sqrt(np.diag(post.covariance))
+    np.testing.assert_allclose(draws.mean(axis=0), post.mean, atol=0.0, rtol=1e-3)
+    scaled = np.outer(sd, sd)
+    # Standard error of a correlation from 4000 draws ≤ 1/√4000 = 0.016: three of them.
+    np.testing.assert_allclose(np.cov(draws.T) / scaled, post.covariance / scaled, atol=0.05)
+    rho = post.covariance[0, 1] / scaled[0, 1]
+    assert rho == pytest.approx(-0.632, abs=1e-3)
+    assert np.corrcoef(draws[:, 0], draws[:, 1])[0, 1] == pytest.approx(rho, abs=0.05)
+
+
+def test_posterior_randomization_checks_and_widening():
+    from softarm_gym.envs import PosteriorRandomization, coerce_randomization
+
+    post = _posterior()
+    rand = PosteriorRandomization(post, widen=2.0)
+    rng = np.random.default_rng(0)
+    wide = np.array([_values(rand.sample(post.design, rng))[0] for _ in range(3000)])
+    assert np.std(wide) == pytest.approx(2 * 0.3, rel=0.06)
+    assert PosteriorRandomization(post, widen=0.0).sample(post.design, rng) == post.mean_design
+    rand.check(post.design)
+    rand.check(post.mean_design)
+    with pytest.raises(ValueError, match="fitted to design 'octarm_v'"):
+        rand.check(solver.designs.octarm_vi())
+    with pytest.raises(ValueError, match="widen must be a finite number >= 0"):
+        PosteriorRandomization(post, widen=-1.0)
+    assert coerce_randomization(rand) is rand
+    assert coerce_randomization({"youngs_modulus_rel": 0.1}) == ArmRandomization(youngs_modulus_rel=0.1)
+    with pytest.raises(ValueError, match="randomization must be"):
+        coerce_randomization(0.1)

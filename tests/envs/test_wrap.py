@@ -223,3 +223,50 @@ def test_grasp_is_planar_only():
 
     with pytest.raises(ValueError, match="planar"):
         GraspEnv(planar=False)
+
+
+def test_wrap_measure_is_numpy_unwrap_of_the_contact_angles():
+    """The batch-first rule against an independent numpy formulation (np.unwrap of the polar
+    angles of the samples within the margin) on random spirals and scribbles."""
+    rng = np.random.default_rng(0)
+    for trial in range(200):
+        n = int(rng.integers(2, 80))
+        turns = rng.uniform(-2.5, 2.5) * 2 * math.pi
+        phi = np.linspace(0.0, turns, n) + rng.normal(0.0, 0.3 if trial % 2 else 0.01, n)
+        radius = 0.1 + rng.normal(0.0, 0.01, n)
+        pts = np.column_stack([radius * np.cos(phi), radius * np.sin(phi)]) + [0.3, -0.2]
+        x, y = (pts - [0.3, -0.2]).T
+        near = np.hypot(x, y) <= 0.1 + 0.005
+        expected = 0.0
+        if near.sum() >= 2:
+            unwrapped = np.unwrap(np.arctan2(y[near], x[near]))
+            expected = unwrapped.max() - unwrapped.min()
+        assert wrap_angle(pts, (0.3, -0.2), 0.1, 0.005) == pytest.approx(expected, rel=1e-12, abs=1e-12)
+
+
+def test_true_observation_follows_the_record_onto_a_finer_contact_layout():
+    """At a contact stiffness whose contact layout has more rows than the settings' grid, the
+    state moves between the two; the ``true`` observation and the wrap measures read from
+    the record stay those of the equilibrium (to float32 rounding)."""
+    from softarm_gym.envs.terms import fill_shape
+    from softarm_gym.sensing import shape_from_equilibrium
+
+    env = WrapEnv("octarm_v", contact_stiffness=1e6)
+    rows = set()
+    curl = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+    for frac in [None, *np.linspace(0.1, 1.0, 10)]:
+        if frac is None:
+            obs, info = env.reset(seed=0)  # on the settings' grid; the steps on the contact layout
+        else:
+            obs, _, _, _, info = env.step(-1.0 + frac * (curl + 1.0))
+        assert info["converged"]
+        rows.add(None if env.stepper.record is None else env.stepper.record.shape[0])
+        eq = env._eq
+        expected = np.zeros(obs.size)
+        fill_shape(expected, env.observation_slices, shape_from_equilibrium(eq, env.n_backbone), True)
+        shape = slice(0, env.observation_slices["pressures"].start)
+        np.testing.assert_allclose(obs[shape], expected[shape], atol=2e-7, rtol=0)
+        wrap = wrap_angle(eq.positions, info["object_center"], info["contact_radius"], env.contact_margin)
+        assert info["wrap_angle_deg"] == pytest.approx(math.degrees(wrap), abs=1e-9)
+        assert info["penetration"] == (float(eq.penetration.max()) if eq.penetration.size else 0.0)
+    assert len(rows - {None}) == 2  # both grids were visited

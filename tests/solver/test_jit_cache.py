@@ -29,6 +29,19 @@ def _run(env_changes: dict, code: str = SCRIPT, cwd=None, remove=()) -> subproce
     return proc
 
 
+def test_first_compile_says_so_in_one_line_and_a_cached_run_says_nothing(tmp_path):
+    env = {"NUMBA_CACHE_DIR": str(tmp_path)}
+    first = _run(env)  # two kernels compile: one line for the process, not one per kernel
+    lines = first.stderr.splitlines()
+    assert len(lines) == 1 and "compiling numba kernels on first use" in lines[0], first.stderr
+    assert str(tmp_path) in lines[0]
+    second = _run(env)
+    assert second.stdout == first.stdout and second.stderr == ""
+    quiet = _run({"NUMBA_CACHE_DIR": str(tmp_path / "other")},
+                 code="from solver.jit import announce_compiles; announce_compiles(False); " + SCRIPT)
+    assert quiet.stderr == "" and quiet.stdout == first.stdout
+
+
 @pytest.mark.parametrize("damaged", ["actuator.tube_pressure-*.nbi", "actuator.tube_pressure-*.1.nbc"])
 def test_damaged_cache_file_is_removed_and_recompiled(tmp_path, damaged):
     env = {"NUMBA_CACHE_DIR": str(tmp_path)}
@@ -84,14 +97,17 @@ def test_fallback_dir_that_others_can_write_is_not_used(tmp_path, monkeypatch):
 
 
 def test_warmup_clear_deletes_the_cache_and_compiles_it_again(tmp_path):
+    """``--clear`` empties the cache, then the warm-up compiles into it again. Only the solver's
+    own group is compiled (``--only solver``): what ``--clear`` removes does not depend on the
+    groups, and a full warm-up (every group) is what ``make test`` runs before the suite."""
     env = {"NUMBA_CACHE_DIR": str(tmp_path)}
     _run(env)  # a cache with two kernels in it
     (folder,) = tmp_path.glob("solver_*")
     stale = folder / "removed_kernel-1.py311.nbi"
     stale.write_bytes(b"\x80junk")
     script = Path(sys.executable).with_name("softarm")
-    proc = subprocess.run([str(script), "warmup", "--clear"], env={**os.environ, **env}, capture_output=True,
-                          text=True, timeout=600)
+    proc = subprocess.run([str(script), "warmup", "--clear", "--only", "solver"], env={**os.environ, **env},
+                          capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     removed = int(proc.stdout.split("removed ")[1].split()[0])
     assert removed >= 5 and not stale.exists()  # 2 kernels × (index + data) + the stale index

@@ -319,6 +319,25 @@ def test_thread_policy_picks_the_faster_way_and_probes_rarely_when_threads_lose(
     assert not policy.choose(1000)
 
 
+@pytest.mark.parametrize("slowdown", [3.0, 36.0])
+@pytest.mark.parametrize("calls", [2_000, 20_000])
+def test_on_a_contended_machine_threads_cost_at_most_the_probe_budget_over_one_thread(monkeypatch, slowdown,
+                                                                                     calls):
+    """Threaded batches ``slowdown`` times slower than serial ones (36x: measured for 64 arms
+    with two busy processes on this 2-core machine), over a short run (a PPO rollout phase)
+    and a long one: the policy's choices cost at most ``PROBE_BUDGET`` (plus the calibration
+    batches) more than one thread."""
+    monkeypatch.setattr(solver.stepper.numba, "get_num_threads", lambda: 2)
+    policy = solver.ThreadPolicy(min_rows=8)
+    serial = 1e-5
+    choices = _drive(policy, lambda k: slowdown * serial, lambda k: serial, calls)
+    cost = sum(slowdown * serial if threaded else serial for threaded in choices)
+    calibration = 2 * slowdown * serial  # the first threaded load and measurement
+    assert cost - calibration <= (1 + solver.ThreadPolicy.PROBE_BUDGET) * calls * serial
+    # ... and it still re-checks: the threads are tried again during the run.
+    assert sum(choices[4:]) >= 2
+
+
 def test_pickled_steppers_continue_identically():
     import pickle
 

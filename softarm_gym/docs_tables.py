@@ -1,0 +1,368 @@
+"""The generated parts of the README and the documentation: what the registry and the
+benchmark JSON say, written out so that the prose around them cannot drift from them.
+
+``python -m softarm_gym.docs_tables`` rewrites them; ``--check`` exits 1 and names each file
+that differs from what would be written (the test suite runs it). Two kinds of output:
+
+* whole pages, one per environment family (``docs/envs/<family>.md``): the env card rendered
+  from the env class's docstring, and each registered id's spaces, defaults and reward
+  threshold read from the registry and the env it builds;
+* marked sections of hand-written pages (README.md, ``docs/*.md``): everything between
+  ``<!-- generated: NAME -->`` and ``<!-- end generated: NAME -->`` is :data:`SECTIONS`'s
+  NAME, from the registry or from ``docs/bench/*.json`` and ``baselines/results/eval``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import inspect
+import json
+import re
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from softarm_gym.registry import env_ids, is_deprecated, latest, make_unwrapped
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "docs" / "bench"
+EVAL = ROOT / "baselines" / "results" / "eval"
+
+FAMILIES = {
+    "reach": ("Reach", "ReachEnv"),
+    "track": ("Track", "TrackEnv"),
+    "obstacle_reach": ("Obstacle reach", "ObstacleReachEnv"),
+    "wrap": ("Wrap", "WrapEnv"),
+    "grasp": ("Grasp", "GraspEnv"),
+}
+"""Page name → (title, env class in :mod:`softarm_gym.envs`)."""
+
+ARMS = {"octarm_v": "OctArm V", "octarm_vi": "OctArm VI", "ct": "CT"}
+
+LEARNED = ("sac", "ppo", "td3", "sac_her")
+REFERENCE = ("jacobian", "curl", "planner")
+
+_MARK = re.compile(r"(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)"
+                   r"(<!-- end generated: (?P=name) -->)", re.DOTALL)
+
+
+# ------------------------------------------------------------------------------ the registry
+
+def family_of(env_id: str) -> str:
+    """The page (:data:`FAMILIES` key) of ``env_id``."""
+    cls = gym.spec(env_id).entry_point.split(":")[1]
+    return next(name for name, (_, c) in FAMILIES.items() if c == cls)
+
+
+def _actions(env) -> str:
+    n = env.action_space.shape[0]
+    if env.action_mode == "delta":
+        return f"{n} pressures, steps of ≤ {env.delta_scale:.0%} p_max"
+    return f"{n} pressures, absolute"
+
+
+def _success(env) -> str:
+    if hasattr(env, "success_lift"):
+        return f"object held ≥ {1000 * env.success_lift:.0f} mm above its forks"
+    if hasattr(env, "success_wrap_deg"):
+        return f"wrap ≥ {env.success_wrap_deg:g}°"
+    return f"tip within {1000 * env.success_tolerance:.0f} mm"
+
+
+@functools.cache
+def _facts(env_id: str) -> dict:
+    """What the tables say of ``env_id``, read from its registry entry and the env it builds."""
+    env = make_unwrapped(env_id)
+    try:
+        spec = gym.spec(env_id)
+        return {"id": env_id, "task": FAMILIES[family_of(env_id)][0],
+                "arm": ARMS.get(env.arm.name, env.arm.name),
+                "dims": "2D" if env.planar else "3D", "actions": _actions(env), "success": _success(env),
+                "action_space": f"Box(-1, 1, ({env.action_space.shape[0]},))",
+                "observation_space": f"Box({env.observation_space.shape[0]},)",
+                "steps": spec.max_episode_steps,
+                "threshold": "—" if spec.reward_threshold is None else f"{spec.reward_threshold:g}",
+                "kwargs": ", ".join(f"`{k}={v!r}`" for k, v in spec.kwargs.items()),
+                "vector": "batched" if spec.vector_entry_point else "—"}
+    finally:
+        env.close()
+
+
+def ids_table() -> str:
+    """The registered ids to use (the latest version of each), one line each."""
+    rows = ["| id | task | arm | | actions | success |", "|---|---|---|---|---|---|"]
+    for env_id in env_ids(include_deprecated=False):
+        f = _facts(env_id)
+        rows.append(f"| `{env_id}` | {f['task']} | {f['arm']} | {f['dims']} | {f['actions']} | "
+                    f"{f['success']} |")
+    old = [i for i in env_ids() if is_deprecated(i)]
+    rows.append("")
+    rows.append(f"Older versions stay registered so that earlier results reproduce: "
+                f"{', '.join(f'`{i}` (use `{latest(i)}`)' for i in old)}; "
+                "`gym.make` says they are out of date.")
+    return "\n".join(rows)
+
+
+def _card(cls) -> str:
+    """The env card of ``cls`` (its docstring) as Markdown: reST literals and roles become
+    code spans, the card's ``##`` headings become ``###`` under the page's sections."""
+    doc = inspect.getdoc(cls)
+    doc = re.sub(r":[a-z]+:`~?([^`]+)`", lambda m: f"`{m.group(1).split('.')[-1]}`", doc)
+    doc = doc.replace("``", "`")
+    return re.sub(r"^## ", "### ", doc, flags=re.MULTILINE)
+
+
+def family_page(family: str) -> str:
+    """``docs/envs/<family>.md``: the ids of the family with their spaces and defaults, then
+    the env card."""
+    import softarm_gym.envs as envs
+
+    title, cls_name = FAMILIES[family]
+    cls = getattr(envs, cls_name)
+    ids = [i for i in env_ids() if family_of(i) == family]
+    lines = [f"# {title}: `{cls_name}`", "",
+             "<!-- Generated by `python -m softarm_gym.docs_tables` from the registry and the env class; "
+             "do not edit. -->", "",
+             f"{inspect.getdoc(cls).splitlines()[0]}", "",
+             "## Registered ids", "",
+             "| id | arm | | action space | observation (flat) | steps | reward threshold | vector env |",
+             "|---|---|---|---|---|---|---|---|"]
+    facts = [_facts(i) for i in ids]
+    for f in facts:
+        name = f"`{f['id']}`" + (f" (out of date: use `{latest(f['id'])}`)" if is_deprecated(f["id"]) else "")
+        lines.append(f"| {name} | {f['arm']} | {f['dims']} | `{f['action_space']}`, {f['actions']} | "
+                     f"`{f['observation_space']}` | {f['steps']} | {f['threshold']} | {f['vector']} |")
+    lines += ["", "Success: " + "; ".join(f"`{f['id']}` {f['success']}" for f in facts) + ".", "",
+              "Registered keyword arguments (what each id sets; everything else is the class default "
+              "below):", ""]
+    lines += [f"* `{f['id']}`: {f['kwargs']}" for f in facts]
+    lines += ["", "Each reward threshold is floor(0.9 × the mean return of the reference controller over 20 "
+              "seeded episodes) (`python -m softarm_gym.benchmarks.reference`; "
+              "[measured returns](../environments.md#reward-thresholds)).", "",
+              "## Env card", "", _card(cls), ""]
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- the benchmarks
+
+def _json(name: str) -> dict:
+    return json.loads((BENCH / name).read_text())
+
+
+def _eval_cells() -> list[dict]:
+    return [json.loads(p.read_text()) for p in sorted(EVAL.glob("*__main.json"))]
+
+
+def _agent_kind(cell: dict) -> str:
+    return cell["agent_name"].split("_")[0] if not cell["agent_name"].startswith("sac_her") else "sac_her"
+
+
+def baseline_rows() -> list[dict]:
+    """Per (task, arm, dims): the best learned agent (mean success over its seeds) and the best
+    reference controller, from the main evaluation cells."""
+    groups: dict = {}
+    for cell in _eval_cells():
+        facts = _facts(cell["env_id"])
+        key = (facts["task"], facts["arm"], facts["dims"])
+        kind = _agent_kind(cell)
+        name = re.sub(r"_s\d+$", "", cell["agent_name"])  # one agent, its seeds together
+        groups.setdefault(key, {}).setdefault((kind, name), []).append(cell["success_rate"])
+    rows = []
+    order = [title for title, _ in FAMILIES.values()]
+    for (task, arm, dims), agents in sorted(groups.items(), key=lambda g: (order.index(g[0][0]), g[0][1:])):
+        learned = [(np.mean(v), len(v), n) for (k, n), v in agents.items() if k in LEARNED]
+        reference = [(np.mean(v), len(v), n) for (k, n), v in agents.items() if k in REFERENCE]
+        rows.append({"task": task, "arm": arm, "dims": dims,
+                     "learned": max(learned) if learned else None,
+                     "reference": max(reference) if reference else None})
+    return rows
+
+
+def _agent(best) -> str:
+    if best is None:
+        return "—"
+    mean, seeds, name = best
+    algo = name.split("_")[0].upper() if not name.startswith("sac_her") else "SAC+HER"
+    variant = " (corner actions)" if "corners" in name else (" (delta actions)" if "_delta" in name else "")
+    return f"{algo}{variant} {mean:.0%}" + (f" ({seeds} seeds)" if seeds > 1 else "")
+
+
+def headline_table() -> str:
+    """The README's results: speed against peers, accuracy against oracles, baseline success."""
+    solver = _json("solver.json")
+    default = next(s for s in solver["settings"]
+                   if s["steps_per_section"] == solver["default_steps_per_section"])
+    scipy = min(solver["scipy"], key=lambda s: s["tol"])  # the speed-ups are against the most accurate run
+    envs = _json("envs.json")
+    v1 = next(c for c in envs["cases"] if c["env_id"] == "SoftArm/OctArmReach-v1"
+              and c["observation"] == "true" and c["planar"] and not c["self_contact"])
+    batched = max(envs["batched_vector"], key=lambda r: r["env_steps_per_s"])
+    rows = ["| result | figure | source |", "|---|---|---|",
+            f"| warm quasi-static step, OctArm V / CT ({solver['scenes']} scenes) | "
+            f"{solver['speedup_vs_scipy_warm']:.0f}× faster than scipy `solve_bvp` at tol {scipy['tol']:g} "
+            f"({default['median_warm_us']:.0f} µs against {1000 * scipy['median_seconds']:.1f} ms) | "
+            "[benchmarks](docs/benchmarks.md#solver-speed-against-accuracy) |",
+            f"| cold solve from rest | {solver['speedup_vs_scipy_cold']:.0f}× faster than scipy "
+            "`solve_bvp` | "
+            "[benchmarks](docs/benchmarks.md#solver-speed-against-accuracy) |",
+            f"| accuracy at the default grid | max tip error {default['max_tip_error_over_L']:.1e}·L, median "
+            f"{default['median_tip_error_over_L']:.1e}·L against a 1024-step reference (itself within "
+            "1e-8·L of an independent `solve_bvp` formulation) | "
+            "[oracles](docs/benchmarks.md#accuracy-against-oracles-that-do-not-trust-our-code) |",
+            f"| `OctArmReach-v1` env steps | {v1['single_steps_per_s'] / 1000:.0f}k steps/s on one core; "
+            f"batched env {batched['env_steps_per_s'] / 1000:.0f}k env-steps/s at {batched['num_envs']} "
+            "arms | "
+            "[benchmarks](docs/benchmarks.md#environments) |"]
+    by_task: dict = {}
+    for row in baseline_rows():
+        by_task.setdefault((row["task"], row["dims"]), []).append(
+            f"{row['arm']}: learned {_agent(row['learned'])}, reference {_agent_reference(row['reference'])}")
+    for (task, dims), cells in by_task.items():
+        rows.append(f"| {task} {dims}: success rate | {'; '.join(cells)} | [baselines](docs/baselines.md) |")
+    rows += ["", f"Measured on: {solver['measured']['machine']}. Speeds are ratios measured side by side in "
+             "one run; wall-clock figures carry over to another machine only as ratios."]
+    return "\n".join(rows)
+
+
+def _agent_reference(best) -> str:
+    if best is None:
+        return "—"
+    mean, _, name = best
+    return f"{name.split('_')[0]} {mean:.0%}"
+
+
+def thresholds_table() -> str:
+    """Reference returns and the reward thresholds set from them (``docs/bench/reference_returns.json``)."""
+    data = _json("reference_returns.json")
+    rows = ["| ID | reference | mean return ± std (20 episodes) | reference success | `reward_threshold` |",
+            "|---|---|---|---|---|"]
+    for env_id, row in data["ids"].items():
+        threshold = "none" if row["threshold"] is None else f"{row['threshold']:g}"
+        rows.append(f"| `{env_id}` | `{row['controller']}` | {row['mean']:.1f} ± {row['std']:.1f} | "
+                    f"{row['success_rate']:.0%} | {threshold} |")
+    rows += ["", f"`{data['command']}`, {data['date']}. Rule: {data['rule']}."]
+    return "\n".join(rows)
+
+
+def solver_table() -> str:
+    """Speed against accuracy per RK4 grid (``docs/bench/solver.json``, as ``softarm bench`` prints it)."""
+    from softarm_gym.benchmarks.solver_bench import format_table
+
+    solver = _json("solver.json")
+    m = solver["measured"]
+    return f"{format_table(solver)}\n\n`{m['command']}` on a {m['machine']}."
+
+
+def env_table() -> str:
+    """Single and vector env steps/s per (id, observation) (``docs/bench/envs.json``)."""
+    envs = _json("envs.json")
+    rows = ["| environment | observation | single env (steps/s) | 2 async workers (steps/s) |",
+            "|---|---|---|---|"]
+    for c in envs["cases"]:
+        label = c["env_id"] + ("" if c["planar"] else ", 3D")
+        label += ", self-contact" if c["self_contact"] else ""
+        rows.append(f"| `{label}` | {c['observation']} | {c['single_steps_per_s']:,.0f} | "
+                    f"{c['vector_steps_per_s']:,.0f} |")
+    rows += ["", "| batched vector env (`true` obs., delta actions) | env-steps/s | on one thread | "
+             "converged |", "|---|---|---|---|"]
+    for r in envs["batched_vector"]:
+        rows.append(f"| {r['num_envs']} arms | {r['env_steps_per_s']:,.0f} | "
+                    f"{r['one_thread_env_steps_per_s']:,.0f} | {r['converged_fraction']:.2%} |")
+    m = envs["measured"]
+    rows += ["", f"`{m['command']}` on a {m['machine']}."]
+    return "\n".join(rows)
+
+
+def first_episode_table() -> str:
+    """First episode in a fresh process, cached kernels against an empty cache
+    (``docs/bench/first_episode.json``)."""
+    result = _json("first_episode.json")
+    rows = ["| environment | first episode, cached kernels (s) | steady episode (s) | "
+            "first episode, empty cache (s) |", "|---|---|---|---|"]
+    for env_id, row in result["rows"].items():
+        warm = row["warm"]
+        steady = warm["steps"] / warm["steady_steps_per_s"]
+        cold = f"{row['cold']['first_seconds']:.1f}" if "cold" in row else "—"
+        rows.append(f"| `{env_id}` | {warm['first_seconds']:.2f} | {steady:.3f} | {cold} |")
+    return "\n".join(rows)
+
+
+def fresh_machine_table() -> str:
+    """``make demo`` and ``make test`` on a fresh clone (``docs/bench/fresh_machine.json``)."""
+    data = _json("fresh_machine.json")
+    rows = ["| step | wall time (s) | load average before | what it does |", "|---|---|---|---|"]
+    for step in data["steps"]:
+        rows.append(f"| `{step['command']}` | {step['seconds']:.0f} | {step['load_before']:.1f} | "
+                    f"{step['what']} |")
+    first = data["first_episode"]
+    rows += ["", f"First episode after `make demo`, in a fresh process: `{first['env_id']}`, "
+             f"{first['steps']} steps in {first['first_seconds']:.2f} s (imports "
+             f"{first['import_seconds']:.1f} s before it), against "
+             f"{first['steady_steps_per_s']:,.0f} steps/s once running.",
+             "", f"Measured on {data['machine']}, {data['date']}: {data['how']}."]
+    return "\n".join(rows)
+
+
+SECTIONS = {"ids_table": ids_table, "headline_table": headline_table, "solver_table": solver_table,
+            "thresholds_table": thresholds_table,
+            "env_table": env_table, "first_episode_table": first_episode_table,
+            "fresh_machine_table": fresh_machine_table}
+"""Marked-section name → the function whose Markdown fills it."""
+
+
+# ------------------------------------------------------------------------------- the files
+
+def fill(text: str, cache: dict) -> str:
+    """``text`` with every marked section rewritten from :data:`SECTIONS` (``cache`` keeps each
+    section's Markdown between calls). An unknown section name is a ``ValueError``."""
+    def body(match):
+        name = match.group("name")
+        if name not in SECTIONS:
+            raise ValueError(f"unknown generated section {name!r}; known: {', '.join(SECTIONS)}")
+        if name not in cache:
+            cache[name] = SECTIONS[name]()
+        return f"{match.group(1)}{cache[name]}\n{match.group(4)}"
+
+    return _MARK.sub(body, text)
+
+
+def expected() -> dict[Path, str]:
+    """Every generated file and every file with marked sections, as they should read."""
+    out = {ROOT / "docs" / "envs" / f"{family}.md": family_page(family) for family in FAMILIES}
+    cache: dict = {}
+    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        text = path.read_text(encoding="utf-8")
+        if _MARK.search(text):
+            out[path] = fill(text, cache)
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m softarm_gym.docs_tables",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true",
+                        help="exit 1 if a file differs from what would be written")
+    args = parser.parse_args(argv)
+    stale = []
+    for path, text in expected().items():
+        current = path.read_text(encoding="utf-8") if path.exists() else None
+        if current == text:
+            continue
+        stale.append(path.relative_to(ROOT))
+        if not args.check:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")
+    if args.check and stale:
+        print(f"out of date (run python -m softarm_gym.docs_tables): {', '.join(map(str, stale))}",
+              file=sys.stderr)
+        return 1
+    print(f"{'checked' if args.check else 'wrote'} the generated docs"
+          + (f"; rewrote {', '.join(map(str, stale))}" if stale and not args.check else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
