@@ -429,6 +429,10 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
     Returns the :class:`_Pose` reached.
     """
     x = np.array(pose, dtype=float)
+    # With friction the arm's state depends on its path: every trial pose is one quasi-static
+    # increment from where Newton started (the object moved there at once), not the end of
+    # a chain through Newton's earlier iterates, which would drag the anchors along it.
+    origin = (x.copy(), eq) if bal.dim == 3 else None
     g, arm_force, support = bal.forces(x, eq)
     max_move = MAX_MOVE * bal.obj.radius
     arm_jac = None
@@ -466,7 +470,8 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
         accepted = False
         for _ in range(BACKTRACKS):  # backtracking on |G|
             trial = x + step
-            moved = bal.arm_at(trial, eq, x)
+            moved = bal.arm_at(trial, eq, x) if origin is None else bal.arm_at(trial, origin[1],
+                                                                                origin[0])
             if moved is not None and moved.converged:
                 g_new, f_new, s_new = bal.forces(trial, moved)
                 if shifted or np.abs(g_new).max() < np.abs(g).max():

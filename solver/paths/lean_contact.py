@@ -396,12 +396,14 @@ class ContactRows:
                      iterations=int(iterations), residual=float(residual))
         problem = self._problem.in_scene(self.scenes[k]).with_inputs(
             np.array(pressures, dtype=float), np.array(channel_pressures, dtype=float))
+        # The samples' work stays in them while the copy steps clear of contact (and when it
+        # comes back): the dissipation along its path is always the two together.
+        fs = self.contact[stepping.CT_FRICTION][k]
+        dissipated = float(self._dissipated[k] + fs[..., L.FS_WORK].sum())
         if self.contact[stepping.CT_OK][k]:
-            fs = self.contact[stepping.CT_FRICTION][k]
-            friction = dict(dissipated=float(self._dissipated[k]))
+            friction = dict(dissipated=dissipated)
             if fs.shape[0]:
-                friction = dict(friction_samples=fs[:, :, :len(self.scenes[k].obstacles)].copy(),
-                                dissipated=float(self._dissipated[k] + fs[..., L.FS_WORK].sum()))
+                friction["friction_samples"] = fs[:, :, :len(self.scenes[k].obstacles)].copy()
             return shooting_equilibrium(self.contact[stepping.CT_RECORDS][k],
                                         self.contact[stepping.CT_NODES][k].copy(),
                                         self.scenes[k], self.layout, model=problem.model,
@@ -410,4 +412,4 @@ class ContactRows:
                                         **friction, **flags)
         eq = single_result(problem, self.free[stepping.FR_RECORDS][k].copy(),
                            self.free[stepping.FR_STATES][k, 0], **flags)
-        return free_contact_result(eq, self.scenes[k], float(self._dissipated[k]))
+        return free_contact_result(eq, self.scenes[k], dissipated)
