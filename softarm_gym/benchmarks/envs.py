@@ -132,13 +132,22 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
     return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs, "resets": resets}
 
 
+FRICTION = 0.7
+"""μ of the friction cases: rubber on common objects (docs/design.md §9.1)."""
+
 CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("wrap", "SoftArm/OctArmWrap-v1", {}),
                        ("wrap delta", "SoftArm/OctArmWrap-v1", {"action_mode": "delta"}),
                        ("obstacle reach", "SoftArm/OctArmObstacleReach-v0", {}),
-                       ("reach self-contact", "SoftArm/OctArmReach-v1", {"self_contact": True}))
+                       ("reach self-contact", "SoftArm/OctArmReach-v1", {"self_contact": True}),
+                       ("wrap friction", "SoftArm/OctArmWrap-v1", {"friction": FRICTION}),
+                       ("wrap delta friction", "SoftArm/OctArmWrap-v1",
+                        {"action_mode": "delta", "friction": FRICTION}),
+                       ("obstacle reach friction", "SoftArm/OctArmObstacleReach-v0",
+                        {"friction": FRICTION}))
 """The single-env cases :func:`contact_ratios` times against a free ``OctArmReach-v1`` step
-(the first case): name, ID, kwargs (``true`` observations, random actions)."""
+(the first case): name, ID, kwargs (``true`` observations, random actions). A case with
+``friction`` is also timed against the same case without it (docs/design.md §9.1)."""
 
 
 def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASES, progress=None) -> dict:
@@ -149,7 +158,8 @@ def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASE
 
     Returns:
         ``{"n_steps", "rounds", "rows": [{"name", "env_id", "kwargs", "steps_per_s",
-        "runs_steps_per_s", "times_free_step"}]}``.
+        "runs_steps_per_s", "times_free_step"}]}``; a friction case's row also has
+        ``"times_frictionless"``: the same case without friction's steps/s over its own.
     """
     envs = [gym.make(env_id, **kwargs) for _, env_id, kwargs in cases]
     for env in envs:
@@ -166,15 +176,24 @@ def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASE
     rows = [{"name": name, "env_id": env_id, "kwargs": kwargs, "steps_per_s": float(np.median(rates)),
              "runs_steps_per_s": rates, "times_free_step": free / float(np.median(rates))}
             for (name, env_id, kwargs), rates in zip(cases, runs)]
+    for row in rows:
+        if "friction" in row["kwargs"]:
+            plain = {k: v for k, v in row["kwargs"].items() if k != "friction"}
+            twin = [r for r in rows if r["env_id"] == row["env_id"] and r["kwargs"] == plain]
+            if twin:
+                row["times_frictionless"] = twin[0]["steps_per_s"] / row["steps_per_s"]
     return {"n_steps": n_steps, "rounds": rounds, "rows": rows}
 
 
 def format_ratio_table(result: dict) -> str:
-    lines = ["| single env (random actions, true obs.) | steps/s (median) | × a free OctArmReach-v1 step |",
-             "|---|---|---|"]
+    lines = ["| single env (random actions, true obs.) | steps/s (median) | × a free OctArmReach-v1 step "
+             "| × the same without friction (target <= 1.5) |",
+             "|---|---|---|---|"]
     for r in result["rows"]:
         extra = "".join(f" {k}={v}" for k, v in r["kwargs"].items())
-        lines.append(f"| {r['env_id']}{extra} | {r['steps_per_s']:,.0f} | {r['times_free_step']:.2f} |")
+        frictionless = f"{r['times_frictionless']:.2f}" if "times_frictionless" in r else ""
+        lines.append(f"| {r['env_id']}{extra} | {r['steps_per_s']:,.0f} | {r['times_free_step']:.2f} "
+                     f"| {frictionless} |")
     return "\n".join(lines)
 
 
