@@ -319,8 +319,14 @@ class _Balance:
             samples = warm.friction_samples.copy()
             turn_anchors(samples, 0, turn)
             warm = replace(warm, friction_samples=samples)
-        return dispatch(Problem(self.arm, self.packed, scene, self.model, True, self.settings,
-                                self.p_inputs, self.p_channel, warm), True, moving=True)
+        eq = dispatch(Problem(self.arm, self.packed, scene, self.model, True, self.settings,
+                              self.p_inputs, self.p_channel, warm), True, moving=True)
+        if self.dim == 3 and eq.snapped:
+            # A snap lands without tangential state (solver.paths.friction.landed): the grip
+            # would be lost to a jump of the pose, not to the object's balance. Not a pose to
+            # take: Newton backtracks to a smaller move.
+            return replace(eq, converged=False)
+        return eq
 
     def _lean_step(self, scene, warm: Equilibrium, turn: float) -> Equilibrium | None:
         """The arm's equilibrium in ``scene`` (the object's disc moved, and turned by ``turn``)
@@ -390,6 +396,10 @@ class _Balance:
         if not eq.in_contact:
             return jac
         h = FD_STEP * self.obj.radius
+        if self.dim == 3:
+            # Within the stick cone's reach (μ times the deepest penetration): a larger step
+            # slips every sample and sees the cone's force, not the grip's stiffness.
+            h = min(h, 0.1 * self.obj.friction * float(np.max(eq.penetration)))
         arm_g = self.arm_part(pose, eq)
         for j in range(self.dim):
             moved_pose = pose.copy()
