@@ -38,18 +38,6 @@ def _eq_arrays(eq) -> tuple:
             eq.penetration, eq.base_force, [eq.iterations, eq.converged, eq.stable])
 
 
-def _walk(arm, n, seed, scale=0.1, drift=0.03):
-    rng = np.random.default_rng(seed)
-    k = arm.n_inputs(True)
-    toward = np.zeros(k)
-    toward[::2] = drift
-    p = [np.zeros(k)]
-    for _ in range(n - 1):
-        p.append(np.clip(p[-1] + (rng.uniform(-scale, scale, k) + toward) * arm.max_pressure,
-                         0.0, arm.max_pressure))
-    return p
-
-
 def _solves():
     import solver
     from solver import PSI, designs
@@ -82,11 +70,12 @@ def _solves():
 def _steppers():
     import solver
     from solver import designs
+    from tests.solver.test_lean_contact import curl_walk
     arm = designs.octarm_v()
     ring = arm.tubes[0].material.ring_stiffness
     scene = solver.Scene(base_angle_deg=0.0, obstacles=(solver.Disc((0.16, -0.55), 0.13, ring),))
     stepper = solver.Stepper(arm, scene)
-    walk = _walk(arm, 30, seed=7)
+    walk = curl_walk(arm, 30, seed=7)
     stepper.reset(walk[0])
     rows = []
     for p in walk[1:]:
@@ -95,7 +84,7 @@ def _steppers():
     out = {"stepper": _digest(rows, *_eq_arrays(stepper.equilibrium))}
     n = 3
     batch = solver.BatchStepper(arm, scene, n)
-    walks = [_walk(arm, 20, seed=10 + k) for k in range(n)]
+    walks = [curl_walk(arm, 20, seed=10 + k) for k in range(n)]
     batch.reset(np.array([w[0] for w in walks]))
     rows = []
     for t in range(1, 20):

@@ -23,6 +23,7 @@ from solver import designs
 from solver import layout as L
 from solver.designs import ArmDesign, Section
 from solver.grasp import FreeObject
+from tests.solver.test_lean_contact import curl_walk
 
 # ---------------------------------------------------------------------------- bad input
 
@@ -194,7 +195,7 @@ def test_stepper_and_batch_stepper_carry_the_tangential_state_alike():
     answer while it touches (against μ = 0)."""
     arm = designs.octarm_v()
     scene = _curl_scene(0.5)
-    walk = [np.clip(p, 0.0, arm.max_pressure) for p in _walk(arm, 25)]
+    walk = curl_walk(arm, 25, seed=7)
     stepper = solver.Stepper(arm, scene)
     frictionless = solver.Stepper(arm, _curl_scene(0.0))
     batch = solver.BatchStepper(arm, scene, 2)
@@ -220,17 +221,6 @@ def test_stepper_and_batch_stepper_carry_the_tangential_state_alike():
 def _curl_scene(mu):
     """OctArm V hanging beside a disc (the wrap task's geometry), friction μ."""
     return solver.Scene(base_angle_deg=0.0, obstacles=(solver.Disc((0.16, -0.55), 0.13, 2e4, friction=mu),))
-
-
-def _walk(arm, n, seed=7, scale=0.1, drift=0.03):
-    rng = np.random.default_rng(seed)
-    k = arm.n_inputs(True)
-    toward = np.zeros(k)
-    toward[::2] = drift
-    p = [np.zeros(k)]
-    for _ in range(n - 1):
-        p.append(p[-1] + (rng.uniform(-scale, scale, k) + toward) * arm.max_pressure)
-    return p
 
 
 # ---------------------------------------------------------------------------- free object
