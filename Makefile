@@ -21,10 +21,11 @@ demo: $(STAMP)
 	$(BIN)/softarm demo
 
 # The warm-up compiles every kernel once, in parallel processes, so that the two test workers
-# load machine code instead of each compiling the same kernels.
+# load machine code instead of each compiling the same kernels. The slowest tests are listed
+# at the end (--durations), so a run shows where its time went.
 test: $(STAMP)
 	$(BIN)/softarm warmup --quiet
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25
 
 docs: $(STAMP)
 	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html

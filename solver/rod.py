@@ -93,9 +93,10 @@ from solver.layout import (
 
 __all__ = [
     "base_rotation", "rotation_to_quaternion", "rest_strains_into", "rest_strains_cached",
-    "planar_strains", "integrate_planar", "shift_planar_record", "forget_first_variations",
-    "planar_rest_gradient", "planar_state_rhs",
-    "planar_state_jacobian", "planar_state_rk4_step", "spatial_rhs", "spatial_rk4_step",
+    "planar_strains", "planar_strains_cs", "integrate_planar", "shift_planar_record",
+    "forget_first_variations", "planar_rest_gradient", "planar_state_rates", "planar_state_rhs",
+    "planar_state_jacobian", "planar_state_rk4", "planar_state_rk4_step", "spatial_rhs",
+    "spatial_rk4_step",
     "integrate_spatial", "record_spatial_row", "arc_chain_planar", "arc_chain_spatial",
     "hermite_resample", "det3", "start_spatial_state",
 ]
@@ -290,11 +291,11 @@ def fma(typingctx, a, b, c):
 def planar_strains(th, nx, ny, ca, cg, vr):
     """The planar constitutive law at orientation θ under the internal force (n_x, n_y):
     (cos θ, sin θ, n1, n3, v1, v3), n1 = n·d1, n3 = n·d3, v1 = n1/GA, v3 = v* + n3/EA."""
-    return _strains_cs(math.cos(th), math.sin(th), nx, ny, ca, cg, vr)
+    return planar_strains_cs(math.cos(th), math.sin(th), nx, ny, ca, cg, vr)
 
 
 @njit(inline="always")
-def _strains_cs(c, sn, nx, ny, ca, cg, vr):
+def planar_strains_cs(c, sn, nx, ny, ca, cg, vr):
     """:func:`planar_strains` given (cos θ, sin θ)."""
     n1 = fma(ny, c, -nx * sn)
     n3 = fma(nx, c, ny * sn)
@@ -335,7 +336,7 @@ def _planar_dead_rhs(sig, c, sn, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, 
     that does not use them does not compute them)."""
     nx = fma(qx, length - sig, nex)
     ny = fma(qy, length - sig, ney)
-    c, sn, n1, n3, v1, v3 = _strains_cs(c, sn, nx, ny, ca, cg, vr)
+    c, sn, n1, n3, v1, v3 = planar_strains_cs(c, sn, nx, ny, ca, cg, vr)
     g_th = fma(cg - ca, fma(n1, n1, -n3 * n3), vr * n3)
     # m' = v1·n3 − v3·n1, factored: two dependent operations fewer on the pass's chain.
     m_s = n1 * fma(n3, cg - ca, -vr)
@@ -402,7 +403,7 @@ def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=F
             if record:
                 nx = nex + qx * (length - sig)
                 ny = ney + qy * (length - sig)
-                c, sn, n1, n3, v1, v3 = _strains_cs(c_node, s_node, nx, ny, ca, cg, vr)
+                c, sn, n1, n3, v1, v3 = planar_strains_cs(c_node, s_node, nx, ny, ca, cg, vr)
                 out[row, S] = s0 + sig
                 out[row, X] = x
                 out[row, Y] = y
@@ -562,56 +563,110 @@ def _stiffness_and_shear(record, r, ca, cg, vr):
 
 
 @njit(inline="always")
-def planar_state_jacobian(th, nx, ny, ca, cg, vr):
+def planar_state_rates(c, sn, nx, ny, m, ca, cg, ci, ur, vr, qx, qy, fx, fy):
+    """Right-hand side (x', y', θ', n_x', n_y', m') of the planar state (x, y, θ, n_x, n_y, m),
+    the internal force as state (n' = −q − f), at orientation (cos θ, sin θ) under the
+    distributed load q and the contact force f (both per length, N/m)."""
+    c, sn, n1, n3, v1, v3 = planar_strains_cs(c, sn, nx, ny, ca, cg, vr)
+    # m' = v1·n3 − v3·n1 = n1·((1/GA − 1/EA)·n3 − v*), as the dead-load pass has it.
+    return (fma(v3, c, -v1 * sn), fma(v3, sn, v1 * c), fma(m, ci, ur), -qx - fx, -qy - fy,
+            n1 * fma(n3, cg - ca, -vr))
+
+
+@njit(inline="always")
+def planar_state_jacobian(c, sn, nx, ny, ca, cg, vr):
     """The non-zero partial derivatives of the planar velocities and m' with respect to θ, n_x
-    and n_y (∂n1/∂θ = −n3, ∂n3/∂θ = n1): (∂x'/∂θ, ∂x'/∂n_x, ∂x'/∂n_y = ∂y'/∂n_x, ∂y'/∂θ,
-    ∂y'/∂n_y, ∂m'/∂θ, ∂m'/∂n_x, ∂m'/∂n_y)."""
-    c, sn, n1, n3, v1, v3 = planar_strains(th, nx, ny, ca, cg, vr)
-    return (ca * n1 * c - v3 * sn + cg * n3 * sn - v1 * c,
-            ca * c * c + cg * sn * sn,
-            (ca - cg) * sn * c,
-            ca * n1 * sn + v3 * c - cg * n3 * c - v1 * sn,
-            ca * sn * sn + cg * c * c,
-            (cg - ca) * (n1 * n1 - n3 * n3) + vr * n3,
-            (cg - ca) * (-sn * n3 + n1 * c) + vr * sn,
-            (cg - ca) * (c * n3 + n1 * sn) - vr * c)
+    and n_y at orientation (cos θ, sin θ) (∂n1/∂θ = −n3, ∂n3/∂θ = n1): (∂x'/∂θ, ∂x'/∂n_x,
+    ∂x'/∂n_y = ∂y'/∂n_x, ∂y'/∂θ, ∂y'/∂n_y, ∂m'/∂θ, ∂m'/∂n_x, ∂m'/∂n_y)."""
+    c, sn, n1, n3, v1, v3 = planar_strains_cs(c, sn, nx, ny, ca, cg, vr)
+    xs = fma(v3, c, -v1 * sn)
+    ys = fma(v3, sn, v1 * c)
+    dm = cg - ca
+    return (fma(ca * n1, c, fma(cg * n3, sn, -ys)),
+            fma(ca * c, c, cg * sn * sn),
+            -dm * sn * c,
+            fma(ca * n1, sn, fma(-cg * n3, c, xs)),
+            fma(ca * sn, sn, cg * c * c),
+            fma(dm, fma(n1, n1, -n3 * n3), vr * n3),
+            fma(dm, fma(n1, c, -sn * n3), vr * sn),
+            fma(dm, fma(n3, c, n1 * sn), -vr * c))
 
 
 @njit(inline="always")
 def planar_state_rhs(st, out, ca, cg, ci, ur, vr, qx, qy, discs):
-    """Right-hand side of the planar state (x, y, θ, n_x, n_y, m), the internal force as
-    state (n' = −q − f_contact), into ``out`` (6,); ``discs`` (k, 4) penalty obstacles."""
-    c, sn, n1, n3, v1, v3 = planar_strains(st[2], st[3], st[4], ca, cg, vr)
+    """:func:`planar_state_rates` of the state ``st`` (6,) (x, y, θ, n_x, n_y, m) into ``out``
+    (6,), the contact force of the penalty obstacles ``discs`` (k, 4) at (x, y)."""
     fx, fy, pen = contact_force(st[0], st[1], discs)
-    out[0] = v3 * c - v1 * sn
-    out[1] = v3 * sn + v1 * c
-    out[2] = ur + st[5] * ci
-    out[3] = -qx - fx
-    out[4] = -qy - fy
-    out[5] = v1 * n3 - v3 * n1
+    rates = planar_state_rates(math.cos(st[2]), math.sin(st[2]), st[3], st[4], st[5], ca, cg, ci,
+                               ur, vr, qx, qy, fx, fy)
+    for d in range(6):
+        out[d] = rates[d]
 
 
 @njit(inline="always")
-def planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs):
+def planar_state_rk4(x, y, th, c, sn, nx, ny, m, k1, h, ca, cg, ci, ur, vr, qx, qy, discs):
+    """One RK4 step of length ``h`` of the planar state (x, y, θ, n_x, n_y, m) under the
+    contact force of ``discs`` (k, 4), from its rates ``k1`` there
+    (:func:`planar_state_rates`) and (c, sn) = (cos θ, sin θ).
+
+    Scalars throughout. The stages' cos and sin come from the node's by :func:`turned`, and
+    as θ' = u* + m/EI is linear in m, a stage's turn is the node's θ' plus a multiple of the
+    stage rates of m before it (as in :func:`integrate_planar`).
+
+    Returns:
+        ((x, y, θ, cos θ, sin θ, n_x, n_y, m) at the step's end, the points (x, y, cos θ,
+        sin θ, n_x, n_y) of stages 2, 3 and 4 (stage 1 is the start)).
+    """
+    hh = 0.5 * h
+    c2, s2 = turned(th, c, sn, hh * k1[2])
+    x2 = fma(hh, k1[0], x)
+    y2 = fma(hh, k1[1], y)
+    nx2 = fma(hh, k1[3], nx)
+    ny2 = fma(hh, k1[4], ny)
+    fx, fy, pen = contact_force(x2, y2, discs)
+    k2 = planar_state_rates(c2, s2, nx2, ny2, fma(hh, k1[5], m), ca, cg, ci, ur, vr, qx, qy, fx, fy)
+    c3, s3 = turned(th, c, sn, fma(hh * hh * ci, k1[5], hh * k1[2]))
+    x3 = fma(hh, k2[0], x)
+    y3 = fma(hh, k2[1], y)
+    nx3 = fma(hh, k2[3], nx)
+    ny3 = fma(hh, k2[4], ny)
+    fx, fy, pen = contact_force(x3, y3, discs)
+    k3 = planar_state_rates(c3, s3, nx3, ny3, fma(hh, k2[5], m), ca, cg, ci, ur, vr, qx, qy, fx, fy)
+    c4, s4 = turned(th, c, sn, fma(h * hh * ci, k2[5], h * k1[2]))
+    x4 = fma(h, k3[0], x)
+    y4 = fma(h, k3[1], y)
+    nx4 = fma(h, k3[3], nx)
+    ny4 = fma(h, k3[4], ny)
+    fx, fy, pen = contact_force(x4, y4, discs)
+    k4 = planar_state_rates(c4, s4, nx4, ny4, fma(h, k3[5], m), ca, cg, ci, ur, vr, qx, qy, fx, fy)
+    w = h / 6.0
+    turn = fma(w * h * ci, k1[5] + k2[5] + k3[5], h * k1[2])
+    c_end, s_end = turned(th, c, sn, turn)
+    end = (fma(w, k1[0] + fma(2.0, k2[0] + k3[0], k4[0]), x),
+           fma(w, k1[1] + fma(2.0, k2[1] + k3[1], k4[1]), y),
+           th + turn, c_end, s_end,
+           fma(w, k1[3] + fma(2.0, k2[3] + k3[3], k4[3]), nx),
+           fma(w, k1[4] + fma(2.0, k2[4] + k3[4], k4[4]), ny),
+           fma(w, k1[5] + fma(2.0, k2[5] + k3[5], k4[5]), m))
+    return end, ((x2, y2, c2, s2, nx2, ny2), (x3, y3, c3, s3, nx3, ny3), (x4, y4, c4, s4, nx4, ny4))
+
+
+@njit(inline="always")
+def planar_state_rk4_step(st, h, ca, cg, ci, ur, vr, qx, qy, discs):
     """One RK4 step of length ``h`` of the planar state ``st`` (6,) (x, y, θ, n_x, n_y, m),
-    in place (:func:`planar_state_rhs`); ``work`` (≥5, 6) scratch."""
-    k1 = work[0]
-    k2 = work[1]
-    k3 = work[2]
-    k4 = work[3]
-    tmp = work[4]
-    planar_state_rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
-    for d in range(6):
-        tmp[d] = st[d] + 0.5 * h * k1[d]
-    planar_state_rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
-    for d in range(6):
-        tmp[d] = st[d] + 0.5 * h * k2[d]
-    planar_state_rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
-    for d in range(6):
-        tmp[d] = st[d] + h * k3[d]
-    planar_state_rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
-    for d in range(6):
-        st[d] += h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+    in place (:func:`planar_state_rk4`)."""
+    c = math.cos(st[2])
+    sn = math.sin(st[2])
+    fx, fy, pen = contact_force(st[0], st[1], discs)
+    k1 = planar_state_rates(c, sn, st[3], st[4], st[5], ca, cg, ci, ur, vr, qx, qy, fx, fy)
+    end, stages = planar_state_rk4(st[0], st[1], st[2], c, sn, st[3], st[4], st[5], k1, h, ca, cg,
+                                   ci, ur, vr, qx, qy, discs)
+    st[0] = end[0]
+    st[1] = end[1]
+    st[2] = end[2]
+    st[3] = end[5]
+    st[4] = end[6]
+    st[5] = end[7]
 
 
 # ----------------------------------------------------------------------------- spatial

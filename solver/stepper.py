@@ -42,6 +42,7 @@ from solver.paths.lean_contact import (
     lean_contact_reason,
     record_from_equilibrium,
 )
+from solver.paths.lean_spatial_contact import SpatialContactRows, lean_spatial_contact_reason
 from solver.paths.planar import loaded_base_moment, not_lean, single_result
 from solver.problem import Problem, pack
 from solver.results import Equilibrium
@@ -108,11 +109,13 @@ class Stepper:
             s, x, y, θ, m, n, v and u (read-only, replaced at every converged step).
         section_ends: the record's rows at the section ends.
         lean: whether steps take the lean planar path (in a scene with contact, the steps
-            that touch nothing).
+            that touch nothing; in 3D, the spatial single-shooting kernel).
         lean_contact: whether steps in contact take the lean contact path
-            (:mod:`solver.paths.lean_contact`: planar penalty contact).
-        last_path: the path of the last step or reset: ``"lean"`` (the lean planar kernel),
-            ``"lean contact"`` or ``"general"`` (:func:`solver.solve`'s paths).
+            (:mod:`solver.paths.lean_contact`: planar penalty contact;
+            :mod:`solver.paths.lean_spatial_contact`: cylinders, spheres and discs in 3D).
+        last_path: the path of the last step or reset: ``"lean"`` (the lean planar kernel,
+            or in 3D the spatial one), ``"lean contact"`` or ``"general"``
+            (:func:`solver.solve`'s paths).
     """
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, *, model: str = "full",
@@ -128,7 +131,8 @@ class Stepper:
         ctx = problem.ctx
         # With contact, one copy of the batch machinery (the same kernels as BatchStepper).
         self._rows = ContactRows(problem, 1, len(scene.obstacles)) \
-            if lean_contact_reason(problem) is None else None
+            if lean_contact_reason(problem) is None else \
+            SpatialContactRows(problem, 1) if lean_spatial_contact_reason(problem) is None else None
         self.lean_contact = self._rows is not None
         self.lean = self.lean_contact or not_lean(problem) is None
         self._section_ends = packed.section_ends
@@ -174,7 +178,7 @@ class Stepper:
     def equilibrium(self) -> Equilibrium:
         """The current equilibrium (built on first access after a step; its arrays are
         copies, unaffected by later steps)."""
-        if self._eq is None and self._rows is not None and self.record is not None:
+        if self._eq is None and self._rows is not None and self._rows.ready(0):
             self._eq = self._rows.equilibrium(0, self.pressures, self.channel_pressures)
         if self._eq is None and self.record is not None:
             self._eq = _record_equilibrium(self.record, self._flags, self._state[0], self.pressures,
@@ -208,7 +212,8 @@ class Stepper:
             ValueError: wrong count, non-finite, negative or over-rated pressures.
             RuntimeError: before :meth:`reset`.
         """
-        if self._eq is None and self.record is None:
+        if self._eq is None and self.record is None and not (
+                self._rows is not None and self._rows.ready(0)):
             raise RuntimeError("call reset() before step()")
         if self._rows is not None:
             return self._step_rows(pressures)
@@ -241,9 +246,10 @@ class Stepper:
         return report
 
     def _step_rows(self, pressures) -> StepReport:
-        """A step in a scene with contact: the lean paths of :class:`ContactRows` (one copy),
-        or where they cannot take it, the general path from the same state."""
-        p_inputs, p_channel = checked_pressures(self.arm, pressures, True, self._packed)
+        """A step in a scene with contact: the lean paths of :class:`ContactRows` or, in 3D,
+        :class:`SpatialContactRows` (one copy), or where they cannot take it, the general
+        path from the same state."""
+        p_inputs, p_channel = checked_pressures(self.arm, pressures, self.planar, self._packed)
         rows = self._rows
         if not rows.ready(0):
             return self._step_general(p_inputs)
@@ -286,7 +292,13 @@ class Stepper:
         return self._rows.pass_costs(0, repeats)
 
     def _bind_row_record(self) -> None:
-        """The record and tip of the one copy of :attr:`_rows` (read-only views)."""
+        """The record and tip of the one copy of :attr:`_rows` (read-only views; in 3D the
+        tip alone: :attr:`record` is planar)."""
+        if not self.planar:
+            tip = self._rows.tip(0).view()
+            tip.flags.writeable = False
+            self.tip = tip
+            return
         record = self._rows.record(0).view()
         record.flags.writeable = False
         self.record = record
@@ -324,7 +336,7 @@ class Stepper:
         if self._rows is not None:
             self._rows.adopt(0, eq)
             self.record = None
-            if self._rows.ready(0):
+            if self._rows.ready(0) and self.planar:  # (in 3D the tip stays eq's)
                 self._bind_row_record()
             return
         if not self.lean:
@@ -346,7 +358,7 @@ class Stepper:
     def __setstate__(self, state):
         self.__dict__.update(state)
         if self._rows is not None:
-            if self.record is not None:
+            if self._rows.ready(0) and (self.planar or self._eq is None):
                 self._bind_row_record()  # (a pickle copies views apart)
             return
         if self.lean:

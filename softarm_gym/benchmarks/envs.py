@@ -157,7 +157,7 @@ def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASE
     the free step: median free steps/s ÷ median case steps/s.
 
     Returns:
-        ``{"n_steps", "rounds", "rows": [{"name", "env_id", "kwargs", "steps_per_s",
+        dict: ``{"n_steps", "rounds", "rows": [{"name", "env_id", "kwargs", "steps_per_s",
         "runs_steps_per_s", "times_free_step"}]}``; a friction case's row also has
         ``"times_frictionless"``: the same case without friction's steps/s over its own.
     """

@@ -95,7 +95,7 @@ def run_contact(n: int = 1024, steps: int = 40, repeats: int = 3, cases=CONTACT_
     random actions (uniform in [−1, 1], seeded) per env. numba's full thread pool.
 
     Returns:
-        ``{"num_envs", "steps", "repeats", "threads", "rows": [{"name", "env_id", "kwargs",
+        dict: ``{"num_envs", "steps", "repeats", "threads", "rows": [{"name", "env_id", "kwargs",
         "env_steps_per_s" (median), "runs_env_steps_per_s", "ratio_to_reach",
         "converged_fraction", "reset_s_per_copy"}]}``.
     """

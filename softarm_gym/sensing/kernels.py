@@ -124,7 +124,7 @@ def load_cell_planar(theta0, n0x, n0y, m0, sec_len, sec_steps, c_a, c_g, c_i, u_
             row += 1
             if j == sec_steps[i]:
                 break
-            planar_state_rk4_step(st, h, work, c_a[i], c_g[i], c_i[i], u_rest[i], v_rest[i],
+            planar_state_rk4_step(st, h, c_a[i], c_g[i], c_i[i], u_rest[i], v_rest[i],
                                   q[i, 0], q[i, 1], no_discs)
         ends_out[i, 0] = st[0]
         ends_out[i, 1] = st[1]

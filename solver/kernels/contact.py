@@ -19,7 +19,7 @@ map), and the banded Newton system is solved in O(N) (:func:`_band_solve`).
 
 Resolution: the penalty's kink where the backbone meets a disc costs RK4 its order, and a
 contact patch shorter than a step is seen by one or two stages only. Steps are half the
-decay length away from discs and refined fivefold near them (:func:`_segment`), which keeps
+decay length away from discs and refined fivefold near them (:func:`_integrate`), which keeps
 the tip within 5e-5·L of a 512-step solve with contact at the free tip or further in.
 Splitting each step exactly at the crossings was tried: more accurate per step, but the
 split points move with the state, the map gets kinks where one crosses a step boundary, and
@@ -114,14 +114,16 @@ from solver.layout import (
     TOL,
 )
 from solver.rod import (
+    fma,
     planar_state_jacobian,
-    planar_state_rhs,
-    planar_state_rk4_step,
-    planar_strains,
+    planar_state_rates,
+    planar_state_rk4,
+    planar_strains_cs,
     rest_strains_into,
+    turned,
 )
 
-# RK4 substeps per step near a disc (see _segment): with steps of half the decay length
+# RK4 substeps per step near a disc (see _integrate): with steps of half the decay length
 # (EI/k)^¼ away from contact, a tenth of it where the arm may touch.
 NEAR_SUBSTEPS = 5
 # Bandwidth of the shooting Jacobian (sub- and super-diagonals: a row of segment k's
@@ -134,84 +136,112 @@ BAND_ROWS = 3 * 8 + 1
 TUNNEL_SLACK = 2e-3
 
 
-@njit
-def _write_row(st, s, out, row, ca, cg, ci, ur, vr, discs):
-    fx, fy, pen = contact_force(st[0], st[1], discs)
-    c, sn, n1, n3, v1, v3 = planar_strains(st[2], st[3], st[4], ca, cg, vr)
+@njit(inline="always")
+def _write_row(x, y, th, nx, ny, m, c, sn, s, out, row, ca, cg, ci, ur, vr, discs):
+    """Record the state (x, y, θ, n_x, n_y, m), (c, sn) = (cos θ, sin θ), at arc length ``s``
+    into row ``row`` of ``out``."""
+    fx, fy, pen = contact_force(x, y, discs)
+    c, sn, n1, n3, v1, v3 = planar_strains_cs(c, sn, nx, ny, ca, cg, vr)
     out[row, C_S] = s
-    out[row, C_X] = st[0]
-    out[row, C_Y] = st[1]
-    out[row, C_TH] = st[2]
-    out[row, C_NX] = st[3]
-    out[row, C_NY] = st[4]
-    out[row, C_M] = st[5]
+    out[row, C_X] = x
+    out[row, C_Y] = y
+    out[row, C_TH] = th
+    out[row, C_NX] = nx
+    out[row, C_NY] = ny
+    out[row, C_M] = m
     out[row, C_FX] = fx
     out[row, C_FY] = fy
     out[row, C_PEN] = pen
     out[row, C_V1] = v1
     out[row, C_V3] = v3
-    out[row, C_U] = ur + st[5] * ci
+    out[row, C_U] = ur + m * ci
 
 
-@njit
-def _tangent_rhs(st, P, dP, ca, cg, ci, vr, discs):
-    """dP = A(st)·P for the tangent P (6, 6) of the state, A = ∂(state')/∂(state) of
-    :func:`solver.rod.planar_state_rhs`, written out over A's non-zeros (14 of 36)."""
-    a02, a03, a04, a12, a14, a52, a53, a54 = planar_state_jacobian(st[2], st[3], st[4], ca, cg, vr)
-    k00, k01, k11 = contact_stiffness(st[0], st[1], discs)
-    for j in range(6):
-        p0 = P[0, j]
-        p1 = P[1, j]
-        p2 = P[2, j]
-        p3 = P[3, j]
-        p4 = P[4, j]
-        dP[0, j] = a02 * p2 + a03 * p3 + a04 * p4
-        dP[1, j] = a12 * p2 + a04 * p3 + a14 * p4
-        dP[2, j] = ci * P[5, j]
-        dP[3, j] = -(k00 * p0 + k01 * p1)
-        dP[4, j] = -(k01 * p0 + k11 * p1)
-        dP[5, j] = a52 * p2 + a53 * p3 + a54 * p4
+@njit(inline="always")
+def _stage_matrix(x, y, c, sn, nx, ny, ca, cg, vr, discs):
+    """The non-zeros of A = ∂(state')/∂(state) of :func:`solver.rod.planar_state_rates` at a
+    stage point, θ given by (c, sn) = (cos θ, sin θ): the 8 of
+    :func:`solver.rod.planar_state_jacobian`, then the contact stiffness (k00, k01, k11)."""
+    a02, a03, a04, a12, a14, a52, a53, a54 = planar_state_jacobian(c, sn, nx, ny, ca, cg, vr)
+    k00, k01, k11 = contact_stiffness(x, y, discs)
+    return a02, a03, a04, a12, a14, a52, a53, a54, k00, k01, k11
 
 
-@njit
-def _rk4_tangent(st, P, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs):
-    """:func:`_rk4` on the state and, with the same stages, on its tangent ``P`` (6, 6), in
-    place: the exact derivative of the RK4 step (where no stage point sits on a disc
-    surface). ``tw`` (5, 6, 6) scratch."""
-    k1 = work[0]
-    k2 = work[1]
-    k3 = work[2]
-    k4 = work[3]
-    tmp = work[4]
-    K1 = tw[0]
-    K2 = tw[1]
-    K3 = tw[2]
-    K4 = tw[3]
-    Q = tw[4]
-    planar_state_rhs(st, k1, ca, cg, ci, ur, vr, qx, qy, discs)
-    _tangent_rhs(st, P, K1, ca, cg, ci, vr, discs)
+@njit(inline="always")
+def _tangent_rates(p, a, ci):
+    """A·p for a column p (6-tuple) of the tangent, A given by :func:`_stage_matrix` ``a``:
+    14 of its 36 entries are non-zero (θ' = u* + m·ci)."""
+    return (fma(a[0], p[2], fma(a[1], p[3], a[2] * p[4])),
+            fma(a[3], p[2], fma(a[2], p[3], a[4] * p[4])),
+            ci * p[5],
+            -fma(a[8], p[0], a[9] * p[1]),
+            -fma(a[9], p[0], a[10] * p[1]),
+            fma(a[5], p[2], fma(a[6], p[3], a[7] * p[4])))
+
+
+@njit(inline="always")
+def _axpy(a, x, y):
+    """y + a·x for 6-tuples x, y, fused."""
+    return (fma(a, x[0], y[0]), fma(a, x[1], y[1]), fma(a, x[2], y[2]), fma(a, x[3], y[3]),
+            fma(a, x[4], y[4]), fma(a, x[5], y[5]))
+
+
+@njit(inline="always")
+def _quiet(a):
+    """Whether the stage matrix ``a`` (:func:`_stage_matrix`) has no contact stiffness."""
+    return a[8] == 0.0 and a[9] == 0.0 and a[10] == 0.0
+
+
+@njit(inline="always")
+def _unit_columns(P):
+    """Whether the first two columns of ``P`` (6, 6) are still those of the identity (a
+    tangent that no contact stiffness has reached: nothing moves x or y but x and y)."""
     for d in range(6):
-        tmp[d] = st[d] + 0.5 * h * k1[d]
-        for e in range(6):
-            Q[d, e] = P[d, e] + 0.5 * h * K1[d, e]
-    planar_state_rhs(tmp, k2, ca, cg, ci, ur, vr, qx, qy, discs)
-    _tangent_rhs(tmp, Q, K2, ca, cg, ci, vr, discs)
-    for d in range(6):
-        tmp[d] = st[d] + 0.5 * h * k2[d]
-        for e in range(6):
-            Q[d, e] = P[d, e] + 0.5 * h * K2[d, e]
-    planar_state_rhs(tmp, k3, ca, cg, ci, ur, vr, qx, qy, discs)
-    _tangent_rhs(tmp, Q, K3, ca, cg, ci, vr, discs)
-    for d in range(6):
-        tmp[d] = st[d] + h * k3[d]
-        for e in range(6):
-            Q[d, e] = P[d, e] + h * K3[d, e]
-    planar_state_rhs(tmp, k4, ca, cg, ci, ur, vr, qx, qy, discs)
-    _tangent_rhs(tmp, Q, K4, ca, cg, ci, vr, discs)
-    for d in range(6):
-        st[d] += h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
-        for e in range(6):
-            P[d, e] += h / 6.0 * (K1[d, e] + 2.0 * K2[d, e] + 2.0 * K3[d, e] + K4[d, e])
+        if P[d, 0] != (1.0 if d == 0 else 0.0) or P[d, 1] != (1.0 if d == 1 else 0.0):
+            return False
+    return True
+
+
+@njit(inline="always")
+def _tangent_rk4(P, h, ci, a1, a2, a3, a4):
+    """The RK4 step of the tangent ``P`` (6, 6), in place, with the stage matrices
+    (:func:`_stage_matrix`) of the state's step: the exact derivative of that step (where no
+    stage point sits on a disc surface). Column by column, as P' = A·P is: a column that is
+    still a unit vector of x or y and meets no contact stiffness in the step's stages stays
+    one (A's columns for x and y hold only that stiffness), and is skipped."""
+    first = 2 if _quiet(a1) and _quiet(a2) and _quiet(a3) and _quiet(a4) and _unit_columns(P) \
+        else 0
+    hh = 0.5 * h
+    w = h / 6.0
+    for j in range(first, 6):
+        p = (P[0, j], P[1, j], P[2, j], P[3, j], P[4, j], P[5, j])
+        k1 = _tangent_rates(p, a1, ci)
+        k2 = _tangent_rates(_axpy(hh, k1, p), a2, ci)
+        k3 = _tangent_rates(_axpy(hh, k2, p), a3, ci)
+        k4 = _tangent_rates(_axpy(h, k3, p), a4, ci)
+        P[0, j] = fma(w, k1[0] + fma(2.0, k2[0] + k3[0], k4[0]), p[0])
+        P[1, j] = fma(w, k1[1] + fma(2.0, k2[1] + k3[1], k4[1]), p[1])
+        P[2, j] = fma(w, k1[2] + fma(2.0, k2[2] + k3[2], k4[2]), p[2])
+        P[3, j] = fma(w, k1[3] + fma(2.0, k2[3] + k3[3], k4[3]), p[3])
+        P[4, j] = fma(w, k1[4] + fma(2.0, k2[4] + k3[4], k4[4]), p[4])
+        P[5, j] = fma(w, k1[5] + fma(2.0, k2[5] + k3[5], k4[5]), p[5])
+
+
+@njit(inline="always")
+def _step(x, y, th, c, sn, nx, ny, m, k1, h, P, ca, cg, ci, ur, vr, qx, qy, discs):
+    """One RK4 step of the state (:func:`solver.rod.planar_state_rk4`, from its rates ``k1``
+    at the start and (c, sn) = (cos θ, sin θ)) and, where ``P`` (6, 6) is not empty, of its
+    tangent ``P`` in place with the same stages (:func:`_tangent_rk4`). Returns the state at
+    the step's end, (x, y, θ, cos θ, sin θ, n_x, n_y, m)."""
+    end, stages = planar_state_rk4(x, y, th, c, sn, nx, ny, m, k1, h, ca, cg, ci, ur, vr, qx, qy,
+                                   discs)
+    if P.shape[0] > 0:
+        s2, s3, s4 = stages
+        _tangent_rk4(P, h, ci, _stage_matrix(x, y, c, sn, nx, ny, ca, cg, vr, discs),
+                     _stage_matrix(s2[0], s2[1], s2[2], s2[3], s2[4], s2[5], ca, cg, vr, discs),
+                     _stage_matrix(s3[0], s3[1], s3[2], s3[3], s3[4], s3[5], ca, cg, vr, discs),
+                     _stage_matrix(s4[0], s4[1], s4[2], s4[3], s4[4], s4[5], ca, cg, vr, discs))
+    return end
 
 
 @njit
@@ -281,25 +311,26 @@ def _prepare_partners(Z, grid, rest, level, partners):
         build_piece(za, zb, seg, grid, rest, pts, bounds)
     _start_state(Z, n_seg - 1, theta0, za)
     none = (pts[:0], bounds[:0], loads[:0])
-    _segment(za, n_seg - 1, grid, rest, level, zb, np.empty((7, 6)), False,
-             np.empty((1, C_COLUMNS)), np.empty((0, 6)), np.empty((8, 6, 6)), none)
+    _integrate(za, Z, n_seg - 1, n_seg, grid, rest, level, zb.reshape((1, 6)), False,
+               np.empty((1, C_COLUMNS)), None, none)
     build_piece(za, zb, n_seg - 1, grid, rest, pts, bounds)
     self_loads(grid, pts, bounds, loads)
 
 
 @njit
-def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, partners):
-    """Integrate segment ``seg`` from state ``z`` (6,) into ``out_state`` (6,).
+def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, partners):
+    """Integrate segments ``lo`` … ``hi − 1``, the first from the state ``z0`` (6,), the
+    others from theirs in ``nodes`` (:func:`newton_system`'s unknowns), into ``ends``
+    (hi − lo, 6), and their maps' Jacobians (∂end/∂start) into ``blocks`` (hi − lo, 6, 6)
+    unless it is None (the residual pass, compiled without them).
 
     ``grid`` (the layout tuple, ``G_*``) and ``level`` (a level tuple, see ``L_P``…) give
     the layout and loads. Applies the endplate jump n(s⁺) = n(s⁻) − W at a section end (not
     at the tip: that is the boundary condition), and the self-contact point loads of
     ``partners`` (:func:`new_partners`, worked out by :func:`_prepare_partners`; none if
-    empty) at the RK4 nodes, the tip's included. ``work`` is (7, 6) scratch. With
-    ``record``, writes the segment's nodes (and the section's last node) into ``out``. With
-    ``phi`` (6, 6) (not empty), the segment map's Jacobian ∂out_state/∂z is integrated into
-    it alongside (``tw`` (8, 6, 6) scratch): the self-contact loads depend on the shooting
-    nodes, not on this segment's start state, and do not enter it.
+    empty) at the RK4 nodes, the tip's included. With ``record``, writes the segments' nodes
+    (and their sections' last nodes) into ``out``. The self-contact loads depend on the
+    shooting nodes, not on a segment's start state, and do not enter its Jacobian.
 
     Near a disc every RK4 step is refined into NEAR_SUBSTEPS substeps: the penalty's kink at
     the disc surface, and contact patches shorter than a step, cost RK4 its accuracy there,
@@ -310,151 +341,180 @@ def _segment(z, seg, grid, rest, level, out_state, work, record, out, phi, tw, p
     than the step's reach, h·|r'|, plus h) is taken whole; in between, the two results are
     blended with a smoothstep weight of that clearance, so the map stays smooth in the
     state (a switch would put jumps of RK4's truncation size into it, which stall Newton).
+
+    The state is stepped in scalars (:func:`_step`), the rates at a step's start, which
+    decide its refinement, serving as its first stage. cos θ and sin θ are carried from node
+    to node by the turns between them, and from a segment's end to the next one's start,
+    which continuity puts near it (:func:`solver.rod.turned`); libm gives them at ``z0``.
     """
     segs = grid[G_SEGS]
     secf = grid[G_SECF]
     steps = grid[G_STEPS]
     sec_start = grid[G_START]
     q = level[L_Q]
+    plate = level[L_PLATE]
     discs = level[L_DISCS]
-    fs = level[L_FRICTION]
-    friction = fs.shape[0] > 0
-    i = segs[seg, SEG_SECTION]
-    first = segs[seg, SEG_FIRST]
-    nst = segs[seg, SEG_STEPS]
-    h = secf[LEN, i] / steps[i]
-    h_sub = h / NEAR_SUBSTEPS
-    ca = secf[CA, i]
-    cg = secf[CG, i]
-    ci = secf[CI, i]
-    ur = rest[REST_U2, i]
-    vr = rest[REST_V3, i]
-    qx = q[i, 0]
-    qy = q[i, 1]
-    tangent = phi.shape[0] > 0
-    st = out_state
-    for d in range(6):
-        st[d] = z[d]
-        if tangent:
-            for e in range(6):
-                phi[d, e] = 1.0 if d == e else 0.0
-    start = work[5]
-    fine = work[6]
     loads = partners[2]
     own = loads.shape[0] > 0
-    for j in range(first, first + nst):
-        if own and j > first:  # the node just reached carries its load from here on
-            _node_load(loads, seg, j - first, st, phi, tangent)
-        if record:
-            row = segs[seg, SEG_ROW0] + j
-            _write_row(st, sec_start[i] + j * h, out, row, ca, cg, ci, ur, vr, discs)
-            if own:
-                _self_row(loads, segs, seg, j - first, out, row)
-        if own and seg == 0 and j == first:  # the base node's load, into the clamp's reaction
-            _node_load(loads, 0, 0, st, phi, tangent)
-        if discs.shape[0] == 0:
-            if tangent:
-                _rk4_tangent(st, phi, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
-            else:
-                planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
-            continue
-        for d in range(6):
-            start[d] = st[d]
-            if tangent:
-                for e in range(6):
-                    tw[5, d, e] = phi[d, e]
-        # The slope at the start (r' its first two entries) says how near a disc the step
-        # may come; a step that starts inside one (clear <= 0) is taken in substeps alone,
-        # so its whole step, which would be discarded, is not taken.
-        planar_state_rhs(st, work[0], ca, cg, ci, ur, vr, qx, qy, discs)
-        rx = work[0, 0]
-        ry = work[0, 1]
-        speed = math.sqrt(rx * rx + ry * ry)
-        gap, ux, uy = nearest_surface(start[0], start[1], discs)
-        clear = gap - h * speed
-        if clear > 0.0:
-            if tangent:
-                _rk4_tangent(st, phi, h, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
-            else:
-                planar_state_rk4_step(st, h, work, ca, cg, ci, ur, vr, qx, qy, discs)
-        at = segs[seg, SEG_ROW0] + j
-        if clear >= h:
-            if friction and record:
-                friction_untouched(fs, at)
-            continue
-        for d in range(6):
-            fine[d] = start[d]
-            if tangent:
-                for e in range(6):
-                    tw[6, d, e] = tw[5, d, e]
-        for sub in range(NEAR_SUBSTEPS):
-            if friction:
-                _friction_node(fine, tw[6], tangent, level, at, sub,
-                               (0.5 if sub == 0 else 1.0) * h_sub, record)
-            if tangent:
-                _rk4_tangent(fine, tw[6], h_sub, work, tw, ca, cg, ci, ur, vr, qx, qy, discs)
-            else:
-                planar_state_rk4_step(fine, h_sub, work, ca, cg, ci, ur, vr, qx, qy, discs)
-        if friction:
-            _friction_node(fine, tw[6], tangent, level, at, NEAR_SUBSTEPS, 0.5 * h_sub, record)
-            if record:
-                _friction_row(fs, at, 0, h_sub, out, at)
-        if clear <= 0.0:
-            for d in range(6):
-                st[d] = fine[d]
-                if tangent:
-                    for e in range(6):
-                        phi[d, e] = tw[6, d, e]
-            continue
-        x = 1.0 - clear / h
-        weight = x * x * (3.0 - 2.0 * x)
+    fs = level[L_FRICTION]
+    friction = fs.shape[0] > 0
+    tangent = blocks is not None
+    no_tangent = np.empty((0, 6))
+    fine_phi = np.empty((6, 6)) if tangent else no_tangent
+    grad = np.empty(6)
+    st = np.empty(6)
+    th_end = z0[2]
+    c = math.cos(th_end)
+    sn = math.sin(th_end)
+    for seg in range(lo, hi):
+        phi = blocks[seg - lo] if tangent else no_tangent
+        if seg == lo:
+            x, y, th, nx, ny, m = z0[0], z0[1], z0[2], z0[3], z0[4], z0[5]
+        else:
+            base = 3 + 6 * (seg - 1)
+            x, y, th = nodes[base], nodes[base + 1], nodes[base + 2]
+            nx, ny, m = nodes[base + 3], nodes[base + 4], nodes[base + 5]
+            c, sn = turned(th_end, c, sn, th - th_end)
         if tangent:
-            # d(weight)/dz = w'(x)·(−1/h)·d(clear)/dz; clear = |r − c| − R − h|r'| at the
-            # step's start, whose tangent is tw[5].
-            dw = -6.0 * x * (1.0 - x) / h
-            _slope_of_speed(start, work[4], ca, cg, vr, rx, ry, speed, h)
-            for e in range(6):
-                grad = ux * tw[5, 0, e] + uy * tw[5, 1, e]
-                for d in range(6):
-                    grad -= work[4, d] * tw[5, d, e]
-                tw[7, 0, e] = dw * grad
             for d in range(6):
                 for e in range(6):
-                    phi[d, e] = weight * tw[6, d, e] + (1.0 - weight) * phi[d, e] \
-                        + (fine[d] - st[d]) * tw[7, 0, e]
-        for d in range(6):
-            st[d] = weight * fine[d] + (1.0 - weight) * st[d]
-    if own:
-        _node_load(loads, seg, nst, st, phi, tangent)
-    if segs[seg, SEG_END] == 1:
-        if record:
-            row = segs[seg, SEG_ROW0] + steps[i]
-            _write_row(st, sec_start[i] + secf[LEN, i], out, row, ca, cg, ci, ur, vr, discs)
-            if own:
-                _self_row(loads, segs, seg, nst, out, row)
+                    phi[d, e] = 1.0 if d == e else 0.0
+        i = segs[seg, SEG_SECTION]
+        first = segs[seg, SEG_FIRST]
+        nst = segs[seg, SEG_STEPS]
+        h = secf[LEN, i] / steps[i]
+        hf = h / NEAR_SUBSTEPS
+        ca = secf[CA, i]
+        cg = secf[CG, i]
+        ci = secf[CI, i]
+        ur = rest[REST_U2, i]
+        vr = rest[REST_V3, i]
+        qx = q[i, 0]
+        qy = q[i, 1]
+        for j in range(first, first + nst):
+            if own and j > first:  # the node just reached carries its load from here on
+                nx, ny = _loaded(loads, seg, j - first, nx, ny, st, phi, tangent)
+            if record:
+                row = segs[seg, SEG_ROW0] + j
+                _write_row(x, y, th, nx, ny, m, c, sn, sec_start[i] + j * h, out, row, ca, cg, ci,
+                           ur, vr, discs)
+                if own:
+                    _self_row(loads, segs, seg, j - first, out, row)
+            if own and seg == 0 and j == first:  # the base node's load, into the clamp's reaction
+                nx, ny = _loaded(loads, 0, 0, nx, ny, st, phi, tangent)
+            fx, fy, pen = contact_force(x, y, discs)
+            k1 = planar_state_rates(c, sn, nx, ny, m, ca, cg, ci, ur, vr, qx, qy, fx, fy)
+            # The slope at the start (r' its first two entries) says how near a disc the
+            # step may come; a step that starts inside one (clear <= 0) is taken in substeps
+            # alone, so its whole step, which would be discarded, is not taken.
+            clear = math.inf
+            speed = ux = uy = 0.0
+            if discs.shape[0] > 0:
+                speed = math.sqrt(k1[0] * k1[0] + k1[1] * k1[1])
+                gap, ux, uy = nearest_surface(x, y, discs)
+                clear = gap - h * speed
+            if clear < h and tangent:
+                # The fine tangent starts from the start's; the blend's weight w(clear)
+                # moves with the start state: d(weight)/dz = w'(x)·(−1/h)·d(clear)/dz,
+                # clear = |r − c| − R − h|r'|, along the start's tangent.
+                for d in range(6):
+                    for e in range(6):
+                        fine_phi[d, e] = phi[d, e]
+                if clear > 0.0:
+                    xw = 1.0 - clear / h
+                    dw = -6.0 * xw * (1.0 - xw) / h
+                    slope = _slope_of_speed(c, sn, nx, ny, ca, cg, vr, k1[0], k1[1], speed, h)
+                    for e in range(6):
+                        g = ux * phi[0, e] + uy * phi[1, e]
+                        for d in range(2, 5):
+                            g -= slope[d - 2] * phi[d, e]
+                        grad[e] = dw * g
+            end = (x, y, th, c, sn, nx, ny, m)
+            at = segs[seg, SEG_ROW0] + j
+            if clear > 0.0:
+                end = _step(x, y, th, c, sn, nx, ny, m, k1, h, phi, ca, cg, ci, ur, vr, qx, qy,
+                            discs)
+                if clear >= h:
+                    x, y, th, c, sn, nx, ny, m = end
+                    if friction and record:
+                        friction_untouched(fs, at)
+                    continue
+            fine = (x, y, th, c, sn, nx, ny, m)
+            for sub in range(NEAR_SUBSTEPS):
+                if friction:  # the node's impulse first: the substep starts past it
+                    fine = _friction_node(fine, fine_phi, tangent, level, at, sub,
+                                          (0.5 if sub == 0 else 1.0) * hf, record)
+                if sub > 0 or friction:
+                    fx, fy, pen = contact_force(fine[0], fine[1], discs)
+                    k1 = planar_state_rates(fine[3], fine[4], fine[5], fine[6], fine[7], ca, cg,
+                                            ci, ur, vr, qx, qy, fx, fy)
+                fine = _step(fine[0], fine[1], fine[2], fine[3], fine[4], fine[5], fine[6],
+                             fine[7], k1, hf, fine_phi, ca, cg, ci, ur, vr, qx, qy, discs)
             if friction:
-                _friction_row(fs, row - 1, NEAR_SUBSTEPS, h_sub, out, row)
-        if i < secf.shape[1] - 1:
-            st[3] -= level[L_PLATE][i, 0]
-            st[4] -= level[L_PLATE][i, 1]
+                fine = _friction_node(fine, fine_phi, tangent, level, at, NEAR_SUBSTEPS, 0.5 * hf,
+                                      record)
+                if record:
+                    _friction_row(fs, at, 0, hf, out, at)
+            if clear <= 0.0:
+                x, y, th, c, sn, nx, ny, m = fine
+                if tangent:
+                    for d in range(6):
+                        for e in range(6):
+                            phi[d, e] = fine_phi[d, e]
+                continue
+            xw = 1.0 - clear / h
+            weight = xw * xw * (3.0 - 2.0 * xw)
+            if tangent:
+                coarse = (end[0], end[1], end[2], end[5], end[6], end[7])
+                blend = (fine[0], fine[1], fine[2], fine[5], fine[6], fine[7])
+                for d in range(6):
+                    for e in range(6):
+                        phi[d, e] = weight * fine_phi[d, e] + (1.0 - weight) * phi[d, e] \
+                            + (blend[d] - coarse[d]) * grad[e]
+            x = weight * fine[0] + (1.0 - weight) * end[0]
+            y = weight * fine[1] + (1.0 - weight) * end[1]
+            th_blend = weight * fine[2] + (1.0 - weight) * end[2]
+            nx = weight * fine[5] + (1.0 - weight) * end[5]
+            ny = weight * fine[6] + (1.0 - weight) * end[6]
+            m = weight * fine[7] + (1.0 - weight) * end[7]
+            c, sn = turned(th, c, sn, th_blend - th)
+            th = th_blend
+        if own:
+            nx, ny = _loaded(loads, seg, nst, nx, ny, st, phi, tangent)
+        if segs[seg, SEG_END] == 1:
+            if record:
+                row = segs[seg, SEG_ROW0] + steps[i]
+                _write_row(x, y, th, nx, ny, m, c, sn, sec_start[i] + secf[LEN, i], out, row, ca,
+                           cg, ci, ur, vr, discs)
+                if own:
+                    _self_row(loads, segs, seg, nst, out, row)
+                if friction:
+                    _friction_row(fs, row - 1, NEAR_SUBSTEPS, hf, out, row)
+            if i < secf.shape[1] - 1:
+                nx -= plate[i, 0]
+                ny -= plate[i, 1]
+        k = seg - lo
+        ends[k, 0], ends[k, 1], ends[k, 2] = x, y, th
+        ends[k, 3], ends[k, 4], ends[k, 5] = nx, ny, m
+        th_end = th
 
 
-@njit
-def _friction_node(st, phi, tangent, level, row, node, weight, record):
-    """Apply the friction impulse of sample (row, node) (:func:`solver.kernels.obstacles.
-    friction_impulse`, its share ``weight`` of the length) to the state ``st`` as a point
-    load, n⁺ = n⁻ − F; with ``tangent``, to its Jacobian ``phi`` too (δn⁺ = δn⁻ − ∂F/∂r·δr)."""
-    fx, fy, k00, k01, k10, k11 = friction_impulse(st[0], st[1], level[L_DISCS], level[L_MU],
+@njit(inline="always")
+def _friction_node(fine, phi, tangent, level, row, node, weight, record):
+    """The state ``fine`` (x, y, θ, cos θ, sin θ, n_x, n_y, m) past the friction impulse F of
+    sample (row, node) (:func:`solver.kernels.obstacles.friction_impulse`, its share
+    ``weight`` of the length), a point load: n⁺ = n⁻ − F; with ``tangent``, its Jacobian
+    ``phi`` too (δn⁺ = δn⁻ − ∂F/∂r·δr), in place."""
+    fx, fy, k00, k01, k10, k11 = friction_impulse(fine[0], fine[1], level[L_DISCS], level[L_MU],
                                                   level[L_FRICTION], row, node, weight, record,
                                                   tangent)
-    st[3] -= fx
-    st[4] -= fy
     if tangent:
         for e in range(6):
             p0 = phi[0, e]
             p1 = phi[1, e]
             phi[3, e] -= k00 * p0 + k01 * p1
             phi[4, e] -= k10 * p0 + k11 * p1
+    return (fine[0], fine[1], fine[2], fine[3], fine[4], fine[5] - fx, fine[6] - fy, fine[7])
 
 
 @njit
@@ -467,17 +527,24 @@ def _friction_row(fs, row, node, h_sub, out, out_row):
         out[out_row, C_FY] += fs[row, node, d, FS_F + 1] / (0.5 * h_sub)
 
 
-@njit
-def _slope_of_speed(st, out, ca, cg, vr, rx, ry, speed, h):
-    """h·∂|r'|/∂(state) (6,) at ``st`` into ``out``, r' = (rx, ry) its slope."""
-    a02, a03, a04, a12, a14, a52, a53, a54 = planar_state_jacobian(st[2], st[3], st[4], ca, cg, vr)
+@njit(inline="always")
+def _loaded(loads, seg, node, nx, ny, st, phi, tangent):
+    """The internal force (nx, ny) with the self-contact load of node ``node`` of segment
+    ``seg`` applied (:func:`_node_load`, through ``st`` (6,))."""
+    st[3] = nx
+    st[4] = ny
+    _node_load(loads, seg, node, st, phi, tangent)
+    return st[3], st[4]
+
+
+@njit(inline="always")
+def _slope_of_speed(c, sn, nx, ny, ca, cg, vr, rx, ry, speed, h):
+    """h·∂|r'|/∂(θ, n_x, n_y) at orientation (c, sn) = (cos θ, sin θ) under (n_x, n_y),
+    r' = (rx, ry) the slope there (the other entries of the state do not move it)."""
+    a02, a03, a04, a12, a14, a52, a53, a54 = planar_state_jacobian(c, sn, nx, ny, ca, cg, vr)
     scale = h / speed if speed > 0.0 else 0.0
-    out[0] = 0.0
-    out[1] = 0.0
-    out[2] = scale * (rx * a02 + ry * a12)
-    out[3] = scale * (rx * a03 + ry * a04)
-    out[4] = scale * (rx * a04 + ry * a14)
-    out[5] = 0.0
+    return (scale * (rx * a02 + ry * a12), scale * (rx * a03 + ry * a04),
+            scale * (rx * a04 + ry * a14))
 
 
 @njit
@@ -504,7 +571,7 @@ def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
     target. J is banded (each row couples one segment's start to the next's) and is stored
     in the band form of :func:`_band_solve`, ``(BAND_ROWS, N)``: with self-contact, the
     Jacobian at fixed self-contact loads (their dependence on the nodes: :func:`_coupled`).
-    The segment maps' Jacobians are integrated with the segments (:func:`_segment`) into
+    The segment maps' Jacobians are integrated with the segments (:func:`_integrate`) into
     ``blocks`` (M, 6, 6) (their stability test: :func:`stability_test`). The self-contact
     loads of Z are worked out into ``partners`` (:func:`new_partners`) first.
     """
@@ -521,18 +588,18 @@ def recorded_system(Z, grid, rest, level, F, J, want_jac, blocks, partners, out)
     target = level[L_TARGET]
     n_seg = segs.shape[0]
     z = np.empty(6)
-    end = np.empty(6)
-    work = np.empty((7, 6))
-    tw = np.empty((8, 6, 6))
-    no_tangent = np.empty((0, 6))
+    ends = np.empty((n_seg, 6))
     record = out.shape[0] > 1
     _prepare_partners(Z, grid, rest, level, partners)
+    _start_state(Z, 0, grid[G_THETA0], z)
+    # Two calls, so that the residual pass is compiled without the tangent.
     if want_jac:
         J[:, :] = 0.0  # band storage: A[i, j] at J[BAND + i − j, j]
+        _integrate(z, Z, 0, n_seg, grid, rest, level, ends, record, out, blocks, partners)
+    else:
+        _integrate(z, Z, 0, n_seg, grid, rest, level, ends, record, out, None, partners)
     for seg in range(n_seg):
-        _start_state(Z, seg, grid[G_THETA0], z)
-        block = blocks[seg] if want_jac else no_tangent
-        _segment(z, seg, grid, rest, level, end, work, record, out, block, tw, partners)
+        end = ends[seg]
         row = 6 * seg
         last = seg == n_seg - 1
         if not last:
@@ -544,6 +611,7 @@ def recorded_system(Z, grid, rest, level, F, J, want_jac, blocks, partners, out)
                 F[row + d] = end[3 + d] - target[d]
         if not want_jac:
             continue
+        block = blocks[seg]
         if not last:
             for d in range(6):
                 J[BAND - 3, 3 + 6 * seg + d] = -1.0  # A[row + d, row + d + 3]
@@ -673,14 +741,15 @@ def _orthonormalise(f):
 
 @njit
 def factor_band(ab, piv):
-    """LU-factor in place the banded shooting Jacobian A stored in ``ab`` ((BAND_ROWS, n):
-    A[i, j] at ab[BAND + i − j, j], 8 sub- and 8 super-diagonals, rows above for the fill-in
-    of partial pivoting), the row interchanges into ``piv`` (n,). Gaussian elimination with
-    partial pivoting within the band, O(n): LAPACK's dgbtrf, written out so that it runs in
-    a kernel. Returns False for a singular or non-finite A."""
+    """LU-factor in place the banded shooting Jacobian A stored in ``ab`` ((3·kl + 1, n):
+    A[i, j] at ab[2·kl + i − j, j], kl sub- and kl super-diagonals, rows above for the
+    fill-in of partial pivoting; kl = 8 in the plane, (BAND_ROWS, n), 17 in 3D), the row
+    interchanges into ``piv`` (n,). Gaussian elimination with partial pivoting within the
+    band, O(n): LAPACK's dgbtrf, written out so that it runs in a kernel. Returns False for
+    a singular or non-finite A."""
     n = ab.shape[1]
-    kl = 8
-    kv = BAND
+    kl = (ab.shape[0] - 1) // 3
+    kv = 2 * kl
     ju = 0
     for j in range(n):
         km = min(kl, n - 1 - j)
@@ -711,11 +780,11 @@ def factor_band(ab, piv):
 
 
 @njit
-def _band_lu_solve(ab, piv, b):
+def band_lu_solve(ab, piv, b):
     """Solve A x = b in place (``b`` becomes x) with the factors of :func:`factor_band`."""
     n = ab.shape[1]
-    kl = 8
-    kv = BAND
+    kl = (ab.shape[0] - 1) // 3
+    kv = 2 * kl
     for j in range(n):
         p = piv[j]
         if p != j:
@@ -737,7 +806,7 @@ def _band_solve(ab, b):
     piv = np.empty(ab.shape[1], dtype=np.int64)
     if not factor_band(ab, piv):
         return False
-    _band_lu_solve(ab, piv, b)
+    band_lu_solve(ab, piv, b)
     return True
 
 
@@ -842,7 +911,7 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
                 return False, it, res, False
             for k in range(n):
                 step[k] = F[k]
-            _band_lu_solve(J, piv, step)
+            band_lu_solve(J, piv, step)
         norm = weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         for k in range(n):
@@ -1055,17 +1124,10 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
 
 @njit
 def record_backbone(Z, grid, rest, level, out):
-    """Write the backbone of the state ``Z`` into ``out`` (rows Σ(steps + 1), C_COLUMNS)."""
-    z = np.empty(6)
-    end = np.empty(6)
-    work = np.empty((7, 6))
-    no_tangent = np.empty((0, 6))
-    tw = np.empty((0, 6, 6))
-    partners = new_partners(grid)
-    _prepare_partners(Z, grid, rest, level, partners)
-    for seg in range(grid[G_SEGS].shape[0]):
-        _start_state(Z, seg, grid[G_THETA0], z)
-        _segment(z, seg, grid, rest, level, end, work, True, out, no_tangent, tw, partners)
+    """Write the backbone of the state ``Z`` into ``out`` (rows Σ(steps + 1), C_COLUMNS): the
+    record of :func:`recorded_system`."""
+    recorded_system(Z, grid, rest, level, np.empty(Z.shape[0]), np.empty((1, 1)), False,
+                    np.empty((0, 6, 6)), new_partners(grid), out)
 
 
 @njit
@@ -1135,7 +1197,7 @@ def _factored_solve(factors, b):
     if flags[0]:
         _dense_lu_solve(dense, dense_piv, b)
     else:
-        _band_lu_solve(lu, piv, b)
+        band_lu_solve(lu, piv, b)
 
 
 @njit

@@ -32,8 +32,12 @@ from solver.layout import (
     STIFFNESS,
 )
 
+# A point whose squared distance from a disc's centre is at least this multiple of R² lies
+# outside it, rounding included: the penalty sums skip such discs before the square root.
+CLEAR_SQUARE = 1.0 + 1e-12
 
-@njit
+
+@njit(inline="always")
 def contact_force(x, y, discs):
     """Penalty force per length (fx, fy) and deepest penetration at backbone point (x, y).
 
@@ -45,7 +49,10 @@ def contact_force(x, y, discs):
     for d in range(discs.shape[0]):
         dx = x - discs[d, CX]
         dy = y - discs[d, CY]
-        dist = math.sqrt(dx * dx + dy * dy)
+        d2 = dx * dx + dy * dy
+        if not d2 < discs[d, RADIUS] * discs[d, RADIUS] * CLEAR_SQUARE:
+            continue
+        dist = math.sqrt(d2)
         pen = discs[d, RADIUS] - dist
         if pen > 0.0 and dist > 0.0:
             scale = discs[d, STIFFNESS] * pen / dist
@@ -62,7 +69,7 @@ def penalty_energy(pen, stiffness):
     return 0.5 * stiffness * pen * pen if pen > 0.0 else 0.0
 
 
-@njit
+@njit(inline="always")
 def contact_stiffness(x, y, discs):
     """∂f/∂r of :func:`contact_force` at (x, y), f the penalty force per length: the
     symmetric 2×2 (k00, k01, k11) summed over the discs pressed,
@@ -73,7 +80,10 @@ def contact_stiffness(x, y, discs):
     for d in range(discs.shape[0]):
         dx = x - discs[d, CX]
         dy = y - discs[d, CY]
-        dist = math.sqrt(dx * dx + dy * dy)
+        d2 = dx * dx + dy * dy
+        if not d2 < discs[d, RADIUS] * discs[d, RADIUS] * CLEAR_SQUARE:
+            continue
+        dist = math.sqrt(d2)
         pen = discs[d, RADIUS] - dist
         if pen > 0.0 and dist > 0.0:
             k = discs[d, STIFFNESS]
@@ -199,6 +209,52 @@ def contact_force_3d(r0, r1, r2, obstacles):
             if pen > deepest:
                 deepest = pen
     return fx, fy, fz, deepest
+
+
+@njit
+def contact_stiffness_3d(r0, r1, r2, obstacles):
+    """∂f/∂r of :func:`contact_force_3d` at r, f the penalty force per length: the
+    symmetric 3×3 (k00, k01, k02, k11, k12, k22) summed over the obstacles pressed,
+    k·(−ûûᵀ + (pen/|e|)(P − ûûᵀ)), û = e/|e| and P = ∂e/∂r the projection off a cylinder's
+    axis (the identity about a sphere's centre)."""
+    k00 = k01 = k02 = k11 = k12 = k22 = 0.0
+    for d in range(obstacles.shape[0]):
+        e0, e1, e2, dist = _offset_3d(r0, r1, r2, obstacles, d)
+        pen = obstacles[d, O_RADIUS] - dist
+        if pen > 0.0 and dist > 0.0:
+            k = obstacles[d, O_STIFFNESS]
+            u0 = e0 / dist
+            u1 = e1 / dist
+            u2 = e2 / dist
+            a0 = obstacles[d, O_AXIS]
+            a1 = obstacles[d, O_AXIS + 1]
+            a2 = obstacles[d, O_AXIS + 2]
+            hoop = pen / dist
+            k00 += k * (-u0 * u0 + hoop * (1.0 - a0 * a0 - u0 * u0))
+            k01 += k * (-u0 * u1 + hoop * (-a0 * a1 - u0 * u1))
+            k02 += k * (-u0 * u2 + hoop * (-a0 * a2 - u0 * u2))
+            k11 += k * (-u1 * u1 + hoop * (1.0 - a1 * a1 - u1 * u1))
+            k12 += k * (-u1 * u2 + hoop * (-a1 * a2 - u1 * u2))
+            k22 += k * (-u2 * u2 + hoop * (1.0 - a2 * a2 - u2 * u2))
+    return k00, k01, k02, k11, k12, k22
+
+
+@njit
+def nearest_surface_3d(r0, r1, r2, obstacles):
+    """(gap, u0, u1, u2): :func:`clearance_3d` at r and the outward unit normal û of the
+    nearest obstacle's surface there (∂gap/∂r; zero on a core)."""
+    gap = math.inf
+    u0 = u1 = u2 = 0.0
+    for d in range(obstacles.shape[0]):
+        e0, e1, e2, dist = _offset_3d(r0, r1, r2, obstacles, d)
+        g = dist - obstacles[d, O_RADIUS]
+        if g < gap:
+            gap = g
+            scale = 1.0 / dist if dist > 0.0 else 0.0
+            u0 = e0 * scale
+            u1 = e1 * scale
+            u2 = e2 * scale
+    return gap, u0, u1, u2
 
 
 @njit

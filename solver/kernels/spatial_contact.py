@@ -32,18 +32,25 @@ import numpy as np
 
 from solver.jit import njit
 from solver.kernels.contact import (
+    LEAN_ITER,
+    LEAN_RATE,
     NEAR_SUBSTEPS,
     TUNNEL_SLACK,
+    band_lu_solve,
+    factor_band,
     set_level,
     start_friction,
     weighted_norm,
 )
+from solver.kernels.grid import section_needs
 from solver.kernels.obstacles import (
     accept_friction,
     clearance_3d,
     contact_force_3d,
+    contact_stiffness_3d,
     friction_impulse_3d,
     friction_untouched,
+    nearest_surface_3d,
     tunnels_3d,
 )
 from solver.kernels.spatial_shooting import banded_solve, rotate_node, rotation_gap
@@ -73,6 +80,8 @@ from solver.layout import (
     L_Q,
     L_TARGET,
     LEN,
+    MAX_ITER,
+    MAX_STEP,
     N_CSTATE,
     N_CTANGENT,
     REST_U1,
@@ -83,8 +92,15 @@ from solver.layout import (
     SEG_ROW0,
     SEG_SECTION,
     SEG_STEPS,
+    TOL,
 )
-from solver.rod import rest_strains_into, rotation_rows, rotation_to_quaternion, spatial_state_rk4_step
+from solver.rod import (
+    rest_strains_into,
+    rotation_rows,
+    rotation_to_quaternion,
+    spatial_state_rhs,
+    spatial_state_rk4_step,
+)
 
 NO_TETHER = (np.zeros(1), np.zeros((0, 3)))
 """The ``tether`` of an ordinary solve: no springs (:func:`newton_system`)."""
@@ -143,16 +159,136 @@ def new_record(rows):
             np.zeros((rows, 3)))
 
 
+@njit(inline="always")
+def _tangent_rhs(y, dy, P, dP, ca, cg, ci, cj, obstacles):
+    """dP = A·P for a tangent P (12, c) of the state ``y`` (N_CSTATE,), whose derivative
+    ``dy`` is at hand, in the world tangent coordinates (δr, δφ, δn, δm): the variational
+    equations of :func:`solver.rod.spatial_state_rhs`,
+
+        δr' = δφ × r' + A_v (δn + n × δφ),   δφ' = A_u (δm + m × δφ),
+        δn' = −K δr,                          δm' = n × δr' − r' × δn,
+
+    A_v = R diag(cg, cg, ca) Rᵀ and A_u = R diag(ci, ci, cj) Rᵀ the world compliances and
+    K = ∂f/∂r the penalty's stiffness (:func:`solver.kernels.obstacles.contact_stiffness_3d`).
+    """
+    qn = math.sqrt(y[CS_Q] ** 2 + y[CS_Q + 1] ** 2 + y[CS_Q + 2] ** 2 + y[CS_Q + 3] ** 2)
+    w = y[CS_Q] / qn
+    x = y[CS_Q + 1] / qn
+    yy = y[CS_Q + 2] / qn
+    z = y[CS_Q + 3] / qn
+    t0 = 2.0 * (x * z + w * yy)  # the third director d3 (R's third column)
+    t1 = 2.0 * (yy * z - w * x)
+    t2 = w * w - x * x - yy * yy + z * z
+    p0 = dy[CS_R]
+    p1 = dy[CS_R + 1]
+    p2 = dy[CS_R + 2]
+    n0 = y[CS_N]
+    n1 = y[CS_N + 1]
+    n2 = y[CS_N + 2]
+    m0 = y[CS_M]
+    m1 = y[CS_M + 1]
+    m2 = y[CS_M + 2]
+    k00, k01, k02, k11, k12, k22 = contact_stiffness_3d(y[CS_R], y[CS_R + 1], y[CS_R + 2],
+                                                        obstacles)
+    for j in range(P.shape[1]):
+        f0 = P[CT_PHI, j]
+        f1 = P[CT_PHI + 1, j]
+        f2 = P[CT_PHI + 2, j]
+        r0 = P[CT_R, j]
+        r1 = P[CT_R + 1, j]
+        r2 = P[CT_R + 2, j]
+        dn0 = P[CT_N, j]
+        dn1 = P[CT_N + 1, j]
+        dn2 = P[CT_N + 2, j]
+        a0 = dn0 + (n1 * f2 - n2 * f1)
+        a1 = dn1 + (n2 * f0 - n0 * f2)
+        a2 = dn2 + (n0 * f1 - n1 * f0)
+        b0 = P[CT_M, j] + (m1 * f2 - m2 * f1)
+        b1 = P[CT_M + 1, j] + (m2 * f0 - m0 * f2)
+        b2 = P[CT_M + 2, j] + (m0 * f1 - m1 * f0)
+        da = (ca - cg) * (t0 * a0 + t1 * a1 + t2 * a2)
+        db = (cj - ci) * (t0 * b0 + t1 * b1 + t2 * b2)
+        d0 = (f1 * p2 - f2 * p1) + cg * a0 + da * t0
+        d1 = (f2 * p0 - f0 * p2) + cg * a1 + da * t1
+        d2 = (f0 * p1 - f1 * p0) + cg * a2 + da * t2
+        dP[CT_R, j] = d0
+        dP[CT_R + 1, j] = d1
+        dP[CT_R + 2, j] = d2
+        dP[CT_PHI, j] = ci * b0 + db * t0
+        dP[CT_PHI + 1, j] = ci * b1 + db * t1
+        dP[CT_PHI + 2, j] = ci * b2 + db * t2
+        dP[CT_N, j] = -(k00 * r0 + k01 * r1 + k02 * r2)
+        dP[CT_N + 1, j] = -(k01 * r0 + k11 * r1 + k12 * r2)
+        dP[CT_N + 2, j] = -(k02 * r0 + k12 * r1 + k22 * r2)
+        dP[CT_M, j] = (n1 * d2 - n2 * d1) - (p1 * dn2 - p2 * dn1)
+        dP[CT_M + 1, j] = (n2 * d0 - n0 * d2) - (p2 * dn0 - p0 * dn2)
+        dP[CT_M + 2, j] = (n0 * d1 - n1 * d0) - (p0 * dn1 - p1 * dn0)
+
+
+@njit(inline="always")
+def _rk4_tangent(y, P, h, work, tw, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
+    """:func:`solver.rod.spatial_state_rk4_step` on the state ``y`` (the same operations:
+    the same numbers) and, through the same stages, on its tangent ``P`` (12, c)
+    (:func:`_tangent_rhs`), in place. ``work`` (≥5, N_CSTATE) and ``tw`` (≥5, 12, c)
+    scratch; ``tw[0]`` keeps the first stage, the tangent's slope at the start."""
+    k1 = work[0]
+    k2 = work[1]
+    k3 = work[2]
+    k4 = work[3]
+    tmp = work[4]
+    K1 = tw[0]
+    K2 = tw[1]
+    K3 = tw[2]
+    K4 = tw[3]
+    Q = tw[4]
+    c = P.shape[1]
+    spatial_state_rhs(y, k1, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+    _tangent_rhs(y, k1, P, K1, ca, cg, ci, cj, obstacles)
+    for d in range(N_CSTATE):
+        tmp[d] = y[d] + 0.5 * h * k1[d]
+    for d in range(N_CTANGENT):
+        for e in range(c):
+            Q[d, e] = P[d, e] + 0.5 * h * K1[d, e]
+    spatial_state_rhs(tmp, k2, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+    _tangent_rhs(tmp, k2, Q, K2, ca, cg, ci, cj, obstacles)
+    for d in range(N_CSTATE):
+        tmp[d] = y[d] + 0.5 * h * k2[d]
+    for d in range(N_CTANGENT):
+        for e in range(c):
+            Q[d, e] = P[d, e] + 0.5 * h * K2[d, e]
+    spatial_state_rhs(tmp, k3, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+    _tangent_rhs(tmp, k3, Q, K3, ca, cg, ci, cj, obstacles)
+    for d in range(N_CSTATE):
+        tmp[d] = y[d] + h * k3[d]
+    for d in range(N_CTANGENT):
+        for e in range(c):
+            Q[d, e] = P[d, e] + h * K3[d, e]
+    spatial_state_rhs(tmp, k4, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+    _tangent_rhs(tmp, k4, Q, K4, ca, cg, ci, cj, obstacles)
+    for d in range(N_CSTATE):
+        y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+    for d in range(N_CTANGENT):
+        for e in range(c):
+            P[d, e] += (h / 6.0) * (K1[d, e] + 2.0 * K2[d, e] + 2.0 * K3[d, e] + K4[d, e])
+    qn = math.sqrt(y[CS_Q] ** 2 + y[CS_Q + 1] ** 2 + y[CS_Q + 2] ** 2 + y[CS_Q + 3] ** 2)
+    for d in range(CS_Q, CS_Q + 4):
+        y[d] /= qn
+
+
 @njit
-def _segment(z, seg, grid, rest, level, out, work, record, rec):
+def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
     """Integrate segment ``seg`` from the node state ``z`` (N_CSTATE,) into ``out``.
 
     Near an obstacle each RK4 step is refined into NEAR_SUBSTEPS substeps and blended with
-    the whole step by a smoothstep of the clearance, as in :func:`solver.kernels.contact._segment`,
+    the whole step by a smoothstep of the clearance, as in :func:`solver.kernels.contact._integrate`,
     friction acting at the refinement's nodes as it does there
-    (:func:`solver.kernels.obstacles.friction_impulse_3d`). At a section end (not the tip)
-    the endplate's weight is taken off n. With ``record``, the samples go to the record tuple
-    ``rec``. ``work`` (8, N_CSTATE) scratch.
+    (:func:`solver.kernels.obstacles.friction_impulse_3d`; its stiffness does not enter
+    ``phi``). At a section end (not the tip) the endplate's weight is taken off n. With
+    ``record``, the samples go to the record tuple ``rec``. ``work`` (8, N_CSTATE) scratch.
+    With ``phi`` (12, 12) (not empty), the segment map's Jacobian in the tangent coordinates
+    of its start and end (``CT_*``) is integrated into it alongside, by the variational
+    equations through the same RK4 stages (:func:`_rk4_tangent`) and the blend's own
+    derivative (``tw`` (8, 12, 12) scratch); the state is the same either way.
     """
     segs = grid[GS_SEGS]
     secf = grid[GS_SECF]
@@ -175,15 +311,24 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec):
     s0 = grid[GS_START][i]
     start = work[5]
     fine = work[6]
+    tangent = phi.shape[0] > 0
     for d in range(N_CSTATE):
         out[d] = z[d]
+    if tangent:
+        for d in range(N_CTANGENT):
+            for e in range(N_CTANGENT):
+                phi[d, e] = 1.0 if d == e else 0.0
     for j in range(first, first + segs[seg, SEG_STEPS]):
         if record:
             _record_row(out, s0 + j * h, rec, segs[seg, SEG_ROW0] + j, ca, cg, ci, cj, u1r, u2r,
                         v3r, obstacles)
         for d in range(N_CSTATE):
             start[d] = out[d]
-        spatial_state_rk4_step(out, h, work, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+        if tangent:
+            tw[5, :, :] = phi
+            _rk4_tangent(out, phi, h, work, tw, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+        else:
+            spatial_state_rk4_step(out, h, work, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
         if obstacles.shape[0] == 0:
             continue
         # work[0] holds the slope at the step's start: r' its first three entries.
@@ -194,18 +339,46 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec):
             if friction and record:
                 friction_untouched(fs, at)
             continue
+        if tangent and clear > 0.0:
+            # d(clear)/d(start) along the tangent: û·δr − h·(r'/|r'|)·δr', δr' the first
+            # stage's (tw[0]); the blend's weight moves with it.
+            _, u0, u1, u2 = nearest_surface_3d(start[CS_R], start[CS_R + 1], start[CS_R + 2],
+                                               obstacles)
+            scale = h / speed if speed > 0.0 else 0.0
+            for e in range(N_CTANGENT):
+                tw[7, 0, e] = (u0 * tw[5, CT_R, e] + u1 * tw[5, CT_R + 1, e]
+                               + u2 * tw[5, CT_R + 2, e]
+                               - scale * (work[0, CS_R] * tw[0, CT_R, e]
+                                          + work[0, CS_R + 1] * tw[0, CT_R + 1, e]
+                                          + work[0, CS_R + 2] * tw[0, CT_R + 2, e]))
         for d in range(N_CSTATE):
             fine[d] = start[d]
+        if tangent:
+            tw[6, :, :] = tw[5]
         for sub in range(NEAR_SUBSTEPS):
             if friction:
                 _friction_node(fine, level, at, sub, (0.5 if sub == 0 else 1.0) * h_sub, record)
-            spatial_state_rk4_step(fine, h_sub, work, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
+            if tangent:
+                _rk4_tangent(fine, tw[6], h_sub, work, tw, ca, cg, ci, cj, u1r, u2r, v3r, q,
+                             obstacles)
+            else:
+                spatial_state_rk4_step(fine, h_sub, work, ca, cg, ci, cj, u1r, u2r, v3r, q,
+                                       obstacles)
         if friction:
             _friction_node(fine, level, at, NEAR_SUBSTEPS, 0.5 * h_sub, record)
             if record:
                 _friction_row(fs, at, 0, h_sub, rec, at)
         x = 1.0 - clear / h if clear > 0.0 else 1.0
         weight = x * x * (3.0 - 2.0 * x)
+        if tangent:
+            dw = -6.0 * x * (1.0 - x) / h if clear > 0.0 else 0.0
+            gap = tw[7, 1]
+            _difference(fine, out, gap)
+            for d in range(N_CTANGENT):
+                for e in range(N_CTANGENT):
+                    phi[d, e] = weight * tw[6, d, e] + (1.0 - weight) * phi[d, e]
+                    if dw != 0.0:
+                        phi[d, e] += gap[d] * dw * tw[7, 0, e]
         for d in range(N_CSTATE):
             out[d] = weight * fine[d] + (1.0 - weight) * out[d]
         norm = math.sqrt(out[CS_Q] ** 2 + out[CS_Q + 1] ** 2 + out[CS_Q + 2] ** 2
@@ -273,12 +446,34 @@ def _difference(a, b, out):
 def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
     """Residuals F of the node states ``Z`` (K, N_CSTATE) and, with ``want_jac``, their
     Jacobian J (dense (n, n), zero off the band) and the segment maps' Jacobians ``blocks``
-    (K, 12, 12) in tangent coordinates. ``scales`` (12,) the tangent coordinates' weights
-    (the differences' steps are FD_STEP times them). Row order per segment: the jumps of r,
-    rotation, n and m; at the tip n(L⁻) and m(L) less the level's target. ``tether``:
-    (k (1,), anchors (K, 3)): with k > 0, every node after the base is held to its anchor by
-    a spring of k N/m (a point load −k(r − anchor), see :func:`relax`). Returns False where
-    a state is not finite."""
+    (K, 12, 12) in tangent coordinates, by forward differences. ``scales`` (12,) the tangent
+    coordinates' weights (the differences' steps are FD_STEP times them). Row order per
+    segment: the jumps of r, rotation, n and m; at the tip n(L⁻) and m(L) less the level's
+    target. ``tether``: (k (1,), anchors (K, 3)): with k > 0, every node after the base is
+    held to its anchor by a spring of k N/m (a point load −k(r − anchor), see
+    :func:`relax`). Returns False where a state is not finite."""
+    return _system(Z, grid, rest, level, F, J, JAC_DIFFERENCES if want_jac else JAC_NONE,
+                   blocks, scales, tether)
+
+
+@njit
+def tangent_system(Z, grid, rest, level, F, J, blocks):
+    """:func:`newton_system` (untethered) with the segment maps' Jacobians integrated along
+    with the segments by the variational equations (:func:`_segment`) instead of forward
+    differences: one pass where differences take thirteen. The residual is the same; the
+    Jacobian agrees with the differences' to the RK4 truncation of the variational
+    equations (docs/design.md §9)."""
+    return _system(Z, grid, rest, level, F, J, JAC_VARIATIONAL, blocks, np.empty(0), NO_TETHER)
+
+
+# The Jacobian :func:`_system` forms: none, by forward differences, by the variational
+# equations.
+JAC_NONE, JAC_DIFFERENCES, JAC_VARIATIONAL = 0, 1, 2
+
+
+@njit
+def _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
+    """:func:`newton_system` and :func:`tangent_system`: ``jacobian`` one of ``JAC_*``."""
     segs = grid[GS_SEGS]
     n_seg = segs.shape[0]
     target = level[L_TARGET]
@@ -288,10 +483,16 @@ def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
     gap = np.empty(N_CTANGENT)
     work = np.empty((8, N_CSTATE))
     rec = new_record(1)
+    no_phi = np.empty((0, N_CTANGENT))
+    no_tw = np.empty((0, N_CTANGENT, N_CTANGENT))
+    want_jac = jacobian != JAC_NONE
+    variational = jacobian == JAC_VARIATIONAL
+    tw = np.empty((8, N_CTANGENT, N_CTANGENT)) if variational else no_tw
     if want_jac:
         J[:, :] = 0.0
     for seg in range(n_seg):
-        _segment(Z[seg], seg, grid, rest, level, end, work, False, rec)
+        _segment(Z[seg], seg, grid, rest, level, end, work, False, rec,
+                 blocks[seg] if variational else no_phi, tw)
         for d in range(N_CSTATE):
             if not math.isfinite(end[d]):
                 return False
@@ -314,12 +515,14 @@ def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
             for d in range(3):
                 J[row + CT_N + d, _column(seg + 1, CT_R + d)] += tether[0][0]
         for c in range(N_CTANGENT):
-            step = FD_STEP * scales[c]
-            _nudge(Z[seg], c, step, moved)
-            _segment(moved, seg, grid, rest, level, moved_end, work, False, rec)
-            _difference(moved_end, end, gap)
-            for d in range(N_CTANGENT):
-                blocks[seg, d, c] = gap[d] / step
+            if not variational:
+                step = FD_STEP * scales[c]
+                _nudge(Z[seg], c, step, moved)
+                _segment(moved, seg, grid, rest, level, moved_end, work, False, rec, no_phi,
+                         no_tw)
+                _difference(moved_end, end, gap)
+                for d in range(N_CTANGENT):
+                    blocks[seg, d, c] = gap[d] / step
             col = _column(seg, c)
             if col < 0:
                 continue
@@ -345,6 +548,10 @@ def stability_test(blocks):
     determinant's sign, catches the near-coincident pairs of conjugate points of a round
     arm (in-plane and out-of-plane), whose signs cancel in the determinant. The restart
     also keeps the fields, which grow like e^(s/ℓ) across a stiff contact, well scaled.
+
+    Over a segment clear of contact the block stays near I, and Gershgorin's discs of it
+    (:func:`right_of_zero`) already put every eigenvalue right of zero: the eigenvalues are
+    computed (LAPACK, three quarters of the test's time) only where they do not.
     """
     fields = np.zeros((N_CTANGENT, 6))
     for d in range(6):
@@ -357,11 +564,45 @@ def stability_test(blocks):
         top = np.ascontiguousarray(fields[:6, :])
         if not np.all(np.isfinite(top)):
             return False
-        for value in np.linalg.eigvals(top.astype(np.complex128)):
-            if value.real <= 0.0 and abs(value.imag) <= 1e-12 * (abs(value.real) + 1.0):
-                return False
+        if not right_of_zero(top):
+            for value in np.linalg.eigvals(top.astype(np.complex128)):
+                if value.real <= 0.0 and abs(value.imag) <= 1e-12 * (abs(value.real) + 1.0):
+                    return False
         fields = fields @ np.linalg.inv(top)
     return True
+
+
+# Margin of Gershgorin's test (:func:`right_of_zero`) relative to the matrix's norm: far
+# above the backward error of an eigenvalue solver (a few machine epsilons of the norm),
+# so that where the test holds, computed eigenvalues are right of zero too.
+GERSHGORIN_MARGIN = 1e-9
+
+
+@njit
+def right_of_zero(a):
+    """True when Gershgorin's theorem puts every eigenvalue of the square ``a`` right of
+    zero: each row's disc, centre a_ii and radius Σ_{j≠i} |a_ij|, lies right of
+    GERSHGORIN_MARGIN·‖a‖∞ (or each column's does). False says nothing."""
+    n = a.shape[0]
+    norm = 0.0
+    for i in range(n):
+        row = 0.0
+        for j in range(n):
+            row += abs(a[i, j])
+        norm = max(norm, row)
+    margin = GERSHGORIN_MARGIN * norm
+    rows = True
+    cols = True
+    for i in range(n):
+        row = 0.0
+        col = 0.0
+        for j in range(n):
+            if j != i:
+                row += abs(a[i, j])
+                col += abs(a[j, i])
+        rows = rows and a[i, i] - row > margin
+        cols = cols and a[i, i] - col > margin
+    return rows or cols
 
 
 @njit
@@ -407,15 +648,24 @@ def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, ma
     stable) — stable by the test of the untethered problem.
     """
     n = weights.shape[0]
-    n_seg = Z.shape[0]
-    F = np.empty(n)
+    return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
+                       max_step, tether, np.empty(n), np.empty((n, n)),
+                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_DIFFERENCES)
+
+
+@njit
+def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step,
+                tether, F, J, blocks, jacobian):
+    """:func:`newton` with its residual ``F`` (n,), Jacobian ``J`` (n, n) and segment maps
+    ``blocks`` (K, 12, 12) in the caller's arrays — where it converges they hold those of
+    the returned state — and its Jacobian formed as ``jacobian`` says (``JAC_DIFFERENCES``
+    or, untethered, ``JAC_VARIATIONAL``: :func:`_system`)."""
+    n = weights.shape[0]
     F_try = np.empty(n)
-    J = np.empty((n, n))
-    blocks = np.empty((n_seg, N_CTANGENT, N_CTANGENT))
     step = np.empty(n)
     rhs = np.empty(n)
     base = Z.copy()
-    if not newton_system(Z, grid, rest, level, F, J, True, blocks, scales, tether):
+    if not _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
         return False, 0, math.inf, False
     res = weighted_norm(F, res_weights)
     for it in range(max_iter + 1):
@@ -443,7 +693,7 @@ def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, ma
         if not res_try < res:
             Z[:, :] = base
             return False, it + 1, res, False
-        if not newton_system(Z, grid, rest, level, F, J, True, blocks, scales, tether):
+        if not _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
             return False, it + 1, math.inf, False
         res = weighted_norm(F, res_weights)
     return False, max_iter, res, stability_test(blocks)
@@ -463,7 +713,8 @@ def record(Z, grid, rest, level, rec):
     end = np.empty(N_CSTATE)
     work = np.empty((8, N_CSTATE))
     for seg in range(grid[GS_SEGS].shape[0]):
-        _segment(Z[seg], seg, grid, rest, level, end, work, True, rec)
+        _segment(Z[seg], seg, grid, rest, level, end, work, True, rec, np.empty((0, N_CTANGENT)),
+                 np.empty((0, N_CTANGENT, N_CTANGENT)))
 
 
 @njit
@@ -565,3 +816,298 @@ def node_states(quat0, pos, rot, force, mom, rows, out):
         out[0, CS_Q + d] = quat0[d]
     for d in range(3):
         out[0, CS_R + d] = 0.0
+
+
+@njit
+def nodes_from_record(s, pos, rot, force, mom, ends, arcs, sections, quat0, out):
+    """Node states ``out`` (K, N_CSTATE) from a recorded spatial backbone at another
+    resolution: positions, forces and moments interpolated linearly in arc length within
+    each section (so that a node at a section start takes the force past the endplate),
+    orientations by normalised linear interpolation of sign-aligned quaternions; node 0 at
+    the clamped base (orientation ``quat0`` (4,)).
+
+    Args:
+        s: (N,) the samples' arc lengths (m). pos, force, mom: (N, 3) positions, internal
+            force and moment (world frame). rot: (N, 3, 3) frames. ends: (ns,) the samples'
+            rows at the section ends. arcs: (K,) the nodes' arc lengths (m). sections: (K,)
+            their sections.
+    """
+    n = s.shape[0]
+    quats = np.empty((n, 4))
+    for k in range(n):
+        rotation_to_quaternion(rot[k], quats[k])
+        if k and (quats[k, 0] * quats[k - 1, 0] + quats[k, 1] * quats[k - 1, 1]
+                  + quats[k, 2] * quats[k - 1, 2] + quats[k, 3] * quats[k - 1, 3]) < 0.0:
+            for d in range(4):
+                quats[k, d] = -quats[k, d]
+    for k in range(arcs.shape[0]):
+        i = sections[k]
+        first = 0 if i == 0 else ends[i - 1] + 1
+        part = s[first:ends[i] + 1]
+        for d in range(3):
+            out[k, CS_R + d] = np.interp(arcs[k], part, pos[first:ends[i] + 1, d])
+            out[k, CS_N + d] = np.interp(arcs[k], part, force[first:ends[i] + 1, d])
+            out[k, CS_M + d] = np.interp(arcs[k], part, mom[first:ends[i] + 1, d])
+        for d in range(4):
+            out[k, CS_Q + d] = np.interp(arcs[k], part, quats[first:ends[i] + 1, d])
+        norm = math.sqrt(out[k, CS_Q] ** 2 + out[k, CS_Q + 1] ** 2 + out[k, CS_Q + 2] ** 2
+                         + out[k, CS_Q + 3] ** 2)
+        for d in range(4):
+            out[k, CS_Q + d] /= norm
+    for d in range(3):
+        out[0, CS_R + d] = 0.0
+    for d in range(4):
+        out[0, CS_Q + d] = quat0[d]
+
+
+# The band of the shooting Jacobian: the rows of segment k's jumps couple the 12 tangent
+# coordinates of its start node (6 at the base) and of the next one, 17 sub- and
+# super-diagonals; stored as :func:`solver.kernels.contact.factor_band` takes it.
+BAND = 17
+BAND_ROWS = 3 * BAND + 1
+
+
+@njit
+def new_factors(n):
+    """Scratch for the factored Jacobian of a lean state (:func:`factor_state`) of ``n``
+    unknowns: band factors (BAND_ROWS, n) and their pivots (n,)."""
+    return np.empty((BAND_ROWS, n)), np.empty(n, dtype=np.int64)
+
+
+@njit
+def factor_state(Z, grid, rest, level, F, J, blocks, rec, factors):
+    """One Jacobian pass at the node states ``Z`` (``level``, ``rest`` its rest strains):
+    the residual into ``F``, the Jacobian into ``J`` (n, n) and the segment maps into
+    ``blocks`` (:func:`tangent_system`), then :func:`factor_jacobian`. Returns (regular,
+    stable): whether the Jacobian is finite and regular, and the stability test of
+    ``blocks``."""
+    if not tangent_system(Z, grid, rest, level, F, J, blocks):
+        return False, False
+    return factor_jacobian(Z, grid, rest, level, J, blocks, rec, factors)
+
+
+@njit
+def factor_jacobian(Z, grid, rest, level, J, blocks, rec, factors):
+    """The backbone of the node states ``Z`` into the record tuple ``rec``
+    (:func:`record`), and the band LU of their Jacobian ``J`` (n, n) into ``factors``
+    (:func:`new_factors`), which the next lean step from this state predicts and corrects
+    with. Returns (regular, stable): whether ``J`` is regular, and the stability test of the
+    segment maps ``blocks``."""
+    record(Z, grid, rest, level, rec)
+    lu, piv = factors
+    n = J.shape[0]
+    lu[:, :] = 0.0
+    for j in range(n):
+        for i in range(max(0, j - BAND), min(n, j + BAND + 1)):
+            lu[2 * BAND + i - j, j] = J[i, j]
+    return factor_band(lu, piv), stability_test(blocks)
+
+
+@njit
+def broyden(Z, grid, rest, level, F, scales, res_weights, tol, factors, res):
+    """Quasi-Newton corrections of the node states ``Z`` at ``level`` from the residual
+    ``F`` (its weighted norm ``res``): the first step by the factored Jacobian
+    (``factors``, of a nearby state), later ones by Broyden's updates of its inverse
+    (Kelley's form, a factored solve and a residual pass each), while the residual falls
+    at least LEAN_RATE-fold a pass. ``Z`` ends at the last iterate that lowered the
+    residual, ``F`` holds its residual.
+
+    Returns:
+        (converged, residual, passes, first): ``first`` (n,) the first step (the
+        prediction of a lean step).
+    """
+    lu, piv = factors
+    n = F.shape[0]
+    steps = np.empty((LEAN_ITER + 1, n))
+    norms = np.empty(LEAN_ITER + 1)
+    z = np.empty(n)
+    base = Z.copy()
+    trial = np.empty(n)
+    no_jac = np.empty((0, 0))
+    no_blocks = np.empty((0, N_CTANGENT, N_CTANGENT))
+    for i in range(n):
+        steps[0, i] = -F[i]
+    band_lu_solve(lu, piv, steps[0])
+    first = steps[0].copy()
+    passes = 0
+    k = 0
+    while True:
+        norms[k] = 0.0
+        for i in range(n):
+            norms[k] += steps[k, i] * steps[k, i]
+        retract(base, steps[k], 1.0, Z)
+        finite = newton_system(Z, grid, rest, level, trial, no_jac, False, no_blocks, scales,
+                               NO_TETHER)
+        passes += 1
+        r = weighted_norm(trial, res_weights) if finite else math.inf
+        if not r < res:
+            Z[:, :] = base  # back to the last iterate that lowered the residual
+            return False, res, passes, first
+        for i in range(n):
+            F[i] = trial[i]
+        base[:, :] = Z
+        if r <= tol:
+            return True, r, passes, first
+        if not r <= LEAN_RATE * res or k == LEAN_ITER - 1 or norms[k] == 0.0:
+            return False, r, passes, first
+        res = r
+        for i in range(n):
+            z[i] = -F[i]
+        band_lu_solve(lu, piv, z)
+        for j in range(k):
+            c = 0.0
+            for i in range(n):
+                c += steps[j, i] * z[i]
+            c /= norms[j]
+            for i in range(n):
+                z[i] += steps[j + 1, i] * c
+        c = 0.0
+        for i in range(n):
+            c += steps[k, i] * z[i]
+        denom = 1.0 - c / norms[k]
+        if denom == 0.0:
+            return False, res, passes, first
+        k += 1
+        for i in range(n):
+            steps[k, i] = z[i] / denom
+
+
+# What a lean 3D contact step may spend before it hands the step to the general path: steps
+# of its path tried (accepted or halved), and Jacobians formed (its Newton iterations and
+# the pass of each accepted state).
+LEAN_TRIES = 32
+LEAN_JACOBIANS = 64
+
+
+@njit
+def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, check):
+    """A warm step of the 3D contact stepper in one kernel call: from the equilibrium ``Z``
+    at ``level`` to the pressures ``p_new``, the rest of the level (loads, obstacles)
+    unchanged — :func:`solver.kernels.contact.lean_step` in 3D, where a step of an
+    environment's random actions may move the arm across half its workspace.
+
+    The quasi-static path is followed as :func:`follow` follows it — pressures linear in t,
+    a step accepted when converged (``tol``; a thousand times that short of the end),
+    stable, close to its prediction (within ``0.05 + 0.5·|prediction|``, weighted RMS) and
+    no sample tunnelled through an obstacle, halved otherwise — but each step is predicted
+    to first order by the factored Jacobian of the last accepted state (kept from the step
+    before for the first) and corrected by Broyden's updates of it (:func:`broyden`: a
+    residual pass and a factored solve per correction), with damped Newton (:func:`newton`)
+    only where those stall (where the arm meets the obstacle, the penalty's kink). Each
+    accepted state gets its Jacobian, stability test and backbone from one pass (or from
+    Newton's last iterate: :func:`factor_jacobian`), and the last must be resolved by the
+    RK4 grid (:func:`solver.kernels.grid.section_needs`, the general path's check). Past
+    LEAN_TRIES steps or LEAN_JACOBIANS Jacobians, or on anything else, every input is left
+    untouched and ``ok`` is False: the caller's general path (continuation, snaps,
+    relaxation, refinement) takes the step.
+
+    Args:
+        Z: (K, N_CSTATE) the nodes of the current equilibrium; the new ones on success.
+        grid: the layout tuple (``GS_*``). tubes: (tubes_i, tubes_f).
+        level: the level tuple (``L_*``) of ``Z``; its pressures become ``p_new`` on success.
+        p_new: (n_channels,) the target pressures (Pa).
+        params: (N_PARAMS,) numeric parameters (TOL, MAX_ITER, MAX_STEP are used).
+        work: (rest (3, ns), weights (n,), res_weights (n,), scales (12,)): scratch for the
+            rest strains, the norms' weights and the tangent coordinates' scales.
+        factors: the factored Jacobian at ``Z`` (:func:`factor_state`); the new state's on
+            success.
+        records: (rec, new): record tuples (:func:`new_record`), the backbone of ``Z`` and
+            scratch that receives the new state's on success.
+        check: (q (ns,) |distributed load| (N/m), ends (ns,) the records' section-end rows)
+            for the grid check.
+
+    Returns:
+        (ok, stable, passes, residual): passes counts the residual passes and Jacobians.
+    """
+    rest, weights, res_weights, scales = work
+    rec, new = records
+    tol = params[TOL]
+    n = weights.shape[0]
+    secf = grid[GS_SECF]
+    obstacles = level[L_DISCS]
+    p_old = level[L_P]
+    p_now = np.empty_like(p_new)
+    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], obstacles)
+    F = np.empty(n)
+    no_jac = np.empty((0, 0))
+    no_blocks = np.empty((0, N_CTANGENT, N_CTANGENT))
+    J = np.empty((n, n))
+    blocks = np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT))
+    start = Z.copy()
+    accepted = Z.copy()
+    guess = np.empty_like(Z)
+    moved = np.empty(n)
+    need = np.empty(secf.shape[1])
+    held = (factors[0].copy(), factors[1].copy())  # the factors of the accepted state
+    fresh = new_factors(n)
+    before = rec[1].copy()  # the accepted state's positions (the tunnel check's start)
+    t = 0.0
+    dt = 1.0
+    passes = 0
+    jacobians = 0
+    res = math.inf
+    stable = False
+    for _ in range(LEAN_TRIES):
+        if jacobians >= LEAN_JACOBIANS:
+            break
+        t_new = min(1.0, t + dt)
+        final = t_new >= 1.0
+        for c in range(p_new.shape[0]):
+            p_now[c] = p_new[c] if final else p_old[c] + t_new * (p_new[c] - p_old[c])
+        rest_strains_into(p_now, tubes[0], tubes[1], secf, rest)
+        goal = tol if final else 1e3 * tol
+        ok = newton_system(Z, grid, rest, now, F, no_jac, False, no_blocks, scales, NO_TETHER)
+        passes += 1
+        res = weighted_norm(F, res_weights) if ok else math.inf
+        first = np.zeros(n)
+        solved = False  # J and blocks hold Newton's at Z
+        if math.isfinite(res) and not res <= goal:
+            ok, res, its, first = broyden(Z, grid, rest, now, F, scales, res_weights, goal, held,
+                                          res)
+            passes += its
+            if not ok:
+                ok, its, res, stable = newton_into(
+                    Z, grid, rest, now, weights, res_weights, scales, goal,
+                    min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
+                    params[MAX_STEP], NO_TETHER, F, J, blocks, JAC_VARIATIONAL)
+                passes += its + 1
+                jacobians += its + 1
+                solved = ok
+        else:
+            ok = res <= goal
+        if ok:
+            # Within 0.05 + 0.5·|prediction| of the prediction (the first correction).
+            retract(accepted, first, 1.0, guess)
+            _between(Z, guess, moved)
+            ok = weighted_norm(moved, weights) <= 0.05 + 0.5 * weighted_norm(first, weights)
+        if ok:
+            if solved:
+                regular = factor_jacobian(Z, grid, rest, now, J, blocks, new, fresh)[0]
+            else:
+                regular, stable = factor_state(Z, grid, rest, now, F, J, blocks, new, fresh)
+                res = weighted_norm(F, res_weights)
+                passes += 1
+                jacobians += 1
+            ok = (regular and stable and res <= goal
+                  and not tunnels_3d(before, new[1], obstacles, TUNNEL_SLACK)
+                  and (not final or section_needs(new[8], new[3], new[7], check[0], secf,
+                                                  check[1], need) <= 1.0))
+        if ok:
+            t = t_new
+            accepted[:, :] = Z
+            held, fresh = fresh, held
+            before[:, :] = new[1]
+            if final:
+                break
+            dt = min(2.0 * dt, 1.0)
+        else:
+            Z[:, :] = accepted
+            dt *= 0.5
+    if t < 1.0:
+        Z[:, :] = start
+        return False, stable, passes, res
+    factors[0][:, :] = held[0]
+    factors[1][:] = held[1]
+    for c in range(p_new.shape[0]):
+        p_old[c] = p_new[c]
+    return True, stable, passes, res

@@ -131,8 +131,9 @@ def clear_of_itself(arm, scene, eq) -> bool:
 
 
 def free_contact_result(eq, scene, dissipated: float = 0.0):
-    """A contact-free equilibrium as the result of a solve in ``scene`` (zero contact; no
-    tangential state; ``dissipated``: the friction's work on the path before it, J)."""
-    n = eq.positions.shape[0]
-    return replace(eq, scene=scene, contact_force=np.zeros((n, 2)), penetration=np.zeros(n),
+    """A contact-free equilibrium (planar or spatial) as the result of a solve in ``scene``
+    (zero contact; no tangential state; ``dissipated``: the friction's work on the path
+    before it, J)."""
+    n, dim = eq.positions.shape
+    return replace(eq, scene=scene, contact_force=np.zeros((n, dim)), penetration=np.zeros(n),
                    dissipated=dissipated)

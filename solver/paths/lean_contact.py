@@ -92,6 +92,18 @@ def _fixed_parts(problem: Problem) -> tuple:
     return layout, c_ctx, segs, grid, plate, target, weights, res_weights, half, exclusion
 
 
+def median_seconds(one_pass, repeats: int) -> float:
+    """The median of ``repeats`` timings (s) of ``one_pass()`` after one untimed call (the
+    first may load the kernel)."""
+    one_pass()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        one_pass()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
 class ContactRows:
     """The lean paths of n copies of one arm, model and scene law (gravity, payload,
     mounting, penalty stiffness, self-contact), each copy with obstacles of its own.
@@ -304,14 +316,9 @@ class ContactRows:
         J = np.empty((contact_kernels.BAND_ROWS, nodes.size))
         blocks = np.empty((contact[stepping.CT_SEGS].shape[0], 6, 6))
         partners = contact_kernels.new_partners(grid)
-        seconds = {}
-        for name, jacobian in (("residual_pass_s", False), ("jacobian_pass_s", True)):
-            times = []
-            for _ in range(repeats + 1):
-                start = time.perf_counter()
-                contact_kernels.newton_system(nodes, grid, rest, level, F, J, jacobian, blocks, partners)
-                times.append(time.perf_counter() - start)
-            seconds[name] = float(np.median(times[1:]))  # (the first may load the kernel)
+        seconds = {name: median_seconds(lambda jacobian=jacobian: contact_kernels.newton_system(
+                       nodes, grid, rest, level, F, J, jacobian, blocks, partners), repeats)
+                   for name, jacobian in (("residual_pass_s", False), ("jacobian_pass_s", True))}
         record = contact[stepping.CT_RECORDS][k]
         discs = level[L.L_DISCS]
         gap = np.min(np.hypot(record[:, L.C_X, None] - discs[None, :, L.CX],

@@ -67,7 +67,7 @@ def _embed(eq: Equilibrium) -> Equilibrium:
         base_moment=np.array([0.0, 0.0, eq.base_moment[-1]]))
 
 
-def _samples(arm, packed, scene, ctx):
+def spatial_samples(arm, packed, scene, ctx):
     """(section of each sample, arc length s (m), internal force n (N, world frame)) of a
     spatial dead-load record: they depend on the layout and the scene only (cached;
     read-only, shared by every result of the scene)."""
@@ -98,7 +98,7 @@ def solve_spatial_single(problem: Problem) -> Equilibrium:
     the backbone of the state it returns."""
     arm, packed, scene, warm_start, ctx = (problem.arm, problem.packed, problem.scene,
                                            problem.warm_start, problem.ctx)
-    quat0 = _base_quaternion(scene.base_theta)
+    quat0 = base_quaternion(scene.base_theta)
     p_target = problem.p_target
     ns = len(arm.sections)
     rest, p_now, loads_now, m_tip = (np.empty((3, ns)), np.empty(p_target.shape[0]),
@@ -132,7 +132,7 @@ def solve_spatial_single(problem: Problem) -> Equilibrium:
     iterations += its
     # ``stable`` is the stability of the returned state, from the Newton pass that converged
     # on it.
-    return _spatial_result(problem, *rec, rest, m0,
+    return spatial_result(problem, *rec, rest, m0,
                            converged=bool(ok and res <= 10 * ctx.tol), stable=bool(stable),
                            iterations=int(iterations), residual=float(res),
                            snapped=bool(snapped or snap_load))
@@ -162,7 +162,7 @@ def solve_spatial_lean(problem: Problem, record: bool) -> Equilibrium | None:
 
 
 @lru_cache(maxsize=64)
-def _base_quaternion(theta0: float) -> np.ndarray:
+def base_quaternion(theta0: float) -> np.ndarray:
     """The unit quaternion of the base frame at base angle ``theta0`` (rad; shared, not to
     be written: left writeable so that the kernels see the array type they were compiled
     for)."""
@@ -215,7 +215,7 @@ def _nodes_of(eq, segs, scene):
     quats = np.empty((rows.size, 4))
     for k, row in enumerate(rows):
         rotation_to_quaternion(np.ascontiguousarray(eq.orientations[row]), quats[k])
-    quats[0] = _base_quaternion(scene.base_theta)
+    quats[0] = base_quaternion(scene.base_theta)
     return quats, np.ascontiguousarray(eq.internal_moment[rows])
 
 
@@ -225,7 +225,7 @@ def _loaded_nodes(arm, layout, segs, scene, ctx, kernel, work):
     iterations, whether it converged and whether it snapped."""
     def build():
         quats = np.empty((segs.shape[0], 4))
-        quats[0] = _base_quaternion(scene.base_theta)
+        quats[0] = base_quaternion(scene.base_theta)
         quats[1:] = quats[0]
         moms = np.zeros((segs.shape[0], 3))
         p0 = np.zeros(max(arm.n_channels, 1))
@@ -250,15 +250,15 @@ def _nodes_result(problem: Problem, quats, moms, segs, rest, loads, **fields):
     pos, rot, mom = np.zeros((rows, 3)), np.zeros((rows, 3, 3)), np.zeros((rows, 3))
     shooting_kernels.record(quats, moms, segs, layout.secf, layout.sec_steps, layout.c_j, rest,
                             loads, np.empty((6, L.NSTATE)), pos, rot, mom)
-    return _spatial_result(problem, pos, rot, mom, rest, moms[0].copy(), **fields)
+    return spatial_result(problem, pos, rot, mom, rest, moms[0].copy(), **fields)
 
 
-def _spatial_result(problem: Problem, pos, rot, mom, rest, m0, **fields):
+def spatial_result(problem: Problem, pos, rot, mom, rest, m0, **fields):
     """The spatial Equilibrium of ``problem`` of a recorded backbone: positions, frames and
     moments (N, ·) at the rest strains ``rest`` and base moment ``m0``; strains from the
     constitutive law."""
     packed, ctx = problem.packed, problem.ctx
-    seg, s, force = _samples(problem.arm, packed, problem.scene, ctx)
+    seg, s, force = spatial_samples(problem.arm, packed, problem.scene, ctx)
     strain_v, strain_u = np.empty((s.size, 3)), np.empty((s.size, 3))
     spatial_strains_into(rot, force, mom, rest, seg, packed.c_a, packed.c_g, packed.c_i,
                          packed.c_j, strain_v, strain_u)

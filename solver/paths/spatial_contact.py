@@ -12,7 +12,9 @@ from solver import layout as L
 from solver.kernels import spatial_contact as kernel
 from solver.kernels.contact import TUNNEL_SLACK, new_level
 from solver.kernels.obstacles import accept_friction, smallest_clearance_3d, tunnels_3d
+from solver.paths.contact import free_contact_result
 from solver.paths.friction import friction_fields, landed, start_samples
+from solver.paths.grid import section_rows
 from solver.paths.shooting import MAX_STEP
 from solver.paths.spatial import solve_spatial
 from solver.problem import Problem, contact_layout, reach
@@ -45,12 +47,11 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
     p_inputs, p_channel = problem.p_inputs, problem.p_channel
     free_scene = replace(scene, obstacles=())
     obstacles = scene.obstacles_array()
-    if settings.shortcuts and all(core_distance(o, np.zeros(3))[0] - o.radius
-                                  > reach(arm, packed, scene) for o in scene.obstacles):
+    before = warm_start.dissipated if warm_start is not None else 0.0
+    if settings.shortcuts and out_of_reach(problem):
         free = solve_spatial(problem.in_scene(
             free_scene, warm_start if warm_start is not None and not warm_start.in_contact else None))
-        n = free.positions.shape[0]
-        return replace(free, scene=scene, contact_force=np.zeros((n, 3)), penetration=np.zeros(n))
+        return free_contact_result(free, scene, before)
     free, near = None, False
     if settings.shortcuts and warm_start is not None and warm_start.s.size \
             and not warm_start.in_contact:
@@ -58,14 +59,12 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         gap = _free_step_gap(free, warm_start, obstacles) if free.converged and free.stable \
             else -math.inf
         if gap > float(np.max(np.diff(free.s))):
-            n = free.positions.shape[0]
-            return replace(free, scene=scene, contact_force=np.zeros((n, 3)),
-                           penetration=np.zeros(n))
+            return free_contact_result(free, scene, before)
         near = gap > 0.0
     layout, segs, sec_start = contact_layout(arm, packed, scene)
     on_layout = problem.on(layout)
     ctx = on_layout.ctx  # (a context does not depend on obstacles)
-    grid, terms = _grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
+    grid, terms = grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
     p_target = problem.p_target
     mu, samples = start_samples(scene, layout, sec_start, warm_start)
     goal = (p_target, ctx.q, terms[0], terms[1], obstacles, mu, samples)
@@ -97,7 +96,7 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         elif warm_start.s.size:
             nodes = _nodes_from_record(warm_start, grid, layout, segs, sec_start)
         if nodes is not None:
-            start_terms = _grid_and_terms(arm, layout, segs, sec_start, start_scene, start_ctx)[1]
+            start_terms = grid_and_terms(arm, layout, segs, sec_start, start_scene, start_ctx)[1]
             p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
             start = (p_start, start_ctx.q, start_terms[0], start_terms[1], obstacles, mu, samples)
     if nodes is None:
@@ -133,6 +132,13 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
                    stable=bool(stable),
                    snapped=snapped, iterations=int(iterations), residual=float(res),
                    model=model, pressures=p_inputs, channel_pressures=p_channel, arm=arm)
+
+
+def out_of_reach(problem: Problem) -> bool:
+    """Whether every obstacle of the scene lies beyond the arm's reach from its base
+    (:func:`solver.problem.reach`, a bound over all pressures)."""
+    bound = reach(problem.arm, problem.packed, problem.scene)
+    return all(core_distance(o, np.zeros(3))[0] - o.radius > bound for o in problem.scene.obstacles)
 
 
 def _ramp(nodes, grid, layout, start, goal, terms, settings, rest, now):
@@ -367,7 +373,7 @@ def _free_step_gap(free, start, obstacles) -> float:
                smallest_clearance_3d(free.positions, obstacles))
 
 
-def _grid_and_terms(arm, layout, segs, sec_start, scene, ctx):
+def grid_and_terms(arm, layout, segs, sec_start, scene, ctx):
     """The layout tuple (``GS_*``) and (endplate weights (ns, 3), tip target (6,), weights of
     the unknowns, of the residuals, of the tangent coordinates) of ``scene``."""
     quat0 = np.empty(4)
@@ -387,7 +393,7 @@ def _node_rows(segs):
     return segs[:, L.SEG_ROW0] + segs[:, L.SEG_FIRST]
 
 
-def _node_arcs(layout, segs, sec_start):
+def node_arcs(layout, segs, sec_start):
     """Arc length (m) of every node (K,)."""
     h = layout.sec_len / layout.sec_steps
     i = segs[:, L.SEG_SECTION]
@@ -395,27 +401,13 @@ def _node_arcs(layout, segs, sec_start):
 
 
 def _nodes_from_record(eq, grid, layout, segs, sec_start):
-    """Node states (K, N_CSTATE) from a recorded spatial equilibrium at another resolution:
-    positions, forces and moments interpolated linearly in arc length within each section
-    (so that a node at a section start takes the force past the endplate), orientations by
-    normalised linear interpolation of sign-aligned quaternions."""
-    quats = np.empty((eq.s.size, 4))
-    for k in range(eq.s.size):
-        rotation_to_quaternion(np.ascontiguousarray(eq.orientations[k]), quats[k])
-        if k and quats[k] @ quats[k - 1] < 0.0:
-            quats[k] = -quats[k]
-    samples = np.column_stack([eq.positions, quats, eq.internal_force, eq.internal_moment])
-    ends = np.asarray(eq.section_ends)
-    starts = np.concatenate([[0], ends[:-1] + 1])
-    arcs = _node_arcs(layout, segs, sec_start)
+    """Node states (K, N_CSTATE) from a recorded spatial equilibrium at another resolution
+    (:func:`solver.kernels.spatial_contact.nodes_from_record`)."""
     nodes = np.empty((segs.shape[0], L.N_CSTATE))
-    for k, i in enumerate(segs[:, L.SEG_SECTION]):
-        part = slice(starts[i], ends[i] + 1)
-        for c in range(L.N_CSTATE):
-            nodes[k, c] = np.interp(arcs[k], eq.s[part], samples[part, c])
-    nodes[:, L.CS_Q:L.CS_Q + 4] /= np.linalg.norm(nodes[:, L.CS_Q:L.CS_Q + 4], axis=1)[:, None]
-    nodes[0, L.CS_R:L.CS_R + 3] = 0.0
-    nodes[0, L.CS_Q:L.CS_Q + 4] = grid[L.GS_QUAT0]
+    kernel.nodes_from_record(eq.s, eq.positions, eq.orientations, eq.internal_force,
+                             eq.internal_moment, section_rows(eq.section_ends),
+                             node_arcs(layout, segs, sec_start), segs[:, L.SEG_SECTION],
+                             grid[L.GS_QUAT0], nodes)
     return nodes
 
 
@@ -426,10 +418,10 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings):
     snap on the way (:func:`_ramp`). Returns a copy of the nodes, the iterations, whether it
     converged, whether it snapped and (a copy of) the friction samples it ends with."""
     def build():
-        grid, terms = _grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
+        grid, terms = grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
         axis = base_rotation(scene.base_theta)[:, 2]
         nodes = np.zeros((segs.shape[0], L.N_CSTATE))
-        nodes[:, L.CS_R:L.CS_R + 3] = _node_arcs(layout, segs, sec_start)[:, None] * axis
+        nodes[:, L.CS_R:L.CS_R + 3] = node_arcs(layout, segs, sec_start)[:, None] * axis
         nodes[:, L.CS_Q:L.CS_Q + 4] = grid[L.GS_QUAT0]
         obstacles = scene.obstacles_array()
         straight = np.linspace(0.0, arm.length, 257)[:, None] * axis
@@ -459,7 +451,14 @@ def _result(nodes, scene, grid, layout, level, warm_start, **fields):
     _level_rest(level, layout, rest)
     rec = kernel.new_record(layout.n_rows)
     kernel.record(nodes, grid, rest, level, rec)
-    fields.update(friction_fields(level[L.L_FRICTION], warm_start))
+    return contact_result(rec, nodes, scene, layout,
+                          **friction_fields(level[L.L_FRICTION], warm_start), **fields)
+
+
+def contact_result(rec, nodes, scene, layout, **fields):
+    """The spatial Equilibrium of the node states ``nodes`` (K, N_CSTATE) whose backbone is
+    the record tuple ``rec`` (:func:`solver.kernels.spatial_contact.new_record`, arrays
+    taken as they are) on the contact ``layout``."""
     s, pos, rot, force, mom, contact, pen, strain_v, strain_u = rec
     return Equilibrium._make(
         s=s, positions=pos, orientations=rot, shear_stretch=strain_v, curvature=strain_u,
