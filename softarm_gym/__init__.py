@@ -51,6 +51,14 @@ def _register_goal_api() -> None:
             gym.registry[env_id] = _GoalAPISpec(**fields)
 
 
+# The recommended versions (docs/environments.md, "Sequential and self-contacting"): the physics
+# of a real arm and of its valves. self_contact=True: the arm presses on itself (the tubes' ring
+# stiffness, the wrap discs' law) instead of passing through; without it the deep wraps of
+# Wrap-v1 put the distal end through the base section. Delta actions at 10 % of p_max per step
+# (as Reach-v1): a valve cannot jump across the pressure range in one step, so every task takes
+# a sequence of decisions (>= 10 steps from rest to p_max) instead of one absolute choice held.
+_SEQUENTIAL = {"self_contact": True, "action_mode": "delta", "delta_scale": 0.1}
+
 register(
     id="SoftArm/OctArmReach-v0",
     entry_point="softarm_gym.envs:ReachEnv",
@@ -108,6 +116,24 @@ register(
 )
 
 register(
+    id="SoftArm/OctArmTrack-v1",
+    entry_point="softarm_gym.envs:TrackEnv",
+    vector_entry_point="softarm_gym.vector:BatchedTrackVectorEnv",
+    max_episode_steps=200,
+    reward_threshold=101.0,
+    kwargs={"design": "octarm_v", "base_angle_deg": 90.0, **_SEQUENTIAL},
+)
+
+register(
+    id="SoftArm/CTTrack-v1",
+    entry_point="softarm_gym.envs:TrackEnv",
+    vector_entry_point="softarm_gym.vector:BatchedTrackVectorEnv",
+    max_episode_steps=200,
+    reward_threshold=122.0,
+    kwargs={"design": "ct", "base_angle_deg": 90.0, **_SEQUENTIAL},
+)
+
+register(
     id="SoftArm/OctArmWrap-v0",
     entry_point="softarm_gym.envs:WrapEnv",
     vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
@@ -153,6 +179,25 @@ register(
             "obstacle_radius": (0.02, 0.04), "clearance": 0.01},
 )
 
+register(
+    id="SoftArm/OctArmObstacleReach-v1",
+    entry_point="softarm_gym.envs:ObstacleReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
+    max_episode_steps=100,
+    reward_threshold=31.0,
+    kwargs={"design": "octarm_v", "base_angle_deg": 90.0, **_SEQUENTIAL},
+)
+
+register(
+    id="SoftArm/CTObstacleReach-v1",
+    entry_point="softarm_gym.envs:ObstacleReachEnv",
+    vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
+    max_episode_steps=100,
+    reward_threshold=37.0,
+    kwargs={"design": "ct", "base_angle_deg": 90.0, **_SEQUENTIAL,
+            "obstacle_radius": (0.02, 0.04), "clearance": 0.01},
+)
+
 # v1 wrap: object radius calibrated so that the planner wraps it (docs/environments.md, "Wrap
 # calibration"); v0's 9-11 cm disc needs a tighter curl than OctArm V has on most seeds.
 register(
@@ -172,6 +217,29 @@ register(
     reward_threshold=214.0,
     kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),
             "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0},
+)
+
+register(
+    id="SoftArm/OctArmWrap-v2",
+    entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
+    max_episode_steps=200,
+    reward_threshold=217.0,
+    # Self-contact caps a wrap near 360 - acos(1 - 2h/R) ~ 305 deg (the tip meets the incoming
+    # arm); a curl that overshoots it lands on the arm at 165-179 deg. Success: the disc enclosed
+    # (> a half-turn) clear of that branch, 200 deg (docs/environments.md, "Wrap calibration (v2)").
+    kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125),
+            "success_wrap_deg": 200.0, **_SEQUENTIAL},
+)
+
+register(
+    id="SoftArm/CTWrap-v2",
+    entry_point="softarm_gym.envs:WrapEnv",
+    vector_entry_point="softarm_gym.vector:BatchedWrapVectorEnv",
+    max_episode_steps=200,
+    reward_threshold=214.0,
+    kwargs={"design": "ct", "base_angle_deg": 90.0, "object_radius": (0.11, 0.13),
+            "placement_wrap_deg": 180.0, "success_wrap_deg": 90.0, **_SEQUENTIAL},
 )
 
 # 3D wrap: OctArm V (all nine channels) around a cylinder placed at a random heading about

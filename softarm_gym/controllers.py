@@ -337,8 +337,9 @@ class CEMPlanner(_PressureController):
     each candidate rolled out on the nominal model from the current state. Reach, obstacle
     reach, track, wrap, grasp.
 
-    What it knows, as :class:`JacobianController`: the nominal design, the base angle, p_max,
-    the action mode and ``delta_scale``, the observation layout, and the task's reward rule
+    What it knows, as :class:`JacobianController`: the nominal design, the base angle, whether
+    the arm presses on itself (``self_contact``, with its stiffness), p_max, the action mode
+    and ``delta_scale``, the observation layout, and the task's reward rule
     with the env's weights (reach: :func:`softarm_gym.envs.terms.reach_rewards`; wrap:
     :meth:`~softarm_gym.envs.WrapEnv.wrap_terms`, the disc read from the observation and the
     env's contact stiffness; obstacle reach: the reach rule plus
@@ -367,7 +368,9 @@ class CEMPlanner(_PressureController):
        over the horizon, in place of its quarter of the samples drawn at random among them;
        later rounds draw a quarter at random. The ``elites`` best set the next mean and
        standard deviation.
-    3. The first command of the best sequence seen is sent; the rest seeds the next decision.
+    3. The first command of the best sequence seen is sent; the rest seeds the next decision
+       (with ``commit``, the rest is sent step by step without searching, stopping where the
+       nominal state succeeds).
 
     Where the nominal state already succeeds (reach: the tip within half the success
     tolerance of the target; wrap: the success rule), it holds without searching, and so it
@@ -391,25 +394,43 @@ class CEMPlanner(_PressureController):
             displacement takes it).
         samples: candidate sequences per round (>= 2; the first round has 2^n_inputs − samples/4
             more with ``all_corners``). elites: best kept per round (>= 1, < samples).
-            iterations: CEM rounds per decision (>= 1). horizon: steps per sequence (>= 1).
+            iterations: CEM rounds per decision (>= 1). horizon: steps per sequence (>= 1;
+            None: 1, except on wrap with delta actions: ceil(1/delta_scale), the steps a ramp
+            across the pressure range takes, so that a held corner is a ramp to a bang-bang
+            command and a snap it crosses lies within the horizon).
             init_std: first-round standard deviation (action units, > 0).
         all_corners: enumerate every corner of the action box in the first round. None
             (default): with absolute actions, where corners are the bang-bang pressure
-            commands, and at most 64 corners (6 inputs); with delta actions a corner is only
-            the largest increment. Why: the best wrap on ``SoftArm/OctArmWrap-v1`` is the full
+            commands, and on wrap with delta actions, where a corner held over the horizon
+            ramps to one; at most 64 corners (6 inputs). Elsewhere with delta actions a corner
+            is only the largest increment. Why: the best wrap on ``SoftArm/OctArmWrap-v1`` is the full
             curl, one corner among 64; random corner draws missed it on 10 of 100 seeds, the
             search then settled on an S-curl that wraps ~95° and stopped searching there
             (docs/environments.md, "Wrap calibration").
         seed: seed of the planner's generator.
         grasp_solves: contact solves a grasp rollout step may spend (>= 1).
+        commit: follow the best sequence of a search to its end (while the env takes each
+            command and the task is not yet solved) before searching again. None (default):
+            on wrap with delta actions, where each search rolls out every ramp (a search per
+            step would cost the horizon's length again at every step); the model is the
+            env's nominal arm, so the sequence plays out as planned unless the arm differs.
 
     Attributes:
         last_searched: whether the last decision ran rollouts (False: it held).
     """
 
-    def __init__(self, env, samples: int = 32, elites: int = 6, iterations: int = 3, horizon: int = 1,
-                 init_std: float = 0.5, all_corners: bool | None = None, seed: int = 0,
-                 grasp_solves: int = 60):
+    def __init__(self, env, samples: int = 32, elites: int = 6, iterations: int = 3,
+                 horizon: int | None = None, init_std: float = 0.5, all_corners: bool | None = None,
+                 seed: int = 0, grasp_solves: int = 60, commit: bool | None = None):
+        base = env.unwrapped
+        # Rate-limited wrap: a snap is crossed by a ramp of ceil(1/delta_scale) steps, not one.
+        ramps = hasattr(base, "success_wrap_deg") and getattr(base, "action_mode", None) == "delta"
+        if horizon is None:
+            horizon = math.ceil(1.0 / base.delta_scale - 1e-9) if ramps else 1
+        if commit is None:
+            commit = ramps
+        elif not isinstance(commit, bool):
+            raise ValueError(f"commit must be True, False or None; got {commit!r}")
         for name, value, low in (("samples", samples, 2), ("elites", elites, 1),
                                  ("iterations", iterations, 1), ("horizon", horizon, 1),
                                  ("grasp_solves", grasp_solves, 1)):
@@ -419,7 +440,7 @@ class CEMPlanner(_PressureController):
             raise ValueError(f"elites ({elites}) must be fewer than samples ({samples})")
         if not (np.isfinite(init_std) and init_std > 0):
             raise ValueError(f"init_std must be > 0 (action units); got {init_std!r}")
-        base = env.unwrapped
+        self.commit = commit
         self.wrap = hasattr(base, "success_wrap_deg")
         self.grasp = hasattr(base, "success_lift")
         self.grasp_solves = int(grasp_solves)
@@ -435,7 +456,10 @@ class CEMPlanner(_PressureController):
             raise ValueError("CEMPlanner plans reach and wrap tasks only")
         self.task = base  # the reward rule and its weights (configuration, not state)
         self.arm = base.arm
-        self.scene = solver.Scene(base_angle_deg=base.base_angle_deg, gravity=base.gravity)
+        # The env's physics, self-contact included (configuration: a wrap rollout without it
+        # passes the tip through the arm's base where the env's arm lands on itself).
+        self.scene = solver.Scene(base_angle_deg=base.base_angle_deg, gravity=base.gravity,
+                                  self_contact=base.self_contact)
         self.p_max = float(base.p_max)
         self.action_mode = base.action_mode
         self.delta_scale = float(base.delta_scale)
@@ -444,7 +468,7 @@ class CEMPlanner(_PressureController):
         self._slices = observation_slices(env)
         self._n = base.n_inputs
         if all_corners is None:
-            all_corners = self.action_mode == "absolute" and 2 ** self._n <= _MAX_CORNERS
+            all_corners = (self.action_mode == "absolute" or ramps) and 2 ** self._n <= _MAX_CORNERS
         elif not isinstance(all_corners, bool):
             raise ValueError(f"all_corners must be True, False or None; got {all_corners!r}")
         # Every corner of the action box (rows: the binary digits of 0 .. 2^n - 1), or for a
@@ -471,6 +495,8 @@ class CEMPlanner(_PressureController):
         self._object = None
         self._plan = np.zeros((self.horizon, self._n))
         self._stalled = None
+        self._pending = None  # with ``commit``: the rest of the sequence being followed
+        self._expected = None  # and the pressures its last command set
         self.last_searched = False
 
     # ------------------------------------------------------------------ model
@@ -698,7 +724,13 @@ class CEMPlanner(_PressureController):
         self._track(obs, fraction)
         self.last_searched = False
         if self._succeeds(fraction):
+            self._pending = None
             return fraction
+        if self._pending is not None and len(self._pending) \
+                and np.max(np.abs(fraction - self._expected)) <= 1e-5:  # float32 observation
+            # Following the committed sequence: the env took its last command.
+            return self._command_of(self._pending[:1], fraction)
+        self._pending = None
         score = self._score_grasp if self.grasp else self._score_batch if self._batch is not None \
             else self._score_stepper
         hold = self._hold(fraction)
@@ -729,7 +761,17 @@ class CEMPlanner(_PressureController):
             mean, std = elite.mean(axis=0), elite.std(axis=0) + 0.02
         self._plan = best
         self._stalled = obs.copy() if np.array_equal(best, hold) else None
+        if self.commit and self._stalled is None:
+            self._pending = best
+        return self._command_of(best[:1], fraction)
+
+    def _command_of(self, action: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+        """The pressures (fractions of p_max) the (1, n) ``action`` commands from ``fraction``;
+        with ``commit``, the sequence being followed moves on by that action."""
         target = np.empty((1, self._n))
-        fractions_from_actions(best[:1], fraction[None], self.action_mode == "delta", self.delta_scale,
+        fractions_from_actions(action, fraction[None], self.action_mode == "delta", self.delta_scale,
                                target)
+        if self._pending is not None:
+            self._pending = self._pending[1:]
+            self._expected = target[0].copy()
         return target[0]

@@ -25,6 +25,9 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from softarm_gym.benchmarks.envs import CONTACT_TARGETS
+from softarm_gym.benchmarks.side_by_side import PLANNER_SPEEDUP_TARGET
+from softarm_gym.benchmarks.vector_bench import BATCHED_CONTACT_TARGET
 from softarm_gym.registry import env_ids, is_deprecated, latest, make_unwrapped
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,6 +44,14 @@ FAMILIES = {
 """Page name → (title, env class in :mod:`softarm_gym.envs`)."""
 
 ARMS = {"octarm_v": "OctArm V", "octarm_vi": "OctArm VI", "ct": "CT"}
+
+PICTURES = {
+    "wrap": (("environments/wrap_v2_sequence.png", "CEMPlanner on OctArmWrap-v2 and CTWrap-v2",
+              "The planner on the recommended wrap ids, from the start to the first success and the "
+              "last step (`python -m softarm_gym.benchmarks.planner --ids "
+              "SoftArm/OctArmWrap-v2,SoftArm/CTWrap-v2 --picture docs/environments/wrap_v2_sequence.png`)"),),
+}
+"""Page name → pictures under ``docs/`` shown below the success rules: (path, alt text, caption)."""
 
 LEARNED = ("sac", "ppo", "td3", "sac_her")
 REFERENCE = ("jacobian", "curl", "planner")
@@ -135,8 +146,10 @@ def family_page(family: str) -> str:
         name = f"`{f['id']}`" + (f" (out of date: use `{latest(f['id'])}`)" if is_deprecated(f["id"]) else "")
         lines.append(f"| {name} | {f['arm']} | {f['dims']} | `{f['action_space']}`, {f['actions']} | "
                      f"`{f['observation_space']}` | {f['steps']} | {f['threshold']} | {f['vector']} |")
-    lines += ["", "Success: " + "; ".join(f"`{f['id']}` {f['success']}" for f in facts) + ".", "",
-              "Registered keyword arguments (what each id sets; everything else is the class default "
+    lines += ["", "Success: " + "; ".join(f"`{f['id']}` {f['success']}" for f in facts) + ".", ""]
+    for path, alt, caption in PICTURES.get(family, ()):
+        lines += [f"![{alt}](../{path})", "", f"*{caption}.*", ""]
+    lines += ["Registered keyword arguments (what each id sets; everything else is the class default "
               "below):", ""]
     lines += [f"* `{f['id']}`: {f['kwargs']}" for f in facts]
     lines += ["", "Each reward threshold is floor(0.9 × the mean return of the reference controller over 20 "
@@ -216,6 +229,7 @@ def headline_table() -> str:
             f"batched env {batched['env_steps_per_s'] / 1000:.0f}k env-steps/s at {batched['num_envs']} "
             "arms | "
             "[benchmarks](docs/benchmarks.md#environments) |"]
+    rows += contact_headline_rows()
     by_task: dict = {}
     for row in baseline_rows():
         by_task.setdefault((row["task"], row["dims"]), []).append(
@@ -244,6 +258,8 @@ def thresholds_table() -> str:
         rows.append(f"| `{env_id}` | `{row['controller']}` | {row['mean']:.1f} ± {row['std']:.1f} | "
                     f"{row['success_rate']:.0%} | {threshold} |")
     rows += ["", f"`{data['command']}`, {data['date']}. Rule: {data['rule']}."]
+    for run in data.get("added", ()):
+        rows += ["", f"Rows of {', '.join(f'`{i}`' for i in run['ids'])}: `{run['command']}`, {run['date']}."]
     return "\n".join(rows)
 
 
@@ -273,6 +289,87 @@ def env_table() -> str:
                     f"{r['one_thread_env_steps_per_s']:,.0f} | {r['converged_fraction']:.2%} |")
     m = envs["measured"]
     rows += ["", f"`{m['command']}` on a {m['machine']}."]
+    return "\n".join(rows)
+
+
+def _verdict(value: float, target: float, at_most: bool = True) -> str:
+    return "met" if (value <= target if at_most else value >= target) else "not met"
+
+
+def contact_headline_rows() -> list[str]:
+    """The README's contact rows: contact steps against a free step before and after the lean
+    contact step, the batched contact envs against batched reach, the planner's decisions
+    (``docs/bench/contact_side_by_side.json`` and the contact keys of ``envs.json``)."""
+    sbs = _json("contact_side_by_side.json")
+    ratios = {r["name"]: r for r in sbs["ratios"]["rows"]}
+    cells = [f"{name} {ratios[name]['before']:.1f}× → {ratios[name]['after']:.1f}×"
+             for name in CONTACT_TARGETS]
+    batched = _json("envs.json")["batched_contact"]
+    reach = batched["rows"][0]
+    shares = [f"{r['name']} {r['env_steps_per_s'] / 1000:.0f}k ({r['ratio_to_reach']:.0%})"
+              for r in batched["rows"][1:]]
+    wrap = sbs["planner"]["ids"]["SoftArm/OctArmWrap-v1"]
+    return [f"| contact env steps, × a free `OctArmReach-v1` step (3D wrap: × a 3D reach step), "
+            f"before → after the lean contact step | {'; '.join(cells)} | "
+            "[benchmarks](docs/benchmarks.md#contact) |",
+            f"| batched contact envs, {batched['num_envs']} arms (share of batched reach's "
+            f"{reach['env_steps_per_s'] / 1000:.0f}k arm-steps/s) | {'; '.join(shares)} | "
+            "[benchmarks](docs/benchmarks.md#contact) |",
+            f"| `CEMPlanner` decision on `OctArmWrap-v1`, same samples | "
+            f"{1e3 * wrap['before']['median_decision_s']:.0f} ms → "
+            f"{1e3 * wrap['after']['median_decision_s']:.0f} ms ({wrap['speedup']:.1f}× faster); success "
+            f"{wrap['before']['success_rate']:.0%} → {wrap['after']['success_rate']:.0%} | "
+            "[benchmarks](docs/benchmarks.md#contact) |"]
+
+
+def contact_table() -> str:
+    """Contact speed against the issue's targets: single-env ratios before and after, batched
+    contact envs, planner decisions (``docs/bench/contact_side_by_side.json``, ``envs.json``)."""
+    sbs = _json("contact_side_by_side.json")
+    envs = _json("envs.json")
+    bench = {r["name"]: r for r in envs["contact_ratios"]["rows"]}
+    rows = ["| single env, random actions | unit step | × unit, before | × unit, after | "
+            "× unit, `softarm bench --env` | target | |", "|---|---|---|---|---|---|---|"]
+    for r in sbs["ratios"]["rows"][1:]:
+        target = CONTACT_TARGETS.get(r["name"])
+        kwargs = "".join(f", {k}={v}" for k, v in r["kwargs"].items())
+        rows.append(f"| {r['name']} (`{r['env_id']}`{kwargs}) | {r['unit']} | {r['before']:.1f} | "
+                    f"{r['after']:.1f} | {bench[r['name']]['times_unit']:.1f} | "
+                    + (f"≤ {target:g} | {_verdict(r['after'], target)} |" if target else "— | |"))
+    batched = envs["batched_contact"]
+    rows += ["", f"| batched env, {batched['num_envs']} arms, random actions | arm-steps/s (median of "
+             f"{batched['repeats']}) | share of batched reach | converged | target | |",
+             "|---|---|---|---|---|---|"]
+    for r in batched["rows"]:
+        unit = r is batched["rows"][0]  # batched reach, the unit
+        target = "—" if unit else f"≥ {BATCHED_CONTACT_TARGET:.0%}"
+        verdict = "" if unit else _verdict(r["ratio_to_reach"], BATCHED_CONTACT_TARGET, at_most=False)
+        kwargs = "".join(f", {k}={v}" for k, v in r["kwargs"].items())
+        rows.append(f"| {r['name']} (`{r['env_id']}`{kwargs}) | {r['env_steps_per_s']:,.0f} | "
+                    f"{r['ratio_to_reach']:.0%} | {r['converged_fraction']:.2%} | {target} | {verdict} |")
+    for key, threads in (("planner", "numba's default threads"), ("planner_one_thread", "one numba thread")):
+        planner = sbs[key]
+        kwargs = ", ".join(f"{k}={v}" for k, v in planner["kwargs"].items())
+        seeds = f"seeds {planner['seeds'][0]}–{planner['seeds'][-1]}"
+        rows += ["", f"| `CEMPlanner`, {threads} ({kwargs}, {seeds}) | decision before (ms) | after (ms) | "
+                 "speed-up | success before → after | same per seed | target | |",
+                 "|---|---|---|---|---|---|---|---|"]
+        for env_id, e in planner["ids"].items():
+            target = PLANNER_SPEEDUP_TARGET if env_id == "SoftArm/OctArmWrap-v1" else None
+            rows.append(f"| `{env_id}` | {1e3 * e['before']['median_decision_s']:.0f} | "
+                        f"{1e3 * e['after']['median_decision_s']:.0f} | {e['speedup']:.1f}× | "
+                        f"{e['before']['success_rate']:.0%} → {e['after']['success_rate']:.0%} | "
+                        f"{'yes' if e['same_success'] else 'no'} | "
+                        + (f"≥ {target:g}× | {_verdict(e['speedup'], target, at_most=False)} |" if target
+                           else "— | |"))
+    m = envs["contact_measured"]
+    rows += ["", f"Before: {sbs['before']}; after: {sbs['after']}."]
+    for key in ("ratios", "planner", "planner_one_thread"):
+        part = sbs[key]
+        rows.append(f"`{part['command']}`, {part['date']}, {part['rounds']} alternating rounds, load average "
+                    f"{part['load_before'][0]:.1f} before and {part['load_after'][0]:.1f} after.")
+    rows.append(f"`{m['command']}`, {m['date']}, load average {m['load_before'][0]:.1f} before and "
+                f"{m['load_after'][0]:.1f} after.")
     return "\n".join(rows)
 
 
@@ -308,7 +405,8 @@ def fresh_machine_table() -> str:
 
 SECTIONS = {"ids_table": ids_table, "headline_table": headline_table, "solver_table": solver_table,
             "thresholds_table": thresholds_table,
-            "env_table": env_table, "first_episode_table": first_episode_table,
+            "env_table": env_table, "contact_table": contact_table,
+            "first_episode_table": first_episode_table,
             "fresh_machine_table": fresh_machine_table}
 """Marked-section name → the function whose Markdown fills it."""
 

@@ -12,9 +12,11 @@ runs on the other.
 
 * :class:`BatchedReachVectorEnv` (reach): resets in batch too (start states and targets by
   the batch's cold kernel).
-* :class:`BatchedTrackVectorEnv`, :class:`BatchedObstacleReachVectorEnv`,
-  :class:`BatchedWrapVectorEnv`: a reset draws the task (a trajectory, discs and a target
-  ramped through them, a placed disc) with solver calls and random draws of its own, so each
+* :class:`BatchedSelfContactReachVectorEnv` (reach with ``self_contact``),
+  :class:`BatchedTrackVectorEnv`, :class:`BatchedObstacleReachVectorEnv`,
+  :class:`BatchedWrapVectorEnv`: a reset draws the task (a target solved with the arm
+  pressing on itself, a trajectory, discs and a target ramped through them, a placed disc)
+  with solver calls and random draws of its own, so each
   copy keeps one single env for its resets — seeded as ``SyncVectorEnv`` seeds its envs,
   reset when the sync env would reset it — and its start state is adopted into the batch
   (:meth:`solver.BatchStepper.adopt`; with contact the copy takes that episode's discs).
@@ -71,8 +73,8 @@ from softarm_gym.envs.terms import (
 from softarm_gym.envs.track import path_easing
 from solver import layout as L
 
-__all__ = ["BatchedReachVectorEnv", "BatchedTrackVectorEnv", "BatchedObstacleReachVectorEnv",
-           "BatchedWrapVectorEnv"]
+__all__ = ["BatchedReachVectorEnv", "BatchedSelfContactReachVectorEnv", "BatchedTrackVectorEnv",
+           "BatchedObstacleReachVectorEnv", "BatchedWrapVectorEnv"]
 
 
 def _unsupported(env) -> list[str]:
@@ -367,15 +369,20 @@ class BatchedReachVectorEnv(_BatchedVectorEnv):
             string values).
         **kwargs: ReachEnv arguments (``planar=False`` included). Refused with a
             ``ValueError`` naming them: estimator observations, payload ranges, randomisation,
-            the Dict format, sensor synthesis, pneumatic lag, rendering, self-contact, and
-            arms the lean planar solver does not step.
+            the Dict format, sensor synthesis, pneumatic lag, rendering, and arms the lean
+            planar solver does not step. With ``self_contact`` the env built is a
+            :class:`BatchedSelfContactReachVectorEnv` (its start states and targets are solved
+            with the arm pressing on itself, by one ReachEnv per copy).
     """
+
+    def __new__(cls, *args, **kwargs):
+        if cls is BatchedReachVectorEnv and kwargs.get("self_contact"):
+            cls = BatchedSelfContactReachVectorEnv
+        return super().__new__(cls)
 
     def __init__(self, num_envs: int = 64, max_episode_steps: int = 100,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs):
-        self._init_reach(ReachEnv, num_envs, max_episode_steps, autoreset_mode, kwargs,
-                         ("self_contact (the batch's resets are contact-free: use the reach IDs' "
-                          "sync vector env)" if kwargs.get("self_contact") else None,))
+        self._init_reach(ReachEnv, num_envs, max_episode_steps, autoreset_mode, kwargs)
         t = self._template
         self.scene = solver.Scene(base_angle_deg=t.base_angle_deg, payload_kg=t.payload_range[0],
                                   gravity=t.gravity)
@@ -543,6 +550,34 @@ class _CopyResets:
         for env in self._copies:
             env.close()
         self._template.close()
+
+
+class BatchedSelfContactReachVectorEnv(_CopyResets, BatchedReachVectorEnv):
+    """``num_envs`` reach tasks with ``self_contact`` (what ``BatchedReachVectorEnv(...,
+    self_contact=...)`` builds): steps by one :class:`solver.BatchStepper` call whose contact
+    rows hold the arm's self-contact, resets by one :class:`~softarm_gym.envs.ReachEnv` per
+    copy (a target is the tip of a cold equilibrium at random pressures, which may press the
+    arm on itself: the batch's contact-free cold kernel cannot solve it). Copy i equals
+    ``SyncVectorEnv``'s env i bit for bit (module docstring).
+
+    Args:
+        num_envs, max_episode_steps (default 100), autoreset_mode, **kwargs: as
+            :class:`BatchedReachVectorEnv`.
+    """
+
+    def __init__(self, num_envs: int = 64, max_episode_steps: int = 100,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs):
+        self._init_reach(ReachEnv, num_envs, max_episode_steps, autoreset_mode, kwargs)
+        self._batch = self._batch_stepper(self._contact_scene(0))
+        self._make_copies(ReachEnv, kwargs)
+
+    def _take(self, i, env, info):
+        self._target[i] = info["target"]
+
+    def _observe(self):
+        self._measure()
+        self._fill_shapes(self._batch)
+        return self._finish_reach_observation()
 
 
 class BatchedTrackVectorEnv(_CopyResets, BatchedReachVectorEnv):

@@ -81,17 +81,21 @@ N_FS = 14
 G_THETA0, G_SEGS, G_SECF, G_STEPS, G_START, G_SELF = range(6)
 SC_K, SC_EXCLUSION, SC_HALF = range(3)
 
-# Self-contact, worked out from the shooting nodes at every residual: each segment's
-# backbone as a cubic Hermite curve sampled at its RK4 nodes, (M, segment steps + 1, 4)
-# points x, y, s (m) and half-thickness (m); per segment (M, 12) a bounding circle's centre
-# x, y and radius (m; negative: not built), whether it is in contact (0 or 1), and the
-# curve's end points a, b and end tangents (per unit of the curve's parameter; m); and per
-# RK4 node (M, segment steps + 1, 8) the point load the node carries (N), that load per
-# length (N/m), the node's penetration (m) and the load's stiffness ∂F/∂r (symmetric 2×2:
-# k00, k01, k11; N/m) with the other part held fixed.
-P_X, P_Y, P_S, P_H = range(4)
-B_X, B_Y, B_R, B_TOUCH, B_AX, B_AY, B_TAX, B_TAY, B_BX, B_BY, B_TBX, B_TBY = range(12)
-N_BOUNDS = 12
+# Self-contact, worked out from the shooting nodes at every residual: the backbone of each
+# segment at its RK4 nodes, (M, segment steps + 1, 15): x, y, arc length s (m),
+# half-thickness (m), then the slope r' (2) and its derivative r'' (2; 1/m) after the node
+# and the same before it (they differ by the shear and stretch of a point load on the
+# node), a lower bound on the node's distance to the other parts (m) and the node's x, y
+# (m) when that bound was worked out (see solver.kernels.self_contact.self_loads); per segment
+# (M, 4) a bounding circle's centre x, y and radius (m; negative: not built) and whether it
+# is in contact (0 or 1); and per RK4 node (M, segment steps + 1, 8) the point load the
+# node carries (N), that load per length (N/m), the node's penetration (m) and the load's
+# stiffness ∂F/∂r (symmetric 2×2: k00, k01, k11; N/m) with the other part held fixed.
+(P_X, P_Y, P_S, P_H, P_DXA, P_DYA, P_EXA, P_EYA, P_DXB, P_DYB, P_EXB, P_EYB, P_CLEAR, P_X0,
+ P_Y0) = range(15)
+N_POINT = 15
+B_X, B_Y, B_R, B_TOUCH = range(4)
+N_BOUNDS = 4
 SELF_FX, SELF_FY, SELF_QX, SELF_QY, SELF_PEN, SELF_K00, SELF_K01, SELF_K11 = range(8)
 N_SELF = 8
 

@@ -10,7 +10,7 @@ import numpy as np
 from solver.designs import ArmDesign
 from solver.scene import Scene
 
-__all__ = ["Equilibrium", "BatchState"]
+__all__ = ["Equilibrium", "BatchState", "peak_penetration"]
 
 
 def _empty(*shape):
@@ -42,8 +42,12 @@ class Equilibrium:
         section_ends: indices of the samples at each section end.
         contact_force: (N, 2) penalty contact force per reference length (N/m, world frame);
             empty unless the scene has obstacles.
-        penetration: (N,) depth of the backbone inside the nearest obstacle (m, ≥ 0).
-        in_contact: the backbone presses on an obstacle somewhere (False without obstacles).
+        penetration: (N,) depth of the backbone inside the nearest obstacle, or with
+            self-contact inside another part of the arm, at each sample (m, ≥ 0); between
+            samples it can be deeper: see :attr:`peak_penetration`.
+        in_contact: the backbone presses on an obstacle somewhere (False without obstacles),
+            read off the samples: a patch narrower than the steps (a stiff penalty's) can
+            fall between them, which :attr:`peak_penetration` sees.
         base_force: internal force n(0) at the base (N, world frame).
         pressures: the pressures solved for (Pa), in the order of ``design.input_names``.
         penalty_stiffness: with rigid obstacles, the penalty stiffness (N/m²) that met
@@ -103,9 +107,77 @@ class Equilibrium:
         return eq
 
     @property
+    def peak_penetration(self) -> float:
+        """The deepest penetration (m, ≥ 0) anywhere along the backbone — into an obstacle
+        or, with self-contact, into another part of the arm — between the recorded samples
+        as well as at them (:func:`peak_penetration`; docs/design.md §9, "Penetration").
+        0 without contact; NaN where the samples were not recorded."""
+        return peak_penetration(self)
+
+    @property
     def tip_angle(self) -> float:
         """Planar tip orientation θ(L) (rad); NaN if not recorded or spatial."""
         return float(self.angles[-1]) if self.angles.size else math.nan
+
+
+def peak_penetration(eq: Equilibrium, rigid_only: bool = False, scene: Scene | None = None) -> float:
+    """The deepest penetration (m, ≥ 0) of ``eq``'s backbone anywhere along it, from its
+    recorded samples and the geometry between them (docs/design.md §9, "Penetration").
+
+    Between consecutive samples the backbone is the cubic Hermite curve through their
+    positions with their slopes r' (from the recorded orientation and strains), whose
+    deepest point in each obstacle (:func:`solver.kernels.obstacles.peak_depth`) and in another
+    part of the arm farther along it than the self-contact exclusion
+    (:func:`solver.kernels.self_contact.peak_overlap`) is found by Newton. The samples alone can
+    miss a contact patch shorter than their spacing.
+
+    Args:
+        eq: a recorded equilibrium (``eq.scene`` and, with self-contact, ``eq.arm`` set).
+        rigid_only: count only rigid contact (obstacles and self-contact of infinite
+            stiffness): what the rigid continuation stiffens until it is below
+            ``Settings.gap_tol``.
+        scene: the scene whose obstacles and self-contact count (default ``eq.scene``; the
+            rigid continuation passes the rigid scene its penalty stages are solved for).
+
+    Returns:
+        The depth (m); 0 where the scene has no contact (of that kind), NaN where the
+        samples were not recorded.
+    """
+    from solver.kernels.obstacles import peak_depth
+    from solver.kernels.self_contact import peak_overlap
+    from solver.scene import obstacle_row, self_contact_exclusion
+
+    scene = eq.scene if scene is None else scene
+    if scene is None:
+        return 0.0
+    obstacles = [o for o in scene.obstacles if not rigid_only or o.stiffness == math.inf]
+    self_contact = scene.self_contact is not None and (
+        not rigid_only or scene.self_contact == math.inf)
+    if not obstacles and not self_contact:
+        return 0.0
+    if eq.s.size < 2:
+        return math.nan
+    if eq.planar:
+        v1, v3 = eq.shear_stretch[:, 0], eq.shear_stretch[:, 1]
+        c, sn = np.cos(eq.angles), np.sin(eq.angles)
+        slopes = np.column_stack([v3 * c - v1 * sn, v3 * sn + v1 * c])
+    else:
+        slopes = np.einsum("nij,nj->ni", eq.orientations, eq.shear_stretch)
+    positions = np.ascontiguousarray(eq.positions, dtype=float)
+    # The samples' own depths count too: with self-contact they are the law's, on the
+    # solver's geometry, which carries the kinks of the point loads at loaded nodes that
+    # the curves through the recorded slopes smooth over (by a micrometre or so).
+    deepest = 0.0 if rigid_only or not eq.penetration.size else float(eq.penetration.max())
+    if obstacles:
+        array = np.array([obstacle_row(o) for o in obstacles], dtype=float)
+        deepest = max(deepest, peak_depth(positions, slopes, np.ascontiguousarray(eq.s), array))
+    if self_contact:
+        half = np.array(eq.arm.half_thickness())
+        section = np.minimum(np.searchsorted(np.asarray(eq.section_ends), np.arange(eq.s.size)),
+                             half.size - 1)
+        deepest = max(deepest, peak_overlap(positions, slopes, np.ascontiguousarray(eq.s),
+                                            half[section], self_contact_exclusion(half)))
+    return float(deepest)
 
 
 _FIELDS = frozenset(f.name for f in fields(Equilibrium))

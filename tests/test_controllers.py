@@ -147,6 +147,28 @@ def test_planner_tries_every_corner_and_escapes_the_s_curl():
     assert stuck["wrap_angle_deg"] < 120.0
 
 
+def test_planner_ramps_across_the_snap_of_a_rate_limited_wrap():
+    # CTWrap-v2 seed 1: self-contact and delta actions (10 % of p_max per step). The default
+    # planner looks ceil(1/0.1) = 10 steps ahead there, every corner held over them (a ramp
+    # to a bang-bang command), and follows its best sequence without searching again until
+    # the model succeeds. A search one step ahead without corners stalls near 25 deg.
+    env = gym.make("SoftArm/CTWrap-v2")
+    planner = CEMPlanner(env, seed=1)
+    assert planner.horizon == 10 and planner.commit
+    obs, info = env.reset(seed=1)
+    searches, first = 0, None
+    for step in range(1, 15):
+        obs, _, _, _, info = env.step(planner.act(obs))
+        searches += planner.last_searched
+        if first is None and info["is_success"]:
+            first = step
+    assert info["is_success"] and first >= 9 and searches <= 2, \
+        (info["wrap_angle_deg"], first, searches)
+    greedy = CEMPlanner(env, seed=1, horizon=1, all_corners=False, commit=False)
+    stuck, _ = _planned_episode(env, greedy, 1, 14)
+    assert not stuck["is_success"], stuck["wrap_angle_deg"]
+
+
 def test_planner_lifts_the_free_object_of_a_grasp_and_then_holds():
     # OctArmGrasp-v0 seed 1: one corner (channels I of section 1, II of section 2) lifts the
     # object 7 cm out of its forks, held by the arm alone; the planner's rollouts settle arm
@@ -169,5 +191,7 @@ def test_planner_bad_arguments_are_named():
         CEMPlanner(env, all_corners="yes")
     with pytest.raises(ValueError, match="grasp_solves"):
         CEMPlanner(env, grasp_solves=0)
+    with pytest.raises(ValueError, match="commit"):
+        CEMPlanner(env, commit="yes")
     with pytest.raises(ValueError, match="planar"):
         CEMPlanner(gym.make("SoftArm/OctArmReach-v0", planar=False))

@@ -36,6 +36,8 @@ def _dummy(env_id, n, **kwargs):
     ("SoftArm/CTTrack-v0", {"segment_steps": 3}),
     ("SoftArm/OctArmObstacleReach-v0", {}),
     ("SoftArm/OctArmWrap-v1", {}),
+    ("SoftArm/OctArmWrap-v2", {"delta_scale": 1.0}),
+    ("SoftArm/CTObstacleReach-v1", {}),
 ])
 def test_copy_i_seeded_s_is_dummy_vec_env_copy_i_seeded_s_plus_i(env_id, kwargs):
     """Observations, rewards, dones, infos (terminal_observation, TimeLimit.truncated) and

@@ -188,6 +188,12 @@ def _same_as_sync(env_id, kwargs, mode, n=3, steps=9, max_steps=4, seed=11, acti
     ("SoftArm/CTObstacleReach-v0", {"action_mode": "absolute", "contact_weight": 2.0}),
     ("SoftArm/OctArmWrap-v1", {}),
     ("SoftArm/CTWrap-v1", {"terminate_on_success": True, "success_wrap_deg": 5.0}),
+    # The recommended versions (self-contact, delta actions) with a rate large enough that a few
+    # random steps curl the arms onto their discs (and onto themselves).
+    ("SoftArm/OctArmWrap-v2", {"delta_scale": 1.0}),
+    ("SoftArm/CTWrap-v2", {"delta_scale": 1.0, "terminate_on_success": True, "success_wrap_deg": 5.0}),
+    ("SoftArm/OctArmObstacleReach-v1", {"delta_scale": 1.0}),
+    ("SoftArm/CTTrack-v1", {}),
 ])
 def test_contact_and_track_copies_are_the_single_envs(env_id, kwargs, mode):
     """Copy i seeded s equals SyncVectorEnv's env i seeded s + i, bit for bit, across
@@ -209,11 +215,36 @@ def test_forbidden_contact_is_rejected_as_in_the_single_env():
     assert sum(int(o[4]["contact_rejected"].sum()) for o in outs) >= 1
 
 
+@pytest.mark.parametrize("env_id", ["SoftArm/OctArmWrap-v2", "SoftArm/CTWrap-v2",
+                                    "SoftArm/OctArmObstacleReach-v1", "SoftArm/CTObstacleReach-v1",
+                                    "SoftArm/OctArmTrack-v1", "SoftArm/CTTrack-v1"])
+def test_recommended_versions_are_served_as_registered(env_id):
+    """The registered defaults (self-contact, delta actions) through the batched env, equal to
+    SyncVectorEnv across autoresets."""
+    spec = gym.spec(env_id)
+    assert spec.kwargs["self_contact"] is True and spec.kwargs["action_mode"] == "delta"
+    outs = _same_as_sync(env_id, {}, AutoresetMode.NEXT_STEP, n=2, steps=7, max_steps=3)
+    assert sum(int(np.sum(o[2] | o[3])) for o in outs) >= 2
+
+
 def test_self_contact_copies_are_the_single_envs():
     outs = _same_as_sync("SoftArm/OctArmWrap-v1", {"self_contact": True, "action_mode": "delta"},
                          AutoresetMode.NEXT_STEP, n=3, steps=12, max_steps=6)
     assert len(outs) == 12
     _same_as_sync("SoftArm/OctArmTrack-v0", {"self_contact": True}, AutoresetMode.NEXT_STEP, steps=5)
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_self_contact_reach_resets_by_its_single_envs(mode):
+    """Reach with self-contact: the targets are solved with the arm pressing on itself, so the
+    batch resets each copy by its single env (no longer a refusal) and stays bit for bit."""
+    from softarm_gym.vector import BatchedSelfContactReachVectorEnv
+    envs = gym.make_vec("SoftArm/OctArmReach-v1", num_envs=2, vectorization_mode="vector_entry_point",
+                        self_contact=True)
+    assert type(envs) is BatchedSelfContactReachVectorEnv
+    envs.close()
+    outs = _same_as_sync("SoftArm/OctArmReach-v1", {"self_contact": True, "delta_scale": 1.0}, mode)
+    assert sum(int(np.sum(o[2] | o[3])) for o in outs) >= 3
 
 
 def test_reset_options_reach_every_copy():
@@ -257,13 +288,13 @@ def test_a_copy_without_a_lean_record_is_read_from_its_equilibrium():
 
 @pytest.mark.parametrize("env_id, kwargs, match", [
     ("SoftArm/OctArmWrap-v1", {"planar": False}, "planar=False"),
+    ("SoftArm/OctArmWrap-v2", {"planar": False}, "self_contact needs planar=True"),
     ("SoftArm/OctArmWrap-v1", {"contact_stiffness": "rigid"}, "contact_stiffness=inf N/m².*rigid contact"),
     ("SoftArm/OctArmObstacleReach-v0", {"contact_stiffness": 1e6},
      "contact_stiffness=1e\\+06 N/m².*contact layout has 70 rows"),
     ("SoftArm/OctArmObstacleReach-v0", {"observation": "inclinometer"}, "observation='inclinometer'"),
     ("SoftArm/OctArmTrack-v0", {"planar": False}, "planar=False"),
     ("SoftArm/OctArmTrack-v0", {"payload_kg": (0.0, 0.1)}, "payload_kg range"),
-    ("SoftArm/OctArmReach-v1", {"self_contact": True}, "self_contact"),
 ])
 def test_what_the_batched_envs_cannot_take_is_named(env_id, kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -276,6 +307,10 @@ def test_what_the_batched_envs_cannot_take_is_named(env_id, kwargs, match):
     ("SoftArm/CTObstacleReach-v0", "BatchedObstacleReachVectorEnv"),
     ("SoftArm/OctArmWrap-v0", "BatchedWrapVectorEnv"), ("SoftArm/CTWrap-v0", "BatchedWrapVectorEnv"),
     ("SoftArm/OctArmWrap-v1", "BatchedWrapVectorEnv"), ("SoftArm/CTWrap-v1", "BatchedWrapVectorEnv"),
+    ("SoftArm/OctArmWrap-v2", "BatchedWrapVectorEnv"), ("SoftArm/CTWrap-v2", "BatchedWrapVectorEnv"),
+    ("SoftArm/OctArmTrack-v1", "BatchedTrackVectorEnv"), ("SoftArm/CTTrack-v1", "BatchedTrackVectorEnv"),
+    ("SoftArm/OctArmObstacleReach-v1", "BatchedObstacleReachVectorEnv"),
+    ("SoftArm/CTObstacleReach-v1", "BatchedObstacleReachVectorEnv"),
 ])
 def test_contact_and_track_ids_register_their_batched_env(env_id, cls):
     envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")

@@ -15,8 +15,10 @@ and one under ``cProfile`` for the split of the time between
 
 The profiler inflates Python's share (it charges each Python call); the speed and the per-path
 times come from the plain run. Per step: which path took it (``Stepper.last_path``), its time
-by path, and for lean contact steps the passes they made, with the cost of a residual pass and
-of a Jacobian pass at a contact state (``Stepper.pass_costs``).
+by path, the median of its iterations by path (``StepReport.iterations``: a lean contact
+step's passes; the general path's Newton iterations, continuation included), and for lean
+contact steps the passes they made, with the cost of a residual pass and of a Jacobian pass at
+a contact state and the share of RK4 rows refined near an obstacle (``Stepper.pass_costs``).
 """
 
 from __future__ import annotations
@@ -72,6 +74,7 @@ class _StepTimer:
 
     def __init__(self):
         self.seconds = defaultdict(list)
+        self.iterations = defaultdict(list)
         self.passes = []
         self._step = solver.Stepper.step
 
@@ -82,6 +85,7 @@ class _StepTimer:
             start = time.perf_counter()
             report = original(stepper, pressures)
             timer.seconds[stepper.last_path].append(time.perf_counter() - start)
+            timer.iterations[stepper.last_path].append(report.iterations)
             if stepper.last_path == "lean contact":
                 timer.passes.append(report.iterations)
             timer.last = stepper
@@ -131,6 +135,7 @@ def profile_case(env_id: str, kwargs: dict, steps: int, seed: int = 0) -> dict:
     out = {
         "id": env_id, "kwargs": kwargs, "steps": len(timed), "us_per_step": 1e6 * seconds / len(timed),
         "paths": paths, "us_per_step_by_path": by_path,
+        "iterations_median_by_path": {path: float(np.median(n)) for path, n in timer.iterations.items()},
         "profile_share": {c: share[c] / total for c in CATEGORIES},
     }
     if timer.passes:
@@ -163,20 +168,20 @@ def run(steps: int = 300, quick: bool = False, progress=None) -> dict:
 
 def format_table(result: dict) -> str:
     """Markdown tables of :func:`run`'s result: speed and paths, then where the time goes."""
-    lines = ["| case | µs/step | × free step | paths (steps) | µs by path | lean contact passes |",
+    lines = ["| case | µs/step | × free step | paths (steps) | µs by path | iterations by path (median) |",
              "|---|---|---|---|---|---|"]
     for name, case in result["cases"].items():
         paths = ", ".join(f"{p} {n}" for p, n in sorted(case["paths"].items()))
         by_path = ", ".join(f"{p} {us:.0f}" for p, us in sorted(case["us_per_step_by_path"].items()))
-        passes = f"{case['lean_contact_passes_median']:.0f}" if "lean_contact_passes_median" in case else "—"
+        iterations = ", ".join(f"{p} {n:g}" for p, n in sorted(case["iterations_median_by_path"].items()))
         lines.append(f"| {name} | {case['us_per_step']:.0f} | {case['ratio_to_free_step']:.1f} | "
-                     f"{paths} | {by_path} | {passes} |")
-    lines += ["", "| case | " + " | ".join(CATEGORIES) + " | residual / Jacobian pass (µs) |",
+                     f"{paths} | {by_path} | {iterations or '—'} |")
+    lines += ["", "| case | " + " | ".join(CATEGORIES) + " | residual / Jacobian pass (µs), rows refined |",
               "|---|" + "---|" * (len(CATEGORIES) + 1)]
     for name, case in result["cases"].items():
         shares = " | ".join(f"{100 * case['profile_share'][c]:.0f} %" for c in CATEGORIES)
         costs = case.get("pass_costs")
-        cost = f"{1e6 * costs['residual_pass_s']:.1f} / {1e6 * costs['jacobian_pass_s']:.1f}" \
-            if costs else "—"
+        cost = f"{1e6 * costs['residual_pass_s']:.1f} / {1e6 * costs['jacobian_pass_s']:.1f}, " \
+            f"{costs['refined_fraction']:.0%}" if costs else "—"
         lines.append(f"| {name} | {shares} | {cost} |")
     return "\n".join(lines)

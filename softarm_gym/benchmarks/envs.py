@@ -139,42 +139,60 @@ CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("wrap", "SoftArm/OctArmWrap-v1", {}),
                        ("wrap delta", "SoftArm/OctArmWrap-v1", {"action_mode": "delta"}),
                        ("obstacle reach", "SoftArm/OctArmObstacleReach-v0", {}),
+                       ("grasp", "SoftArm/OctArmGrasp-v0", {}),
                        ("reach self-contact", "SoftArm/OctArmReach-v1", {"self_contact": True}),
+                       ("3D reach", "SoftArm/OctArmReach-v1", {"planar": False}),
+                       ("3D wrap", "SoftArm/OctArmWrap3D-v0", {}),
                        ("wrap friction", "SoftArm/OctArmWrap-v1", {"friction": FRICTION}),
                        ("wrap delta friction", "SoftArm/OctArmWrap-v1",
                         {"action_mode": "delta", "friction": FRICTION}),
                        ("obstacle reach friction", "SoftArm/OctArmObstacleReach-v0",
                         {"friction": FRICTION}))
-"""The single-env cases :func:`contact_ratios` times against a free ``OctArmReach-v1`` step
-(the first case): name, ID, kwargs (``true`` observations, random actions). A case with
-``friction`` is also timed against the same case without it (docs/design.md §9.1)."""
+"""The single-env cases :func:`contact_ratios` times against their unit step: name, ID,
+kwargs (``true`` observations, random actions). The unit is a free ``OctArmReach-v1`` step
+(the first case) unless :data:`RATIO_UNITS` names another case. A case with ``friction`` is
+also timed against the same case without it (docs/design.md §9.1)."""
+
+RATIO_UNITS = {"3D wrap": "3D reach"}
+"""Case name → the case whose step is its unit (the issue holds 3D wrap to a 3D reach step)."""
+
+CONTACT_TARGETS = {"wrap": 4.0, "obstacle reach": 4.0, "grasp": 6.0, "reach self-contact": 1.5,
+                   "3D wrap": 6.0}
+"""Issue targets: the most a case's step may cost, as a multiple of its unit step."""
 
 
 def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASES, progress=None) -> dict:
-    """Single-env steps/s of the contact cases and of a free ``OctArmReach-v1`` step, in one
-    process, interleaved (every case once per round, ``rounds`` rounds of seeds 0, 1, ...;
-    the free step runs 3× the steps, being faster), and each case's cost as a multiple of
-    the free step: median free steps/s ÷ median case steps/s.
+    """Single-env steps/s of the contact cases and of their unit steps, in one process,
+    interleaved (every case once per round, ``rounds`` rounds of seeds 0, 1, ...; the unit
+    cases run 3× the steps, being faster), and each case's cost as a multiple of its unit
+    step (:data:`RATIO_UNITS`; default the free ``OctArmReach-v1`` step, the first case):
+    median unit steps/s ÷ median case steps/s.
 
     Returns:
         dict: ``{"n_steps", "rounds", "rows": [{"name", "env_id", "kwargs", "steps_per_s",
-        "runs_steps_per_s", "times_free_step"}]}``; a friction case's row also has
-        ``"times_frictionless"``: the same case without friction's steps/s over its own.
+        "runs_steps_per_s", "unit", "times_unit", "times_free_step"}]}``; a friction case's row
+        also has ``"times_frictionless"``: the same case without friction's steps/s over its own.
     """
+    names = [name for name, _, _ in cases]
+    units = {name: RATIO_UNITS.get(name, names[0]) for name in names}
+    missing = sorted({u for u in units.values() if u not in names})
+    if missing:
+        raise ValueError(f"unit case(s) {', '.join(missing)} missing from the cases")
     envs = [gym.make(env_id, **kwargs) for _, env_id, kwargs in cases]
     for env in envs:
         _time_steps(env, 20, seed=rounds)  # warm-up: kernels, first resets
     runs = [[] for _ in cases]
     for r in range(rounds):
         for k, env in enumerate(envs):
-            runs[k].append(_time_steps(env, 3 * n_steps if k == 0 else n_steps, seed=r))
+            runs[k].append(_time_steps(env, 3 * n_steps if names[k] in units.values() else n_steps, seed=r))
         if progress:
             progress(f"single-env contact ratios, round {r + 1} of {rounds}")
     for env in envs:
         env.close()
-    free = float(np.median(runs[0]))
-    rows = [{"name": name, "env_id": env_id, "kwargs": kwargs, "steps_per_s": float(np.median(rates)),
-             "runs_steps_per_s": rates, "times_free_step": free / float(np.median(rates))}
+    median = {name: float(np.median(rates)) for name, rates in zip(names, runs)}
+    rows = [{"name": name, "env_id": env_id, "kwargs": kwargs, "steps_per_s": median[name],
+             "runs_steps_per_s": rates, "unit": units[name], "times_unit": median[units[name]] / median[name],
+             "times_free_step": median[names[0]] / median[name]}
             for (name, env_id, kwargs), rates in zip(cases, runs)]
     for row in rows:
         if "friction" in row["kwargs"]:
@@ -187,13 +205,13 @@ def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASE
 
 def format_ratio_table(result: dict) -> str:
     lines = ["| single env (random actions, true obs.) | steps/s (median) | × a free OctArmReach-v1 step "
-             "| × the same without friction (target <= 1.5) |",
-             "|---|---|---|---|"]
+             "| × its unit step | × the same without friction (target <= 1.5) |",
+             "|---|---|---|---|---|"]
     for r in result["rows"]:
         extra = "".join(f" {k}={v}" for k, v in r["kwargs"].items())
         frictionless = f"{r['times_frictionless']:.2f}" if "times_frictionless" in r else ""
-        lines.append(f"| {r['env_id']}{extra} | {r['steps_per_s']:,.0f} | {r['times_free_step']:.2f} "
-                     f"| {frictionless} |")
+        lines.append(f"| {r['env_id']}{extra} | {r['steps_per_s']:,.0f} | {r['times_free_step']:.2f} | "
+                     f"{r['times_unit']:.2f} ({r['unit']}) | {frictionless} |")
     return "\n".join(lines)
 
 

@@ -3,12 +3,18 @@
 Each ID runs ``episodes`` full episodes of ``gym.make(env_id)`` with the registered defaults,
 episode i seeded with ``first_seed`` + i (default 0), the planner seeded with the same.
 Reported per ID: the success rate (``is_success`` at the last step), the median final
-distance (reach, m), RMS tracking error (track, m) or wrap angle (wrap, deg), the median wall
-time per episode and per decision that searched (held decisions cost almost nothing)::
+distance (reach, m), RMS tracking error (track, m) or wrap angle (wrap, deg), the median step
+at which an episode first succeeds (how sequential the task is), the median wall time per
+episode and per decision that searched (held decisions cost almost nothing)::
 
     python -m softarm_gym.benchmarks.planner --episodes 20 --json
     python -m softarm_gym.benchmarks.planner --ids SoftArm/CTWrap-v1 --episodes 100 --first-seed 100
     python -m softarm_gym.benchmarks.planner --ids SoftArm/OctArmWrap-v1 --env-kwargs '{"self_contact": true}'
+    python -m softarm_gym.benchmarks.planner --ids SoftArm/OctArmWrap-v2,SoftArm/CTWrap-v2 --episodes 1 \
+        --picture docs/environments/wrap_v2_sequence.png
+
+``--picture`` draws each ID's first episode (seed ``first_seed``) as a filmstrip: the start,
+frames along the way and the last step, with the step, wrap or distance and success under each.
 
 The JSON records its command; the rows of docs/bench/planner.json come from several such runs,
 each with its own.
@@ -29,23 +35,35 @@ import softarm_gym  # noqa: F401  (registers the IDs)
 from softarm_gym.benchmarks.envs import env_ids
 from softarm_gym.controllers import CEMPlanner
 
-__all__ = ["episode", "run", "main"]
+__all__ = ["episode", "run", "picture", "main"]
 
 
-def episode(env_id: str, seed: int, env_kwargs: dict | None = None, **planner_kwargs) -> dict:
+def episode(env_id: str, seed: int, env_kwargs: dict | None = None, frames: list | None = None,
+            **planner_kwargs) -> dict:
     """One planned episode of ``gym.make(env_id, **env_kwargs)`` seeded with ``seed``.
+
+    Args:
+        frames: if a list, each step's (step, rendered frame, info) is appended to it (the env
+            is made with ``render_mode="rgb_array"``).
 
     Returns:
         ``success``, ``measure`` (reach: final distance, m; track: RMS tracking error over
         the episode, m; wrap: wrap angle, deg), ``seconds``,
-        ``decision_seconds`` (median time of the decisions that searched; None if none did).
+        ``decision_seconds`` (median time of the decisions that searched; None if none did),
+        ``first_success_step`` (the first step whose info reports success; None if none).
     """
-    env = gym.make(env_id, **(env_kwargs or {}))
+    kwargs = dict(env_kwargs or {})
+    if frames is not None:
+        kwargs["render_mode"] = "rgb_array"
+    env = gym.make(env_id, **kwargs)
     planner = CEMPlanner(env, seed=seed, **planner_kwargs)
     obs, info = env.reset(seed=seed)
+    if frames is not None:
+        frames.append((0, env.render(), info))
     start = time.perf_counter()
     searched = []
     done = False
+    steps, first_success = 0, None
     while not done:
         t = time.perf_counter()
         action = planner.act(obs)
@@ -53,13 +71,49 @@ def episode(env_id: str, seed: int, env_kwargs: dict | None = None, **planner_kw
         if planner.last_searched:
             searched.append(spent)
         obs, _, terminated, truncated, info = env.step(action)
+        steps += 1
+        if first_success is None and info["is_success"]:
+            first_success = steps
+        if frames is not None:
+            frames.append((steps, env.render(), info))
         done = terminated or truncated
     seconds = time.perf_counter() - start
     env.close()
     key = next(k for k in ("wrap_angle_deg", "tracking_rms_m", "distance") if k in info)
     measure = info[key]
     return {"success": bool(info["is_success"]), "measure": float(measure), "seconds": seconds,
-            "decision_seconds": float(np.median(searched)) if searched else None}
+            "decision_seconds": float(np.median(searched)) if searched else None,
+            "first_success_step": first_success}
+
+
+def picture(ids, path, seed: int = 0, env_kwargs: dict | None = None, n_frames: int = 5) -> None:
+    """A filmstrip per ID (one row each) of the planner's episode seeded with ``seed``: the
+    start, frames evenly spaced up to the first success (or the end), and the last step, each
+    captioned with its step, wrap angle (deg) or tip distance (mm) and success."""
+    from softarm_gym.plotting import figure, save
+
+    rows = []
+    for env_id in ids:
+        frames: list = []
+        episode(env_id, seed, env_kwargs, frames=frames)
+        end = next((k for k, (_, _, info) in enumerate(frames) if info["is_success"]), len(frames) - 1)
+        picks = sorted({*np.linspace(0, end, n_frames - 1).round().astype(int).tolist(), len(frames) - 1})
+        rows.append((env_id, [frames[k] for k in picks]))
+    columns = max(len(picked) for _, picked in rows)
+    fig, axes = figure(len(rows), columns, figsize=(2.4 * columns, 2.6 * len(rows)), squeeze=False)
+    for r, (env_id, picked) in enumerate(rows):
+        for c, ax in enumerate(axes[r]):
+            ax.set_axis_off()
+            if c >= len(picked):
+                continue
+            step, image, info = picked[c]
+            ax.imshow(image)
+            measure = f"wrap {info['wrap_angle_deg']:.0f}°" if "wrap_angle_deg" in info else \
+                f"{1000 * info['distance']:.0f} mm"
+            ax.set_title(f"step {step}: {measure}" + (", success" if info["is_success"] else ""), fontsize=8)
+        axes[r][0].text(-0.05, 0.5, env_id.removeprefix("SoftArm/"), rotation=90, va="center", ha="right",
+                        transform=axes[r][0].transAxes, fontsize=9)
+    save(fig, path)
 
 
 def run(ids=None, episodes: int = 20, progress: bool = True, first_seed: int = 0,
@@ -79,6 +133,7 @@ def run(ids=None, episodes: int = 20, progress: bool = True, first_seed: int = 0
     for env_id in ids or env_ids():
         rows = [episode(env_id, seed, env_kwargs, **planner_kwargs)
                 for seed in tqdm(seeds, desc=env_id, disable=not progress, file=sys.stderr)]
+        firsts = [r["first_success_step"] for r in rows if r["first_success_step"] is not None]
         measure = ("median_wrap_deg" if "Wrap" in env_id else
                    "median_tracking_rms_m" if "Track" in env_id else "median_final_distance_m")
         result["ids"][env_id] = {
@@ -87,6 +142,7 @@ def run(ids=None, episodes: int = 20, progress: bool = True, first_seed: int = 0
             "median_episode_s": float(np.median([r["seconds"] for r in rows])),
             "median_decision_s": float(np.median([r["decision_seconds"] for r in rows
                                                   if r["decision_seconds"] is not None] or [0.0])),
+            "median_steps_to_success": float(np.median(firsts)) if firsts else None,
             "episodes": rows,
         }
     return result
@@ -102,6 +158,9 @@ def main(argv=None) -> int:
                         help='keyword arguments of gym.make, e.g. \'{"self_contact": true}\'')
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    parser.add_argument("--picture", default=None, metavar="PNG",
+                        help="draw each ID's episode seeded --first-seed as a filmstrip to this file "
+                             "instead of measuring")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be >= 1")
@@ -115,6 +174,12 @@ def main(argv=None) -> int:
             parser.error(f"--env-kwargs is not JSON: {exc}")
         if not isinstance(env_kwargs, dict):
             parser.error("--env-kwargs must be a JSON object")
+    if args.picture:
+        if not args.ids:
+            parser.error("--picture needs --ids")
+        picture(args.ids.split(","), args.picture, args.first_seed, env_kwargs)
+        print(f"wrote {args.picture}")
+        return 0
     result = run(args.ids.split(",") if args.ids else None, args.episodes, not args.no_progress,
                  args.first_seed, env_kwargs)
     if args.json:

@@ -83,6 +83,11 @@ CONTACT_CASES = (("reach", "SoftArm/OctArmReach-v1", {}),
 with its registered absolute actions and with delta actions, obstacle reach (delta)."""
 
 
+BATCHED_CONTACT_TARGET = 0.25
+"""Issue target: batched wrap and obstacle reach at least this share of batched reach's
+aggregate arm-steps/s at 1024 arms."""
+
+
 def run_contact(n: int = 1024, steps: int = 40, repeats: int = 3, cases=CONTACT_CASES,
                 progress=None) -> dict:
     """Aggregate arm-steps/s of the batched contact envs beside the batched reach env, in one

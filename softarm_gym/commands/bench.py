@@ -4,7 +4,8 @@ Default: the solver (RK4 resolution sweep, warm and cold solves, scipy solve_bvp
 spatial, batch). ``--peer pyelastica`` settles the same OctArm V scenes with PyElastica.
 ``--env`` times the environments instead: every registered ID and observation mode, single
 and vectorised; the single-env contact cases as multiples of a free reach step; the batched
-reach env by size, and the batched wrap and obstacle-reach envs beside it at 1024 arms.
+reach env by size, and the batched wrap and obstacle-reach envs beside it at 1024 arms
+(``--env --contact``: only the contact rows).
 ``--first-episode`` times the first episode of every registered ID in a fresh process after
 ``softarm warmup`` against its steady speed (``--cold`` adds the same with an empty numba
 cache). ``--fit`` times the calibration (``softarm fit``) at the thesis's experiment size,
@@ -41,6 +42,9 @@ def add_arguments(p):
     p.add_argument("--ids", default=None,
                    help="with --env: comma-separated IDs to time (default: every registered ID and "
                         "the batched vector env)")
+    p.add_argument("--contact", action="store_true",
+                   help="with --env: only the contact rows (single-env contact ratios, batched contact "
+                        "envs beside batched reach at 1024 arms)")
     p.add_argument("--contact-profile", action="store_true",
                    help="where a contact step's time goes: paths, passes, kernels against Python, "
                         "beside a free reach step")
@@ -88,6 +92,10 @@ def run(args) -> int:
         raise UsageError("--cold only applies to --first-episode")
     if args.ids and not args.env:
         raise UsageError("--ids only applies to --env")
+    if args.contact and not args.env:
+        raise UsageError("--contact only applies to --env")
+    if args.contact and args.ids:
+        raise UsageError("--contact and --ids do not combine (--contact times fixed contact cases)")
     if args.first_episode:
         from softarm_gym.benchmarks import first_episode
         from softarm_gym.commands import warmup
@@ -100,6 +108,10 @@ def run(args) -> int:
     if args.env:
         from softarm_gym.benchmarks import envs, vector_bench
 
+        if args.contact:
+            result = _contact_rows(args.quick, progress)
+            emit(result, args.json, _contact_text(result))
+            return 0
         ids = args.ids.split(",") if args.ids else None
         unknown = [i for i in ids or () if i not in envs.env_ids()]
         if unknown:
@@ -109,17 +121,13 @@ def run(args) -> int:
             emit(result, args.json, envs.format_table(result))
             return 0
         sizes = (4, 256) if args.quick else (4, 16, 256, 1024, 4096)
-        result["contact_ratios"] = envs.contact_ratios(60 if args.quick else 300, progress=progress)
         result["batched_vector"] = vector_bench.run(sizes, progress=progress)
-        result["batched_contact"] = vector_bench.run_contact(64 if args.quick else 1024,
-                                                             steps=10 if args.quick else 40,
-                                                             progress=progress)
+        result.update(_contact_rows(args.quick, progress))
         result["batched_vector_3d"] = vector_bench.run_spatial((4,) if args.quick else (4, 16, 64),
                                                                progress=progress)
         emit(result, args.json, envs.format_table(result) + "\n\n"
-             + envs.format_ratio_table(result["contact_ratios"]) + "\n\n"
              + vector_bench.format_table(result["batched_vector"]) + "\n\n"
-             + vector_bench.format_contact_table(result["batched_contact"]) + "\n\n"
+             + _contact_text(result) + "\n\n"
              + vector_bench.format_spatial_table(result["batched_vector_3d"]))
         return 0
     result = solver_bench.run(quick=args.quick, progress=progress)
@@ -134,3 +142,19 @@ def run(args) -> int:
         text += "\n\n" + pyelastica_peer.format_table(result["pyelastica"])
     emit(result, args.json, text)
     return 0
+
+
+def _contact_rows(quick: bool, progress) -> dict:
+    """The contact rows of ``--env``: single-env contact ratios, batched contact envs."""
+    from softarm_gym.benchmarks import envs, vector_bench
+
+    return {"contact_ratios": envs.contact_ratios(60 if quick else 300, progress=progress),
+            "batched_contact": vector_bench.run_contact(64 if quick else 1024, steps=10 if quick else 40,
+                                                        progress=progress)}
+
+
+def _contact_text(result: dict) -> str:
+    from softarm_gym.benchmarks import envs, vector_bench
+
+    return (envs.format_ratio_table(result["contact_ratios"]) + "\n\n"
+            + vector_bench.format_contact_table(result["batched_contact"]))

@@ -140,11 +140,12 @@ def warm_group(group: str) -> float:
         import gymnasium as gym
 
         # Small batches run the one-thread kernels, larger ones the parallel ones: warm both,
-        # for reach and for the contact rows (wrap, obstacle reach) and the track task's terms.
+        # for reach and for the contact rows (wrap, obstacle reach: the recommended versions,
+        # with self-contact) and the track task's terms.
         wide = solver.BatchStepper.PARALLEL_MIN
         for env_id, num_envs in (("SoftArm/OctArmReach-v1", 2), ("SoftArm/OctArmReach-v1", wide),
-                                 ("SoftArm/OctArmWrap-v1", 2), ("SoftArm/OctArmWrap-v1", wide),
-                                 ("SoftArm/OctArmObstacleReach-v0", 2), ("SoftArm/OctArmTrack-v0", 2)):
+                                 ("SoftArm/OctArmWrap-v2", 2), ("SoftArm/OctArmWrap-v2", wide),
+                                 ("SoftArm/OctArmObstacleReach-v1", 2), ("SoftArm/OctArmTrack-v1", 2)):
             _episode(gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point"),
                      seed=0)
         batch_kernels()

@@ -166,7 +166,11 @@ class ObstacleReachEnv(ReachEnv):
 
     ## Version History
 
-    * v0: initial version (registered with delta actions).
+    * v0: initial version (registered with delta actions). Kept; ``gym.make`` notes that v1
+      exists.
+    * v1 (recommended): ``self_contact=True`` (the arm presses on itself instead of passing
+      through), otherwise v0 (delta actions, 10 % of p_max per step; docs/environments.md,
+      "Sequential and self-contacting versions").
     """
 
     def __init__(self, design="octarm_v", *, n_obstacles=(1, 2), obstacle_radius=(0.03, 0.06),

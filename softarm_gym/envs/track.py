@@ -79,7 +79,11 @@ class TrackEnv(ReachEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version (absolute actions). Kept; ``gym.make`` notes that v1 exists.
+    * v1 (recommended): delta actions (``action_mode="delta"``, ``delta_scale=0.1``: 10 % of
+      p_max per step, above the trajectory's fastest pressure rate of π/(2·segment_steps) of
+      the waypoint gap per step, 6.3 % at the default 25) and ``self_contact=True``
+      (docs/environments.md, "Sequential and self-contacting versions").
     """
 
     def __init__(self, design="octarm_v", *, segment_steps: int = 25, **kwargs):

@@ -200,7 +200,14 @@ class WrapEnv(SoftArmEnv):
     * v0: initial version (OctArm V disc 9–11 cm: beyond the arm's curl on most seeds;
       CT 15–20 cm). Kept; ``gym.make`` notes that v1 exists.
     * v1: object radius calibrated so that the planner wraps it (OctArm V 11–12.5 cm, CT
-      11–13 cm; docs/environments.md, "Wrap calibration"); otherwise equal to v0.
+      11–13 cm; docs/environments.md, "Wrap calibration"); otherwise equal to v0. Kept;
+      ``gym.make`` notes that v2 exists.
+    * v2 (recommended): sequential and physically possible — ``self_contact=True`` (the arm
+      presses on itself with its tubes' ring stiffness instead of passing its tip through
+      its base section) and delta actions (``action_mode="delta"``, ``delta_scale=0.1``: at
+      most 10 % of p_max per channel per step, ≥ 10 steps from rest to a full curl); v1's
+      objects and success rule otherwise (docs/environments.md, "Sequential and
+      self-contacting versions").
     """
 
     def __init__(self, design="octarm_v", *, object_radius=(0.09, 0.11),

@@ -52,8 +52,10 @@ from solver.kernels.self_contact import (
     canonical_slot,
     clear_pieces,
     may_touch,
+    moved_since,
     self_contact_on,
     self_loads,
+    trace_piece,
 )
 from solver.layout import (
     B_TOUCH,
@@ -94,6 +96,7 @@ from solver.layout import (
     MAX_ITER,
     MAX_STEP,
     N_BOUNDS,
+    N_POINT,
     N_SELF,
     PREDICT_CAP,
     REST_U2,
@@ -126,6 +129,12 @@ from solver.rod import (
 # RK4 substeps per step near a disc (see _integrate): with steps of half the decay length
 # (EI/k)^¼ away from contact, a tenth of it where the arm may touch.
 NEAR_SUBSTEPS = 5
+# Passes that redraw the self-contact geometry through the segments integrated with the
+# last pass's loads (see _prepare_partners).
+GEOMETRY_PASSES = 1
+# Largest move (m) of the self-contact pieces' nodes for which the clearances of the last
+# call are reused (see _prepare_partners).
+REUSE_CLEARANCE = 1e-3
 # Bandwidth of the shooting Jacobian (sub- and super-diagonals: a row of segment k's
 # continuity couples its 6-state start to the next segment's), and its band storage: the
 # rows of LAPACK's dgbtrf layout, with room for the fill-in of partial pivoting.
@@ -247,8 +256,8 @@ def _step(x, y, th, c, sn, nx, ny, m, k1, h, P, ca, cg, ci, ur, vr, qx, qy, disc
 @njit
 def new_partners(grid):
     """Scratch for self-contact (:mod:`solver.kernels.self_contact`) on ``grid``: (points
-    (M, c + 1, 4), bounds (M, N_BOUNDS), loads (M, c + 1, 5)), c the longest segment's steps;
-    empty without self-contact."""
+    (M, c + 1, N_POINT), bounds (M, N_BOUNDS), loads (M, c + 1, N_SELF)), c the longest
+    segment's steps; empty without self-contact."""
     segs = grid[G_SEGS]
     n_seg = segs.shape[0] if self_contact_on(grid) else 0
     cap = 0
@@ -256,7 +265,8 @@ def new_partners(grid):
         cap = max(cap, segs[seg, SEG_STEPS])
     bounds = np.empty((n_seg, N_BOUNDS))
     clear_pieces(bounds)
-    return np.empty((n_seg, cap + 1, 4)), bounds, np.zeros((n_seg, cap + 1, N_SELF))
+    pts = np.full((n_seg, cap + 1, N_POINT), np.nan)  # no clearances worked out yet
+    return pts, bounds, np.zeros((n_seg, cap + 1, N_SELF))
 
 
 @njit
@@ -290,10 +300,23 @@ def _self_row(loads, segs, seg, node, out, row):
 @njit
 def _prepare_partners(Z, grid, rest, level, partners):
     """The self-contact loads of the state ``Z`` into ``partners`` (nothing without
-    self-contact): each segment's piece from its start node to the next one's — the tip
-    segment's to its end integrated without self-contact loads — then the loads
-    (:func:`solver.kernels.self_contact.self_loads`). Functions of Z alone. Skipped (no loads)
-    where no part can be near another (:func:`solver.kernels.self_contact.may_touch`)."""
+    self-contact). Functions of Z alone. Skipped (no loads) where no part can be near another
+    (:func:`solver.kernels.self_contact.may_touch`).
+
+    The backbone the law sees is drawn first as each segment's quintic Hermite piece from
+    its start node to the next one's — the tip segment's to its end integrated without
+    self-contact loads (:func:`solver.kernels.self_contact.build_piece`) — and the loads worked
+    out on it (:func:`solver.kernels.self_contact.self_loads`). Then GEOMETRY_PASSES times every
+    segment is integrated with them, its piece redrawn through the integrated nodes
+    (:func:`solver.kernels.self_contact.trace_piece`), and the loads worked out again: a
+    Hermite piece misses the kinks that the shear and stretch of point loads put into the
+    backbone at loaded nodes (tens of micrometres on OctArm V at the ring stiffness, against
+    a penetration of 2 mm), a traced one carries them. (Tracing only the loaded segments
+    put a jump into the loads where a segment's first load appeared: its piece switched
+    from one curve to the other, a micrometre apart.) The nodes' clearances, which spare
+    the law the points far from any other part, are reused from the last call while the
+    nodes have moved less than REUSE_CLEARANCE since (a Newton step's difference columns
+    and line search), at a slack of the move (:func:`solver.kernels.self_contact.self_loads`)."""
     pts, bounds, loads = partners
     n_seg = bounds.shape[0]
     if n_seg == 0:
@@ -305,16 +328,60 @@ def _prepare_partners(Z, grid, rest, level, partners):
     za = np.empty(6)
     zb = np.empty(6)
     theta0 = grid[G_THETA0]
+    segs = grid[G_SEGS]
     for seg in range(n_seg - 1):
         _start_state(Z, seg, theta0, za)
         _start_state(Z, seg + 1, theta0, zb)
-        build_piece(za, zb, seg, grid, rest, pts, bounds)
+        build_piece(za, zb, seg, grid, rest, level, pts, bounds)
     _start_state(Z, n_seg - 1, theta0, za)
     none = (pts[:0], bounds[:0], loads[:0])
     _integrate(za, Z, n_seg - 1, n_seg, grid, rest, level, zb.reshape((1, 6)), False,
                np.empty((1, C_COLUMNS)), None, none)
-    build_piece(za, zb, n_seg - 1, grid, rest, pts, bounds)
-    self_loads(grid, pts, bounds, loads)
+    build_piece(za, zb, n_seg - 1, grid, rest, level, pts, bounds)
+    self_loads(grid, rest, pts, bounds, loads, _reuse(pts, segs))
+    rows = 0
+    for i in range(grid[G_STEPS].shape[0]):
+        rows += grid[G_STEPS][i] + 1
+    record = np.empty((rows, C_COLUMNS))
+    states = np.empty((pts.shape[1], 6))
+    ends = np.empty((n_seg, 6))
+    for _ in range(GEOMETRY_PASSES):
+        # The segments integrated with the loads as the residual pass integrates them.
+        _start_state(Z, 0, theta0, za)
+        _integrate(za, Z, 0, n_seg, grid, rest, level, ends, True, record, None, partners)
+        for seg in range(n_seg):
+            first = segs[seg, SEG_ROW0] + segs[seg, SEG_FIRST]
+            nst = segs[seg, SEG_STEPS]
+            _record_states(record, first, nst + 1, states)
+            # The end after its node's load; at a section end before the endplate's weight.
+            zb[:] = states[nst] if segs[seg, SEG_END] == 1 else ends[seg]
+            if seg < n_seg - 1:
+                _start_state(Z, seg + 1, theta0, za)
+            trace_piece(seg, states, zb, za, grid, rest, level, loads, pts, bounds)
+        self_loads(grid, rest, pts, bounds, loads, _reuse(pts, segs))
+
+
+@njit
+def _record_states(record, first, n, states):
+    """The states (x, y, θ, n_x, n_y, m) of the ``n`` record rows from ``first`` into
+    ``states`` (≥ n, 6): the record keeps them in other columns (solver.layout, C_*)."""
+    for j in range(n):
+        row = first + j
+        states[j, 0] = record[row, C_X]
+        states[j, 1] = record[row, C_Y]
+        states[j, 2] = record[row, C_TH]
+        states[j, 3] = record[row, C_NX]
+        states[j, 4] = record[row, C_NY]
+        states[j, 5] = record[row, C_M]
+
+
+@njit
+def _reuse(pts, segs):
+    """The ``moved`` argument of :func:`solver.kernels.self_contact.self_loads` for the pieces
+    ``pts``: how far their nodes moved since their clearances were worked out, or −1 (work
+    them out afresh) past REUSE_CLEARANCE."""
+    moved = moved_since(pts, segs)
+    return moved if moved < REUSE_CLEARANCE else -1.0
 
 
 @njit
@@ -849,7 +916,9 @@ def _coupled(Z, grid, rest, level, F, J, partners, weights, A):
                     columns[0:3] = True
                 elif node < n_seg:
                     columns[3 + 6 * (node - 1):3 + 6 * node] = True
-    scratch = (np.empty_like(partners[0]), np.empty_like(partners[1]), np.empty_like(partners[2]))
+    # The pieces' nodes (and the clearances worked out on them) are copied: a column's
+    # state is a small move from Z's (solver.kernels.self_contact.self_loads).
+    scratch = (partners[0].copy(), np.empty_like(partners[1]), np.empty_like(partners[2]))
     moved = Z.copy()
     F_moved = np.empty(n)
     no_blocks = np.empty((0, 6, 6))

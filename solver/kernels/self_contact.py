@@ -1,32 +1,42 @@
 """Self-contact of the planar backbone: parts of the arm farther apart along the arc than an
 exclusion length press on each other by the discs' penalty law (docs/design.md §9).
 
-Geometry from the shooting unknowns alone. Each segment's backbone is drawn as a cubic
-Hermite curve through its end states (positions and slopes r' from the constitutive law),
-sampled at its RK4 nodes: the next segment's start for all but the tip segment, whose end
-comes from integrating it (without self-contact loads). The curve's error is Hermite's,
-O((κℓ)⁴·ℓ) for a segment of length ℓ and curvature κ: below a micrometre on OctArm-sized
-segments.
+Geometry from the shooting unknowns alone, in two passes (see
+:func:`solver.kernels.contact._prepare_partners`). First each segment's backbone is drawn
+as a quintic Hermite piece through its end states — positions, slopes r' from the
+constitutive law and their derivatives r'' from the state's rate (:func:`build_piece`) —
+the next segment's start for all but the tip segment, whose end comes from integrating it
+without self-contact loads, and the loads are worked out on these pieces. Then every
+segment is integrated with those loads and its piece redrawn through the integrated RK4
+nodes (:func:`trace_piece`): on each RK4 step the quintic Hermite curve through the step's
+end nodes, with the slopes and their derivatives on each side of a loaded node (a point
+load's shear and stretch kink the backbone there), plus the quintic correction that takes
+the integrated end to the next shooting node; and the loads are worked out again on the
+traced pieces. At a solution the traced piece is the integrated backbone itself.
 
-Law, node to curve. A node at arc length s with half-thickness h(s) meets another part
-(farther than the exclusion length along the arc) when its distance d to that part's
-nearest point p is below h(s) + h(p). Per unit length it is then pushed by
-f = k·(h(s) + h(p) − d)·(r − p)/d — the law of :func:`solver.kernels.obstacles.contact_force`
-with the partner's surface in place of a disc's, set in smoothly over the first ONSET of
-depth. The pieces' chords find the contacts (a run of consecutive chords within reach is
-one contact, so a node near a vertex is not pushed twice); p is then the nearest point of
-the Hermite curve itself, whose normal turns smoothly as the node moves.
+Law, point to curve. The law is sampled at SUBPOINTS points per RK4 step along the pieces
+(the nodes among them), each with its share of the arc (:func:`self_loads`). A point at arc
+length s with half-thickness h(s) meets another part (farther than the exclusion length
+along the arc) when its distance d to that part's nearest point p is below h(s) + h(p). Per
+unit length it is then pushed by f = k·(h(s) + h(p) − d)·(r − p)/d — the law of
+:func:`solver.kernels.obstacles.contact_force` with the partner's surface in place of a
+disc's, set in smoothly over the first ONSET of depth. The pieces' chords, widened by how
+far the curves stand off them (:func:`_bulge`), find the contacts (a run of consecutive
+chords within reach is one contact, so a point near a vertex is not pushed twice); p is then
+the nearest point of the curve itself (:func:`_project`), whose normal turns smoothly as the
+point moves. Points far from every other part are skipped by clearance bounds worked out at
+the nodes.
 
-Action and reaction. The node's force f·w (w its share of the arc, the trapezoid weight of
-the RK4 grid) acts on it as a point load, and its reaction −f·w on the partner, split
-between the two nodes either side of p in proportion to where p lies between them (their
+Action and reaction. A point's force f·w (w its share of the arc) is lumped onto the two
+nodes of its step in proportion to where it lies between them, and its reaction −f·w onto
+the partner's two nodes either side of p in proportion to where p lies between them (their
 resultant acts on the line of f, within the chord's sagitta of p: the pair carries no net
-force, and a net moment only of the sagitta's component across f). Every node plays both parts,
-so each pair is counted from either side, and every node carries half the sum of its own
-forces and the reactions it receives: for parts pressed side by side this is the disc law;
-where the contact is one-sided (a part pressed against the arm's end) the pair still
-balances exactly. The loads are point loads at RK4 nodes, applied as jumps in the internal
-force between steps (as the endplates' weights are).
+force, and a net moment only of the sagitta's component across f). Every point plays both
+parts, so each pair is counted from either side, and every node carries half the sum of
+the forces lumped onto it and the reactions it receives: for parts pressed side by side
+this is the disc law; where the contact is one-sided (a part pressed against the arm's end)
+the pair still balances exactly. The loads are point loads at RK4 nodes, applied as jumps in
+the internal force between steps (as the endplates' weights are).
 """
 
 from __future__ import annotations
@@ -36,31 +46,36 @@ import math
 import numpy as np
 
 from solver.jit import njit
+from solver.kernels.obstacles import hermite_point, hull_circle
 from solver.layout import (
-    B_AX,
-    B_AY,
-    B_BX,
-    B_BY,
     B_R,
-    B_TAX,
-    B_TAY,
-    B_TBX,
-    B_TBY,
     B_TOUCH,
     B_X,
     B_Y,
     CA,
     CG,
+    CI,
     G_SECF,
     G_SEGS,
     G_SELF,
     G_START,
     G_STEPS,
+    L_DISCS,
+    L_PLATE,
+    L_Q,
     LEN,
+    P_CLEAR,
+    P_DXA,
+    P_DXB,
+    P_EXA,
+    P_EXB,
     P_H,
     P_S,
     P_X,
+    P_X0,
     P_Y,
+    P_Y0,
+    REST_U2,
     REST_V3,
     SC_EXCLUSION,
     SC_HALF,
@@ -78,12 +93,14 @@ from solver.layout import (
     SELF_QX,
     SELF_QY,
 )
-from solver.rod import planar_strains
+from solver.rod import planar_state_jacobian, planar_state_rhs
 
 # Depth (m) over which the law sets in smoothly: f = k·δ²/2ε below ε, then k·(δ − ε/2). Nodes
 # are an RK4 step apart, and where a contact patch spans one or two of them, a node entering
 # it with a kink in its force made Newton stall (as at the grasp's base clamp).
 ONSET = 5e-4
+# Points per RK4 step at which the law is sampled (docs/design.md §9, "Resolution").
+SUBPOINTS = 8
 
 
 @njit
@@ -101,11 +118,96 @@ def clear_pieces(bounds):
 
 
 @njit
-def build_piece(za, zb, seg, grid, rest, pts, bounds):
+def moved_since(pts, segs):
+    """How far (m) the farthest node of the pieces ``pts`` is from where it was when the
+    nodes' clearances were last worked out (:func:`self_loads`); NaN if they never were."""
+    moved = 0.0
+    for seg in range(segs.shape[0]):
+        for j in range(segs[seg, SEG_STEPS] + 1):
+            move = math.hypot(pts[seg, j, P_X] - pts[seg, j, P_X0], pts[seg, j, P_Y] - pts[seg, j, P_Y0])
+            if not move < math.inf:
+                return math.nan
+            moved = max(moved, move)
+    return moved
+
+
+@njit
+def _derivatives(z, i, grid, rest, level, rate):
+    """(r'_x, r'_y, r''_x, r''_y) of the backbone at the state ``z`` (6,) in section ``i``
+    (per unit arc length): the slope from the constitutive law, its derivative along the arc
+    from the state's rate (:func:`solver.rod.planar_state_rhs`, with the section's
+    distributed load and any disc's force); ``rate`` (6,) scratch."""
+    secf = grid[G_SECF]
+    ca = secf[CA, i]
+    cg = secf[CG, i]
+    vr = rest[REST_V3, i]
+    planar_state_rhs(z, rate, ca, cg, secf[CI, i], rest[REST_U2, i], vr, level[L_Q][i, 0],
+                     level[L_Q][i, 1], level[L_DISCS])
+    a02, a03, a04, a12, a14, _, _, _ = planar_state_jacobian(math.cos(z[2]), math.sin(z[2]), z[3],
+                                                             z[4], ca, cg, vr)
+    return (rate[0], rate[1], a02 * rate[2] + a03 * rate[3] + a04 * rate[4],
+            a12 * rate[2] + a04 * rate[3] + a14 * rate[4])
+
+
+@njit
+def _quintic(t):
+    """The quintic Hermite basis at t ∈ [0, 1] and its first and second derivatives, each
+    for the data (a, a', a'', b, b', b'') of the ends t = 0 and t = 1."""
+    t2 = t * t
+    t3 = t2 * t
+    t4 = t3 * t
+    t5 = t4 * t
+    c = (1.0 - 10.0 * t3 + 15.0 * t4 - 6.0 * t5, t - 6.0 * t3 + 8.0 * t4 - 3.0 * t5,
+         0.5 * (t2 - 3.0 * t3 + 3.0 * t4 - t5), 10.0 * t3 - 15.0 * t4 + 6.0 * t5,
+         -4.0 * t3 + 7.0 * t4 - 3.0 * t5, 0.5 * (t3 - 2.0 * t4 + t5))
+    d = (-30.0 * t2 + 60.0 * t3 - 30.0 * t4, 1.0 - 18.0 * t2 + 32.0 * t3 - 15.0 * t4,
+         0.5 * (2.0 * t - 9.0 * t2 + 12.0 * t3 - 5.0 * t4), 30.0 * t2 - 60.0 * t3 + 30.0 * t4,
+         -12.0 * t2 + 28.0 * t3 - 15.0 * t4, 0.5 * (3.0 * t2 - 8.0 * t3 + 5.0 * t4))
+    dd = (-60.0 * t + 180.0 * t2 - 120.0 * t3, -36.0 * t + 96.0 * t2 - 60.0 * t3,
+          0.5 * (2.0 - 18.0 * t + 36.0 * t2 - 20.0 * t3), 60.0 * t - 180.0 * t2 + 120.0 * t3,
+          -24.0 * t + 84.0 * t2 - 60.0 * t3, 0.5 * (6.0 * t - 24.0 * t2 + 20.0 * t3))
+    return c, d, dd
+
+
+@njit
+def _node_data(pts, seg, j, side, dx, dy, ex, ey):
+    """Set the slope (dx, dy) and its derivative (ex, ey) on one side of node j of piece
+    ``seg``: after it (``side`` 0), before it (1) or both (2)."""
+    for k in range(2):
+        if side == 2 or side == k:
+            col = P_DXA if k == 0 else P_DXB
+            pts[seg, j, col] = dx
+            pts[seg, j, col + 1] = dy
+            pts[seg, j, col + 2] = ex
+            pts[seg, j, col + 3] = ey
+
+
+@njit
+def _bound(seg, pts, bounds, n):
+    """The bounding circle of the nodes of piece ``seg`` (n steps) into ``bounds[seg]``."""
+    cx = 0.0
+    cy = 0.0
+    for j in range(n + 1):
+        cx += pts[seg, j, P_X]
+        cy += pts[seg, j, P_Y]
+    cx /= n + 1
+    cy /= n + 1
+    radius = 0.0
+    for j in range(n + 1):
+        radius = max(radius, math.hypot(pts[seg, j, P_X] - cx, pts[seg, j, P_Y] - cy))
+    bounds[seg, B_X] = cx
+    bounds[seg, B_Y] = cy
+    bounds[seg, B_R] = radius
+    bounds[seg, B_TOUCH] = 0.0
+
+
+@njit
+def build_piece(za, zb, seg, grid, rest, level, pts, bounds):
     """The piece of segment ``seg`` from its start state ``za`` and end state ``zb`` (6,)
-    (x, y, θ, n_x, n_y, m): a cubic Hermite curve in the segment's arc length through their
-    positions with their slopes r' (the constitutive law of the segment's section), sampled
-    at its RK4 nodes into ``pts[seg]``, its bounding circle into ``bounds[seg]``.
+    (x, y, θ, n_x, n_y, m) at the level tuple ``level``: a quintic Hermite curve in the
+    segment's arc length through their positions with their slopes r' and derivatives r''
+    (:func:`_derivatives`), sampled at its RK4 nodes into ``pts[seg]`` (the same data on
+    both sides of a node), its bounding circle into ``bounds[seg]``.
 
     Half-thicknesses are the section's, except at a section junction, where the node takes
     the mean of both sections' (h varies linearly over the chords on either side, so the law
@@ -118,51 +220,100 @@ def build_piece(za, zb, seg, grid, rest, pts, bounds):
     step = secf[LEN, i] / grid[G_STEPS][i]
     ell = n * step
     s0 = grid[G_START][i] + segs[seg, SEG_FIRST] * step
-    c, sn, _, _, v1, v3 = planar_strains(za[2], za[3], za[4], secf[CA, i], secf[CG, i], rest[REST_V3, i])
-    tax = ell * (v3 * c - v1 * sn)
-    tay = ell * (v3 * sn + v1 * c)
-    c, sn, _, _, v1, v3 = planar_strains(zb[2], zb[3], zb[4], secf[CA, i], secf[CG, i], rest[REST_V3, i])
-    tbx = ell * (v3 * c - v1 * sn)
-    tby = ell * (v3 * sn + v1 * c)
     half = sp[SC_HALF + i]
     h_start = 0.5 * (sp[SC_HALF + i - 1] + half) if segs[seg, SEG_FIRST] == 0 and i > 0 else half
     h_end = 0.5 * (half + sp[SC_HALF + i + 1]) \
         if segs[seg, SEG_END] == 1 and i < secf.shape[1] - 1 else half
-    cx = 0.0
-    cy = 0.0
+    rate = np.empty(6)
+    dxa, dya, exa, eya = _derivatives(za, i, grid, rest, level, rate)
+    dxb, dyb, exb, eyb = _derivatives(zb, i, grid, rest, level, rate)
+    coef_x = (za[0], ell * dxa, ell * ell * exa, zb[0], ell * dxb, ell * ell * exb)
+    coef_y = (za[1], ell * dya, ell * ell * eya, zb[1], ell * dyb, ell * ell * eyb)
     for j in range(n + 1):
-        t = j / n
-        t2 = t * t
-        t3 = t2 * t
-        h00 = 2.0 * t3 - 3.0 * t2 + 1.0
-        h10 = t3 - 2.0 * t2 + t
-        h01 = 3.0 * t2 - 2.0 * t3
-        h11 = t3 - t2
-        x = h00 * za[0] + h10 * tax + h01 * zb[0] + h11 * tbx
-        y = h00 * za[1] + h10 * tay + h01 * zb[1] + h11 * tby
-        pts[seg, j, P_X] = x
-        pts[seg, j, P_Y] = y
+        c, d, dd = _quintic(j / n)
+        px = py = vx = vy = wx = wy = 0.0
+        for e in range(6):
+            px += c[e] * coef_x[e]
+            py += c[e] * coef_y[e]
+            vx += d[e] * coef_x[e]
+            vy += d[e] * coef_y[e]
+            wx += dd[e] * coef_x[e]
+            wy += dd[e] * coef_y[e]
+        pts[seg, j, P_X] = px
+        pts[seg, j, P_Y] = py
         pts[seg, j, P_S] = s0 + j * step
         pts[seg, j, P_H] = h_start if j == 0 else (h_end if j == n else half)
-        cx += x
-        cy += y
-    cx /= n + 1
-    cy /= n + 1
-    radius = 0.0
+        _node_data(pts, seg, j, 2, vx / ell, vy / ell, wx / (ell * ell), wy / (ell * ell))
+    _bound(seg, pts, bounds, n)
+
+
+@njit
+def trace_piece(seg, states, end, target, grid, rest, level, loads, pts, bounds):
+    """The piece of segment ``seg`` from the segment integrated with the self-contact loads
+    ``loads``: its RK4 nodes' states ``states`` (≥ n + 1, 6) (x, y, θ, n_x, n_y, m), each
+    after its node's load (the base node: before it), the last one ``end`` (6,) — plus, where
+    the segment does not end at the tip, the quintic Hermite correction that takes the
+    integrated end (before its node's load) to the next segment's start ``target`` (6,)
+    (after the load and any endplate): positions, slopes and their derivatives. So the piece
+    meets the shooting nodes at both ends, and at a solution — where the integrated end is
+    the next start — it is the integrated backbone itself, with the shear and stretch kinks
+    of the point loads at its nodes. Slopes and their derivatives are kept on both sides of
+    each node (:func:`_node_data`); half-thicknesses as :func:`build_piece` set them."""
+    segs = grid[G_SEGS]
+    i = segs[seg, SEG_SECTION]
+    n = segs[seg, SEG_STEPS]
+    ell = pts[seg, n, P_S] - pts[seg, 0, P_S]
+    z = np.empty(6)
+    rate = np.empty(6)
+    mismatch = np.zeros(6)
     for j in range(n + 1):
-        radius = max(radius, math.hypot(pts[seg, j, P_X] - cx, pts[seg, j, P_Y] - cy))
-    bounds[seg, B_X] = cx
-    bounds[seg, B_Y] = cy
-    bounds[seg, B_R] = radius
-    bounds[seg, B_TOUCH] = 0.0
-    bounds[seg, B_AX] = za[0]
-    bounds[seg, B_AY] = za[1]
-    bounds[seg, B_TAX] = tax
-    bounds[seg, B_TAY] = tay
-    bounds[seg, B_BX] = zb[0]
-    bounds[seg, B_BY] = zb[1]
-    bounds[seg, B_TBX] = tbx
-    bounds[seg, B_TBY] = tby
+        for d in range(6):
+            z[d] = end[d] if j == n else states[j, d]
+        a, b = canonical_slot(segs, seg, j)
+        fx = loads[a, b, SELF_FX]
+        fy = loads[a, b, SELF_FY]
+        if seg == 0 and j == 0:  # recorded before the base node's load, which is the clamp's
+            z[3] -= fx
+            z[4] -= fy
+        pts[seg, j, P_X] = z[0]
+        pts[seg, j, P_Y] = z[1]
+        dx, dy, ex, ey = _derivatives(z, i, grid, rest, level, rate)
+        _node_data(pts, seg, j, 2 if fx == 0.0 and fy == 0.0 else 0, dx, dy, ex, ey)
+        if fx != 0.0 or fy != 0.0:
+            z[3] += fx  # before the node's load
+            z[4] += fy
+            dx, dy, ex, ey = _derivatives(z, i, grid, rest, level, rate)
+            _node_data(pts, seg, j, 1, dx, dy, ex, ey)
+    if seg < segs.shape[0] - 1:
+        for d in range(6):
+            z[d] = target[d]
+        a, b = canonical_slot(segs, seg, n)
+        z[3] += loads[a, b, SELF_FX]
+        z[4] += loads[a, b, SELF_FY]
+        if segs[seg, SEG_END] == 1:
+            z[3] += level[L_PLATE][i, 0]
+            z[4] += level[L_PLATE][i, 1]
+        dx, dy, ex, ey = _derivatives(z, i, grid, rest, level, rate)
+        mismatch[0] = z[0] - pts[seg, n, P_X]
+        mismatch[1] = z[1] - pts[seg, n, P_Y]
+        mismatch[2] = ell * (dx - pts[seg, n, P_DXB])
+        mismatch[3] = ell * (dy - pts[seg, n, P_DXB + 1])
+        mismatch[4] = ell * ell * (ex - pts[seg, n, P_EXB])
+        mismatch[5] = ell * ell * (ey - pts[seg, n, P_EXB + 1])
+    for j in range(1, n + 1):
+        c, d, dd = _quintic(j / n)
+        for axis in range(2):
+            pts[seg, j, P_X + axis] += c[3] * mismatch[axis] + c[4] * mismatch[2 + axis] \
+                + c[5] * mismatch[4 + axis]
+            slope = (d[3] * mismatch[axis] + d[4] * mismatch[2 + axis]
+                     + d[5] * mismatch[4 + axis]) / ell
+            turn = (dd[3] * mismatch[axis] + dd[4] * mismatch[2 + axis]
+                    + dd[5] * mismatch[4 + axis]) / (ell * ell)
+            pts[seg, j, P_DXA + axis] += slope
+            pts[seg, j, P_DXB + axis] += slope
+            pts[seg, j, P_EXA + axis] += turn
+            pts[seg, j, P_EXB + axis] += turn
+    _bound(seg, pts, bounds, n)
 
 
 @njit
@@ -176,10 +327,7 @@ def may_touch(Z, grid, rest) -> bool:
     secf = grid[G_SECF]
     sp = grid[G_SELF]
     n_seg = segs.shape[0]
-    stretch = 0.0
-    for i in range(rest.shape[1]):
-        stretch = max(stretch, rest[REST_V3, i])
-    stretch *= 1.5
+    stretch = _stretch_bound(rest)
     reach = 2.0 * _largest_half(sp)
     cx = np.empty(n_seg)
     cy = np.empty(n_seg)
@@ -296,6 +444,15 @@ def _weight(segs, pts, seg, j):
 
 
 @njit
+def _stretch_bound(rest):
+    """A bound on the backbone's stretch |r'|: 1.5 × the largest rest stretch."""
+    stretch = 0.0
+    for i in range(rest.shape[1]):
+        stretch = max(stretch, rest[REST_V3, i])
+    return 1.5 * stretch
+
+
+@njit
 def _largest_half(sp):
     largest = 0.0
     for k in range(SC_HALF, sp.shape[0]):
@@ -305,9 +462,9 @@ def _largest_half(sp):
 
 @njit
 def _nearest_on_chord(x, y, h_own, pts, seg, j):
-    """(pen, ux, uy, t) of the point (x, y) against chord j of piece ``seg``: penetration
-    h_own + h(p) − |r − p| at the nearest point p = (1 − t)·a + t·b, and the unit vector
-    from p to the point (zero where they coincide)."""
+    """(pen, ux, uy, t, dist) of the point (x, y) against chord j of piece ``seg``:
+    penetration h_own + h(p) − |r − p| at the nearest point p = (1 − t)·a + t·b, the unit
+    vector from p to the point (zero where they coincide) and the distance |r − p| (m)."""
     ax = pts[seg, j, P_X]
     ay = pts[seg, j, P_Y]
     ex = pts[seg, j + 1, P_X] - ax
@@ -320,33 +477,43 @@ def _nearest_on_chord(x, y, h_own, pts, seg, j):
     dist = math.sqrt(dx * dx + dy * dy)
     reach = h_own + pts[seg, j, P_H] + t * (pts[seg, j + 1, P_H] - pts[seg, j, P_H])
     if dist > 0.0:
-        return reach - dist, dx / dist, dy / dist, t
-    return reach, 0.0, 0.0, t
+        return reach - dist, dx / dist, dy / dist, t, dist
+    return reach, 0.0, 0.0, t, dist
 
 
 @njit
-def _curve(bounds, seg, t):
-    """Point, first and second derivative (in the parameter t ∈ [0, 1]) of piece ``seg``'s
-    Hermite curve: (x, y, dx, dy, ddx, ddy)."""
-    t2 = t * t
-    t3 = t2 * t
-    c = (2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + t, 3.0 * t2 - 2.0 * t3, t3 - t2)
-    d = (6.0 * t2 - 6.0 * t, 3.0 * t2 - 4.0 * t + 1.0, 6.0 * t - 6.0 * t2, 3.0 * t2 - 2.0 * t)
-    dd = (12.0 * t - 6.0, 6.0 * t - 4.0, 6.0 - 12.0 * t, 6.0 * t - 2.0)
-    out = np.empty(6)
-    for axis in range(2):
-        a = bounds[seg, B_AX + axis]
-        ta = bounds[seg, B_TAX + axis]
-        b = bounds[seg, B_BX + axis]
-        tb = bounds[seg, B_TBX + axis]
-        out[axis] = c[0] * a + c[1] * ta + c[2] * b + c[3] * tb
-        out[2 + axis] = d[0] * a + d[1] * ta + d[2] * b + d[3] * tb
-        out[4 + axis] = dd[0] * a + dd[1] * ta + dd[2] * b + dd[3] * tb
-    return out
+def _curve(pts, segs, seg, t):
+    """Point, first and second derivative (in the parameter t ∈ [0, 1] of piece ``seg``,
+    spanning its arc) of the piece's backbone: on each RK4 step the quintic Hermite curve
+    through the step's end nodes, their slopes and derivatives on the step's side
+    (x, y, dx, dy, ddx, ddy)."""
+    n = segs[seg, SEG_STEPS]
+    j = min(int(t * n), n - 1)
+    step = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
+    c, d, dd = _quintic(t * n - j)
+    x, dx, ddx = _hermite(c, d, dd, pts, seg, j, 0, step)
+    y, dy, ddy = _hermite(c, d, dd, pts, seg, j, 1, step)
+    return x, y, n * dx, n * dy, n * n * ddx, n * n * ddy
+
+
+@njit(inline="always")
+def _hermite(c, d, dd, pts, seg, j, axis, step):
+    """The coordinate ``axis`` of the quintic Hermite curve of step j of piece ``seg`` and
+    its first and second derivatives per unit of the step's parameter, from the basis
+    (:func:`_quintic`) at that parameter."""
+    a = pts[seg, j, P_X + axis]
+    ta = step * pts[seg, j, P_DXA + axis]
+    ca = step * step * pts[seg, j, P_EXA + axis]
+    b = pts[seg, j + 1, P_X + axis]
+    tb = step * pts[seg, j + 1, P_DXB + axis]
+    cb = step * step * pts[seg, j + 1, P_EXB + axis]
+    return (c[0] * a + c[1] * ta + c[2] * ca + c[3] * b + c[4] * tb + c[5] * cb,
+            d[0] * a + d[1] * ta + d[2] * ca + d[3] * b + d[4] * tb + d[5] * cb,
+            dd[0] * a + dd[1] * ta + dd[2] * ca + dd[3] * b + dd[4] * tb + dd[5] * cb)
 
 
 @njit
-def _project(x, y, bounds, segs, seg, t):
+def _project(x, y, pts, bounds, segs, seg, t):
     """The point of the backbone's Hermite curves nearest (x, y), by Newton on the parameter
     from piece ``seg`` at ``t`` (a chord's nearest point), moving on to the neighbouring
     piece where it leaves this one and stopping at the arm's ends: (seg, t). The nearest
@@ -354,7 +521,7 @@ def _project(x, y, bounds, segs, seg, t):
     point moves — a polyline's jumps where the nearest chord changes on a concave side."""
     n_seg = bounds.shape[0]
     for _ in range(12):
-        p = _curve(bounds, seg, t)
+        p = _curve(pts, segs, seg, t)
         rx = p[0] - x
         ry = p[1] - y
         g = rx * p[2] + ry * p[3]
@@ -388,13 +555,165 @@ def _add(loads, segs, seg, j, fx, fy):
 
 
 @njit
-def self_loads(grid, pts, bounds, loads):
+def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reach, exclusion, k,
+                behind, ahead, wide, bulge):
+    """Apply the law to the point (x, y) at arc length ``s`` with half-thickness ``h_own``
+    and arc share ``w`` (m), a fraction ``share`` of the way from node j of piece ``seg`` to
+    node j + 1: every contact it makes (a run of consecutive chords of another part within
+    ``reach`` of the point, less the chord's half-thickness, and ``bulge`` — how far the
+    curves stand off their chords (:func:`_bulge`): the curve decides, not the chord) is
+    found and its load added to
+    ``loads`` (see :func:`self_loads`), the point's own half lumped onto nodes j and j + 1 by
+    ``share``.
+
+    Returns (the deepest penetration, the point's clearance): a lower bound on its distance
+    (m) to the chords that are not within ``exclusion`` of every arc length in
+    [s − ``behind``, s + ``ahead``] — the distance to each such chord of a piece whose
+    bounding circle comes within ``wide`` of the point, else to the circle; infinite where
+    there is none."""
+    segs = grid[G_SEGS]
+    n_seg = segs.shape[0]
+    deepest = 0.0
+    clearance = math.inf
+    in_run = False
+    best_pen = 0.0
+    best_t = 0.0
+    best_seg = 0
+    best_j = 0
+    for other in range(n_seg + 1):
+        near = False
+        scan = False
+        if other < n_seg and bounds[other, B_R] >= 0.0:
+            s_lo = pts[other, 0, P_S]
+            s_hi = pts[other, segs[other, SEG_STEPS], P_S]
+            relevant = s_lo < s + ahead - exclusion or s_hi > s - behind + exclusion
+            # A piece wholly within the exclusion (of the point itself) has no chord the
+            # law may use, and needs no look unless the clearance asks for it.
+            if relevant or s_lo < s - exclusion or s_hi > s + exclusion:
+                dx = x - bounds[other, B_X]
+                dy = y - bounds[other, B_Y]
+                d2 = dx * dx + dy * dy
+                far = bounds[other, B_R] + reach + bulge
+                near = d2 < far * far
+                if relevant and wide > 0.0:
+                    gap = math.sqrt(d2) - bounds[other, B_R]
+                    scan = gap < wide
+                    if not scan:
+                        clearance = min(clearance, gap)
+        chords = segs[other, SEG_STEPS] if near or scan else 1
+        for c in range(chords):
+            pen = -1.0
+            ux = uy = t = 0.0
+            if near or scan:
+                s_a = pts[other, c, P_S]
+                s_b = pts[other, c + 1, P_S]
+                dist = math.inf
+                if near and abs(s - s_a) > exclusion and abs(s - s_b) > exclusion:
+                    pen, ux, uy, t, dist = _nearest_on_chord(x, y, h_own, pts, other, c)
+                if scan and not (s + ahead - exclusion <= s_a <= s - behind + exclusion
+                                 or s + ahead - exclusion <= s_b <= s - behind + exclusion):
+                    if dist == math.inf:
+                        dist = _nearest_on_chord(x, y, h_own, pts, other, c)[4]
+                    clearance = min(clearance, dist)
+            if pen > -bulge and (ux != 0.0 or uy != 0.0):
+                if not in_run or pen > best_pen:
+                    best_pen, best_t = pen, t
+                    best_seg, best_j = other, c
+                in_run = True
+                continue
+            if not in_run:
+                continue
+            # A run of chords within reach ends: one contact, the nearest point of the
+            # curve, from the run's nearest chord's.
+            in_run = False
+            n_b = segs[best_seg, SEG_STEPS]
+            piece, tau = _project(x, y, pts, bounds, segs, best_seg, (best_j + best_t) / n_b)
+            p = _curve(pts, segs, piece, tau)
+            dx = x - p[0]
+            dy = y - p[1]
+            dist = math.sqrt(dx * dx + dy * dy)
+            n_p = segs[piece, SEG_STEPS]
+            node = min(int(tau * n_p), n_p - 1)
+            t = tau * n_p - node
+            h_p = pts[piece, node, P_H] + t * (pts[piece, node + 1, P_H] - pts[piece, node, P_H])
+            pen = h_own + h_p - dist
+            if not (pen > 0.0 and dist > 0.0):
+                continue
+            ux = dx / dist
+            uy = dy / dist
+            f = w * (0.5 * k * pen * pen / ONSET if pen < ONSET else k * (pen - 0.5 * ONSET))
+            stiff = w * (k * pen / ONSET if pen < ONSET else k)
+            for end in range(2):
+                part = 1.0 - share if end == 0 else share
+                if part == 0.0:
+                    continue
+                a, b = canonical_slot(segs, seg, j + end)
+                # The piece whose map applies the load (its Jacobian carries the law's
+                # stiffness, which Newton's coupled Jacobian replaces by differences).
+                bounds[a, B_TOUCH] = 1.0
+                loads[a, b, SELF_FX] += 0.5 * part * f * ux
+                loads[a, b, SELF_FY] += 0.5 * part * f * uy
+                loads[a, b, SELF_PEN] = max(loads[a, b, SELF_PEN], pen)
+                # The point's own law across the normal (∂pen/∂r = −ûᵀ), the other part
+                # held fixed, its share on the node: for the stability test
+                # (docs/design.md §9).
+                loads[a, b, SELF_K00] -= part * stiff * ux * ux
+                loads[a, b, SELF_K01] -= part * stiff * ux * uy
+                loads[a, b, SELF_K11] -= part * stiff * uy * uy
+            _add(loads, segs, piece, node, -0.5 * f * (1.0 - t) * ux, -0.5 * f * (1.0 - t) * uy)
+            _add(loads, segs, piece, node + 1, -0.5 * f * t * ux, -0.5 * f * t * uy)
+            deepest = max(deepest, pen)
+            bounds[seg, B_TOUCH] = 1.0
+            bounds[best_seg, B_TOUCH] = 1.0
+            bounds[piece, B_TOUCH] = 1.0
+    return deepest, clearance
+
+
+@njit
+def _bulge(pts, segs):
+    """How far (m) the pieces' curves stand off their chords, at most: 1.5 × the largest
+    distance of a curve's quarter, half and three-quarter points from its step's chord. The
+    chords find the contacts, so a point the curve reaches but a chord does not would set
+    in with a jump of its depth (a sagitta, 0.2 mm on a scaled arm's coarse steps) as the
+    chord came within reach."""
+    largest = 0.0
+    for seg in range(segs.shape[0]):
+        n = segs[seg, SEG_STEPS]
+        for j in range(n):
+            ax = pts[seg, j, P_X]
+            ay = pts[seg, j, P_Y]
+            ex = pts[seg, j + 1, P_X] - ax
+            ey = pts[seg, j + 1, P_Y] - ay
+            length = math.hypot(ex, ey)
+            if not length > 0.0:
+                continue
+            for q in range(1, 4):
+                x, y, _, _, _, _ = _curve(pts, segs, seg, (j + 0.25 * q) / n)
+                largest = max(largest, abs((x - ax) * ey - (y - ay) * ex) / length)
+    return 1.5 * largest
+
+
+@njit
+def self_loads(grid, rest, pts, bounds, loads, moved):
     """The self-contact point loads of the pieces ``pts`` (see the module docstring) into
     ``loads`` (M, segment steps + 1, N_SELF), at each node's canonical slot: SELF_FX, SELF_FY
     the point load (N), SELF_QX, SELF_QY that load per length of the node's share of the arc
     (N/m), SELF_PEN its own deepest penetration (m), SELF_K00…SELF_K11 its own law's
     stiffness across the normal with the other part fixed (N/m). Pieces in contact are marked in
-    ``bounds``. Returns the deepest penetration."""
+    ``bounds``. Returns the deepest penetration.
+
+    The law is sampled at SUBPOINTS points per RK4 step along each piece's curve (its
+    nodes among them), each with its share of the arc, and each point's load is lumped onto
+    the step's two nodes in proportion to where it lies between them (docs/design.md §9,
+    "Resolution"). Only points that may touch another part are worked out: a node's
+    clearance (P_CLEAR) bounds from below its distance to the chords of the other parts
+    over the steps either side of it, so a point of a step farther from either end node
+    than that node's clearance less the point's reach and the curves' bulge off their chords
+    is skipped (an exact test: the chords, widened by the bulge, find every contact).
+    ``moved`` < 0 or NaN: the clearances are worked out (and where the
+    nodes were, P_X0 and P_Y0); else they are those of pieces that have since moved by at
+    most ``moved`` (m) at any node (:func:`moved_since`), and count 2·``moved`` less, for
+    the point's and the other part's moves."""
     segs = grid[G_SEGS]
     sp = grid[G_SELF]
     k = sp[SC_K]
@@ -403,74 +722,149 @@ def self_loads(grid, pts, bounds, loads):
     loads[:, :, :] = 0.0
     deepest = 0.0
     n_seg = segs.shape[0]
+    stretch = _stretch_bound(rest)
+    bulge = _bulge(pts, segs)
+    fresh = not moved >= 0.0
+    slack = (0.0 if fresh else 2.0 * moved) + bulge
     for seg in range(n_seg):
-        for j in range(0 if seg == 0 else 1, segs[seg, SEG_STEPS] + 1):
-            x = pts[seg, j, P_X]
-            y = pts[seg, j, P_Y]
-            s = pts[seg, j, P_S]
-            h_own = pts[seg, j, P_H]
-            w = _weight(segs, pts, seg, j)
-            reach = h_own + largest
-            in_run = False
-            best_pen = 0.0
-            best_t = 0.0
-            best_seg = 0
-            best_j = 0
-            for other in range(n_seg + 1):
-                near = other < n_seg and bounds[other, B_R] >= 0.0 and math.hypot(
-                    x - bounds[other, B_X], y - bounds[other, B_Y]) - bounds[other, B_R] < reach
-                chords = segs[other, SEG_STEPS] if near else 1
-                for c in range(chords):
-                    pen = -1.0
-                    ux = uy = t = 0.0
-                    if near and abs(s - pts[other, c, P_S]) > exclusion \
-                            and abs(s - pts[other, c + 1, P_S]) > exclusion:
-                        pen, ux, uy, t = _nearest_on_chord(x, y, h_own, pts, other, c)
-                    if pen > 0.0 and (ux != 0.0 or uy != 0.0):
-                        if not in_run or pen > best_pen:
-                            best_pen, best_t = pen, t
-                            best_seg, best_j = other, c
-                        in_run = True
-                        continue
-                    if in_run:  # a run of chords within reach ends: one contact, the
-                        # nearest point of the curve, from the run's nearest chord's
-                        in_run = False
-                        n_b = segs[best_seg, SEG_STEPS]
-                        piece, tau = _project(x, y, bounds, segs, best_seg, (best_j + best_t) / n_b)
-                        p = _curve(bounds, piece, tau)
-                        dx = x - p[0]
-                        dy = y - p[1]
-                        dist = math.sqrt(dx * dx + dy * dy)
-                        n_p = segs[piece, SEG_STEPS]
-                        node = min(int(tau * n_p), n_p - 1)
-                        t = tau * n_p - node
-                        h_p = pts[piece, node, P_H] + t * (pts[piece, node + 1, P_H] - pts[piece, node, P_H])
-                        pen = h_own + h_p - dist
-                        if not (pen > 0.0 and dist > 0.0):
-                            continue
-                        ux = dx / dist
-                        uy = dy / dist
-                        f = w * (0.5 * k * pen * pen / ONSET if pen < ONSET
-                                 else k * (pen - 0.5 * ONSET))
-                        stiff = w * (k * pen / ONSET if pen < ONSET else k)
-                        _add(loads, segs, seg, j, 0.5 * f * ux, 0.5 * f * uy)
-                        _add(loads, segs, piece, node, -0.5 * f * (1.0 - t) * ux,
-                             -0.5 * f * (1.0 - t) * uy)
-                        _add(loads, segs, piece, node + 1, -0.5 * f * t * ux, -0.5 * f * t * uy)
-                        a, b = canonical_slot(segs, seg, j)
-                        loads[a, b, SELF_PEN] = max(loads[a, b, SELF_PEN], pen)
-                        # The node's own law across the normal (∂pen/∂r = −ûᵀ), the other
-                        # part held fixed: for the stability test (docs/design.md §9).
-                        loads[a, b, SELF_K00] -= stiff * ux * ux
-                        loads[a, b, SELF_K01] -= stiff * ux * uy
-                        loads[a, b, SELF_K11] -= stiff * uy * uy
-                        deepest = max(deepest, pen)
-                        bounds[seg, B_TOUCH] = 1.0
-                        bounds[best_seg, B_TOUCH] = 1.0
-                        bounds[piece, B_TOUCH] = 1.0
+        n = segs[seg, SEG_STEPS]
+        for j in range(0 if seg == 0 else 1, n + 1):
+            reach = pts[seg, j, P_H] + largest
+            if not fresh and pts[seg, j, P_CLEAR] - slack > reach:
+                continue
+            behind = ahead = wide = 0.0
+            if fresh:
+                # The steps either side of the node (the next piece's first after its last)
+                # and the farthest a point on them may be from it, with that point's reach.
+                if j > 0:
+                    behind = pts[seg, j, P_S] - pts[seg, j - 1, P_S]
+                if j < n:
+                    ahead = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
+                elif seg + 1 < n_seg:
+                    ahead = pts[seg + 1, 1, P_S] - pts[seg + 1, 0, P_S]
+                wide = 2.0 * largest + stretch * max(behind, ahead) + bulge
+            pen, clear = _contact_at(
+                pts[seg, j, P_X], pts[seg, j, P_Y], pts[seg, j, P_S], pts[seg, j, P_H],
+                _weight(segs, pts, seg, j) / SUBPOINTS, 0.0, seg, j, grid, pts, bounds, loads,
+                reach, exclusion, k, behind, ahead, wide, bulge)
+            deepest = max(deepest, pen)
+            if fresh:
+                pts[seg, j, P_CLEAR] = clear
+                if j == n and seg + 1 < n_seg:
+                    pts[seg + 1, 0, P_CLEAR] = clear
+    if fresh:
+        for seg in range(n_seg):
+            for j in range(segs[seg, SEG_STEPS] + 1):
+                pts[seg, j, P_X0] = pts[seg, j, P_X]
+                pts[seg, j, P_Y0] = pts[seg, j, P_Y]
+    for seg in range(n_seg):
+        n = segs[seg, SEG_STEPS]
+        for j in range(n):
+            step = pts[seg, j + 1, P_S] - pts[seg, j, P_S]
+            clear_a = pts[seg, j, P_CLEAR] - slack
+            clear_b = pts[seg, j + 1, P_CLEAR] - slack
+            # A point a share σ of the way is within stretch·step·σ of the first node and
+            # stretch·step·(1 − σ) of the second: no point of the step is nearer the other
+            # parts than the mean clearance less stretch·step/2.
+            if 0.5 * (clear_a + clear_b - stretch * step) \
+                    > max(pts[seg, j, P_H], pts[seg, j + 1, P_H]) + largest:
+                continue
+            for q in range(1, SUBPOINTS):
+                share = q / SUBPOINTS
+                h_own = pts[seg, j, P_H] + share * (pts[seg, j + 1, P_H] - pts[seg, j, P_H])
+                x, y, _, _, _, _ = _curve(pts, segs, seg, (j + share) / n)
+                if max(clear_a - math.hypot(x - pts[seg, j, P_X], y - pts[seg, j, P_Y]),
+                       clear_b - math.hypot(x - pts[seg, j + 1, P_X], y - pts[seg, j + 1, P_Y])) \
+                        > h_own + largest:
+                    continue
+                pen, _ = _contact_at(
+                    x, y, pts[seg, j, P_S] + share * step, h_own, step / SUBPOINTS, share, seg, j,
+                    grid, pts, bounds, loads, h_own + largest, exclusion, k, 0.0, 0.0, 0.0, bulge)
+                deepest = max(deepest, pen)
     for seg in range(n_seg):
         for j in range(0 if seg == 0 else 1, segs[seg, SEG_STEPS] + 1):
             w = _weight(segs, pts, seg, j)
             loads[seg, j, SELF_QX] = loads[seg, j, SELF_FX] / w
             loads[seg, j, SELF_QY] = loads[seg, j, SELF_FY] / w
+    return deepest
+
+
+@njit
+def _nearest_on_interval(x, y, positions, slopes, k, ds, t):
+    """The parameter (t ∈ [0, 1]) of the point of the cubic Hermite curve between samples k
+    and k + 1 nearest (x, y), by Newton on |r(t) − (x, y)|² from ``t``, kept in [0, 1]."""
+    for _ in range(30):
+        px, dx, ddx = hermite_point(positions, slopes, k, ds, t, 0)
+        py, dy, ddy = hermite_point(positions, slopes, k, ds, t, 1)
+        slope = (px - x) * dx + (py - y) * dy
+        curve = dx * dx + dy * dy + (px - x) * ddx + (py - y) * ddy
+        if not curve > 0.0:
+            break
+        t_new = min(1.0, max(0.0, t - slope / curve))
+        if abs(t_new - t) < 1e-15:
+            break
+        t = t_new
+    return t
+
+
+@njit
+def peak_overlap(positions, slopes, s, half, exclusion):
+    """The deepest overlap (m, ≥ 0) of a planar backbone with itself anywhere along it, not
+    only at its samples: the largest h(a) + h(b) − |r(a) − r(b)| over points a, b farther
+    apart along the arc than ``exclusion`` (m), h the half-thickness.
+
+    Between consecutive samples (positions (N, 2), slopes r' (N, 2) per unit arc, arc
+    lengths ``s`` (N,), half-thicknesses ``half`` (N,); samples repeated at a junction are
+    skipped) the backbone is the cubic Hermite curve through their positions with their
+    slopes, h linear. For each pair of intervals whose control-point balls come within reach,
+    from the nearest of a 5 × 5 grid of point pairs, each point is moved in turn to the
+    nearest point of the other's curve (Newton) until the pair stops moving."""
+    deepest = 0.0
+    n = s.shape[0]
+    largest = 0.0
+    for k in range(n):
+        largest = max(largest, half[k])
+    for a in range(n - 1):
+        ds_a = s[a + 1] - s[a]
+        if not ds_a > 0.0:
+            continue
+        centre_a, radius_a = hull_circle(positions, slopes, a, ds_a)
+        for b in range(a + 1, n - 1):
+            ds_b = s[b + 1] - s[b]
+            if not ds_b > 0.0 or s[b] - s[a + 1] <= exclusion:
+                continue
+            centre_b, radius_b = hull_circle(positions, slopes, b, ds_b)
+            if math.hypot(centre_a[0] - centre_b[0], centre_a[1] - centre_b[1]) \
+                    - radius_a - radius_b >= 2.0 * largest:
+                continue
+            best = math.inf  # the nearest pair of the grid, where the search starts
+            t1 = t2 = 0.0
+            for p in range(5):
+                xa = hermite_point(positions, slopes, a, ds_a, p / 4.0, 0)[0]
+                ya = hermite_point(positions, slopes, a, ds_a, p / 4.0, 1)[0]
+                for q in range(5):
+                    gap = math.hypot(xa - hermite_point(positions, slopes, b, ds_b, q / 4.0, 0)[0],
+                                     ya - hermite_point(positions, slopes, b, ds_b, q / 4.0, 1)[0])
+                    if gap < best:
+                        best = gap
+                        t1 = p / 4.0
+                        t2 = q / 4.0
+            for _ in range(50):
+                xa = hermite_point(positions, slopes, a, ds_a, t1, 0)[0]
+                ya = hermite_point(positions, slopes, a, ds_a, t1, 1)[0]
+                t2_new = _nearest_on_interval(xa, ya, positions, slopes, b, ds_b, t2)
+                xb = hermite_point(positions, slopes, b, ds_b, t2_new, 0)[0]
+                yb = hermite_point(positions, slopes, b, ds_b, t2_new, 1)[0]
+                t1_new = _nearest_on_interval(xb, yb, positions, slopes, a, ds_a, t1)
+                done = abs(t1_new - t1) < 1e-13 and abs(t2_new - t2) < 1e-13
+                t1 = t1_new
+                t2 = t2_new
+                if done:
+                    break
+            xa = hermite_point(positions, slopes, a, ds_a, t1, 0)[0]
+            ya = hermite_point(positions, slopes, a, ds_a, t1, 1)[0]
+            xb = hermite_point(positions, slopes, b, ds_b, t2, 0)[0]
+            yb = hermite_point(positions, slopes, b, ds_b, t2, 1)[0]
+            reach = half[a] + t1 * (half[a + 1] - half[a]) + half[b] + t2 * (half[b + 1] - half[b])
+            deepest = max(deepest, reach - math.hypot(xa - xb, ya - yb))
     return deepest

@@ -13,7 +13,7 @@ from solver.kernels.self_contact import far_parts_clear
 from solver.paths.planar import solve_planar, solve_single
 from solver.paths.shooting import solve_shooting
 from solver.problem import Problem, contact_layout, reach
-from solver.results import Equilibrium
+from solver.results import Equilibrium, peak_penetration
 from solver.scene import self_contact_exclusion
 
 # Penalty continuation for rigid obstacles (Disc(stiffness=math.inf)): the first penalty
@@ -32,7 +32,9 @@ def solve_rigid(problem: Problem, contact=None) -> Equilibrium:
 
     The rigid discs (and the self-contact, if rigid) get a finite penalty k: from a warm
     start its final one, else the k at which the decay length (EI_min/k)^¼ is L/20. After
-    each solve, while the deepest penetration exceeds ``settings.gap_tol``, k is multiplied
+    each solve, while the deepest penetration into a rigid obstacle (or, with rigid
+    self-contact, into the arm itself) anywhere along the backbone — between the samples
+    too (:func:`solver.results.peak_penetration`) — exceeds ``settings.gap_tol``, k is multiplied
     by RIGID_GROWTH and the solve continues from the last state, the penalty ramped up along
     the path (the homotopy of :func:`solver.paths.shooting.solve_shooting`). The
     penetration falls as 1/k and the state converges to the hard-contact limit (tested).
@@ -63,8 +65,8 @@ def solve_rigid(problem: Problem, contact=None) -> Equilibrium:
                 met = False
             break
         eq = attempt
-        deepest = float(eq.penetration.max()) if eq.penetration.size else 0.0
-        met = deepest <= settings.gap_tol
+        # The deepest penetration anywhere, between the samples too (docs/design.md §9).
+        met = peak_penetration(eq, rigid_only=True, scene=scene) <= settings.gap_tol
         if met or stiffness * RIGID_GROWTH > RIGID_MAX_STIFFNESS:
             break
         stiffness *= RIGID_GROWTH

@@ -122,3 +122,40 @@ def test_self_contact_is_planar_and_needs_a_rod_model():
         solver.solve(ARM, np.zeros(ARM.n_inputs(False)), scene, planar=False)
     with pytest.raises(ValueError, match="constant-curvature"):
         solver.solve(ARM, CURL, scene, model="constant_curvature")
+
+
+# Self-contact scenes of OctArm V for the resolution test: the curled middle pressing on the
+# arm's base end (the scene of issue 35, and others with other pressures, base angles,
+# stiffnesses and a payload), and a curl round a disc.
+_P = solver.PSI
+RESOLUTION_SCENES = {
+    "middle_on_base_end": (dict(base_angle_deg=13.44218070001563), 1.0,
+                           np.array([90.96475894367777, 0, 90.79741275582431, 0, 89.03072383657893, 0])),
+    "full_curl": (dict(), 1.0, np.array([100, 0, 100, 0, 100, 0])),
+    "full_curl_payload": (dict(payload_kg=0.2), 1.0, np.array([100, 0, 100, 0, 100, 0])),
+    "stiff_tubes": (dict(), 10.0, np.array([100, 0, 100, 0, 100, 0])),
+    "tilted_mixed": (dict(base_angle_deg=30.0), 3.0, np.array([95, 0, 100, 0, 85, 0])),
+    "round_a_disc": (dict(obstacles=(WRAPPED,)), 1.0, np.array([100, 0, 100, 0, 100, 0])),
+}
+
+
+@pytest.mark.parametrize("name", list(RESOLUTION_SCENES))
+def test_self_contact_tip_error_at_default_resolution(name):
+    """Where parts of the arm touch, the law is sampled between the RK4 nodes and its geometry
+    carries the kinks of the loads (docs/design.md §9, "Resolution"): at the default 16 RK4
+    steps per section the tip is within 2e-4·L of a 64-step solve (which is within 2e-5·L of
+    a 128-step one on the first scene), and 32 steps are closer still. Before, the curled
+    middle pressing on the base end was seen by one or two nodes and the tip was 4e-3·L off."""
+    kw, stiffness, psi = RESOLUTION_SCENES[name]
+    scene = solver.Scene(self_contact=stiffness * RING, **kw)
+    tips = {}
+    for steps in (16, 32, 64):
+        eq = solver.solve(ARM, psi * _P, scene, settings=solver.Settings(steps_per_section=steps))
+        assert eq.converged and eq.stable and eq.in_contact, steps
+        tips[steps] = eq.tip
+    error = {n: np.linalg.norm(tips[n] - tips[64]) / ARM.length for n in (16, 32)}
+    assert error[16] <= 2e-4
+    assert error[32] < error[16]
+    if name == "middle_on_base_end":
+        finer = solver.solve(ARM, psi * _P, scene, settings=solver.Settings(steps_per_section=128))
+        assert np.linalg.norm(finer.tip - tips[64]) <= 2e-5 * ARM.length
