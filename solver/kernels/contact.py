@@ -345,10 +345,15 @@ def _prepare_partners(Z, grid, rest, level, partners):
     record = np.empty((rows, C_COLUMNS))
     states = np.empty((pts.shape[1], 6))
     ends = np.empty((n_seg, 6))
+    # The tracing pass records, but friction's samples are the residual pass's to record (the
+    # anchors a state's acceptance takes, solver.kernels.obstacles.accept_friction): it
+    # integrates with a copy of them (a Newton step's difference columns trace moved states).
+    fs = level[L_FRICTION]
+    traced = level[:L_FRICTION] + (fs.copy() if fs.shape[0] > 0 else fs,) + level[L_FRICTION + 1:]
     for _ in range(GEOMETRY_PASSES):
         # The segments integrated with the loads as the residual pass integrates them.
         _start_state(Z, 0, theta0, za)
-        _integrate(za, Z, 0, n_seg, grid, rest, level, ends, True, record, None, partners)
+        _integrate(za, Z, 0, n_seg, grid, rest, traced, ends, True, record, None, partners)
         for seg in range(n_seg):
             first = segs[seg, SEG_ROW0] + segs[seg, SEG_FIRST]
             nst = segs[seg, SEG_STEPS]

@@ -266,3 +266,47 @@ def test_a_held_object_balances_normal_and_tangential_point_forces():
     moment = -np.nansum(arm_r[..., 0] * fs[..., L.FS_F + 1] - arm_r[..., 1] * fs[..., L.FS_F])
     assert abs(moment) <= 1e-3 * weight * obj.radius
     assert g.arm_moment == pytest.approx(moment, abs=1e-12)
+
+
+# ---------------------------------------------------------------------------- self-contact
+
+
+def test_self_contact_tracing_leaves_the_friction_samples_to_the_recording_pass():
+    """With self-contact every pass first redraws the arm's pieces through an integration of
+    its own (contact._prepare_partners), which records. Friction's samples — the anchors that
+    accepting a state takes — are the recording pass's alone: a pass that records nothing, at
+    a moved state (a Newton step's difference column), leaves them as they were."""
+    from solver.kernels import contact as contact_kernels
+    from solver.kernels import stepping
+    from solver.paths.lean_contact import ContactRows
+    from solver.problem import Problem, pack
+    from solver.rod import rest_strains_into
+
+    arm = designs.octarm_v()
+    ring = arm.tubes[0].material.ring_stiffness
+    scene = solver.Scene(base_angle_deg=13.44, self_contact=ring,
+                         obstacles=(solver.Disc((0.1, -0.3), 0.04, ring, friction=0.5),))
+    p = np.array([60, 0, 60, 0, 60, 0]) * solver.PSI
+    eq = solver.solve(arm, p, scene)
+    assert eq.converged and eq.in_contact.any()
+    settings = solver.Settings()
+    packed = pack(arm, "full", settings)
+    rows = ContactRows(Problem(arm, packed, scene, "full", True, settings, np.zeros(arm.n_inputs(True)),
+                               np.zeros(arm.n_channels)), 1, 1)
+    rows.adopt(0, eq)
+    contact = rows.contact
+    assert contact[stepping.CT_OK][0]
+    grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
+    level = (contact[stepping.CT_P][0], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
+             contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][0], contact[stepping.CT_MU][0],
+             contact[stepping.CT_FRICTION][0])
+    fs = level[L.L_FRICTION]
+    assert np.any(np.isfinite(fs[..., L.FS_R]))  # samples near the disc
+    before = fs.copy()
+    rest = np.empty_like(contact[stepping.CT_REST][0])
+    rest_strains_into(level[L.L_P], rows.layout.tubes_i, rows.layout.tubes_f, rows.layout.secf, rest)
+    moved = contact[stepping.CT_NODES][0] + 1e-4
+    F = np.empty_like(moved)
+    contact_kernels.newton_system(moved, grid, rest, level, F, np.empty((0, 0)), False,
+                                  np.empty((0, 6, 6)), contact_kernels.new_partners(grid))
+    assert np.array_equal(fs, before, equal_nan=True)
