@@ -99,7 +99,9 @@ def _envs():
 
     import softarm_gym  # noqa: F401  (registers the ids)
     out = {}
-    for env_id, steps in (("SoftArm/OctArmWrap-v1", 12), ("SoftArm/OctArmObstacleReach-v0", 12),
+    for env_id, steps in (("SoftArm/OctArmWrap-v1", 12), ("SoftArm/OctArmWrap-v2", 12),
+                          ("SoftArm/OctArmObstacleReach-v0", 12),
+                          ("SoftArm/OctArmObstacleReach-v1", 12),
                           ("SoftArm/OctArmGrasp-v0", 6), ("SoftArm/OctArmWrap3D-v0", 3)):
         env = gym.make(env_id)
         obs, _ = env.reset(seed=3)
