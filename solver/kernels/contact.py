@@ -349,7 +349,8 @@ def _prepare_partners(Z, grid, rest, level, partners):
     # anchors a state's acceptance takes, solver.kernels.obstacles.accept_friction): it
     # integrates with a copy of them (a Newton step's difference columns trace moved states).
     fs = level[L_FRICTION]
-    traced = level[:L_FRICTION] + (fs.copy() if fs.shape[0] > 0 else fs,) + level[L_FRICTION + 1:]
+    traced = (level[L_P], level[L_Q], level[L_PLATE], level[L_TARGET], level[L_DISCS], level[L_MU],
+              fs.copy() if fs.shape[0] > 0 else fs)
     for _ in range(GEOMETRY_PASSES):
         # The segments integrated with the loads as the residual pass integrates them.
         _start_state(Z, 0, theta0, za)
