@@ -50,6 +50,14 @@ PICTURES = {
               "The planner on the recommended wrap ids, from the start to the first success and the "
               "last step (`python -m softarm_gym.benchmarks.planner --ids "
               "SoftArm/OctArmWrap-v2,SoftArm/CTWrap-v2 --picture docs/environments/wrap_v2_sequence.png`)"),),
+    "obstacle_reach": (("environments/obstacle_reach_v1_sequence.png",
+                        "CEMPlanner on OctArmObstacleReach-v1 and CTObstacleReach-v1, seed 11",
+                        "The planner on the recommended obstacle-reach ids, seed 11, from the start to "
+                        "the first success and the last step: on OctArm V the one-step search stalls "
+                        "behind a disc and a ramp round it reaches the target "
+                        "(`python -m softarm_gym.benchmarks.planner --ids "
+                        "SoftArm/OctArmObstacleReach-v1,SoftArm/CTObstacleReach-v1 --first-seed 11 "
+                        "--picture docs/environments/obstacle_reach_v1_sequence.png`)"),),
 }
 """Page name → pictures under ``docs/`` shown below the success rules: (path, alt text, caption)."""
 

@@ -169,6 +169,20 @@ def test_planner_ramps_across_the_snap_of_a_rate_limited_wrap():
     assert not stuck["is_success"], stuck["wrap_angle_deg"]
 
 
+def test_planner_ramps_round_a_disc_where_one_step_stalls():
+    # OctArmObstacleReach-v1 seed 14: the target lies behind a disc; every single rate-limited
+    # step from the tip's way in front of it is farther from the target than holding, so the
+    # one-step search holds 18 cm away. The target was drawn as the end of a straight pressure
+    # ramp from the start (it is reachable); the planner's escape searches such ramps when a
+    # search stalls, and reaches it.
+    env = gym.make("SoftArm/OctArmObstacleReach-v1")
+    assert CEMPlanner(env).escape and not CEMPlanner(gym.make("SoftArm/OctArmWrap-v2")).escape
+    stuck, _ = _planned_episode(env, CEMPlanner(env, seed=14, escape=False), 14, 40)
+    assert not stuck["is_success"] and stuck["distance"] > 0.1, stuck["distance"]
+    info, _ = _planned_episode(env, CEMPlanner(env, seed=14), 14, 40)
+    assert info["is_success"], info["distance"]
+
+
 def test_planner_lifts_the_free_object_of_a_grasp_and_then_holds():
     # OctArmGrasp-v0 seed 1: one corner (channels I of section 1, II of section 2) lifts the
     # object 7 cm out of its forks, held by the arm alone; the planner's rollouts settle arm
@@ -193,5 +207,7 @@ def test_planner_bad_arguments_are_named():
         CEMPlanner(env, grasp_solves=0)
     with pytest.raises(ValueError, match="commit"):
         CEMPlanner(env, commit="yes")
+    with pytest.raises(ValueError, match="escape"):
+        CEMPlanner(env, escape="yes")
     with pytest.raises(ValueError, match="planar"):
         CEMPlanner(gym.make("SoftArm/OctArmReach-v0", planar=False))

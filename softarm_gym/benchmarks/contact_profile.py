@@ -2,8 +2,9 @@
 
 Each case is an env stepped as a user steps it (``gym.make``, seeded random actions, resets
 when an episode ends), after a warm-up, in one process beside a free ``OctArmReach-v1``
-step (the unit of the ratios). Two runs of the same seeded steps: a plain one for the speed,
-and one under ``cProfile`` for the split of the time between
+step (the unit of the ratios), with the share of its time spent in resets (which solve the
+episode's targets and placements). Two runs of the same seeded steps: a plain one for the
+speed, and one under ``cProfile`` for the split of the time between
 
 * ``lean kernels`` — the steppers' one-call paths (the guarded lean planar kernel, the lean
   contact kernel, their batch rows);
@@ -98,14 +99,17 @@ class _StepTimer:
         solver.Stepper.step = self._step
 
 
-def _run(env, actions) -> float:
-    """Seconds for ``actions`` (resets counted)."""
+def _run(env, actions) -> tuple[float, float]:
+    """Seconds for ``actions`` (resets counted), and the seconds of the resets among them."""
+    resets = 0.0
     start = time.perf_counter()
     for action in actions:
         _, _, terminated, truncated, _ = env.step(action)
         if terminated or truncated:
+            begin = time.perf_counter()
             env.reset()
-    return time.perf_counter() - start
+            resets += time.perf_counter() - begin
+    return time.perf_counter() - start, resets
 
 
 def profile_case(env_id: str, kwargs: dict, steps: int, seed: int = 0) -> dict:
@@ -120,7 +124,7 @@ def profile_case(env_id: str, kwargs: dict, steps: int, seed: int = 0) -> dict:
     state = env.unwrapped
     env.reset(seed=seed + 1)
     with _StepTimer() as timer:
-        seconds = _run(env, timed)
+        seconds, reset_seconds = _run(env, timed)
     paths = {path: len(times) for path, times in timer.seconds.items()}
     by_path = {path: 1e6 * float(np.mean(times)) for path, times in timer.seconds.items()}
     env.reset(seed=seed + 1)
@@ -134,6 +138,7 @@ def profile_case(env_id: str, kwargs: dict, steps: int, seed: int = 0) -> dict:
     total = sum(share.values()) or 1.0
     out = {
         "id": env_id, "kwargs": kwargs, "steps": len(timed), "us_per_step": 1e6 * seconds / len(timed),
+        "reset_share": reset_seconds / seconds,
         "paths": paths, "us_per_step_by_path": by_path,
         "iterations_median_by_path": {path: float(np.median(n)) for path, n in timer.iterations.items()},
         "profile_share": {c: share[c] / total for c in CATEGORIES},
@@ -168,14 +173,15 @@ def run(steps: int = 300, quick: bool = False, progress=None) -> dict:
 
 def format_table(result: dict) -> str:
     """Markdown tables of :func:`run`'s result: speed and paths, then where the time goes."""
-    lines = ["| case | µs/step | × free step | paths (steps) | µs by path | iterations by path (median) |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| case | µs/step | × free step | resets | paths (steps) | µs by path | "
+             "iterations by path (median) |",
+             "|---|---|---|---|---|---|---|"]
     for name, case in result["cases"].items():
         paths = ", ".join(f"{p} {n}" for p, n in sorted(case["paths"].items()))
         by_path = ", ".join(f"{p} {us:.0f}" for p, us in sorted(case["us_per_step_by_path"].items()))
         iterations = ", ".join(f"{p} {n:g}" for p, n in sorted(case["iterations_median_by_path"].items()))
         lines.append(f"| {name} | {case['us_per_step']:.0f} | {case['ratio_to_free_step']:.1f} | "
-                     f"{paths} | {by_path} | {iterations or '—'} |")
+                     f"{100 * case['reset_share']:.0f} % | {paths} | {by_path} | {iterations or '—'} |")
     lines += ["", "| case | " + " | ".join(CATEGORIES) + " | residual / Jacobian pass (µs), rows refined |",
               "|---|" + "---|" * (len(CATEGORIES) + 1)]
     for name, case in result["cases"].items():

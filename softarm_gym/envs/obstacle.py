@@ -306,15 +306,18 @@ class ObstacleReachEnv(ReachEnv):
             # From the start state, not cold: the solver's cold path loads the straight arm
             # with the discs in place, and a disc can catch it as it droops — a branch the
             # episode's arm, which starts drooped and clear of the discs, may never reach.
-            target = eq
+            # Stepped as the episode's arm steps (a Stepper: its lean contact path, and where
+            # that cannot, solve() from the previous state; the same equilibria to the
+            # solver's tolerance), at a fraction of the general contact path's cost.
+            ramp = solver.Stepper(arm, scene, model=self.model, planar=True)
+            ramp.adopt(eq)
             step = self.delta_scale if self.action_mode == "delta" else None
             for p in self._ramp(start.pressures, pressures, step):
-                target = solver.solve(arm, p, scene, model=self.model, planar=True, warm_start=target)
-                if not target.converged or (target.in_contact and self.contact == "forbid"):
+                if not ramp.step(p).converged or (self.contact == "forbid" and ramp.equilibrium.in_contact):
                     return None
-            if self._gap(target.tip[None], discs) < self.clearance:
+            if self._gap(ramp.tip[None], discs) < self.clearance:
                 return None
-            self._target[:] = target.tip
+            self._target[:] = ramp.tip
         self.target_pressures_pa = None if fixed_target else pressures
         self._discs = np.array(discs, dtype=float)
         return scene, eq

@@ -1233,6 +1233,12 @@ def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, slope):
 LEAN_ITER = 12
 LEAN_RATE = 0.25
 
+# What a lean contact step (planar or 3D) may spend before it hands the step to the general
+# path: steps of its path tried (accepted or halved), and Jacobians formed (its Newton
+# iterations and the pass of each accepted state).
+LEAN_TRIES = 32
+LEAN_JACOBIANS = 64
+
 
 @njit
 def new_factors(n, coupled):
@@ -1327,29 +1333,116 @@ def _dense_lu_solve(a, piv, b):
 
 
 @njit
+def broyden_update(steps, norms, k, z):
+    """The next quasi-Newton step by Broyden's updates of an inverse Jacobian (Kelley's
+    form): ``z`` (N,), the stored Jacobian's solve of −F, updated by the steps so far
+    ``steps[0..k]`` (rows) with their squared norms ``norms``, scaled and written into
+    ``steps[k + 1]``. Returns False where the update is singular (nothing written)."""
+    n = z.shape[0]
+    for j in range(k):
+        c = 0.0
+        for i in range(n):
+            c += steps[j, i] * z[i]
+        c /= norms[j]
+        for i in range(n):
+            z[i] += steps[j + 1, i] * c
+    c = 0.0
+    for i in range(n):
+        c += steps[k, i] * z[i]
+    denom = 1.0 - c / norms[k]
+    if denom == 0.0:
+        return False
+    for i in range(n):
+        steps[k + 1, i] = z[i] / denom
+    return True
+
+
+@njit
+def _broyden(Z, grid, rest, level, F, res_weights, tol, factors, res, partners):
+    """Quasi-Newton corrections of the nodes ``Z`` at ``level`` from their residual ``F``
+    (its weighted norm ``res``): the first step by the factored Jacobian ``factors`` (of a
+    nearby state, :func:`factor_state`), later ones by Broyden's updates of its inverse
+    (Kelley's form, a factored solve and a residual pass each), while the residual falls at
+    least LEAN_RATE-fold a pass. ``Z`` ends at the last iterate, ``F`` holds its residual.
+
+    Returns:
+        (converged, passes, first): ``first`` (N,) the first step (a lean step's prediction).
+    """
+    n = Z.shape[0]
+    no_record = np.empty((1, C_COLUMNS))
+    no_blocks = np.empty((0, 6, 6))
+    unused = np.empty((1, n))
+    # Broyden steps s_k (rows) and their squared norms; S[0] is the prediction.
+    steps = np.empty((LEAN_ITER + 1, n))
+    norms = np.empty(LEAN_ITER + 1)
+    z = np.empty(n)
+    for i in range(n):
+        steps[0, i] = -F[i]
+    _factored_solve(factors, steps[0])
+    first = steps[0].copy()
+    passes = 0
+    k = 0
+    while True:
+        norms[k] = 0.0
+        for i in range(n):
+            norms[k] += steps[k, i] * steps[k, i]
+            Z[i] += steps[k, i]
+        recorded_system(Z, grid, rest, level, F, unused, False, no_blocks, partners, no_record)
+        passes += 1
+        r = weighted_norm(F, res_weights)
+        if r <= tol:
+            return True, passes, first
+        if not r <= LEAN_RATE * res or k == LEAN_ITER - 1 or norms[k] == 0.0:
+            return False, passes, first
+        res = r
+        for i in range(n):
+            z[i] = -F[i]
+        _factored_solve(factors, z)
+        if not broyden_update(steps, norms, k, z):
+            return False, passes, first
+        k += 1
+
+
+@njit
+def _copy_factors(src, dst):
+    """Copy the factors of :func:`factor_state` ``src`` into ``dst`` (:func:`new_factors`)."""
+    dst[0][:, :] = src[0]
+    dst[1][:] = src[1]
+    dst[2][:, :] = src[2]
+    dst[3][:] = src[3]
+    dst[4][0] = src[4][0]
+
+
+@njit
 def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, records, check):
     """A warm step of the contact stepper in one kernel call: from the equilibrium ``Z`` at
     ``level`` to the pressures ``p_new`` and the discs ``discs_new`` (the same array as the
-    level's where they stand still; moved, as a held object moves), the loads unchanged.
+    level's where they stand still; moved, as a held object moves), the loads unchanged — a
+    lean continuation.
 
-    The factored Jacobian of the start state (``factors``, kept from the step before)
-    predicts the new state to first order; Broyden corrections on it (Kelley's inverse
-    form, a factored solve and a residual pass each) take it to the tolerance while the
-    residual falls at least fourfold a pass, and damped Newton (:func:`newton`) takes over
-    where it does not. The step is accepted on the terms :func:`_path` accepts a
-    continuation step — converged, stable, within ``0.05 + 0.5·|prediction|`` of its
-    prediction (weighted RMS), no sample tunnelled through a disc — and then its Jacobian,
-    stability test and backbone come from one more pass (:func:`factor_state`), and the RK4
-    grid must resolve that backbone (:func:`solver.kernels.grid.section_needs`, the general
-    path's check). Anything else leaves every input untouched and returns ``ok = False``:
-    the caller's general path (continuation, snaps, refinement) takes the step.
+    The quasi-static path is followed as :func:`_path` follows it — pressures and discs
+    linear in t, a step accepted when converged (``tol``; a thousand times that short of the
+    end), stable, within ``0.05 + 0.5·|prediction|`` of its prediction (weighted RMS: a
+    branch jump is a refusal) and no sample tunnelled through a disc, halved otherwise,
+    doubled after an acceptance — but each step is predicted to first order by the factored
+    Jacobian of the last accepted state (kept from the step before for the first) and
+    corrected by Broyden's updates of it (:func:`_broyden`), with damped Newton
+    (:func:`newton`) only where those stall. The first try is the whole step: a small move
+    is one prediction and a few corrections. Each accepted state gets its Jacobian,
+    stability test and backbone from one more pass (:func:`factor_state`), and the last
+    must be resolved by the RK4 grid (:func:`solver.kernels.grid.section_needs`, the
+    general path's check). Past LEAN_TRIES steps or LEAN_JACOBIANS Jacobians, or on
+    anything else, every input is left untouched and ``ok`` is False: the caller's general
+    path (continuation, snaps, refinement) takes the step.
 
     Args:
         Z: (N,) the nodes of the current equilibrium (:func:`newton_system`); the new ones on
             success.
         grid: the layout tuple (``G_*``). tubes: (tubes_i, tubes_f).
         level: the level tuple (``L_*``) of ``Z``; its pressures and discs become ``p_new``
-            and ``discs_new`` on success.
+            and ``discs_new`` on success, and its friction samples (if any) the path's, each
+            accepted step accepting its anchors as :func:`_path`'s do
+            (:func:`solver.kernels.obstacles.accept_friction`).
         p_new: (n_channels,) the target pressures (Pa). discs_new: (k, 4) the target discs
             (the same law and count as the level's).
         params: (N_PARAMS,) numeric parameters (TOL, MAX_STEP, MAX_ITER are used).
@@ -1370,99 +1463,109 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     tol = params[TOL]
     n = Z.shape[0]
     secf = grid[G_SECF]
-    now = (p_new, level[L_Q], level[L_PLATE], level[L_TARGET], discs_new, level[L_MU],
-           level[L_FRICTION])
-    rest_strains_into(p_new, tubes[0], tubes[1], secf, rest)
+    p_old, discs_old = level[L_P], level[L_DISCS]
+    p_now = np.empty_like(p_new)
+    discs_now = np.empty_like(discs_new)
+    # The path's tangential state: the level's samples, copied (its accepted steps accept
+    # theirs, and a refused lean step leaves the level's untouched).
+    fs = level[L_FRICTION]
+    friction = fs.shape[0] > 0
+    fs_now = fs.copy() if friction else fs
+    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], discs_now, level[L_MU], fs_now)
     partners = new_partners(grid)
     no_record = np.empty((1, C_COLUMNS))
     no_blocks = np.empty((0, 6, 6))
     unused = np.empty((1, n))
+    blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
+    need = np.empty(secf.shape[1])
     F = np.empty(n)
     start = Z.copy()
-    recorded_system(Z, grid, rest, now, F, unused, False, no_blocks, partners, no_record)
-    res = weighted_norm(F, res_weights)
-    passes = 1
-    # Broyden steps s_k (rows) and their squared norms; S[0] is the prediction.
-    steps = np.empty((LEAN_ITER + 1, n))
-    norms = np.empty(LEAN_ITER + 1)
-    z = np.empty(n)
-    k = 0
-    ok = res <= tol
-    if not ok and math.isfinite(res):
-        for i in range(n):
-            steps[0, i] = -F[i]
-        _factored_solve(factors, steps[0])
-        while True:
-            norms[k] = 0.0
-            for i in range(n):
-                norms[k] += steps[k, i] * steps[k, i]
-                Z[i] += steps[k, i]
-            recorded_system(Z, grid, rest, now, F, unused, False, no_blocks, partners,
-                            no_record)
-            passes += 1
-            r = weighted_norm(F, res_weights)
-            if r <= tol:
-                ok = True
-                break
-            if not r <= LEAN_RATE * res or k == LEAN_ITER - 1 or norms[k] == 0.0:
-                break
-            res = r
-            for i in range(n):
-                z[i] = -F[i]
-            _factored_solve(factors, z)
-            for j in range(k):
-                c = 0.0
-                for i in range(n):
-                    c += steps[j, i] * z[i]
-                c /= norms[j]
-                for i in range(n):
-                    z[i] += steps[j + 1, i] * c
-            c = 0.0
-            for i in range(n):
-                c += steps[k, i] * z[i]
-            denom = 1.0 - c / norms[k]
-            if denom == 0.0:
-                break
-            k += 1
-            for i in range(n):
-                steps[k, i] = z[i] / denom
-        if not ok:
-            ok, its, r, stable = newton(Z, grid, rest, now, weights, res_weights, tol,
-                                        int(params[MAX_ITER]), params[MAX_STEP])
-            passes += its
-            ok = ok and stable
-    if ok:
-        # The prediction is the start moved by the first step (none if the start held).
-        corr = 0.0
-        pred = 0.0
-        for i in range(n):
-            guess = start[i] + (steps[0, i] if passes > 1 else 0.0)
-            corr += ((Z[i] - guess) / weights[i]) ** 2
-            pred += ((guess - start[i]) / weights[i]) ** 2
-        ok = math.sqrt(corr / n) <= 0.05 + 0.5 * math.sqrt(pred / n)
+    accepted = Z.copy()
+    before = rec[:, C_X:C_Y + 1].copy()  # the accepted state's backbone (the tunnel check's start)
+    coupled = factors[2].shape[0] > 0
+    held = new_factors(n, coupled)  # the factors of the accepted state
+    _copy_factors(factors, held)
+    spare = new_factors(n, coupled)
+    t = 0.0
+    dt = 1.0
+    passes = 0
+    jacobians = 0
+    res = math.inf
     stable = False
-    if ok:
-        blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
-        fresh = new_factors(n, factors[2].shape[0] > 0)
-        regular = factor_state(Z, grid, rest, now, weights, F, blocks, new, fresh)
+    for _ in range(LEAN_TRIES):
+        if jacobians >= LEAN_JACOBIANS:
+            break
+        t_new = min(1.0, t + dt)
+        final = t_new >= 1.0
+        for c in range(p_new.shape[0]):
+            p_now[c] = p_new[c] if final else p_old[c] + t_new * (p_new[c] - p_old[c])
+        for i in range(discs_new.shape[0]):
+            for d in range(discs_new.shape[1]):
+                discs_now[i, d] = discs_new[i, d] if final else \
+                    discs_old[i, d] + t_new * (discs_new[i, d] - discs_old[i, d])
+        rest_strains_into(p_now, tubes[0], tubes[1], secf, rest)
+        goal = tol if final else 1e3 * tol
+        recorded_system(Z, grid, rest, now, F, unused, False, no_blocks, partners, no_record)
         passes += 1
         res = weighted_norm(F, res_weights)
-        stable = stability_test(blocks) > 0.0
-        need = np.empty(secf.shape[1])
-        ok = (res <= tol and stable and regular
-              and not tunnels(rec[:, C_X:C_Y + 1], new[:, C_X:C_Y + 1], discs_new, TUNNEL_SLACK)
-              and section_needs(new[:, C_U:C_U + 1], new[:, C_NX:C_NY + 1], new[:, C_V1:C_V3 + 1],
-                                check[0], secf, check[1], need) <= 1.0)
+        ok = res <= goal
+        predicted = False
+        first = F
+        if not ok and math.isfinite(res):
+            ok, its, first = _broyden(Z, grid, rest, now, F, res_weights, goal, held, res,
+                                      partners)
+            passes += its
+            predicted = True
+            if not ok:
+                ok, its, res, stable = newton(
+                    Z, grid, rest, now, weights, res_weights, goal,
+                    min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
+                    params[MAX_STEP])
+                passes += its
+                jacobians += its + 1
+                ok = ok and stable
         if ok:
-            factors[0][:, :] = fresh[0]
-            factors[1][:] = fresh[1]
-            factors[2][:, :] = fresh[2]
-            factors[3][:] = fresh[3]
-            factors[4][0] = fresh[4][0]
-            for c in range(p_new.shape[0]):
-                level[L_P][c] = p_new[c]
-            level[L_DISCS][:, :] = discs_new
-            accept_friction(level[L_FRICTION])
-    if not ok:
+            # Within 0.05 + 0.5·|prediction| of the prediction: the accepted state moved by
+            # the first step (none if it held).
+            corr = 0.0
+            pred = 0.0
+            for i in range(n):
+                guess = accepted[i] + (first[i] if predicted else 0.0)
+                corr += ((Z[i] - guess) / weights[i]) ** 2
+                pred += ((guess - accepted[i]) / weights[i]) ** 2
+            ok = math.sqrt(corr / n) <= 0.05 + 0.5 * math.sqrt(pred / n)
+        stable = False
+        if ok:
+            regular = factor_state(Z, grid, rest, now, weights, F, blocks, new, spare)
+            passes += 1
+            jacobians += 1
+            res = weighted_norm(F, res_weights)
+            stable = stability_test(blocks) > 0.0
+            ok = (res <= goal and stable and regular
+                  and not tunnels(before, new[:, C_X:C_Y + 1], discs_now, TUNNEL_SLACK)
+                  and (not final or section_needs(new[:, C_U:C_U + 1], new[:, C_NX:C_NY + 1],
+                                                  new[:, C_V1:C_V3 + 1], check[0], secf,
+                                                  check[1], need) <= 1.0))
+        if ok:
+            t = t_new
+            accepted[:] = Z
+            held, spare = spare, held
+            before[:, :] = new[:, C_X:C_Y + 1]
+            if friction:
+                accept_friction(fs_now)
+            if final:
+                break
+            dt = min(2.0 * dt, 1.0)
+        else:
+            Z[:] = accepted
+            dt *= 0.5
+    if t < 1.0:
         Z[:] = start
-    return ok, stable, passes, res
+        return False, stable, passes, res
+    _copy_factors(held, factors)
+    for c in range(p_new.shape[0]):
+        p_old[c] = p_new[c]
+    discs_old[:, :] = discs_new
+    if friction:
+        fs[...] = fs_now
+    return True, stable, passes, res

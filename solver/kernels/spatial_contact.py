@@ -33,10 +33,13 @@ import numpy as np
 from solver.jit import njit
 from solver.kernels.contact import (
     LEAN_ITER,
+    LEAN_JACOBIANS,
     LEAN_RATE,
+    LEAN_TRIES,
     NEAR_SUBSTEPS,
     TUNNEL_SLACK,
     band_lu_solve,
+    broyden_update,
     factor_band,
     set_level,
     start_friction,
@@ -954,29 +957,9 @@ def broyden(Z, grid, rest, level, F, scales, res_weights, tol, factors, res):
         for i in range(n):
             z[i] = -F[i]
         band_lu_solve(lu, piv, z)
-        for j in range(k):
-            c = 0.0
-            for i in range(n):
-                c += steps[j, i] * z[i]
-            c /= norms[j]
-            for i in range(n):
-                z[i] += steps[j + 1, i] * c
-        c = 0.0
-        for i in range(n):
-            c += steps[k, i] * z[i]
-        denom = 1.0 - c / norms[k]
-        if denom == 0.0:
+        if not broyden_update(steps, norms, k, z):
             return False, res, passes, first
         k += 1
-        for i in range(n):
-            steps[k, i] = z[i] / denom
-
-
-# What a lean 3D contact step may spend before it hands the step to the general path: steps
-# of its path tried (accepted or halved), and Jacobians formed (its Newton iterations and
-# the pass of each accepted state).
-LEAN_TRIES = 32
-LEAN_JACOBIANS = 64
 
 
 @njit
@@ -1005,6 +988,8 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
         Z: (K, N_CSTATE) the nodes of the current equilibrium; the new ones on success.
         grid: the layout tuple (``GS_*``). tubes: (tubes_i, tubes_f).
         level: the level tuple (``L_*``) of ``Z``; its pressures become ``p_new`` on success.
+            Without friction (no samples: the 3D lean path takes no scene with friction,
+            :func:`solver.paths.lean_spatial_contact.lean_spatial_contact_reason`).
         p_new: (n_channels,) the target pressures (Pa).
         params: (N_PARAMS,) numeric parameters (TOL, MAX_ITER, MAX_STEP are used).
         work: (rest (3, ns), weights (n,), res_weights (n,), scales (12,)): scratch for the
@@ -1027,7 +1012,8 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
     obstacles = level[L_DISCS]
     p_old = level[L_P]
     p_now = np.empty_like(p_new)
-    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], obstacles)
+    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], obstacles, level[L_MU],
+           level[L_FRICTION])
     F = np.empty(n)
     no_jac = np.empty((0, 0))
     no_blocks = np.empty((0, N_CTANGENT, N_CTANGENT))

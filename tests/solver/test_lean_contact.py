@@ -31,6 +31,18 @@ def curl_walk(arm, n, seed, scale=0.1, drift=0.03):
     return p
 
 
+def assert_lands_on(stepper, ref):
+    """The stepper's state is ``ref`` (a warm solve()'s) to the solver's tolerance; returns
+    the stepper's equilibrium."""
+    got = stepper.equilibrium
+    np.testing.assert_allclose(stepper.tip, ref.tip, atol=1e-9)
+    np.testing.assert_allclose(got.positions, ref.positions, atol=1e-9)
+    np.testing.assert_allclose(got.penetration, ref.penetration, atol=1e-10)
+    np.testing.assert_allclose(got.contact_force, ref.contact_force, atol=1e-5)
+    assert (got.in_contact, got.stable) == (ref.in_contact, ref.stable)
+    return got
+
+
 # (base angle, scene arguments, walk step, walk drift)
 SCENES = {
     # The hanging arm curling onto a disc beside it (the wrap task's geometry).
@@ -62,15 +74,43 @@ def test_contact_steps_equal_warm_solves(name):
         assert report.converged == ref.converged
         if not report.converged:
             continue
-        got = stepper.equilibrium
-        np.testing.assert_allclose(stepper.tip, ref.tip, atol=1e-9)
-        np.testing.assert_allclose(got.positions, ref.positions, atol=1e-9)
-        np.testing.assert_allclose(got.penetration, ref.penetration, atol=1e-10)
-        np.testing.assert_allclose(got.contact_force, ref.contact_force, atol=1e-5)
-        assert (got.in_contact, got.stable) == (ref.in_contact, ref.stable)
+        got = assert_lands_on(stepper, ref)
         np.testing.assert_array_equal(stepper.record[:, L.C_X:L.C_Y + 1], got.positions)
         eq = got
     assert {"lean", "lean contact"} <= set(paths), paths
+
+
+@pytest.mark.parametrize("name", ["wrap", "obstacles"])
+def test_large_jumps_in_contact_take_the_lean_continuation_and_equal_warm_solves(name):
+    """Random absolute pressures, as an env's random actions give them: jumps across much of
+    the pressure range from states in contact. The lean step follows them as a short
+    continuation (sub-steps predicted from the stored factors) and every step lands where
+    solve() from the previous equilibrium lands."""
+    base, kwargs, scale, drift = SCENES[name]
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=base, **kwargs)
+    stepper = solver.Stepper(arm, scene)
+    walk = curl_walk(arm, 30, seed=7, scale=scale, drift=drift)
+    stepper.reset(walk[0])
+    for p in walk[1:]:
+        stepper.step(p)
+    rng = np.random.default_rng(11)
+    eq = stepper.equilibrium
+    jumps = []  # the largest channel change (× p_max) of lean contact steps from contact
+    for _ in range(30):
+        p = rng.uniform(0.0, 1.0, arm.n_inputs(True)) * arm.max_pressure
+        touching = eq.in_contact
+        jump = np.max(np.abs(p - stepper.pressures)) / arm.max_pressure
+        report = stepper.step(p)
+        ref = solver.solve(arm, p, scene, warm_start=eq)
+        assert report.converged == ref.converged
+        if not report.converged:
+            continue
+        if touching and stepper.last_path == "lean contact":
+            jumps.append(jump)
+        got = assert_lands_on(stepper, ref)
+        eq = got
+    assert jumps and max(jumps) > 0.5, jumps
 
 
 def test_contact_record_columns_are_the_planar_record_columns():
@@ -81,8 +121,9 @@ def test_contact_record_columns_are_the_planar_record_columns():
 
 
 def test_a_failed_lean_contact_step_leaves_the_state_and_the_general_path_takes_it():
-    """A jump across the pressure range from a state in contact (a snap the lean step
-    cannot take): the general path takes it from the same state, as solve() does."""
+    """A jump across the pressure range from a state in contact that snaps (the arm curls
+    through a fold, which the lean continuation's stability test refuses): the general path
+    takes it from the same state, as solve() does."""
     arm = designs.octarm_v()
     base, kwargs, _, _ = SCENES["wrap"]
     scene = solver.Scene(base_angle_deg=base, **kwargs)
@@ -93,10 +134,11 @@ def test_a_failed_lean_contact_step_leaves_the_state_and_the_general_path_takes_
         stepper.step(p)
     assert stepper.last_path == "lean contact"
     start = stepper.equilibrium
-    jump = np.array([0, 100, 0, 100, 0, 100]) * PSI
+    jump = np.array([100, 0, 100, 0, 100, 0]) * PSI
     report = stepper.step(jump)
     assert stepper.last_path == "general"
     ref = solver.solve(arm, jump, scene, warm_start=start)
+    assert ref.snapped
     assert report.converged == ref.converged
     np.testing.assert_allclose(stepper.tip, ref.tip, atol=1e-9)
 
