@@ -25,9 +25,9 @@ compile in a process prints one line on stderr saying so, and where the result i
 
 A kernel called from another kernel is compiled for the plain types of its arguments, not their
 literal values: numba otherwise compiles a callee once per constant a caller passes (``record=True``
-here, a variable flag there, ``0`` for a start index: four copies of the contact integrator, a third
-of all compile time). A callee that only types with the value itself (an index into a
-heterogeneous tuple) is still compiled for it (:func:`_typed_without_literals`).
+here, a variable flag there, ``0`` for a start index: four copies of the contact integrator). A
+callee that only types with the value itself (an index into a heterogeneous tuple) is still
+compiled for it (:func:`_typed_without_literals`).
 """
 
 from __future__ import annotations

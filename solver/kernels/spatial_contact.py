@@ -106,7 +106,6 @@ from solver.rod import (
 )
 
 
-
 def tether(k: float, anchors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The ``tether`` argument of :func:`newton`: springs of ``k`` N/m tying each node after
     the base to ``anchors`` (K, 3) (m), as read-only copies: the type numba gives
