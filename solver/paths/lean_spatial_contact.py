@@ -79,7 +79,10 @@ class SpatialContactRows:
         self.n = n
         ns, nc, rows = len(arm.sections), arm.n_channels, packed.n_rows
         ctx = problem.ctx
-        seg, s, force = spatial_samples(arm, packed, scene.without_contact, ctx)
+        # Own writable copies of the shared, read-only samples: an unpickled copy of this
+        # object holds writable arrays (pickle drops the flag), and a read-only array is
+        # another type to numba, so every unpickled env compiled the kernel again.
+        seg, s, force = (np.array(a) for a in spatial_samples(arm, packed, scene.without_contact, ctx))
         free = [None] * stepping.N_FREE3
         free[stepping.F3_QUAT0] = base_quaternion(scene.base_theta)
         free[stepping.F3_SECF], free[stepping.F3_STEPS] = packed.secf, packed.sec_steps
