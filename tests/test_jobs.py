@@ -43,7 +43,11 @@ from softarm_gym.jobs import (
 from tests.baselines.conftest import tiny_hyperparams
 from tests.timings import without_timings
 
-NO_AUTH = {"RAY_AUTH_MODE": "disabled"}  # the fixture cluster runs without token authentication
+# The fixture cluster runs without token authentication, and its workers at the priority of the
+# tests: Ray starts workers at nice 15, so beside the other pytest worker they got a few per cent
+# of a core (the stress sweep, 12 s on the local backend, took over 8 minutes on Ray at load 8;
+# 106 s at nice 0).
+RAY_ENV = {"RAY_AUTH_MODE": "disabled", "RAY_worker_niceness": "0"}
 
 
 def _run_json(capsys, argv):
@@ -56,7 +60,7 @@ def _run_json(capsys, argv):
 def _cli(argv, **kwargs):
     """The command line in a child process (to be interrupted or killed)."""
     return subprocess.Popen([sys.executable, "-m", "softarm_gym.cli", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env={**os.environ, **NO_AUTH}, **kwargs)
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, **RAY_ENV}, **kwargs)
 
 
 def _kept(directory: Path) -> list[Path]:
@@ -326,11 +330,11 @@ def cluster():
             "--ray-client-server-port", str(_free_port()),
             "--dashboard-agent-listen-port", str(_free_port())]
     log = open(Path(temp) / "head.log", "w")
-    proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **NO_AUTH},
+    proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **RAY_ENV},
                             start_new_session=True)
     # For the drivers this process starts, and for private instances (ray.init() without an
     # address), whose session files then go under this fixture's directory too.
-    private = {**NO_AUTH, "RAY_TMPDIR": temp}
+    private = {**RAY_ENV, "RAY_TMPDIR": temp}
     saved = {k: os.environ.get(k) for k in private}
     os.environ.update(private)
     try:
@@ -501,7 +505,7 @@ def _rl_sweep_args(tmp_path: Path, *extra: str, seeds: str = "0,1", timesteps: i
 def _sweep(argv, **kwargs):
     """``python -m baselines.sweep`` in a child process (to be interrupted, or its worker killed)."""
     return subprocess.Popen([sys.executable, "-m", "baselines.sweep", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env={**os.environ, **NO_AUTH}, **kwargs)
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, **RAY_ENV}, **kwargs)
 
 
 def _checkpoints(run: Path) -> dict[int, dict]:
