@@ -55,7 +55,11 @@ SLIP_FRICTION = 0.5
 """μ of the benchmark's slip rows."""
 
 STEPS = (16, 64, 256)
-"""RK4 steps per section of the benchmark's rows (16: the default)."""
+"""RK4 steps per section of the benchmark's slip rows (16: the default)."""
+
+CAPSTAN_CONFIGS = ((K_DRUM, 16), (K_DRUM, 64), (K_DRUM, 256), (10 * K_DRUM, 16))
+"""(drum stiffness (N/m²), RK4 steps per section) of the benchmark's capstan rows: the
+resolution at the tests' drum, then a ten times stiffer drum (less compliance)."""
 
 
 # ------------------------------------------------------------------------------ the capstan
@@ -69,30 +73,32 @@ def belt(theta: float) -> ArmDesign:
         for _ in range(4)))
 
 
-def drum_scene(direction: float, tension: float, mu: float, mirror: float = 1.0) -> solver.Scene:
+def drum_scene(direction: float, tension: float, mu: float, mirror: float = 1.0,
+               stiffness: float = K_DRUM) -> solver.Scene:
     """The belt clamped along +x, tangent to the drum's top, no gravity; the tip pulled along
-    ``direction`` (rad, clockwise from +x) with ``tension`` (N); the drum's friction ``mu``.
+    ``direction`` (rad, clockwise from +x) with ``tension`` (N); the drum's friction ``mu`` and
+    penalty ``stiffness`` (N/m²).
     ``mirror`` −1: all of it mirrored in the x axis (the drum above the belt, the pull turned
     counter-clockwise)."""
     return solver.Scene(base_angle_deg=90.0, gravity=0.0,
                         tip_force=(tension * math.cos(direction), -mirror * tension * math.sin(direction)),
-                        obstacles=(solver.Disc((LEAD, -mirror * R_DRUM), R_DRUM, K_DRUM, friction=mu),))
+                        obstacles=(solver.Disc((LEAD, -mirror * R_DRUM), R_DRUM, stiffness, friction=mu),))
 
 
-def wrap_belt(theta: float, t0: float, mirror: float = 1.0,
-              settings: Settings = DEFAULT_SETTINGS) -> tuple[ArmDesign, list]:
-    """The belt wrapped ``theta`` (rad) frictionless under the pull ``t0`` (N), the pull turned
-    round in 10° steps (at least four).
+def wrap_belt(theta: float, t0: float, mirror: float = 1.0, settings: Settings = DEFAULT_SETTINGS,
+              stiffness: float = K_DRUM) -> tuple[ArmDesign, list]:
+    """The belt wrapped ``theta`` (rad) frictionless under the pull ``t0`` (N) round a drum of
+    penalty ``stiffness`` (N/m²), the pull turned round in 10° steps (at least four).
 
     Returns:
         ``(arm, path)``: the :func:`belt` and the equilibria of the wrapping, the straight belt
         first and the wrapped one last (check ``converged`` and ``stable`` on each).
     """
     arm = belt(theta)
-    path = [solver.solve(arm, [], drum_scene(0.0, t0, 0.0, mirror), settings=settings)]
+    path = [solver.solve(arm, [], drum_scene(0.0, t0, 0.0, mirror, stiffness), settings=settings)]
     for direction in np.linspace(0.0, theta, max(4, round(math.degrees(theta)) // 10) + 1)[1:]:
-        path.append(solver.solve(arm, [], drum_scene(direction, t0, 0.0, mirror), warm_start=path[-1],
-                                 settings=settings))
+        path.append(solver.solve(arm, [], drum_scene(direction, t0, 0.0, mirror, stiffness),
+                                 warm_start=path[-1], settings=settings))
     return arm, path
 
 
@@ -150,9 +156,9 @@ def _summary(times, ok) -> dict:
             "path_seconds": float(np.sum(times)), "converged_fraction": float(np.mean(ok))}
 
 
-def capstan(theta_deg: float, mu: float, steps: int = 16, repeat: int = 3) -> dict:
-    """One capstan row: the belt wrapped ``theta_deg`` and pulled past slip with friction
-    ``mu`` at ``steps`` RK4 steps per section.
+def capstan(theta_deg: float, mu: float, steps: int = 16, repeat: int = 3, stiffness: float = K_DRUM) -> dict:
+    """One capstan row: the belt wrapped ``theta_deg`` round a drum of penalty ``stiffness``
+    (N/m²) and pulled past slip with friction ``mu`` at ``steps`` RK4 steps per section.
 
     Returns:
         The row: ``ratio`` T₁/T₂ at the last pull, ``capstan`` e^{μθ}, ``relative_error``
@@ -163,16 +169,17 @@ def capstan(theta_deg: float, mu: float, steps: int = 16, repeat: int = 3) -> di
     theta = math.radians(theta_deg)
     settings = solver.Settings(steps_per_section=steps)
     t0, pulls = capstan_pulls(theta, mu)
-    arm, path = wrap_belt(theta, t0, settings=settings)
+    arm, path = wrap_belt(theta, t0, settings=settings, stiffness=stiffness)
     ok = [eq.converged and eq.stable for eq in path]
     eq, times, ratios = path[-1], [], []
     for t1 in pulls:
-        eq, seconds = _timed(repeat, arm, drum_scene(theta, t1, mu), eq, settings)
+        eq, seconds = _timed(repeat, arm, drum_scene(theta, t1, mu, stiffness=stiffness), eq, settings)
         times.append(seconds)
         ok.append(eq.converged and eq.stable)
         ratios.append(t1 / clamp_tension(eq))
     expected = math.exp(mu * theta)
-    return {"theta_deg": theta_deg, "mu": mu, "steps_per_section": steps, "capstan": expected,
+    return {"theta_deg": theta_deg, "mu": mu, "stiffness": stiffness, "steps_per_section": steps,
+            "capstan": expected,
             "ratio": ratios[-1], "relative_error": abs(ratios[-1] / expected - 1.0),
             "max_ratio_over_capstan": max(ratios) / expected, "slipped": clamp_tension(eq) > 1.1 * t0,
             **_summary(times, ok)}
@@ -203,15 +210,18 @@ def slip(mu: float = SLIP_FRICTION, steps: int = 16, repeat: int = 3) -> dict:
             "max_friction_over_mu_normal": max(held), **_summary(times, ok)}
 
 
-def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, steps=STEPS, repeat=None) -> dict:
-    """The friction benchmark: every capstan case of ``cases`` and the slip case at every
-    resolution of ``steps``.
+def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN_CONFIGS, steps=STEPS,
+        repeat=None) -> dict:
+    """The friction benchmark: every capstan case of ``cases`` in every configuration of
+    ``configs``, and the slip case at every resolution of ``steps``.
 
     Args:
-        quick: two capstan cases, 16 and 64 steps, one repeat (a smoke run).
+        quick: two capstan cases in the first and last configurations, 16 and 64 steps for
+            the slip case, one repeat (a smoke run).
         progress: called with a line per row (or None).
         cases: (θ in degrees, μ) of the capstan rows.
-        steps: RK4 steps per section.
+        configs: (drum stiffness (N/m²), RK4 steps per section) of the capstan rows.
+        steps: RK4 steps per section of the slip rows.
         repeat: timings per increment (default 3, 1 when ``quick``).
 
     Returns:
@@ -220,15 +230,16 @@ def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, steps=STEPS, re
     """
     tick = progress or (lambda *_: None)
     if quick:
-        cases, steps = cases[::3][:2], steps[:2]
+        cases, configs, steps = cases[::3][:2], (configs[0], configs[-1]), steps[:2]
     repeat = repeat or (1 if quick else 3)
     load_before = os.getloadavg()
     slip(steps=steps[0], repeat=1)  # compiles what a first solve compiles; not timed
     rows = {"capstan": [], "slip": []}
-    for n in steps:
+    for stiffness, n in configs:
         for theta_deg, mu in cases:
-            rows["capstan"].append(capstan(theta_deg, mu, n, repeat))
-            tick(f"capstan {theta_deg:g}° μ={mu:g}, {n} steps/section")
+            rows["capstan"].append(capstan(theta_deg, mu, n, repeat, stiffness))
+            tick(f"capstan {theta_deg:g}° μ={mu:g}, drum {stiffness:.0e} N/m², {n} steps/section")
+    for n in steps:
         rows["slip"].append(slip(SLIP_FRICTION, n, repeat))
         tick(f"slip μ={SLIP_FRICTION:g}, {n} steps/section")
     rows["measured"] = {"date": datetime.now(timezone.utc).strftime("%Y-%m-%d"), "repeat": repeat,
@@ -238,12 +249,14 @@ def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, steps=STEPS, re
 
 def format_table(result: dict) -> str:
     """The Markdown tables of a :func:`run` result."""
-    lines = ["| capstan θ | μ | RK4 steps/section | T₁/T₂ | e^{μθ} | relative error | most held / e^{μθ} "
-             "| warm solve (ms, median) | path (s) | converged |", "|---" * 10 + "|"]
-    for r in sorted(result["capstan"], key=lambda r: (r["mu"], r["theta_deg"], r["steps_per_section"])):
+    lines = ["| capstan θ | μ | drum k (N/m²) | RK4 steps/section | T₁/T₂ | e^{μθ} | relative error "
+             "| most held / e^{μθ} | warm solve (ms, median) | path (s) | converged |", "|---" * 11 + "|"]
+    order = ("mu", "theta_deg", "stiffness", "steps_per_section")
+    for r in sorted(result["capstan"], key=lambda r: tuple(r[k] for k in order)):
         slipped = "" if r["slipped"] else " (did not slip)"
-        lines.append(f"| {r['theta_deg']:g}° | {r['mu']:g} | {r['steps_per_section']} | {r['ratio']:.4g} | "
-                     f"{r['capstan']:.4g} | {r['relative_error']:.1e}{slipped} | "
+        lines.append(f"| {r['theta_deg']:g}° | {r['mu']:g} | {r['stiffness']:.0e} | "
+                     f"{r['steps_per_section']} | {r['ratio']:.4g} | {r['capstan']:.4g} | "
+                     f"{r['relative_error']:.1e}{slipped} | "
                      f"{r['max_ratio_over_capstan']:.4f} | {r['median_solve_ms']:.1f} | "
                      f"{r['path_seconds']:.2f} | {r['converged_fraction']:.0%} |")
     lines += ["", "| slip threshold μ | RK4 steps/section | sliding: max \\|F/μN − 1\\| | most held F/μN "

@@ -8,7 +8,8 @@ from softarm_gym.benchmarks import friction_bench
 
 
 def test_friction_bench_reports_finite_errors_and_times_against_the_closed_forms():
-    result = friction_bench.run(cases=((90.0, 1.0),), steps=(16,), repeat=1)
+    result = friction_bench.run(cases=((90.0, 1.0),), configs=((friction_bench.K_DRUM, 16),), steps=(16,),
+                                repeat=1)
     (row,) = result["capstan"]
     assert row["capstan"] == math.exp(math.pi / 2)  # e^{μθ}, μ = 1, θ = 90°
     assert row["slipped"] and row["converged_fraction"] == 1.0
@@ -20,4 +21,4 @@ def test_friction_bench_reports_finite_errors_and_times_against_the_closed_forms
         for key in ("relative_error", "median_solve_ms", "path_seconds"):
             assert np.isfinite(r[key]) and r[key] > 0, key
     table = friction_bench.format_table(result).splitlines()
-    assert table[2].startswith("| 90° | 1 | 16 |") and table[-1].startswith("| 0.5 | 16 |")
+    assert table[2].startswith("| 90° | 1 | 1e+05 | 16 |") and table[-1].startswith("| 0.5 | 16 |")
