@@ -28,7 +28,8 @@ Reach is scored by the final distance to the target, wrap by the final wrap angl
 by the episode's RMS and largest tracking error, obstacle reach by the final distance and
 whether the arm touched a disc; the report has a section for each.
 
-Episode ``i`` of every cell is reset with seed ``i``, so all agents face the same targets.
+Episode ``i`` of every cell is reset with seed ``i`` (``seed + i`` with ``--seed``), so all agents
+evaluated with the same ``--seed`` face the same targets.
 """
 
 from __future__ import annotations
@@ -108,6 +109,8 @@ OBSTACLE_DEFINITIONS = ("Success = final true tip within the env's tolerance (2 
                         "fraction of episodes in which the arm touched a disc at some step "
                         "(`info[\"in_contact\"]`); steps to success as on reach.")
 """What the obstacle-reach section's numbers mean."""
+BATCHED_CURVES = "batched_learning_curves.png"
+"""The seed-band learning curves of the batched runs (:func:`_seed_band_curves`), in the results folder."""
 CONTROLLERS = ("jacobian", "planner", "curl")
 """Agent name prefixes of the model-based reference controllers (not trained, never shipped)."""
 
@@ -162,7 +165,7 @@ def task(env_id: str) -> str:
 
 def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, *, grid: bool = True,
                     env_ids=ENV_IDS + WRAP_ENV_IDS + TRACK_ENV_IDS + OBSTACLE_ENV_IDS + GRASP_ENV_IDS,
-                    episodes: int | None = None) -> list[tuple[Path, dict]]:
+                    episodes: int | None = None, seed: int = 0) -> list[tuple[Path, dict]]:
     """(output JSON path, :func:`baselines.evaluate.evaluate` kwargs) of every grid cell not yet done.
 
     Args:
@@ -174,6 +177,9 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
             evaluated on.
         episodes: episodes of every cell (default :data:`MAIN_EPISODES` for ``main``,
             :data:`GRID_EPISODES` for the others).
+        seed: episode ``i`` of every cell is reset with seed ``seed + i`` (a run trained with
+            seed ``S`` starts its ``n_envs`` copies on seeds ``S`` … ``S + n_envs - 1``: to
+            evaluate on seeds it never trained on, pass one past them, e.g. 100000).
     """
     agents = [(run.name, {"model": run / "best_model.zip"}, _goal_format(run), _run_env(run))
               for run in _runs(Path(runs_dir)) if (run / "best_model.zip").is_file()]
@@ -193,7 +199,7 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
         for cell, kwargs in cells:
             path = out_dir / f"{name}__{cell}.json"
             if not path.is_file():
-                jobs.append((path, {**who, **kwargs, "seed": 0}))
+                jobs.append((path, {**who, **kwargs, "seed": seed}))
     return jobs
 
 
@@ -223,12 +229,13 @@ def run_evaluation_job(job: tuple[Path, dict]) -> str:
 
 
 def run_evaluations(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, workers: int = 1,
-                    only: str | None = None, grid: bool = True, episodes: int | None = None) -> int:
+                    only: str | None = None, grid: bool = True, episodes: int | None = None,
+                    seed: int = 0) -> int:
     """Run the missing grid cells (optionally only agents whose name contains ``only``; with
-    ``grid=False`` only the ``main`` cells; ``episodes`` as :func:`evaluation_jobs`)."""
+    ``grid=False`` only the ``main`` cells; ``episodes`` and ``seed`` as :func:`evaluation_jobs`)."""
     from tqdm import tqdm
 
-    jobs = [j for j in evaluation_jobs(runs_dir, results_dir, grid=grid, episodes=episodes)
+    jobs = [j for j in evaluation_jobs(runs_dir, results_dir, grid=grid, episodes=episodes, seed=seed)
             if only is None or only in j[0].name]
     with ProcessPoolExecutor(max_workers=workers) as pool:
         for _ in tqdm(pool.map(run_evaluation_job, jobs), total=len(jobs), file=sys.stderr, unit="cell"):
@@ -377,13 +384,78 @@ def _learning_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
     save(fig, path)
 
 
+def _seed_groups(runs: list[dict]) -> dict[tuple, list[dict]]:
+    """Runs that differ only by seed: (env id, algorithm, YAML folder, training env kwargs) →
+    their summaries (a remedy tried in a YAML folder of its own is its own group)."""
+    groups: dict[tuple, list[dict]] = {}
+    for summary in runs:
+        key = (summary["env_id"], summary["algo"], _yaml_folder(summary), _kwargs(_setting(summary)))
+        groups.setdefault(key, []).append(summary)
+    return groups
+
+
+def _yaml_folder(summary: dict) -> str:
+    """The name of the YAML folder a run's hyperparameters came from ("" for ``baselines/hyperparams``)."""
+    source = summary.get("hyperparams_file")
+    return Path(source).parent.name if source else ""
+
+
+def _seed_band_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
+    """The batched runs' learning curves, one column per environment, seeds pooled per
+    :func:`_seed_groups`: the training episodes' final-step success (rows 1 and 3, against
+    environment steps and wall time) and return (row 2), each seed's a rolling mean over one
+    episode per arm (``n_envs`` episodes); the line is the mean over seeds, the band their
+    range, over the steps (minutes) every seed of the group reached."""
+    from softarm_gym.plotting import figure, save
+
+    runs = [r for r in runs if r.get("batched") and (results_dir / "training" / r["run"] / "monitor.csv").is_file()]
+    groups = _seed_groups(runs)
+    env_ids = _env_ids(runs)
+    fig, axes = figure(3, len(env_ids), figsize=(5.0 * len(env_ids), 9.5), squeeze=False)
+    for column, env_id in enumerate(env_ids):
+        mine = [(key, members) for key, members in groups.items() if key[0] == env_id]
+        for k, ((_, algo, folder, kwargs), members) in enumerate(mine):
+            label = f"{algo}" + (f" ({folder})" if folder else "") + f", {len(members)} seed" \
+                + ("s" if len(members) > 1 else "")
+            for row, (x_name, y_name, scale) in enumerate((("timesteps", "is_success", 100.0),
+                                                           ("timesteps", "r", 1.0),
+                                                           ("t", "is_success", 100.0))):
+                curves = []
+                for summary in members:
+                    episodes = pd.read_csv(results_dir / "training" / summary["run"] / "monitor.csv")
+                    window = max(1, min(int(summary["hyperparams"].get("n_envs", 1)), len(episodes) // 5))
+                    y = episodes[y_name].astype(float).rolling(window, min_periods=window).mean()
+                    x = episodes[x_name] / (60.0 if x_name == "t" else 1.0)
+                    curves.append((x.to_numpy()[window - 1:], scale * y.to_numpy()[window - 1:]))
+                if not all(len(c[0]) for c in curves):
+                    continue
+                grid = np.linspace(max(c[0][0] for c in curves), min(c[0][-1] for c in curves), 200)
+                values = np.array([np.interp(grid, cx, cy) for cx, cy in curves])
+                ax = axes[row, column]
+                ax.plot(grid, values.mean(axis=0), color=f"C{k}", lw=1.5, label=label)
+                if len(members) > 1:
+                    ax.fill_between(grid, values.min(axis=0), values.max(axis=0), color=f"C{k}", alpha=0.25)
+        axes[0, column].set_title(env_id)
+        axes[0, column].legend(fontsize=7, loc="best")
+        for row, (xlabel, ylabel) in enumerate((("environment steps", "final-step success (%)"),
+                                                ("environment steps", "episode return"),
+                                                ("training wall time (min)", "final-step success (%)"))):
+            ax = axes[row, column]
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+            if row != 1:
+                ax.set_ylim(-2, 102)
+    save(fig, path)
+
+
 def _run_label(summary: dict) -> str:
     """``"sac seed 0"``, with the observation and hyperparameter folder when not the defaults."""
     observation = training_observation(summary)
-    source = summary.get("hyperparams_file")  # a YAML folder of its own: name it
+    folder = _yaml_folder(summary)  # a YAML folder of its own: name it
     return (f"{summary['algo']} seed {summary['seed']}"
             + ("" if observation == "true" else f", {observation} obs.")
-            + (f", {Path(source).parent.name}" if source else ""))
+            + (f", {folder}" if folder else ""))
 
 
 def _steps_tick(value, _pos) -> str:
@@ -552,6 +624,8 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
     table = _load_evaluations(results_dir)
     if runs:
         _learning_curves(results_dir, runs, results_dir / "learning_curves.png")
+    if any(r.get("batched") for r in runs):
+        _seed_band_curves(results_dir, runs, results_dir / BATCHED_CURVES)
     by_run = {r["run"]: r for r in runs}
     if len(table):  # the observation mode each agent was trained on (the controller: true)
         table["trained_on"] = [training_observation(by_run[name]) if name in by_run else "true"
@@ -656,9 +730,16 @@ def _curves_section(results_dir: Path, out: Path) -> list[str]:
     per_eval = _episodes(pd.concat([c["episodes"] for c in curves if "episodes" in c])) \
         if any("episodes" in c for c in curves) else None
     picture = Path(os.path.relpath(results_dir.resolve() / "learning_curves.png", out.resolve().parent))
-    return ["", "Learning curves (final-step success of training episodes, rolling mean; dots: the "
-            "periodic deterministic evaluations" + (f", {per_eval}" if per_eval else "") + "):",
-            "", f"![learning curves]({picture.as_posix()})", ""]
+    lines = ["", "Learning curves (final-step success of training episodes, rolling mean; dots: the "
+             "periodic deterministic evaluations" + (f", {per_eval}" if per_eval else "") + "):",
+             "", f"![learning curves]({picture.as_posix()})", ""]
+    if (results_dir / BATCHED_CURVES).is_file():
+        batched = Path(os.path.relpath(results_dir.resolve() / BATCHED_CURVES, out.resolve().parent))
+        lines += ["Batched runs (`--batched`), seeds pooled: final-step success and return of the training "
+                  "episodes against steps, and success against wall time; each seed a rolling mean over "
+                  "one episode per arm, the line the mean over seeds, the band their range:", "",
+                  f"![batched learning curves]({batched.as_posix()})", ""]
+    return lines
 
 
 def _main_rows(main: pd.DataFrame, env_id: str, by_run: dict, kind, measures, mean_measures, *,
@@ -679,8 +760,10 @@ def _main_rows(main: pd.DataFrame, env_id: str, by_run: dict, kind, measures, me
         kwargs = (f" {_kwargs(run.get('env_kwargs', {})) if run else '–'} |" if env_kwargs_column else "")
         lines.append(f"| {env_id} | {row['agent_name']} |{kwargs} {budget} | {steps} | {wall} | {cpu} | "
                      f"{100 * row['success_rate']:.0f} % | " + measures(row))
-    # Seeds are pooled per algorithm, training observation and the rest of the training kwargs.
-    setting = rows["agent_name"].map(lambda name: _kwargs(_setting(by_run[name])) if name in by_run else "")
+    # Seeds are pooled per algorithm, training observation, YAML folder and the rest of the
+    # training kwargs.
+    setting = rows["agent_name"].map(lambda name: (_yaml_folder(by_run[name]), _kwargs(_setting(by_run[name])))
+                                     if name in by_run else ("", ""))
     for algo in ALGOS:
         for observation in ESTIMATORS:
             for same in sorted(setting.unique()):
@@ -689,8 +772,9 @@ def _main_rows(main: pd.DataFrame, env_id: str, by_run: dict, kind, measures, me
                 if len(learned) < 2:
                     continue
                 rates = 100 * learned["success_rate"]
-                which = algo if observation == "true" else f"{algo} on {observation} observations"
-                kwargs = f"{same} | " if env_kwargs_column else ""
+                which = (algo + (f" ({same[0]})" if same[0] else "")
+                         + ("" if observation == "true" else f" on {observation} observations"))
+                kwargs = f"{same[1]} | " if env_kwargs_column else ""
                 lines.append(f"| {env_id} | **{which} mean ± std over {len(learned)} seeds** | {kwargs}"
                              f"| | | | **{rates.mean():.0f} ± {rates.std():.0f} %** | "
                              + mean_measures(learned))
@@ -829,6 +913,8 @@ def main(argv=None) -> int:
     parser.add_argument("--episodes", type=int, default=None,
                         help=f"episodes of every cell (default {MAIN_EPISODES} for main, {GRID_EPISODES} "
                              "for the estimator grid)")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="evaluate: episode i of every cell uses seed SEED + i (default %(default)s)")
     parser.add_argument("--main-only", action="store_true",
                         help="evaluate only the main cell (true observations), not the estimator grid")
     parser.add_argument("--envs", default=None,
@@ -838,7 +924,7 @@ def main(argv=None) -> int:
         print("\n".join(collect(args.runs, args.results)))
     elif args.step == "evaluate":
         n = run_evaluations(args.runs, args.results, args.workers, args.only, grid=not args.main_only,
-                            episodes=args.episodes)
+                            episodes=args.episodes, seed=args.seed)
         print(f"{n} cells evaluated")
     elif args.step == "ship":
         envs = args.envs.split(",") if args.envs else None
