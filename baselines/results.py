@@ -400,34 +400,42 @@ def _yaml_folder(summary: dict) -> str:
     return Path(source).parent.name if source else ""
 
 
+_BAND_ROWS = (("timesteps", "is_success", 100.0, "environment steps", "final-step success (%)"),
+              ("timesteps", "r", 1.0, "environment steps", "episode return"),
+              ("timesteps", "wrap_angle_deg", 1.0, "environment steps", "final wrap angle (°)"),
+              ("t", "is_success", 100.0, "training wall time (min)", "final-step success (%)"))
+"""Rows of :func:`_seed_band_curves`: (x column, y column of ``monitor.csv``, y scale, x label, y label)."""
+
+
 def _seed_band_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
     """The batched runs' learning curves, one column per environment, seeds pooled per
-    :func:`_seed_groups`: the training episodes' final-step success (rows 1 and 3, against
-    environment steps and wall time) and return (row 2), each seed's a rolling mean over one
-    episode per arm (``n_envs`` episodes); the line is the mean over seeds, the band their
-    range, over the steps (minutes) every seed of the group reached."""
+    :func:`_seed_groups`: the training episodes' final-step success, return and, on wrap, final
+    wrap angle against environment steps, and their success against wall time (:data:`_BAND_ROWS`),
+    each seed's a rolling mean over one episode per arm (``n_envs`` episodes); the line is the
+    mean over seeds, the band their range, over the steps (minutes) every seed of the group
+    reached."""
     from softarm_gym.plotting import figure, save
 
     runs = [r for r in runs if r.get("batched") and (results_dir / "training" / r["run"] / "monitor.csv").is_file()]
     groups = _seed_groups(runs)
     env_ids = _env_ids(runs)
-    fig, axes = figure(3, len(env_ids), figsize=(5.0 * len(env_ids), 9.5), squeeze=False)
+    fig, axes = figure(len(_BAND_ROWS), len(env_ids), figsize=(5.0 * len(env_ids), 12.5), squeeze=False)
     for column, env_id in enumerate(env_ids):
         mine = [(key, members) for key, members in groups.items() if key[0] == env_id]
         for k, ((_, algo, folder, kwargs), members) in enumerate(mine):
             label = f"{algo}" + (f" ({folder})" if folder else "") + f", {len(members)} seed" \
                 + ("s" if len(members) > 1 else "")
-            for row, (x_name, y_name, scale) in enumerate((("timesteps", "is_success", 100.0),
-                                                           ("timesteps", "r", 1.0),
-                                                           ("t", "is_success", 100.0))):
+            for row, (x_name, y_name, scale, _, _) in enumerate(_BAND_ROWS):
                 curves = []
                 for summary in members:
                     episodes = pd.read_csv(results_dir / "training" / summary["run"] / "monitor.csv")
+                    if y_name not in episodes:
+                        break
                     window = max(1, min(int(summary["hyperparams"].get("n_envs", 1)), len(episodes) // 5))
                     y = episodes[y_name].astype(float).rolling(window, min_periods=window).mean()
                     x = episodes[x_name] / (60.0 if x_name == "t" else 1.0)
                     curves.append((x.to_numpy()[window - 1:], scale * y.to_numpy()[window - 1:]))
-                if not all(len(c[0]) for c in curves):
+                if len(curves) < len(members) or not all(len(c[0]) for c in curves):
                     continue
                 grid = np.linspace(max(c[0][0] for c in curves), min(c[0][-1] for c in curves), 200)
                 values = np.array([np.interp(grid, cx, cy) for cx, cy in curves])
@@ -437,15 +445,15 @@ def _seed_band_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
                     ax.fill_between(grid, values.min(axis=0), values.max(axis=0), color=f"C{k}", alpha=0.25)
         axes[0, column].set_title(env_id)
         axes[0, column].legend(fontsize=7, loc="best")
-        for row, (xlabel, ylabel) in enumerate((("environment steps", "final-step success (%)"),
-                                                ("environment steps", "episode return"),
-                                                ("training wall time (min)", "final-step success (%)"))):
+        for row, (_, y_name, _, xlabel, ylabel) in enumerate(_BAND_ROWS):
             ax = axes[row, column]
             ax.set_xlabel(xlabel)
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
-            if row != 1:
+            if y_name == "is_success":
                 ax.set_ylim(-2, 102)
+            elif y_name == "wrap_angle_deg":
+                ax.set_ylim(0, 360)
     save(fig, path)
 
 
@@ -736,7 +744,8 @@ def _curves_section(results_dir: Path, out: Path) -> list[str]:
     if (results_dir / BATCHED_CURVES).is_file():
         batched = Path(os.path.relpath(results_dir.resolve() / BATCHED_CURVES, out.resolve().parent))
         lines += ["Batched runs (`--batched`), seeds pooled: final-step success and return of the training "
-                  "episodes against steps, and success against wall time; each seed a rolling mean over "
+                  "episodes (and on wrap their final wrap angle) against steps, and success against wall "
+                  "time; each seed a rolling mean over "
                   "one episode per arm, the line the mean over seeds, the band their range:", "",
                   f"![batched learning curves]({batched.as_posix()})", ""]
     return lines
