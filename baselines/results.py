@@ -81,7 +81,7 @@ CONDITIONS = {"clean": ("off", None), "noisy": ("thesis", None),
 WRAP_CONDITIONS = {name: CONDITIONS[name] for name in ("clean", "noisy")}
 """The conditions of the wrap grid (the issue asks for the estimators with and without noise)."""
 TARGETS = (("SoftArm/OctArmReach-v0", "sac", 0.90), ("SoftArm/OctArmReach-v0", "jacobian", 0.99),
-           ("SoftArm/OctArmWrap-v1", "learned", 0.70))
+           ("SoftArm/OctArmWrap-v1", "learned", 0.70), ("SoftArm/OctArmWrap-v2", "learned", 0.70))
 """(env, agent, success rate) targets of the issue, checked in the report; the agent is an
 algorithm, a controller's name prefix, or ``learned`` (the best trained agent of any algorithm)."""
 DEFINITIONS = ("Success = final true tip within the env's tolerance "
@@ -165,11 +165,12 @@ def task(env_id: str) -> str:
 
 def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, *, grid: bool = True,
                     env_ids=ENV_IDS + WRAP_ENV_IDS + TRACK_ENV_IDS + OBSTACLE_ENV_IDS + GRASP_ENV_IDS,
-                    episodes: int | None = None, seed: int = 0) -> list[tuple[Path, dict]]:
+                    episodes: int | None = None, seed: int = 0,
+                    policy_file: str = "best_model.zip") -> list[tuple[Path, dict]]:
     """(output JSON path, :func:`baselines.evaluate.evaluate` kwargs) of every grid cell not yet done.
 
     Args:
-        runs_dir: folder of run folders; each one with a ``best_model.zip`` is an agent.
+        runs_dir: folder of run folders; each one with a ``policy_file`` is an agent.
         results_dir: the cells go to ``results_dir/eval/<agent>__<cell>.json``.
         grid: the estimator-in-the-loop cells too, not only ``main`` (never for agents
             trained on the goal format, whose observation has no estimator blocks to swap).
@@ -180,9 +181,14 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
         seed: episode ``i`` of every cell is reset with seed ``seed + i`` (a run trained with
             seed ``S`` starts its ``n_envs`` copies on seeds ``S`` … ``S + n_envs - 1``: to
             evaluate on seeds it never trained on, pass one past them, e.g. 100000).
+        policy_file: the model each run is evaluated with: ``best_model.zip`` (the best
+            periodic evaluation) or ``final_model.zip`` (the last weights: a run stopped by its
+            time limit before or soon after its first periodic evaluation). The cell's
+            ``agent`` names it, and :func:`ship` copies that file.
     """
-    agents = [(run.name, {"model": run / "best_model.zip"}, _goal_format(run), _run_env(run))
-              for run in _runs(Path(runs_dir)) if (run / "best_model.zip").is_file()]
+    agents = [(run.name, {"model": run / policy_file}, _goal_format(run / policy_file),
+               _run_env(run / policy_file))
+              for run in _runs(Path(runs_dir)) if (run / policy_file).is_file()]
     agents += [(f"{controller}_{env_id.split('/')[-1]}", {"controller": controller, "env_id": env_id},
                 False, env_id)
                for env_id in env_ids for controller in reference_controllers(env_id)]
@@ -203,15 +209,15 @@ def evaluation_jobs(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
     return jobs
 
 
-def _goal_format(run: Path) -> bool:
-    """Whether the run trained on ``observation_format="goal"`` (its best model's metadata)."""
-    meta = json.loads(sidecar_paths(run / "best_model.zip")[0].read_text())
+def _goal_format(model: Path) -> bool:
+    """Whether a run's model was trained on ``observation_format="goal"`` (its metadata)."""
+    meta = json.loads(sidecar_paths(model)[0].read_text())
     return meta.get("env_kwargs", {}).get("observation_format") == "goal"
 
 
-def _run_env(run: Path) -> str:
-    """The environment id a run trained on (its best model's metadata)."""
-    return json.loads(sidecar_paths(run / "best_model.zip")[0].read_text())["env_id"]
+def _run_env(model: Path) -> str:
+    """The environment id a run's model was trained on (its metadata)."""
+    return json.loads(sidecar_paths(model)[0].read_text())["env_id"]
 
 
 def run_evaluation_job(job: tuple[Path, dict]) -> str:
@@ -230,12 +236,14 @@ def run_evaluation_job(job: tuple[Path, dict]) -> str:
 
 def run_evaluations(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR, workers: int = 1,
                     only: str | None = None, grid: bool = True, episodes: int | None = None,
-                    seed: int = 0) -> int:
+                    seed: int = 0, policy_file: str = "best_model.zip") -> int:
     """Run the missing grid cells (optionally only agents whose name contains ``only``; with
-    ``grid=False`` only the ``main`` cells; ``episodes`` and ``seed`` as :func:`evaluation_jobs`)."""
+    ``grid=False`` only the ``main`` cells; ``episodes``, ``seed`` and ``policy_file`` as
+    :func:`evaluation_jobs`)."""
     from tqdm import tqdm
 
-    jobs = [j for j in evaluation_jobs(runs_dir, results_dir, grid=grid, episodes=episodes, seed=seed)
+    jobs = [j for j in evaluation_jobs(runs_dir, results_dir, grid=grid, episodes=episodes, seed=seed,
+                                       policy_file=policy_file)
             if only is None or only in j[0].name]
     with ProcessPoolExecutor(max_workers=workers) as pool:
         for _ in tqdm(pool.map(run_evaluation_job, jobs), total=len(jobs), file=sys.stderr, unit="cell"):
@@ -252,8 +260,9 @@ def ship(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
          trained_dir: Path | str = TRAINED_DIR, env_ids=None) -> list[Path]:
     """Copy the best trained policy per environment (highest main success rate, then lowest
     median final error, on wrap highest median wrap angle) with its sidecars into
-    ``trained_dir`` as ``<algo>_<env>.zip``; only for ``env_ids`` if given (the others'
-    run folders need not be at hand)."""
+    ``trained_dir`` as ``<algo>_<env>.zip``: the model file its evaluation ran (its ``agent``,
+    ``<algo>:<file>``: ``best_model.zip`` or ``final_model.zip``); only for ``env_ids`` if given
+    (the others' run folders need not be at hand)."""
     table = _load_evaluations(Path(results_dir))
     main_rows = table[(table["cell"] == "main") & ~table["agent_name"].map(_is_controller)]
     if env_ids is not None:
@@ -263,8 +272,8 @@ def ship(runs_dir: Path | str, results_dir: Path | str = RESULTS_DIR,
         order = (["success_rate", "median_wrap_angle_deg"], [False, False]) if is_wrap(env_id) else \
             (["success_rate", "median_final_error_m"], [False, True])
         best = rows.sort_values(order[0], ascending=order[1]).iloc[0]
-        src = Path(runs_dir) / best["agent_name"] / "best_model.zip"
-        algo = best["agent"].split(":")[0]
+        algo, evaluated = best["agent"].split(":", 1)  # the file the evaluation ran (best or final)
+        src = Path(runs_dir) / best["agent_name"] / evaluated
         meta = json.loads(sidecar_paths(src)[0].read_text())
         ship_id, ship_kwargs = registered_equivalent(meta["env_id"], meta.get("env_kwargs", {}))
         dst = Path(trained_dir) / f"{algo}_{ship_id.split('/')[-1]}.zip"
@@ -924,6 +933,8 @@ def main(argv=None) -> int:
                              "for the estimator grid)")
     parser.add_argument("--seed", type=int, default=0,
                         help="evaluate: episode i of every cell uses seed SEED + i (default %(default)s)")
+    parser.add_argument("--policy-file", default="best_model.zip", choices=("best_model.zip", "final_model.zip"),
+                        help="evaluate: each run's best (default) or final model")
     parser.add_argument("--main-only", action="store_true",
                         help="evaluate only the main cell (true observations), not the estimator grid")
     parser.add_argument("--envs", default=None,
@@ -933,7 +944,7 @@ def main(argv=None) -> int:
         print("\n".join(collect(args.runs, args.results)))
     elif args.step == "evaluate":
         n = run_evaluations(args.runs, args.results, args.workers, args.only, grid=not args.main_only,
-                            episodes=args.episodes, seed=args.seed)
+                            episodes=args.episodes, seed=args.seed, policy_file=args.policy_file)
         print(f"{n} cells evaluated")
     elif args.step == "ship":
         envs = args.envs.split(",") if args.envs else None

@@ -49,6 +49,22 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
     assert "![learning curves](results/learning_curves.png)" in text
 
 
+def test_final_models_are_evaluated_on_unseen_seeds_and_shipped_as_evaluated(tiny_sac_run, tmp_path):
+    runs_dir, out = tiny_sac_run.parent, tmp_path / "results"
+    jobs = results.evaluation_jobs(runs_dir, out, grid=False, env_ids=(), seed=100_000,
+                                   policy_file="final_model.zip")
+    assert [(path.name, kwargs["model"], kwargs["seed"]) for path, kwargs in jobs] == \
+        [(f"{tiny_sac_run.name}__main.json", tiny_sac_run / "final_model.zip", 100_000)]
+    result = evaluate(**{**jobs[0][1], "episodes": 1})
+    assert result["agent"] == "sac:final_model.zip" and result["seed"] == 100_000
+    (out / "eval").mkdir(parents=True)
+    (out / "eval" / jobs[0][0].name).write_text(json.dumps({**result, "cell": "main",
+                                                            "agent_name": tiny_sac_run.name}))
+    (shipped,) = results.ship(runs_dir, out, tmp_path / "trained")
+    assert shipped.read_bytes() == (tiny_sac_run / "final_model.zip").read_bytes()
+    assert shipped.read_bytes() != (tiny_sac_run / "best_model.zip").read_bytes()
+
+
 def test_a_run_ships_under_the_registered_id_whose_defaults_it_trained_in():
     from baselines.config import registered_equivalent
 
