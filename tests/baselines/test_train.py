@@ -84,7 +84,7 @@ def test_batched_hyperparameters_build_on_the_batched_env(algo, env_id):
 
 CONTACT_ENTRIES = [("batched", "SoftArm/OctArmWrap-v2"), ("batched", "SoftArm/CTWrap-v2"),
                    ("batched", "SoftArm/OctArmObstacleReach-v1"), ("batched", "SoftArm/OctArmTrack-v1"),
-                   ("batched_gsde", "SoftArm/OctArmWrap-v2")]
+                   ("batched_gsde", "SoftArm/OctArmWrap-v2"), ("batched_gsde", "SoftArm/CTWrap-v2")]
 """(YAML folder, id) of the batched PPO entries of the recommended contact and track ids (issue #37)."""
 
 
