@@ -544,7 +544,7 @@ class _CopyResets:
         if not obstacles:
             return scene
         return replace(scene, obstacles=(solver.Disc((0.0, -t.reach), 0.1 * t.arm.length,
-                                                     t.contact_stiffness),))
+                                                     t.contact_stiffness, friction=t.friction),))
 
     def close_extras(self, **kwargs):
         for env in self._copies:

@@ -2,7 +2,9 @@
 
 The object is a rigid cylinder whose axis is normal to the arm's plane (a disc in the plane),
 with mass, resting on a support until the arm lifts it. The arm touches it by the solver's
-penalty contact (:class:`solver.Disc`, frictionless); the object touches its support — two
+penalty contact (:class:`solver.Disc`), frictionless or with Coulomb friction
+(``FreeObject.friction``: the object then also turns, and the friction's moment about its
+axis must balance too); the object touches its support — two
 forks open upwards (or V-blocks) under the cylinder's ends, where the arm, which wraps the
 cylinder's middle, never reaches. Equilibrium of the object (docs/design.md §14):
 
@@ -11,9 +13,13 @@ cylinder's middle, never reaches. Equilibrium of the object (docs/design.md §14
 with c the object's centre, F_arm the force of the arm on it (the contact forces' resultant,
 read off the arm's global balance: F_arm = D − n(0), D the arm's dead loads and n(0) the
 internal force at the base), W = (0, −m g) its weight, F_ext a disturbance and R the
-support's penalty reaction. The arm is in equilibrium with the disc at c (a contact solve);
-c is found by Newton on G with a finite-difference Jacobian, updated by Broyden steps and
-backtracking. The object is *held* when it is in equilibrium clear of its support.
+support's penalty reaction. With friction the pose is (c, ψ), ψ its turn, and the arm's
+moment on it about its axis, −Σ (r − c) × F over the friction impulses F at the contact
+samples r (the normal forces pass through the axis), must vanish too: the supports are
+frictionless, so it turns until it does. The arm is in equilibrium with the disc at c (a
+contact solve; the samples' anchors turned with the object); the pose is found by Newton
+with a finite-difference Jacobian, updated by Broyden steps and backtracking. The object is
+*held* when it is in equilibrium clear of its support.
 
 ``grasp_margin`` is the thesis's stability requirement for a whole-arm grasp (§6.1): the
 smallest disturbance force, over planar directions, that the grasp resists before the held
@@ -29,13 +35,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from solver import layout as L
 from solver.designs import ArmDesign
 from solver.inputs import check_request, checked_pressures
 from solver.paths.dispatch import dispatch
+from solver.paths.friction import turn_anchors
 from solver.paths.lean_contact import ContactRows, lean_contact_reason
 from solver.problem import Problem, context, pack
 from solver.results import Equilibrium
-from solver.scene import MAX_EXTENT, Disc, Scene
+from solver.scene import MAX_EXTENT, Disc, Scene, check_friction
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
 
 __all__ = ["FreeObject", "Grasp", "settle", "grasp_margin", "SUPPORTS"]
@@ -91,6 +99,8 @@ class FreeObject:
         fork_depth: depth of the forks (m).
         cradle_half_angle_deg: V-blocks' face angle (deg, in (0, 90)).
         support_stiffness: penalty of the support (N/m of penetration, both ends together).
+        friction: Coulomb coefficient μ ≥ 0 between the arm and the object (0: frictionless;
+            docs/design.md §9, §14).
     """
 
     radius: float
@@ -101,8 +111,10 @@ class FreeObject:
     fork_depth: float = 0.02
     cradle_half_angle_deg: float = 45.0
     support_stiffness: float = 1.0e5
+    friction: float = 0.0
 
     def __post_init__(self):
+        object.__setattr__(self, "friction", check_friction("FreeObject.friction", self.friction))
         Disc(center=self.seat, radius=self.radius, stiffness=self.stiffness)  # validates them
         if not math.isfinite(self.stiffness):
             raise ValueError("FreeObject.stiffness must be finite: a free object's pose is solved "
@@ -123,7 +135,7 @@ class FreeObject:
     def disc(self, center) -> Disc:
         """The object at ``center`` as an obstacle of the arm's contact solve."""
         return Disc(center=(float(center[0]), float(center[1])), radius=self.radius,
-                    stiffness=self.stiffness)
+                    stiffness=self.stiffness, friction=self.friction)
 
     def normals(self) -> np.ndarray:
         """(2, 2) the V-blocks' face normals (unit, pointing at the object), as rows."""
@@ -210,11 +222,17 @@ class Grasp:
         lift: height of the centre above its seat (m; negative when pressed into the support).
         arm_force: (2,) force of the arm on the object (N).
         support_force: (2,) reaction of the support and the base clamp on the object (N).
-        residual: |G|, the object's force imbalance (N).
-        stiffness: (2, 2) −∂G/∂c at the returned pose (N/m): the object's restoring stiffness.
+        residual: |G|, the object's force imbalance (N; with friction the moment's
+            imbalance over the contact radius counts as a third component).
+        stiffness: (2, 2) −∂G/∂c at the returned pose (N/m): the object's restoring stiffness;
+            with friction (3, 3), of the pose (c, r·ψ) and the balance (G, moment / r), r the
+            contact radius.
         stable: the arm's equilibrium is stable and ``stiffness`` is positive definite (the
             object sits in a potential well).
         iterations: Newton iterations on the pose; ``solves``: contact solves of the arm.
+        turn: with friction, the object's turn ψ over the call (rad, counter-clockwise; 0
+            without): the returned arm's anchors are in the turned object's place.
+        arm_moment: the arm's moment on the object about its axis (N m; 0 without friction).
     """
 
     arm: Equilibrium
@@ -229,10 +247,15 @@ class Grasp:
     stable: bool
     iterations: int
     solves: int
+    turn: float = 0.0
+    arm_moment: float = 0.0
 
 
 class _Balance:
-    """G(c) for one arm, pressures, scene, object and disturbance; counts the contact solves."""
+    """G at a pose for one arm, pressures, scene, object and disturbance; counts the contact
+    solves. A pose is the centre c (2,), and with friction (c, r·ψ) (3,), ψ the object's turn
+    since the solve began (rad) and r its contact radius (so that every coordinate is a length
+    and every component of G a force: the moment over r)."""
 
     def __init__(self, arm, pressures, scene, obj, external_force, model, settings):
         if not isinstance(obj, FreeObject):
@@ -248,6 +271,7 @@ class _Balance:
         if f.shape != (2,) or not np.all(np.isfinite(f)):
             raise ValueError(f"external_force must be two finite numbers (N); got {external_force!r}")
         self.arm, self.scene, self.obj, self.model, self.settings = arm, scene, obj, model, settings
+        self.dim = 3 if obj.friction > 0.0 else 2
         self.packed = pack(arm, model, settings)
         self.p_inputs, self.p_channel = checked_pressures(arm, pressures, True, self.packed)
         # D: the internal force at the base with no contact (weights and tip force).
@@ -272,25 +296,42 @@ class _Balance:
         other.counter = self.counter
         return other
 
-    def arm_at(self, center, warm: Equilibrium) -> Equilibrium | None:
-        """The arm's equilibrium at these pressures with the object's disc at ``center``; None
-        where the object would cover the arm's base (a pose the clamp forbids)."""
+    def pose(self, center) -> np.ndarray:
+        """The pose of the object at ``center``, not turned."""
+        return np.append(np.asarray(center, dtype=float), [0.0] * (self.dim - 2))
+
+    def arm_at(self, pose, warm: Equilibrium, warm_pose) -> Equilibrium | None:
+        """The arm's equilibrium at these pressures with the object moved from ``warm_pose``
+        (where ``warm`` holds it) to ``pose``; None where the object would cover the arm's
+        base (a pose the clamp forbids)."""
+        center = pose[:2]
         if math.hypot(center[0], center[1]) <= self.obj.radius:
             return None
         if self.counter[0] >= self.budget:
             raise _Exhausted
         self.counter[0] += 1
         scene = replace(self.scene, obstacles=(self.obj.disc(center),))
-        lean = self._lean_step(scene, warm)
+        turn = float(pose[2] - warm_pose[2]) / self.obj.radius if self.dim == 3 else 0.0
+        lean = self._lean_step(scene, warm, turn)
         if lean is not None:
             return lean
-        return dispatch(Problem(self.arm, self.packed, scene, self.model, True, self.settings,
-                                self.p_inputs, self.p_channel, warm), True, moving=True)
+        if turn and warm is not None and warm.friction_samples.shape[0]:
+            samples = warm.friction_samples.copy()
+            turn_anchors(samples, 0, turn)
+            warm = replace(warm, friction_samples=samples)
+        eq = dispatch(Problem(self.arm, self.packed, scene, self.model, True, self.settings,
+                              self.p_inputs, self.p_channel, warm), True, moving=True)
+        if self.dim == 3 and eq.snapped:
+            # A snap lands without tangential state (solver.paths.friction.landed): the grip
+            # would be lost to a jump of the pose, not to the object's balance. Not a pose to
+            # take: Newton backtracks to a smaller move.
+            return replace(eq, converged=False)
+        return eq
 
-    def _lean_step(self, scene, warm: Equilibrium) -> Equilibrium | None:
-        """The arm's equilibrium in ``scene`` (the object's disc moved) by one lean contact
-        step from ``warm`` (:mod:`solver.paths.lean_contact`), or None where that cannot
-        take it (the general path's moving-obstacle ramp then does)."""
+    def _lean_step(self, scene, warm: Equilibrium, turn: float) -> Equilibrium | None:
+        """The arm's equilibrium in ``scene`` (the object's disc moved, and turned by ``turn``)
+        by one lean contact step from ``warm`` (:mod:`solver.paths.lean_contact`), or None
+        where that cannot take it (the general path's moving-obstacle ramp then does)."""
         if self.lean is None or warm is None:
             return None
         rows, adopted = self.lean
@@ -301,6 +342,8 @@ class _Balance:
         if not rows.on_contact_layout(0):
             return None
         rows.copy_rows(0, [1])
+        if turn:
+            rows.turn(1, 0, turn)
         report = rows.step_moved(1, self.p_channel, scene)
         if not report[0]:
             return None
@@ -310,40 +353,83 @@ class _Balance:
         """The force of the arm in ``eq`` on the object (N): D − n(0)."""
         return self.dead - eq.base_force[:2]
 
-    def forces(self, center, eq: Equilibrium):
-        """(G, arm force, supports' reaction) at ``center`` with the arm in ``eq``."""
+    def arm_moment(self, center, eq: Equilibrium) -> float:
+        """The arm's moment on the object at ``center`` about its axis (N m): the reactions
+        of the friction impulses at the contact samples (0 without friction)."""
+        fs = eq.friction_samples
+        if not fs.shape[0]:
+            return 0.0
+        at = fs[:, :, 0]
+        rx = at[..., L.FS_R] - center[0]
+        ry = at[..., L.FS_R + 1] - center[1]
+        moment = -(rx * at[..., L.FS_F + 1] - ry * at[..., L.FS_F])
+        return float(np.sum(moment[np.isfinite(moment)]))
+
+    def forces(self, pose, eq: Equilibrium):
+        """(G, arm force, supports' reaction) at ``pose`` with the arm in ``eq``: G has the
+        pose's size, its third component (with friction) the arm's moment over the contact
+        radius (the supports are frictionless)."""
+        center = pose[:2]
         arm_force = self.arm_force(eq)
         support = self.obj.support_reaction(center)[0]
-        return arm_force + self.load + support, arm_force, support
+        g = arm_force + self.load + support
+        if self.dim == 3:
+            g = np.append(g, self.arm_moment(center, eq) / self.obj.radius)
+        return g, arm_force, support
+
+    def support_jacobian(self, pose) -> np.ndarray:
+        """The supports' ∂G/∂(pose) (dim, dim): their reaction's (they exert no moment)."""
+        jac = self.obj.support_reaction(pose[:2])[1]
+        if self.dim == 2:
+            return jac
+        out = np.zeros((3, 3))
+        out[:2, :2] = jac
+        return out
 
     def tolerance(self, arm_force) -> float:
         return FORCE_TOL * (1.0 + float(np.abs(self.load).sum() + np.abs(arm_force).sum()))
 
-    def arm_jacobian(self, center, eq) -> np.ndarray | None:
-        """∂F_arm/∂c by forward differences (two contact solves; zero when the arm does not
-        touch the object), or None if a contact solve fails."""
-        jac = np.zeros((2, 2))
+    def arm_jacobian(self, pose, eq) -> np.ndarray | None:
+        """∂G_arm/∂(pose) by forward differences (a contact solve per coordinate; zero when the
+        arm does not touch the object), or None if a contact solve fails."""
+        jac = np.zeros((self.dim, self.dim))
         if not eq.in_contact:
             return jac
         h = FD_STEP * self.obj.radius
-        arm_force = self.arm_force(eq)
-        for j in range(2):
-            c = center.copy()
-            c[j] += h
-            moved = self.arm_at(c, eq)
+        if self.dim == 3:
+            # Within the stick cone's reach (μ times the deepest penetration): a larger step
+            # slips every sample and sees the cone's force, not the grip's stiffness.
+            h = min(h, 0.1 * self.obj.friction * float(np.max(eq.penetration)))
+        arm_g = self.arm_part(pose, eq)
+        for j in range(self.dim):
+            moved_pose = pose.copy()
+            moved_pose[j] += h
+            moved = self.arm_at(moved_pose, eq, pose)
             if moved is None or not moved.converged:
                 return None
-            jac[:, j] = (self.arm_force(moved) - arm_force) / h
+            jac[:, j] = (self.arm_part(moved_pose, moved) - arm_g) / h
         return jac
 
+    def arm_part(self, pose, eq) -> np.ndarray:
+        """The arm's part of G at ``pose``: its force, and with friction its moment over the
+        contact radius."""
+        if self.dim == 2:
+            return self.arm_force(eq)
+        return np.append(self.arm_force(eq), self.arm_moment(pose[:2], eq) / self.obj.radius)
 
-def _newton(bal: _Balance, center, eq: Equilibrium):
-    """Newton on the object's pose from ``center`` with the arm in ``eq`` (solved there).
+
+def _norm(v) -> float:
+    """|v| of a pose or a balance (np.hypot in the plane, as before friction)."""
+    return float(np.hypot(*v)) if v.size == 2 else float(np.linalg.norm(v))
+
+
+def _newton(bal: _Balance, pose, eq: Equilibrium):
+    """Newton on the object's pose from ``pose`` with the arm in ``eq`` (solved there).
 
     The Jacobian is the support's, exact, plus the arm's: by finite differences, then
     Broyden-updated along the steps taken, rebuilt when a step fails. Where the object's
-    stiffness K = −∂G/∂c is not positive definite (the arm pulls it the more, the further it
-    goes), Newton's step would head for an unstable root against the net force; the step is
+    stiffness K = −∂G/∂(pose) is not positive definite (the arm pulls it the more, the further
+    it goes), Newton's step would head for an unstable root against the net force; the step is
     then (K + μI)⁻¹G with μ making K + μI positive definite, its smallest eigenvalue at least
     |G| over the largest move — along the net force, as the object would move, a full move
     where nothing holds it (K = 0) — and taken without the |G| test (pseudo-transient
@@ -352,43 +438,50 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
 
     Returns the :class:`_Pose` reached.
     """
-    c = np.array(center, dtype=float)
-    g, arm_force, support = bal.forces(c, eq)
+    x = np.array(pose, dtype=float)
+    # With friction the arm's state depends on its path: every trial pose is one quasi-static
+    # increment from where Newton started (the object moved there at once), not the end of
+    # a chain through Newton's earlier iterates, which would drag the anchors along it.
+    origin = (x.copy(), eq) if bal.dim == 3 else None
+    g, arm_force, support = bal.forces(x, eq)
     max_move = MAX_MOVE * bal.obj.radius
     arm_jac = None
     fresh = False
     move_on = False  # Newton's step failed: take the net force's way instead
+    eye = np.eye(bal.dim)
     for it in range(MAX_ITER + 1):
         if np.abs(g).max() <= bal.tolerance(arm_force):
-            return _Pose(c, eq, g, arm_force, support, True, it)
+            return _Pose(x, eq, g, arm_force, support, True, it)
         if it == MAX_ITER:
             break
         if arm_jac is None:
-            arm_jac = bal.arm_jacobian(c, eq)
+            arm_jac = bal.arm_jacobian(x, eq)
             fresh = True
             if arm_jac is None:
                 break
-        stiffness = -(arm_jac + bal.obj.support_reaction(c)[1])
-        low, high = np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))
+        stiffness = -(arm_jac + bal.support_jacobian(x))
+        values = np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))
+        low, high = values[0], values[-1]
         shifted = move_on or not low > SHIFT * high
         move_on = False
         if shifted:
             # At least |G|/max_move: an object nothing holds (K = 0) falls a full move.
-            floor = max(SHIFT * max(abs(high), abs(low)), float(np.hypot(*g)) / max_move)
-            stiffness = stiffness + (floor - low) * np.eye(2)
+            floor = max(SHIFT * max(abs(high), abs(low)), _norm(g) / max_move)
+            stiffness = stiffness + (floor - low) * eye
         try:
             step = np.linalg.solve(stiffness, g)
         except np.linalg.LinAlgError:
             step = np.linalg.lstsq(stiffness, g, rcond=None)[0]
-        norm = float(np.hypot(*step))
+        norm = _norm(step)
         if not math.isfinite(norm):
             break
         if norm > max_move:
             step *= max_move / norm
         accepted = False
         for _ in range(BACKTRACKS):  # backtracking on |G|
-            trial = c + step
-            moved = bal.arm_at(trial, eq)
+            trial = x + step
+            moved = bal.arm_at(trial, eq, x) if origin is None else bal.arm_at(trial, origin[1],
+                                                                                origin[0])
             if moved is not None and moved.converged:
                 g_new, f_new, s_new = bal.forces(trial, moved)
                 if shifted or np.abs(g_new).max() < np.abs(g).max():
@@ -409,18 +502,19 @@ def _newton(bal: _Balance, center, eq: Equilibrium):
             arm_jac = None  # a shifted step that did not help: its Jacobian may be stale
         elif float(step @ step) > 0.0:
             # Broyden's update of the arm's part along the step taken.
-            arm_jac = arm_jac + np.outer(f_new - arm_force - arm_jac @ step, step) / float(step @ step)
+            change = bal.arm_part(trial, moved) - bal.arm_part(x, eq)
+            arm_jac = arm_jac + np.outer(change - arm_jac @ step, step) / float(step @ step)
         fresh = False
-        c, eq, g, arm_force, support = trial, moved, g_new, f_new, s_new
-    return _Pose(c, eq, g, arm_force, support, False, it)
+        x, eq, g, arm_force, support = trial, moved, g_new, f_new, s_new
+    return _Pose(x, eq, g, arm_force, support, False, it)
 
 
 class _Pose(NamedTuple):
-    """A state of :func:`_settle`: the object's centre, the arm's equilibrium there, the
-    balance G, the arm's force, the supports' reaction, whether G met its tolerance and the
-    Newton iterations spent."""
+    """A state of :func:`_settle`: the object's pose (:class:`_Balance`), the arm's
+    equilibrium there, the balance G, the arm's force, the supports' reaction, whether G met
+    its tolerance and the Newton iterations spent."""
 
-    center: np.ndarray
+    pose: np.ndarray
     arm: Equilibrium
     g: np.ndarray
     arm_force: np.ndarray
@@ -429,24 +523,27 @@ class _Pose(NamedTuple):
     iterations: int
 
 
-def _result(bal: _Balance, pose: _Pose, converged: bool, iterations: int) -> Grasp:
-    """The :class:`Grasp` of ``pose``, with the object's stiffness (two more contact solves)."""
-    c, eq = pose.center, pose.arm
-    stiffness = np.full((2, 2), np.nan)
+def _result(bal: _Balance, state: _Pose, converged: bool, iterations: int) -> Grasp:
+    """The :class:`Grasp` of ``state``, with the object's stiffness (more contact solves)."""
+    x, eq = state.pose, state.arm
+    c = x[:2]
+    stiffness = np.full((bal.dim, bal.dim), np.nan)
     stable = False
     if converged:
         bal.budget = math.inf  # the stiffness of a state reached is always worked out
-        jac = bal.arm_jacobian(c, eq)
+        jac = bal.arm_jacobian(x, eq)
         if jac is not None:
-            stiffness = -(jac + bal.obj.support_reaction(c)[1])
+            stiffness = -(jac + bal.support_jacobian(x))
             sym = 0.5 * (stiffness + stiffness.T)
             stable = bool(eq.stable and np.all(np.linalg.eigvalsh(sym) > 0.0))
     return Grasp(arm=eq, center=c, converged=bool(converged),
                  held=bool(converged and bal.obj.clear(c)),
-                 lift=float(c[1] - bal.obj.seat[1]), arm_force=pose.arm_force,
-                 support_force=pose.support, residual=float(np.hypot(*pose.g)),
+                 lift=float(c[1] - bal.obj.seat[1]), arm_force=state.arm_force,
+                 support_force=state.support, residual=_norm(state.g),
                  stiffness=stiffness, stable=stable, iterations=int(iterations),
-                 solves=bal.counter[0])
+                 solves=bal.counter[0],
+                 turn=float(x[2] / bal.obj.radius) if bal.dim == 3 else 0.0,
+                 arm_moment=bal.arm_moment(c, eq))
 
 
 def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=None,
@@ -462,7 +559,8 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
     in each the arm moves with the object held where it was, then the object's pose is solved
     by Newton from there, the equilibrium nearest the previous one. Where the smallest
     substep finds none — the object has slipped out of the arm's hold — it falls back onto its
-    support, and the pose is solved from the seat.
+    support, and the pose is solved from the seat. With friction the object's turn is part of
+    its pose (counted from ``warm_start``, whose anchors stand where the object stood).
 
     Args:
         arm: the design. pressures: (n_inputs,) planar input pressures (Pa).
@@ -496,19 +594,20 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
             raise ValueError("warm_start was solved with another number of input pressures")
     bal.budget = int(max_solves)
     iterations = 0
+    x0 = bal.pose(start)
     try:
         if warm_start is None:
             origin = np.zeros_like(target)
-            now = _settle(bal.at(origin), start, None, fall_back=False)
+            now = _settle(bal.at(origin), x0, None, fall_back=False)
             iterations += now.iterations
             if not now.converged:
                 return _result(bal, now, False, iterations)
         else:
-            now = _Pose(start, warm_start, *bal.forces(start, warm_start), True, 0)
+            now = _Pose(x0, warm_start, *bal.forces(x0, warm_start), True, 0)
         t, dt, failed = 0.0, 1.0, math.inf
         while t < 1.0:
             t_new = min(1.0, t + dt)
-            attempt = _settle(bal.at(origin + t_new * (target - origin)), now.center, now.arm,
+            attempt = _settle(bal.at(origin + t_new * (target - origin)), now.pose, now.arm,
                               fall_back=dt <= MIN_SUBSTEP)
             iterations += attempt.iterations
             if attempt.converged:
@@ -526,20 +625,22 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
 
 
 def _settle(bal: _Balance, start, warm_start, fall_back: bool) -> _Pose:
-    """The object's equilibrium at ``bal``'s pressures nearest ``start`` (with the arm moved
-    there from ``warm_start`` with the object held at ``start``), or from the seat."""
-    eq = bal.arm_at(start, warm_start)
+    """The object's equilibrium at ``bal``'s pressures nearest the pose ``start`` (with the
+    arm moved there from ``warm_start`` with the object held at ``start``), or from the
+    seat."""
+    eq = bal.arm_at(start, warm_start, start)
     if eq is None or not eq.converged:
         eq = warm_start if eq is None else eq
         return _Pose(start, eq, *bal.forces(start, eq), False, 0)
-    pose = _newton(bal, start, eq)
-    seat = np.array(bal.obj.seat)
-    if not pose.converged and fall_back and np.any(start != seat):
-        fallen = bal.arm_at(seat, eq)
+    state = _newton(bal, start, eq)
+    seat = bal.pose(bal.obj.seat)
+    seat[2:] = start[2:]  # (it falls without turning)
+    if not state.converged and fall_back and np.any(start[:2] != seat[:2]):
+        fallen = bal.arm_at(seat, eq, start)
         if fallen is not None and fallen.converged:
             more = _newton(bal, seat, fallen)
-            pose = more._replace(iterations=pose.iterations + more.iterations)
-    return pose
+            state = more._replace(iterations=state.iterations + more.iterations)
+    return state
 
 
 class _Push:
@@ -549,13 +650,13 @@ class _Push:
         self.eq, self.scene, self.obj, self.unit, self.settings = eq, scene, obj, unit, settings
 
     def holds(self, force, state):
-        """Whether the object stays held under ``force`` (N) from ``state`` (centre, arm
+        """Whether the object stays held under ``force`` (N) from ``state`` (pose, arm
         equilibrium), and the state it is held in."""
         eq = self.eq
         bal = _Balance(eq.arm, eq.pressures, self.scene, self.obj, force * self.unit, eq.model,
                        self.settings)
-        pose = _settle(bal, state[0], state[1], fall_back=False)
-        return pose.converged and self.obj.clear(pose.center), (pose.center, pose.arm)
+        reached = _settle(bal, state[0], state[1], fall_back=False)
+        return reached.converged and self.obj.clear(reached.pose[:2]), (reached.pose, reached.arm)
 
 
 def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_force: float | None = None,
@@ -596,7 +697,7 @@ def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_forc
     for k in range(int(directions)):
         phi = 2.0 * math.pi * k / directions
         push = _Push(eq, scene, obj, np.array([-math.sin(phi), math.cos(phi)]), settings)
-        state = (grasp.center, eq)
+        state = (np.append(grasp.center, [0.0] * (obj.friction > 0.0)), eq)
         low, high = 0.0, None
         f = max(0.1 * weight, 1e-3)
         while f <= cap:

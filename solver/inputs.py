@@ -7,6 +7,8 @@ Bad input raises ``ValueError`` with one line naming the problem, before any ker
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from solver.designs import ArmDesign
@@ -137,7 +139,9 @@ def check_warm_start(warm_start, arm, scene, model, planar):
     if warm_start.scene.base_angle_deg != scene.base_angle_deg:
         raise ValueError(f"warm_start was solved at a different base angle "
                          f"({warm_start.scene.base_angle_deg:g} deg, not {scene.base_angle_deg:g})")
-    new = [k for k, d in enumerate(scene.obstacles) if d not in warm_start.scene.obstacles]
+    # (An obstacle whose friction alone changed is the same obstacle: μ carries no geometry.)
+    before = [replace(d, friction=0.0) for d in warm_start.scene.obstacles]
+    new = [k for k, d in enumerate(scene.obstacles) if replace(d, friction=0.0) not in before]
     if not new:
         return
     points = warm_start.positions if warm_start.positions.shape[0] else warm_start.tip[None, :]

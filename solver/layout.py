@@ -57,10 +57,22 @@ SEG_SECTION, SEG_FIRST, SEG_STEPS, SEG_END, SEG_ROW0 = range(5)
 # Obstacles (k, 4): centre x, centre y, radius (m), penalty stiffness (N/m²).
 CX, CY, RADIUS, STIFFNESS = range(4)
 
-# A multiple-shooting homotopy end ("level") is a tuple (p, q, plate, target, discs): channel
-# pressures (n_channels,), distributed loads (ns, 2), endplate weights (ns, 2), tip target
-# n(L⁻), M_tip (3,) and obstacles (k, 4).
-L_P, L_Q, L_PLATE, L_TARGET, L_DISCS = range(5)
+# A multiple-shooting homotopy end ("level") is a tuple (p, q, plate, target, discs, mu,
+# friction): channel pressures (n_channels,), distributed loads (ns, 2), endplate weights
+# (ns, 2), tip target n(L⁻), M_tip (3,), obstacles (k, 4), each obstacle's Coulomb coefficient
+# (k,) and the friction samples (below; no rows: no friction). A ramp interpolates the first
+# five; mu and the samples are the tangential state it carries (docs/design.md §9).
+L_P, L_Q, L_PLATE, L_TARGET, L_DISCS, L_MU, L_FRICTION = range(7)
+
+# Friction samples (rows, NEAR_SUBSTEPS + 1, k, N_FS): per RK4 step of a contact layout (by
+# the record row of the step's start node), per node of the step's refinement near an
+# obstacle and per obstacle: the anchor the sample is stuck to (m, relative to the
+# obstacle's centre or axis point; NaN: none); then, written by a pass that records, at its
+# state: the return-mapped anchor, the friction impulse on the arm (N), the sample's position
+# (m) and its slip from the anchor (m); and the energy its slip dissipated along the path so
+# far (J). Planar samples use the x, y of each 3-vector.
+FS_A, FS_NEW, FS_F, FS_R, FS_SLIP, FS_WORK = 0, 3, 6, 9, 12, 13
+N_FS = 14
 
 # The multiple-shooting layout tuple ``grid``: base angle θ0, segment table, section array,
 # RK4 steps per section (ns,), section start arc lengths (ns,) and the self-contact

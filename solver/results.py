@@ -52,6 +52,12 @@ class Equilibrium:
         pressures: the pressures solved for (Pa), in the order of ``design.input_names``.
         penalty_stiffness: with rigid obstacles, the penalty stiffness (N/m²) that met
             ``Settings.gap_tol`` (NaN otherwise).
+        friction_samples: with friction (an obstacle with μ > 0), the tangential state at the
+            contact samples (rows, nodes, obstacles, ``layout.N_FS``): anchors, friction
+            impulses (N, world frame), positions, slips and the work dissipated
+            (``layout.FS_*``, docs/design.md §9); a warm start carries it on. Empty without.
+        dissipated: energy dissipated by friction (J) along the quasi-static path to this
+            state, from the cold start through every warm start it continues.
         model, planar: what was solved.
         arm, scene: the design and scene it was solved for (a warm start is checked
             against them).
@@ -84,6 +90,8 @@ class Equilibrium:
     scene: Scene | None = field(default=None, repr=False)
     channel_pressures: np.ndarray = field(default_factory=_empty(0), repr=False)
     penalty_stiffness: float = math.nan
+    friction_samples: np.ndarray = field(default_factory=_empty(0, 0, 0, 0), repr=False)
+    dissipated: float = 0.0
     arm: ArmDesign | None = field(default=None, repr=False, compare=False)
 
     @classmethod

@@ -42,11 +42,16 @@ class Disc:
             contact), solved by penalty continuation until the deepest penetration is
             below ``Settings.gap_tol``. A physical value for an arm's own compliance is
             :meth:`solver.designs.TubeMaterial.ring_stiffness` of its outer tubes.
+        friction: Coulomb coefficient μ ≥ 0 between the arm and the disc (0: frictionless,
+            the default). The arm sticks while the tangential force is within μ times the
+            normal force and slips on that cone, the tangential state carried along the
+            quasi-static path (docs/design.md §9).
     """
 
     center: tuple = (0.0, 0.0)
     radius: float = 0.05
     stiffness: float = 2.0e4
+    friction: float = 0.0
 
     def __post_init__(self):
         try:
@@ -58,6 +63,7 @@ class Disc:
                              f"got {self.center!r}")
         object.__setattr__(self, "center", (float(c[0]), float(c[1])))
         _radius_and_stiffness(self)
+        _coulomb(self)
 
 
 def _vector3(owner: str, name: str, value, unit: bool = False) -> tuple:
@@ -92,6 +98,22 @@ def _radius_and_stiffness(obj) -> None:
         object.__setattr__(obj, name, float(v))
 
 
+def check_friction(owner: str, value) -> float:
+    """``value`` as a Coulomb coefficient μ: a finite number ≥ 0, else a ValueError naming
+    ``owner`` (the field, e.g. ``"Disc.friction"``)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(value) or value < 0:
+        raise ValueError(f"{owner} must be a finite number >= 0 (the Coulomb coefficient mu); "
+                         f"got {value!r}")
+    return float(value)
+
+
+def _coulomb(obj) -> None:
+    """Validate and store ``obj.friction`` (μ ≥ 0)."""
+    object.__setattr__(obj, "friction", check_friction(f"{type(obj).__name__}.friction",
+                                                       obj.friction))
+
+
 @dataclass(frozen=True)
 class Cylinder:
     """A rigid infinite cylinder (spatial obstacle) the backbone is pressed against by
@@ -105,17 +127,20 @@ class Cylinder:
         radius: contact radius for the backbone curve (m): object radius plus the arm's
             half-thickness for surface contact.
         stiffness: penalty k (N/m²), or ``math.inf`` (rigid), as for :class:`Disc`.
+        friction: Coulomb coefficient μ ≥ 0, as for :class:`Disc`.
     """
 
     point: tuple = (0.0, 0.0, 0.0)
     axis: tuple = (0.0, 0.0, 1.0)
     radius: float = 0.05
     stiffness: float = 2.0e4
+    friction: float = 0.0
 
     def __post_init__(self):
         object.__setattr__(self, "point", _vector3("Cylinder", "point", self.point))
         object.__setattr__(self, "axis", _vector3("Cylinder", "axis", self.axis, unit=True))
         _radius_and_stiffness(self)
+        _coulomb(self)
 
 
 @dataclass(frozen=True)
@@ -126,15 +151,18 @@ class Sphere:
         center: (x, y, z) of the centre (m).
         radius: contact radius for the backbone curve (m).
         stiffness: penalty k (N/m²), or ``math.inf`` (rigid).
+        friction: Coulomb coefficient μ ≥ 0, as for :class:`Disc`.
     """
 
     center: tuple = (0.0, 0.0, 0.0)
     radius: float = 0.05
     stiffness: float = 2.0e4
+    friction: float = 0.0
 
     def __post_init__(self):
         object.__setattr__(self, "center", _vector3("Sphere", "center", self.center))
         _radius_and_stiffness(self)
+        _coulomb(self)
 
 
 def core_distance(obstacle, points) -> np.ndarray:
@@ -285,6 +313,15 @@ class Scene:
         """Obstacles as an (n, 4) array: centre x, centre y, radius, stiffness."""
         return np.array([[*d.center, d.radius, d.stiffness] for d in self.obstacles],
                         dtype=float).reshape(-1, 4)
+
+    def friction_array(self) -> np.ndarray:
+        """(n,) every obstacle's Coulomb coefficient μ."""
+        return np.array([o.friction for o in self.obstacles], dtype=float)
+
+    @property
+    def has_friction(self) -> bool:
+        """True when an obstacle has a Coulomb coefficient μ > 0."""
+        return any(o.friction > 0.0 for o in self.obstacles)
 
     def obstacles_array(self) -> np.ndarray:
         """Obstacles as the spatial kernels' (n, 8) array (:func:`obstacle_row`)."""

@@ -207,6 +207,14 @@ def test_contact_and_track_copies_are_the_single_envs(env_id, kwargs, mode):
         assert any(np.any(info["penetration"] > 0) for info in infos)
 
 
+def test_batched_wrap_copies_with_friction_are_the_single_envs():
+    """The contact BatchStepper carries each copy's friction samples as the single env's
+    Stepper does: every output equal, across autoresets, with copies in contact."""
+    outs = _same_as_sync("SoftArm/OctArmWrap-v1", {"friction": 0.7}, AutoresetMode.SAME_STEP)
+    infos = [o[4] for o in outs] + [o[4]["final_info"] for o in outs if "final_info" in o[4]]
+    assert any(np.any(info["penetration"] > 0) for info in infos)
+
+
 def test_forbidden_contact_is_rejected_as_in_the_single_env():
     """Absolute jumps touch the discs: the batch restores those copies as the single env does."""
     outs = _same_as_sync("SoftArm/OctArmObstacleReach-v0", {"contact": "forbid", "action_mode": "absolute"},

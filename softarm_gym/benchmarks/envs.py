@@ -132,6 +132,9 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
     return {"cases": cases, "n_steps": n_steps, "n_envs": n_envs, "resets": resets}
 
 
+FRICTION = 0.7
+"""μ of the friction cases: rubber on common objects (docs/design.md §9.1)."""
+
 CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("wrap", "SoftArm/OctArmWrap-v1", {}),
                        ("wrap delta", "SoftArm/OctArmWrap-v1", {"action_mode": "delta"}),
@@ -139,10 +142,16 @@ CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("grasp", "SoftArm/OctArmGrasp-v0", {}),
                        ("reach self-contact", "SoftArm/OctArmReach-v1", {"self_contact": True}),
                        ("3D reach", "SoftArm/OctArmReach-v1", {"planar": False}),
-                       ("3D wrap", "SoftArm/OctArmWrap3D-v0", {}))
+                       ("3D wrap", "SoftArm/OctArmWrap3D-v0", {}),
+                       ("wrap friction", "SoftArm/OctArmWrap-v1", {"friction": FRICTION}),
+                       ("wrap delta friction", "SoftArm/OctArmWrap-v1",
+                        {"action_mode": "delta", "friction": FRICTION}),
+                       ("obstacle reach friction", "SoftArm/OctArmObstacleReach-v0",
+                        {"friction": FRICTION}))
 """The single-env cases :func:`contact_ratios` times against their unit step: name, ID,
 kwargs (``true`` observations, random actions). The unit is a free ``OctArmReach-v1`` step
-(the first case) unless :data:`RATIO_UNITS` names another case."""
+(the first case) unless :data:`RATIO_UNITS` names another case. A case with ``friction`` is
+also timed against the same case without it (docs/design.md §9.1)."""
 
 RATIO_UNITS = {"3D wrap": "3D reach"}
 """Case name → the case whose step is its unit (the issue holds 3D wrap to a 3D reach step)."""
@@ -161,7 +170,8 @@ def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASE
 
     Returns:
         dict: ``{"n_steps", "rounds", "rows": [{"name", "env_id", "kwargs", "steps_per_s",
-        "runs_steps_per_s", "unit", "times_unit", "times_free_step"}]}``.
+        "runs_steps_per_s", "unit", "times_unit", "times_free_step"}]}``; a friction case's row
+        also has ``"times_frictionless"``: the same case without friction's steps/s over its own.
     """
     names = [name for name, _, _ in cases]
     units = {name: RATIO_UNITS.get(name, names[0]) for name in names}
@@ -184,16 +194,24 @@ def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASE
              "runs_steps_per_s": rates, "unit": units[name], "times_unit": median[units[name]] / median[name],
              "times_free_step": median[names[0]] / median[name]}
             for (name, env_id, kwargs), rates in zip(cases, runs)]
+    for row in rows:
+        if "friction" in row["kwargs"]:
+            plain = {k: v for k, v in row["kwargs"].items() if k != "friction"}
+            twin = [r for r in rows if r["env_id"] == row["env_id"] and r["kwargs"] == plain]
+            if twin:
+                row["times_frictionless"] = twin[0]["steps_per_s"] / row["steps_per_s"]
     return {"n_steps": n_steps, "rounds": rounds, "rows": rows}
 
 
 def format_ratio_table(result: dict) -> str:
     lines = ["| single env (random actions, true obs.) | steps/s (median) | × a free OctArmReach-v1 step "
-             "| × its unit step |", "|---|---|---|---|"]
+             "| × its unit step | × the same without friction (target <= 1.5) |",
+             "|---|---|---|---|---|"]
     for r in result["rows"]:
         extra = "".join(f" {k}={v}" for k, v in r["kwargs"].items())
+        frictionless = f"{r['times_frictionless']:.2f}" if "times_frictionless" in r else ""
         lines.append(f"| {r['env_id']}{extra} | {r['steps_per_s']:,.0f} | {r['times_free_step']:.2f} | "
-                     f"{r['times_unit']:.2f} ({r['unit']}) |")
+                     f"{r['times_unit']:.2f} ({r['unit']}) | {frictionless} |")
     return "\n".join(lines)
 
 

@@ -7,7 +7,8 @@ Two measurements, each using only public names that both trees have (``gym.make`
 
 * ``ratios`` — single-env steps/s under seeded random actions (``true`` observations, resets
   when an episode ends) of the contact cases (default
-  :data:`softarm_gym.benchmarks.envs.CONTACT_RATIO_CASES`), each as a multiple of its unit's
+  :data:`softarm_gym.benchmarks.envs.CONTACT_RATIO_CASES`, less the friction cases: a tree before
+  friction has no `friction` kwarg), each as a multiple of its unit's
   step measured in the same process (a free ``OctArmReach-v1`` step; a 3D reach step for 3D
   wrap, :data:`~softarm_gym.benchmarks.envs.RATIO_UNITS`);
 * ``planner`` — :class:`~softarm_gym.controllers.CEMPlanner` episodes (the same arguments on
@@ -180,7 +181,8 @@ def run(before: Path, rounds: int = 3, n_steps: int = 300, episodes: int = 3, ca
         rounds: rounds (each runs every job once per tree, in fresh processes).
         n_steps: timed steps per ratio case.
         episodes: planner episodes per ID and round (seeds 0 .. episodes − 1, every round).
-        cases: ratio cases (default :data:`softarm_gym.benchmarks.envs.CONTACT_RATIO_CASES`).
+        cases: ratio cases (default :data:`softarm_gym.benchmarks.envs.CONTACT_RATIO_CASES`
+            without the friction cases).
         planner_ids, planner_kwargs: the planner's envs and arguments (default
             :data:`PLANNER_KWARGS`).
         numba_threads: NUMBA_NUM_THREADS of the subprocesses (None: numba's default).
@@ -205,7 +207,9 @@ def run(before: Path, rounds: int = 3, n_steps: int = 300, episodes: int = 3, ca
     if not (before / "softarm_gym" / "__init__.py").is_file():
         raise ValueError(f"--before {before} is not a softarm-gym checkout (no softarm_gym/__init__.py)")
     trees = {"after": ROOT, "before": before}
-    cases = [list(c) for c in (cases or CONTACT_RATIO_CASES)]
+    # Friction's cases are timed against their frictionless twins (envs.contact_ratios): a
+    # tree before friction has no ``friction`` kwarg.
+    cases = [list(c) for c in (cases or [c for c in CONTACT_RATIO_CASES if "friction" not in c[2]])]
     planner_kwargs = dict(planner_kwargs or PLANNER_KWARGS)
     seeds = list(range(episodes))
     out = {"after": _commit(ROOT), "before": _commit(before), "rounds": rounds,

@@ -145,7 +145,7 @@ class GraspEnv(WrapEnv):
         None if that does not converge (planar: ``axis`` is None)."""
         obj = FreeObject(radius=radius + self.half_thickness, mass_kg=self._mass,
                          seat=(float(center[0]), float(center[1])), stiffness=self.contact_stiffness,
-                         fork_depth=self.fork_depth)
+                         fork_depth=self.fork_depth, friction=self.friction)
         free = replace(self._scene, obstacles=())
         if math.hypot(*obj.seat) <= obj.radius + CLAMP_GAP:
             return None  # seated against the arm's base clamp

@@ -13,6 +13,7 @@ from softarm_gym.envs.config import check_options, finite_number, value_range
 from softarm_gym.envs.reach import ReachEnv
 from softarm_gym.envs.terms import contact_rewards, equilibrium_contact
 from softarm_gym.envs.wrap import arm_half_thickness, check_contact_stiffness, resolve_contact_stiffness
+from solver.scene import check_friction
 
 __all__ = ["ObstacleReachEnv", "CONTACT_MODES", "total_contact_force"]
 
@@ -139,7 +140,8 @@ class ObstacleReachEnv(ReachEnv):
     ``contact`` (``"penalize"`` or ``"forbid"``, which also changes the placement: Starting
     State), ``contact_weight`` (0.1 per N),
     ``contact_penalty`` (1), ``contact_stiffness`` (``"tube"``: the distal tubes' ring
-    stiffness, as WrapEnv; a number in N/m²; or ``"rigid"``).
+    stiffness, as WrapEnv; a number in N/m²; or ``"rigid"``), ``friction`` (the discs'
+    Coulomb coefficient μ ≥ 0, 0: frictionless; docs/design.md §9).
 
     ## Info
 
@@ -173,7 +175,8 @@ class ObstacleReachEnv(ReachEnv):
 
     def __init__(self, design="octarm_v", *, n_obstacles=(1, 2), obstacle_radius=(0.03, 0.06),
                  clearance: float = 0.02, contact: str = "penalize", contact_weight: float = 0.1,
-                 contact_penalty: float = 1.0, contact_stiffness="tube", **kwargs):
+                 contact_penalty: float = 1.0, contact_stiffness="tube", friction: float = 0.0,
+                 **kwargs):
         self.n_obstacles_range = _count_range(n_obstacles)
         self.max_obstacles = self.n_obstacles_range[1]
         self.obstacle_radius_range = value_range("obstacle_radius", obstacle_radius)
@@ -186,6 +189,7 @@ class ObstacleReachEnv(ReachEnv):
         self.contact_weight = finite_number("contact_weight", contact_weight, 0.0)
         self.contact_penalty = finite_number("contact_penalty", contact_penalty, 0.0)
         check_contact_stiffness(contact_stiffness)
+        self.friction = check_friction("friction", friction)
         if kwargs.get("planar", True) is not True:
             raise ValueError("ObstacleReachEnv is planar only (the solver's disc contact is planar); "
                              "use planar=True")
@@ -293,7 +297,8 @@ class ObstacleReachEnv(ReachEnv):
             return None
         scene = replace(scene, obstacles=tuple(
             solver.Disc(center=(float(x), float(y)), radius=float(r) + self.half_thickness,
-                        stiffness=self.contact_stiffness) for x, y, r in discs))
+                        stiffness=self.contact_stiffness, friction=self.friction)
+            for x, y, r in discs))
         eq = solver.solve(arm, start.pressures, scene, model=self.model, planar=True, warm_start=start)
         if not eq.converged:
             return None

@@ -13,6 +13,7 @@ from softarm_gym.envs.config import check_options, finite_number, value_range
 from softarm_gym.envs.terms import WRAP_TERMS, WrapRule, wrap_measures, wrap_rewards
 from softarm_gym.render import Cylinder
 from solver import layout as L
+from solver.scene import check_friction
 
 __all__ = ["WrapEnv", "wrap_angle", "arm_half_thickness", "check_contact_stiffness",
            "resolve_contact_stiffness"]
@@ -170,7 +171,8 @@ class WrapEnv(SoftArmEnv):
     ``(low, high)`` range, m; default (0.09, 0.11)), ``contact_stiffness`` (``"tube"``: the
     ring stiffness of the distal section's tubes, ``TubeMaterial.ring_stiffness``, 9.8e4 N/m²
     for OctArm V and CT — the arm's own compliance, see docs/design.md §9; a number in N/m²;
-    or ``"rigid"`` for hard contact),
+    or ``"rigid"`` for hard contact), ``friction`` (the Coulomb coefficient μ ≥ 0 between
+    the arm and the object, 0: frictionless; docs/design.md §9),
     ``contact_margin`` (5 mm), ``placement_gap`` (1 cm), ``placement_wrap_deg`` (300),
     ``wrap_weight`` (1), ``approach_weight`` (1), ``penetration_weight`` (0.1),
     ``penetration_tolerance`` (5 mm), ``control_weight`` (0.01), ``success_bonus`` (1),
@@ -209,7 +211,8 @@ class WrapEnv(SoftArmEnv):
     """
 
     def __init__(self, design="octarm_v", *, object_radius=(0.09, 0.11),
-                 contact_stiffness="tube", contact_margin: float = 0.005, placement_gap: float = 0.01,
+                 contact_stiffness="tube", friction: float = 0.0, contact_margin: float = 0.005,
+                 placement_gap: float = 0.01,
                  placement_wrap_deg: float = 300.0, wrap_weight: float = 1.0,
                  approach_weight: float = 1.0, penetration_weight: float = 0.1,
                  penetration_tolerance: float = 0.005, control_weight: float = 0.01,
@@ -219,6 +222,7 @@ class WrapEnv(SoftArmEnv):
         if self.object_radius_range[0] <= 0:
             raise ValueError(f"object_radius must be > 0 (m); got {object_radius!r}")
         check_contact_stiffness(contact_stiffness)
+        self.friction = check_friction("friction", friction)
         self.contact_margin = finite_number("contact_margin", contact_margin, 0.0)
         self.placement_gap = finite_number("placement_gap", placement_gap, 0.0)
         self.placement_wrap_deg = finite_number("placement_wrap_deg", placement_wrap_deg, 0.0)
@@ -334,9 +338,9 @@ class WrapEnv(SoftArmEnv):
         (point (3,), axis (3,), contact radius): a cylinder), at the env's contact stiffness."""
         if self.planar:
             return solver.Disc(center=(float(goal[0]), float(goal[1])), radius=float(goal[2]),
-                               stiffness=self.contact_stiffness)
+                               stiffness=self.contact_stiffness, friction=self.friction)
         return solver.Cylinder(point=tuple(goal[:3]), axis=tuple(goal[3:6]), radius=float(goal[6]),
-                               stiffness=self.contact_stiffness)
+                               stiffness=self.contact_stiffness, friction=self.friction)
 
     def _fill_goal(self, obs):
         out = obs[self._slices["goal"]]

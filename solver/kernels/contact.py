@@ -38,7 +38,15 @@ import numpy as np
 
 from solver.jit import njit
 from solver.kernels.grid import section_needs
-from solver.kernels.obstacles import contact_force, contact_stiffness, nearest_surface, tunnels
+from solver.kernels.obstacles import (
+    accept_friction,
+    contact_force,
+    contact_stiffness,
+    friction_impulse,
+    friction_untouched,
+    nearest_surface,
+    tunnels,
+)
 from solver.kernels.self_contact import (
     build_piece,
     canonical_slot,
@@ -70,12 +78,16 @@ from solver.layout import (
     CI,
     DT0,
     DT_MIN,
+    FS_F,
+    FS_WORK,
     G_SECF,
     G_SEGS,
     G_START,
     G_STEPS,
     G_THETA0,
     L_DISCS,
+    L_FRICTION,
+    L_MU,
     L_P,
     L_PLATE,
     L_Q,
@@ -333,10 +345,16 @@ def _prepare_partners(Z, grid, rest, level, partners):
     record = np.empty((rows, C_COLUMNS))
     states = np.empty((pts.shape[1], 6))
     ends = np.empty((n_seg, 6))
+    # The tracing pass records, but friction's samples are the residual pass's to record (the
+    # anchors a state's acceptance takes, solver.kernels.obstacles.accept_friction): it
+    # integrates with a copy of them (a Newton step's difference columns trace moved states).
+    fs = level[L_FRICTION]
+    traced = (level[L_P], level[L_Q], level[L_PLATE], level[L_TARGET], level[L_DISCS], level[L_MU],
+              fs.copy() if fs.shape[0] > 0 else fs)
     for _ in range(GEOMETRY_PASSES):
         # The segments integrated with the loads as the residual pass integrates them.
         _start_state(Z, 0, theta0, za)
-        _integrate(za, Z, 0, n_seg, grid, rest, level, ends, True, record, None, partners)
+        _integrate(za, Z, 0, n_seg, grid, rest, traced, ends, True, record, None, partners)
         for seg in range(n_seg):
             first = segs[seg, SEG_ROW0] + segs[seg, SEG_FIRST]
             nst = segs[seg, SEG_STEPS]
@@ -389,7 +407,10 @@ def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, 
 
     Near a disc every RK4 step is refined into NEAR_SUBSTEPS substeps: the penalty's kink at
     the disc surface, and contact patches shorter than a step, cost RK4 its accuracy there,
-    and only there. A step that cannot reach a disc (its start clears every disc by more
+    and only there. Friction (the level's samples, ``L_FRICTION``, if it has any) acts at the
+    refinement's nodes as point loads, each the trapezoid rule's share of the substeps either
+    side (:func:`_friction_node`); a step that is not refined reaches no disc and carries
+    none. A step that cannot reach a disc (its start clears every disc by more
     than the step's reach, h·|r'|, plus h) is taken whole; in between, the two results are
     blended with a smoothstep weight of that clearance, so the map stays smooth in the
     state (a switch would put jumps of RK4's truncation size into it, which stall Newton).
@@ -408,6 +429,8 @@ def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, 
     discs = level[L_DISCS]
     loads = partners[2]
     own = loads.shape[0] > 0
+    fs = level[L_FRICTION]
+    friction = fs.shape[0] > 0
     tangent = blocks is not None
     no_tangent = np.empty((0, 6))
     fine_phi = np.empty((6, 6)) if tangent else no_tangent
@@ -480,20 +503,31 @@ def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, 
                             g -= slope[d - 2] * phi[d, e]
                         grad[e] = dw * g
             end = (x, y, th, c, sn, nx, ny, m)
+            at = segs[seg, SEG_ROW0] + j
             if clear > 0.0:
                 end = _step(x, y, th, c, sn, nx, ny, m, k1, h, phi, ca, cg, ci, ur, vr, qx, qy,
                             discs)
                 if clear >= h:
                     x, y, th, c, sn, nx, ny, m = end
+                    if friction and record:
+                        friction_untouched(fs, at)
                     continue
             fine = (x, y, th, c, sn, nx, ny, m)
             for sub in range(NEAR_SUBSTEPS):
-                if sub > 0:
+                if friction:  # the node's impulse first: the substep starts past it
+                    fine = _friction_node(fine, fine_phi, tangent, level, at, sub,
+                                          (0.5 if sub == 0 else 1.0) * hf, record)
+                if sub > 0 or friction:
                     fx, fy, pen = contact_force(fine[0], fine[1], discs)
                     k1 = planar_state_rates(fine[3], fine[4], fine[5], fine[6], fine[7], ca, cg,
                                             ci, ur, vr, qx, qy, fx, fy)
                 fine = _step(fine[0], fine[1], fine[2], fine[3], fine[4], fine[5], fine[6],
                              fine[7], k1, hf, fine_phi, ca, cg, ci, ur, vr, qx, qy, discs)
+            if friction:
+                fine = _friction_node(fine, fine_phi, tangent, level, at, NEAR_SUBSTEPS, 0.5 * hf,
+                                      record)
+                if record:
+                    _friction_row(fs, at, 0, hf, out, at)
             if clear <= 0.0:
                 x, y, th, c, sn, nx, ny, m = fine
                 if tangent:
@@ -527,6 +561,8 @@ def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, 
                            cg, ci, ur, vr, discs)
                 if own:
                     _self_row(loads, segs, seg, nst, out, row)
+                if friction:
+                    _friction_row(fs, row - 1, NEAR_SUBSTEPS, hf, out, row)
             if i < secf.shape[1] - 1:
                 nx -= plate[i, 0]
                 ny -= plate[i, 1]
@@ -534,6 +570,34 @@ def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, 
         ends[k, 0], ends[k, 1], ends[k, 2] = x, y, th
         ends[k, 3], ends[k, 4], ends[k, 5] = nx, ny, m
         th_end = th
+
+
+@njit(inline="always")
+def _friction_node(fine, phi, tangent, level, row, node, weight, record):
+    """The state ``fine`` (x, y, θ, cos θ, sin θ, n_x, n_y, m) past the friction impulse F of
+    sample (row, node) (:func:`solver.kernels.obstacles.friction_impulse`, its share
+    ``weight`` of the length), a point load: n⁺ = n⁻ − F; with ``tangent``, its Jacobian
+    ``phi`` too (δn⁺ = δn⁻ − ∂F/∂r·δr), in place."""
+    fx, fy, k00, k01, k10, k11 = friction_impulse(fine[0], fine[1], level[L_DISCS], level[L_MU],
+                                                  level[L_FRICTION], row, node, weight, record,
+                                                  tangent)
+    if tangent:
+        for e in range(6):
+            p0 = phi[0, e]
+            p1 = phi[1, e]
+            phi[3, e] -= k00 * p0 + k01 * p1
+            phi[4, e] -= k10 * p0 + k11 * p1
+    return (fine[0], fine[1], fine[2], fine[3], fine[4], fine[5] - fx, fine[6] - fy, fine[7])
+
+
+@njit
+def _friction_row(fs, row, node, h_sub, out, out_row):
+    """Add the friction force per length of sample (row, node) (an end node of its step's
+    refinement, which carries half a substep) to the contact force of record row
+    ``out_row``."""
+    for d in range(fs.shape[2]):
+        out[out_row, C_FX] += fs[row, node, d, FS_F] / (0.5 * h_sub)
+        out[out_row, C_FY] += fs[row, node, d, FS_F + 1] / (0.5 * h_sub)
 
 
 @njit(inline="always")
@@ -954,7 +1018,8 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
 @njit
 def set_level(t, a, b, now):
     """Interpolate the homotopy between level tuples ``a`` and ``b`` at ``t`` into ``now``
-    (planar or spatial: the widths are the arrays')."""
+    (planar or spatial: the widths are the arrays'); its friction (``L_MU``,
+    ``L_FRICTION``) is the path's tangential state, not interpolated."""
     for k in range(a[L_P].shape[0]):
         now[L_P][k] = a[L_P][k] + t * (b[L_P][k] - a[L_P][k])
     for i in range(a[L_Q].shape[0]):
@@ -970,9 +1035,23 @@ def set_level(t, a, b, now):
 
 @njit
 def new_level(a):
-    """Scratch arrays shaped like the level tuple ``a``."""
+    """Scratch arrays shaped like the level tuple ``a``, with copies of its friction."""
     return (np.empty_like(a[L_P]), np.empty_like(a[L_Q]), np.empty_like(a[L_PLATE]),
-            np.empty_like(a[L_TARGET]), np.empty_like(a[L_DISCS]))
+            np.empty_like(a[L_TARGET]), np.empty_like(a[L_DISCS]), a[L_MU].copy(),
+            a[L_FRICTION].copy())
+
+
+@njit
+def start_friction(a, now):
+    """A path from level ``a`` starts from its tangential state: ``a``'s friction samples
+    into ``now``'s, the work dissipated so far cleared (a path counts its own)."""
+    now[L_MU][:] = a[L_MU]
+    fs = now[L_FRICTION]
+    fs[...] = a[L_FRICTION]
+    for row in range(fs.shape[0]):
+        for node in range(fs.shape[1]):
+            for d in range(fs.shape[2]):
+                fs[row, node, d, FS_WORK] = 0.0
 
 
 @njit
@@ -1042,6 +1121,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     rec_prev = np.empty((rows, C_COLUMNS))
     rec_new = np.empty((rows, C_COLUMNS))
     has_discs = a[L_DISCS].shape[0] > 0
+    friction = a[L_FRICTION].shape[0] > 0
+    start_friction(a, now)
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
     newton_system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)), new_partners(grid))
@@ -1058,6 +1139,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     accepted = Z.copy()
     if has_discs:
         record_backbone(Z, grid, rest, now, rec_prev)
+        if friction:  # the start, corrected, is the path's first accepted state
+            accept_friction(now[L_FRICTION])
     # Tangent predictor for the first step. Without it the first step's correction is
     # judged against a zero prediction, and a large pressure change is halved until its
     # correction is small in absolute terms — five or six converged steps thrown away.
@@ -1093,6 +1176,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
                 through = tunnels(rec_prev[:, C_X:C_Y + 1], rec_new[:, C_X:C_Y + 1],
                                   now[L_DISCS], TUNNEL_SLACK)
             if not through:
+                if friction:
+                    accept_friction(now[L_FRICTION])
                 for k in range(n):
                     slope[k] = (Z[k] - accepted[k]) / (t_new - t)
                     accepted[k] = Z[k]
@@ -1355,7 +1440,9 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             success.
         grid: the layout tuple (``G_*``). tubes: (tubes_i, tubes_f).
         level: the level tuple (``L_*``) of ``Z``; its pressures and discs become ``p_new``
-            and ``discs_new`` on success.
+            and ``discs_new`` on success, and its friction samples (if any) the path's, each
+            accepted step accepting its anchors as :func:`_path`'s do
+            (:func:`solver.kernels.obstacles.accept_friction`).
         p_new: (n_channels,) the target pressures (Pa). discs_new: (k, 4) the target discs
             (the same law and count as the level's).
         params: (N_PARAMS,) numeric parameters (TOL, MAX_STEP, MAX_ITER are used).
@@ -1379,7 +1466,12 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     p_old, discs_old = level[L_P], level[L_DISCS]
     p_now = np.empty_like(p_new)
     discs_now = np.empty_like(discs_new)
-    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], discs_now)
+    # The path's tangential state: the level's samples, copied (its accepted steps accept
+    # theirs, and a refused lean step leaves the level's untouched).
+    fs = level[L_FRICTION]
+    friction = fs.shape[0] > 0
+    fs_now = fs.copy() if friction else fs
+    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], discs_now, level[L_MU], fs_now)
     partners = new_partners(grid)
     no_record = np.empty((1, C_COLUMNS))
     no_blocks = np.empty((0, 6, 6))
@@ -1459,6 +1551,8 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             accepted[:] = Z
             held, spare = spare, held
             before[:, :] = new[:, C_X:C_Y + 1]
+            if friction:
+                accept_friction(fs_now)
             if final:
                 break
             dt = min(2.0 * dt, 1.0)
@@ -1472,4 +1566,6 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     for c in range(p_new.shape[0]):
         p_old[c] = p_new[c]
     discs_old[:, :] = discs_new
+    if friction:
+        fs[...] = fs_now
     return True, stable, passes, res

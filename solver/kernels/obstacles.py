@@ -17,7 +17,22 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.layout import CX, CY, O_AXIS, O_P, O_RADIUS, O_STIFFNESS, RADIUS, STIFFNESS
+from solver.layout import (
+    CX,
+    CY,
+    FS_A,
+    FS_F,
+    FS_NEW,
+    FS_R,
+    FS_SLIP,
+    FS_WORK,
+    O_AXIS,
+    O_P,
+    O_RADIUS,
+    O_STIFFNESS,
+    RADIUS,
+    STIFFNESS,
+)
 
 # A point whose squared distance from a disc's centre is at least this multiple of R² lies
 # outside it, rounding included: the penalty sums skip such discs before the square root.
@@ -285,6 +300,213 @@ def tunnels_3d(prev, new, obstacles, slack):
                 if depth > limit:
                     return True
     return False
+
+
+# ----------------------------------------------------------------------------- friction
+
+
+@njit
+def friction_impulse(x, y, discs, mu, fs, row, node, weight, record, want_k):
+    """Coulomb friction at the planar contact sample (row, node) at (x, y): the impulse on the
+    arm (N) it carries for its share ``weight`` (m) of the reference length, summed over the
+    discs with μ > 0, by the return mapping of docs/design.md §9.
+
+    Per disc: the sample's tangential displacement from its anchor is
+    d = t·(r − c − a) (t the surface's tangent at r, a the anchor ``fs[row, node, disc,
+    FS_A:]``, relative to the centre c); the tangential spring −k·d (k the disc's penalty)
+    holds it while |d| ≤ μ·pen (stick) and the cone's −μ·k·pen·sign(d) where it would exceed
+    it (slip): force per length along t. A sample without an anchor (NaN: it was not near
+    the disc at the last accepted state) carries none.
+
+    Args:
+        x, y: the sample (m). discs: (k, 4). mu: (k,) Coulomb coefficients.
+        fs: the friction samples (``FS_*``; rows, nodes, k, N_FS). row, node: the sample.
+        weight: its share of the reference length (m).
+        record: write the return-mapped anchor, the impulse, the position and the slip
+            into ``fs[row, node]`` (``FS_NEW`` … ``FS_SLIP``).
+        want_k: also return the impulse's derivative with respect to (x, y).
+
+    Returns:
+        (F_x, F_y, ∂F_x/∂x, ∂F_x/∂y, ∂F_y/∂x, ∂F_y/∂y) (N, N/m; zeros unless ``want_k``).
+    """
+    fx = 0.0
+    fy = 0.0
+    k00 = 0.0
+    k01 = 0.0
+    k10 = 0.0
+    k11 = 0.0
+    for d in range(discs.shape[0]):
+        if not mu[d] > 0.0:
+            continue
+        ex = x - discs[d, CX]
+        ey = y - discs[d, CY]
+        rho = math.sqrt(ex * ex + ey * ey)
+        if not rho > 0.0:
+            continue
+        ux = ex / rho
+        uy = ey / rho
+        tx = -uy
+        ty = ux
+        radius = discs[d, RADIUS]
+        k = discs[d, STIFFNESS]
+        pen = radius - rho
+        cap = mu[d] * pen if pen > 0.0 else 0.0
+        ax = fs[row, node, d, FS_A]
+        ay = fs[row, node, d, FS_A + 1]
+        fresh = math.isnan(ax)
+        dd = 0.0 if fresh else tx * (ex - ax) + ty * (ey - ay)
+        if abs(dd) <= cap:  # stick: the tangential spring
+            ft = -k * dd
+            slip = 0.0
+            nx = radius * ux if fresh else ax
+            ny = radius * uy if fresh else ay
+            # ∂(f t)/∂r = −k·g·t tᵀ − (f/ρ)·u tᵀ, g = 1 − u·(r − c − a)/ρ (t turns with r)
+            a = 0.0 if fresh else -k * (1.0 - (ux * (ex - ax) + uy * (ey - ay)) / rho)
+            a_t = 1.0
+        else:  # slip: on the cone, the anchor dragged along
+            sg = 1.0 if dd > 0.0 else -1.0
+            ft = -k * sg * cap
+            slip = abs(dd) - cap
+            nx = radius * ux - sg * cap * tx
+            ny = radius * uy - sg * cap * ty
+            # ∂(f t)/∂r = σ·μ·k·t uᵀ − (f/ρ)·u tᵀ (pen = R − ρ moves the cone)
+            a = sg * mu[d] * k if pen > 0.0 else 0.0
+            a_t = 0.0
+        gx = weight * ft * tx
+        gy = weight * ft * ty
+        fx += gx
+        fy += gy
+        if want_k:
+            b = -ft / rho
+            # a·t (t or u)ᵀ + b·u tᵀ: the first factor's row vector is t in stick, u in slip.
+            vx = a_t * tx + (1.0 - a_t) * ux
+            vy = a_t * ty + (1.0 - a_t) * uy
+            k00 += weight * (a * tx * vx + b * ux * tx)
+            k01 += weight * (a * tx * vy + b * ux * ty)
+            k10 += weight * (a * ty * vx + b * uy * tx)
+            k11 += weight * (a * ty * vy + b * uy * ty)
+        if record:
+            out = fs[row, node, d]
+            out[FS_NEW] = nx
+            out[FS_NEW + 1] = ny
+            out[FS_NEW + 2] = 0.0
+            out[FS_F] = gx
+            out[FS_F + 1] = gy
+            out[FS_F + 2] = 0.0
+            out[FS_R] = x
+            out[FS_R + 1] = y
+            out[FS_R + 2] = 0.0
+            out[FS_SLIP] = slip
+    return fx, fy, k00, k01, k10, k11
+
+
+@njit
+def friction_impulse_3d(r0, r1, r2, obstacles, mu, fs, row, node, weight, record):
+    """:func:`friction_impulse` against spatial obstacles (n, 8): the tangential
+    displacement is the vector d = P·(r − p − a), P the projection on the surface's tangent
+    plane at r (normal to e, the offset from the obstacle's core, :func:`_offset_3d`) and a
+    the anchor relative to the obstacle's point p; stick while |d| ≤ μ·pen, else the cone's
+    force −μ·k·pen·d/|d|. Returns the impulse (F_x, F_y, F_z) on the arm (N)."""
+    fx = 0.0
+    fy = 0.0
+    fz = 0.0
+    for d in range(obstacles.shape[0]):
+        if not mu[d] > 0.0:
+            continue
+        e0, e1, e2, rho = _offset_3d(r0, r1, r2, obstacles, d)
+        if not rho > 0.0:
+            continue
+        u0 = e0 / rho
+        u1 = e1 / rho
+        u2 = e2 / rho
+        radius = obstacles[d, O_RADIUS]
+        k = obstacles[d, O_STIFFNESS]
+        pen = radius - rho
+        cap = mu[d] * pen if pen > 0.0 else 0.0
+        a0 = fs[row, node, d, FS_A]
+        fresh = math.isnan(a0)
+        w0 = 0.0
+        w1 = 0.0
+        w2 = 0.0
+        if not fresh:
+            w0 = r0 - obstacles[d, O_P] - a0
+            w1 = r1 - obstacles[d, O_P + 1] - fs[row, node, d, FS_A + 1]
+            w2 = r2 - obstacles[d, O_P + 2] - fs[row, node, d, FS_A + 2]
+            along = w0 * u0 + w1 * u1 + w2 * u2
+            w0 -= along * u0
+            w1 -= along * u1
+            w2 -= along * u2
+        size = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        # The core point nearest r, from which the surface point R·u lies.
+        c0 = r0 - e0 - obstacles[d, O_P]
+        c1 = r1 - e1 - obstacles[d, O_P + 1]
+        c2 = r2 - e2 - obstacles[d, O_P + 2]
+        if size <= cap:  # stick
+            scale = 1.0
+            slip = 0.0
+            if fresh:
+                n0 = c0 + radius * u0
+                n1 = c1 + radius * u1
+                n2 = c2 + radius * u2
+            else:
+                n0 = a0
+                n1 = fs[row, node, d, FS_A + 1]
+                n2 = fs[row, node, d, FS_A + 2]
+        else:  # slip
+            scale = cap / size
+            slip = size - cap
+            n0 = c0 + radius * u0 - scale * w0
+            n1 = c1 + radius * u1 - scale * w1
+            n2 = c2 + radius * u2 - scale * w2
+        g0 = -weight * k * scale * w0
+        g1 = -weight * k * scale * w1
+        g2 = -weight * k * scale * w2
+        fx += g0
+        fy += g1
+        fz += g2
+        if record:
+            out = fs[row, node, d]
+            out[FS_NEW] = n0
+            out[FS_NEW + 1] = n1
+            out[FS_NEW + 2] = n2
+            out[FS_F] = g0
+            out[FS_F + 1] = g1
+            out[FS_F + 2] = g2
+            out[FS_R] = r0
+            out[FS_R + 1] = r1
+            out[FS_R + 2] = r2
+            out[FS_SLIP] = slip
+    return fx, fy, fz
+
+
+@njit
+def friction_untouched(fs, row):
+    """Mark the samples of the step at ``row`` as not evaluated by a recording pass (the
+    step was not refined: no obstacle within its reach): no anchor to carry, no impulse."""
+    for node in range(fs.shape[1]):
+        for d in range(fs.shape[2]):
+            out = fs[row, node, d]
+            for c in range(3):
+                out[FS_NEW + c] = math.nan
+                out[FS_F + c] = 0.0
+                out[FS_R + c] = math.nan
+            out[FS_SLIP] = 0.0
+
+
+@njit
+def accept_friction(fs):
+    """A state is accepted on the quasi-static path: every sample's anchor becomes the
+    return-mapped one its recording pass wrote (NaN where it was not evaluated), and the
+    energy its slip dissipated, |F|·slip (J), is added to its work."""
+    for row in range(fs.shape[0]):
+        for node in range(fs.shape[1]):
+            for d in range(fs.shape[2]):
+                s = fs[row, node, d]
+                for c in range(3):
+                    s[FS_A + c] = s[FS_NEW + c]
+                if s[FS_SLIP] > 0.0:
+                    s[FS_WORK] += math.sqrt(s[FS_F] ** 2 + s[FS_F + 1] ** 2 + s[FS_F + 2] ** 2) \
+                        * s[FS_SLIP]
 
 
 # Points per interval between samples at which the deepest point of the backbone in an

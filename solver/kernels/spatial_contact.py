@@ -42,13 +42,17 @@ from solver.kernels.contact import (
     broyden_update,
     factor_band,
     set_level,
+    start_friction,
     weighted_norm,
 )
 from solver.kernels.grid import section_needs
 from solver.kernels.obstacles import (
+    accept_friction,
     clearance_3d,
     contact_force_3d,
     contact_stiffness_3d,
+    friction_impulse_3d,
+    friction_untouched,
     nearest_surface_3d,
     tunnels_3d,
 )
@@ -65,12 +69,15 @@ from solver.layout import (
     CT_N,
     CT_PHI,
     CT_R,
+    FS_F,
     GS_CJ,
     GS_SECF,
     GS_SEGS,
     GS_START,
     GS_STEPS,
     L_DISCS,
+    L_FRICTION,
+    L_MU,
     L_P,
     L_PLATE,
     L_Q,
@@ -276,21 +283,26 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
     """Integrate segment ``seg`` from the node state ``z`` (N_CSTATE,) into ``out``.
 
     Near an obstacle each RK4 step is refined into NEAR_SUBSTEPS substeps and blended with
-    the whole step by a smoothstep of the clearance, as in :func:`solver.kernels.contact._integrate`.
-    At a section end (not the tip) the endplate's weight is taken off n. With ``record``,
-    the samples go to the record tuple ``rec``. ``work`` (8, N_CSTATE) scratch. With ``phi``
-    (12, 12) (not empty), the segment map's Jacobian in the tangent coordinates of its start
-    and end (``CT_*``) is integrated into it alongside, by the variational equations through
-    the same RK4 stages (:func:`_rk4_tangent`) and the blend's own derivative (``tw``
-    (8, 12, 12) scratch); the state is the same either way.
+    the whole step by a smoothstep of the clearance, as in :func:`solver.kernels.contact._integrate`,
+    friction acting at the refinement's nodes as it does there
+    (:func:`solver.kernels.obstacles.friction_impulse_3d`; its stiffness does not enter
+    ``phi``). At a section end (not the tip) the endplate's weight is taken off n. With
+    ``record``, the samples go to the record tuple ``rec``. ``work`` (8, N_CSTATE) scratch.
+    With ``phi`` (12, 12) (not empty), the segment map's Jacobian in the tangent coordinates
+    of its start and end (``CT_*``) is integrated into it alongside, by the variational
+    equations through the same RK4 stages (:func:`_rk4_tangent`) and the blend's own
+    derivative (``tw`` (8, 12, 12) scratch); the state is the same either way.
     """
     segs = grid[GS_SEGS]
     secf = grid[GS_SECF]
     steps = grid[GS_STEPS]
     obstacles = level[L_DISCS]
+    fs = level[L_FRICTION]
+    friction = fs.shape[0] > 0
     i = segs[seg, SEG_SECTION]
     first = segs[seg, SEG_FIRST]
     h = secf[LEN, i] / steps[i]
+    h_sub = h / NEAR_SUBSTEPS
     ca = secf[CA, i]
     cg = secf[CG, i]
     ci = secf[CI, i]
@@ -325,7 +337,10 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
         # work[0] holds the slope at the step's start: r' its first three entries.
         speed = math.sqrt(work[0, CS_R] ** 2 + work[0, CS_R + 1] ** 2 + work[0, CS_R + 2] ** 2)
         clear = clearance_3d(start[CS_R], start[CS_R + 1], start[CS_R + 2], obstacles) - h * speed
+        at = segs[seg, SEG_ROW0] + j
         if clear >= h:
+            if friction and record:
+                friction_untouched(fs, at)
             continue
         if tangent and clear > 0.0:
             # d(clear)/d(start) along the tangent: û·δr − h·(r'/|r'|)·δr', δr' the first
@@ -343,13 +358,19 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
             fine[d] = start[d]
         if tangent:
             tw[6, :, :] = tw[5]
-        for _ in range(NEAR_SUBSTEPS):
+        for sub in range(NEAR_SUBSTEPS):
+            if friction:
+                _friction_node(fine, level, at, sub, (0.5 if sub == 0 else 1.0) * h_sub, record)
             if tangent:
-                _rk4_tangent(fine, tw[6], h / NEAR_SUBSTEPS, work, tw, ca, cg, ci, cj, u1r, u2r,
-                             v3r, q, obstacles)
+                _rk4_tangent(fine, tw[6], h_sub, work, tw, ca, cg, ci, cj, u1r, u2r, v3r, q,
+                             obstacles)
             else:
-                spatial_state_rk4_step(fine, h / NEAR_SUBSTEPS, work, ca, cg, ci, cj, u1r, u2r,
-                                       v3r, q, obstacles)
+                spatial_state_rk4_step(fine, h_sub, work, ca, cg, ci, cj, u1r, u2r, v3r, q,
+                                       obstacles)
+        if friction:
+            _friction_node(fine, level, at, NEAR_SUBSTEPS, 0.5 * h_sub, record)
+            if record:
+                _friction_row(fs, at, 0, h_sub, rec, at)
         x = 1.0 - clear / h if clear > 0.0 else 1.0
         weight = x * x * (3.0 - 2.0 * x)
         if tangent:
@@ -371,9 +392,32 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
         if record:
             _record_row(out, s0 + secf[LEN, i], rec, segs[seg, SEG_ROW0] + steps[i], ca, cg, ci, cj,
                         u1r, u2r, v3r, obstacles)
+            if friction:
+                _friction_row(fs, segs[seg, SEG_ROW0] + steps[i] - 1, NEAR_SUBSTEPS, h_sub, rec,
+                              segs[seg, SEG_ROW0] + steps[i])
         if i < secf.shape[1] - 1:
             for d in range(3):
                 out[CS_N + d] -= level[L_PLATE][i, d]
+
+
+@njit
+def _friction_node(y, level, row, node, weight, record):
+    """Apply the friction impulse of sample (row, node), its share ``weight`` of the length,
+    to the contact state ``y`` as a point load: n⁺ = n⁻ − F."""
+    fx, fy, fz = friction_impulse_3d(y[CS_R], y[CS_R + 1], y[CS_R + 2], level[L_DISCS],
+                                     level[L_MU], level[L_FRICTION], row, node, weight, record)
+    y[CS_N] -= fx
+    y[CS_N + 1] -= fy
+    y[CS_N + 2] -= fz
+
+
+@njit
+def _friction_row(fs, row, node, h_sub, rec, out_row):
+    """Add the friction force per length of sample (row, node) (an end node of its step's
+    refinement: half a substep) to the contact force of record row ``out_row``."""
+    for d in range(fs.shape[2]):
+        for c in range(3):
+            rec[5][out_row, c] += fs[row, node, d, FS_F + c] / (0.5 * h_sub)
 
 
 @njit
@@ -699,6 +743,8 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     rec_prev = new_record(rows)
     rec_new = new_record(rows)
     has_obstacles = a[L_DISCS].shape[0] > 0
+    friction = a[L_FRICTION].shape[0] > 0
+    start_friction(a, now)
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     total = 0
     ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, scales, tol,
@@ -712,6 +758,8 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     moved = np.empty(n)
     if has_obstacles:
         record(Z, grid, rest, now, rec_prev)
+        if friction:  # the start, corrected, is the path's first accepted state
+            accept_friction(now[L_FRICTION])
     t = 0.0
     dt = dt0
     while t < 1.0:
@@ -734,6 +782,8 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
                 record(Z, grid, rest, now, rec_new)
                 through = tunnels_3d(rec_prev[1], rec_new[1], now[L_DISCS], TUNNEL_SLACK)
             if not through:
+                if friction:
+                    accept_friction(now[L_FRICTION])
                 _between(Z, accepted, slope)
                 for k in range(n):
                     slope[k] /= t_new - t
@@ -938,6 +988,8 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
         Z: (K, N_CSTATE) the nodes of the current equilibrium; the new ones on success.
         grid: the layout tuple (``GS_*``). tubes: (tubes_i, tubes_f).
         level: the level tuple (``L_*``) of ``Z``; its pressures become ``p_new`` on success.
+            Without friction (no samples: the 3D lean path takes no scene with friction,
+            :func:`solver.paths.lean_spatial_contact.lean_spatial_contact_reason`).
         p_new: (n_channels,) the target pressures (Pa).
         params: (N_PARAMS,) numeric parameters (TOL, MAX_ITER, MAX_STEP are used).
         work: (rest (3, ns), weights (n,), res_weights (n,), scales (12,)): scratch for the
@@ -960,7 +1012,8 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
     obstacles = level[L_DISCS]
     p_old = level[L_P]
     p_now = np.empty_like(p_new)
-    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], obstacles)
+    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], obstacles, level[L_MU],
+           level[L_FRICTION])
     F = np.empty(n)
     no_jac = np.empty((0, 0))
     no_blocks = np.empty((0, N_CTANGENT, N_CTANGENT))

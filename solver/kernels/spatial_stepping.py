@@ -47,7 +47,7 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.kernels.contact import weighted_norm
+from solver.kernels.contact import NEAR_SUBSTEPS, weighted_norm
 from solver.kernels.grid import section_needs
 from solver.kernels.obstacles import smallest_clearance_3d, tunnels_3d
 from solver.kernels.spatial import follow as free_follow
@@ -62,7 +62,7 @@ from solver.kernels.spatial_contact import (
     newton_system,
     nodes_from_record,
 )
-from solver.layout import CA, CG, CI, CS_M, MAX_ITER, MAX_STEP, N_CTANGENT, TOL
+from solver.layout import CA, CG, CI, CS_M, MAX_ITER, MAX_STEP, N_CTANGENT, N_FS, TOL
 from solver.rod import rest_strains_into, spatial_strains_into
 
 (F3_QUAT0, F3_SECF, F3_STEPS, F3_CJ, F3_TUBES_I, F3_TUBES_F, F3_LOADS, F3_M_TIP, F3_PARAMS,
@@ -97,8 +97,18 @@ def _record(contact, k, slot):
 
 @njit(inline="always")
 def _level(contact, k):
-    return (contact[C3_P][k], contact[C3_Q], contact[C3_PLATE], contact[C3_TARGET],
-            contact[C3_OBSTACLES][k])
+    return _level_at(contact[C3_P][k], contact, k)
+
+
+@njit(inline="always")
+def _level_at(p, contact, k):
+    """Copy k's level tuple (``L_*``) at the pressures ``p``, without friction: μ = 0 and no
+    friction samples (the 3D lean path takes no scene with friction:
+    :func:`solver.paths.lean_spatial_contact.lean_spatial_contact_reason`)."""
+    obstacles = contact[C3_OBSTACLES][k]
+    n = obstacles.shape[0]
+    return (p, contact[C3_Q], contact[C3_PLATE], contact[C3_TARGET], obstacles, np.zeros(n),
+            np.zeros((0, NEAR_SUBSTEPS + 1, n, N_FS)))
 
 
 @njit
@@ -345,7 +355,7 @@ def _near_step(k, free, contact, p_to, report):
                       free[F3_MOM][k, 1], free[F3_ENDS], contact[C3_ARCS], contact[C3_SECTIONS],
                       contact[C3_QUAT0], nodes)
     p = p_to[k].copy()
-    level = (p, contact[C3_Q], contact[C3_PLATE], contact[C3_TARGET], contact[C3_OBSTACLES][k])
+    level = _level_at(p, contact, k)
     rest = np.empty_like(contact[C3_REST][k])
     rest_strains_into(p, free[F3_TUBES_I], free[F3_TUBES_F], contact[C3_SECF], rest)
     ok, passes = _solve_from(k, contact, nodes, level, rest, contact[C3_OK][k])
@@ -370,7 +380,7 @@ def _enter_contact(k, free, contact, p_start):
                       free[F3_MOM][k, 0], free[F3_ENDS], contact[C3_ARCS], contact[C3_SECTIONS],
                       contact[C3_QUAT0], nodes)
     p = p_start.copy()
-    level = (p, contact[C3_Q], contact[C3_PLATE], contact[C3_TARGET], contact[C3_OBSTACLES][k])
+    level = _level_at(p, contact, k)
     rest = np.empty_like(contact[C3_REST][k])
     rest_strains_into(p, free[F3_TUBES_I], free[F3_TUBES_F], contact[C3_SECF], rest)
     ok, _ = _solve_from(k, contact, nodes, level, rest, False)

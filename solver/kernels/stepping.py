@@ -28,7 +28,9 @@ one row per copy:
   plate, target), discs (n, k, 4), rest strains (n, 3, ns), factors
   (:func:`solver.kernels.contact.new_factors`, one row per copy), records and scratch
   (n, rows_c, C_COLUMNS), the grid check's (q (ns,), ends (ns,)), ``ok`` (n,) bool: copy k
-  has a state on this layout, and ``touching`` (n,) bool: it presses on a disc or on itself.
+  has a state on this layout, ``touching`` (n,) bool: it presses on a disc or on itself, and
+  the copies' friction: μ per disc (n, k) and friction samples (n, rows_c, nodes, k, N_FS;
+  no rows without friction), the tangential state their steps carry.
 """
 
 from __future__ import annotations
@@ -39,12 +41,14 @@ import numpy as np
 
 from solver.jit import njit, prange
 from solver.kernels.contact import factor_state, lean_step, newton
+from solver.kernels.obstacles import accept_friction
 from solver.kernels.planar import warm_step
 from solver.layout import (
     C_FX,
     C_FY,
     C_PEN,
     D_THETA,
+    FS_A,
     MAX_ITER,
     MAX_STEP,
     NX,
@@ -69,8 +73,8 @@ N_FREE = 21
 (CT_THETA0, CT_SEGS, CT_SECF, CT_STEPS, CT_START, CT_SELF, CT_PARAMS, CT_WEIGHTS,
  CT_RES_WEIGHTS, CT_NODES, CT_P, CT_Q, CT_PLATE, CT_TARGET, CT_DISCS, CT_REST, CT_LU, CT_PIV,
  CT_DENSE, CT_DENSE_PIV, CT_FLAGS, CT_RECORDS, CT_SCRATCH, CT_CHECK_Q, CT_CHECK_ENDS, CT_OK,
- CT_TOUCHING) = range(27)
-N_CONTACT = 27
+ CT_TOUCHING, CT_MU, CT_FRICTION) = range(29)
+N_CONTACT = 29
 
 # Path codes of the report's last column.
 PATH_LEAN, PATH_CONTACT = 1.0, 2.0
@@ -183,7 +187,8 @@ def _contact_step(k, free, contact, p_to, discs_to, report):
     grid = (contact[CT_THETA0], contact[CT_SEGS], contact[CT_SECF], contact[CT_STEPS],
             contact[CT_START], contact[CT_SELF])
     nodes, p_level, records = contact[CT_NODES], contact[CT_P], contact[CT_RECORDS]
-    level = (p_level[k], contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k])
+    level = (p_level[k], contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k],
+             contact[CT_MU][k], contact[CT_FRICTION][k])
     ok, stable, its, res = lean_step(
         nodes[k], grid, (free[FR_TUBES_I], free[FR_TUBES_F]), level, p_to[k], discs_to,
         contact[CT_PARAMS],
@@ -241,7 +246,10 @@ def _enter_contact(k, free, contact, p_start):
     for c in range(p_start.shape[0]):
         p_level[c] = p_start[c]
     rest_strains_into(p_level, free[FR_TUBES_I], free[FR_TUBES_F], contact[CT_SECF], rest)
-    level = (p_level, contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k])
+    fs = contact[CT_FRICTION][k]
+    level = (p_level, contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k],
+             contact[CT_MU][k], fs)
+    fs[:, :, :, FS_A:FS_A + 3] = math.nan  # from a state that touched nothing: no anchors
     params = contact[CT_PARAMS]
     weights = contact[CT_WEIGHTS]
     ok, _, _, stable = newton(nodes, grid, rest, level, weights, contact[CT_RES_WEIGHTS],
@@ -254,6 +262,7 @@ def _enter_contact(k, free, contact, p_start):
     if not factor_state(nodes, grid, rest, level, weights, np.empty(nodes.shape[0]), blocks,
                         contact[CT_RECORDS][k], factors):
         return False
+    accept_friction(fs)
     contact[CT_OK][k] = True
     contact[CT_TOUCHING][k] = touches(contact[CT_RECORDS][k])
     return True

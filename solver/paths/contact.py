@@ -103,15 +103,16 @@ def solve_contact(problem: Problem, moving: bool = False) -> Equilibrium:
     free_scene = scene.without_contact
     if problem.settings.shortcuts:
         discs = scene.discs_array()
+        before = warm_start.dissipated if warm_start is not None else 0.0
         if np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]
                   > reach(arm, packed, scene)):
             free = solve_planar(problem.in_scene(free_scene, warm_start))
             if clear_of_itself(arm, scene, free):
-                return free_contact_result(free, scene)
+                return free_contact_result(free, scene, before)
         elif not moving and (warm_start is None or not warm_start.in_contact):
             free = solve_single(problem.in_scene(free_scene, warm_start), guard_discs=discs)
             if free.converged and free.stable and clear_of_itself(arm, scene, free):
-                return free_contact_result(free, scene)
+                return free_contact_result(free, scene, before)
     return solve_shooting(problem, contact_layout(arm, packed, scene), load_moments=False,
                           moving=moving)
 
@@ -131,8 +132,10 @@ def clear_of_itself(arm, scene, eq) -> bool:
                                 self_contact_exclusion(half), float(np.max(np.diff(eq.s)))))
 
 
-def free_contact_result(eq, scene):
+def free_contact_result(eq, scene, dissipated: float = 0.0):
     """A contact-free equilibrium (planar or spatial) as the result of a solve in ``scene``
-    (zero contact)."""
+    (zero contact; no tangential state; ``dissipated``: the friction's work on the path
+    before it, J)."""
     n, dim = eq.positions.shape
-    return replace(eq, scene=scene, contact_force=np.zeros((n, dim)), penetration=np.zeros(n))
+    return replace(eq, scene=scene, contact_force=np.zeros((n, dim)), penetration=np.zeros(n),
+                   dissipated=dissipated)

@@ -24,6 +24,7 @@ from solver import layout as L
 from solver.kernels import contact as contact_kernels
 from solver.kernels import stepping
 from solver.paths.contact import free_contact_result
+from solver.paths.friction import new_samples, turn_anchors
 from solver.paths.grid import section_rows
 from solver.paths.planar import not_lean, single_result
 from solver.paths.shooting import shooting_equilibrium, shooting_grid, shooting_params
@@ -179,14 +180,21 @@ class ContactRows:
         contact[stepping.CT_CHECK_ENDS] = section_rows(layout.section_ends)
         contact[stepping.CT_OK] = np.zeros(n, dtype=bool)
         contact[stepping.CT_TOUCHING] = np.zeros(n, dtype=bool)
+        # Friction: the copies' tangential state where the template's law has friction.
+        self.friction = scene.has_friction
+        contact[stepping.CT_MU] = np.zeros((n, max_obstacles))
+        contact[stepping.CT_FRICTION] = np.stack(
+            [new_samples(layout.n_rows if self.friction else 0, max_obstacles)] * n)
         self.free, self.contact = tuple(free), tuple(contact)
         self._flags = np.zeros((n, 5))
+        self._dissipated = np.zeros(n)  # each copy's dissipation before its samples' work
         # Every array with a row per copy (what copy_rows copies).
         self._per_copy = [free[i] for i in range(stepping.FR_STATES, stepping.FR_HALF)]
-        self._per_copy += [free[stepping.FR_OK], self._flags]
+        self._per_copy += [free[stepping.FR_OK], self._flags, self._dissipated]
         self._per_copy += [contact[i] for i in (stepping.CT_NODES, stepping.CT_P, stepping.CT_DISCS)]
         self._per_copy += [contact[i] for i in range(stepping.CT_REST, stepping.CT_CHECK_Q)]
-        self._per_copy += [contact[stepping.CT_OK], contact[stepping.CT_TOUCHING]]
+        self._per_copy += [contact[i] for i in (stepping.CT_OK, stepping.CT_TOUCHING, stepping.CT_MU,
+                                                stepping.CT_FRICTION)]
         for k in range(n):
             self.set_scene(k, scene)
 
@@ -199,9 +207,15 @@ class ContactRows:
         if discs.shape[0] > self.max_obstacles:
             raise ValueError(f"copy {k}: {discs.shape[0]} obstacles, more than the "
                              f"{self.max_obstacles} this batch holds")
+        if scene.has_friction and not self.friction:
+            raise ValueError(f"copy {k}: obstacles with friction in a batch whose scene has "
+                             f"none (its friction samples are not kept)")
         rows = self.contact[stepping.CT_DISCS][k]
         rows[:] = (FAR, FAR, 0.0, 0.0)
         rows[:discs.shape[0]] = discs
+        mu = self.contact[stepping.CT_MU][k]
+        mu[:] = 0.0
+        mu[:discs.shape[0]] = scene.friction_array()
         self.scenes[k] = scene
 
     def adopt(self, k: int, eq: Equilibrium) -> None:
@@ -212,6 +226,14 @@ class ContactRows:
         free, contact = self.free, self.contact
         free[stepping.FR_OK][k] = contact[stepping.CT_OK][k] = contact[stepping.CT_TOUCHING][k] = False
         self._flags[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
+        self._dissipated[k] = eq.dissipated
+        fs = contact[stepping.CT_FRICTION][k]
+        if fs.shape[0]:
+            fs[:] = new_samples(fs.shape[0], fs.shape[2])
+            given = eq.friction_samples
+            if given.ndim == 4 and given.shape[:2] == fs.shape[:2] and given.shape[2] <= fs.shape[2]:
+                fs[:, :, :given.shape[2]] = given
+                fs[..., L.FS_WORK] = 0.0  # (counted in eq.dissipated)
         nodes = contact[stepping.CT_NODES][k]
         record = contact[stepping.CT_RECORDS][k]
         if eq.converged and eq.stable and eq.shooting_nodes.shape == nodes.shape:
@@ -221,8 +243,7 @@ class ContactRows:
             rest = contact[stepping.CT_REST][k]
             layout = self.layout
             rest_strains_into(p_level, layout.tubes_i, layout.tubes_f, layout.secf, rest)
-            level = (p_level, contact[stepping.CT_Q], contact[stepping.CT_PLATE],
-                     contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k])
+            level = self._level(k)
             factors = tuple(contact[i][k] for i in range(stepping.CT_LU, stepping.CT_FLAGS + 1))
             grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
             blocks = np.empty((contact[stepping.CT_SEGS].shape[0], 6, 6))
@@ -249,6 +270,13 @@ class ContactRows:
             self.scenes[k] = self.scenes[src]
         for array in self._per_copy:
             array[dst] = array[src]
+
+    def turn(self, k: int, obstacle: int, angle: float) -> None:
+        """Turn copy k's friction anchors on ``obstacle`` by ``angle`` (rad, counter-clockwise
+        about its centre): the object they stick to turned (:mod:`solver.grasp`)."""
+        fs = self.contact[stepping.CT_FRICTION][k]
+        if fs.shape[0]:
+            turn_anchors(fs, obstacle, angle)
 
     def backbones(self) -> np.ndarray:
         """(n, N, N_COLUMNS) every copy's record on the settings' grid, with the columns S …
@@ -279,8 +307,8 @@ class ContactRows:
             raise ValueError(f"copy {k} is not on the contact layout")
         grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
         nodes = contact[stepping.CT_NODES][k].copy()
-        level = (contact[stepping.CT_P][k], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
-                 contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k])
+        level = self._level(k)
+        level = (*level[:L.L_FRICTION], level[L.L_FRICTION].copy())  # (passes record into it)
         rest = np.empty_like(contact[stepping.CT_REST][k])
         rest_strains_into(level[L.L_P], self.layout.tubes_i, self.layout.tubes_f, self.layout.secf,
                           rest)
@@ -302,6 +330,13 @@ class ContactRows:
         speed = np.hypot(record[:, L.C_V1], record[:, L.C_V3])
         return {**seconds, "unknowns": int(nodes.size), "rows": int(record.shape[0]),
                 "refined_fraction": float(np.mean(gap - h * speed < h))}
+
+    def _level(self, k: int) -> tuple:
+        """Copy k's level tuple (``L_*``): its pressures, the loads, its discs and friction."""
+        contact = self.contact
+        return (contact[stepping.CT_P][k], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
+                contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k],
+                contact[stepping.CT_MU][k], contact[stepping.CT_FRICTION][k])
 
     def contact_measures(self) -> np.ndarray:
         """(n, 2) every copy's deepest penetration (m) and total contact force (N)
@@ -368,13 +403,20 @@ class ContactRows:
                      iterations=int(iterations), residual=float(residual))
         problem = self._problem.in_scene(self.scenes[k]).with_inputs(
             np.array(pressures, dtype=float), np.array(channel_pressures, dtype=float))
+        # The samples' work stays in them while the copy steps clear of contact (and when it
+        # comes back): the dissipation along its path is always the two together.
+        fs = self.contact[stepping.CT_FRICTION][k]
+        dissipated = float(self._dissipated[k] + fs[..., L.FS_WORK].sum())
         if self.contact[stepping.CT_OK][k]:
+            friction = dict(dissipated=dissipated)
+            if fs.shape[0]:
+                friction["friction_samples"] = fs[:, :, :len(self.scenes[k].obstacles)].copy()
             return shooting_equilibrium(self.contact[stepping.CT_RECORDS][k],
                                         self.contact[stepping.CT_NODES][k].copy(),
                                         self.scenes[k], self.layout, model=problem.model,
                                         pressures=problem.p_inputs,
                                         channel_pressures=problem.p_channel, arm=problem.arm,
-                                        **flags)
+                                        **friction, **flags)
         eq = single_result(problem, self.free[stepping.FR_RECORDS][k].copy(),
                            self.free[stepping.FR_STATES][k, 0], **flags)
-        return free_contact_result(eq, self.scenes[k])
+        return free_contact_result(eq, self.scenes[k], dissipated)

@@ -22,6 +22,7 @@ from solver.kernels import spatial_contact as contact_kernels
 from solver.kernels import spatial_stepping as stepping
 from solver.kernels.obstacles import clearance_3d
 from solver.paths.contact import free_contact_result
+from solver.paths.friction import no_samples
 from solver.paths.grid import section_rows
 from solver.paths.lean_contact import median_seconds
 from solver.paths.planar import not_single
@@ -48,6 +49,8 @@ def lean_spatial_contact_reason(problem: Problem) -> str | None:
         return "a scene without obstacles"
     if scene.has_rigid_obstacles:
         return "rigid obstacles (penalty continuation)"
+    if scene.has_friction:
+        return "friction (the general path carries the tangential state in 3D)"
     if not problem.settings.shortcuts:
         return "Settings(shortcuts=False) (every step the contact ramp)"
     if out_of_reach(problem):
@@ -146,8 +149,10 @@ class SpatialContactRows:
             rest = np.empty((3, len(self._problem.arm.sections)))
             layout = self.layout
             rest_strains_into(p_level, layout.tubes_i, layout.tubes_f, layout.secf, rest)
+            obstacles = contact[stepping.C3_OBSTACLES][k]
             level = (p_level, contact[stepping.C3_Q], contact[stepping.C3_PLATE],
-                     contact[stepping.C3_TARGET], contact[stepping.C3_OBSTACLES][k])
+                     contact[stepping.C3_TARGET], obstacles, np.zeros(obstacles.shape[0]),
+                     no_samples(obstacles.shape[0]))
             stepping.adopt_nodes(k, free, contact, z, level, rest)
             return
         if eq.in_contact or eq.s.size != free[stepping.F3_S].size:
@@ -203,8 +208,10 @@ class SpatialContactRows:
             raise ValueError(f"copy {k} is not on the contact layout")
         grid = tuple(contact[i] for i in range(stepping.C3_QUAT0, stepping.C3_START + 1))
         nodes = contact[stepping.C3_NODES][k].copy()
+        obstacles = contact[stepping.C3_OBSTACLES][k]
         level = (contact[stepping.C3_P][k], contact[stepping.C3_Q], contact[stepping.C3_PLATE],
-                 contact[stepping.C3_TARGET], contact[stepping.C3_OBSTACLES][k])
+                 contact[stepping.C3_TARGET], obstacles, np.zeros(obstacles.shape[0]),
+                 no_samples(obstacles.shape[0]))
         rest = np.empty_like(contact[stepping.C3_REST][k])
         rest_strains_into(level[L.L_P], self.layout.tubes_i, self.layout.tubes_f, self.layout.secf,
                           rest)

@@ -14,6 +14,7 @@ from solver.kernels import planar as planar_kernels
 from solver.kernels import relax as relax_kernels
 from solver.kernels.grid import section_needs
 from solver.kernels.self_contact import far_parts_clear
+from solver.paths.friction import friction_fields, landed, start_samples
 from solver.paths.grid import section_rows
 from solver.problem import Problem, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
@@ -74,7 +75,8 @@ def solve_shooting(problem: Problem, shooting: tuple, load_moments: bool,
     ctx = on_layout.ctx  # (a context does not depend on obstacles)
     plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, ctx,
                                                             load_moments)
-    goal = (p_target, ctx.q, plate, target, scene.discs_array())
+    mu, samples = start_samples(scene, layout, sec_start, warm_start, moving)
+    goal = (p_target, ctx.q, plate, target, scene.discs_array(), mu, samples)
     iterations = 0
     if warm_start is not None and warm_start.scene is not None:
         start_scene = warm_start.scene.without_contact
@@ -99,14 +101,14 @@ def solve_shooting(problem: Problem, shooting: tuple, load_moments: bool,
         if start_discs.shape != goal[L.L_DISCS].shape or np.any(
                 start_discs[:, same:3] != goal[L.L_DISCS][:, same:3]):
             start_discs = goal[L.L_DISCS]
-        start = (p_start, start_ctx.q, start_plate, start_target, start_discs)
+        start = (p_start, start_ctx.q, start_plate, start_target, start_discs, mu, samples)
     else:
-        nodes, iterations, loaded = _loaded_nodes(arm, layout, segs, sec_start, scene, ctx,
-                                                  settings, load_moments)
-        start = (np.zeros_like(p_target), *goal[1:])
+        nodes, iterations, loaded, samples = _loaded_nodes(arm, layout, segs, sec_start, scene,
+                                                           ctx, settings, load_moments)
+        start = (np.zeros_like(p_target), *goal[1:L.L_FRICTION], samples)
         if not loaded:
             grid = shooting_grid(arm, scene, layout, segs, sec_start)
-            return _shooting_result(nodes, scene, grid, layout, start,
+            return _shooting_result(nodes, scene, grid, layout, start, None,
                                     converged=False, stable=False, iterations=iterations,
                                     residual=math.inf, model=model, pressures=p_inputs,
                                     channel_pressures=p_channel, arm=arm)
@@ -135,7 +137,7 @@ def solve_shooting(problem: Problem, shooting: tuple, load_moments: bool,
         nodes[:] = landed
         start = level
         snapped = True
-    return _shooting_result(nodes, scene, grid, layout, now,
+    return _shooting_result(nodes, scene, grid, layout, now, warm_start,
                             converged=bool(ok), stable=bool(stable), snapped=snapped,
                             iterations=int(iterations), residual=float(res), model=model,
                             pressures=p_inputs, channel_pressures=p_channel, arm=arm)
@@ -191,9 +193,10 @@ def _snap_ahead(arm, nodes, grid, layout, start, goal, t, dt, now, weights, res_
 
 def _interpolate_level(start, goal, t, p_max):
     """The level tuple at ``t`` of the ramp from ``start`` to ``goal`` (t may exceed 1: the
-    ramp carried on), pressures kept within [0, p_max]."""
-    level = tuple(a + t * (b - a) for a, b in zip(start, goal))
-    return (np.clip(level[0], 0.0, p_max), *level[1:])
+    ramp carried on), pressures kept within [0, p_max], with no tangential state (a snap's:
+    :func:`solver.paths.friction.landed`)."""
+    level = tuple(a + t * (b - a) for a, b in zip(start[:L.L_MU], goal[:L.L_MU]))
+    return landed((np.clip(level[0], 0.0, p_max), *level[1:], *goal[L.L_MU:]))
 
 
 def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings, params):
@@ -342,7 +345,8 @@ def _nodes_from_record(eq, layout, segs, sec_start):
 def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_moments):
     """Stage 1 of a cold multiple-shooting solve (cached per scene): from the straight,
     unloaded, unactuated arm the loads are ramped in with the obstacles in place. Returns a
-    copy of the nodes, the iterations and whether it converged.
+    copy of the nodes, the iterations, whether it converged and (a copy of) the friction
+    samples it ends with.
 
     An obstacle that overlaps the straight arm grows in during the ramp, from the radius at
     which it just touches the arm's axis to its own. Loading a long arm from straight is far
@@ -366,29 +370,31 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
         grown[:, L.RADIUS] = np.minimum(discs[:, L.RADIUS],
                                         np.hypot(*(discs[:, :2] - along[:, None] * axis).T))
         p0 = np.zeros(max(arm.n_channels, 1))
-        start = (p0, np.zeros_like(ctx.q), np.zeros_like(plate), np.zeros(3), grown)
-        goal = (p0, ctx.q, plate, target, discs)
+        mu, samples = start_samples(scene, layout, sec_start, None)
+        start = (p0, np.zeros_like(ctx.q), np.zeros_like(plate), np.zeros(3), grown, mu, samples)
+        goal = (p0, ctx.q, plate, target, discs, mu, samples)
         grid = shooting_grid(arm, scene, layout, segs, sec_start)
+        now = contact_kernels.new_level(goal)
         ok, stable, _, its, _, _, _ = contact_kernels.follow(
             nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal,
             shooting_params(scene, settings, predict_cap=MAX_STEP),
-            (np.empty((3, len(arm.sections))), contact_kernels.new_level(goal), weights,
-             res_weights),
-            _NO_GUARD)
-        return nodes, int(its), bool(ok and stable)
+            (np.empty((3, len(arm.sections))), now, weights, res_weights), _NO_GUARD)
+        return nodes, int(its), bool(ok and stable), now[L.L_FRICTION]
 
-    nodes, its, ok = arm._solver_cache.get(("loaded-nodes", layout.key, scene, load_moments),
-                                           build)
-    return nodes.copy(), its, ok
+    nodes, its, ok, samples = arm._solver_cache.get(
+        ("loaded-nodes", layout.key, scene, load_moments), build)
+    return nodes.copy(), its, ok, samples.copy()
 
 
-def _shooting_result(nodes, scene, grid, layout, level, **fields):
+def _shooting_result(nodes, scene, grid, layout, level, warm_start, **fields):
     """The Equilibrium of a multiple-shooting state ``nodes`` at ``level`` (a level tuple,
-    ``L_*``; ``grid`` its layout tuple): the backbone integrated from the nodes, with the
-    contact fields if the scene has obstacles or self-contact."""
+    ``L_*``; ``grid`` its layout tuple) on the path from ``warm_start`` (None: cold): the
+    backbone integrated from the nodes, with the contact fields if the scene has obstacles or
+    self-contact, and its friction (:func:`solver.paths.friction.friction_fields`)."""
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
     contact_kernels.record_backbone(nodes, grid, _level_rest(layout, level), level, out)
-    return shooting_equilibrium(out, nodes, scene, layout, **fields)
+    return shooting_equilibrium(out, nodes, scene, layout,
+                                **friction_fields(level[L.L_FRICTION], warm_start), **fields)
 
 
 def shooting_equilibrium(out, nodes, scene, layout, **fields) -> Equilibrium:

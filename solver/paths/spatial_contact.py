@@ -10,9 +10,10 @@ import numpy as np
 
 from solver import layout as L
 from solver.kernels import spatial_contact as kernel
-from solver.kernels.contact import TUNNEL_SLACK
-from solver.kernels.obstacles import smallest_clearance_3d, tunnels_3d
+from solver.kernels.contact import TUNNEL_SLACK, new_level
+from solver.kernels.obstacles import accept_friction, smallest_clearance_3d, tunnels_3d
 from solver.paths.contact import free_contact_result
+from solver.paths.friction import friction_fields, landed, start_samples
 from solver.paths.grid import section_rows
 from solver.paths.shooting import MAX_STEP
 from solver.paths.spatial import solve_spatial
@@ -46,10 +47,11 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
     p_inputs, p_channel = problem.p_inputs, problem.p_channel
     free_scene = replace(scene, obstacles=())
     obstacles = scene.obstacles_array()
+    before = warm_start.dissipated if warm_start is not None else 0.0
     if settings.shortcuts and out_of_reach(problem):
         free = solve_spatial(problem.in_scene(
             free_scene, warm_start if warm_start is not None and not warm_start.in_contact else None))
-        return free_contact_result(free, scene)
+        return free_contact_result(free, scene, before)
     free, near = None, False
     if settings.shortcuts and warm_start is not None and warm_start.s.size \
             and not warm_start.in_contact:
@@ -57,14 +59,15 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         gap = _free_step_gap(free, warm_start, obstacles) if free.converged and free.stable \
             else -math.inf
         if gap > float(np.max(np.diff(free.s))):
-            return free_contact_result(free, scene)
+            return free_contact_result(free, scene, before)
         near = gap > 0.0
     layout, segs, sec_start = contact_layout(arm, packed, scene)
     on_layout = problem.on(layout)
     ctx = on_layout.ctx  # (a context does not depend on obstacles)
     grid, terms = grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
     p_target = problem.p_target
-    goal = (p_target, ctx.q, terms[0], terms[1], obstacles)
+    mu, samples = start_samples(scene, layout, sec_start, warm_start)
+    goal = (p_target, ctx.q, terms[0], terms[1], obstacles, mu, samples)
     rest = np.empty((3, len(arm.sections)))
     if near:
         # The free step ends within an RK4 step of an obstacle, clear of it, and got there
@@ -75,7 +78,10 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         ok, its, res, stable = kernel.newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
                                              settings.max_iter, MAX_STEP, kernel.NO_TETHER)
         if ok and stable:
-            return _result(nodes, scene, grid, layout, goal, converged=True, stable=True,
+            if samples.shape[0]:  # the state is accepted: its samples take their anchors
+                kernel.record(nodes, grid, rest, goal, kernel.new_record(layout.n_rows))
+                accept_friction(samples)
+            return _result(nodes, scene, grid, layout, goal, warm_start, converged=True, stable=True,
                            snapped=free.snapped, iterations=int(free.iterations + its),
                            residual=float(res), model=model, pressures=p_inputs,
                            channel_pressures=p_channel, arm=arm)
@@ -92,16 +98,16 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         if nodes is not None:
             start_terms = grid_and_terms(arm, layout, segs, sec_start, start_scene, start_ctx)[1]
             p_start = warm_start.channel_pressures if arm.n_channels else np.zeros(1)
-            start = (p_start, start_ctx.q, start_terms[0], start_terms[1], obstacles)
+            start = (p_start, start_ctx.q, start_terms[0], start_terms[1], obstacles, mu, samples)
     if nodes is None:
-        nodes, iterations, loaded, snapped = _loaded_nodes(arm, layout, segs, sec_start, scene,
-                                                           ctx, settings)
-        start = (np.zeros_like(p_target), *goal[1:])
+        nodes, iterations, loaded, snapped, samples = _loaded_nodes(arm, layout, segs, sec_start,
+                                                                    scene, ctx, settings)
+        start = (np.zeros_like(p_target), *goal[1:L.L_FRICTION], samples)
         if not loaded:
-            return _result(nodes, scene, grid, layout, start, converged=False, stable=False,
+            return _result(nodes, scene, grid, layout, start, None, converged=False, stable=False,
                            iterations=iterations, residual=math.inf, model=model,
                            pressures=p_inputs, channel_pressures=p_channel, arm=arm)
-    now = tuple(np.empty_like(a) for a in goal)
+    now = new_level(goal)
     nodes, ok, its, res, stable, jumped = _ramp(nodes, grid, layout, start, goal, terms, settings,
                                                 rest, now)
     iterations += its
@@ -110,18 +116,20 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
             and not tunnels_3d(warm_start.positions, free.positions, obstacles, TUNNEL_SLACK):
         # The arm snapped through free space (the free path's own branch switch) into the
         # obstacles: it lands on them, the obstacles grown in from where they touch it.
-        landed = _nodes_from_record(free, grid, layout, segs, sec_start)
+        arrived = _nodes_from_record(free, grid, layout, segs, sec_start)
         grown = obstacles.copy()
         for k, o in enumerate(scene.obstacles):
             grown[k, L.O_RADIUS] = min(o.radius, float(core_distance(o, free.positions).min()))
         ok, its, res, stable, _ = kernel.follow(
-            landed, grid, layout.tubes_i, layout.tubes_f, (*goal[:L.L_DISCS], grown), goal,
+            arrived, grid, layout.tubes_i, layout.tubes_f,
+            landed((*goal[:L.L_DISCS], grown, *goal[L.L_MU:])), goal,
             *terms[2:], settings.tol, settings.max_iter, MAX_STEP, settings.dt0,
             settings.contact_dt_min, rest, now)
         iterations += its
         if ok:
-            nodes, snapped = landed, True
-    return _result(nodes, scene, grid, layout, now, converged=bool(ok), stable=bool(stable),
+            nodes, snapped = arrived, True
+    return _result(nodes, scene, grid, layout, now, warm_start, converged=bool(ok),
+                   stable=bool(stable),
                    snapped=snapped, iterations=int(iterations), residual=float(res),
                    model=model, pressures=p_inputs, channel_pressures=p_channel, arm=arm)
 
@@ -149,11 +157,11 @@ def _ramp(nodes, grid, layout, start, goal, terms, settings, rest, now):
         if ok or t >= 1.0 or settings.n_scan == 0:
             break
         # A landing the path cannot leave (t = 0: at a fold again) asks for a real snap.
-        landed = _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
-                                push=not (snapped and t == 0.0))
-        if landed is None:
+        switched = _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
+                                  push=not (snapped and t == 0.0))
+        if switched is None:
             break
-        nodes, start = landed
+        nodes, start = switched
         snapped = True
     return nodes, ok, iterations, res, stable, snapped
 
@@ -317,7 +325,7 @@ def _imperfect_path(nodes, grid, layout, level, goal, direction, terms, settings
             stages = ((level, _pushed(level, push)), (_pushed(level, push), _pushed(goal, push)),
                       (_pushed(goal, push), goal))
             for a, b in stages:
-                now = tuple(np.empty_like(x) for x in b)
+                now = new_level(b)
                 ok, _, _, stable, _ = kernel.follow(
                     trial, grid, layout.tubes_i, layout.tubes_f, a, b, weights, res_weights,
                     scales, settings.tol, settings.max_iter, MAX_STEP, settings.dt0,
@@ -337,8 +345,10 @@ def _pushed(level, push):
 
 
 def _level_at(start, goal, t):
-    """The level tuple a fraction ``t`` of the way from ``start`` to ``goal``."""
-    return tuple(a + t * (b - a) for a, b in zip(start, goal))
+    """The level tuple a fraction ``t`` of the way from ``start`` to ``goal``, with no
+    tangential state (a snap's: :func:`solver.paths.friction.landed`)."""
+    return landed((*(a + t * (b - a) for a, b in zip(start[:L.L_MU], goal[:L.L_MU])),
+                   *goal[L.L_MU:]))
 
 
 def _level_rest(level, layout, rest):
@@ -406,7 +416,7 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings):
     arm the loads are ramped in with the obstacles in place; an obstacle that overlaps the
     straight arm grows in from the radius at which it touches the arm's axis; the arm may
     snap on the way (:func:`_ramp`). Returns a copy of the nodes, the iterations, whether it
-    converged and whether it snapped."""
+    converged, whether it snapped and (a copy of) the friction samples it ends with."""
     def build():
         grid, terms = grid_and_terms(arm, layout, segs, sec_start, scene, ctx)
         axis = base_rotation(scene.base_theta)[:, 2]
@@ -419,26 +429,30 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings):
         for k, o in enumerate(scene.obstacles):
             grown[k, L.O_RADIUS] = min(o.radius, float(core_distance(o, straight).min()))
         p0 = np.zeros(max(arm.n_channels, 1))
-        start = (p0, np.zeros_like(ctx.q), np.zeros_like(terms[0]), np.zeros(6), grown)
-        goal = (p0, ctx.q, terms[0], terms[1], obstacles)
-        now = tuple(np.empty_like(a) for a in goal)
+        mu, samples = start_samples(scene, layout, sec_start, None)
+        start = (p0, np.zeros_like(ctx.q), np.zeros_like(terms[0]), np.zeros(6), grown, mu, samples)
+        goal = (p0, ctx.q, terms[0], terms[1], obstacles, mu, samples)
+        now = new_level(goal)
         nodes, ok, its, _, stable, snapped = _ramp(nodes, grid, layout, start, goal, terms,
                                                    settings, np.empty((3, len(arm.sections))), now)
         nodes.flags.writeable = False
-        return nodes, int(its), bool(ok and stable), snapped
+        return nodes, int(its), bool(ok and stable), snapped, now[L.L_FRICTION]
 
-    nodes, its, ok, snapped = arm._solver_cache.get(
+    nodes, its, ok, snapped, samples = arm._solver_cache.get(
         ("spatial loaded contact nodes", layout.key, scene), build)
-    return nodes.copy(), its, ok, snapped
+    return nodes.copy(), its, ok, snapped, samples.copy()
 
 
-def _result(nodes, scene, grid, layout, level, **fields):
-    """The spatial Equilibrium of the node states ``nodes`` at ``level``."""
+def _result(nodes, scene, grid, layout, level, warm_start, **fields):
+    """The spatial Equilibrium of the node states ``nodes`` at ``level`` on the path from
+    ``warm_start`` (None: cold), with its friction
+    (:func:`solver.paths.friction.friction_fields`)."""
     rest = np.empty((3, layout.secf.shape[1]))
     _level_rest(level, layout, rest)
     rec = kernel.new_record(layout.n_rows)
     kernel.record(nodes, grid, rest, level, rec)
-    return contact_result(rec, nodes, scene, layout, **fields)
+    return contact_result(rec, nodes, scene, layout,
+                          **friction_fields(level[L.L_FRICTION], warm_start), **fields)
 
 
 def contact_result(rec, nodes, scene, layout, **fields):

@@ -160,6 +160,7 @@ def test_stability_flags_a_compressed_column_past_eulers_load(load, stable):
     determinant: the contact kernels' test must still call it unstable past the load."""
     from solver import layout as L
     from solver.kernels import spatial_contact as sc
+    from solver.paths.friction import no_samples
     from solver.problem import contact_layout, pack
 
     rod = designs.rod(length=1.0, EI=1.0, EA=1e8, GA=1e8, GJ=0.7)
@@ -177,7 +178,7 @@ def test_stability_flags_a_compressed_column_past_eulers_load(load, stable):
     nodes[:, L.CS_N + 1] = -force
     grid = (quat0, segs, layout.secf, layout.sec_steps, layout.c_j, sec_start)
     level = (np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3)), np.array([0, -force, 0, 0, 0, 0.0]),
-             scene.obstacles_array())
+             scene.obstacles_array(), scene.friction_array(), no_samples(1))
     n = sc.n_unknowns(segs.shape[0])
     F, J = np.empty(n), np.empty((n, n))
     blocks = np.empty((segs.shape[0], L.N_CTANGENT, L.N_CTANGENT))
