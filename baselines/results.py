@@ -425,13 +425,14 @@ def _seed_band_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
     reached."""
     from softarm_gym.plotting import figure, save
 
-    runs = [r for r in runs if r.get("batched") and (results_dir / "training" / r["run"] / "monitor.csv").is_file()]
+    runs = [r for r in runs
+            if r.get("batched") and (results_dir / "training" / r["run"] / "monitor.csv").is_file()]
     groups = _seed_groups(runs)
     env_ids = _env_ids(runs)
     fig, axes = figure(len(_BAND_ROWS), len(env_ids), figsize=(5.0 * len(env_ids), 12.5), squeeze=False)
     for column, env_id in enumerate(env_ids):
         mine = [(key, members) for key, members in groups.items() if key[0] == env_id]
-        for k, ((_, algo, folder, kwargs), members) in enumerate(mine):
+        for k, ((_, algo, folder, _), members) in enumerate(mine):
             label = f"{algo}" + (f" ({folder})" if folder else "") + f", {len(members)} seed" \
                 + ("s" if len(members) > 1 else "")
             for row, (x_name, y_name, scale, _, _) in enumerate(_BAND_ROWS):
@@ -616,6 +617,69 @@ INTRO = [
     "(S = 0, 1, 2). `planner_OctArmWrap3D-v0` is `CEMPlanner` with its defaults. Evaluated "
     "with `python -m baselines.results evaluate --runs runs --main-only --episodes 50 "
     "--only RUN` per run and for the planner; the main cell only; the best run shipped.",
+    "",
+    "Recommended wrap (issue #37; `SoftArm/OctArmWrap-v2`: self-contact on, delta actions of at "
+    "most 10 % of p_max per step, success at a 200° wrap; `CEMPlanner` wraps 100 % of seeds 0–99 "
+    "and the scripted curl 25 %, docs/environments.md): PPO on the batched env (`--batched`: "
+    "128 arms of one `softarm_gym.sb3.BatchedVecEnv`, stepped by one solver call; "
+    "`baselines/hyperparams/batched/ppo.yml`: 128 steps per arm per rollout, so 16,384 "
+    "transitions per update, batches of 2,048, 10 epochs, gamma 0.99, 128×128, initial action "
+    "std 0.6), one training at a time with one numba and one torch thread, on the 2 cores shared "
+    "with two other engineers' jobs (load average 4–7: the runs got 40–65 % of a core, CPU "
+    "column). Plain PPO: `python -m baselines.train --env SoftArm/OctArmWrap-v2 --algo ppo "
+    "--batched --numba-threads 1 --threads 1 --seed 0 --timesteps 5000000 --time-limit-min 12 "
+    "--eval-freq 250000 --eval-episodes 10 --checkpoint-freq 500000` (965,120 steps, 1,340 "
+    "steps/s). One remedy, exploration by gSDE (`hyperparams/batched_gsde/ppo.yml`: `use_sde`, "
+    "one exploration matrix per arm and rollout, `log_std_init: -2`; otherwise the same), "
+    "3 seeds: `python -m baselines.train --env SoftArm/OctArmWrap-v2 --algo ppo --batched "
+    "--hyperparams-dir baselines/hyperparams/batched_gsde --run-name "
+    "ppo_OctArmWrap-v2_batched_gsde_sS --numba-threads 1 --threads 1 --seed S ...`. Seed 0 ran "
+    "with `--timesteps 5000000 --time-limit-min 12`, was stopped (SIGTERM, which checkpoints) "
+    "at 248,320 steps after 10.5 min, when it had just begun to succeed, and continued with "
+    "`python -m baselines.train --resume runs/ppo_OctArmWrap-v2_batched_gsde_s0 "
+    "--time-limit-min 9.5` to 301,184 steps (20.1 min in all; the budget column gives the last "
+    "session's cap); seeds 1 and 2 trained as many steps: seed 1 started with `--timesteps "
+    "5000000 --time-limit-min 20`, was stopped at 97,920 and continued with `--resume ... "
+    "--timesteps 301184 --time-limit-min 25`, seed 2 ran `--timesteps 301184 --time-limit-min 25 "
+    "--eval-freq 100000` (PPO ends on a whole rollout: 310,912 and 311,296 steps). The "
+    "batched env slows as the policy learns to wrap: ~2,000 steps/s with the arms near rest, "
+    "~100 once most arms hold a wrap against the disc and themselves (the contact solves), so "
+    "300,000 gSDE steps took as long as plain PPO's 965,000. Evaluated on each run's final "
+    "weights (the caps stopped the runs at or before their first periodic evaluations) on 50 "
+    "episodes from seeds no training episode started from (a run with seed S starts its arms on "
+    "seeds S…S+127): `python -m baselines.results evaluate --runs runs --main-only --episodes 50 "
+    "--seed 100000 --policy-file final_model.zip --only RUN`; the best run shipped with `python "
+    "-m baselines.results ship --runs runs --envs SoftArm/OctArmWrap-v2` (`python -m "
+    "baselines.evaluate --model baselines/trained/ppo_OctArmWrap-v2.zip --episodes 50 --seed "
+    "100000` gives its row again).",
+    "",
+    "Plain PPO finds the S-curl, as SAC did on v1: by 100,000 steps every arm curls to about 90° "
+    "(training return ~36 per episode) and stays there to the end (return 41, no success in "
+    "4,825 training episodes; 0 % and a median wrap of 90° on the 50 evaluation episodes). Per-step "
+    "Gaussian noise on delta actions is a random walk of the pressures: it never ramps a channel "
+    "for the ~10 steps the full curl takes. gSDE's noise is a function of the state, fixed over "
+    "a rollout, so it pushes the same way step after step: every gSDE seed crosses the snap, its "
+    "training episodes' success rising from under 5 % at 180,000 steps to 38–53 % at the end, "
+    "still rising when the budget ran out. Deterministic, on the unseen seeds: seed 0 succeeds on "
+    "92 % (median wrap 231°, first success at step 10, the ramp's length), seeds 1 and 2 on 28 % "
+    "and 36 % (their failures stop in the S-curl or, overshooting, land on themselves): 52 ± 35 % "
+    "over the seeds, so the issue's 70 % is met by one seed of three, not by the seed mean, "
+    "after 300,000 steps each. Not done for #37 yet: longer budgets (the curves had not "
+    "flattened), SAC/TD3 on the batched wrap, the other recommended ids "
+    "(`baselines/hyperparams/batched/ppo.yml` has entries for CTWrap-v2, OctArmObstacleReach-v1 "
+    "and OctArmTrack-v1, smoke-tested only), and the remaining remedies (entropy target, "
+    "reward shaping, curriculum, planner demonstrations).",
+    "",
+    "CTWrap-v2 (success at 90°), gSDE PPO, 1 seed, with the time left: `python -m baselines.train --env "
+    "SoftArm/CTWrap-v2 --algo ppo --batched --hyperparams-dir baselines/hyperparams/batched_gsde --run-name "
+    "ppo_CTWrap-v2_batched_gsde_s0 --numba-threads 1 --threads 1 --seed 0 --time-limit-min 23 --eval-freq "
+    "100000 --eval-episodes 10 --checkpoint-freq 100000` (2,925,824 steps, 2,120 steps/s: CT's wrap is "
+    "cheaper to solve). Its training episodes succeed on over 80 % by 150,000 steps and on 98–100 % from "
+    "about 400,000 on (median wrap 100°); the periodic evaluations (10 episodes each) succeed on 9 or "
+    "10 of 10 throughout. Deterministic, on 50 unseen seeds (evaluated as OctArm's, after "
+    "main's friction merge): 100 % (median wrap 100°, first success at step 9), above the issue's "
+    "70 %, from one seed. Plain PPO was not run on CTWrap-v2 (machine time), "
+    "so this run shows that gSDE learns CT's wrap, not that CT needs it.",
     ""]
 """The Markdown lines after the heading of the shipped report: how the baselines were made."""
 
@@ -780,8 +844,9 @@ def _main_rows(main: pd.DataFrame, env_id: str, by_run: dict, kind, measures, me
                      f"{100 * row['success_rate']:.0f} % | " + measures(row))
     # Seeds are pooled per algorithm, training observation, YAML folder and the rest of the
     # training kwargs.
-    setting = rows["agent_name"].map(lambda name: (_yaml_folder(by_run[name]), _kwargs(_setting(by_run[name])))
-                                     if name in by_run else ("", ""))
+    setting = rows["agent_name"].map(
+        lambda name: (_yaml_folder(by_run[name]), _kwargs(_setting(by_run[name])))
+        if name in by_run else ("", ""))
     for algo in ALGOS:
         for observation in ESTIMATORS:
             for same in sorted(setting.unique()):
@@ -933,7 +998,8 @@ def main(argv=None) -> int:
                              "for the estimator grid)")
     parser.add_argument("--seed", type=int, default=0,
                         help="evaluate: episode i of every cell uses seed SEED + i (default %(default)s)")
-    parser.add_argument("--policy-file", default="best_model.zip", choices=("best_model.zip", "final_model.zip"),
+    parser.add_argument("--policy-file", default="best_model.zip",
+                        choices=("best_model.zip", "final_model.zip"),
                         help="evaluate: each run's best (default) or final model")
     parser.add_argument("--main-only", action="store_true",
                         help="evaluate only the main cell (true observations), not the estimator grid")

@@ -152,8 +152,9 @@ def test_batched_runs_get_seed_bands_and_remedies_are_pooled_apart(tmp_path):
     out = tmp_path / "results"
     (out / "eval").mkdir(parents=True)
     env_id = "SoftArm/OctArmWrap-v2"
-    base = {"episodes": 50, "cell": "main", "observation": "true", "env_id": env_id, "agent": "ppo:best_model.zip",
-            "median_steps_to_success": 20.0, "mean_estimation_error_m": 0.0, "p5_wrap_angle_deg": 80.0}
+    base = {"episodes": 50, "cell": "main", "observation": "true", "env_id": env_id,
+            "agent": "ppo:best_model.zip", "median_steps_to_success": 20.0, "mean_estimation_error_m": 0.0,
+            "p5_wrap_angle_deg": 80.0}
     runs = {"ppo_OctArmWrap-v2_batched_s0": ("batched", 0.2, 100.0),
             "ppo_OctArmWrap-v2_batched_s1": ("batched", 0.4, 200.0),
             "ppo_OctArmWrap-v2_batched_gsde_s0": ("batched_gsde", 0.9, 300.0)}
@@ -162,7 +163,8 @@ def test_batched_runs_get_seed_bands_and_remedies_are_pooled_apart(tmp_path):
             {**base, "agent_name": name, "success_rate": rate, "median_wrap_angle_deg": wrap}))
         (out / "training" / name).mkdir(parents=True)
         summary = {**_run_summary(name, env_id, int(name[-1]), {}), "algo": "ppo", "batched": True,
-                   "hyperparams": {"n_envs": 4}, "hyperparams_file": f"baselines/hyperparams/{folder}/ppo.yml"}
+                   "hyperparams": {"n_envs": 4},
+                   "hyperparams_file": f"baselines/hyperparams/{folder}/ppo.yml"}
         (out / "training" / name / "summary.json").write_text(json.dumps(summary))
         episodes = pd.DataFrame({"r": np.linspace(0, 50, 40), "l": 200, "t": np.linspace(1, 100, 40),
                                  "is_success": np.arange(40) > 20 + int(name[-1]), "wrap_angle_deg": 90.0})
