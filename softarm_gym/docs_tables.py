@@ -280,6 +280,17 @@ def solver_table() -> str:
     return f"{format_table(solver)}\n\n`{m['command']}` on a {m['machine']}."
 
 
+def friction_table() -> str:
+    """Coulomb friction's time against error on the capstan and slip-threshold paths
+    (``docs/bench/friction.json``, as ``softarm bench --friction`` prints it)."""
+    from softarm_gym.benchmarks.friction_bench import format_table
+
+    friction = _json("friction.json")
+    m = friction["measured"]
+    return (f"{format_table(friction)}\n\n`{m['command']}`, {m['date']}, {m['repeat']} timings per "
+            f"increment, load average {m['load_before'][0]:.1f} before and {m['load_after'][0]:.1f} after.")
+
+
 def env_table() -> str:
     """Single and vector env steps/s per (id, observation) (``docs/bench/envs.json``)."""
     envs = _json("envs.json")
@@ -412,6 +423,7 @@ def fresh_machine_table() -> str:
 
 
 SECTIONS = {"ids_table": ids_table, "headline_table": headline_table, "solver_table": solver_table,
+            "friction_table": friction_table,
             "thresholds_table": thresholds_table,
             "env_table": env_table, "contact_table": contact_table,
             "first_episode_table": first_episode_table,

@@ -145,6 +145,12 @@ def test_one_vocabulary_and_the_old_spellings_still_work(capsys, tmp_path):
         assert "--quiet" in text and "--no-progress" not in text and "--json-out" not in text, command
         assert "--output" in text and "--numba-threads" in text and "--json" in text, command
     assert "--numba-threads" in _help("bench") and "--numba-threads" in _help("fit")
+    assert all(option in _help("bench") for option in ("--output", "--quiet", "--json", "--friction"))
+
+
+def test_bench_output_into_a_missing_directory_fails_before_measuring(capsys, tmp_path):
+    _fails_cleanly(capsys, ["bench", "--friction", "--output", str(tmp_path / "no" / "f.json")],
+                   "does not exist")
 
 
 def _help(command):

@@ -10,15 +10,18 @@ reach env by size, and the batched wrap and obstacle-reach envs beside it at 102
 ``softarm warmup`` against its steady speed (``--cold`` adds the same with an empty numba
 cache). ``--fit`` times the calibration (``softarm fit``) at the thesis's experiment size,
 beside one batch of its solves, and tabulates parameter error against noise level
-(docs/bench/fit.json).
+(docs/bench/fit.json). ``--friction`` times the friction oracles' load paths (capstan, slip
+threshold) at several RK4 resolutions against their closed forms (docs/bench/friction.json).
+``--output FILE.json`` also writes the result; ``--quiet`` hides the progress lines.
 """
 
 from __future__ import annotations
 
+import shlex
 import sys
 
 from softarm_gym.cli import UsageError, emit
-from softarm_gym.commands.common import add_numba_threads_argument
+from softarm_gym.commands.common import add_numba_threads_argument, add_output_argument, add_quiet_argument
 
 NAME = "bench"
 HELP = "benchmark solver speed against accuracy (and peers)"
@@ -48,15 +51,40 @@ def add_arguments(p):
     p.add_argument("--contact-profile", action="store_true",
                    help="where a contact step's time goes: paths, passes, kernels against Python, "
                         "beside a free reach step")
+    p.add_argument("--friction", action="store_true",
+                   help="Coulomb friction's time against error instead: the capstan and slip-threshold "
+                        "load paths at several RK4 resolutions against their closed forms")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_output_argument(p)
+    add_quiet_argument(p, help="no progress lines on stderr")
     add_numba_threads_argument(p)
 
 
 def run(args) -> int:
     from softarm_gym.benchmarks import solver_bench
+    from softarm_gym.commands.long_jobs import check_outputs
+
+    check_outputs(args)
 
     def progress(message):
-        print(f"[bench] {message}", file=sys.stderr, flush=True)
+        if not args.quiet:
+            print(f"[bench] {message}", file=sys.stderr, flush=True)
+
+    def report(result, text):
+        """Print the result (JSON with --json), and write it to --output."""
+        emit(result, args.json, text)
+        if args.output:
+            from softarm_gym.files import write_json
+
+            write_json(args.output, result)
+
+    if args.friction:
+        from softarm_gym.benchmarks import friction_bench
+
+        result = friction_bench.run(quick=args.quick, progress=progress)
+        result["measured"]["command"] = shlex.join(["softarm", *sys.argv[1:]])
+        report(result, friction_bench.format_table(result))
+        return 0
 
     if args.estimators:
         from softarm_gym.sensing.bench import bench_estimators
@@ -69,13 +97,13 @@ def run(args) -> int:
                 spatial = rows["spatial"].get(name)
                 lines.append(f"| {name} | {1e6 * rows['planar'][name]:.0f} | "
                              f"{'—' if not isinstance(spatial, float) else f'{1e6 * spatial:.0f}'} |")
-        emit(rows, args.json, "\n".join(lines))
+        report(rows, "\n".join(lines))
         return 0
     if args.contact_profile:
         from softarm_gym.benchmarks import contact_profile
 
         result = contact_profile.run(quick=args.quick, progress=progress)
-        emit(result, args.json, contact_profile.format_table(result))
+        report(result, contact_profile.format_table(result))
         return 0
     if args.fit:
         from softarm_gym.identify import studies
@@ -85,7 +113,7 @@ def run(args) -> int:
         progress("parameter error against noise level")
         sigmas = (2.0, 10.0) if args.quick else (1.0, 2.0, 5.0, 10.0, 20.0)
         result["noise"] = studies.noise_study(sigmas_mm=sigmas, seeds=(0,) if args.quick else (0, 1, 2))
-        emit(result, args.json, studies.format_benchmark(result["time"]) + "\n\n"
+        report(result, studies.format_benchmark(result["time"]) + "\n\n"
              + studies.format_noise(result["noise"]))
         return 0
     if args.cold and not args.first_episode:
@@ -103,14 +131,14 @@ def run(args) -> int:
         progress("softarm warmup (loads what is cached, compiles the rest)")
         warmup.warm()
         result = first_episode.run(episodes=1 if args.quick else 3, cold=args.cold, progress=progress)
-        emit(result, args.json, first_episode.format_table(result))
+        report(result, first_episode.format_table(result))
         return 0
     if args.env:
         from softarm_gym.benchmarks import envs, vector_bench
 
         if args.contact:
             result = _contact_rows(args.quick, progress)
-            emit(result, args.json, _contact_text(result))
+            report(result, _contact_text(result))
             return 0
         ids = args.ids.split(",") if args.ids else None
         unknown = [i for i in ids or () if i not in envs.env_ids()]
@@ -118,14 +146,14 @@ def run(args) -> int:
             raise UsageError(f"unknown ID(s) {', '.join(unknown)}; registered: {', '.join(envs.env_ids())}")
         result = envs.run(quick=args.quick, ids=ids, progress=progress)
         if ids:  # only the IDs asked for: not the batched vector env (a reach benchmark)
-            emit(result, args.json, envs.format_table(result))
+            report(result, envs.format_table(result))
             return 0
         sizes = (4, 256) if args.quick else (4, 16, 256, 1024, 4096)
         result["batched_vector"] = vector_bench.run(sizes, progress=progress)
         result.update(_contact_rows(args.quick, progress))
         result["batched_vector_3d"] = vector_bench.run_spatial((4,) if args.quick else (4, 16, 64),
                                                                progress=progress)
-        emit(result, args.json, envs.format_table(result) + "\n\n"
+        report(result, envs.format_table(result) + "\n\n"
              + vector_bench.format_table(result["batched_vector"]) + "\n\n"
              + _contact_text(result) + "\n\n"
              + vector_bench.format_spatial_table(result["batched_vector_3d"]))
@@ -140,7 +168,7 @@ def run(args) -> int:
                              f"(pip install 'softarm-gym[bench]'): {exc}") from None
         result["pyelastica"] = pyelastica_peer.compare(progress=progress, quick=args.quick)
         text += "\n\n" + pyelastica_peer.format_table(result["pyelastica"])
-    emit(result, args.json, text)
+    report(result, text)
     return 0
 
 

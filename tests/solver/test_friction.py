@@ -8,6 +8,9 @@
   tends to the frictionless state.
 - Dissipation never negative along a path; mirror symmetry of a mirrored scene.
 - Bad μ: a clear error naming the field.
+
+The capstan and slip scenes are built by softarm_gym/benchmarks/friction_bench.py, which
+``softarm bench --friction`` times against the same closed forms.
 """
 
 import functools
@@ -19,9 +22,18 @@ import numpy as np
 import pytest
 
 import solver
+from softarm_gym.benchmarks.friction_bench import (
+    SLED_WEIGHT_N,
+    capstan_pulls,
+    clamp_tension,
+    drum_scene,
+    sled,
+    sled_forces,
+    sled_scene,
+    wrap_belt,
+)
 from solver import designs
 from solver import layout as L
-from solver.designs import ArmDesign, Section
 from solver.grasp import FreeObject
 from tests.solver.test_lean_contact import curl_walk
 
@@ -54,35 +66,13 @@ def test_zero_friction_reproduces_the_frictionless_code_bit_for_bit():
 
 # ---------------------------------------------------------------------------- capstan
 
-R_DRUM, LEAD, TAIL, K_DRUM = 0.1, 0.1, 0.15, 1e5
-
-
-def _belt(theta):
-    """A belt (EI small against T R², four sections so that the contact grid resolves it)
-    long enough to wrap θ round the drum."""
-    length = LEAD + R_DRUM * theta + TAIL
-    return ArmDesign(name="belt", source="test belt", sections=tuple(
-        Section(length=length / 4, EA=200.0, GA=200.0, EI=1e-6, GJ=1e-6, mass_per_length=0.0)
-        for _ in range(4)))
-
-
-def _drum_scene(direction, tension, mu, mirror=1.0):
-    """The belt clamped along +x, tangent to the drum's top; the tip pulled along ``direction``
-    (rad, clockwise from +x) with ``tension`` (N). ``mirror`` −1: all of it mirrored in the
-    x axis (the drum above the belt, the pull turned counter-clockwise)."""
-    return solver.Scene(base_angle_deg=90.0, gravity=0.0,
-                        tip_force=(tension * math.cos(direction), -mirror * tension * math.sin(direction)),
-                        obstacles=(solver.Disc((LEAD, -mirror * R_DRUM), R_DRUM, K_DRUM, friction=mu),))
-
-
 def _wrapped(theta, t0, mirror=1.0):
-    """The belt wrapped θ frictionless under the pull t0 (turned round in 10° steps)."""
-    arm = _belt(theta)
-    eq = solver.solve(arm, [], _drum_scene(0.0, t0, 0.0, mirror))
-    for direction in np.linspace(0.0, theta, max(4, round(math.degrees(theta)) // 10) + 1)[1:]:
-        eq = solver.solve(arm, [], _drum_scene(direction, t0, 0.0, mirror), warm_start=eq)
+    """The belt wrapped θ frictionless under the pull t0, every state of the wrapping converged
+    and stable: (arm, the wrapped equilibrium)."""
+    arm, path = wrap_belt(theta, t0, mirror)
+    for eq in path[1:]:
         assert eq.converged and eq.stable
-    return arm, eq
+    return arm, path[-1]
 
 
 @pytest.mark.parametrize("theta_deg, mu", [(90, 0.1), (180, 1.0), (270, 0.5), (360, 0.1),
@@ -93,13 +83,14 @@ def test_capstan_equation_at_the_onset_of_slip(theta_deg, mu):
     at T₀ while the wrap holds and rises once all of it slips, at T₁/T₂ = e^{μθ} (1 %)."""
     theta = math.radians(theta_deg)
     capstan = math.exp(mu * theta)
-    t0 = 3.0 / (1.3 * capstan)  # the largest pull 3 N: penetration below 0.3 mm
+    t0, pulls = capstan_pulls(theta, mu)  # the largest pull 3 N: penetration below 0.3 mm
+    assert pulls[-1] == pytest.approx(1.3 * capstan * t0)
     arm, eq = _wrapped(theta, t0)
     ratios = []
-    for t1 in np.geomspace(t0, 1.3 * capstan * t0, 24)[1:]:
-        eq = solver.solve(arm, [], _drum_scene(theta, t1, mu), warm_start=eq)
+    for t1 in pulls:
+        eq = solver.solve(arm, [], drum_scene(theta, t1, mu), warm_start=eq)
         assert eq.converged and eq.stable
-        t2 = float(np.hypot(*eq.base_force[:2]))
+        t2 = clamp_tension(eq)
         ratios.append(t1 / t2)
         assert ratios[-1] <= 1.01 * capstan  # friction never holds more than the capstan
     assert t2 > 1.1 * t0  # the clamp's side felt the pull: all of the wrap slipped
@@ -117,7 +108,7 @@ def _drum_path(mu, mirror=1.0):
     arm, eq = _wrapped(theta, t0, mirror)
     out = []
     for pull in PULLS:
-        eq = solver.solve(arm, [], _drum_scene(theta, pull * t0, mu, mirror), warm_start=eq)
+        eq = solver.solve(arm, [], drum_scene(theta, pull * t0, mu, mirror), warm_start=eq)
         assert eq.converged and eq.stable
         out.append(eq)
     return tuple(out)
@@ -161,21 +152,16 @@ def test_a_rod_on_a_flat_slips_at_mu_times_the_normal_force():
     clamp's reaction n(0): friction F = n_x(0) − T, normal N = n_y(0) + weight. The flat holds
     the pull (|F| ≈ T, the spring takes the rest) until T = μN, never more than μN, and
     exactly μN once the rod slides."""
-    mu, g = 0.5, 9.81
-    arm = ArmDesign(name="sled", source="test sled", sections=(
-        Section(length=0.2, EA=5.0, GA=5.0, EI=1e-3, GJ=1e-3, mass_per_length=0.0),
-        Section(length=0.5, EA=1e4, GA=1e4, EI=1e-2, GJ=1e-2, mass_per_length=0.2)))
-    weight = 0.2 * 0.5 * g
-    flat = solver.Disc((0.45, -1e4), 1e4, 1e4, friction=mu)
+    mu = 0.5
+    arm = sled()
+    weight = SLED_WEIGHT_N
     # Laid on the flat from where it is straight and weightless.
-    eq = solver.solve(arm, [], solver.Scene(base_angle_deg=90.0, gravity=0.0, obstacles=(flat,)))
+    eq = solver.solve(arm, [], sled_scene(mu, gravity=0.0))
     held = []
     for t in np.linspace(0.0, 2.0, 21) * mu * weight:
-        eq = solver.solve(arm, [], solver.Scene(base_angle_deg=90.0, gravity=g, tip_force=(t, 0.0),
-                                                obstacles=(flat,)), warm_start=eq)
+        eq = solver.solve(arm, [], sled_scene(mu, t), warm_start=eq)
         assert eq.converged and eq.stable
-        friction = eq.base_force[0] - t
-        normal = eq.base_force[1] + weight
+        friction, normal = sled_forces(eq, t)
         assert normal > 0.9 * weight
         assert abs(friction) <= mu * normal * (1 + 1e-3)
         held.append((t / (mu * normal), -friction / (mu * normal)))

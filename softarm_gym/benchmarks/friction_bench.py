@@ -1,0 +1,268 @@
+"""Coulomb friction against its closed forms: time against error (``softarm bench --friction``).
+
+The scenes of the friction oracles (``tests/solver/test_friction.py`` builds its cases from
+this module, docs/design.md §9.1), and the benchmark that times them at several resolutions:
+
+* **Capstan.** A belt (EI = 1e-6 N m², so small against T R² that it bends like a rope)
+  clamped tangent to a fixed drum (R = 0.1 m, k = 1e5 N/m²), wrapped θ frictionless under a
+  small pull T₀ (the pull turned round in 10° steps), then held with friction μ and pulled
+  harder, T₁ from T₀ to 1.3·T₀·e^{μθ}. Once the whole wrap slips, the clamp's tension T₂ (read
+  off the base reaction: global statics) satisfies T₁/T₂ = e^{μθ}.
+* **Slip threshold.** A soft massless spring from the clamp, then a heavy stiff rod lying on a
+  flat (a 10 km disc), pulled along it at its tip from 0 to 2 μW (W its weight): once it
+  slides the flat's friction (the clamp's reaction less the pull) is μ times its normal force.
+
+The benchmark's error is the relative error against the closed form at the end of the load
+path (capstan: T₁/T₂ against e^{μθ}; slip: the largest |F/(μN) − 1| over the loads past
+1.2 μN); its time is a warm solve along that path (each increment solved ``repeat`` times
+from the same start, the median kept; the table gives the median over the increments and
+their sum).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from datetime import datetime, timezone
+
+import numpy as np
+
+import solver
+from solver.designs import ArmDesign, Section
+from solver.settings import DEFAULT_SETTINGS, Settings
+
+R_DRUM, LEAD, TAIL, K_DRUM = 0.1, 0.1, 0.15, 1e5
+"""The drum's radius (m), the belt's straight lengths before and after the wrap (m) and the
+drum's penalty stiffness (N/m²)."""
+
+CAPSTAN_MAX_PULL = 3.0
+"""The largest pull of a capstan path (N): penetration below 0.3 mm."""
+
+CAPSTAN_OVERSHOOT = 1.3
+"""The last pull of a capstan path, as a multiple of T₀·e^{μθ}: past the onset of slip."""
+
+CAPSTAN_PULLS = 24
+"""Pulls of a capstan path, T₀ (the wrapped state) included."""
+
+SLED_WEIGHT_N = 0.2 * 0.5 * 9.81
+"""The sled rod's weight (N): 0.5 m at 0.2 kg/m."""
+
+CAPSTAN_CASES = ((90.0, 0.3), (180.0, 0.3), (360.0, 0.3), (90.0, 1.0), (180.0, 1.0), (360.0, 1.0))
+"""(θ in degrees, μ) of the benchmark's capstan rows."""
+
+SLIP_FRICTION = 0.5
+"""μ of the benchmark's slip rows."""
+
+STEPS = (16, 64, 256)
+"""RK4 steps per section of the benchmark's slip rows (16: the default)."""
+
+CAPSTAN_CONFIGS = ((K_DRUM, 16), (K_DRUM, 64), (K_DRUM, 256), (10 * K_DRUM, 16))
+"""(drum stiffness (N/m²), RK4 steps per section) of the benchmark's capstan rows: the
+resolution at the tests' drum, then a ten times stiffer drum (less compliance)."""
+
+
+# ------------------------------------------------------------------------------ the capstan
+
+def belt(theta: float) -> ArmDesign:
+    """A belt long enough to wrap ``theta`` (rad) round the drum: four sections (so that the
+    contact grid resolves it), EI = GJ = 1e-6 N m², EA = GA = 200 N, massless."""
+    length = LEAD + R_DRUM * theta + TAIL
+    return ArmDesign(name="belt", source="capstan test belt", sections=tuple(
+        Section(length=length / 4, EA=200.0, GA=200.0, EI=1e-6, GJ=1e-6, mass_per_length=0.0)
+        for _ in range(4)))
+
+
+def drum_scene(direction: float, tension: float, mu: float, mirror: float = 1.0,
+               stiffness: float = K_DRUM) -> solver.Scene:
+    """The belt clamped along +x, tangent to the drum's top, no gravity; the tip pulled along
+    ``direction`` (rad, clockwise from +x) with ``tension`` (N); the drum's friction ``mu`` and
+    penalty ``stiffness`` (N/m²).
+    ``mirror`` −1: all of it mirrored in the x axis (the drum above the belt, the pull turned
+    counter-clockwise)."""
+    return solver.Scene(base_angle_deg=90.0, gravity=0.0,
+                        tip_force=(tension * math.cos(direction), -mirror * tension * math.sin(direction)),
+                        obstacles=(solver.Disc((LEAD, -mirror * R_DRUM), R_DRUM, stiffness, friction=mu),))
+
+
+def wrap_belt(theta: float, t0: float, mirror: float = 1.0, settings: Settings = DEFAULT_SETTINGS,
+              stiffness: float = K_DRUM) -> tuple[ArmDesign, list]:
+    """The belt wrapped ``theta`` (rad) frictionless under the pull ``t0`` (N) round a drum of
+    penalty ``stiffness`` (N/m²), the pull turned round in 10° steps (at least four).
+
+    Returns:
+        ``(arm, path)``: the :func:`belt` and the equilibria of the wrapping, the straight belt
+        first and the wrapped one last (check ``converged`` and ``stable`` on each).
+    """
+    arm = belt(theta)
+    path = [solver.solve(arm, [], drum_scene(0.0, t0, 0.0, mirror, stiffness), settings=settings)]
+    for direction in np.linspace(0.0, theta, max(4, round(math.degrees(theta)) // 10) + 1)[1:]:
+        path.append(solver.solve(arm, [], drum_scene(direction, t0, 0.0, mirror, stiffness),
+                                 warm_start=path[-1], settings=settings))
+    return arm, path
+
+
+def capstan_pulls(theta: float, mu: float) -> tuple[float, np.ndarray]:
+    """The loads of a capstan path: ``(t0, pulls)``, the wrapping's pull T₀ (N) and the
+    (CAPSTAN_PULLS − 1,) pulls T₁ (N) after it, geometric from T₀ to
+    CAPSTAN_OVERSHOOT·T₀·e^{μθ} = CAPSTAN_MAX_PULL."""
+    capstan = math.exp(mu * theta)
+    t0 = CAPSTAN_MAX_PULL / (CAPSTAN_OVERSHOOT * capstan)
+    return t0, np.geomspace(t0, CAPSTAN_MAX_PULL, CAPSTAN_PULLS)[1:]
+
+
+def clamp_tension(eq) -> float:
+    """The belt's tension at the clamp, T₂ (N): the magnitude of the in-plane base reaction."""
+    return float(np.hypot(*eq.base_force[:2]))
+
+
+# ---------------------------------------------------------------------------- the slip case
+
+def sled() -> ArmDesign:
+    """A soft massless spring (0.2 m, EA = GA = 5 N) from the clamp, then a heavy stiff rod
+    (0.5 m, EA = GA = 1e4 N, EI = 1e-2 N m², 0.2 kg/m) to lie on the flat."""
+    return ArmDesign(name="sled", source="slip threshold test sled", sections=(
+        Section(length=0.2, EA=5.0, GA=5.0, EI=1e-3, GJ=1e-3, mass_per_length=0.0),
+        Section(length=0.5, EA=1e4, GA=1e4, EI=1e-2, GJ=1e-2, mass_per_length=0.2)))
+
+
+def sled_scene(mu: float, pull: float = 0.0, gravity: float = 9.81) -> solver.Scene:
+    """The sled clamped along +x on a flat (a disc of radius 10 km, k = 1e4 N/m², friction
+    ``mu``), its tip pulled along +x with ``pull`` (N)."""
+    flat = solver.Disc((0.45, -1e4), 1e4, 1e4, friction=mu)
+    return solver.Scene(base_angle_deg=90.0, gravity=gravity, tip_force=(pull, 0.0), obstacles=(flat,))
+
+
+def sled_forces(eq, pull: float) -> tuple[float, float]:
+    """``(friction, normal)`` (N) on the sled from the clamp's reaction n(0) under ``pull``:
+    F = n_x(0) − pull (positive along +x), N = n_y(0) + the rod's weight."""
+    return float(eq.base_force[0] - pull), float(eq.base_force[1] + SLED_WEIGHT_N)
+
+
+# ------------------------------------------------------------------------------ the benchmark
+
+def _timed(repeat, arm, scene, warm_start, settings):
+    """The solve of ``scene`` from ``warm_start`` and the median of ``repeat`` timings (s)."""
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        eq = solver.solve(arm, [], scene, warm_start=warm_start, settings=settings)
+        times.append(time.perf_counter() - start)
+    return eq, float(np.median(times))
+
+
+def _summary(times, ok) -> dict:
+    return {"increments": len(times), "median_solve_ms": 1e3 * float(np.median(times)),
+            "path_seconds": float(np.sum(times)), "converged_fraction": float(np.mean(ok))}
+
+
+def capstan(theta_deg: float, mu: float, steps: int = 16, repeat: int = 3, stiffness: float = K_DRUM) -> dict:
+    """One capstan row: the belt wrapped ``theta_deg`` round a drum of penalty ``stiffness``
+    (N/m²) and pulled past slip with friction ``mu`` at ``steps`` RK4 steps per section.
+
+    Returns:
+        The row: ``ratio`` T₁/T₂ at the last pull, ``capstan`` e^{μθ}, ``relative_error``
+        |ratio/capstan − 1|, ``max_ratio_over_capstan`` (the most friction held along the
+        path), ``slipped`` (T₂ rose past 1.1 T₀: the whole wrap slid), the warm solves' times
+        and the share of solves (wrapping included) converged and stable.
+    """
+    theta = math.radians(theta_deg)
+    settings = solver.Settings(steps_per_section=steps)
+    t0, pulls = capstan_pulls(theta, mu)
+    arm, path = wrap_belt(theta, t0, settings=settings, stiffness=stiffness)
+    ok = [eq.converged and eq.stable for eq in path]
+    eq, times, ratios = path[-1], [], []
+    for t1 in pulls:
+        eq, seconds = _timed(repeat, arm, drum_scene(theta, t1, mu, stiffness=stiffness), eq, settings)
+        times.append(seconds)
+        ok.append(eq.converged and eq.stable)
+        ratios.append(t1 / clamp_tension(eq))
+    expected = math.exp(mu * theta)
+    return {"theta_deg": theta_deg, "mu": mu, "stiffness": stiffness, "steps_per_section": steps,
+            "capstan": expected,
+            "ratio": ratios[-1], "relative_error": abs(ratios[-1] / expected - 1.0),
+            "max_ratio_over_capstan": max(ratios) / expected, "slipped": clamp_tension(eq) > 1.1 * t0,
+            **_summary(times, ok)}
+
+
+def slip(mu: float = SLIP_FRICTION, steps: int = 16, repeat: int = 3) -> dict:
+    """One slip-threshold row: the sled laid on the flat (weightless, then loaded in the first
+    increment) and pulled from 0 to 2 μW in 20 increments, at ``steps`` RK4 steps per section.
+
+    Returns:
+        The row: ``relative_error`` the largest |F/(μN) − 1| over the pulls past 1.2 μN
+        (sliding), ``max_friction_over_mu_normal`` the most friction held along the path, the
+        warm solves' times and the share of solves converged and stable.
+    """
+    settings = solver.Settings(steps_per_section=steps)
+    arm = sled()
+    eq = solver.solve(arm, [], sled_scene(mu, gravity=0.0), settings=settings)
+    ok, times, sliding, held = [eq.converged and eq.stable], [], [], []
+    for pull in np.linspace(0.0, 2.0, 21) * mu * SLED_WEIGHT_N:
+        eq, seconds = _timed(repeat, arm, sled_scene(mu, pull), eq, settings)
+        times.append(seconds)
+        ok.append(eq.converged and eq.stable)
+        friction, normal = sled_forces(eq, pull)
+        held.append(abs(friction) / (mu * normal))
+        if pull > 1.2 * mu * normal:
+            sliding.append(abs(-friction / (mu * normal) - 1.0))
+    return {"mu": mu, "steps_per_section": steps, "relative_error": max(sliding),
+            "max_friction_over_mu_normal": max(held), **_summary(times, ok)}
+
+
+def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN_CONFIGS, steps=STEPS,
+        repeat=None) -> dict:
+    """The friction benchmark: every capstan case of ``cases`` in every configuration of
+    ``configs``, and the slip case at every resolution of ``steps``.
+
+    Args:
+        quick: two capstan cases in the first and last configurations, 16 and 64 steps for
+            the slip case, one repeat (a smoke run).
+        progress: called with a line per row (or None).
+        cases: (θ in degrees, μ) of the capstan rows.
+        configs: (drum stiffness (N/m²), RK4 steps per section) of the capstan rows.
+        steps: RK4 steps per section of the slip rows.
+        repeat: timings per increment (default 3, 1 when ``quick``).
+
+    Returns:
+        A JSON-able dict: ``capstan`` and ``slip`` rows (:func:`capstan`, :func:`slip`) and
+        ``measured`` (UTC date, load average before and after).
+    """
+    tick = progress or (lambda *_: None)
+    if quick:
+        cases, configs, steps = cases[::3][:2], (configs[0], configs[-1]), steps[:2]
+    repeat = repeat or (1 if quick else 3)
+    load_before = os.getloadavg()
+    slip(steps=steps[0], repeat=1)  # compiles what a first solve compiles; not timed
+    rows = {"capstan": [], "slip": []}
+    for stiffness, n in configs:
+        for theta_deg, mu in cases:
+            rows["capstan"].append(capstan(theta_deg, mu, n, repeat, stiffness))
+            tick(f"capstan {theta_deg:g}° μ={mu:g}, drum {stiffness:.0e} N/m², {n} steps/section")
+    for n in steps:
+        rows["slip"].append(slip(SLIP_FRICTION, n, repeat))
+        tick(f"slip μ={SLIP_FRICTION:g}, {n} steps/section")
+    rows["measured"] = {"date": datetime.now(timezone.utc).strftime("%Y-%m-%d"), "repeat": repeat,
+                        "load_before": list(load_before), "load_after": list(os.getloadavg())}
+    return rows
+
+
+def format_table(result: dict) -> str:
+    """The Markdown tables of a :func:`run` result."""
+    lines = ["| capstan θ | μ | drum k (N/m²) | RK4 steps/section | T₁/T₂ | e^{μθ} | relative error "
+             "| most held / e^{μθ} | warm solve (ms, median) | path (s) | converged |", "|---" * 11 + "|"]
+    order = ("mu", "theta_deg", "stiffness", "steps_per_section")
+    for r in sorted(result["capstan"], key=lambda r: tuple(r[k] for k in order)):
+        slipped = "" if r["slipped"] else " (did not slip)"
+        lines.append(f"| {r['theta_deg']:g}° | {r['mu']:g} | {r['stiffness']:.0e} | "
+                     f"{r['steps_per_section']} | {r['ratio']:.4g} | {r['capstan']:.4g} | "
+                     f"{r['relative_error']:.1e}{slipped} | "
+                     f"{r['max_ratio_over_capstan']:.4f} | {r['median_solve_ms']:.1f} | "
+                     f"{r['path_seconds']:.2f} | {r['converged_fraction']:.0%} |")
+    lines += ["", "| slip threshold μ | RK4 steps/section | sliding: max \\|F/μN − 1\\| | most held F/μN "
+              "| warm solve (ms, median) | path (s) | converged |", "|---|---|---|---|---|---|---|"]
+    for r in result["slip"]:
+        lines.append(f"| {r['mu']:g} | {r['steps_per_section']} | {r['relative_error']:.1e} | "
+                     f"{r['max_friction_over_mu_normal']:.4f} | {r['median_solve_ms']:.2f} | "
+                     f"{r['path_seconds']:.2f} | {r['converged_fraction']:.0%} |")
+    return "\n".join(lines)

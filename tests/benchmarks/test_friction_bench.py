@@ -1,0 +1,24 @@
+"""``softarm bench --friction``: the rows it reports, on a tiny case (no timing assertions)."""
+
+import math
+
+import numpy as np
+
+from softarm_gym.benchmarks import friction_bench
+
+
+def test_friction_bench_reports_finite_errors_and_times_against_the_closed_forms():
+    result = friction_bench.run(cases=((90.0, 1.0),), configs=((friction_bench.K_DRUM, 16),), steps=(16,),
+                                repeat=1)
+    (row,) = result["capstan"]
+    assert row["capstan"] == math.exp(math.pi / 2)  # e^{μθ}, μ = 1, θ = 90°
+    assert row["slipped"] and row["converged_fraction"] == 1.0
+    assert row["relative_error"] == abs(row["ratio"] / row["capstan"] - 1.0) < 0.01
+    (slip,) = result["slip"]
+    assert slip["converged_fraction"] == 1.0 and slip["relative_error"] < 0.01
+    for r in (row, slip):
+        assert r["increments"] > 0
+        for key in ("relative_error", "median_solve_ms", "path_seconds"):
+            assert np.isfinite(r[key]) and r[key] > 0, key
+    table = friction_bench.format_table(result).splitlines()
+    assert table[2].startswith("| 90° | 1 | 1e+05 | 16 |") and table[-1].startswith("| 0.5 | 16 |")
