@@ -3,6 +3,7 @@
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from baselines import results
@@ -46,6 +47,22 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
     assert "| cable_encoder | noisy |" in text
     assert "1 episode each" in text and "periodic deterministic evaluations, 1 episode)" in text
     assert "![learning curves](results/learning_curves.png)" in text
+
+
+def test_final_models_are_evaluated_on_unseen_seeds_and_shipped_as_evaluated(tiny_sac_run, tmp_path):
+    runs_dir, out = tiny_sac_run.parent, tmp_path / "results"
+    jobs = results.evaluation_jobs(runs_dir, out, grid=False, env_ids=(), seed=100_000,
+                                   policy_file="final_model.zip")
+    assert [(path.name, kwargs["model"], kwargs["seed"]) for path, kwargs in jobs] == \
+        [(f"{tiny_sac_run.name}__main.json", tiny_sac_run / "final_model.zip", 100_000)]
+    result = evaluate(**{**jobs[0][1], "episodes": 1})
+    assert result["agent"] == "sac:final_model.zip" and result["seed"] == 100_000
+    (out / "eval").mkdir(parents=True)
+    (out / "eval" / jobs[0][0].name).write_text(json.dumps({**result, "cell": "main",
+                                                            "agent_name": tiny_sac_run.name}))
+    (shipped,) = results.ship(runs_dir, out, tmp_path / "trained")
+    assert shipped.read_bytes() == (tiny_sac_run / "final_model.zip").read_bytes()
+    assert shipped.read_bytes() != (tiny_sac_run / "best_model.zip").read_bytes()
 
 
 def test_a_run_ships_under_the_registered_id_whose_defaults_it_trained_in():
@@ -127,3 +144,35 @@ def test_shipped_metadata_records_the_budget_that_was_trained():
     for meta in metadata:
         budget = meta["hyperparams"]["n_timesteps"]
         assert budget == meta["timesteps"] >= meta["timesteps_done"], meta["env_id"]
+
+
+def test_batched_runs_get_seed_bands_and_remedies_are_pooled_apart(tmp_path):
+    # Saved files only: two seeds of PPO on the batched wrap and one of a remedy in its own YAML
+    # folder; the remedy has the same env kwargs but must not be pooled with them.
+    out = tmp_path / "results"
+    (out / "eval").mkdir(parents=True)
+    env_id = "SoftArm/OctArmWrap-v2"
+    base = {"episodes": 50, "cell": "main", "observation": "true", "env_id": env_id,
+            "agent": "ppo:best_model.zip", "median_steps_to_success": 20.0, "mean_estimation_error_m": 0.0,
+            "p5_wrap_angle_deg": 80.0}
+    runs = {"ppo_OctArmWrap-v2_batched_s0": ("batched", 0.2, 100.0),
+            "ppo_OctArmWrap-v2_batched_s1": ("batched", 0.4, 200.0),
+            "ppo_OctArmWrap-v2_batched_gsde_s0": ("batched_gsde", 0.9, 300.0)}
+    for name, (folder, rate, wrap) in runs.items():
+        (out / "eval" / f"{name}__main.json").write_text(json.dumps(
+            {**base, "agent_name": name, "success_rate": rate, "median_wrap_angle_deg": wrap}))
+        (out / "training" / name).mkdir(parents=True)
+        summary = {**_run_summary(name, env_id, int(name[-1]), {}), "algo": "ppo", "batched": True,
+                   "hyperparams": {"n_envs": 4},
+                   "hyperparams_file": f"baselines/hyperparams/{folder}/ppo.yml"}
+        (out / "training" / name / "summary.json").write_text(json.dumps(summary))
+        episodes = pd.DataFrame({"r": np.linspace(0, 50, 40), "l": 200, "t": np.linspace(1, 100, 40),
+                                 "is_success": np.arange(40) > 20 + int(name[-1]), "wrap_angle_deg": 90.0})
+        episodes["timesteps"] = episodes["l"].cumsum()
+        episodes.to_csv(out / "training" / name / "monitor.csv", index=False)
+    text = results.report(out, tmp_path / "RESULTS.md")
+    assert (out / results.BATCHED_CURVES).is_file()
+    assert f"![batched learning curves](results/{results.BATCHED_CURVES})" in text
+    assert "| **ppo (batched) mean ± std over 2 seeds** | `{}` | | | | | **30 ± 14 %** | 150 | 80 | |" in text
+    assert "ppo (batched_gsde) mean" not in text  # one seed: no mean row, and not in the batched mean
+    assert "| SoftArm/OctArmWrap-v2 | ppo_OctArmWrap-v2_batched_gsde_s0 | `{}` | 8 | 80,000 |" in text

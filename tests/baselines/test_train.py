@@ -82,6 +82,28 @@ def test_batched_hyperparameters_build_on_the_batched_env(algo, env_id):
     venv.close()
 
 
+CONTACT_ENTRIES = [("batched", "SoftArm/OctArmWrap-v2"), ("batched", "SoftArm/CTWrap-v2"),
+                   ("batched", "SoftArm/OctArmObstacleReach-v1"), ("batched", "SoftArm/OctArmTrack-v1"),
+                   ("batched_gsde", "SoftArm/OctArmWrap-v2"), ("batched_gsde", "SoftArm/CTWrap-v2")]
+"""(YAML folder, id) of the batched PPO entries of the recommended contact and track ids (issue #37)."""
+
+
+@pytest.mark.parametrize("folder,env_id", CONTACT_ENTRIES)
+def test_contact_ppo_entries_train_the_registered_defaults(folder, env_id, tmp_path):
+    params = load_hyperparams("ppo", env_id, HYPERPARAMS_DIR / folder)
+    assert params["env_kwargs"] == {}  # the recommended id itself: sequential, self-contact on
+    assert params["n_envs"] * params["n_steps"] >= 8192 and params["n_envs"] * params["n_steps"] % \
+        params["batch_size"] == 0
+    # One update on the batched env with the entry's settings, but 4 arms and 4 steps each.
+    small = {**params, "n_envs": 4, "n_steps": 4, "batch_size": 8, "n_epochs": 1, "n_timesteps": 16}
+    run = train(env_id, "ppo", seed=0, log_dir=tmp_path, hyperparams=small, eval_freq=0, checkpoint_freq=0,
+                progress=False, tensorboard=False, batched=True)
+    assert json.loads((run / "summary.json").read_text())["timesteps_done"] == 16
+    model, venv = build(env_id, "ppo", small, seed=0, batched=True)
+    assert isinstance(venv.unwrapped, BatchedVecEnv) and model.use_sde == params.get("use_sde", False)
+    venv.close()
+
+
 def test_batched_run_and_its_resume_write_one_monitor_file(tmp_path):
     tiny = {**TINY["ppo"], "n_envs": 4, "n_steps": 16, "n_timesteps": 128,
             "env_kwargs": {"action_mode": "delta", "max_episode_steps": 8}}
