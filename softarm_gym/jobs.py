@@ -36,6 +36,7 @@ import importlib
 import json
 import logging
 import os
+import pickle
 import re
 import signal
 import socket
@@ -54,7 +55,7 @@ from tqdm import tqdm
 
 __all__ = ["BACKENDS", "DEFAULT_RETRIES", "Chunk", "Plan", "Runner", "ChunkStore", "JobError",
            "Interrupted", "default_chunk_dir", "code_fingerprint", "chunk_bounds", "atomic_path",
-           "write_atomic", "ray_session", "cancel_unfinished", "first_line"]
+           "write_atomic", "ray_session", "ray_payload", "cancel_unfinished", "first_line"]
 
 BACKENDS = ("local", "ray")
 DEFAULT_RETRIES = 3
@@ -247,20 +248,31 @@ def _check_result(result, chunk: Chunk) -> dict:
     return result
 
 
+def ray_payload(args) -> bytes:
+    """``args`` pickled in band with protocol 5, which keeps each array's read-only flag, so a
+    Ray worker unpickles the arrays the local backend would pass (:func:`_ray_call`)."""
+    return pickle.dumps(args, protocol=5)
+
+
 def _timed_call(fn, args):
     start = time.perf_counter()
     result = fn(*args)
     return result, time.perf_counter() - start
 
 
-def _ray_call(fn, args):
+def _ray_call(fn, payload: bytes):
     """A chunk in a Ray worker: one numba thread (the task holds one CPU), timed, with the
-    worker's code fingerprint and node address for the driver to check."""
+    worker's code fingerprint and node address for the driver to check.
+
+    The arguments come pickled by the driver (:func:`ray_payload`), not by Ray: Ray hands numpy
+    arrays over as read-only views of its object store, and numba types a read-only array apart
+    from a writable one, so every kernel an argument reached was compiled again in every worker
+    (a minute and more each) instead of loaded from the cache the local backend fills."""
     import numba
     import ray
 
     numba.set_num_threads(1)
-    result, seconds = _timed_call(fn, args)
+    result, seconds = _timed_call(fn, pickle.loads(payload))
     return result, seconds, code_fingerprint(), ray.util.get_node_ip_address()
 
 
@@ -383,7 +395,7 @@ class Runner:
             while queue or pending:
                 while queue and len(pending) < limit:
                     i = queue.pop()
-                    pending[task.remote(chunks[i].fn, chunks[i].args)] = i
+                    pending[task.remote(chunks[i].fn, ray_payload(chunks[i].args))] = i
                 (ref,), _ = ray.wait(list(pending), num_returns=1)
                 i = pending.pop(ref)
                 try:

@@ -10,6 +10,7 @@ import contextlib
 import io
 import json
 import os
+import pickle
 import shutil
 import signal
 import socket
@@ -39,6 +40,7 @@ from softarm_gym.jobs import (
     atomic_path,
     cancel_unfinished,
     code_fingerprint,
+    ray_payload,
 )
 from tests.baselines.conftest import tiny_hyperparams
 from tests.timings import without_timings
@@ -285,6 +287,19 @@ def test_only_unfinished_ray_tasks_are_cancelled(force):
     assert ray.cancelled == [("b", force), ("d", force)]
     cancel_unfinished(ray, {}, force=force)  # nothing pending: no call at all
     assert len(ray.cancelled) == 2
+
+
+
+def test_ray_payload_keeps_each_arrays_read_only_flag():
+    """What a Ray worker unpickles is what the local backend passes: a writable array stays
+    writable (Ray's own transfer made every array a read-only view, a second numba type whose
+    kernels each worker compiled again), and a read-only one stays read-only."""
+    frozen = np.arange(3.0)
+    frozen.flags.writeable = False
+    writable, nested = pickle.loads(ray_payload((np.ones((2, 2)), {"p": frozen, "q": [np.zeros(4)]})))
+    assert writable.flags.writeable and nested["q"][0].flags.writeable
+    assert not nested["p"].flags.writeable
+    np.testing.assert_array_equal(nested["p"], frozen)
 
 
 class Cluster:
