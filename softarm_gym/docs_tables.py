@@ -411,8 +411,8 @@ def fresh_machine_table() -> str:
     data = _json("fresh_machine.json")
     rows = ["| step | wall time (s) | load average before | what it does |", "|---|---|---|---|"]
     for step in data["steps"]:
-        rows.append(f"| `{step['command']}` | {step['seconds']:.0f} | {step['load_before']:.1f} | "
-                    f"{step['what']} |")
+        load = "—" if step["load_before"] is None else f"{step['load_before']:.1f}"  # not read
+        rows.append(f"| `{step['command']}` | {step['seconds']:.0f} | {load} | {step['what']} |")
     first = data["first_episode"]
     rows += ["", f"First episode after `make demo`, in a fresh process: `{first['env_id']}`, "
              f"{first['steps']} steps in {first['first_seconds']:.2f} s (imports "
