@@ -401,12 +401,21 @@ def friction_impulse(x, y, discs, mu, fs, row, node, weight, record, want_k):
 
 
 @njit
-def friction_impulse_3d(r0, r1, r2, obstacles, mu, fs, row, node, weight, record):
+def friction_impulse_3d(r0, r1, r2, obstacles, mu, fs, row, node, weight, record, stiff):
     """:func:`friction_impulse` against spatial obstacles (n, 8): the tangential
     displacement is the vector d = P·(r − p − a), P the projection on the surface's tangent
     plane at r (normal to e, the offset from the obstacle's core, :func:`_offset_3d`) and a
     the anchor relative to the obstacle's point p; stick while |d| ≤ μ·pen, else the cone's
-    force −μ·k·pen·d/|d|. Returns the impulse (F_x, F_y, F_z) on the arm (N)."""
+    force −μ·k·pen·d/|d|. Returns the impulse (F_x, F_y, F_z) on the arm (N).
+
+    ``stiff``: (3, 3) or (0, 3): if not empty, the impulse's derivative ∂F/∂r (N/m) is added
+    into it — the consistent tangent of the return mapping (anchors fixed), as
+    :func:`friction_impulse`'s in the plane. With Q = ∂e/∂r = I − a_c a_cᵀ (a_c the
+    cylinder's axis; zero for a sphere), u = e/ρ and v = r − p − a:
+    ∂d/∂r = P − (u·v/ρ)·P Q − u (dᵀQ)/ρ (the tangent plane turns with r); stick:
+    −k·w·∂d/∂r (w the sample's length share); slip: −k·w·[d̂ ∂(μ pen)/∂r + (μ pen/|d|)
+    (I − d̂ d̂ᵀ) ∂d/∂r], ∂pen/∂r = −uᵀ. A sample without an anchor carries no force and no
+    stiffness."""
     fx = 0.0
     fy = 0.0
     fz = 0.0
@@ -428,6 +437,7 @@ def friction_impulse_3d(r0, r1, r2, obstacles, mu, fs, row, node, weight, record
         w0 = 0.0
         w1 = 0.0
         w2 = 0.0
+        along = 0.0
         if not fresh:
             w0 = r0 - obstacles[d, O_P] - a0
             w1 = r1 - obstacles[d, O_P + 1] - fs[row, node, d, FS_A + 1]
@@ -437,6 +447,9 @@ def friction_impulse_3d(r0, r1, r2, obstacles, mu, fs, row, node, weight, record
             w1 -= along * u1
             w2 -= along * u2
         size = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        if stiff.shape[0] and not fresh and (size <= cap or cap > 0.0):
+            _friction_stiffness_3d(stiff, (u0, u1, u2), (w0, w1, w2), along, rho, size, cap,
+                                   mu[d], weight * k, obstacles, d)
         # The core point nearest r, from which the surface point R·u lies.
         c0 = r0 - e0 - obstacles[d, O_P]
         c1 = r1 - e1 - obstacles[d, O_P + 1]
@@ -477,6 +490,35 @@ def friction_impulse_3d(r0, r1, r2, obstacles, mu, fs, row, node, weight, record
             out[FS_R + 2] = r2
             out[FS_SLIP] = slip
     return fx, fy, fz
+
+
+@njit(inline="always")
+def _friction_stiffness_3d(stiff, u, w, along, rho, size, cap, mu, wk, obstacles, d):
+    """Add ∂F/∂r of one obstacle's friction impulse into ``stiff`` (3, 3)
+    (:func:`friction_impulse_3d`): ``u`` the unit offset, ``w`` the tangential displacement
+    d, ``along`` u·(r − p − a), ``rho`` |e|, ``size`` |d|, ``cap`` μ·pen, ``wk`` the share
+    times the stiffness (N/m²·m)."""
+    a = (obstacles[d, O_AXIS], obstacles[d, O_AXIS + 1], obstacles[d, O_AXIS + 2])
+    w_axis = w[0] * a[0] + w[1] * a[1] + w[2] * a[2]
+    slip = size > cap
+    dd = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            eye = 1.0 if i == j else 0.0
+            # P = I − u uᵀ; P Q = I − u uᵀ − a aᵀ (u ⟂ a); dᵀQ = dᵀ − (d·a) aᵀ.
+            dd[i, j] = (eye - u[i] * u[j] - along / rho * (eye - u[i] * u[j] - a[i] * a[j])
+                        - u[i] * (w[j] - w_axis * a[j]) / rho)
+    if not slip:
+        for i in range(3):
+            for j in range(3):
+                stiff[i, j] -= wk * dd[i, j]
+        return
+    ratio = cap / size
+    for j in range(3):
+        hat_dd = (w[0] * dd[0, j] + w[1] * dd[1, j] + w[2] * dd[2, j]) / size  # d̂ᵀ ∂d/∂r
+        for i in range(3):
+            hat = w[i] / size
+            stiff[i, j] -= wk * (-hat * mu * u[j] + ratio * (dd[i, j] - hat * hat_dd))
 
 
 @njit

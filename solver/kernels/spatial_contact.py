@@ -296,7 +296,7 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
     Near an obstacle each RK4 step is refined into NEAR_SUBSTEPS substeps and blended with
     the whole step by a smoothstep of the clearance, as in :func:`solver.kernels.contact._integrate`,
     friction acting at the refinement's nodes as it does there
-    (:func:`solver.kernels.obstacles.friction_impulse_3d`; its stiffness does not enter
+    (:func:`solver.kernels.obstacles.friction_impulse_3d`, its consistent tangent entering
     ``phi``). At a section end (not the tip) the endplate's weight is taken off n. With
     ``record``, the samples go to the record tuple ``rec``. ``work`` (8, N_CSTATE) scratch.
     With ``phi`` (12, 12) (not empty), the segment map's Jacobian in the tangent coordinates
@@ -326,6 +326,8 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
     start = work[5]
     fine = work[6]
     tangent = phi.shape[0] > 0
+    stiff = np.empty((3 if tangent and friction else 0, 3))
+    fine_phi = tw[6] if tangent else phi  # (the refinement's tangent; unused without one)
     for d in range(N_CSTATE):
         out[d] = z[d]
     if tangent:
@@ -371,7 +373,8 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
             tw[6, :, :] = tw[5]
         for sub in range(NEAR_SUBSTEPS):
             if friction:
-                _friction_node(fine, level, at, sub, (0.5 if sub == 0 else 1.0) * h_sub, record)
+                _friction_node(fine, fine_phi, stiff, level, at, sub,
+                               (0.5 if sub == 0 else 1.0) * h_sub, record)
             if tangent:
                 _rk4_tangent(fine, tw[6], h_sub, work, tw, ca, cg, ci, cj, u1r, u2r, v3r, q,
                              obstacles)
@@ -379,7 +382,8 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
                 spatial_state_rk4_step(fine, h_sub, work, ca, cg, ci, cj, u1r, u2r, v3r, q,
                                        obstacles)
         if friction:
-            _friction_node(fine, level, at, NEAR_SUBSTEPS, 0.5 * h_sub, record)
+            _friction_node(fine, fine_phi, stiff, level, at, NEAR_SUBSTEPS, 0.5 * h_sub,
+                           record)
             if record:
                 _friction_row(fs, at, 0, h_sub, rec, at)
         x = 1.0 - clear / h if clear > 0.0 else 1.0
@@ -412,14 +416,25 @@ def _segment(z, seg, grid, rest, level, out, work, record, rec, phi, tw):
 
 
 @njit
-def _friction_node(y, level, row, node, weight, record):
+def _friction_node(y, phi, stiff, level, row, node, weight, record):
     """Apply the friction impulse of sample (row, node), its share ``weight`` of the length,
-    to the contact state ``y`` as a point load: n⁺ = n⁻ − F."""
+    to the contact state ``y`` as a point load: n⁺ = n⁻ − F; with ``stiff`` (3, 3) scratch
+    (not empty), to its tangent ``phi`` (12, 12) too: δn⁺ = δn⁻ − (∂F/∂r)·δr."""
+    if stiff.shape[0]:
+        stiff[:, :] = 0.0
     fx, fy, fz = friction_impulse_3d(y[CS_R], y[CS_R + 1], y[CS_R + 2], level[L_DISCS],
-                                     level[L_MU], level[L_FRICTION], row, node, weight, record)
+                                     level[L_MU], level[L_FRICTION], row, node, weight, record,
+                                     stiff)
     y[CS_N] -= fx
     y[CS_N + 1] -= fy
     y[CS_N + 2] -= fz
+    if stiff.shape[0]:
+        for e in range(N_CTANGENT):
+            r0 = phi[CT_R, e]
+            r1 = phi[CT_R + 1, e]
+            r2 = phi[CT_R + 2, e]
+            for d in range(3):
+                phi[CT_N + d, e] -= stiff[d, 0] * r0 + stiff[d, 1] * r1 + stiff[d, 2] * r2
 
 
 @njit
@@ -998,9 +1013,10 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
     Args:
         Z: (K, N_CSTATE) the nodes of the current equilibrium; the new ones on success.
         grid: the layout tuple (``GS_*``). tubes: (tubes_i, tubes_f).
-        level: the level tuple (``L_*``) of ``Z``; its pressures become ``p_new`` on success.
-            Without friction (no samples: the 3D lean path takes no scene with friction,
-            :func:`solver.paths.lean_spatial_contact.lean_spatial_contact_reason`).
+        level: the level tuple (``L_*``) of ``Z``; its pressures become ``p_new`` on success,
+            and its friction samples (if any) the path's, each accepted step accepting its
+            anchors as :func:`follow`'s do (:func:`solver.kernels.obstacles.accept_friction`;
+            the steps work on a copy, so a refused lean step leaves them untouched).
         p_new: (n_channels,) the target pressures (Pa).
         params: (N_PARAMS,) numeric parameters (TOL, MAX_ITER, MAX_STEP are used).
         work: (rest (3, ns), weights (n,), res_weights (n,), scales (12,)): scratch for the
@@ -1023,8 +1039,12 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
     obstacles = level[L_DISCS]
     p_old = level[L_P]
     p_now = np.empty_like(p_new)
-    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], obstacles, level[L_MU],
-           level[L_FRICTION])
+    # The path's tangential state: the level's samples, copied (its accepted steps accept
+    # theirs, and a refused lean step leaves the level's untouched).
+    fs = level[L_FRICTION]
+    friction = fs.shape[0] > 0
+    fs_now = fs.copy() if friction else fs
+    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], obstacles, level[L_MU], fs_now)
     F = np.empty(n)
     no_jac = np.empty((0, 0))
     no_blocks = np.empty((0, N_CTANGENT, N_CTANGENT))
@@ -1094,6 +1114,8 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
             accepted[:, :] = Z
             held, fresh = fresh, held
             before[:, :] = new[1]
+            if friction:  # the recording pass of the accepted state wrote its anchors
+                accept_friction(fs_now)
             if final:
                 break
             dt = min(2.0 * dt, 1.0)
@@ -1107,4 +1129,6 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
     factors[1][:] = held[1]
     for c in range(p_new.shape[0]):
         p_old[c] = p_new[c]
+    if friction:
+        fs[...] = fs_now
     return True, stable, passes, res

@@ -11,7 +11,8 @@ spatial contact kernels: its nodes, level, factored Jacobian and backbone).
 * from a state in contact, the lean contact step (:func:`solver.kernels.spatial_contact.lean_step`);
 * from one that touches nothing, the contact-free step first, kept where it and its start
   clear every obstacle by an RK4 step and no sample passed through one on the way; where
-  they clear them by less, that state corrected on the contact layout (:func:`_near_step`);
+  they clear them by less, that state corrected on the contact layout (:func:`_near_step`;
+  not with friction, as the general path);
   where they do not clear them, the lean contact step from the start (put on the contact
   layout first, :func:`_enter_contact`, if it is not there).
 
@@ -36,8 +37,11 @@ for the step's (1).
   nodes (n, K, N_CSTATE), level pressures (n, nc), obstacles (n, k, N_OBSTACLE), rest
   strains (n, 3, ns), band factors (n, BAND_ROWS, N) and pivots (n, N), records
   (:func:`solver.kernels.spatial_contact.new_record`'s nine arrays, each (n, 2, ...)), ``ok``
-  (n,) bool: copy k has a state on this layout, and ``touching`` (n,) bool: it presses on an
-  obstacle.
+  (n,) bool: copy k has a state on this layout, ``touching`` (n,) bool: it presses on an
+  obstacle, and the copies' friction: μ per obstacle (n, k) and friction samples (n, rows,
+  nodes, k, N_FS; no rows without friction), the tangential state their steps carry (as
+  :mod:`solver.kernels.stepping`'s: anchors where the state lies on the contact layout, none
+  where it is the contact-free kernel's).
 """
 
 from __future__ import annotations
@@ -47,9 +51,9 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.kernels.contact import NEAR_SUBSTEPS, weighted_norm
+from solver.kernels.contact import weighted_norm
 from solver.kernels.grid import section_needs
-from solver.kernels.obstacles import smallest_clearance_3d, tunnels_3d
+from solver.kernels.obstacles import accept_friction, smallest_clearance_3d, tunnels_3d
 from solver.kernels.spatial import follow as free_follow
 from solver.kernels.spatial_contact import (
     JAC_VARIATIONAL,
@@ -62,7 +66,7 @@ from solver.kernels.spatial_contact import (
     newton_system,
     nodes_from_record,
 )
-from solver.layout import CA, CG, CI, CS_M, MAX_ITER, MAX_STEP, N_CTANGENT, N_FS, TOL
+from solver.layout import CA, CG, CI, CS_M, FS_A, L_FRICTION, MAX_ITER, MAX_STEP, N_CTANGENT, TOL
 from solver.rod import rest_strains_into, spatial_strains_into
 
 (F3_QUAT0, F3_SECF, F3_STEPS, F3_CJ, F3_TUBES_I, F3_TUBES_F, F3_LOADS, F3_M_TIP, F3_PARAMS,
@@ -73,8 +77,8 @@ N_FREE3 = 21
 (C3_QUAT0, C3_SEGS, C3_SECF, C3_STEPS, C3_CJ, C3_START, C3_PARAMS, C3_WEIGHTS, C3_RES_WEIGHTS,
  C3_SCALES, C3_Q, C3_PLATE, C3_TARGET, C3_ARCS, C3_SECTIONS, C3_CHECK_Q, C3_CHECK_ENDS,
  C3_NODES, C3_P, C3_OBSTACLES, C3_REST, C3_LU, C3_PIV, C3_S, C3_POS, C3_ROT, C3_FORCE, C3_MOM,
- C3_CONTACT, C3_PEN, C3_V, C3_U, C3_OK, C3_TOUCHING) = range(34)
-N_CONTACT3 = 34
+ C3_CONTACT, C3_PEN, C3_V, C3_U, C3_OK, C3_TOUCHING, C3_MU, C3_FRICTION) = range(36)
+N_CONTACT3 = 36
 
 # Path codes of the report's last column (as :mod:`solver.kernels.stepping`'s).
 PATH_LEAN, PATH_CONTACT = 1.0, 2.0
@@ -102,13 +106,10 @@ def _level(contact, k):
 
 @njit(inline="always")
 def _level_at(p, contact, k):
-    """Copy k's level tuple (``L_*``) at the pressures ``p``, without friction: μ = 0 and no
-    friction samples (the 3D lean path takes no scene with friction:
-    :func:`solver.paths.lean_spatial_contact.lean_spatial_contact_reason`)."""
-    obstacles = contact[C3_OBSTACLES][k]
-    n = obstacles.shape[0]
-    return (p, contact[C3_Q], contact[C3_PLATE], contact[C3_TARGET], obstacles, np.zeros(n),
-            np.zeros((0, NEAR_SUBSTEPS + 1, n, N_FS)))
+    """Copy k's level tuple (``L_*``) at the pressures ``p``, with its friction: μ and its
+    friction samples (no rows without friction)."""
+    return (p, contact[C3_Q], contact[C3_PLATE], contact[C3_TARGET], contact[C3_OBSTACLES][k],
+            contact[C3_MU][k], contact[C3_FRICTION][k])
 
 
 @njit
@@ -127,7 +128,9 @@ def spatial_contact_row(k, free, contact, p_from, p_to, report):
     gap = _free_step(k, free, contact, p_from, p_to, report)
     if report[k, 0] or math.isnan(gap):
         return
-    if gap > 0.0:
+    if gap > 0.0 and contact[C3_FRICTION].shape[1] == 0:
+        # (With friction the landing is the ramp's from the start, whose anchors form
+        # there: Newton at the end would land without any, as if frictionless.)
         _near_step(k, free, contact, p_to, report)
         return
     entered = False
@@ -182,6 +185,8 @@ def _free_step(k, free, contact, p_from, p_to, report):
             mom[0] = mom[1]
             free[F3_REST][k] = rest
             contact[C3_OK][k] = False  # its contact state is the one before this step
+            # A contact-free state carries no anchors (the general path's shortcut either).
+            contact[C3_FRICTION][k][:, :, :, FS_A:FS_A + 3] = math.nan
             report[k, 0] = 1.0
             report[k, 1] = stable
             report[k, 2] = snapped
@@ -365,6 +370,7 @@ def _near_step(k, free, contact, p_to, report):
     ok, stable, res = _factored(k, contact, nodes, level, rest, True)
     report[k, 3] += 1
     if ok:
+        accept_friction(level[L_FRICTION])  # the state is accepted: its samples take their anchors
         _took_contact(k, free, contact, stable, res, report)
 
 
@@ -373,8 +379,9 @@ def _enter_contact(k, free, contact, p_start):
     """Put copy k's contact-free state (its backbone on the settings' grid) on the contact
     layout at the pressures ``p_start`` it stands at, as the general path starts its ramp
     from it: nodes interpolated from its samples and corrected by Newton there, their
-    factored Jacobian and record. Its contact-free state is kept. Returns whether that
-    succeeded (``contact[C3_OK][k]``)."""
+    factored Jacobian and record, and the anchors of its friction samples (none before: a
+    state entering contact from one that touches nothing). Its contact-free state is kept.
+    Returns whether that succeeded (``contact[C3_OK][k]``)."""
     nodes = np.empty_like(contact[C3_NODES][k])
     nodes_from_record(free[F3_S], free[F3_POS][k, 0], free[F3_ROT][k, 0], free[F3_FORCE],
                       free[F3_MOM][k, 0], free[F3_ENDS], contact[C3_ARCS], contact[C3_SECTIONS],
@@ -383,9 +390,12 @@ def _enter_contact(k, free, contact, p_start):
     level = _level_at(p, contact, k)
     rest = np.empty_like(contact[C3_REST][k])
     rest_strains_into(p, free[F3_TUBES_I], free[F3_TUBES_F], contact[C3_SECF], rest)
+    fs = level[L_FRICTION]
+    fs[:, :, :, FS_A:FS_A + 3] = math.nan
     ok, _ = _solve_from(k, contact, nodes, level, rest, False)
     if not (ok and _factored(k, contact, nodes, level, rest, False)[0]):
         return False
+    accept_friction(fs)
     _current(k, contact)
     return True
 

@@ -22,7 +22,7 @@ from solver.kernels import spatial_contact as contact_kernels
 from solver.kernels import spatial_stepping as stepping
 from solver.kernels.obstacles import clearance_3d
 from solver.paths.contact import free_contact_result
-from solver.paths.friction import no_samples
+from solver.paths.friction import new_samples
 from solver.paths.grid import section_rows
 from solver.paths.lean_contact import median_seconds
 from solver.paths.planar import not_single
@@ -49,8 +49,6 @@ def lean_spatial_contact_reason(problem: Problem) -> str | None:
         return "a scene without obstacles"
     if scene.has_rigid_obstacles:
         return "rigid obstacles (penalty continuation)"
-    if scene.has_friction:
-        return "friction (the general path carries the tangential state in 3D)"
     if not problem.settings.shortcuts:
         return "Settings(shortcuts=False) (every step the contact ramp)"
     if out_of_reach(problem):
@@ -129,8 +127,13 @@ class SpatialContactRows:
             contact[index] = np.zeros((n, 2, *array.shape))
         contact[stepping.C3_OK] = np.zeros(n, dtype=bool)
         contact[stepping.C3_TOUCHING] = np.zeros(n, dtype=bool)
+        # Friction: the copies' tangential state (no rows without friction).
+        contact[stepping.C3_MU] = np.repeat(scene.friction_array()[None], n, axis=0)
+        contact[stepping.C3_FRICTION] = np.stack(
+            [new_samples(layout.n_rows if scene.has_friction else 0, len(scene.obstacles))] * n)
         self.free, self.contact = tuple(free), tuple(contact)
         self._flags = np.zeros((n, 5))
+        self._dissipated = np.zeros(n)  # each copy's dissipation before its samples' work
 
     # ------------------------------------------------------------------ copies
 
@@ -143,6 +146,14 @@ class SpatialContactRows:
         free[stepping.F3_OK][k] = contact[stepping.C3_OK][k] = False
         contact[stepping.C3_TOUCHING][k] = False
         self._flags[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
+        self._dissipated[k] = eq.dissipated
+        fs = contact[stepping.C3_FRICTION][k]
+        if fs.shape[0]:
+            fs[:] = new_samples(fs.shape[0], fs.shape[2])
+            given = eq.friction_samples
+            if given.shape == fs.shape:
+                fs[:] = given
+                fs[..., L.FS_WORK] = 0.0  # (counted in eq.dissipated)
         nodes = contact[stepping.C3_NODES][k]
         if eq.shooting_nodes.shape == (nodes.size,):
             if not (eq.converged and eq.stable):
@@ -152,11 +163,7 @@ class SpatialContactRows:
             rest = np.empty((3, len(self._problem.arm.sections)))
             layout = self.layout
             rest_strains_into(p_level, layout.tubes_i, layout.tubes_f, layout.secf, rest)
-            obstacles = contact[stepping.C3_OBSTACLES][k]
-            level = (p_level, contact[stepping.C3_Q], contact[stepping.C3_PLATE],
-                     contact[stepping.C3_TARGET], obstacles, np.zeros(obstacles.shape[0]),
-                     no_samples(obstacles.shape[0]))
-            stepping.adopt_nodes(k, free, contact, z, level, rest)
+            stepping.adopt_nodes(k, free, contact, z, self._level(k, p_level), rest)
             return
         if eq.in_contact or eq.s.size != free[stepping.F3_S].size:
             return
@@ -211,10 +218,8 @@ class SpatialContactRows:
             raise ValueError(f"copy {k} is not on the contact layout")
         grid = tuple(contact[i] for i in range(stepping.C3_QUAT0, stepping.C3_START + 1))
         nodes = contact[stepping.C3_NODES][k].copy()
-        obstacles = contact[stepping.C3_OBSTACLES][k]
-        level = (contact[stepping.C3_P][k], contact[stepping.C3_Q], contact[stepping.C3_PLATE],
-                 contact[stepping.C3_TARGET], obstacles, np.zeros(obstacles.shape[0]),
-                 no_samples(obstacles.shape[0]))
+        level = self._level(k, contact[stepping.C3_P][k])
+        level = (*level[:L.L_FRICTION], level[L.L_FRICTION].copy())  # (passes record into it)
         rest = np.empty_like(contact[stepping.C3_REST][k])
         rest_strains_into(level[L.L_P], self.layout.tubes_i, self.layout.tubes_f, self.layout.secf,
                           rest)
@@ -239,6 +244,14 @@ class SpatialContactRows:
         return {**seconds, "unknowns": int(n), "rows": int(pos.shape[0]),
                 "refined_fraction": float(np.mean(gap - h * speed < h))}
 
+    def _level(self, k: int, p: np.ndarray) -> tuple:
+        """Copy k's level tuple (``L_*``) at the channel pressures ``p``: the loads, its
+        obstacles and friction."""
+        contact = self.contact
+        return (p, contact[stepping.C3_Q], contact[stepping.C3_PLATE], contact[stepping.C3_TARGET],
+                contact[stepping.C3_OBSTACLES][k], contact[stepping.C3_MU][k],
+                contact[stepping.C3_FRICTION][k])
+
     def contact_measures(self) -> np.ndarray:
         """(n, 2) every copy's deepest penetration at its samples (m) and total contact force
         ∫|f| ds (N, trapezoidal on the samples); zeros for a state that touches nothing."""
@@ -258,15 +271,23 @@ class SpatialContactRows:
         problem = self._problem.with_inputs(np.array(pressures, dtype=float),
                                             np.array(channel_pressures, dtype=float))
         scene = problem.scene
+        # The samples' work stays in them while the copy steps clear of contact (and when it
+        # comes back): the dissipation along its path is always the two together.
+        fs = self.contact[stepping.C3_FRICTION][k]
+        dissipated = float(self._dissipated[k] + fs[..., L.FS_WORK].sum())
         if self.contact[stepping.C3_OK][k]:
             record = tuple(self.contact[i][k, 0].copy()
                            for i in range(stepping.C3_S, stepping.C3_U + 1))
+            friction = dict(dissipated=dissipated)
+            if fs.shape[0]:
+                friction["friction_samples"] = fs.copy()
             return contact_result(record, self.contact[stepping.C3_NODES][k].copy(), scene,
                                   self.layout, model=problem.model, pressures=problem.p_inputs,
-                                  channel_pressures=problem.p_channel, arm=problem.arm, **flags)
+                                  channel_pressures=problem.p_channel, arm=problem.arm,
+                                  **friction, **flags)
         free = self.free
         eq = spatial_result(problem.in_scene(scene.without_contact),
                             free[stepping.F3_POS][k, 0].copy(), free[stepping.F3_ROT][k, 0].copy(),
                             free[stepping.F3_MOM][k, 0].copy(), free[stepping.F3_REST][k],
                             free[stepping.F3_M0][k], **flags)
-        return free_contact_result(eq, scene)
+        return free_contact_result(eq, scene, dissipated)

@@ -11,7 +11,7 @@ import numpy as np
 from solver import layout as L
 from solver.kernels import spatial_contact as kernel
 from solver.kernels.contact import TUNNEL_SLACK, new_level
-from solver.kernels.obstacles import accept_friction, smallest_clearance_3d, tunnels_3d
+from solver.kernels.obstacles import smallest_clearance_3d, tunnels_3d
 from solver.paths.contact import free_contact_result
 from solver.paths.friction import friction_fields, landed, start_samples
 from solver.paths.grid import section_rows
@@ -60,7 +60,9 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
             else -math.inf
         if gap > float(np.max(np.diff(free.s))):
             return free_contact_result(free, scene, before)
-        near = gap > 0.0
+        # With friction the ramp takes it: Newton at the end would land without anchors (as
+        # if frictionless), where the ramp forms them at its start.
+        near = gap > 0.0 and not scene.has_friction
     layout, segs, sec_start = contact_layout(arm, packed, scene)
     on_layout = problem.on(layout)
     ctx = on_layout.ctx  # (a context does not depend on obstacles)
@@ -78,9 +80,6 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
         ok, its, res, stable = kernel.newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
                                              settings.max_iter, MAX_STEP, kernel.NO_TETHER)
         if ok and stable:
-            if samples.shape[0]:  # the state is accepted: its samples take their anchors
-                kernel.record(nodes, grid, rest, goal, kernel.new_record(layout.n_rows))
-                accept_friction(samples)
             return _result(nodes, scene, grid, layout, goal, warm_start, converged=True, stable=True,
                            snapped=free.snapped, iterations=int(free.iterations + its),
                            residual=float(res), model=model, pressures=p_inputs,
