@@ -147,13 +147,14 @@ CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("wrap delta friction", "SoftArm/OctArmWrap-v1",
                         {"action_mode": "delta", "friction": FRICTION}),
                        ("obstacle reach friction", "SoftArm/OctArmObstacleReach-v0",
-                        {"friction": FRICTION}))
+                        {"friction": FRICTION}),
+                       ("3D wrap friction", "SoftArm/OctArmWrap3D-v0", {"friction": FRICTION}))
 """The single-env cases :func:`contact_ratios` times against their unit step: name, ID,
 kwargs (``true`` observations, random actions). The unit is a free ``OctArmReach-v1`` step
 (the first case) unless :data:`RATIO_UNITS` names another case. A case with ``friction`` is
 also timed against the same case without it (docs/design.md §9.1)."""
 
-RATIO_UNITS = {"3D wrap": "3D reach"}
+RATIO_UNITS = {"3D wrap": "3D reach", "3D wrap friction": "3D reach"}
 """Case name → the case whose step is its unit (the issue holds 3D wrap to a 3D reach step)."""
 
 CONTACT_TARGETS = {"wrap": 4.0, "obstacle reach": 4.0, "grasp": 6.0, "reach self-contact": 1.5,

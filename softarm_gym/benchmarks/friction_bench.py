@@ -139,6 +139,101 @@ def sled_forces(eq, pull: float) -> tuple[float, float]:
     return float(eq.base_force[0] - pull), float(eq.base_force[1] + SLED_WEIGHT_N)
 
 
+# --------------------------------------------------------------------------------- in 3D
+
+TILT_DEG = 30.0
+"""The tilt (degrees) of the 3D capstan's drum axis out of the base plane, about the clamp's
+axis (+x)."""
+
+STYLUS_PRESS, STYLUS_HEADING_DEG, FLAT_RADIUS, FLAT_DROP, K_FLAT = 1.0, 40.0, 1e3, 0.01, 1e5
+"""The 3D slip case: the stylus's press on the flat (N, along −y), the pull's heading (degrees
+from +x towards +z, out of the base plane), the flat's radius (m; a sphere, flat to 1e-3 over
+the stylus's reach), how far below the clamp its top lies (m) and its penalty stiffness
+(N/m²)."""
+
+STYLUS_STEPS = 256
+"""RK4 steps per section of the 3D slip case: its contact patch (~2 cm) is a step long at the
+default 16, where the normal force (RK4) and the friction samples (trapezoid on the
+refinement's nodes) are summed by different quadratures (|F|/μN = 1.003 while sliding; 1.002
+at 64 steps, 1.0001 at 256)."""
+
+
+def tilted(tilt_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The planar capstan's +y and +z turned by ``tilt_deg`` about +x: the wrap plane's
+    normal direction (the drum's top normal) and the drum's axis (3,)."""
+    a = math.radians(tilt_deg)
+    return np.array([0.0, math.cos(a), -math.sin(a)]), np.array([0.0, math.sin(a), math.cos(a)])
+
+
+def drum_scene_3d(direction: float, tension: float, mu: float, tilt_deg: float = TILT_DEG,
+                  stiffness: float = K_DRUM) -> solver.Scene:
+    """:func:`drum_scene` turned by ``tilt_deg`` about the clamp's axis (+x): the drum a
+    :class:`solver.Cylinder` whose axis leaves the base plane, the pull (``tension`` N along
+    ``direction`` rad, clockwise from +x) in the tilted wrap plane; for the 3D solver
+    (``planar=False``). The belt is isotropic (EI = GJ), so the answer is the planar one
+    turned: T₁/T₂ = e^{μθ} at the onset of slip."""
+    normal, axis = tilted(tilt_deg)
+    centre = np.array([LEAD, 0.0, 0.0]) - R_DRUM * normal
+    pull = tension * (math.cos(direction) * np.array([1.0, 0.0, 0.0]) - math.sin(direction) * normal)
+    return solver.Scene(base_angle_deg=90.0, gravity=0.0, tip_force=tuple(pull),
+                        obstacles=(solver.Cylinder(tuple(centre), tuple(axis), R_DRUM, stiffness,
+                                                   friction=mu),))
+
+
+def wrap_belt_3d(theta: float, t0: float, tilt_deg: float = TILT_DEG, degrees_per_step: float = 10.0,
+                 settings: Settings = DEFAULT_SETTINGS) -> tuple[ArmDesign, list]:
+    """:func:`wrap_belt` in 3D round the tilted drum: the belt wrapped ``theta`` (rad)
+    frictionless under ``t0`` (N) by warm solves, the pull turned ``degrees_per_step`` a
+    solve. Returns ``(arm, path)`` as :func:`wrap_belt`."""
+    arm = belt(theta)
+    path = [solver.solve(arm, [], drum_scene_3d(0.0, t0, 0.0, tilt_deg), planar=False,
+                         settings=settings)]
+    steps = max(4, round(math.degrees(theta) / degrees_per_step))
+    for direction in np.linspace(0.0, theta, steps + 1)[1:]:
+        path.append(solver.solve(arm, [], drum_scene_3d(direction, t0, 0.0, tilt_deg),
+                                 planar=False, warm_start=path[-1], settings=settings))
+    return arm, path
+
+
+def belt_tension(eq) -> float:
+    """The belt's tension at the clamp, T₂ (N), in 3D: |n(0)| (the base reaction)."""
+    return float(np.linalg.norm(eq.base_force))
+
+
+def stylus() -> ArmDesign:
+    """A massless cantilever (0.3 m, EA = GA = 10 N, EI = GJ = 1e-2 N m²) whose tip is
+    pressed on a flat and dragged over it: its contact patch lies at the tip, where the
+    loads act, so the patch slides as one (no yaw of a long contact to spread the friction's
+    directions); soft enough along its axis that the flat holds ~97 % of a pull while it
+    sticks."""
+    return ArmDesign(name="stylus", source="3D slip threshold test stylus", sections=(
+        Section(length=0.3, EA=10.0, GA=10.0, EI=1e-2, GJ=1e-2, mass_per_length=0.0),))
+
+
+def stylus_scene(mu: float, pull: float, heading_deg: float = STYLUS_HEADING_DEG,
+                 press: float = STYLUS_PRESS, mirror: float = 1.0) -> solver.Scene:
+    """The stylus clamped along +x, no gravity, its tip pressed with ``press`` (N) on a flat
+    (a sphere of radius FLAT_RADIUS, k = K_FLAT, friction ``mu``, its top FLAT_DROP below
+    the clamp's line under the tip) and pulled with ``pull`` (N) along ``heading_deg`` from
+    +x towards +z (out of the base plane). ``mirror`` −1: all of it mirrored in z = 0."""
+    a = math.radians(heading_deg)
+    flat = solver.Sphere((0.3, -FLAT_RADIUS - FLAT_DROP, 0.0), FLAT_RADIUS, K_FLAT, friction=mu)
+    return solver.Scene(base_angle_deg=90.0, gravity=0.0,
+                        tip_force=(pull * math.cos(a), -press, mirror * pull * math.sin(a)),
+                        obstacles=(flat,))
+
+
+def stylus_forces(eq) -> tuple[np.ndarray, float]:
+    """``(friction (3,), normal)`` (N) of the flat on the stylus from global statics: the
+    contact force C = n(0) − the tip force (no gravity), split along the flat's normal at
+    the tip (from the sphere's centre) into N = C·n̂ and the friction C − N n̂."""
+    centre = np.asarray(eq.scene.obstacles[0].center)
+    normal = (eq.tip - centre) / np.linalg.norm(eq.tip - centre)
+    contact = eq.base_force - eq.scene.tip_force_3d()
+    n = float(contact @ normal)
+    return contact - n * normal, n
+
+
 # ------------------------------------------------------------------------------ the benchmark
 
 def _timed(repeat, arm, scene, warm_start, settings):
