@@ -216,8 +216,9 @@ class WrapEnv(SoftArmEnv):
     * v1 (recommended): rubber on the cylinder, ``friction=0.7`` (Coulomb μ; rubber on common
       objects is 0.5–1), and sequential (``action_mode="delta"``, ``delta_scale=0.1``); no
       self-contact, which does not exist in 3D. Friction does not lift the ceiling: the curl
-      still falls sideways under the arm's own weight (it wraps 290–320° at a quarter of g), so
-      success stays at 75° (docs/environments.md, "3D wrap with friction (v1)").
+      still falls sideways under the arm's own weight (at a quarter of g it wraps 285–322° on
+      7 of 8 seeds), so success stays at 75° (docs/environments.md, "3D wrap with friction
+      (v1)").
     """
 
     def __init__(self, design="octarm_v", *, object_radius=(0.09, 0.11),
