@@ -65,11 +65,12 @@ def curl_wrap(seed: int, steps: int = STEPS, env_id: str = ENV_ID, **env_kwargs)
 
 
 def run(seeds: int = 8, progress: bool = True) -> dict:
-    """Both sweeps over seeds 0 … ``seeds``−1.
+    """Both sweeps over seeds 0 … ``seeds`` − 1.
 
     Returns:
-        ``{"command", "date", "env_id", "steps", "seeds", "friction": {μ: [wrap (deg) per seed]},
-        "gravity": {"0.7": {fraction: [...]}, "0.0": {fraction: [...]}}}`` (keys as strings).
+        A dict with ``command``, ``date``, ``env_id``, ``steps``, ``seeds``, ``friction``
+        (μ → the wraps (deg), one per seed) and ``gravity`` (μ of the registered id and 0 →
+        fraction of g → the wraps); every μ and fraction a string key.
     """
     if isinstance(seeds, bool) or int(seeds) != seeds or seeds < 1:
         raise ValueError(f"seeds must be an integer >= 1; got {seeds!r}")
