@@ -15,7 +15,8 @@ compare trees measured in one run, never runs with each other.
 
 ``--reach-cost`` instead times warm ``OctArmReach-v1`` steps with ``self_contact=True``
 against without, side by side in one process (:func:`reach_cost`); ``--penetration`` the
-sampled and peak penetration of contact scenes (:func:`penetration`).
+sampled and peak penetration of contact scenes (:func:`penetration`); ``--self-friction``
+the figures of friction in self-contact (:func:`self_friction_figures`, docs/design.md §9.1).
 """
 
 from __future__ import annotations
@@ -214,6 +215,99 @@ def report(result: dict) -> str:
     return "\n".join(lines)
 
 
+def self_friction_figures(mu: float = 0.5, repeats: int = 3) -> dict:
+    """Friction in self-contact on OctArm V curled by channel I of every section at 100 psi,
+    ramped in eight warm solves from rest (the scene of ``tests/solver/test_self_friction.py``),
+    with ``Scene.self_friction`` = ``mu`` and without: the base force's distance from the dead
+    loads (N), the global moment balance of ``softarm stress`` (relative), the samples in
+    contact and slipping, the friction impulses (N), the energy dissipated (J), the tip's and
+    the backbone's distance from the frictionless state (m), the backbone's at μ = 1e-2 and
+    1e-3 (/ L), and the ramp's time (s, best of ``repeats``) with and without friction."""
+    import time
+
+    import numpy as np
+
+    import solver
+    from softarm_gym.benchmarks.stress import moment_balance_error
+    from solver import layout as L
+    from solver.problem import context, pack
+
+    arm = solver.designs.octarm_v()
+    ring = min(t.material.ring_stiffness for t in arm.tubes)
+    curl = np.where(np.arange(arm.n_inputs(True)) % 2 == 0, arm.max_pressure, 0.0)
+
+    def ramp(value):
+        scene = solver.Scene(self_contact=ring, self_friction=value)
+        eq = solver.solve(arm, np.zeros(arm.n_inputs(True)), scene)
+        start = time.perf_counter()
+        for fraction in np.linspace(0.125, 1.0, 8):
+            eq = solver.solve(arm, fraction * curl, scene, warm_start=eq)
+        return eq, time.perf_counter() - start
+
+    free, eq = ramp(0.0)[0], ramp(mu)[0]
+    settings = solver.Settings()
+    dead = context(arm, pack(arm, "full", settings), solver.Scene(), 2, settings).base_force
+    fs = eq.self_friction_samples
+    return {"mu": mu, "converged": bool(eq.converged and eq.stable),
+            "base_force_error_n": float(np.abs(eq.base_force - dead).max()),
+            "dead_load_n": float(np.abs(dead).max()),
+            "moment_balance": moment_balance_error(arm, solver.Scene(), eq),
+            "moment_balance_frictionless": moment_balance_error(arm, solver.Scene(), free),
+            "samples_in_contact": int(np.isfinite(fs[..., L.FS_NEW]).sum()),
+            "samples_slipping": int((fs[..., L.FS_SLIP] > 0).sum()),
+            "impulses_n": float(np.hypot(fs[..., L.FS_F], fs[..., L.FS_F + 1]).sum()),
+            "dissipated_j": eq.dissipated,
+            "tip_shift_m": float(np.linalg.norm(eq.tip - free.tip)),
+            "backbone_shift_m": float(np.abs(eq.positions - free.positions).max()),
+            "small_mu_shift_over_l": {value: float(np.abs(ramp(value)[0].positions - free.positions).max()
+                                                   / arm.length) for value in (1e-2, 1e-3)},
+            "ramp_s": min(ramp(mu)[1] for _ in range(repeats)),
+            "ramp_frictionless_s": min(ramp(0.0)[1] for _ in range(repeats))}
+
+
+# Steps of OctArmWrap-v2's largest curling action that press the arm onto itself.
+CURL_STEPS = 12
+
+
+def self_friction_cost(n_steps: int = 200, rounds: int = 5, mu: float = 0.7) -> dict:
+    """What friction adds to a self-contact step: ``OctArmWrap-v2`` (delta actions, its
+    self-contact on) with ``self_friction`` = ``mu`` against without, the two envs taking
+    turns in one process (``rounds`` rounds, seeds 0, 1, ...). Random actions seldom curl the
+    arm onto itself, so each episode curls it first (channel I up, the others down, for
+    CURL_STEPS steps: it then presses on itself) and then moves it about that curl by random
+    actions of ±0.3 of the range (±3 % of p_max a step), all steps timed. Returns both envs'
+    median µs a step, their ratio, and the share of the friction env's steps in which parts
+    of the arm touched."""
+    import time
+
+    import gymnasium as gym
+    import numpy as np
+
+    from solver import layout as L
+
+    envs = {value: gym.make("SoftArm/OctArmWrap-v2", self_friction=value) for value in (0.0, mu)}
+    times = {value: [] for value in envs}
+    touching = 0
+    for r in range(rounds):
+        for value, env in envs.items():
+            env.reset(seed=r)
+            rng = np.random.default_rng(r)
+            curl = np.where(np.arange(env.action_space.shape[0]) % 2 == 0, 1.0, -1.0)
+            start = time.perf_counter()
+            for t in range(n_steps):
+                env.step(curl if t < CURL_STEPS else rng.uniform(-0.3, 0.3, curl.shape))
+                if value > 0.0 and r == 0:
+                    fs = env.unwrapped._stepper.equilibrium.self_friction_samples
+                    touching += bool(fs.size and np.isfinite(fs[..., L.FS_NEW]).any())
+            if not (value > 0.0 and r == 0):  # (the first round's counting is not timed)
+                times[value].append((time.perf_counter() - start) / n_steps * 1e6)
+    us = {value: float(np.median(t)) for value, t in times.items()}
+    return {"n_steps": n_steps, "rounds": rounds, "mu": mu, "us_frictionless": us[0.0],
+            "us_friction": us[mu], "ratio": us[mu] / us[0.0],
+            "runs_us": {str(k): v for k, v in times.items()},
+            "touching_share": touching / n_steps}
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--against", action="append", default=[], metavar="TREE",
@@ -225,7 +319,15 @@ def main(argv=None) -> int:
                              "without, in this process")
     parser.add_argument("--penetration", action="store_true",
                         help="only the sampled and peak penetration of contact scenes")
+    parser.add_argument("--self-friction", action="store_true",
+                        help="only the figures of friction in self-contact (docs/design.md §9.1)")
     args = parser.parse_args(argv)
+    if args.self_friction:
+        result = {**self_friction_figures(), "cost": self_friction_cost()}
+        print(json.dumps(result, indent=1))
+        if args.out:
+            args.out.write_text(json.dumps(result, indent=1) + "\n")
+        return 0
     if args.penetration:
         result = penetration()
         for name, row in result.items():
