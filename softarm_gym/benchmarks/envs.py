@@ -135,9 +135,6 @@ def run(quick: bool = False, n_steps: int | None = None, n_envs: int | None = No
 FRICTION = 0.7
 """μ of the friction cases: rubber on common objects (docs/design.md §9.1)."""
 
-FRICTION_KWARGS = frozenset({"friction", "self_friction"})
-"""The env kwargs that switch friction on: the arm on obstacles, and between parts of the arm."""
-
 CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("wrap", "SoftArm/OctArmWrap-v1", {}),
                        ("wrap delta", "SoftArm/OctArmWrap-v1", {"action_mode": "delta"}),
@@ -150,14 +147,11 @@ CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("wrap delta friction", "SoftArm/OctArmWrap-v1",
                         {"action_mode": "delta", "friction": FRICTION}),
                        ("obstacle reach friction", "SoftArm/OctArmObstacleReach-v0",
-                        {"friction": FRICTION}),
-                       ("wrap v2", "SoftArm/OctArmWrap-v2", {}),
-                       ("wrap v2 self-friction", "SoftArm/OctArmWrap-v2", {"self_friction": FRICTION}))
+                        {"friction": FRICTION}))
 """The single-env cases :func:`contact_ratios` times against their unit step: name, ID,
 kwargs (``true`` observations, random actions). The unit is a free ``OctArmReach-v1`` step
 (the first case) unless :data:`RATIO_UNITS` names another case. A case with ``friction`` is
-also timed against the same case without it (docs/design.md §9.1); so is a case with
-``self_friction`` (friction between parts of the arm in self-contact)."""
+also timed against the same case without it (docs/design.md §9.1)."""
 
 RATIO_UNITS = {"3D wrap": "3D reach"}
 """Case name → the case whose step is its unit (the issue holds 3D wrap to a 3D reach step)."""
@@ -201,8 +195,8 @@ def contact_ratios(n_steps: int = 300, rounds: int = 3, cases=CONTACT_RATIO_CASE
              "times_free_step": median[names[0]] / median[name]}
             for (name, env_id, kwargs), rates in zip(cases, runs)]
     for row in rows:
-        if FRICTION_KWARGS & set(row["kwargs"]):
-            plain = {k: v for k, v in row["kwargs"].items() if k not in FRICTION_KWARGS}
+        if "friction" in row["kwargs"]:
+            plain = {k: v for k, v in row["kwargs"].items() if k != "friction"}
             twin = [r for r in rows if r["env_id"] == row["env_id"] and r["kwargs"] == plain]
             if twin:
                 row["times_frictionless"] = twin[0]["steps_per_s"] / row["steps_per_s"]

@@ -265,47 +265,46 @@ def self_friction_figures(mu: float = 0.5, repeats: int = 3) -> dict:
             "ramp_frictionless_s": min(ramp(0.0)[1] for _ in range(repeats))}
 
 
-# Steps of OctArmWrap-v2's largest curling action that press the arm onto itself.
-CURL_STEPS = 12
-
-
 def self_friction_cost(n_steps: int = 200, rounds: int = 5, mu: float = 0.7) -> dict:
-    """What friction adds to a self-contact step: ``OctArmWrap-v2`` (delta actions, its
-    self-contact on) with ``self_friction`` = ``mu`` against without, the two envs taking
-    turns in one process (``rounds`` rounds, seeds 0, 1, ...). Random actions seldom curl the
-    arm onto itself, so each episode curls it first (channel I up, the others down, for
-    CURL_STEPS steps: it then presses on itself) and then moves it about that curl by random
-    actions of ±0.3 of the range (±3 % of p_max a step), all steps timed. Returns both envs'
-    median µs a step, their ratio, and the share of the friction env's steps in which parts
-    of the arm touched."""
+    """What friction adds to a self-contact step: warm ``Stepper`` steps of OctArm V pressed
+    on itself (channel I of every section ramped to 100 psi, the scene of
+    :func:`self_friction_figures`), then walked about that curl by random steps of ±1 % of
+    p_max per input (clipped to [0, p_max]; every step in self-contact), with
+    ``Scene.self_friction`` = ``mu`` and without, the two taking turns in one process
+    (``rounds`` rounds, seeds 0, 1, ...). Returns the median µs a step of each, their ratio,
+    each round's figures and the paths the steps took (``Stepper.last_path``)."""
     import time
+    from collections import Counter
 
-    import gymnasium as gym
     import numpy as np
 
-    from solver import layout as L
+    import solver
 
-    envs = {value: gym.make("SoftArm/OctArmWrap-v2", self_friction=value) for value in (0.0, mu)}
-    times = {value: [] for value in envs}
-    touching = 0
+    arm = solver.designs.octarm_v()
+    ring = min(t.material.ring_stiffness for t in arm.tubes)
+    curl = np.where(np.arange(arm.n_inputs(True)) % 2 == 0, arm.max_pressure, 0.0)
+    times = {value: [] for value in (0.0, mu)}
+    paths = {value: Counter() for value in times}
     for r in range(rounds):
-        for value, env in envs.items():
-            env.reset(seed=r)
+        for value in times:
+            stepper = solver.Stepper(arm, solver.Scene(self_contact=ring, self_friction=value))
+            stepper.reset(np.zeros(arm.n_inputs(True)))
+            for fraction in np.linspace(0.125, 1.0, 8):
+                stepper.step(fraction * curl)
             rng = np.random.default_rng(r)
-            curl = np.where(np.arange(env.action_space.shape[0]) % 2 == 0, 1.0, -1.0)
+            p = curl.copy()
             start = time.perf_counter()
-            for t in range(n_steps):
-                env.step(curl if t < CURL_STEPS else rng.uniform(-0.3, 0.3, curl.shape))
-                if value > 0.0 and r == 0:
-                    fs = env.unwrapped._stepper.equilibrium.self_friction_samples
-                    touching += bool(fs.size and np.isfinite(fs[..., L.FS_NEW]).any())
-            if not (value > 0.0 and r == 0):  # (the first round's counting is not timed)
-                times[value].append((time.perf_counter() - start) / n_steps * 1e6)
+            for _ in range(n_steps):
+                p = np.clip(p + rng.uniform(-0.01, 0.01, p.shape) * arm.max_pressure, 0.0,
+                            arm.max_pressure)
+                stepper.step(p)
+                paths[value][stepper.last_path] += 1
+            times[value].append((time.perf_counter() - start) / n_steps * 1e6)
     us = {value: float(np.median(t)) for value, t in times.items()}
     return {"n_steps": n_steps, "rounds": rounds, "mu": mu, "us_frictionless": us[0.0],
             "us_friction": us[mu], "ratio": us[mu] / us[0.0],
             "runs_us": {str(k): v for k, v in times.items()},
-            "touching_share": touching / n_steps}
+            "paths": {str(k): dict(v) for k, v in paths.items()}}
 
 
 def main(argv=None) -> int:

@@ -199,7 +199,7 @@ def run(before: Path, rounds: int = 3, n_steps: int = 300, episodes: int = 3, ca
         seconds, success rate and per-seed successes, every round's episodes, then
         ``speedup`` and ``same_success``).
     """
-    from softarm_gym.benchmarks.envs import CONTACT_RATIO_CASES, FRICTION_KWARGS, RATIO_UNITS
+    from softarm_gym.benchmarks.envs import CONTACT_RATIO_CASES, RATIO_UNITS
 
     if rounds < 1 or n_steps < 1 or episodes < 1:
         raise ValueError(f"rounds, n_steps and episodes must be >= 1; got {rounds}, {n_steps}, {episodes}")
@@ -209,7 +209,7 @@ def run(before: Path, rounds: int = 3, n_steps: int = 300, episodes: int = 3, ca
     trees = {"after": ROOT, "before": before}
     # Friction's cases are timed against their frictionless twins (envs.contact_ratios): a
     # tree before friction has no ``friction`` kwarg.
-    cases = [list(c) for c in (cases or [c for c in CONTACT_RATIO_CASES if not FRICTION_KWARGS & set(c[2])])]
+    cases = [list(c) for c in (cases or [c for c in CONTACT_RATIO_CASES if "friction" not in c[2]])]
     planner_kwargs = dict(planner_kwargs or PLANNER_KWARGS)
     seeds = list(range(episodes))
     out = {"after": _commit(ROOT), "before": _commit(before), "rounds": rounds,
