@@ -401,18 +401,25 @@ def friction_impulse(x, y, discs, mu, fs, row, node, weight, record, want_k):
             k10 += weight * (a * ty * vx + b * uy * tx)
             k11 += weight * (a * ty * vy + b * uy * ty)
         if record:
-            out = fs[row, node, d]
-            out[FS_NEW] = nx
-            out[FS_NEW + 1] = ny
-            out[FS_NEW + 2] = 0.0
-            out[FS_F] = gx
-            out[FS_F + 1] = gy
-            out[FS_F + 2] = 0.0
-            out[FS_R] = x
-            out[FS_R + 1] = y
-            out[FS_R + 2] = 0.0
-            out[FS_SLIP] = slip
+            record_planar_sample(fs[row, node, d], nx, ny, gx, gy, x, y, slip)
     return fx, fy, k00, k01, k10, k11
+
+
+@njit(inline="always")
+def record_planar_sample(out, a0, a1, fx, fy, x, y, slip):
+    """Write a planar friction sample's state at a recording pass into ``out`` (N_FS,): its
+    return-mapped anchor (a0, a1), impulse (fx, fy) (N), position (x, y) (m) and slip (m);
+    the third entries 0."""
+    out[FS_NEW] = a0
+    out[FS_NEW + 1] = a1
+    out[FS_NEW + 2] = 0.0
+    out[FS_F] = fx
+    out[FS_F + 1] = fy
+    out[FS_F + 2] = 0.0
+    out[FS_R] = x
+    out[FS_R + 1] = y
+    out[FS_R + 2] = 0.0
+    out[FS_SLIP] = slip
 
 
 @njit

@@ -46,7 +46,13 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.kernels.obstacles import friction_untouched, hermite_point, hull_circle, return_mapping
+from solver.kernels.obstacles import (
+    friction_untouched,
+    hermite_point,
+    hull_circle,
+    record_planar_sample,
+    return_mapping,
+)
 from solver.layout import (
     B_R,
     B_TOUCH,
@@ -56,10 +62,6 @@ from solver.layout import (
     CG,
     CI,
     FS_A,
-    FS_F,
-    FS_NEW,
-    FS_R,
-    FS_SLIP,
     G_SECF,
     G_SEGS,
     G_SELF,
@@ -654,17 +656,7 @@ def _rub(x, y, ux, uy, pen, h_own, dist, w, share, seg, j, piece, tau, k, mu, gr
     _moment_at(loads, segs, pts, piece, node, cx, cy, -(1.0 - t) * fx, -(1.0 - t) * fy)
     _moment_at(loads, segs, pts, piece, node + 1, cx, cy, -t * fx, -t * fy)
     if record:
-        out = sfs[seg, j, q]
-        out[FS_NEW] = moved
-        out[FS_NEW + 1] = 0.0
-        out[FS_NEW + 2] = 0.0
-        out[FS_F] = fx
-        out[FS_F + 1] = fy
-        out[FS_F + 2] = 0.0
-        out[FS_R] = x
-        out[FS_R + 1] = y
-        out[FS_R + 2] = 0.0
-        out[FS_SLIP] = slip
+        record_planar_sample(sfs[seg, j, q], moved, 0.0, fx, fy, x, y, slip)
 
 
 @njit
