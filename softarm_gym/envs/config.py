@@ -126,8 +126,6 @@ class EnvConfig:
         arm: the design (``design`` resolved by name).
         payload_range: ``payload_kg`` as (low, high) kg.
         self_contact_stiffness: the penalty of ``self_contact`` (N/m²), or None (off).
-        self_friction: the Coulomb coefficient between parts of the arm in self-contact
-            (``solver.Scene.self_friction``; 0: frictionless).
         lag_gain: 1 − e^(−dt/τ), the first-order lag's step towards the command.
     """
 
