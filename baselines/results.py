@@ -109,6 +109,14 @@ OBSTACLE_DEFINITIONS = ("Success = final true tip within the env's tolerance (2 
                         "fraction of episodes in which the arm touched a disc at some step "
                         "(`info[\"in_contact\"]`); steps to success as on reach.")
 """What the obstacle-reach section's numbers mean."""
+REMEDY_ENV_IDS = ("SoftArm/OctArmWrap-v2",)
+"""Envs whose report has a table of issue #37's remedies (:func:`_remedies_section`)."""
+REMEDY_NAMES = {"batched": "none (plain PPO: per-step Gaussian noise)",
+                "batched_gsde": "exploration: gSDE",
+                "batched_gsde, bc": "behaviour cloning of planner demonstrations (no RL)",
+                "batched_gsde, dagger": "DAgger, the planner labelling the learner's states (no RL)",
+                "batched_gsde, from bc": "BC warm start, then gSDE PPO"}
+"""The remedy each training variant (:func:`_variant`) stands for in the remedies table."""
 BATCHED_CURVES = "batched_learning_curves.png"
 """The seed-band learning curves of the batched runs (:func:`_seed_band_curves`), in the results folder."""
 CONTROLLERS = ("jacobian", "planner", "curl")
@@ -398,7 +406,7 @@ def _seed_groups(runs: list[dict]) -> dict[tuple, list[dict]]:
     their summaries (a remedy tried in a YAML folder of its own is its own group)."""
     groups: dict[tuple, list[dict]] = {}
     for summary in runs:
-        key = (summary["env_id"], summary["algo"], _yaml_folder(summary), _kwargs(_setting(summary)))
+        key = (summary["env_id"], summary["algo"], _variant(summary), _kwargs(_setting(summary)))
         groups.setdefault(key, []).append(summary)
     return groups
 
@@ -407,6 +415,16 @@ def _yaml_folder(summary: dict) -> str:
     """The name of the YAML folder a run's hyperparameters came from ("" for ``baselines/hyperparams``)."""
     source = summary.get("hyperparams_file")
     return Path(source).parent.name if source else ""
+
+
+def _variant(summary: dict) -> str:
+    """What sets a run's training apart beyond its algorithm and env kwargs: its YAML folder
+    (:func:`_yaml_folder`) and, for a policy cloned from the planner (:mod:`baselines.imitate`),
+    the method (``bc``, ``dagger``) or, for a run warm-started from one (``--init-policy``),
+    ``from bc`` — e.g. ``"batched_gsde, dagger"``; runs of one variant are seeds of one setting."""
+    method = summary.get("imitation", {}).get("method")
+    extra = method or ("from bc" if summary.get("init_policy") else "")
+    return ", ".join(part for part in (_yaml_folder(summary), extra) if part)
 
 
 _BAND_ROWS = (("timesteps", "is_success", 100.0, "environment steps", "final-step success (%)"),
@@ -470,7 +488,7 @@ def _seed_band_curves(results_dir: Path, runs: list[dict], path: Path) -> None:
 def _run_label(summary: dict) -> str:
     """``"sac seed 0"``, with the observation and hyperparameter folder when not the defaults."""
     observation = training_observation(summary)
-    folder = _yaml_folder(summary)  # a YAML folder of its own: name it
+    folder = _variant(summary)  # a YAML folder of its own: name it
     return (f"{summary['algo']} seed {summary['seed']}"
             + ("" if observation == "true" else f", {observation} obs.")
             + (f", {folder}" if folder else ""))
@@ -719,6 +737,7 @@ def report(results_dir: Path | str = RESULTS_DIR, out: Path | str = PACKAGE_DIR 
     lines = [f"# {title}", "", *(INTRO if intro is None else intro)]
     lines += _reach_section(main, [e for e in env_ids if task(e) == "reach"], by_run, kind)
     lines += _wrap_section(main, wrap_ids, by_run, kind)
+    lines += _remedies_section(main, by_run)
     lines += _track_section(main, [e for e in env_ids if task(e) == "track"], by_run, kind)
     lines += _obstacle_section(main, [e for e in env_ids if task(e) == "obstacle"], by_run, kind)
     lines += _targets_section(main, by_run, kind)
@@ -784,6 +803,39 @@ def _wrap_section(main: pd.DataFrame, wrap_ids: list[str], by_run: dict, kind) -
             f"{_steps(row['median_steps_to_success'])} |"), lambda learned: (
             f"{_deg(learned['median_wrap_angle_deg'].mean())} | "
             f"{_deg(learned['p5_wrap_angle_deg'].mean())} | |"), env_kwargs_column=True)
+    return lines
+
+
+def _remedies_section(main: pd.DataFrame, by_run: dict) -> list[str]:
+    """Per :data:`REMEDY_ENV_IDS` env: one row per training setting (:func:`_seed_groups`: algorithm,
+    :func:`_variant`, env kwargs) of the runs evaluated there on true observations — what each
+    remedy gave, the seeds' success rates, their mean ± std and median final wrap."""
+    lines = []
+    for env_id in REMEDY_ENV_IDS:
+        rows = main[(main["env_id"] == env_id) & main["agent_name"].isin(list(by_run))
+                    & (main["trained_on"] == "true")] if len(main) else main
+        if not len(rows):
+            continue
+        groups = _seed_groups([by_run[name] for name in rows["agent_name"]])
+        lines += ["", f"## Remedies on {env_id}", "",
+                  f"What each remedy of issue #37 gave on {env_id} ({_episodes(rows['episodes'])} per run, "
+                  "deterministic, true observations; the runs are the rows of the wrap table above, where "
+                  "their commands are). Steps: environment steps per run (for imitation, the planner's "
+                  "steps in the demonstrations and DAgger's labelled rollouts).", "",
+                  "| remedy | agent | runs | success per run | success mean ± std | median wrap (°, mean) "
+                  "| steps per run |",
+                  "|---|---|---|---|---|---|---|"]
+        for (_, algo, variant, _), members in sorted(groups.items(), key=lambda item: item[0][2]):
+            names = sorted(m["run"] for m in members)
+            mine = rows.set_index("agent_name").loc[names]
+            rates = 100 * mine["success_rate"]
+            spread = f"{rates.mean():.0f} ± {rates.std():.0f} %" if len(names) > 1 else \
+                f"{rates.iloc[0]:.0f} %"
+            steps = ", ".join(f"{by_run[n]['timesteps_done']:,}" for n in names)
+            remedy = REMEDY_NAMES.get(variant, variant or "none")
+            lines.append(f"| {remedy} | {algo} ({variant}) | {len(names)} "
+                         f"| {' / '.join(f'{r:.0f} %' for r in rates)} | **{spread}** "
+                         f"| {_deg(mine['median_wrap_angle_deg'].mean())} | {steps} |")
     return lines
 
 
@@ -853,7 +905,7 @@ def _main_rows(main: pd.DataFrame, env_id: str, by_run: dict, kind, measures, me
     # Seeds are pooled per algorithm, training observation, YAML folder and the rest of the
     # training kwargs.
     setting = rows["agent_name"].map(
-        lambda name: (_yaml_folder(by_run[name]), _kwargs(_setting(by_run[name])))
+        lambda name: (_variant(by_run[name]), _kwargs(_setting(by_run[name])))
         if name in by_run else ("", ""))
     for algo in ALGOS:
         for observation in ESTIMATORS:
