@@ -3,6 +3,9 @@
     python -m baselines.train --env SoftArm/OctArmReach-v1 --algo sac --timesteps 150000 --seed 0
     python -m baselines.train --resume runs/sac_OctArmReach-v1_s0      # after Ctrl-C or a crash
     python -m baselines.train --env SoftArm/OctArmReach-v1 --algo ppo --batched --numba-threads 1
+    python -m baselines.train --env SoftArm/OctArmWrap-v2 --algo ppo --batched \\
+        --hyperparams-dir baselines/hyperparams/batched_gsde \\
+        --init-policy runs/bc_OctArmWrap-v2_s0/final_model.zip
 
 writes into ``<log-dir>/<algo>_<env>_s<seed>/`` (``<algo>_<env>_batched_s<seed>/`` with
 ``--batched``, which trains on one :class:`softarm_gym.sb3.BatchedVecEnv` of ``n_envs`` arms
@@ -40,6 +43,11 @@ Faults lose at most the steps since the last checkpoint:
 
 Resuming reads only weights (``torch.load(weights_only=True)``), JSON and ``.npz`` arrays
 (``allow_pickle=False``): nothing in a run folder is unpickled.
+
+``--init-policy MODEL.zip`` starts a new run from that model's policy weights and observation
+statistics instead of random ones (a warm start: e.g. a policy cloned from planner
+demonstrations by :mod:`baselines.imitate`); the policy class and architecture must be the
+run's, and ``summary.json`` records the file.
 
 A tqdm progress bar goes to stderr. Torch is limited to ``--threads`` (default 1) threads: the
 networks are small and the machine's cores are better spent on the environment.
