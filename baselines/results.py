@@ -117,6 +117,12 @@ REMEDY_NAMES = {"batched": "none (plain PPO: per-step Gaussian noise)",
                 "batched_gsde, dagger": "DAgger, the planner labelling the learner's states (no RL)",
                 "batched_gsde, from bc": "BC warm start, then gSDE PPO"}
 """The remedy each training variant (:func:`_variant`) stands for in the remedies table."""
+REMEDY_NOTES = {"SoftArm/OctArmWrap-v2": (
+    "Not in the table, for want of machine time (the introduction has the measurements): DAgger "
+    "(no round finished: labelling a learner's episode can cost a planner search at every step) and the "
+    "BC warm start of gSDE PPO (stopped before its first update). The expert itself, `CEMPlanner`, "
+    "succeeds on 100 % of seeds 0–99 (docs/environments.md).")}
+"""Prose after an env's remedies table: the remedies tried that have no evaluated run."""
 BATCHED_CURVES = "batched_learning_curves.png"
 """The seed-band learning curves of the batched runs (:func:`_seed_band_curves`), in the results folder."""
 CONTROLLERS = ("jacobian", "planner", "curl")
@@ -686,7 +692,7 @@ INTRO = [
     "flattened), SAC/TD3 on the batched wrap, the other recommended ids "
     "(`baselines/hyperparams/batched/ppo.yml` has entries for CTWrap-v2, OctArmObstacleReach-v1 "
     "and OctArmTrack-v1, smoke-tested only), and the remaining remedies (entropy target, "
-    "reward shaping, curriculum, planner demonstrations).",
+    "reward shaping, curriculum; planner demonstrations: below).",
     "",
     "CTWrap-v2 (success at 90°), gSDE PPO, 1 seed, with the time left: `python -m baselines.train --env "
     "SoftArm/CTWrap-v2 --algo ppo --batched --hyperparams-dir baselines/hyperparams/batched_gsde --run-name "
@@ -698,6 +704,58 @@ INTRO = [
     "main's friction merge): 100 % (median wrap 100°, first success at step 9), above the issue's "
     "70 %, from one seed. Plain PPO was not run on CTWrap-v2 (machine time), "
     "so this run shows that gSDE learns CT's wrap, not that CT needs it.",
+    "",
+    "Warm starts from planner demonstrations on OctArmWrap-v2 (`python -m baselines.imitate`; "
+    "the remedies table below sets them beside the others). Demonstrations: `CEMPlanner` with its "
+    "defaults, each episode's planner seeded with the episode's seed, on 30 training episodes (seeds "
+    "0–19 and 50–59, none of them evaluation seeds), all 30 successful (final wraps 227–313°): "
+    "6,000 (observation, delta action) pairs, of which 299 are not \"hold\" (the planner ramps "
+    "for about 10 steps, then holds the wrap); `python -m baselines.imitate collect --env "
+    "SoftArm/OctArmWrap-v2 --episodes 10 --seed S --numba-threads 1 --out "
+    "runs/demos/planner_OctArmWrap-v2_sS.npz` (S = 0, 10, 50; two at a time: 49 min of wall "
+    "time and 6.5 min of CPU in all, at load average 8–13). Behaviour cloning fits the policy "
+    "gSDE PPO trains (`hyperparams/batched_gsde/ppo.yml`: 128×128, `use_sde`, so the result is a "
+    "PPO model that `baselines.evaluate` loads and `baselines.train --init-policy` starts from) by "
+    "maximum likelihood of the planner's actions with an entropy bonus of 0.001 (the loss of the "
+    "`imitation` library's BC; Adam, learning rate 0.001, batches of 256, 100 epochs), on "
+    "observations normalised with the demonstrations' mean and variance (saved as the model's "
+    "`_vecnormalize.json`); 3 policy seeds on the same demonstrations: `python -m baselines.imitate "
+    "bc --demos runs/demos/planner_OctArmWrap-v2_s0.npz runs/demos/planner_OctArmWrap-v2_s10.npz "
+    "runs/demos/planner_OctArmWrap-v2_s50.npz --out runs/bc_OctArmWrap-v2_sS --seed S --epochs 100` "
+    "(S = 0, 1, 2); the run folder is laid out as a training run's (its steps: the planner's "
+    "6,000; its times: collection and fit), and is evaluated as the gSDE runs (`python -m "
+    "baselines.results evaluate --runs runs --main-only --episodes 50 --seed 100000 --policy-file "
+    "final_model.zip --only bc_OctArmWrap-v2_sS`). The `imitation` library (HumanCompatibleAI) was "
+    "not used: its release 1.0.1 pins stable-baselines3 ~= 2.2.1 and gymnasium ~= 0.29 (`pip "
+    "install --dry-run imitation` would downgrade this project's stable-baselines3 2.9.2 and "
+    "gymnasium 1.4), so `baselines/imitate.py` is a short BC on SB3's own policy "
+    "(`policy.evaluate_actions`). Deterministic, on the 50 unseen seeds: 44 %, 62 % and 72 % "
+    "(59 ± 14 % over the policy seeds; median final wrap 176°, 229°, 231°), no reinforcement "
+    "learning and 6,000 planner steps against gSDE PPO's 300,000 per seed (52 ± 35 %), but "
+    "below the shipped gSDE seed's 92 %, so nothing was shipped. The cloned policies reach the "
+    "200° wrap on 94–100 % of the episodes, at step 10 as the planner does (`reached_rate`), but "
+    "do not all hold it for the 190 steps after: on the demonstrations' holding states, where "
+    "the planner sends exactly 0, they send 0.006–0.009 on average per channel (up to 0.03; "
+    "measured with `policy.predict` on the 5,701 holding states), and such small commands add "
+    "up over a hold (190 steps of 0.006 are 11 % of p_max if they keep one sign) — the "
+    "compounding error DAgger is meant to remove. DAgger (`python -m baselines.imitate dagger "
+    "--demos` the same three files `--out runs/dagger_OctArmWrap-v2_s0 --rounds 1 --episodes 3 "
+    "--seed 1000 --epochs 100`; implemented, and tested on reach) was stopped unfinished: the "
+    "planner labels every state the learner visits, and wherever the learner is off the "
+    "planner's committed path and not yet successful on the planner's model, each label is a "
+    "fresh search (3 rounds of 10-step rollouts, the first over all 64 corners); the first of "
+    "the 3 learner episodes had not ended after 14 min (5.0 min of CPU, against 11–16 s of CPU "
+    "for a whole planner episode), so no round fitted the time. Its round 0 (plain BC, seed 0) "
+    "reproduced `bc_OctArmWrap-v2_s0` exactly (the same final loss). A BC warm start of gSDE PPO "
+    "(`python -m baselines.train --env SoftArm/OctArmWrap-v2 --algo ppo --batched --hyperparams-dir "
+    "baselines/hyperparams/batched_gsde --run-name ppo_OctArmWrap-v2_batched_gsde_bc_s0 "
+    "--init-policy runs/bc_OctArmWrap-v2_s2/final_model.zip --numba-threads 1 --threads 1 --seed 0 "
+    "--time-limit-min 20 --eval-freq 0`) was started and stopped after 2 min (2,432 steps): "
+    "the batched env ran at 11–17 steps/s on the busy machine (from scratch gSDE PPO starts at "
+    "~2,000, the arms near rest; the cloned policy wraps from step 10 on), so the 20 minutes "
+    "would not have finished one 16,384-step rollout (no PPO update, nothing to "
+    "evaluate). `--init-policy` is in place and tested; at that speed the 300,000 steps gSDE PPO "
+    "trained would take 5–8 hours.",
     ""]
 """The Markdown lines after the heading of the shipped report: how the baselines were made."""
 
@@ -819,9 +877,9 @@ def _remedies_section(main: pd.DataFrame, by_run: dict) -> list[str]:
         groups = _seed_groups([by_run[name] for name in rows["agent_name"]])
         lines += ["", f"## Remedies on {env_id}", "",
                   f"What each remedy of issue #37 gave on {env_id} ({_episodes(rows['episodes'])} per run, "
-                  "deterministic, true observations; the runs are the rows of the wrap table above, where "
-                  "their commands are). Steps: environment steps per run (for imitation, the planner's "
-                  "steps in the demonstrations and DAgger's labelled rollouts).", "",
+                  "deterministic, true observations; the runs are rows of the wrap table above, and the "
+                  "introduction gives their commands). Steps: environment steps per run (for imitation, "
+                  "the planner's steps in the demonstrations and DAgger's labelled rollouts).", "",
                   "| remedy | agent | runs | success per run | success mean ± std | median wrap (°, mean) "
                   "| steps per run |",
                   "|---|---|---|---|---|---|---|"]
@@ -836,6 +894,8 @@ def _remedies_section(main: pd.DataFrame, by_run: dict) -> list[str]:
             lines.append(f"| {remedy} | {algo} ({variant}) | {len(names)} "
                          f"| {' / '.join(f'{r:.0f} %' for r in rates)} | **{spread}** "
                          f"| {_deg(mine['median_wrap_angle_deg'].mean())} | {steps} |")
+        if env_id in REMEDY_NOTES:
+            lines += ["", REMEDY_NOTES[env_id]]
     return lines
 
 
