@@ -3,9 +3,6 @@
     python -m baselines.train --env SoftArm/OctArmReach-v1 --algo sac --timesteps 150000 --seed 0
     python -m baselines.train --resume runs/sac_OctArmReach-v1_s0      # after Ctrl-C or a crash
     python -m baselines.train --env SoftArm/OctArmReach-v1 --algo ppo --batched --numba-threads 1
-    python -m baselines.train --env SoftArm/OctArmWrap-v2 --algo ppo --batched \\
-        --hyperparams-dir baselines/hyperparams/batched_gsde \\
-        --init-policy runs/bc_OctArmWrap-v2_s0/final_model.zip
 
 writes into ``<log-dir>/<algo>_<env>_s<seed>/`` (``<algo>_<env>_batched_s<seed>/`` with
 ``--batched``, which trains on one :class:`softarm_gym.sb3.BatchedVecEnv` of ``n_envs`` arms
