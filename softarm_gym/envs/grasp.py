@@ -36,8 +36,8 @@ class GraspEnv(WrapEnv):
 
     As WrapEnv: ``Box(-1, 1, (n_inputs,), float32)`` normalised channel pressures,
     p = (a + 1)/2 · p_max (``absolute``, v0's default) or increments of
-    ``delta_scale`` · p_max (``delta``, v1's default, ``delta_scale`` = 0.1). Out-of-range values are clipped; NaN or inf raises
-    ``ValueError`` naming the channel.
+    ``delta_scale`` · p_max (``delta``, v1's default, ``delta_scale`` = 0.1). Out-of-range
+    values are clipped; NaN or inf raises ``ValueError`` naming the channel.
 
     ## Observation Space
 
