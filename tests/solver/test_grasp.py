@@ -65,15 +65,21 @@ def test_held_object_is_in_equilibrium_by_an_independent_force_sum(held):
     # The arm's force on the object summed along the backbone — the penalty law applied to a
     # spline through the recorded samples, on a fine grid — not read off the arm's base
     # balance as the solver does.
+    np.testing.assert_allclose(_penalty_force(g, obj), -weight, atol=0.005 * weight[1] * -1)
+    assert math.degrees(solver_wrap(g.arm.positions, g.center, obj.radius)) > 270
+
+
+def _penalty_force(g, obj):
+    """(2,) the arm's normal force on the object of ``g`` (N), summed independently of the
+    solver's base reaction: the penalty law applied to a spline through the recorded backbone,
+    on a fine grid."""
     eq = g.arm
     distinct = np.concatenate([[True], np.diff(eq.s) > 0])  # section ends are sampled twice
     s = np.linspace(0.0, eq.s[-1], 100_001)
     rel = CubicSpline(eq.s[distinct], eq.positions[distinct])(s) - g.center
     dist = np.hypot(rel[:, 0], rel[:, 1])
     per_length = (obj.stiffness * np.maximum(obj.radius - dist, 0.0) / dist)[:, None] * rel
-    summed = -np.trapezoid(per_length, s, axis=0)
-    np.testing.assert_allclose(summed, -weight, atol=0.005 * weight[1] * -1)
-    assert math.degrees(solver_wrap(eq.positions, g.center, obj.radius)) > 270
+    return -np.trapezoid(per_length, s, axis=0)
 
 
 def solver_wrap(positions, center, radius, margin=0.005):
@@ -248,16 +254,16 @@ def _load(obj, g, masses):
 
 
 def test_friction_holds_what_the_same_arm_cannot_hold_frictionless():
-    """A pinch (docs/design.md §14). OctArm V mounted upright (base 180°) arches over a 13.9 cm
-    cylinder: channel I of section 1 at 20 % of p_max, channel II of sections 2–3 closed from
-    65 % to 80 % round it (held in place), then freed with 50 g and loaded in 5 g steps at
-    the same pressures. The arch touches the object at its right side and its lower left: a
-    wedge that holds a light object frictionless (the lower-left patch's normals point up), but
-    drops it onto its seat before 0.2 kg. With μ = 0.7 the same arm holds 0.2 kg: the squeeze
-    between the two patches carries the rest by friction. Checked independently of the solver's
-    base reaction: the penalty law summed on a spline through the backbone (normal) plus the
-    friction samples' impulses (tangential) carry the weight, and the normal part alone carries
-    less than the frictionless capacity."""
+    """A hold by squeeze and friction (docs/design.md §14). OctArm V mounted upright (base 180°)
+    arches over a 13.9 cm cylinder: channel I of section 1 at 20 % of p_max, channel II of
+    sections 2–3 closed from 65 % to 80 % round it (held in place), then freed with 50 g and
+    loaded in 5 g steps at the same pressures. The arch touches the object at its right side and
+    its lower left: a wedge that holds a light object frictionless (the lower-left patch's
+    normals point up), but drops it onto its seat before 0.2 kg. With μ = 0.7 the same arm holds
+    0.2 kg: the squeeze between the two patches carries the rest by friction. Checked
+    independently of the solver's base reaction: the penalty law summed on a spline through the
+    backbone (normal) plus the friction samples' impulses (tangential) carry the weight, and the
+    normal part alone carries less than the frictionless capacity."""
     center, scene = (-0.18, 0.105), solver.Scene(base_angle_deg=180.0)
     obj = FreeObject(radius=0.139 + HALF, mass_kg=0.05, seat=(center[0], center[1] - 0.3),
                      stiffness=STIFFNESS)
@@ -286,14 +292,8 @@ def test_friction_holds_what_the_same_arm_cannot_hold_frictionless():
     g = gripped[-1]
     assert g.converged and g.held and g.stable and g.lift > 0.25
     weight = 0.2 * scene.gravity
-    eq = g.arm
-    distinct = np.concatenate([[True], np.diff(eq.s) > 0])
-    s = np.linspace(0.0, eq.s[-1], 100_001)
-    rel = CubicSpline(eq.s[distinct], eq.positions[distinct])(s) - g.center
-    dist = np.hypot(rel[:, 0], rel[:, 1])
-    normal = -np.trapezoid((obj.stiffness * np.maximum(obj.radius - dist, 0.0) / dist)[:, None] * rel,
-                           s, axis=0)
-    fs = eq.friction_samples[:, :, 0]
+    normal = _penalty_force(g, obj)
+    fs = g.arm.friction_samples[:, :, 0]
     tangential = -np.array([np.nansum(fs[..., L.FS_F]), np.nansum(fs[..., L.FS_F + 1])])
     np.testing.assert_allclose(normal + tangential, [0.0, weight], atol=0.005 * weight)
     assert normal[1] < capacity * scene.gravity < weight
