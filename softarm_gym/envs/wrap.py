@@ -160,8 +160,8 @@ class WrapEnv(SoftArmEnv):
 
     ## Arguments
 
-    All ReachEnv arguments except the reach-reward ones (``design``, ``planar`` (True only:
-    contact is planar),
+    All ReachEnv arguments except the reach-reward ones (``design``, ``planar`` (False: the 3D wrap
+    round a cylinder, docs/environments.md "3D wrap"),
     ``observation``, ``sensor_noise``, ``base_angle_deg`` (default 0 here: hanging), ``payload_kg``,
     ``gravity``, ``randomization``,
     ``action_mode``, ``delta_scale``, ``n_backbone``, ``observation_format``,
@@ -208,6 +208,17 @@ class WrapEnv(SoftArmEnv):
       most 10 % of p_max per channel per step, ≥ 10 steps from rest to a full curl); v1's
       objects and success rule otherwise (docs/environments.md, "Sequential and
       self-contacting versions").
+
+    3D (``SoftArm/OctArmWrap3D-*``, ``planar=False``):
+
+    * v0: frictionless cylinder, absolute actions, success at 75° (the hanging arm's curl falls
+      sideways past about a quarter turn). Kept; ``gym.make`` notes that v1 exists.
+    * v1 (recommended): rubber on the cylinder, ``friction=0.7`` (Coulomb μ; rubber on common
+      objects is 0.5–1), and sequential (``action_mode="delta"``, ``delta_scale=0.1``); no
+      self-contact, which does not exist in 3D. Friction does not lift the ceiling: the curl
+      still falls sideways under the arm's own weight (at a quarter of g it wraps 285–322° on
+      7 of 8 seeds), so success stays at 75° (docs/environments.md, "3D wrap with friction
+      (v1)").
     """
 
     def __init__(self, design="octarm_v", *, object_radius=(0.09, 0.11),
