@@ -181,7 +181,7 @@ class GraspEnv(WrapEnv):
         unconverged step keeps both where they were."""
         g = settle(self._sim_arm, pressures, self._free_scene, self._object,
                    center=self._grasp.center, warm_start=self._grasp.arm, model=self.model)
-        report = solver.StepReport(g.converged, g.stable, g.arm.snapped, g.solves,
+        report = solver.StepReport(g.converged, g.stable, g.arm.snapped or g.snapped, g.solves,
                                    g.arm.residual if g.converged else g.residual)
         if not g.converged:
             return report, False

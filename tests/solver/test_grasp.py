@@ -298,3 +298,43 @@ def test_friction_holds_what_the_same_arm_cannot_hold_frictionless():
     np.testing.assert_allclose(normal + tangential, [0.0, weight], atol=0.005 * weight)
     assert normal[1] < capacity * scene.gravity < weight
     assert tangential[1] > 0.3 * weight
+
+
+def test_a_snap_round_a_frictional_object_lands_at_the_frictionless_balance_with_fresh_anchors():
+    """A snap with friction is a landing (docs/design.md §9.1 "Free object"): the arm lands
+    without anchors, so friction carries nothing there and arm and object rest at their
+    frictionless balance; the anchors form at that state. The closing step of OctArmGrasp-v1's
+    scripted curl (seed 1, figures rounded): OctArm V, self-contact, a 0.37 kg cylinder on its
+    forks, μ = 0.7, channel I of every section raised by 69 kPa a step. The wrap cups the object
+    at 52° and then snaps shut over it: the step converges, reports the snap, closes the wrap
+    past 240° and lifts the object 7 cm, with no stick force in any friction sample; the object's
+    balance checked independently (the penalty law summed on a spline through the backbone).
+    Friction then builds again on the next increment."""
+    scene = solver.Scene(self_contact=STIFFNESS)
+    obj = FreeObject(radius=0.1463, mass_kg=0.3655, seat=(-0.1559, -0.0812), stiffness=STIFFNESS,
+                     friction=0.7)
+    start = np.array([35.29, 65.53, 9.94, 65.41, 21.5, 29.19]) * 1e3
+    g = settle(ARM, start, scene, obj)
+    assert g.converged and not g.snapped
+    for k in range(9):
+        p = np.zeros(ARM.n_inputs(True))
+        p[0::2] = start[0::2] + 69e3 * (k + 1)
+        before, g = g, settle(ARM, p, scene, obj, center=g.center, warm_start=g.arm)
+        assert g.converged
+        if g.snapped:
+            break
+    assert k == 8  # the step that closes the wrap
+    assert math.degrees(solver_wrap(before.arm.positions, before.center, obj.radius)) < 60
+    assert math.degrees(solver_wrap(g.arm.positions, g.center, obj.radius)) > 240
+    assert g.lift > 0.07 and g.lift - before.lift > 0.05
+    fs = g.arm.friction_samples[:, :, 0]
+    assert fs.shape[0] and np.nanmax(np.abs(fs[..., L.FS_F:L.FS_F + 3])) == 0.0  # fresh anchors
+    assert g.arm_moment == 0.0
+    weight = np.array([0.0, -obj.mass_kg * scene.gravity])
+    np.testing.assert_allclose(_penalty_force(g, obj) + g.support_force + weight, [0.0, 0.0],
+                               atol=0.005 * -weight[1])
+    # The next increment (the pressures backed off a little) sticks: friction carries load.
+    later = settle(ARM, 0.95 * p, scene, obj, center=g.center, warm_start=g.arm)
+    assert later.converged and not later.snapped
+    fs = later.arm.friction_samples[:, :, 0]
+    assert np.nanmax(np.abs(fs[..., L.FS_F:L.FS_F + 3])) > 0.0
