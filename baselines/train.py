@@ -41,6 +41,11 @@ Faults lose at most the steps since the last checkpoint:
 Resuming reads only weights (``torch.load(weights_only=True)``), JSON and ``.npz`` arrays
 (``allow_pickle=False``): nothing in a run folder is unpickled.
 
+``--init-policy MODEL.zip`` starts a new run from that model's policy weights and observation
+statistics instead of random ones (a warm start: e.g. a policy cloned from planner
+demonstrations by :mod:`baselines.imitate`); the policy class and architecture must be the
+run's, and ``summary.json`` records the file.
+
 A tqdm progress bar goes to stderr. Torch is limited to ``--threads`` (default 1) threads: the
 networks are small and the machine's cores are better spent on the environment.
 """
@@ -76,6 +81,7 @@ from baselines.config import (
     is_wrap,
     load_hyperparams,
     load_normalization,
+    load_policy,
     make_env,
     observation_sizes,
     policy_metadata,
@@ -88,7 +94,8 @@ from softarm_gym.commands.common import add_numba_threads_argument, add_quiet_ar
 from softarm_gym.files import atomic_write, write_json
 from softarm_gym.sb3 import BatchedVecEnv
 
-__all__ = ["train", "resume", "build", "TrainingInterrupted", "latest_checkpoint", "save_checkpoint", "main"]
+__all__ = ["train", "resume", "build", "TrainingInterrupted", "latest_checkpoint", "save_checkpoint",
+           "project_path", "main"]
 
 MONITOR_KEYS = ("is_success", "distance")
 """Final-step info entries written to ``monitor.csv`` for every training episode (reach, track)."""
@@ -407,6 +414,8 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
             eval_venv = VecNormalize(eval_venv, training=False, norm_reward=False,
                                      **{k: v for k, v in norm_kwargs.items() if k != "norm_reward"})
     note = _restore(model, checkpoint, prior) if resumed else ""
+    if not resumed and config.get("init_policy"):
+        _initialise(model, venv, Path(config["init_policy"]), normalize)
     if resumed:
         _rotate(run_dir / "progress.csv")
     model.set_logger(configure(str(run_dir), ["csv", "tensorboard"] if config["tensorboard"] else ["csv"]))
@@ -418,6 +427,8 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
             "batched": config.get("batched", False)}
     if "hyperparams_file" in config:
         meta["hyperparams_file"] = config["hyperparams_file"]
+    if config.get("init_policy"):
+        meta["init_policy"] = config["init_policy"]
     wall0, cpu0 = float(prior.get("wall_time_s", 0.0)), float(prior.get("cpu_time_s", 0.0))
     start, cpu_start = time.perf_counter(), time.process_time()
 
@@ -477,7 +488,33 @@ def _learn(config: dict, run_dir: Path, checkpoint: Path | None, *, progress: bo
     return run_dir
 
 
-def _project_path(path: Path) -> str:
+def _initialise(model, venv, init_policy: Path, normalize) -> None:
+    """Start ``model`` from the policy weights (and observation statistics) of ``init_policy``, a
+    model file with its sidecars (e.g. a behaviour-cloned policy of :mod:`baselines.imitate`),
+    loaded safely (:func:`baselines.config.load_policy`)."""
+    policy, meta, vecnorm = load_policy(init_policy)
+    try:
+        if type(policy) is not type(model.policy):
+            raise ValueError(f"--init-policy {init_policy.name} holds a {type(policy).__name__}; this run "
+                             f"trains a {type(model.policy).__name__}")
+        try:
+            model.policy.load_state_dict(policy.state_dict(), strict=True)
+        except RuntimeError as exc:
+            raise ValueError(f"--init-policy {init_policy.name} does not fit this run's policy "
+                             f"({str(exc).splitlines()[0]:.160})") from None
+        if bool(normalize) != (vecnorm is not None):
+            raise ValueError(f"--init-policy {init_policy.name} was {'' if vecnorm else 'not '}trained on "
+                             f"normalised observations; this run {'does' if normalize else 'does not'} "
+                             "normalise them")
+        if vecnorm is not None:
+            sizes = observation_sizes(venv.observation_space)
+            restore_normalization(venv, load_normalization(sidecar_paths(init_policy)[1], sizes))
+    finally:
+        if vecnorm is not None:
+            vecnorm.venv.close()
+
+
+def project_path(path: Path) -> str:
     """``path`` relative to the project folder (the parent of ``baselines/``) if it lies inside
     it, so run records name their YAML file portably; else absolute."""
     path = path.resolve()
@@ -505,7 +542,7 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
           checkpoint_freq: int = 50_000, threads: int = 1, progress: bool = True,
           tensorboard: bool = True, time_limit_min: float | None = None,
           save_replay_buffer: bool = False, run_name: str | None = None,
-          batched: bool = False) -> Path:
+          batched: bool = False, init_policy: Path | str | None = None) -> Path:
     """Train ``algo`` on ``env_id`` and save everything under ``log_dir`` (module docstring).
 
     Args:
@@ -533,6 +570,9 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
             ``<algo>_<env>[_batched]_s<seed>`` (``<env>`` without the ``SoftArm/`` prefix).
             :mod:`baselines.sweep` adds the observation mode.
         batched: train on one :class:`softarm_gym.sb3.BatchedVecEnv` of ``n_envs`` arms.
+        init_policy: start from this model's policy weights and observation statistics
+            instead of random ones (a ``.zip`` with its sidecars, of the same policy class and
+            architecture; e.g. ``python -m baselines.imitate bc``'s): a warm start.
 
     Returns:
         The run folder.
@@ -570,8 +610,12 @@ def train(env_id: str, algo: str, *, timesteps: int | None = None, seed: int = 0
               "eval_freq": eval_freq, "eval_episodes": eval_episodes, "checkpoint_freq": checkpoint_freq,
               "threads": threads, "tensorboard": tensorboard, "save_replay_buffer": save_replay_buffer,
               "batched": bool(batched)}
+    if init_policy is not None:
+        if not Path(init_policy).is_file():
+            raise ValueError(f"--init-policy must be an existing model file (.zip); got {str(init_policy)!r}")
+        config["init_policy"] = project_path(Path(init_policy))
     if hyperparams is None and Path(hyperparams_dir).resolve() != HYPERPARAMS_DIR:
-        config["hyperparams_file"] = _project_path(Path(hyperparams_dir) / f"{algo}.yml")
+        config["hyperparams_file"] = project_path(Path(hyperparams_dir) / f"{algo}.yml")
     try:
         write_json(run_dir / CONFIG_FILE, config)
     except TypeError as exc:
@@ -640,6 +684,9 @@ def main(argv=None) -> int:
                         help="name of the run folder (default <algo>_<env>[_batched]_s<seed>)")
     parser.add_argument("--batched", action="store_true",
                         help="train on n_envs arms of one batched env (softarm_gym.sb3.BatchedVecEnv)")
+    parser.add_argument("--init-policy", metavar="MODEL.zip", default=None,
+                        help="start from this model's policy weights and observation statistics (a warm "
+                             "start, e.g. from python -m baselines.imitate bc)")
     parser.add_argument("--eval-freq", type=int, default=10_000, help="0 disables periodic evaluation")
     parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--checkpoint-freq", type=int, default=50_000, help="0 disables checkpoints")
@@ -672,7 +719,7 @@ def main(argv=None) -> int:
                             checkpoint_freq=args.checkpoint_freq, threads=args.threads or 1,
                             progress=not args.quiet, time_limit_min=args.time_limit_min,
                             save_replay_buffer=args.save_replay_buffer, batched=args.batched,
-                            run_name=args.run_name)
+                            run_name=args.run_name, init_policy=args.init_policy)
     except ValueError as exc:
         print(f"baselines.train: error: {exc}", file=sys.stderr)
         return 2

@@ -483,7 +483,8 @@ class CEMPlanner(_PressureController):
         # The env's physics, self-contact included (configuration: a wrap rollout without it
         # passes the tip through the arm's base where the env's arm lands on itself).
         self.scene = solver.Scene(base_angle_deg=base.base_angle_deg, gravity=base.gravity,
-                                  self_contact=base.self_contact)
+                                  self_contact=base.self_contact,
+                                  self_friction=base.self_friction)
         self.p_max = float(base.p_max)
         self.action_mode = base.action_mode
         self.delta_scale = float(base.delta_scale)

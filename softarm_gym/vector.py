@@ -540,7 +540,8 @@ class _CopyResets:
         ``obstacles`` > 0, one disc of the env's contact stiffness (every copy takes its own)."""
         t = self._template
         scene = solver.Scene(base_angle_deg=t.base_angle_deg, payload_kg=t.payload_range[0],
-                             gravity=t.gravity, self_contact=t.self_contact)
+                             gravity=t.gravity, self_contact=t.self_contact,
+                             self_friction=t.self_friction)
         if not obstacles:
             return scene
         return replace(scene, obstacles=(solver.Disc((0.0, -t.reach), 0.1 * t.arm.length,

@@ -58,11 +58,13 @@ SEG_SECTION, SEG_FIRST, SEG_STEPS, SEG_END, SEG_ROW0 = range(5)
 CX, CY, RADIUS, STIFFNESS = range(4)
 
 # A multiple-shooting homotopy end ("level") is a tuple (p, q, plate, target, discs, mu,
-# friction): channel pressures (n_channels,), distributed loads (ns, 2), endplate weights
-# (ns, 2), tip target n(L⁻), M_tip (3,), obstacles (k, 4), each obstacle's Coulomb coefficient
-# (k,) and the friction samples (below; no rows: no friction). A ramp interpolates the first
-# five; mu and the samples are the tangential state it carries (docs/design.md §9).
-L_P, L_Q, L_PLATE, L_TARGET, L_DISCS, L_MU, L_FRICTION = range(7)
+# friction[, self-friction]): channel pressures (n_channels,), distributed loads (ns, 2),
+# endplate weights (ns, 2), tip target n(L⁻), M_tip (3,), obstacles (k, 4), each obstacle's
+# Coulomb coefficient (k,) and the friction samples (below; no rows: no friction); a planar
+# level then has the self-contact friction samples (below; no rows: none). A ramp
+# interpolates the first five; mu and the samples are the tangential state it carries
+# (docs/design.md §9.1).
+L_P, L_Q, L_PLATE, L_TARGET, L_DISCS, L_MU, L_FRICTION, L_SELF_FRICTION = range(8)
 
 # Friction samples (rows, NEAR_SUBSTEPS + 1, k, N_FS): per RK4 step of a contact layout (by
 # the record row of the step's start node), per node of the step's refinement near an
@@ -74,12 +76,20 @@ L_P, L_Q, L_PLATE, L_TARGET, L_DISCS, L_MU, L_FRICTION = range(7)
 FS_A, FS_NEW, FS_F, FS_R, FS_SLIP, FS_WORK = 0, 3, 6, 9, 12, 13
 N_FS = 14
 
+# Self-contact friction samples (M, segment steps + 1, SUBPOINTS, N_FS): per point at which
+# the self-contact law is sampled — segment, RK4 node of the segment (its canonical slot,
+# solver.kernels.self_contact.canonical_slot) and point of the step from it (0: the node) —
+# the ``FS_*`` columns of the obstacles' samples, with the anchor an arc length: FS_A and
+# FS_NEW hold the reference arc length s' (m) of the partner's material point the point
+# sticks to (NaN: none; their other two entries 0); FS_F the friction impulse on the point
+# (N), FS_R its position (m).
+
 # The multiple-shooting layout tuple ``grid``: base angle θ0, segment table, section array,
 # RK4 steps per section (ns,), section start arc lengths (ns,) and the self-contact
-# parameters (2 + ns,): penalty stiffness (N/m²; 0: off), exclusion length along the arc
-# (m), then each section's half-thickness (m).
+# parameters (3 + ns,): penalty stiffness (N/m²; 0: off), exclusion length along the arc
+# (m), Coulomb coefficient μ between parts of the arm, then each section's half-thickness (m).
 G_THETA0, G_SEGS, G_SECF, G_STEPS, G_START, G_SELF = range(6)
-SC_K, SC_EXCLUSION, SC_HALF = range(3)
+SC_K, SC_EXCLUSION, SC_MU, SC_HALF = range(4)
 
 # Self-contact, worked out from the shooting nodes at every residual: the backbone of each
 # segment at its RK4 nodes, (M, segment steps + 1, 15): x, y, arc length s (m),
@@ -90,14 +100,16 @@ SC_K, SC_EXCLUSION, SC_HALF = range(3)
 # (M, 4) a bounding circle's centre x, y and radius (m; negative: not built) and whether it
 # is in contact (0 or 1); and per RK4 node (M, segment steps + 1, 8) the point load the
 # node carries (N), that load per length (N/m), the node's penetration (m) and the load's
-# stiffness ∂F/∂r (symmetric 2×2: k00, k01, k11; N/m) with the other part held fixed.
+# stiffness ∂F/∂r (symmetric 2×2: k00, k01, k11; N/m) with the other part held fixed, and
+# the point moment (N m) self-contact friction puts on it (its forces act at the contact
+# points, not on the backbone).
 (P_X, P_Y, P_S, P_H, P_DXA, P_DYA, P_EXA, P_EYA, P_DXB, P_DYB, P_EXB, P_EYB, P_CLEAR, P_X0,
  P_Y0) = range(15)
 N_POINT = 15
 B_X, B_Y, B_R, B_TOUCH = range(4)
 N_BOUNDS = 4
-SELF_FX, SELF_FY, SELF_QX, SELF_QY, SELF_PEN, SELF_K00, SELF_K01, SELF_K11 = range(8)
-N_SELF = 8
+SELF_FX, SELF_FY, SELF_QX, SELF_QY, SELF_PEN, SELF_K00, SELF_K01, SELF_K11, SELF_M = range(9)
+N_SELF = 9
 
 # Spatial contact state (13,): position r, quaternion β of the directors, internal force n
 # and moment m (world frame); its tangent coordinates (12,) replace β by a world-frame

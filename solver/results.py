@@ -56,6 +56,11 @@ class Equilibrium:
             contact samples (rows, nodes, obstacles, ``layout.N_FS``): anchors, friction
             impulses (N, world frame), positions, slips and the work dissipated
             (``layout.FS_*``, docs/design.md §9); a warm start carries it on. Empty without.
+        self_friction_samples: with self-contact friction (``Scene.self_friction`` > 0), the
+            tangential state at the self-contact law's points (segments, nodes, SUBPOINTS,
+            ``layout.N_FS``; ``layout.L_SELF_FRICTION``): anchors (the partner's arc length,
+            m), friction impulses on the points (N), positions, slips and work; a warm start
+            carries it on. Empty without.
         dissipated: energy dissipated by friction (J) along the quasi-static path to this
             state, from the cold start through every warm start it continues.
         model, planar: what was solved.
@@ -91,6 +96,7 @@ class Equilibrium:
     channel_pressures: np.ndarray = field(default_factory=_empty(0), repr=False)
     penalty_stiffness: float = math.nan
     friction_samples: np.ndarray = field(default_factory=_empty(0, 0, 0, 0), repr=False)
+    self_friction_samples: np.ndarray = field(default_factory=_empty(0, 0, 0, 0), repr=False)
     dissipated: float = 0.0
     arm: ArmDesign | None = field(default=None, repr=False, compare=False)
 

@@ -213,6 +213,9 @@ class Scene:
             ``math.inf``: rigid (hard contact, by penalty continuation as for rigid discs).
             None (the default): no self-contact — parts of an arm curled past a full turn
             pass through each other.
+        self_friction: Coulomb coefficient μ ≥ 0 between parts of the arm pressed on each
+            other by ``self_contact`` (0, the default: frictionless; docs/design.md §9.1).
+            Needs ``self_contact``.
     """
 
     base_angle_deg: float = 0.0
@@ -222,6 +225,7 @@ class Scene:
     tip_moment: float | tuple = 0.0
     obstacles: tuple = ()
     self_contact: float | None = None
+    self_friction: float = 0.0
 
     def __post_init__(self):
         for name in ("base_angle_deg", "payload_kg", "gravity"):
@@ -257,6 +261,11 @@ class Scene:
                 raise ValueError(f"Scene.self_contact must be None, a penalty stiffness > 0 (N/m²) "
                                  f"or math.inf (rigid); got {k!r}")
             object.__setattr__(self, "self_contact", float(k))
+        object.__setattr__(self, "self_friction", check_friction("Scene.self_friction",
+                                                                 self.self_friction))
+        if self.self_friction > 0.0 and k is None:
+            raise ValueError(f"Scene.self_friction = {self.self_friction} needs self-contact "
+                             "(Scene.self_contact is None: no part of the arm presses on another)")
         object.__setattr__(self, "tip_force", tuple(float(f) for f in force))
         object.__setattr__(self, "tip_moment",
                            float(moment[0]) if moment.size == 1 else tuple(float(m) for m in moment))
@@ -300,7 +309,8 @@ class Scene:
         scene of a contact solve's free stages and cache keys, built once per scene."""
         free = self.__dict__.get("_without_contact")
         if free is None:
-            free = replace(self, obstacles=(), self_contact=None) if self.has_contact else self
+            free = replace(self, obstacles=(), self_contact=None, self_friction=0.0) \
+                if self.has_contact else self
             object.__setattr__(self, "_without_contact", free)
         return free
 

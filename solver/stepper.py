@@ -787,7 +787,8 @@ class BatchStepper:
         if not isinstance(scene, Scene):
             raise ValueError(f"a copy's scene must be a solver.Scene; got {type(scene).__name__}")
         if scene.without_contact != self.scene.without_contact or \
-                scene.self_contact != self.scene.self_contact:
+                scene.self_contact != self.scene.self_contact or \
+                scene.self_friction != self.scene.self_friction:
             raise ValueError(f"a copy's scene may differ from the batch's only in its obstacles; "
                              f"got {scene} for {self.scene}")
         law = self.scene.obstacles[0].stiffness if self.scene.obstacles else None

@@ -15,7 +15,8 @@ compare trees measured in one run, never runs with each other.
 
 ``--reach-cost`` instead times warm ``OctArmReach-v1`` steps with ``self_contact=True``
 against without, side by side in one process (:func:`reach_cost`); ``--penetration`` the
-sampled and peak penetration of contact scenes (:func:`penetration`).
+sampled and peak penetration of contact scenes (:func:`penetration`); ``--self-friction``
+the figures of friction in self-contact (:func:`self_friction_figures`, docs/design.md §9.1).
 """
 
 from __future__ import annotations
@@ -214,6 +215,98 @@ def report(result: dict) -> str:
     return "\n".join(lines)
 
 
+def self_friction_figures(mu: float = 0.5, repeats: int = 3) -> dict:
+    """Friction in self-contact on OctArm V curled by channel I of every section at 100 psi,
+    ramped in eight warm solves from rest (the scene of ``tests/solver/test_self_friction.py``),
+    with ``Scene.self_friction`` = ``mu`` and without: the base force's distance from the dead
+    loads (N), the global moment balance of ``softarm stress`` (relative), the samples in
+    contact and slipping, the friction impulses (N), the energy dissipated (J), the tip's and
+    the backbone's distance from the frictionless state (m), the backbone's at μ = 1e-2 and
+    1e-3 (/ L), and the ramp's time (s, best of ``repeats``) with and without friction."""
+    import time
+
+    import numpy as np
+
+    import solver
+    from softarm_gym.benchmarks.stress import moment_balance_error
+    from solver import layout as L
+    from solver.problem import context, pack
+
+    arm = solver.designs.octarm_v()
+    ring = min(t.material.ring_stiffness for t in arm.tubes)
+    curl = np.where(np.arange(arm.n_inputs(True)) % 2 == 0, arm.max_pressure, 0.0)
+
+    def ramp(value):
+        scene = solver.Scene(self_contact=ring, self_friction=value)
+        eq = solver.solve(arm, np.zeros(arm.n_inputs(True)), scene)
+        start = time.perf_counter()
+        for fraction in np.linspace(0.125, 1.0, 8):
+            eq = solver.solve(arm, fraction * curl, scene, warm_start=eq)
+        return eq, time.perf_counter() - start
+
+    free, eq = ramp(0.0)[0], ramp(mu)[0]
+    settings = solver.Settings()
+    dead = context(arm, pack(arm, "full", settings), solver.Scene(), 2, settings).base_force
+    fs = eq.self_friction_samples
+    return {"mu": mu, "converged": bool(eq.converged and eq.stable),
+            "base_force_error_n": float(np.abs(eq.base_force - dead).max()),
+            "dead_load_n": float(np.abs(dead).max()),
+            "moment_balance": moment_balance_error(arm, solver.Scene(), eq),
+            "moment_balance_frictionless": moment_balance_error(arm, solver.Scene(), free),
+            "samples_in_contact": int(np.isfinite(fs[..., L.FS_NEW]).sum()),
+            "samples_slipping": int((fs[..., L.FS_SLIP] > 0).sum()),
+            "impulses_n": float(np.hypot(fs[..., L.FS_F], fs[..., L.FS_F + 1]).sum()),
+            "dissipated_j": eq.dissipated,
+            "tip_shift_m": float(np.linalg.norm(eq.tip - free.tip)),
+            "backbone_shift_m": float(np.abs(eq.positions - free.positions).max()),
+            "small_mu_shift_over_l": {value: float(np.abs(ramp(value)[0].positions - free.positions).max()
+                                                   / arm.length) for value in (1e-2, 1e-3)},
+            "ramp_s": min(ramp(mu)[1] for _ in range(repeats)),
+            "ramp_frictionless_s": min(ramp(0.0)[1] for _ in range(repeats))}
+
+
+def self_friction_cost(n_steps: int = 200, rounds: int = 5, mu: float = 0.7) -> dict:
+    """What friction adds to a self-contact step: warm ``Stepper`` steps of OctArm V pressed
+    on itself (channel I of every section ramped to 100 psi, the scene of
+    :func:`self_friction_figures`), then walked about that curl by random steps of ±1 % of
+    p_max per input (clipped to [0, p_max]; every step in self-contact), with
+    ``Scene.self_friction`` = ``mu`` and without, the two taking turns in one process
+    (``rounds`` rounds, seeds 0, 1, ...). Returns the median µs a step of each, their ratio,
+    each round's figures and the paths the steps took (``Stepper.last_path``)."""
+    import time
+    from collections import Counter
+
+    import numpy as np
+
+    import solver
+
+    arm = solver.designs.octarm_v()
+    ring = min(t.material.ring_stiffness for t in arm.tubes)
+    curl = np.where(np.arange(arm.n_inputs(True)) % 2 == 0, arm.max_pressure, 0.0)
+    times = {value: [] for value in (0.0, mu)}
+    paths = {value: Counter() for value in times}
+    for r in range(rounds):
+        for value in times:
+            stepper = solver.Stepper(arm, solver.Scene(self_contact=ring, self_friction=value))
+            stepper.reset(np.zeros(arm.n_inputs(True)))
+            for fraction in np.linspace(0.125, 1.0, 8):
+                stepper.step(fraction * curl)
+            rng = np.random.default_rng(r)
+            p = curl.copy()
+            start = time.perf_counter()
+            for _ in range(n_steps):
+                p = np.clip(p + rng.uniform(-0.01, 0.01, p.shape) * arm.max_pressure, 0.0,
+                            arm.max_pressure)
+                stepper.step(p)
+                paths[value][stepper.last_path] += 1
+            times[value].append((time.perf_counter() - start) / n_steps * 1e6)
+    us = {value: float(np.median(t)) for value, t in times.items()}
+    return {"n_steps": n_steps, "rounds": rounds, "mu": mu, "us_frictionless": us[0.0],
+            "us_friction": us[mu], "ratio": us[mu] / us[0.0],
+            "runs_us": {str(k): v for k, v in times.items()},
+            "paths": {str(k): dict(v) for k, v in paths.items()}}
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--against", action="append", default=[], metavar="TREE",
@@ -225,7 +318,15 @@ def main(argv=None) -> int:
                              "without, in this process")
     parser.add_argument("--penetration", action="store_true",
                         help="only the sampled and peak penetration of contact scenes")
+    parser.add_argument("--self-friction", action="store_true",
+                        help="only the figures of friction in self-contact (docs/design.md §9.1)")
     args = parser.parse_args(argv)
+    if args.self_friction:
+        result = {**self_friction_figures(), "cost": self_friction_cost()}
+        print(json.dumps(result, indent=1))
+        if args.out:
+            args.out.write_text(json.dumps(result, indent=1) + "\n")
+        return 0
     if args.penetration:
         result = penetration()
         for name, row in result.items():

@@ -55,7 +55,8 @@ class SoftArmEnv(gym.Env):
                  initial_pressure_fraction: float = 0.1, solver_failure_penalty: float = 1.0,
                  max_solver_failures: int = 5, model: str = "full", synthesize_sensors=None,
                  actuation: str = "ideal", pressure_time_constant_s: float = 0.2,
-                 step_dt_s: float = 0.1, self_contact=False, render_mode: str | None = None,
+                 step_dt_s: float = 0.1, self_contact=False, self_friction: float = 0.0,
+                 render_mode: str | None = None,
                  render_size: int = 400):
         config = EnvConfig(
             design=design, planar=planar, observation=observation, sensor_noise=sensor_noise,
@@ -66,7 +67,8 @@ class SoftArmEnv(gym.Env):
             solver_failure_penalty=solver_failure_penalty, max_solver_failures=max_solver_failures,
             model=model, synthesize_sensors=synthesize_sensors, actuation=actuation,
             pressure_time_constant_s=pressure_time_constant_s, step_dt_s=step_dt_s,
-            self_contact=self_contact, render_mode=render_mode, render_size=render_size)
+            self_contact=self_contact, self_friction=self_friction, render_mode=render_mode,
+            render_size=render_size)
         self.config = config
         self.arm = config.arm
         self.planar = config.planar
@@ -88,6 +90,7 @@ class SoftArmEnv(gym.Env):
         self._lag_gain = config.lag_gain
         self.model = config.model
         self.self_contact = config.self_contact_stiffness
+        self.self_friction = config.self_friction
         self.n_backbone = config.n_backbone
         self.observation_format = config.observation_format
         self.render_mode = config.render_mode
@@ -210,7 +213,8 @@ class SoftArmEnv(gym.Env):
         payload = float(rng.uniform(*self.payload_range)) if self.payload_range[1] > self.payload_range[0] \
             else self.payload_range[0]
         self._scene = solver.Scene(base_angle_deg=self.base_angle_deg, payload_kg=payload,
-                                   gravity=self.gravity, self_contact=self.self_contact)
+                                   gravity=self.gravity, self_contact=self.self_contact,
+                                   self_friction=self.self_friction)
         stepper = solver.Stepper(self._sim_arm, self._scene, model=self.model, planar=self.planar)
         fraction = self._initial_fraction()
         report = stepper.reset(fraction * self.p_max)

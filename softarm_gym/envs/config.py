@@ -16,6 +16,7 @@ import numpy as np
 import solver
 from softarm_gym.envs.randomization import coerce_randomization
 from softarm_gym.sensing import ESTIMATORS, SensorNoise
+from solver.scene import check_friction
 
 __all__ = ["EnvConfig", "ACTION_MODES", "OBSERVATION_FORMATS", "ACTUATIONS", "RENDER_MODES",
            "finite_number", "value_range", "check_options"]
@@ -149,6 +150,7 @@ class EnvConfig:
     pressure_time_constant_s: float = 0.2
     step_dt_s: float = 0.1
     self_contact: object = False
+    self_friction: float = 0.0
     render_mode: str | None = None
     render_size: int = 400
     arm: solver.designs.ArmDesign = field(init=False, repr=False)
@@ -171,7 +173,11 @@ class EnvConfig:
         self._check_fractions()
         self._check_actuation()
         self._set(self_contact_stiffness=_self_contact_stiffness(self.self_contact, arm,
-                                                                 self.planar, self.model))
+                                                                 self.planar, self.model),
+                  self_friction=check_friction("self_friction", self.self_friction))
+        if self.self_friction > 0.0 and self.self_contact_stiffness is None:
+            raise ValueError(f"self_friction = {self.self_friction} needs self_contact (the "
+                             "friction acts where parts of the arm press on each other)")
         if isinstance(self.render_size, bool) or not isinstance(self.render_size, (int, np.integer)) \
                 or not MIN_RENDER_SIZE <= self.render_size <= MAX_RENDER_SIZE:
             raise ValueError(f"render_size must be an integer in [{MIN_RENDER_SIZE}, {MAX_RENDER_SIZE}] px; "

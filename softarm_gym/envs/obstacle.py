@@ -141,7 +141,9 @@ class ObstacleReachEnv(ReachEnv):
     State), ``contact_weight`` (0.1 per N),
     ``contact_penalty`` (1), ``contact_stiffness`` (``"tube"``: the distal tubes' ring
     stiffness, as WrapEnv; a number in N/m²; or ``"rigid"``), ``friction`` (the discs'
-    Coulomb coefficient μ ≥ 0, 0: frictionless; docs/design.md §9).
+    Coulomb coefficient μ ≥ 0, 0: frictionless; docs/design.md §9). ReachEnv's
+    ``self_friction`` (0) is the Coulomb coefficient between parts of the arm in
+    self-contact (with ``self_contact``; docs/design.md §9.1): ``friction`` does not set it.
 
     ## Info
 

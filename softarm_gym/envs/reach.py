@@ -149,6 +149,10 @@ class ReachEnv(SoftArmEnv):
       or ``"unshearable"``): True uses the tubes' ring stiffness as the penalty (the wrap
       envs' contact law), a number sets it (N/m²). Where no part comes near another the step
       costs nothing more; where parts touch, a step is a contact solve (docs/design.md §9).
+    * ``self_friction`` (0: frictionless): the Coulomb coefficient μ ≥ 0 between parts of
+      the arm pressed on each other (``solver.Scene.self_friction``, docs/design.md §9.1);
+      needs ``self_contact``. Separate from the contact envs' ``friction`` (arm on object):
+      rubber on rubber and rubber on an object differ, and the registered ids keep 0.
     * ``synthesize_sensors`` (None): synthesise sensor readings every step. By default only
       when the observation's estimator reads them (not for ``true`` and ``model``, which
       need none — skipping them is most of a ``true`` step's saving); True forces them into

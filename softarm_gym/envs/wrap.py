@@ -166,7 +166,10 @@ class WrapEnv(SoftArmEnv):
     ``gravity``, ``randomization``,
     ``action_mode``, ``delta_scale``, ``n_backbone``, ``observation_format``,
     ``initial_pressure_fraction``, ``solver_failure_penalty``, ``max_solver_failures``,
-    ``model``, ``actuation``, ``pressure_time_constant_s``, ``step_dt_s``, ``render_mode``,
+    ``model``, ``actuation``, ``pressure_time_constant_s``, ``step_dt_s``, ``self_contact``,
+    ``self_friction`` (0: the Coulomb coefficient μ ≥ 0 between parts of the arm in
+    self-contact, with ``self_contact``; docs/design.md §9.1 — ``friction`` below is the arm
+    on the object's and does not set it), ``render_mode``,
     ``render_size``), plus: ``object_radius`` (a number or
     ``(low, high)`` range, m; default (0.09, 0.11)), ``contact_stiffness`` (``"tube"``: the
     ring stiffness of the distal section's tubes, ``TubeMaterial.ring_stiffness``, 9.8e4 N/m²

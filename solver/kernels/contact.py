@@ -53,6 +53,7 @@ from solver.kernels.self_contact import (
     clear_pieces,
     may_touch,
     moved_since,
+    samples_untouched,
     self_contact_on,
     self_loads,
     trace_piece,
@@ -91,6 +92,7 @@ from solver.layout import (
     L_P,
     L_PLATE,
     L_Q,
+    L_SELF_FRICTION,
     L_TARGET,
     LEN,
     MAX_ITER,
@@ -111,6 +113,7 @@ from solver.layout import (
     SELF_K00,
     SELF_K01,
     SELF_K11,
+    SELF_M,
     SELF_PEN,
     SELF_QX,
     SELF_QY,
@@ -272,12 +275,13 @@ def new_partners(grid):
 @njit
 def _node_load(loads, seg, node, st, phi, tangent):
     """Apply the self-contact point load of node ``node`` of segment ``seg`` (its canonical
-    slot) to the state: n⁺ = n⁻ − F. With ``tangent``, the segment map's Jacobian ``phi``
-    takes the load's stiffness with the other part held fixed (δn⁺ = δn⁻ − K δr): Newton's
-    coupled Jacobian replaces these columns by differences, so it only informs the
-    stability test."""
+    slot) to the state: n⁺ = n⁻ − F, m⁺ = m⁻ − M (friction's point moment). With
+    ``tangent``, the segment map's Jacobian ``phi`` takes the normal law's stiffness with the
+    other part held fixed (δn⁺ = δn⁻ − K δr): Newton's coupled Jacobian replaces these
+    columns by differences, so it only informs the stability test."""
     st[3] -= loads[seg, node, SELF_FX]
     st[4] -= loads[seg, node, SELF_FY]
+    st[5] -= loads[seg, node, SELF_M]
     if tangent:
         k00 = loads[seg, node, SELF_K00]
         k01 = loads[seg, node, SELF_K01]
@@ -298,9 +302,11 @@ def _self_row(loads, segs, seg, node, out, row):
 
 
 @njit
-def _prepare_partners(Z, grid, rest, level, partners):
+def _prepare_partners(Z, grid, rest, level, partners, recording):
     """The self-contact loads of the state ``Z`` into ``partners`` (nothing without
-    self-contact). Functions of Z alone. Skipped (no loads) where no part can be near another
+    self-contact). Functions of Z alone (and, with self-contact friction, of the anchors of
+    the level's samples ``L_SELF_FRICTION``, which the last pass writes the state of where
+    ``recording``). Skipped (no loads) where no part can be near another
     (:func:`solver.kernels.self_contact.may_touch`).
 
     The backbone the law sees is drawn first as each segment's quintic Hermite piece from
@@ -321,9 +327,12 @@ def _prepare_partners(Z, grid, rest, level, partners):
     n_seg = bounds.shape[0]
     if n_seg == 0:
         return
+    sfs = level[L_SELF_FRICTION]
     clear_pieces(bounds)
     if not may_touch(Z, grid, rest):  # no part near another: nothing to work out
         loads[:, :, :] = 0.0
+        if recording:
+            samples_untouched(sfs)
         return
     za = np.empty(6)
     zb = np.empty(6)
@@ -338,7 +347,7 @@ def _prepare_partners(Z, grid, rest, level, partners):
     _integrate(za, Z, n_seg - 1, n_seg, grid, rest, level, zb.reshape((1, 6)), False,
                np.empty((1, C_COLUMNS)), None, none)
     build_piece(za, zb, n_seg - 1, grid, rest, level, pts, bounds)
-    self_loads(grid, rest, pts, bounds, loads, _reuse(pts, segs))
+    self_loads(grid, rest, pts, bounds, loads, _reuse(pts, segs), sfs, False)
     rows = 0
     for i in range(grid[G_STEPS].shape[0]):
         rows += grid[G_STEPS][i] + 1
@@ -350,8 +359,8 @@ def _prepare_partners(Z, grid, rest, level, partners):
     # integrates with a copy of them (a Newton step's difference columns trace moved states).
     fs = level[L_FRICTION]
     traced = (level[L_P], level[L_Q], level[L_PLATE], level[L_TARGET], level[L_DISCS], level[L_MU],
-              fs.copy() if fs.shape[0] > 0 else fs)
-    for _ in range(GEOMETRY_PASSES):
+              fs.copy() if fs.shape[0] > 0 else fs, sfs)
+    for geometry in range(GEOMETRY_PASSES):
         # The segments integrated with the loads as the residual pass integrates them.
         _start_state(Z, 0, theta0, za)
         _integrate(za, Z, 0, n_seg, grid, rest, traced, ends, True, record, None, partners)
@@ -364,7 +373,8 @@ def _prepare_partners(Z, grid, rest, level, partners):
             if seg < n_seg - 1:
                 _start_state(Z, seg + 1, theta0, za)
             trace_piece(seg, states, zb, za, grid, rest, level, loads, pts, bounds)
-        self_loads(grid, rest, pts, bounds, loads, _reuse(pts, segs))
+        self_loads(grid, rest, pts, bounds, loads, _reuse(pts, segs), sfs,
+                   recording and geometry == GEOMETRY_PASSES - 1)
 
 
 @njit
@@ -466,7 +476,7 @@ def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, 
         qy = q[i, 1]
         for j in range(first, first + nst):
             if own and j > first:  # the node just reached carries its load from here on
-                nx, ny = _loaded(loads, seg, j - first, nx, ny, st, phi, tangent)
+                nx, ny, m = _loaded(loads, seg, j - first, nx, ny, m, st, phi, tangent)
             if record:
                 row = segs[seg, SEG_ROW0] + j
                 _write_row(x, y, th, nx, ny, m, c, sn, sec_start[i] + j * h, out, row, ca, cg, ci,
@@ -474,7 +484,7 @@ def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, 
                 if own:
                     _self_row(loads, segs, seg, j - first, out, row)
             if own and seg == 0 and j == first:  # the base node's load, into the clamp's reaction
-                nx, ny = _loaded(loads, 0, 0, nx, ny, st, phi, tangent)
+                nx, ny, m = _loaded(loads, 0, 0, nx, ny, m, st, phi, tangent)
             fx, fy, pen = contact_force(x, y, discs)
             k1 = planar_state_rates(c, sn, nx, ny, m, ca, cg, ci, ur, vr, qx, qy, fx, fy)
             # The slope at the start (r' its first two entries) says how near a disc the
@@ -553,7 +563,7 @@ def _integrate(z0, nodes, lo, hi, grid, rest, level, ends, record, out, blocks, 
             c, sn = turned(th, c, sn, th_blend - th)
             th = th_blend
         if own:
-            nx, ny = _loaded(loads, seg, nst, nx, ny, st, phi, tangent)
+            nx, ny, m = _loaded(loads, seg, nst, nx, ny, m, st, phi, tangent)
         if segs[seg, SEG_END] == 1:
             if record:
                 row = segs[seg, SEG_ROW0] + steps[i]
@@ -601,13 +611,14 @@ def _friction_row(fs, row, node, h_sub, out, out_row):
 
 
 @njit(inline="always")
-def _loaded(loads, seg, node, nx, ny, st, phi, tangent):
-    """The internal force (nx, ny) with the self-contact load of node ``node`` of segment
-    ``seg`` applied (:func:`_node_load`, through ``st`` (6,))."""
+def _loaded(loads, seg, node, nx, ny, m, st, phi, tangent):
+    """The internal force (nx, ny) and moment m with the self-contact load of node ``node``
+    of segment ``seg`` applied (:func:`_node_load`, through ``st`` (6,))."""
     st[3] = nx
     st[4] = ny
+    st[5] = m
     _node_load(loads, seg, node, st, phi, tangent)
-    return st[3], st[4]
+    return st[3], st[4], st[5]
 
 
 @njit(inline="always")
@@ -663,7 +674,7 @@ def recorded_system(Z, grid, rest, level, F, J, want_jac, blocks, partners, out)
     z = np.empty(6)
     ends = np.empty((n_seg, 6))
     record = out.shape[0] > 1
-    _prepare_partners(Z, grid, rest, level, partners)
+    _prepare_partners(Z, grid, rest, level, partners, record)
     _start_state(Z, 0, grid[G_THETA0], z)
     # Two calls, so that the residual pass is compiled without the tangent.
     if want_jac:
@@ -1033,12 +1044,10 @@ def set_level(t, a, b, now):
             now[L_DISCS][i, d] = a[L_DISCS][i, d] + t * (b[L_DISCS][i, d] - a[L_DISCS][i, d])
 
 
-@njit
 def new_level(a):
-    """Scratch arrays shaped like the level tuple ``a``, with copies of its friction."""
-    return (np.empty_like(a[L_P]), np.empty_like(a[L_Q]), np.empty_like(a[L_PLATE]),
-            np.empty_like(a[L_TARGET]), np.empty_like(a[L_DISCS]), a[L_MU].copy(),
-            a[L_FRICTION].copy())
+    """Scratch arrays shaped like the level tuple ``a`` (planar or spatial), with copies
+    of its tangential state (``L_MU`` on)."""
+    return (*(np.empty_like(x) for x in a[:L_MU]), *(x.copy() for x in a[L_MU:]))
 
 
 @njit
@@ -1046,8 +1055,13 @@ def start_friction(a, now):
     """A path from level ``a`` starts from its tangential state: ``a``'s friction samples
     into ``now``'s, the work dissipated so far cleared (a path counts its own)."""
     now[L_MU][:] = a[L_MU]
-    fs = now[L_FRICTION]
-    fs[...] = a[L_FRICTION]
+    _start_samples(a[L_FRICTION], now[L_FRICTION])
+
+
+@njit
+def _start_samples(src, fs):
+    """Friction samples ``src`` into ``fs`` (the same shape), their work cleared."""
+    fs[...] = src
     for row in range(fs.shape[0]):
         for node in range(fs.shape[1]):
             for d in range(fs.shape[2]):
@@ -1122,7 +1136,9 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     rec_new = np.empty((rows, C_COLUMNS))
     has_discs = a[L_DISCS].shape[0] > 0
     friction = a[L_FRICTION].shape[0] > 0
+    rubs = a[L_SELF_FRICTION].shape[0] > 0  # self-contact friction
     start_friction(a, now)
+    _start_samples(a[L_SELF_FRICTION], now[L_SELF_FRICTION])
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
     newton_system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)), new_partners(grid))
@@ -1137,10 +1153,13 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     ok = True
     stable = True
     accepted = Z.copy()
-    if has_discs:
+    if has_discs or rubs:
         record_backbone(Z, grid, rest, now, rec_prev)
-        if friction:  # the start, corrected, is the path's first accepted state
+        # The start, corrected, is the path's first accepted state.
+        if friction:
             accept_friction(now[L_FRICTION])
+        if rubs:
+            accept_friction(now[L_SELF_FRICTION])
     # Tangent predictor for the first step. Without it the first step's correction is
     # judged against a zero prediction, and a large pressure change is halved until its
     # correction is small in absolute terms — five or six converged steps thrown away.
@@ -1171,13 +1190,16 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
         pred = math.sqrt(pred / n)
         if ok and stable and (corr <= 0.05 + 0.5 * pred or dt <= dt_min):
             through = False
-            if has_discs:
+            if has_discs or rubs:
                 record_backbone(Z, grid, rest, now, rec_new)
+            if has_discs:
                 through = tunnels(rec_prev[:, C_X:C_Y + 1], rec_new[:, C_X:C_Y + 1],
                                   now[L_DISCS], TUNNEL_SLACK)
             if not through:
                 if friction:
                     accept_friction(now[L_FRICTION])
+                if rubs:
+                    accept_friction(now[L_SELF_FRICTION])
                 for k in range(n):
                     slope[k] = (Z[k] - accepted[k]) / (t_new - t)
                     accepted[k] = Z[k]
@@ -1471,7 +1493,11 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     fs = level[L_FRICTION]
     friction = fs.shape[0] > 0
     fs_now = fs.copy() if friction else fs
-    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], discs_now, level[L_MU], fs_now)
+    sfs = level[L_SELF_FRICTION]
+    rubs = sfs.shape[0] > 0  # self-contact friction
+    sfs_now = sfs.copy() if rubs else sfs
+    now = (p_now, level[L_Q], level[L_PLATE], level[L_TARGET], discs_now, level[L_MU], fs_now,
+           sfs_now)
     partners = new_partners(grid)
     no_record = np.empty((1, C_COLUMNS))
     no_blocks = np.empty((0, 6, 6))
@@ -1553,6 +1579,8 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             before[:, :] = new[:, C_X:C_Y + 1]
             if friction:
                 accept_friction(fs_now)
+            if rubs:
+                accept_friction(sfs_now)
             if final:
                 break
             dt = min(2.0 * dt, 1.0)
@@ -1568,4 +1596,6 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     discs_old[:, :] = discs_new
     if friction:
         fs[...] = fs_now
+    if rubs:
+        sfs[...] = sfs_now
     return True, stable, passes, res

@@ -305,6 +305,25 @@ def tunnels_3d(prev, new, obstacles, slack):
 # ----------------------------------------------------------------------------- friction
 
 
+@njit(inline="always")
+def return_mapping(dd, cap, k):
+    """Coulomb's law on a tangential penalty spring of stiffness ``k`` (N/m², per length),
+    by the exact return mapping (docs/design.md §9.1): the sample has slid ``dd`` (m,
+    signed) along the surface from its anchor, and the cone admits ``cap`` = μ × the
+    normal force over k (m). Stick while |dd| ≤ cap: the spring's −k·dd; else slip on the
+    cone, −k·cap·sign(dd), the anchor dragged to the cone's edge.
+
+    Returns:
+        (f_t, slip, σ): the tangential force per length (N/m, along the direction in which
+        ``dd`` is measured), the slip past the cone's edge (m, ≥ 0; the energy it
+        dissipates is |f_t|·slip per length) and σ, 0 where it sticks, else sign(dd).
+    """
+    if abs(dd) <= cap:
+        return -k * dd, 0.0, 0.0
+    sg = 1.0 if dd > 0.0 else -1.0
+    return -k * sg * cap, abs(dd) - cap, sg
+
+
 @njit
 def friction_impulse(x, y, discs, mu, fs, row, node, weight, record, want_k):
     """Coulomb friction at the planar contact sample (row, node) at (x, y): the impulse on the
@@ -355,18 +374,14 @@ def friction_impulse(x, y, discs, mu, fs, row, node, weight, record, want_k):
         ay = fs[row, node, d, FS_A + 1]
         fresh = math.isnan(ax)
         dd = 0.0 if fresh else tx * (ex - ax) + ty * (ey - ay)
-        if abs(dd) <= cap:  # stick: the tangential spring
-            ft = -k * dd
-            slip = 0.0
+        ft, slip, sg = return_mapping(dd, cap, k)
+        if sg == 0.0:  # stick: the tangential spring
             nx = radius * ux if fresh else ax
             ny = radius * uy if fresh else ay
             # ∂(f t)/∂r = −k·g·t tᵀ − (f/ρ)·u tᵀ, g = 1 − u·(r − c − a)/ρ (t turns with r)
             a = 0.0 if fresh else -k * (1.0 - (ux * (ex - ax) + uy * (ey - ay)) / rho)
             a_t = 1.0
         else:  # slip: on the cone, the anchor dragged along
-            sg = 1.0 if dd > 0.0 else -1.0
-            ft = -k * sg * cap
-            slip = abs(dd) - cap
             nx = radius * ux - sg * cap * tx
             ny = radius * uy - sg * cap * ty
             # ∂(f t)/∂r = σ·μ·k·t uᵀ − (f/ρ)·u tᵀ (pen = R − ρ moves the cone)
@@ -386,18 +401,25 @@ def friction_impulse(x, y, discs, mu, fs, row, node, weight, record, want_k):
             k10 += weight * (a * ty * vx + b * uy * tx)
             k11 += weight * (a * ty * vy + b * uy * ty)
         if record:
-            out = fs[row, node, d]
-            out[FS_NEW] = nx
-            out[FS_NEW + 1] = ny
-            out[FS_NEW + 2] = 0.0
-            out[FS_F] = gx
-            out[FS_F + 1] = gy
-            out[FS_F + 2] = 0.0
-            out[FS_R] = x
-            out[FS_R + 1] = y
-            out[FS_R + 2] = 0.0
-            out[FS_SLIP] = slip
+            record_planar_sample(fs[row, node, d], nx, ny, gx, gy, x, y, slip)
     return fx, fy, k00, k01, k10, k11
+
+
+@njit(inline="always")
+def record_planar_sample(out, a0, a1, fx, fy, x, y, slip):
+    """Write a planar friction sample's state at a recording pass into ``out`` (N_FS,): its
+    return-mapped anchor (a0, a1), impulse (fx, fy) (N), position (x, y) (m) and slip (m);
+    the third entries 0."""
+    out[FS_NEW] = a0
+    out[FS_NEW + 1] = a1
+    out[FS_NEW + 2] = 0.0
+    out[FS_F] = fx
+    out[FS_F + 1] = fy
+    out[FS_F + 2] = 0.0
+    out[FS_R] = x
+    out[FS_R + 1] = y
+    out[FS_R + 2] = 0.0
+    out[FS_SLIP] = slip
 
 
 @njit

@@ -46,7 +46,13 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.kernels.obstacles import hermite_point, hull_circle
+from solver.kernels.obstacles import (
+    friction_untouched,
+    hermite_point,
+    hull_circle,
+    record_planar_sample,
+    return_mapping,
+)
 from solver.layout import (
     B_R,
     B_TOUCH,
@@ -55,6 +61,7 @@ from solver.layout import (
     CA,
     CG,
     CI,
+    FS_A,
     G_SECF,
     G_SEGS,
     G_SELF,
@@ -80,6 +87,7 @@ from solver.layout import (
     SC_EXCLUSION,
     SC_HALF,
     SC_K,
+    SC_MU,
     SEG_END,
     SEG_FIRST,
     SEG_SECTION,
@@ -89,6 +97,7 @@ from solver.layout import (
     SELF_K00,
     SELF_K01,
     SELF_K11,
+    SELF_M,
     SELF_PEN,
     SELF_QX,
     SELF_QY,
@@ -272,16 +281,20 @@ def trace_piece(seg, states, end, target, grid, rest, level, loads, pts, bounds)
         a, b = canonical_slot(segs, seg, j)
         fx = loads[a, b, SELF_FX]
         fy = loads[a, b, SELF_FY]
+        mz = loads[a, b, SELF_M]
         if seg == 0 and j == 0:  # recorded before the base node's load, which is the clamp's
             z[3] -= fx
             z[4] -= fy
+            z[5] -= mz
         pts[seg, j, P_X] = z[0]
         pts[seg, j, P_Y] = z[1]
         dx, dy, ex, ey = _derivatives(z, i, grid, rest, level, rate)
-        _node_data(pts, seg, j, 2 if fx == 0.0 and fy == 0.0 else 0, dx, dy, ex, ey)
-        if fx != 0.0 or fy != 0.0:
+        loaded = fx != 0.0 or fy != 0.0 or mz != 0.0
+        _node_data(pts, seg, j, 0 if loaded else 2, dx, dy, ex, ey)
+        if loaded:
             z[3] += fx  # before the node's load
             z[4] += fy
+            z[5] += mz
             dx, dy, ex, ey = _derivatives(z, i, grid, rest, level, rate)
             _node_data(pts, seg, j, 1, dx, dy, ex, ey)
     if seg < segs.shape[0] - 1:
@@ -290,6 +303,7 @@ def trace_piece(seg, states, end, target, grid, rest, level, loads, pts, bounds)
         a, b = canonical_slot(segs, seg, n)
         z[3] += loads[a, b, SELF_FX]
         z[4] += loads[a, b, SELF_FY]
+        z[5] += loads[a, b, SELF_M]
         if segs[seg, SEG_END] == 1:
             z[3] += level[L_PLATE][i, 0]
             z[4] += level[L_PLATE][i, 1]
@@ -555,8 +569,99 @@ def _add(loads, segs, seg, j, fx, fy):
 
 
 @njit
+def _at_arc(pts, segs, arc):
+    """The (piece, parameter t ∈ [0, 1]) of the backbone's pieces at reference arc length
+    ``arc`` (m), clamped to the arm's ends."""
+    n_seg = segs.shape[0]
+    for seg in range(n_seg):
+        s_hi = pts[seg, segs[seg, SEG_STEPS], P_S]
+        if arc <= s_hi or seg == n_seg - 1:
+            s_lo = pts[seg, 0, P_S]
+            return seg, min(1.0, max(0.0, (arc - s_lo) / (s_hi - s_lo)))
+    return n_seg - 1, 1.0
+
+
+@njit
+def _arc_of(pts, segs, piece, tau):
+    """The reference arc length (m) of the point at parameter ``tau`` of ``piece``."""
+    s_lo = pts[piece, 0, P_S]
+    return s_lo + tau * (pts[piece, segs[piece, SEG_STEPS], P_S] - s_lo)
+
+
+@njit
+def _moment_at(loads, segs, pts, seg, j, cx, cy, fx, fy):
+    """Add the force (fx, fy) (N), acting at the point (cx, cy), to node j of piece
+    ``seg``: the force, and its moment about the node as a point moment (N m), so that the
+    node carries the force's moment about any point."""
+    a, b = canonical_slot(segs, seg, j)
+    loads[a, b, SELF_FX] += fx
+    loads[a, b, SELF_FY] += fy
+    loads[a, b, SELF_M] += (cx - pts[seg, j, P_X]) * fy - (cy - pts[seg, j, P_Y]) * fx
+
+
+@njit
+def _rub(x, y, ux, uy, pen, h_own, dist, w, share, seg, j, piece, tau, k, mu, grid, pts, loads,
+         sfs, q, record):
+    """Coulomb friction between the point (x, y) of piece ``seg`` (a fraction ``share`` of
+    the way from node j to node j + 1, its arc share ``w``; its friction sample
+    ``sfs[seg, j, q]``) and the partner's nearest point, at parameter ``tau`` of ``piece``,
+    ``dist`` away along the unit normal (ux, uy) (from the partner to the point), the
+    penetration ``pen`` (docs/design.md §9.1).
+
+    The sample's anchor is the partner's material point it sticks to, by its reference arc
+    length a; its slip d = t·(r − r'(a)) is the point's tangential displacement relative to
+    that material point (t = (−u_y, u_x)); the obstacles' return mapping
+    (:func:`solver.kernels.obstacles.return_mapping`) with the law's stiffness k and the cone
+    μ·g(pen), g(pen) = the normal force per length over k (the law's onset included), gives
+    the force per length f_t along t. Half of it, f_t·w/2 (each pair is counted from both
+    sides, as the normal law's is), acts on the point and its reaction on the partner, both
+    at the contact point c (halfway across the overlap): the point's part lumped onto its
+    step's nodes by ``share``, the reaction onto the partner's nodes either side of its
+    point by where that lies, each with its moment about the node (:func:`_moment_at`), so
+    that the pair carries neither a net force nor a net moment. Where it slips, the anchor is
+    dragged along to the cone's edge: a' = s_p + (a − s_p)·cap/|d|, s_p the partner point's
+    arc length. A point without an anchor (not in contact at the last accepted state)
+    sticks where it is, carrying none yet. With ``record``, the sample's new anchor,
+    impulse, position and slip are written (``FS_*``)."""
+    segs = grid[G_SEGS]
+    s_p = _arc_of(pts, segs, piece, tau)
+    anchor = sfs[seg, j, q, FS_A]
+    fresh = math.isnan(anchor)
+    tx = -uy
+    ty = ux
+    dd = 0.0
+    if not fresh:
+        a_piece, a_tau = _at_arc(pts, segs, anchor)
+        p = _curve(pts, segs, a_piece, a_tau)
+        dd = tx * (x - p[0]) + ty * (y - p[1])
+    cap = mu * (0.5 * pen * pen / ONSET if pen < ONSET else pen - 0.5 * ONSET)
+    ft, slip, sg = return_mapping(dd, cap, k)
+    if fresh:
+        moved = s_p
+    elif sg == 0.0:
+        moved = anchor
+    else:
+        moved = s_p + (anchor - s_p) * cap / abs(dd)
+    fx = 0.5 * w * ft * tx
+    fy = 0.5 * w * ft * ty
+    cx = x - (h_own - 0.5 * pen) * ux
+    cy = y - (h_own - 0.5 * pen) * uy
+    for end in range(2):
+        part = 1.0 - share if end == 0 else share
+        if part != 0.0:
+            _moment_at(loads, segs, pts, seg, j + end, cx, cy, part * fx, part * fy)
+    n_p = segs[piece, SEG_STEPS]
+    node = min(int(tau * n_p), n_p - 1)
+    t = tau * n_p - node
+    _moment_at(loads, segs, pts, piece, node, cx, cy, -(1.0 - t) * fx, -(1.0 - t) * fy)
+    _moment_at(loads, segs, pts, piece, node + 1, cx, cy, -t * fx, -t * fy)
+    if record:
+        record_planar_sample(sfs[seg, j, q], moved, 0.0, fx, fy, x, y, slip)
+
+
+@njit
 def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reach, exclusion, k,
-                behind, ahead, wide, bulge):
+                behind, ahead, wide, bulge, sfs, q, record):
     """Apply the law to the point (x, y) at arc length ``s`` with half-thickness ``h_own``
     and arc share ``w`` (m), a fraction ``share`` of the way from node j of piece ``seg`` to
     node j + 1: every contact it makes (a run of consecutive chords of another part within
@@ -565,6 +670,10 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
     found and its load added to
     ``loads`` (see :func:`self_loads`), the point's own half lumped onto nodes j and j + 1 by
     ``share``.
+
+    With friction (``sfs``, the self-contact friction samples, has rows) the first contact
+    the point makes also carries Coulomb friction, its sample ``sfs[seg, j, q]``
+    (:func:`_rub`; ``record``: write the sample's state).
 
     Returns (the deepest penetration, the point's clearance): a lower bound on its distance
     (m) to the chords that are not within ``exclusion`` of every arc length in
@@ -575,6 +684,7 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
     n_seg = segs.shape[0]
     deepest = 0.0
     clearance = math.inf
+    rubbed = sfs.shape[0] == 0  # a point's friction: at its first contact
     in_run = False
     best_pen = 0.0
     best_t = 0.0
@@ -662,6 +772,10 @@ def _contact_at(x, y, s, h_own, w, share, seg, j, grid, pts, bounds, loads, reac
                 loads[a, b, SELF_K11] -= part * stiff * uy * uy
             _add(loads, segs, piece, node, -0.5 * f * (1.0 - t) * ux, -0.5 * f * (1.0 - t) * uy)
             _add(loads, segs, piece, node + 1, -0.5 * f * t * ux, -0.5 * f * t * uy)
+            if not rubbed:
+                rubbed = True
+                _rub(x, y, ux, uy, pen, h_own, dist, w, share, seg, j, piece, tau, k,
+                     grid[G_SELF][SC_MU], grid, pts, loads, sfs, q, record)
             deepest = max(deepest, pen)
             bounds[seg, B_TOUCH] = 1.0
             bounds[best_seg, B_TOUCH] = 1.0
@@ -694,7 +808,15 @@ def _bulge(pts, segs):
 
 
 @njit
-def self_loads(grid, rest, pts, bounds, loads, moved):
+def samples_untouched(sfs):
+    """Mark every self-contact friction sample ``sfs`` as not in contact at the state a
+    pass records (:func:`solver.kernels.obstacles.friction_untouched`): no anchor to carry."""
+    for seg in range(sfs.shape[0]):
+        friction_untouched(sfs, seg)
+
+
+@njit
+def self_loads(grid, rest, pts, bounds, loads, moved, sfs, record):
     """The self-contact point loads of the pieces ``pts`` (see the module docstring) into
     ``loads`` (M, segment steps + 1, N_SELF), at each node's canonical slot: SELF_FX, SELF_FY
     the point load (N), SELF_QX, SELF_QY that load per length of the node's share of the arc
@@ -713,7 +835,14 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
     ``moved`` < 0 or NaN: the clearances are worked out (and where the
     nodes were, P_X0 and P_Y0); else they are those of pieces that have since moved by at
     most ``moved`` (m) at any node (:func:`moved_since`), and count 2·``moved`` less, for
-    the point's and the other part's moves."""
+    the point's and the other part's moves.
+
+    With friction (``sfs`` (M, segment steps + 1, SUBPOINTS, N_FS), the self-contact
+    friction samples, has rows; ``layout.FS_*``), each point carries Coulomb friction at
+    its first contact (:func:`_rub`), into the loads and, where ``record``, their state
+    into ``sfs`` (every other sample marked as not in contact, as
+    :func:`solver.kernels.obstacles.friction_untouched` marks a step out of reach): the
+    anchors the state's acceptance takes (:func:`solver.kernels.obstacles.accept_friction`)."""
     segs = grid[G_SEGS]
     sp = grid[G_SELF]
     k = sp[SC_K]
@@ -726,6 +855,8 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
     bulge = _bulge(pts, segs)
     fresh = not moved >= 0.0
     slack = (0.0 if fresh else 2.0 * moved) + bulge
+    if record:
+        samples_untouched(sfs)
     for seg in range(n_seg):
         n = segs[seg, SEG_STEPS]
         for j in range(0 if seg == 0 else 1, n + 1):
@@ -746,7 +877,7 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
             pen, clear = _contact_at(
                 pts[seg, j, P_X], pts[seg, j, P_Y], pts[seg, j, P_S], pts[seg, j, P_H],
                 _weight(segs, pts, seg, j) / SUBPOINTS, 0.0, seg, j, grid, pts, bounds, loads,
-                reach, exclusion, k, behind, ahead, wide, bulge)
+                reach, exclusion, k, behind, ahead, wide, bulge, sfs, 0, record)
             deepest = max(deepest, pen)
             if fresh:
                 pts[seg, j, P_CLEAR] = clear
@@ -779,7 +910,8 @@ def self_loads(grid, rest, pts, bounds, loads, moved):
                     continue
                 pen, _ = _contact_at(
                     x, y, pts[seg, j, P_S] + share * step, h_own, step / SUBPOINTS, share, seg, j,
-                    grid, pts, bounds, loads, h_own + largest, exclusion, k, 0.0, 0.0, 0.0, bulge)
+                    grid, pts, bounds, loads, h_own + largest, exclusion, k, 0.0, 0.0, 0.0, bulge,
+                    sfs, q, record)
                 deepest = max(deepest, pen)
     for seg in range(n_seg):
         for j in range(0 if seg == 0 else 1, segs[seg, SEG_STEPS] + 1):

@@ -30,7 +30,8 @@ one row per copy:
   (n, rows_c, C_COLUMNS), the grid check's (q (ns,), ends (ns,)), ``ok`` (n,) bool: copy k
   has a state on this layout, ``touching`` (n,) bool: it presses on a disc or on itself, and
   the copies' friction: μ per disc (n, k) and friction samples (n, rows_c, nodes, k, N_FS;
-  no rows without friction), the tangential state their steps carry.
+  no rows without friction), and the self-contact friction samples (n, M, c + 1, SUBPOINTS,
+  N_FS; ``layout.L_SELF_FRICTION``; no rows without), the tangential state their steps carry.
 """
 
 from __future__ import annotations
@@ -73,8 +74,8 @@ N_FREE = 21
 (CT_THETA0, CT_SEGS, CT_SECF, CT_STEPS, CT_START, CT_SELF, CT_PARAMS, CT_WEIGHTS,
  CT_RES_WEIGHTS, CT_NODES, CT_P, CT_Q, CT_PLATE, CT_TARGET, CT_DISCS, CT_REST, CT_LU, CT_PIV,
  CT_DENSE, CT_DENSE_PIV, CT_FLAGS, CT_RECORDS, CT_SCRATCH, CT_CHECK_Q, CT_CHECK_ENDS, CT_OK,
- CT_TOUCHING, CT_MU, CT_FRICTION) = range(29)
-N_CONTACT = 29
+ CT_TOUCHING, CT_MU, CT_FRICTION, CT_SELF_FRICTION) = range(30)
+N_CONTACT = 30
 
 # Path codes of the report's last column.
 PATH_LEAN, PATH_CONTACT = 1.0, 2.0
@@ -188,7 +189,7 @@ def _contact_step(k, free, contact, p_to, discs_to, report):
             contact[CT_START], contact[CT_SELF])
     nodes, p_level, records = contact[CT_NODES], contact[CT_P], contact[CT_RECORDS]
     level = (p_level[k], contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k],
-             contact[CT_MU][k], contact[CT_FRICTION][k])
+             contact[CT_MU][k], contact[CT_FRICTION][k], contact[CT_SELF_FRICTION][k])
     ok, stable, its, res = lean_step(
         nodes[k], grid, (free[FR_TUBES_I], free[FR_TUBES_F]), level, p_to[k], discs_to,
         contact[CT_PARAMS],
@@ -247,9 +248,11 @@ def _enter_contact(k, free, contact, p_start):
         p_level[c] = p_start[c]
     rest_strains_into(p_level, free[FR_TUBES_I], free[FR_TUBES_F], contact[CT_SECF], rest)
     fs = contact[CT_FRICTION][k]
+    sfs = contact[CT_SELF_FRICTION][k]
     level = (p_level, contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k],
-             contact[CT_MU][k], fs)
+             contact[CT_MU][k], fs, sfs)
     fs[:, :, :, FS_A:FS_A + 3] = math.nan  # from a state that touched nothing: no anchors
+    sfs[:, :, :, FS_A:FS_A + 3] = math.nan
     params = contact[CT_PARAMS]
     weights = contact[CT_WEIGHTS]
     ok, _, _, stable = newton(nodes, grid, rest, level, weights, contact[CT_RES_WEIGHTS],
@@ -263,6 +266,7 @@ def _enter_contact(k, free, contact, p_start):
                         contact[CT_RECORDS][k], factors):
         return False
     accept_friction(fs)
+    accept_friction(sfs)
     contact[CT_OK][k] = True
     contact[CT_TOUCHING][k] = touches(contact[CT_RECORDS][k])
     return True

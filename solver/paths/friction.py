@@ -1,5 +1,6 @@
 """The tangential state of frictional contact on the contact paths: the friction samples a
-level carries (``layout.L_MU``, ``layout.L_FRICTION``), where a solve's come from (a cold
+level carries (``layout.L_MU``, ``layout.L_FRICTION``, and a planar level's self-contact
+samples ``layout.L_SELF_FRICTION``), where a solve's come from (a cold
 start, a warm start on the same or another contact layout) and what a result keeps of them
 (docs/design.md §9)."""
 
@@ -9,6 +10,7 @@ import numpy as np
 
 from solver import layout as L
 from solver.kernels.contact import NEAR_SUBSTEPS
+from solver.kernels.self_contact import SUBPOINTS
 from solver.results import Equilibrium
 
 # Samples per RK4 step: the nodes of its refinement near an obstacle.
@@ -18,11 +20,7 @@ NODES = NEAR_SUBSTEPS + 1
 def new_samples(rows: int, n_obstacles: int) -> np.ndarray:
     """Friction samples (rows, NODES, n_obstacles, N_FS) with no tangential state: no anchor
     (NaN), no impulse, slip or work."""
-    fs = np.zeros((rows, NODES, n_obstacles, L.N_FS))
-    fs[..., L.FS_A:L.FS_A + 3] = np.nan
-    fs[..., L.FS_NEW:L.FS_NEW + 3] = np.nan
-    fs[..., L.FS_R:L.FS_R + 3] = np.nan
-    return fs
+    return _released(np.zeros((rows, NODES, n_obstacles, L.N_FS)))
 
 
 def no_samples(n_obstacles: int) -> np.ndarray:
@@ -33,10 +31,32 @@ def no_samples(n_obstacles: int) -> np.ndarray:
 def landed(level: tuple) -> tuple:
     """``level`` with no tangential state: where the arm snaps (a dynamic event), it lands
     without the anchors it had, and they form again where it comes to rest."""
-    samples = level[L.L_FRICTION]
+    return (*level[:L.L_FRICTION], *(_released(fs) for fs in level[L.L_FRICTION:]))
+
+
+def _released(samples: np.ndarray) -> np.ndarray:
+    """Friction samples of ``samples``' shape with no tangential state (none without rows)."""
     if not samples.shape[0]:
-        return level
-    return (*level[:L.L_FRICTION], new_samples(samples.shape[0], samples.shape[2]))
+        return samples
+    fs = np.zeros(samples.shape)
+    for c in (L.FS_A, L.FS_NEW, L.FS_R):
+        fs[..., c:c + 3] = np.nan
+    return fs
+
+
+def start_self_samples(scene, segs, warm_start: Equilibrium | None) -> np.ndarray:
+    """The self-contact friction samples (M, c + 1, SUBPOINTS, N_FS; ``layout.L_SELF_FRICTION``)
+    a planar contact solve of ``scene`` on the segment table ``segs`` (M segments, the
+    longest of c steps) starts from: no rows without self-contact friction; else the warm
+    start's anchors where it was solved on the same segments, none elsewhere (a cold start,
+    another contact layout: anchors form again at the first accepted state)."""
+    rows = segs.shape[0] if scene.self_friction > 0.0 else 0
+    shape = (rows, int(segs[:, L.SEG_STEPS].max()) + 1 if rows else 0, SUBPOINTS, L.N_FS)
+    fs = _released(np.zeros(shape))
+    old = warm_start.self_friction_samples if warm_start is not None else None
+    if rows and old is not None and old.shape == fs.shape:
+        fs[..., L.FS_A:L.FS_A + 3] = old[..., L.FS_A:L.FS_A + 3]
+    return fs
 
 
 def layout_arcs(layout, sec_start) -> np.ndarray:
@@ -123,12 +143,16 @@ def turn_anchors(samples: np.ndarray, obstacle: int, angle: float) -> None:
     a[..., 1] = s * x + c * y
 
 
-def friction_fields(samples: np.ndarray, warm_start: Equilibrium | None) -> dict:
+def friction_fields(samples: np.ndarray, warm_start: Equilibrium | None,
+                    self_samples: np.ndarray | None = None) -> dict:
     """The Equilibrium fields of a contact solve whose level ends with the friction
-    ``samples``: a copy of them (none without friction), and the energy dissipated along
-    the path to it — the warm start's, and this path's, the work its samples recorded."""
-    before = warm_start.dissipated if warm_start is not None else 0.0
-    if samples.shape[0] == 0:
-        return dict(dissipated=before)
-    return dict(friction_samples=samples.copy(),
-                dissipated=before + float(samples[..., L.FS_WORK].sum()))
+    ``samples`` (and the self-contact ones ``self_samples``): copies of them (none without
+    friction), and the energy dissipated along the path to it — the warm start's, and this
+    path's, the work its samples recorded."""
+    dissipated = warm_start.dissipated if warm_start is not None else 0.0
+    fields = {}
+    for name, fs in (("friction_samples", samples), ("self_friction_samples", self_samples)):
+        if fs is not None and fs.shape[0]:
+            fields[name] = fs.copy()
+            dissipated += float(fs[..., L.FS_WORK].sum())
+    return dict(dissipated=dissipated, **fields)

@@ -24,7 +24,7 @@ from solver import layout as L
 from solver.kernels import contact as contact_kernels
 from solver.kernels import stepping
 from solver.paths.contact import free_contact_result
-from solver.paths.friction import new_samples, turn_anchors
+from solver.paths.friction import new_samples, start_self_samples, turn_anchors
 from solver.paths.grid import section_rows
 from solver.paths.planar import not_lean, single_result
 from solver.paths.shooting import shooting_equilibrium, shooting_grid, shooting_params
@@ -132,7 +132,7 @@ class ContactRows:
         ctx = problem.ctx
         self.section_ends = packed.section_ends
         # What does not depend on the obstacles' places is built once per arm and law.
-        law = (scene.without_contact, scene.self_contact,
+        law = (scene.without_contact, scene.self_contact, scene.self_friction,
                scene.obstacles[0].stiffness if scene.obstacles else None)
         layout, c_ctx, _, grid, plate, target, weights, res_weights, half, exclusion = \
             arm._solver_cache.get(("lean contact", packed.key, law), lambda: _fixed_parts(problem))
@@ -185,6 +185,8 @@ class ContactRows:
         contact[stepping.CT_MU] = np.zeros((n, max_obstacles))
         contact[stepping.CT_FRICTION] = np.stack(
             [new_samples(layout.n_rows if self.friction else 0, max_obstacles)] * n)
+        contact[stepping.CT_SELF_FRICTION] = np.stack(
+            [start_self_samples(scene, contact[stepping.CT_SEGS], None)] * n)
         self.free, self.contact = tuple(free), tuple(contact)
         self._flags = np.zeros((n, 5))
         self._dissipated = np.zeros(n)  # each copy's dissipation before its samples' work
@@ -194,7 +196,7 @@ class ContactRows:
         self._per_copy += [contact[i] for i in (stepping.CT_NODES, stepping.CT_P, stepping.CT_DISCS)]
         self._per_copy += [contact[i] for i in range(stepping.CT_REST, stepping.CT_CHECK_Q)]
         self._per_copy += [contact[i] for i in (stepping.CT_OK, stepping.CT_TOUCHING, stepping.CT_MU,
-                                                stepping.CT_FRICTION)]
+                                                stepping.CT_FRICTION, stepping.CT_SELF_FRICTION)]
         for k in range(n):
             self.set_scene(k, scene)
 
@@ -234,6 +236,9 @@ class ContactRows:
             if given.ndim == 4 and given.shape[:2] == fs.shape[:2] and given.shape[2] <= fs.shape[2]:
                 fs[:, :, :given.shape[2]] = given
                 fs[..., L.FS_WORK] = 0.0  # (counted in eq.dissipated)
+        sfs = contact[stepping.CT_SELF_FRICTION][k]
+        if sfs.shape[0]:
+            sfs[:] = start_self_samples(self.scenes[k], contact[stepping.CT_SEGS], eq)
         nodes = contact[stepping.CT_NODES][k]
         record = contact[stepping.CT_RECORDS][k]
         if eq.converged and eq.stable and eq.shooting_nodes.shape == nodes.shape:
@@ -308,7 +313,8 @@ class ContactRows:
         grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
         nodes = contact[stepping.CT_NODES][k].copy()
         level = self._level(k)
-        level = (*level[:L.L_FRICTION], level[L.L_FRICTION].copy())  # (passes record into it)
+        level = (*level[:L.L_FRICTION], *(fs.copy() for fs in level[L.L_FRICTION:]))  # (passes
+        # record into them)
         rest = np.empty_like(contact[stepping.CT_REST][k])
         rest_strains_into(level[L.L_P], self.layout.tubes_i, self.layout.tubes_f, self.layout.secf,
                           rest)
@@ -336,7 +342,8 @@ class ContactRows:
         contact = self.contact
         return (contact[stepping.CT_P][k], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
                 contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k],
-                contact[stepping.CT_MU][k], contact[stepping.CT_FRICTION][k])
+                contact[stepping.CT_MU][k], contact[stepping.CT_FRICTION][k],
+                contact[stepping.CT_SELF_FRICTION][k])
 
     def contact_measures(self) -> np.ndarray:
         """(n, 2) every copy's deepest penetration (m) and total contact force (N)
@@ -406,11 +413,15 @@ class ContactRows:
         # The samples' work stays in them while the copy steps clear of contact (and when it
         # comes back): the dissipation along its path is always the two together.
         fs = self.contact[stepping.CT_FRICTION][k]
-        dissipated = float(self._dissipated[k] + fs[..., L.FS_WORK].sum())
+        sfs = self.contact[stepping.CT_SELF_FRICTION][k]
+        dissipated = float(self._dissipated[k] + fs[..., L.FS_WORK].sum()
+                           + sfs[..., L.FS_WORK].sum())
         if self.contact[stepping.CT_OK][k]:
             friction = dict(dissipated=dissipated)
             if fs.shape[0]:
                 friction["friction_samples"] = fs[:, :, :len(self.scenes[k].obstacles)].copy()
+            if sfs.shape[0]:
+                friction["self_friction_samples"] = sfs.copy()
             return shooting_equilibrium(self.contact[stepping.CT_RECORDS][k],
                                         self.contact[stepping.CT_NODES][k].copy(),
                                         self.scenes[k], self.layout, model=problem.model,

@@ -14,7 +14,7 @@ from solver.kernels import planar as planar_kernels
 from solver.kernels import relax as relax_kernels
 from solver.kernels.grid import section_needs
 from solver.kernels.self_contact import far_parts_clear
-from solver.paths.friction import friction_fields, landed, start_samples
+from solver.paths.friction import friction_fields, landed, start_samples, start_self_samples
 from solver.paths.grid import section_rows
 from solver.problem import Problem, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
@@ -76,7 +76,8 @@ def solve_shooting(problem: Problem, shooting: tuple, load_moments: bool,
     plate, target, _, weights, res_weights = shooting_terms(arm, layout, segs, scene, ctx,
                                                             load_moments)
     mu, samples = start_samples(scene, layout, sec_start, warm_start, moving)
-    goal = (p_target, ctx.q, plate, target, scene.discs_array(), mu, samples)
+    rubs = start_self_samples(scene, segs, warm_start)
+    goal = (p_target, ctx.q, plate, target, scene.discs_array(), mu, samples, rubs)
     iterations = 0
     if warm_start is not None and warm_start.scene is not None:
         start_scene = warm_start.scene.without_contact
@@ -101,11 +102,11 @@ def solve_shooting(problem: Problem, shooting: tuple, load_moments: bool,
         if start_discs.shape != goal[L.L_DISCS].shape or np.any(
                 start_discs[:, same:3] != goal[L.L_DISCS][:, same:3]):
             start_discs = goal[L.L_DISCS]
-        start = (p_start, start_ctx.q, start_plate, start_target, start_discs, mu, samples)
+        start = (p_start, start_ctx.q, start_plate, start_target, start_discs, mu, samples, rubs)
     else:
-        nodes, iterations, loaded, samples = _loaded_nodes(arm, layout, segs, sec_start, scene,
-                                                           ctx, settings, load_moments)
-        start = (np.zeros_like(p_target), *goal[1:L.L_FRICTION], samples)
+        nodes, iterations, loaded, samples, rubs = _loaded_nodes(
+            arm, layout, segs, sec_start, scene, ctx, settings, load_moments)
+        start = (np.zeros_like(p_target), *goal[1:L.L_FRICTION], samples, rubs)
         if not loaded:
             grid = shooting_grid(arm, scene, layout, segs, sec_start)
             return _shooting_result(nodes, scene, grid, layout, start, None,
@@ -309,6 +310,7 @@ def shooting_grid(arm, scene, layout, segs, sec_start):
         half = np.array(arm.half_thickness())
         seg_len = segs[:, L.SEG_STEPS] * (layout.sec_len / layout.sec_steps)[segs[:, L.SEG_SECTION]]
         sp[L.SC_K] = scene.self_contact
+        sp[L.SC_MU] = scene.self_friction
         sp[L.SC_EXCLUSION] = max(self_contact_exclusion(half), 2.5 * seg_len.max())
         sp[L.SC_HALF:] = half
     return (scene.base_theta, segs, layout.secf, layout.sec_steps, sec_start, sp)
@@ -345,8 +347,8 @@ def _nodes_from_record(eq, layout, segs, sec_start):
 def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_moments):
     """Stage 1 of a cold multiple-shooting solve (cached per scene): from the straight,
     unloaded, unactuated arm the loads are ramped in with the obstacles in place. Returns a
-    copy of the nodes, the iterations, whether it converged and (a copy of) the friction
-    samples it ends with.
+    copy of the nodes, the iterations, whether it converged and (copies of) the friction
+    samples and self-contact friction samples it ends with.
 
     An obstacle that overlaps the straight arm grows in during the ramp, from the radius at
     which it just touches the arm's axis to its own. Loading a long arm from straight is far
@@ -371,19 +373,21 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
                                         np.hypot(*(discs[:, :2] - along[:, None] * axis).T))
         p0 = np.zeros(max(arm.n_channels, 1))
         mu, samples = start_samples(scene, layout, sec_start, None)
-        start = (p0, np.zeros_like(ctx.q), np.zeros_like(plate), np.zeros(3), grown, mu, samples)
-        goal = (p0, ctx.q, plate, target, discs, mu, samples)
+        rubs = start_self_samples(scene, segs, None)
+        start = (p0, np.zeros_like(ctx.q), np.zeros_like(plate), np.zeros(3), grown, mu, samples,
+                 rubs)
+        goal = (p0, ctx.q, plate, target, discs, mu, samples, rubs)
         grid = shooting_grid(arm, scene, layout, segs, sec_start)
         now = contact_kernels.new_level(goal)
         ok, stable, _, its, _, _, _ = contact_kernels.follow(
             nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal,
             shooting_params(scene, settings, predict_cap=MAX_STEP),
             (np.empty((3, len(arm.sections))), now, weights, res_weights), _NO_GUARD)
-        return nodes, int(its), bool(ok and stable), now[L.L_FRICTION]
+        return nodes, int(its), bool(ok and stable), now[L.L_FRICTION], now[L.L_SELF_FRICTION]
 
-    nodes, its, ok, samples = arm._solver_cache.get(
+    nodes, its, ok, samples, rubs = arm._solver_cache.get(
         ("loaded-nodes", layout.key, scene, load_moments), build)
-    return nodes.copy(), its, ok, samples.copy()
+    return nodes.copy(), its, ok, samples.copy(), rubs.copy()
 
 
 def _shooting_result(nodes, scene, grid, layout, level, warm_start, **fields):
@@ -394,7 +398,8 @@ def _shooting_result(nodes, scene, grid, layout, level, warm_start, **fields):
     out = np.zeros((layout.n_rows, L.C_COLUMNS))
     contact_kernels.record_backbone(nodes, grid, _level_rest(layout, level), level, out)
     return shooting_equilibrium(out, nodes, scene, layout,
-                                **friction_fields(level[L.L_FRICTION], warm_start), **fields)
+                                **friction_fields(level[L.L_FRICTION], warm_start,
+                                                  level[L.L_SELF_FRICTION]), **fields)
 
 
 def shooting_equilibrium(out, nodes, scene, layout, **fields) -> Equilibrium:

@@ -146,26 +146,31 @@ def test_shipped_metadata_records_the_budget_that_was_trained():
         assert budget == meta["timesteps"] >= meta["timesteps_done"], meta["env_id"]
 
 
+def _wrap_v2_run(out: Path, name: str, rate: float, wrap: float, summary: dict) -> None:
+    """A PPO run on OctArmWrap-v2 in a results folder: its main evaluation (success ``rate``,
+    median wrap ``wrap``) and its summary (:func:`_run_summary` updated with ``summary``)."""
+    env_id = "SoftArm/OctArmWrap-v2"
+    (out / "eval").mkdir(parents=True, exist_ok=True)
+    (out / "eval" / f"{name}__main.json").write_text(json.dumps(
+        {"episodes": 50, "cell": "main", "observation": "true", "env_id": env_id,
+         "agent": "ppo:best_model.zip", "median_steps_to_success": 20.0, "mean_estimation_error_m": 0.0,
+         "p5_wrap_angle_deg": 80.0,
+         "agent_name": name, "success_rate": rate, "median_wrap_angle_deg": wrap}))
+    (out / "training" / name).mkdir(parents=True)
+    (out / "training" / name / "summary.json").write_text(json.dumps(
+        {**_run_summary(name, env_id, int(name[-1]), {}), "algo": "ppo", **summary}))
+
+
 def test_batched_runs_get_seed_bands_and_remedies_are_pooled_apart(tmp_path):
     # Saved files only: two seeds of PPO on the batched wrap and one of a remedy in its own YAML
     # folder; the remedy has the same env kwargs but must not be pooled with them.
     out = tmp_path / "results"
-    (out / "eval").mkdir(parents=True)
-    env_id = "SoftArm/OctArmWrap-v2"
-    base = {"episodes": 50, "cell": "main", "observation": "true", "env_id": env_id,
-            "agent": "ppo:best_model.zip", "median_steps_to_success": 20.0, "mean_estimation_error_m": 0.0,
-            "p5_wrap_angle_deg": 80.0}
     runs = {"ppo_OctArmWrap-v2_batched_s0": ("batched", 0.2, 100.0),
             "ppo_OctArmWrap-v2_batched_s1": ("batched", 0.4, 200.0),
             "ppo_OctArmWrap-v2_batched_gsde_s0": ("batched_gsde", 0.9, 300.0)}
     for name, (folder, rate, wrap) in runs.items():
-        (out / "eval" / f"{name}__main.json").write_text(json.dumps(
-            {**base, "agent_name": name, "success_rate": rate, "median_wrap_angle_deg": wrap}))
-        (out / "training" / name).mkdir(parents=True)
-        summary = {**_run_summary(name, env_id, int(name[-1]), {}), "algo": "ppo", "batched": True,
-                   "hyperparams": {"n_envs": 4},
-                   "hyperparams_file": f"baselines/hyperparams/{folder}/ppo.yml"}
-        (out / "training" / name / "summary.json").write_text(json.dumps(summary))
+        _wrap_v2_run(out, name, rate, wrap, {"batched": True, "hyperparams": {"n_envs": 4},
+                                             "hyperparams_file": f"baselines/hyperparams/{folder}/ppo.yml"})
         episodes = pd.DataFrame({"r": np.linspace(0, 50, 40), "l": 200, "t": np.linspace(1, 100, 40),
                                  "is_success": np.arange(40) > 20 + int(name[-1]), "wrap_angle_deg": 90.0})
         episodes["timesteps"] = episodes["l"].cumsum()
@@ -176,3 +181,26 @@ def test_batched_runs_get_seed_bands_and_remedies_are_pooled_apart(tmp_path):
     assert "| **ppo (batched) mean ± std over 2 seeds** | `{}` | | | | | **30 ± 14 %** | 150 | 80 | |" in text
     assert "ppo (batched_gsde) mean" not in text  # one seed: no mean row, and not in the batched mean
     assert "| SoftArm/OctArmWrap-v2 | ppo_OctArmWrap-v2_batched_gsde_s0 | `{}` | 8 | 80,000 |" in text
+
+
+def test_remedies_table_keeps_cloned_and_warm_started_policies_apart_from_their_yaml_folder(tmp_path):
+    # Saved files only: gSDE PPO (2 seeds), BC from planner demonstrations (2 seeds) and a PPO
+    # warm-started from BC (1 seed), all from batched_gsde's YAML: three remedies, not one.
+    out = tmp_path / "results"
+    runs = {"ppo_OctArmWrap-v2_batched_gsde_s0": ({}, 0.9, 240.0),
+            "ppo_OctArmWrap-v2_batched_gsde_s1": ({}, 0.3, 100.0),
+            "bc_OctArmWrap-v2_s0": ({"imitation": {"method": "bc"}}, 0.5, 200.0),
+            "bc_OctArmWrap-v2_s1": ({"imitation": {"method": "bc"}}, 0.7, 220.0),
+            "ppo_OctArmWrap-v2_batched_gsde_bc_s0": ({"init_policy": "runs/bc/final_model.zip"}, 1.0, 250.0)}
+    for name, (extra, rate, wrap) in runs.items():
+        _wrap_v2_run(out, name, rate, wrap, {"hyperparams_file": "baselines/hyperparams/batched_gsde/ppo.yml",
+                                             **extra})
+    text = results.report(out, tmp_path / "RESULTS.md")
+    assert "## Remedies on SoftArm/OctArmWrap-v2" in text
+    assert ("| exploration: gSDE | ppo (batched_gsde) | 2 | 90 % / 30 % | **60 ± 42 %** | 170 "
+            "| 80,000, 80,000 |") in text
+    assert ("| behaviour cloning of planner demonstrations (no RL) | ppo (batched_gsde, bc) | 2 "
+            "| 50 % / 70 % | **60 ± 14 %** | 210 |") in text
+    assert ("| BC warm start, then gSDE PPO | ppo (batched_gsde, from bc) | 1 | 100 % | **100 %** "
+            "| 250 |") in text
+    assert "**ppo (batched_gsde) mean ± std over 2 seeds** | `{}` | | | | | **60 ± 42 %**" in text

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import softarm_gym  # noqa: F401
+from solver import layout as L
 from tests.solver.test_self_contact import far_gap
 
 
@@ -53,7 +54,27 @@ def test_self_contact_keeps_the_curled_arm_out_of_itself():
     ({"self_contact": "yes"}, "self_contact"),
     ({"self_contact": True, "planar": False}, "planar=True"),
     ({"self_contact": True, "model": "constant_curvature"}, "planar=True and model"),
+    ({"self_contact": True, "self_friction": -0.1}, "self_friction"),
+    ({"self_contact": True, "self_friction": float("nan")}, "self_friction"),
+    ({"self_friction": 0.5}, "self_friction = 0.5 needs self_contact"),
 ])
 def test_self_contact_argument_is_checked(kwargs, match):
     with pytest.raises(ValueError, match=match):
         gym.make("SoftArm/OctArmReach-v0", **kwargs)
+
+
+def test_self_friction_reaches_the_scene_and_acts():
+    """``self_friction`` is the scene's (``Scene.self_friction``); the curled arm then presses
+    on itself with friction: its self-contact samples touch and carry impulses. Default 0."""
+    env = gym.make("SoftArm/OctArmReach-v0", self_contact=True, self_friction=0.5,
+                   base_angle_deg=0.0)
+    env.reset(seed=0)
+    action = np.tile(np.array([1.0, -1.0], dtype=np.float32), 3)
+    for _ in range(3):
+        _, _, _, _, info = env.step(action)
+        assert info["converged"]
+    eq = env.unwrapped._stepper.equilibrium
+    assert eq.scene.self_friction == 0.5
+    fs = eq.self_friction_samples
+    assert np.isfinite(fs[..., L.FS_NEW]).any() and np.abs(fs[..., L.FS_F:L.FS_F + 2]).max() > 0.0
+    assert gym.make("SoftArm/OctArmWrap-v2").unwrapped.self_friction == 0.0

@@ -276,7 +276,7 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     from solver import layout as L
     from solver.kernels import contact as contact_kernels
     from solver.kernels import planar as planar_kernels
-    from solver.paths.friction import no_samples
+    from solver.paths.friction import no_samples, start_self_samples
     from solver.paths.shooting import nodes_from_states, shooting_grid
     from solver.problem import context, pack, shooting_layout, shooting_terms
     from solver.rod import rest_strains_into
@@ -297,7 +297,7 @@ def test_multiple_shooting_stability_test_agrees_with_the_planar_one(guess, stab
     nodes = nodes_from_states(out[:, [L.X, L.Y, L.THETA, L.NX, L.NY, L.M]], segs)
     plate, target, state_w, *_ = shooting_terms(arm, layout, segs, scene, ctx, True)
     level = (np.zeros(arm.n_channels), ctx.q, plate, target, np.empty((0, 4)), np.empty(0),
-             no_samples(0))
+             no_samples(0), start_self_samples(scene, segs, None))
     grid = shooting_grid(arm, scene, layout, segs, sec_start)
     F = np.empty(nodes.size)
     J = np.empty((contact_kernels.BAND_ROWS, nodes.size))

@@ -285,7 +285,7 @@ def test_self_contact_tracing_leaves_the_friction_samples_to_the_recording_pass(
     grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
     level = (contact[stepping.CT_P][0], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
              contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][0], contact[stepping.CT_MU][0],
-             contact[stepping.CT_FRICTION][0])
+             contact[stepping.CT_FRICTION][0], contact[stepping.CT_SELF_FRICTION][0])
     fs = level[L.L_FRICTION]
     assert np.any(np.isfinite(fs[..., L.FS_R]))  # samples near the disc
     before = fs.copy()
