@@ -292,6 +292,19 @@ register(
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125)},
 )
 
+# v1 grasp (recommended): sequential and self-contacting (_SEQUENTIAL) and frictional. The
+# arm's rubber on the object has Coulomb μ = 0.7 (rubber on common dry objects lies around
+# μ = 0.5–1; docs/environments.md, "Grasp"): a squeeze holds what the arm would drop
+# frictionless (docs/design.md §14).
+register(
+    id="SoftArm/OctArmGrasp-v1",
+    entry_point="softarm_gym.envs:GraspEnv",
+    max_episode_steps=100,
+    reward_threshold=103.0,
+    kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125),
+            "friction": 0.7, **_SEQUENTIAL},
+)
+
 # Every id, whatever registered it above: gym.make adds GoalAPI outermost, so that the env it
 # returns offers compute_reward with observation_format="goal" (softarm_gym.wrappers).
 _register_goal_api()

@@ -574,7 +574,8 @@ class CEMPlanner(_PressureController):
             task = self.task
             self._object = FreeObject(radius=float(goal[2]), mass_kg=float(np.mean(task.object_mass_range)),
                                       seat=(float(goal[3]), float(goal[4])),
-                                      stiffness=task.contact_stiffness, fork_depth=task.fork_depth)
+                                      stiffness=task.contact_stiffness, fork_depth=task.fork_depth,
+                                      friction=task.friction)
             free = solver.solve(self.arm, pressures, self.scene, planar=True)
             self._nominal = settle(self.arm, pressures, self.scene, self._object, center=goal[:2],
                                    warm_start=free)

@@ -233,6 +233,10 @@ class Grasp:
         turn: with friction, the object's turn ψ over the call (rad, counter-clockwise; 0
             without): the returned arm's anchors are in the turned object's place.
         arm_moment: the arm's moment on the object about its axis (N m; 0 without friction).
+        snapped: with friction, the call passed a snap of the arm (a dynamic event): the arm
+            landed without anchors, the object at the frictionless balance of arm and object,
+            and the anchors formed there (no stick force; docs/design.md §9.1 "Free object").
+            False without friction, whose snaps need no landing.
     """
 
     arm: Equilibrium
@@ -249,6 +253,7 @@ class Grasp:
     solves: int
     turn: float = 0.0
     arm_moment: float = 0.0
+    snapped: bool = False
 
 
 class _Balance:
@@ -276,6 +281,7 @@ class _Balance:
         self.p_inputs, self.p_channel = checked_pressures(arm, pressures, True, self.packed)
         # D: the internal force at the base with no contact (weights and tip force).
         self.dead = context(arm, self.packed, scene, 2, settings).base_force[:2]
+        self.external = f
         self.load = np.array([0.0, -obj.mass_kg * scene.gravity]) + f
         self.counter = [0]  # contact solves, shared with the copies of at()
         self.budget = math.inf
@@ -294,6 +300,14 @@ class _Balance:
         other.p_inputs = p_inputs
         other.p_channel = p_inputs[self.packed.spatial_of_planar]
         other.counter = self.counter
+        return other
+
+    def frictionless(self) -> _Balance:
+        """This balance with the object frictionless (a snap's landing, :func:`_land`); the
+        solve count and budget are shared."""
+        other = _Balance(self.arm, self.p_inputs, self.scene, replace(self.obj, friction=0.0),
+                         self.external, self.model, self.settings)
+        other.counter, other.budget = self.counter, self.budget
         return other
 
     def pose(self, center) -> np.ndarray:
@@ -319,14 +333,8 @@ class _Balance:
             samples = warm.friction_samples.copy()
             turn_anchors(samples, 0, turn)
             warm = replace(warm, friction_samples=samples)
-        eq = dispatch(Problem(self.arm, self.packed, scene, self.model, True, self.settings,
-                              self.p_inputs, self.p_channel, warm), True, moving=True)
-        if self.dim == 3 and eq.snapped:
-            # A snap lands without tangential state (solver.paths.friction.landed): the grip
-            # would be lost to a jump of the pose, not to the object's balance. Not a pose to
-            # take: Newton backtracks to a smaller move.
-            return replace(eq, converged=False)
-        return eq
+        return dispatch(Problem(self.arm, self.packed, scene, self.model, True, self.settings,
+                                self.p_inputs, self.p_channel, warm), True, moving=True)
 
     def _lean_step(self, scene, warm: Equilibrium, turn: float) -> Equilibrium | None:
         """The arm's equilibrium in ``scene`` (the object's disc moved, and turned by ``turn``)
@@ -348,6 +356,11 @@ class _Balance:
         if not report[0]:
             return None
         return rows.equilibrium(1, self.p_inputs, self.p_channel)
+
+    def landing(self, eq: Equilibrium) -> bool:
+        """Whether ``eq`` is a snap with friction: the arm landed without anchors, a state
+        :func:`_land` takes on (not a point of the frictional balance's Newton)."""
+        return self.dim == 3 and eq.converged and eq.snapped
 
     def arm_force(self, eq: Equilibrium) -> np.ndarray:
         """The force of the arm in ``eq`` on the object (N): D − n(0)."""
@@ -405,7 +418,7 @@ class _Balance:
             moved_pose = pose.copy()
             moved_pose[j] += h
             moved = self.arm_at(moved_pose, eq, pose)
-            if moved is None or not moved.converged:
+            if moved is None or not moved.converged or self.landing(moved):
                 return None
             jac[:, j] = (self.arm_part(moved_pose, moved) - arm_g) / h
         return jac
@@ -436,8 +449,13 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
     continuation), until a stable root is near. The same step is taken where Newton's step
     from a fresh Jacobian cuts |G| at no length.
 
+    With friction, where the arm snaps (in ``eq`` or at a trial pose) the step is a snap's
+    landing instead (:func:`_land`).
+
     Returns the :class:`_Pose` reached.
     """
+    if bal.landing(eq):
+        return _land(bal, np.array(pose, dtype=float), eq, 0)
     x = np.array(pose, dtype=float)
     # With friction the arm's state depends on its path: every trial pose is one quasi-static
     # increment from where Newton started (the object moved there at once), not the end of
@@ -482,6 +500,8 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
             trial = x + step
             moved = bal.arm_at(trial, eq, x) if origin is None else bal.arm_at(trial, origin[1],
                                                                                 origin[0])
+            if moved is not None and bal.landing(moved):
+                return _land(bal, trial, moved, it)
             if moved is not None and moved.converged:
                 g_new, f_new, s_new = bal.forces(trial, moved)
                 if shifted or np.abs(g_new).max() < np.abs(g).max():
@@ -512,7 +532,8 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
 class _Pose(NamedTuple):
     """A state of :func:`_settle`: the object's pose (:class:`_Balance`), the arm's
     equilibrium there, the balance G, the arm's force, the supports' reaction, whether G met
-    its tolerance and the Newton iterations spent."""
+    its tolerance, the Newton iterations spent and whether it is a snap's landing
+    (:func:`_land`)."""
 
     pose: np.ndarray
     arm: Equilibrium
@@ -521,9 +542,47 @@ class _Pose(NamedTuple):
     support: np.ndarray
     converged: bool
     iterations: int
+    snapped: bool = False
 
 
-def _result(bal: _Balance, state: _Pose, converged: bool, iterations: int) -> Grasp:
+def _land(bal: _Balance, pose, eq: Equilibrium, iterations: int) -> _Pose:
+    """The landing of a snap with friction: the arm in ``eq`` snapped with the object at
+    ``pose`` (a frictional balance's pose).
+
+    A snap is a dynamic event: the arm lands without anchors, and they form where it comes
+    to rest (docs/design.md §9.1). With fresh anchors no sample sticks, so friction carries
+    nothing at the landing and the resting state is the frictionless balance of the arm and
+    the object: the object's pose is solved frictionless (:func:`_newton` on
+    :meth:`_Balance.frictionless`), then the arm is solved there with the object's friction and
+    no anchors, which form at that state (zero stick force); friction builds from there on the
+    later increments. The object keeps its turn.
+
+    Returns:
+        The :class:`_Pose` of ``bal`` landed on (``snapped``), converged where the frictionless
+        pose solve converged and the balance with the fresh anchors meets its tolerance.
+    """
+    free = bal.frictionless()
+    center = pose[:2]
+    # The landed arm, its anchors dropped, in the frictionless scene.
+    bare = replace(eq, scene=replace(eq.scene, obstacles=(free.obj.disc(center),)),
+                   friction_samples=eq.friction_samples[:0])
+    start = free.arm_at(center, bare, center)
+    state = _Pose(pose, eq, *bal.forces(pose, eq), False, iterations, True)
+    if start is None or not start.converged:
+        return state
+    rest = _newton(free, center, start)
+    iterations += rest.iterations
+    landed = np.append(rest.pose, pose[2:])
+    arm = bal.arm_at(landed, rest.arm, landed) if rest.converged else None
+    if arm is None or not arm.converged:
+        return state._replace(iterations=iterations)
+    g, arm_force, support = bal.forces(landed, arm)
+    return _Pose(landed, arm, g, arm_force, support,
+                 bool(np.abs(g).max() <= bal.tolerance(arm_force)), iterations, True)
+
+
+def _result(bal: _Balance, state: _Pose, converged: bool, iterations: int,
+            snapped: bool) -> Grasp:
     """The :class:`Grasp` of ``state``, with the object's stiffness (more contact solves)."""
     x, eq = state.pose, state.arm
     c = x[:2]
@@ -543,7 +602,7 @@ def _result(bal: _Balance, state: _Pose, converged: bool, iterations: int) -> Gr
                  stiffness=stiffness, stable=stable, iterations=int(iterations),
                  solves=bal.counter[0],
                  turn=float(x[2] / bal.obj.radius) if bal.dim == 3 else 0.0,
-                 arm_moment=bal.arm_moment(c, eq))
+                 arm_moment=bal.arm_moment(c, eq), snapped=bool(snapped))
 
 
 def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=None,
@@ -594,14 +653,16 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
             raise ValueError("warm_start was solved with another number of input pressures")
     bal.budget = int(max_solves)
     iterations = 0
+    snapped = False
     x0 = bal.pose(start)
     try:
         if warm_start is None:
             origin = np.zeros_like(target)
             now = _settle(bal.at(origin), x0, None, fall_back=False)
             iterations += now.iterations
+            snapped = now.snapped
             if not now.converged:
-                return _result(bal, now, False, iterations)
+                return _result(bal, now, False, iterations, snapped)
         else:
             now = _Pose(x0, warm_start, *bal.forces(x0, warm_start), True, 0)
         t, dt, failed = 0.0, 1.0, math.inf
@@ -614,14 +675,15 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
                 # Grow the substep again, but not back to one that failed (a failed substep
                 # costs a Newton's worth of contact solves).
                 now, t, dt = attempt, t_new, min(2.0 * dt, 0.75 * failed)
+                snapped = snapped or attempt.snapped
             elif dt > MIN_SUBSTEP:
                 failed = dt
                 dt *= 0.5
             else:
-                return _result(bal, attempt, False, iterations)
+                return _result(bal, attempt, False, iterations, snapped)
     except _Exhausted:
-        return _result(bal, now, False, iterations)
-    return _result(bal, now, True, iterations)
+        return _result(bal, now, False, iterations, snapped)
+    return _result(bal, now, True, iterations, snapped)
 
 
 def _settle(bal: _Balance, start, warm_start, fall_back: bool) -> _Pose:

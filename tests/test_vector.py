@@ -328,7 +328,7 @@ def test_contact_and_track_ids_register_their_batched_env(env_id, cls):
     assert envs.observation_space.contains(obs)
     assert envs.np_random_seed == (0, 1)
     envs.close()
-    for env_id in ("SoftArm/OctArmWrap3D-v0", "SoftArm/OctArmGrasp-v0"):
+    for env_id in ("SoftArm/OctArmWrap3D-v0", "SoftArm/OctArmGrasp-v0", "SoftArm/OctArmGrasp-v1"):
         assert gym.spec(env_id).vector_entry_point is None
 
 

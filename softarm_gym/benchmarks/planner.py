@@ -3,7 +3,7 @@
 Each ID runs ``episodes`` full episodes of ``gym.make(env_id)`` with the registered defaults,
 episode i seeded with ``first_seed`` + i (default 0), the planner seeded with the same.
 Reported per ID: the success rate (``is_success`` at the last step), the median final
-distance (reach, m), RMS tracking error (track, m) or wrap angle (wrap, deg), the median step
+distance (reach, m), RMS tracking error (track, m) or wrap angle (wrap and grasp, deg), the median step
 at which an episode first succeeds (how sequential the task is), the median wall time per
 episode and per decision that searched (held decisions cost almost nothing)::
 
@@ -134,7 +134,7 @@ def run(ids=None, episodes: int = 20, progress: bool = True, first_seed: int = 0
         rows = [episode(env_id, seed, env_kwargs, **planner_kwargs)
                 for seed in tqdm(seeds, desc=env_id, disable=not progress, file=sys.stderr)]
         firsts = [r["first_success_step"] for r in rows if r["first_success_step"] is not None]
-        measure = ("median_wrap_deg" if "Wrap" in env_id else
+        measure = ("median_wrap_deg" if "Wrap" in env_id or "Grasp" in env_id else
                    "median_tracking_rms_m" if "Track" in env_id else "median_final_distance_m")
         result["ids"][env_id] = {
             "success_rate": float(np.mean([r["success"] for r in rows])),

@@ -4,7 +4,7 @@
 * :class:`WrapEnv` — ``SoftArm/OctArmWrap-v0``, ``SoftArm/CTWrap-v0``.
 * :class:`ObstacleReachEnv` — ``SoftArm/OctArmObstacleReach-v0``, ``SoftArm/CTObstacleReach-v0``.
 * :class:`TrackEnv` — ``SoftArm/OctArmTrack-v0``, ``SoftArm/CTTrack-v0``.
-* :class:`GraspEnv` — ``SoftArm/OctArmGrasp-v0``.
+* :class:`GraspEnv` — ``SoftArm/OctArmGrasp-v1`` (and ``-v0``).
 
 :func:`run_demo_episode` runs a reach episode with a simple model-based controller and saves
 an animation. All share :class:`SoftArmEnv` (arm, warm-started quasi-static stepping, sensing, estimator,

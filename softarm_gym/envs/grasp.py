@@ -1,4 +1,4 @@
-"""Grasp: wrap a free object and lift it out of its support (``SoftArm/OctArmGrasp-v0``)."""
+"""Grasp: wrap a free object and lift it out of its support (``SoftArm/OctArmGrasp-v1``, ``-v0``)."""
 
 from __future__ import annotations
 
@@ -29,14 +29,15 @@ class GraspEnv(WrapEnv):
     them; the arm's base clamp stops it where a tight wrap pulls it up to the base. The task
     is the thesis's whole-arm grasp with its stability requirement (§6.1): lift the object
     out of its support and hold it there, in equilibrium, by the arm alone. Contact is
-    frictionless penalty contact (docs/design.md §9, §14).
+    penalty contact, frictionless by default (``friction`` = 0; v1 registers μ = 0.7, Coulomb
+    friction between the arm and the object: docs/design.md §9.1, §14).
 
     ## Action Space
 
     As WrapEnv: ``Box(-1, 1, (n_inputs,), float32)`` normalised channel pressures,
-    p = (a + 1)/2 · p_max (``absolute``, the registered default) or increments of
-    ``delta_scale`` · p_max (``delta``). Out-of-range values are clipped; NaN or inf raises
-    ``ValueError`` naming the channel.
+    p = (a + 1)/2 · p_max (``absolute``, v0's default) or increments of
+    ``delta_scale`` · p_max (``delta``, v1's default, ``delta_scale`` = 0.1). Out-of-range
+    values are clipped; NaN or inf raises ``ValueError`` naming the channel.
 
     ## Observation Space
 
@@ -66,7 +67,7 @@ class GraspEnv(WrapEnv):
 
     ## Episode End
 
-    Truncated at ``max_episode_steps`` (registered default 200) or after
+    Truncated at ``max_episode_steps`` (registered default 100) or after
     ``max_solver_failures`` consecutive unconverged steps: a step whose path the solver could
     not follow to its end keeps the previous state (arm and object). Terminated on success
     only with ``terminate_on_success=True``.
@@ -93,7 +94,14 @@ class GraspEnv(WrapEnv):
 
     ## Version History
 
-    * v0: initial version (the OctArmWrap-v1 geometry, 0.2–0.4 kg, 2 cm forks).
+    * v0: initial version (the OctArmWrap-v1 geometry, 0.2–0.4 kg, 2 cm forks; frictionless,
+      absolute actions, no self-contact). Kept; ``gym.make`` notes that v1 exists.
+    * v1 (recommended): sequential, self-contacting and frictional — ``self_contact=True``
+      (the arm presses on itself instead of closing a wrap through its own base), delta
+      actions (``action_mode="delta"``, ``delta_scale=0.1``: at most 10 % of p_max per channel
+      per step) and ``friction=0.7`` (Coulomb μ between the arm's rubber and the object; rubber
+      on common dry objects lies around 0.5–1). v0's objects, forks and success rule otherwise
+      (docs/environments.md, "Grasp").
     """
 
     def __init__(self, design="octarm_v", *, object_mass_kg=(0.2, 0.4), fork_depth: float = 0.02,
@@ -173,7 +181,7 @@ class GraspEnv(WrapEnv):
         unconverged step keeps both where they were."""
         g = settle(self._sim_arm, pressures, self._free_scene, self._object,
                    center=self._grasp.center, warm_start=self._grasp.arm, model=self.model)
-        report = solver.StepReport(g.converged, g.stable, g.arm.snapped, g.solves,
+        report = solver.StepReport(g.converged, g.stable, g.arm.snapped or g.snapped, g.solves,
                                    g.arm.residual if g.converged else g.residual)
         if not g.converged:
             return report, False

@@ -37,7 +37,9 @@ def test_every_warmup_case_belongs_to_a_group_and_every_env_group_has_cases():
 def test_warmup_builds_out_of_date_ids_without_a_deprecation_warning():
     assert is_deprecated("SoftArm/OctArmReach-v0")
     assert latest("SoftArm/OctArmReach-v0") == "SoftArm/OctArmReach-v1"
-    assert not is_deprecated("SoftArm/OctArmGrasp-v0")
+    assert is_deprecated("SoftArm/OctArmGrasp-v0")
+    assert latest("SoftArm/OctArmGrasp-v0") == "SoftArm/OctArmGrasp-v1"
+    assert not is_deprecated("SoftArm/OctArmGrasp-v1")
     assert "SoftArm/OctArmReach-v1" in recommended_ids() and "SoftArm/OctArmReach-v0" not in recommended_ids()
     with warnings.catch_warnings():
         warnings.simplefilter("error")

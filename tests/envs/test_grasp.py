@@ -109,3 +109,26 @@ def test_resting_object_is_not_held_and_sinks_by_its_weight():
 def test_bad_arguments_are_refused(kwargs, match):
     with pytest.raises(ValueError, match=match):
         gym.make(ENV_ID, **kwargs)
+
+
+def test_v1_is_sequential_self_contacting_and_frictional_and_its_planner_knows_it():
+    """OctArmGrasp-v1 registers v0's task with the recommended versions' physics (self-contact,
+    delta actions at 10 % of p_max) and μ = 0.7 between arm and object; the planner's model
+    object carries the env's μ (a frictionless model would plan cups a frictional arm does
+    not make)."""
+    from softarm_gym.controllers import CEMPlanner
+
+    env = gym.make("SoftArm/OctArmGrasp-v1")
+    base = env.unwrapped
+    assert base.friction == 0.7 and base.self_contact > 0
+    assert base.action_mode == "delta" and base.delta_scale == 0.1
+    v0 = gym.make(ENV_ID).unwrapped
+    assert v0.friction == 0.0 and v0.self_contact is None and v0.action_mode == "absolute"
+    assert (base.object_mass_range, base.fork_depth, base.success_lift) == \
+        (v0.object_mass_range, v0.fork_depth, v0.success_lift)
+    obs, info = env.reset(seed=0)
+    assert info["object_mass_kg"] > 0
+    planner = CEMPlanner(env, seed=0)
+    planner._track(obs, 0.5 * (obs[planner._slices["pressures"]] + 1.0))
+    assert planner._object.friction == 0.7
+    env.close()

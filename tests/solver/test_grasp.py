@@ -8,6 +8,7 @@ import pytest
 from scipy.interpolate import CubicSpline
 
 import solver
+from solver import layout as L
 from solver.grasp import FreeObject, grasp_margin, settle
 
 ARM = solver.designs.octarm_v()
@@ -64,15 +65,21 @@ def test_held_object_is_in_equilibrium_by_an_independent_force_sum(held):
     # The arm's force on the object summed along the backbone — the penalty law applied to a
     # spline through the recorded samples, on a fine grid — not read off the arm's base
     # balance as the solver does.
+    np.testing.assert_allclose(_penalty_force(g, obj), -weight, atol=0.005 * weight[1] * -1)
+    assert math.degrees(solver_wrap(g.arm.positions, g.center, obj.radius)) > 270
+
+
+def _penalty_force(g, obj):
+    """(2,) the arm's normal force on the object of ``g`` (N), summed independently of the
+    solver's base reaction: the penalty law applied to a spline through the recorded backbone,
+    on a fine grid."""
     eq = g.arm
     distinct = np.concatenate([[True], np.diff(eq.s) > 0])  # section ends are sampled twice
     s = np.linspace(0.0, eq.s[-1], 100_001)
     rel = CubicSpline(eq.s[distinct], eq.positions[distinct])(s) - g.center
     dist = np.hypot(rel[:, 0], rel[:, 1])
     per_length = (obj.stiffness * np.maximum(obj.radius - dist, 0.0) / dist)[:, None] * rel
-    summed = -np.trapezoid(per_length, s, axis=0)
-    np.testing.assert_allclose(summed, -weight, atol=0.005 * weight[1] * -1)
-    assert math.degrees(solver_wrap(eq.positions, g.center, obj.radius)) > 270
+    return -np.trapezoid(per_length, s, axis=0)
 
 
 def solver_wrap(positions, center, radius, margin=0.005):
@@ -231,3 +238,103 @@ def test_a_wrap_past_270_degrees_holds_against_an_upward_push_and_a_cup_does_not
     assert math.degrees(solver_wrap(wrap.arm.positions, wrap.center, obj.radius)) > 270
     assert not held_under(cup, 1.1 * weight)
     assert held_under(wrap, 2.0 * weight)
+
+
+def _load(obj, g, masses):
+    """Load the held object of ``g`` through ``masses`` (kg), each settled from the last at the
+    same pressures; the states, stopping at the first that is not held."""
+    states = []
+    for m in masses:
+        g = settle(ARM, g.arm.pressures, solver.Scene(base_angle_deg=180.0),
+                   replace(obj, mass_kg=float(m)), center=g.center, warm_start=g.arm)
+        states.append(g)
+        if not (g.converged and g.held):
+            break
+    return states
+
+
+def test_friction_holds_what_the_same_arm_cannot_hold_frictionless():
+    """A hold by squeeze and friction (docs/design.md §14). OctArm V mounted upright (base 180°)
+    arches over a 13.9 cm cylinder: channel I of section 1 at 20 % of p_max, channel II of
+    sections 2–3 closed from 65 % to 80 % round it (held in place), then freed with 50 g and
+    loaded in 5 g steps at the same pressures. The arch touches the object at its right side and
+    its lower left: a wedge that holds a light object frictionless (the lower-left patch's
+    normals point up), but drops it onto its seat before 0.2 kg. With μ = 0.7 the same arm holds
+    0.2 kg: the squeeze between the two patches carries the rest by friction. Checked
+    independently of the solver's base reaction: the penalty law summed on a spline through the
+    backbone (normal) plus the friction samples' impulses (tangential) carry the weight, and the
+    normal part alone carries less than the frictionless capacity."""
+    center, scene = (-0.18, 0.105), solver.Scene(base_angle_deg=180.0)
+    obj = FreeObject(radius=0.139 + HALF, mass_kg=0.05, seat=(center[0], center[1] - 0.3),
+                     stiffness=STIFFNESS)
+    p = np.zeros(ARM.n_inputs(True))
+    p[0], p[[3, 5]] = 0.2 * ARM.max_pressure, 0.65 * ARM.max_pressure
+    fixed = solver.Scene(base_angle_deg=180.0, obstacles=(obj.disc(center),))
+    eq = solver.solve(ARM, p, fixed, warm_start=solver.solve(ARM, p, scene))
+    closed = p.copy()
+    closed[[3, 5]] = 0.8 * ARM.max_pressure
+    for fraction in np.linspace(0.1, 1.0, 10):
+        eq = solver.solve(ARM, p + fraction * (closed - p), fixed, warm_start=eq)
+    p = closed
+    start = settle(ARM, p, scene, obj, center=center, warm_start=eq)
+    assert start.converged and start.held and start.lift > 0.25
+    masses = np.round(np.arange(0.055, 0.2001, 0.005), 3)
+
+    frictionless = _load(obj, start, masses)
+    dropped = frictionless[-1]
+    assert dropped.converged and not dropped.held and abs(dropped.lift) < 1e-3  # on its seat
+    capacity = masses[len(frictionless) - 2]  # the heaviest it held
+    assert 0.1 <= capacity < 0.15
+
+    # With friction: first settled at 50 g, where its anchors form, then loaded the same way.
+    gripped = _load(replace(obj, friction=0.7), start, np.r_[0.05, masses])
+    assert len(gripped) == len(masses) + 1
+    g = gripped[-1]
+    assert g.converged and g.held and g.stable and g.lift > 0.25
+    weight = 0.2 * scene.gravity
+    normal = _penalty_force(g, obj)
+    fs = g.arm.friction_samples[:, :, 0]
+    tangential = -np.array([np.nansum(fs[..., L.FS_F]), np.nansum(fs[..., L.FS_F + 1])])
+    np.testing.assert_allclose(normal + tangential, [0.0, weight], atol=0.005 * weight)
+    assert normal[1] < capacity * scene.gravity < weight
+    assert tangential[1] > 0.3 * weight
+
+
+def test_a_snap_round_a_frictional_object_lands_at_the_frictionless_balance_with_fresh_anchors():
+    """A snap with friction is a landing (docs/design.md §9.1 "Free object"): the arm lands
+    without anchors, so friction carries nothing there and arm and object rest at their
+    frictionless balance; the anchors form at that state. The closing step of OctArmGrasp-v1's
+    scripted curl (seed 1, figures rounded): OctArm V, self-contact, a 0.37 kg cylinder on its
+    forks, μ = 0.7, channel I of every section raised by 69 kPa a step. The wrap cups the object
+    at 52° and then snaps shut over it: the step converges, reports the snap, closes the wrap
+    past 240° and lifts the object 7 cm, with no stick force in any friction sample; the object's
+    balance checked independently (the penalty law summed on a spline through the backbone).
+    Friction then builds again on the next increment."""
+    scene = solver.Scene(self_contact=STIFFNESS)
+    obj = FreeObject(radius=0.1463, mass_kg=0.3655, seat=(-0.1559, -0.0812), stiffness=STIFFNESS,
+                     friction=0.7)
+    start = np.array([35.29, 65.53, 9.94, 65.41, 21.5, 29.19]) * 1e3
+    g = settle(ARM, start, scene, obj)
+    assert g.converged and not g.snapped
+    for k in range(9):
+        p = np.zeros(ARM.n_inputs(True))
+        p[0::2] = start[0::2] + 69e3 * (k + 1)
+        before, g = g, settle(ARM, p, scene, obj, center=g.center, warm_start=g.arm)
+        assert g.converged
+        if g.snapped:
+            break
+    assert k == 8  # the step that closes the wrap
+    assert math.degrees(solver_wrap(before.arm.positions, before.center, obj.radius)) < 60
+    assert math.degrees(solver_wrap(g.arm.positions, g.center, obj.radius)) > 240
+    assert g.lift > 0.07 and g.lift - before.lift > 0.05
+    fs = g.arm.friction_samples[:, :, 0]
+    assert fs.shape[0] and np.nanmax(np.abs(fs[..., L.FS_F:L.FS_F + 3])) == 0.0  # fresh anchors
+    assert g.arm_moment == 0.0
+    weight = np.array([0.0, -obj.mass_kg * scene.gravity])
+    np.testing.assert_allclose(_penalty_force(g, obj) + g.support_force + weight, [0.0, 0.0],
+                               atol=0.005 * -weight[1])
+    # The next increment (the pressures backed off a little) sticks: friction carries load.
+    later = settle(ARM, 0.95 * p, scene, obj, center=g.center, warm_start=g.arm)
+    assert later.converged and not later.snapped
+    fs = later.arm.friction_samples[:, :, 0]
+    assert np.nanmax(np.abs(fs[..., L.FS_F:L.FS_F + 3])) > 0.0
