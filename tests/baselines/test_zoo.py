@@ -21,7 +21,11 @@ def test_yaml_budget_is_the_step_count_of_the_reported_run(summary):
     folder = RESULTS.parents[2] / Path(run["hyperparams_file"]).parent if "hyperparams_file" in run \
         else HYPERPARAMS_DIR
     params = load_hyperparams(run["algo"], run["env_id"], folder)
-    if run.get("time_limit_min") and run["timesteps_done"] < params["n_timesteps"]:
+    if "imitation" in run:
+        # Cloned from demonstrations (baselines.imitate): no RL budget; its steps are the
+        # demonstrations' (observation, action) pairs.
+        assert run["timesteps_done"] == run["imitation"]["samples"]
+    elif run.get("time_limit_min") and run["timesteps_done"] < params["n_timesteps"]:
         # Stopped by its wall-clock cap short of the budget (RESULTS.md gives its steps): it did
         # use the whole cap.
         assert run["wall_time_s"] >= 60 * run["time_limit_min"]
