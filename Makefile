@@ -7,7 +7,7 @@ VENV   ?= .venv
 BIN     = $(VENV)/bin
 STAMP   = $(VENV)/.installed
 
-.PHONY: demo test docs lint bench clean
+.PHONY: demo test test-long docs lint bench clean
 
 $(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,10 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/softarm warmup --quiet
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25
+
+# Oracles that take minutes each (pytest marker long_oracle; .ci/run runs them after make test).
+test-long: $(STAMP)
+	$(BIN)/python -m pytest -q -m long_oracle tests
 
 docs: $(STAMP)
 	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html

@@ -122,6 +122,7 @@ def test_dissipation_in_3d_is_never_negative_and_grows_along_a_path():
 # ---------------------------------------------------------------------------- the capstan
 
 
+@pytest.mark.long_oracle  # ~10 min on the loaded 2-core machine: .ci/run runs it after make test
 @pytest.mark.parametrize("theta_deg, mu", [(90.0, 0.3)])
 def test_capstan_round_a_tilted_drum(theta_deg, mu):
     """The belt wrapped θ round a drum whose axis leaves the base plane by 30°, by warm
