@@ -38,15 +38,21 @@ def test_self_contact_keeps_the_curled_arm_out_of_itself():
     env's arm stops on itself (the overlap is the penalty's give), without it passes through."""
     gaps = {}
     for self_contact in (False, True):
-        env = gym.make("SoftArm/OctArmReach-v0", self_contact=self_contact, base_angle_deg=0.0)
-        env.reset(seed=0)
-        action = np.tile(np.array([1.0, -1.0], dtype=np.float32), 3)
-        for _ in range(3):
-            _, _, _, _, info = env.step(action)
-            assert info["converged"]
-        eq = env.unwrapped._stepper.equilibrium
+        env, eq = _curled(self_contact=self_contact)
         gaps[self_contact] = far_gap(eq, env.unwrapped.arm)
     assert gaps[False] < -0.02 and -0.005 < gaps[True] < 0.0
+
+
+def _curled(**kwargs):
+    """OctArmReach-v0 (base horizontal) curled past a full turn by three full-pressure steps of
+    channel I: the env and its equilibrium; every step converged."""
+    env = gym.make("SoftArm/OctArmReach-v0", base_angle_deg=0.0, **kwargs)
+    env.reset(seed=0)
+    action = np.tile(np.array([1.0, -1.0], dtype=np.float32), 3)
+    for _ in range(3):
+        _, _, _, _, info = env.step(action)
+        assert info["converged"]
+    return env, env.unwrapped._stepper.equilibrium
 
 
 @pytest.mark.parametrize("kwargs, match", [
@@ -66,14 +72,7 @@ def test_self_contact_argument_is_checked(kwargs, match):
 def test_self_friction_reaches_the_scene_and_acts():
     """``self_friction`` is the scene's (``Scene.self_friction``); the curled arm then presses
     on itself with friction: its self-contact samples touch and carry impulses. Default 0."""
-    env = gym.make("SoftArm/OctArmReach-v0", self_contact=True, self_friction=0.5,
-                   base_angle_deg=0.0)
-    env.reset(seed=0)
-    action = np.tile(np.array([1.0, -1.0], dtype=np.float32), 3)
-    for _ in range(3):
-        _, _, _, _, info = env.step(action)
-        assert info["converged"]
-    eq = env.unwrapped._stepper.equilibrium
+    _, eq = _curled(self_contact=True, self_friction=0.5)
     assert eq.scene.self_friction == 0.5
     fs = eq.self_friction_samples
     assert np.isfinite(fs[..., L.FS_NEW]).any() and np.abs(fs[..., L.FS_F:L.FS_F + 2]).max() > 0.0
