@@ -547,13 +547,14 @@ class CEMPlanner(_PressureController):
             free = solver.solve(self.arm, fraction * self.p_max, self.scene, planar=self.planar) \
                 if scene.obstacles else None
             self._nominal.reset(fraction * self.p_max, warm_start=free)
-            if self.contact and self._nominal.lean_contact:
-                # Every candidate a row of one contact batch in the episode's scene.
+            if self.contact and self.planar and self._nominal.lean_contact:
+                # Every candidate a row of one contact batch in the episode's scene (BatchStepper
+                # is planar; a 3D Stepper's lean contact path is SpatialContactRows).
                 self._batch = solver.BatchStepper(self.arm, scene, self._rows,
                                                   max_obstacles=len(scene.obstacles))
                 self._measures = np.zeros((self._rows, 2))  # penetration, contact force per row
             elif self.contact:
-                # 3D or rigid contact (no lean contact step): one stepper steps them in turn.
+                # 3D or rigid contact (no batched contact step): one stepper steps them in turn.
                 self._batch = None
                 self._rollout = solver.Stepper(self.arm, scene, planar=self.planar)
         elif np.any(self._nominal.pressures != fraction * self.p_max):

@@ -91,6 +91,23 @@ def test_curl_controller_curls_towards_the_cylinder_in_3d():
     assert info["wrap_angle_deg"] == 0.0
 
 
+@pytest.mark.parametrize("env_id", ["SoftArm/OctArmWrap3D-v0", "SoftArm/OctArmWrap3D-v1"])
+def test_planner_rolls_3d_wrap_candidates_through_a_3d_stepper(env_id):
+    """A 3D wrap's Stepper takes the lean 3D contact path (with and without friction), but the
+    contact batch is planar: the planner rolls the candidates through one 3D Stepper instead
+    (it built a planar BatchStepper for the cylinder and raised)."""
+    env = gym.make(env_id)
+    planner = CEMPlanner(env, seed=0)
+    obs, _ = env.reset(seed=0)
+    for _ in range(2):
+        action = planner.act(obs)
+        assert env.action_space.contains(action)
+        obs, _, _, _, info = env.step(action)
+        assert info["converged"]
+    assert planner._nominal.lean_contact and planner._batch is None
+    assert planner._rollout.planar is False
+
+
 def test_curl_controller_holds_after_a_rejected_command():
     env = gym.make("SoftArm/OctArmWrap-v0")
     ctrl = CurlController(env, ramp_steps=4)
