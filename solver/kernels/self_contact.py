@@ -112,6 +112,11 @@ ONSET = 5e-4
 SUBPOINTS = 8
 
 
+END_TAU = 1e-9
+"""A self-contact friction anchor this close (a fraction of its piece) to the arm's base or
+tip lies at that end (:func:`_rub`): its slip is measured along the contact tangent."""
+
+
 @njit
 def self_contact_on(grid) -> bool:
     """Whether the layout tuple ``grid`` asks for self-contact."""
@@ -610,7 +615,8 @@ def _rub(x, y, ux, uy, pen, h_own, dist, w, share, seg, j, piece, tau, k, mu, gr
 
     The sample's anchor is the partner's material point it sticks to, by its reference arc
     length a; its slip d = t·(r − r'(a)) is the point's tangential displacement relative to
-    that material point (t = (−u_y, u_x)); the obstacles' return mapping
+    that material point (t the partner's unit backbone tangent at a, in the sense of the
+    contact tangent (−u_y, u_x)); the obstacles' return mapping
     (:func:`solver.kernels.obstacles.return_mapping`) with the law's stiffness k and the cone
     μ·g(pen), g(pen) = the normal force per length over k (the law's onset included), gives
     the force per length f_t along t. Half of it, f_t·w/2 (each pair is counted from both
@@ -633,6 +639,19 @@ def _rub(x, y, ux, uy, pen, h_own, dist, w, share, seg, j, piece, tau, k, mu, gr
     if not fresh:
         a_piece, a_tau = _at_arc(pts, segs, anchor)
         p = _curve(pts, segs, a_piece, a_tau)
+        if not ((a_piece == 0 and a_tau <= END_TAU)
+                or (a_piece == segs.shape[0] - 1 and a_tau >= 1.0 - END_TAU)):
+            # Anchored on the partner's side: the slip along its backbone tangent there, in
+            # the contact tangent's sense — within an increment (the anchor fixed) a smooth
+            # function of the nodes. The contact tangent turns with the nearest point, which
+            # jumps where it crosses a kink of the traced backbone, and across the parts'
+            # distance (~7 cm on OctArm V) that jumped the slip by more than the cone's
+            # width: a residual without a root, where Newton stalled (docs/design.md §9.1).
+            # (At an end, which the contact wraps round, the contact tangent stays.)
+            size = math.hypot(p[2], p[3])
+            sense = 1.0 if p[2] * tx + p[3] * ty >= 0.0 else -1.0
+            tx = sense * p[2] / size
+            ty = sense * p[3] / size
         dd = tx * (x - p[0]) + ty * (y - p[1])
     cap = mu * (0.5 * pen * pen / ONSET if pen < ONSET else pen - 0.5 * ONSET)
     ft, slip, sg = return_mapping(dd, cap, k)
