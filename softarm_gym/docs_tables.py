@@ -291,6 +291,18 @@ def friction_table() -> str:
             f"increment, load average {m['load_before'][0]:.1f} before and {m['load_after'][0]:.1f} after.")
 
 
+def friction_3d_table() -> str:
+    """Coulomb friction's time against error on the 3D oracles' paths, the oblique stylus and
+    the capstan round a tilted drum (``docs/bench/friction_3d.json``, as ``softarm bench
+    --friction --3d`` prints it)."""
+    from softarm_gym.benchmarks.friction_bench import format_table_3d
+
+    friction = _json("friction_3d.json")
+    m = friction["measured"]
+    return (f"{format_table_3d(friction)}\n\n`{m['command']}`, {m['date']}, one timing per "
+            f"increment, load average {m['load_before'][0]:.1f} before and {m['load_after'][0]:.1f} after.")
+
+
 def env_table() -> str:
     """Single and vector env steps/s per (id, observation) (``docs/bench/envs.json``)."""
     envs = _json("envs.json")
@@ -423,7 +435,7 @@ def fresh_machine_table() -> str:
 
 
 SECTIONS = {"ids_table": ids_table, "headline_table": headline_table, "solver_table": solver_table,
-            "friction_table": friction_table,
+            "friction_table": friction_table, "friction_3d_table": friction_3d_table,
             "thresholds_table": thresholds_table,
             "env_table": env_table, "contact_table": contact_table,
             "first_episode_table": first_episode_table,

@@ -153,6 +153,11 @@ def test_bench_output_into_a_missing_directory_fails_before_measuring(capsys, tm
                    "does not exist")
 
 
+def test_bench_3d_rows_are_an_option_of_the_friction_bench(capsys):
+    assert "--3d" in _help("bench")
+    _fails_cleanly(capsys, ["bench", "--3d"], "--3d only applies to --friction")
+
+
 def _help(command):
     from softarm_gym.cli import build_parser
 

@@ -342,6 +342,151 @@ def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN
     return rows
 
 
+# --------------------------------------------------------------------------- the 3D rows
+
+CAPSTAN_3D_CASES = ((90.0, 0.3), (180.0, 0.3))
+"""(θ in degrees, μ) of the 3D benchmark's capstan rows (the tilted drum, :func:`drum_scene_3d`)."""
+
+STYLUS_PULLS = tuple(np.linspace(0.0, 2.0, 21))
+"""The 3D slip path's pulls, as multiples of μ × STYLUS_PRESS (``tests/solver/test_friction_3d.py``'s)."""
+
+STYLUS_STEPS_SWEEP = (16, 64, STYLUS_STEPS)
+"""RK4 steps per section of the 3D benchmark's slip rows."""
+
+
+def solves_3d(cases=CAPSTAN_3D_CASES, steps=STYLUS_STEPS_SWEEP, degrees_per_step: float = 10.0) -> int:
+    """How many solves :func:`run_3d` takes for these rows (a progress bar's total)."""
+    wraps = sum(1 + max(4, round(theta / degrees_per_step)) for theta, _ in cases)
+    return wraps + len(cases) * (CAPSTAN_PULLS - 1) + len(steps) * (1 + len(STYLUS_PULLS))
+
+
+def stylus_3d(steps: int = STYLUS_STEPS, mu: float = SLIP_FRICTION, tick=None) -> dict:
+    """One 3D slip-threshold row: the stylus pressed on the flat and pulled out of the base
+    plane from 0 to 2 μN (:data:`STYLUS_PULLS`), one timed warm 3D solve a pull, at ``steps``
+    RK4 steps per section; ``tick`` (or None) is called after every solve.
+
+    Returns:
+        The row: ``relative_error`` the largest ||F|/μN − 1| over the pulls past 1.2 μN
+        (sliding), ``max_friction_over_mu_normal`` the most friction held along the path,
+        ``worst_cos_to_sliding`` the largest cosine between the friction and the tip's
+        sliding while it slides (−1: anti-parallel), the warm solves' times and the share of
+        solves converged and stable.
+    """
+    tick = tick or (lambda: None)
+    settings = solver.Settings(steps_per_section=steps)
+    arm = stylus()
+    eq = solver.solve(arm, [], stylus_scene(mu, 0.0), planar=False, settings=settings)
+    tick()
+    ok, times, sliding, held, cosines = [eq.converged and eq.stable], [], [], [], []
+    for t in STYLUS_PULLS:
+        before = eq
+        start = time.perf_counter()
+        eq = solver.solve(arm, [], stylus_scene(mu, t * mu * STYLUS_PRESS), planar=False,
+                          warm_start=before, settings=settings)
+        times.append(time.perf_counter() - start)
+        tick()
+        ok.append(eq.converged and eq.stable)
+        friction, normal = stylus_forces(eq)
+        size = float(np.linalg.norm(friction))
+        held.append(size / (mu * normal))
+        if t * STYLUS_PRESS > 1.2 * normal:
+            slide = eq.tip - before.tip
+            sliding.append(abs(size / (mu * normal) - 1.0))
+            cosines.append(float(friction @ slide / (size * np.linalg.norm(slide))))
+    return {"mu": mu, "steps_per_section": steps, "relative_error": max(sliding),
+            "max_friction_over_mu_normal": max(held), "worst_cos_to_sliding": max(cosines),
+            **_summary(times, ok)}
+
+
+def capstan_3d(theta_deg: float, mu: float, degrees_per_step: float = 10.0, tick=None) -> dict:
+    """One 3D capstan row: the belt wrapped ``theta_deg`` round the tilted drum by warm 3D
+    solves (:func:`wrap_belt_3d`, the pull turned ``degrees_per_step`` a solve), then pulled
+    past slip with friction ``mu``, one timed warm 3D solve a pull; ``tick`` (or None) is
+    called after every solve.
+
+    Returns:
+        The row as :func:`capstan`'s (T₂ = |n(0)|), with ``wrap_seconds`` the wrapping's time.
+    """
+    tick = tick or (lambda: None)
+    theta = math.radians(theta_deg)
+    t0, pulls = capstan_pulls(theta, mu)
+    arm = belt(theta)
+    start = time.perf_counter()
+    path = [solver.solve(arm, [], drum_scene_3d(0.0, t0, 0.0), planar=False)]
+    tick()
+    for direction in np.linspace(0.0, theta, max(4, round(theta_deg / degrees_per_step)) + 1)[1:]:
+        path.append(solver.solve(arm, [], drum_scene_3d(direction, t0, 0.0), planar=False,
+                                 warm_start=path[-1]))
+        tick()
+    wrap_seconds = time.perf_counter() - start
+    ok = [eq.converged and eq.stable for eq in path]
+    eq, times, ratios = path[-1], [], []
+    for t1 in pulls:
+        start = time.perf_counter()
+        eq = solver.solve(arm, [], drum_scene_3d(theta, t1, mu), planar=False, warm_start=eq)
+        times.append(time.perf_counter() - start)
+        tick()
+        ok.append(eq.converged and eq.stable)
+        ratios.append(t1 / belt_tension(eq))
+    expected = math.exp(mu * theta)
+    return {"theta_deg": theta_deg, "mu": mu, "tilt_deg": TILT_DEG, "capstan": expected,
+            "ratio": ratios[-1], "relative_error": abs(ratios[-1] / expected - 1.0),
+            "max_ratio_over_capstan": max(ratios) / expected, "slipped": belt_tension(eq) > 1.1 * t0,
+            "wrap_seconds": wrap_seconds, **_summary(times, ok)}
+
+
+def run_3d(cases=CAPSTAN_3D_CASES, steps=STYLUS_STEPS_SWEEP, progress=None, tick=None) -> dict:
+    """The 3D friction benchmark (``softarm bench --friction --3d``): the oblique stylus's
+    slip threshold at every resolution of ``steps``, then every capstan case of ``cases``
+    round the tilted drum (minutes each: the 3D contact solves of a belt whose contact
+    grid is ~1,000 RK4 steps).
+
+    Args:
+        cases: (θ in degrees, μ) of the capstan rows.
+        steps: RK4 steps per section of the slip rows.
+        progress: called with a line per row (or None).
+        tick: called after every solve (or None): :func:`solves_3d` of the same rows in all.
+
+    Returns:
+        A JSON-able dict: ``capstan_3d`` and ``slip_3d`` rows (:func:`capstan_3d`,
+        :func:`stylus_3d`) and ``measured`` (UTC date, load average before and after).
+    """
+    say = progress or (lambda *_: None)
+    load_before = os.getloadavg()
+    rows = {"slip_3d": [], "capstan_3d": []}
+    for n in steps:
+        rows["slip_3d"].append(stylus_3d(n, SLIP_FRICTION, tick))
+        say(f"3D slip μ={SLIP_FRICTION:g}, {n} steps/section")
+    for theta_deg, mu in cases:
+        rows["capstan_3d"].append(capstan_3d(theta_deg, mu, tick=tick))
+        say(f"3D capstan {theta_deg:g}° μ={mu:g}, drum tilted {TILT_DEG:g}°")
+    rows["measured"] = {"date": datetime.now(timezone.utc).strftime("%Y-%m-%d"), "repeat": 1,
+                        "load_before": list(load_before), "load_after": list(os.getloadavg())}
+    return rows
+
+
+def format_table_3d(result: dict) -> str:
+    """The Markdown tables of a :func:`run_3d` result."""
+    lines = ["| 3D capstan θ | μ | drum tilt | T₁/T₂ | e^{μθ} | relative error | most held / e^{μθ} "
+             "| wrapping (s) | warm solve (s, median) | path (s) | converged |", "|---" * 11 + "|"]
+    for r in result["capstan_3d"]:
+        slipped = "" if r["slipped"] else " (did not slip)"
+        lines.append(f"| {r['theta_deg']:g}° | {r['mu']:g} | {r['tilt_deg']:g}° | {r['ratio']:.4g} | "
+                     f"{r['capstan']:.4g} | {r['relative_error']:.1e}{slipped} | "
+                     f"{r['max_ratio_over_capstan']:.4f} | {r['wrap_seconds']:.0f} | "
+                     f"{r['median_solve_ms'] / 1e3:.2f} | {r['path_seconds']:.1f} | "
+                     f"{r['converged_fraction']:.0%} |")
+    lines += ["", "| 3D slip threshold μ | RK4 steps/section | sliding: max \\|\\|F\\|/μN − 1\\| "
+              "| most held \\|F\\|/μN | worst cos(F, sliding) | warm solve (ms, median) | path (s) "
+              "| converged |", "|---" * 8 + "|"]
+    for r in result["slip_3d"]:
+        lines.append(f"| {r['mu']:g} | {r['steps_per_section']} | {r['relative_error']:.1e} | "
+                     f"{r['max_friction_over_mu_normal']:.4f} | {r['worst_cos_to_sliding']:.5f} | "
+                     f"{r['median_solve_ms']:.1f} | {r['path_seconds']:.2f} | "
+                     f"{r['converged_fraction']:.0%} |")
+    return "\n".join(lines)
+
+
 def format_table(result: dict) -> str:
     """The Markdown tables of a :func:`run` result."""
     lines = ["| capstan θ | μ | drum k (N/m²) | RK4 steps/section | T₁/T₂ | e^{μθ} | relative error "

@@ -11,7 +11,9 @@ reach env by size, and the batched wrap and obstacle-reach envs beside it at 102
 cache). ``--fit`` times the calibration (``softarm fit``) at the thesis's experiment size,
 beside one batch of its solves, and tabulates parameter error against noise level
 (docs/bench/fit.json). ``--friction`` times the friction oracles' load paths (capstan, slip
-threshold) at several RK4 resolutions against their closed forms (docs/bench/friction.json).
+threshold) at several RK4 resolutions against their closed forms (docs/bench/friction.json);
+``--friction --3d`` the 3D oracles' instead (the oblique stylus, the capstan round a tilted
+drum; tens of minutes, with a progress bar; docs/bench/friction_3d.json).
 ``--output FILE.json`` also writes the result; ``--quiet`` hides the progress lines.
 """
 
@@ -54,6 +56,9 @@ def add_arguments(p):
     p.add_argument("--friction", action="store_true",
                    help="Coulomb friction's time against error instead: the capstan and slip-threshold "
                         "load paths at several RK4 resolutions against their closed forms")
+    p.add_argument("--3d", dest="three_d", action="store_true",
+                   help="with --friction: the 3D rows instead (the oblique stylus's slip threshold, the "
+                        "capstan round a tilted drum at 90 and 180 degrees; tens of minutes)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     add_output_argument(p)
     add_quiet_argument(p, help="no progress lines on stderr")
@@ -78,6 +83,21 @@ def run(args) -> int:
 
             write_json(args.output, result)
 
+    if args.three_d and not args.friction:
+        raise UsageError("--3d only applies to --friction")
+    if args.friction and args.three_d:
+        from tqdm import tqdm
+
+        from softarm_gym.benchmarks import friction_bench
+
+        with tqdm(total=friction_bench.solves_3d(), unit=" solve", file=sys.stderr,
+                  disable=args.quiet, desc="3D friction") as bar:
+            result = friction_bench.run_3d(
+                progress=None if args.quiet else lambda line: tqdm.write(line, file=sys.stderr),
+                tick=lambda: bar.update(1))
+        result["measured"]["command"] = shlex.join(["softarm", *sys.argv[1:]])
+        report(result, friction_bench.format_table_3d(result))
+        return 0
     if args.friction:
         from softarm_gym.benchmarks import friction_bench
 

@@ -22,3 +22,19 @@ def test_friction_bench_reports_finite_errors_and_times_against_the_closed_forms
             assert np.isfinite(r[key]) and r[key] > 0, key
     table = friction_bench.format_table(result).splitlines()
     assert table[2].startswith("| 90° | 1 | 1e+05 | 16 |") and table[-1].startswith("| 0.5 | 16 |")
+
+
+def test_the_3d_friction_bench_reports_the_oblique_slip_threshold():
+    """The 3D rows' slip case at the default 16 RK4 steps (the capstan rows take minutes each:
+    their physics is ``tests/solver/test_friction_3d.py``'s long oracle)."""
+    ticks = []
+    result = friction_bench.run_3d(cases=(), steps=(16,), tick=lambda: ticks.append(1))
+    assert len(ticks) == friction_bench.solves_3d(cases=(), steps=(16,)) == 22
+    (row,) = result["slip_3d"]
+    assert row["converged_fraction"] == 1.0 and row["increments"] == 21
+    assert row["relative_error"] < 5e-3  # the quadratures differ on a patch a step long
+    assert row["max_friction_over_mu_normal"] < 1.005
+    assert row["worst_cos_to_sliding"] < -0.999  # friction opposes the sliding
+    assert result["capstan_3d"] == []
+    table = friction_bench.format_table_3d(result).splitlines()
+    assert table[-1].startswith("| 0.5 | 16 |") and table[0].startswith("| 3D capstan θ |")
