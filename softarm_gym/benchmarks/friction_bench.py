@@ -181,17 +181,21 @@ def drum_scene_3d(direction: float, tension: float, mu: float, tilt_deg: float =
 
 
 def wrap_belt_3d(theta: float, t0: float, tilt_deg: float = TILT_DEG, degrees_per_step: float = 10.0,
-                 settings: Settings = DEFAULT_SETTINGS) -> tuple[ArmDesign, list]:
+                 settings: Settings = DEFAULT_SETTINGS, tick=None) -> tuple[ArmDesign, list]:
     """:func:`wrap_belt` in 3D round the tilted drum: the belt wrapped ``theta`` (rad)
     frictionless under ``t0`` (N) by warm solves, the pull turned ``degrees_per_step`` a
-    solve. Returns ``(arm, path)`` as :func:`wrap_belt`."""
+    solve; ``tick`` (or None) is called after every solve. Returns ``(arm, path)`` as
+    :func:`wrap_belt`."""
+    tick = tick or (lambda: None)
     arm = belt(theta)
     path = [solver.solve(arm, [], drum_scene_3d(0.0, t0, 0.0, tilt_deg), planar=False,
                          settings=settings)]
+    tick()
     steps = max(4, round(math.degrees(theta) / degrees_per_step))
     for direction in np.linspace(0.0, theta, steps + 1)[1:]:
         path.append(solver.solve(arm, [], drum_scene_3d(direction, t0, 0.0, tilt_deg),
                                  planar=False, warm_start=path[-1], settings=settings))
+        tick()
     return arm, path
 
 
@@ -410,14 +414,8 @@ def capstan_3d(theta_deg: float, mu: float, degrees_per_step: float = 10.0, tick
     tick = tick or (lambda: None)
     theta = math.radians(theta_deg)
     t0, pulls = capstan_pulls(theta, mu)
-    arm = belt(theta)
     start = time.perf_counter()
-    path = [solver.solve(arm, [], drum_scene_3d(0.0, t0, 0.0), planar=False)]
-    tick()
-    for direction in np.linspace(0.0, theta, max(4, round(theta_deg / degrees_per_step)) + 1)[1:]:
-        path.append(solver.solve(arm, [], drum_scene_3d(direction, t0, 0.0), planar=False,
-                                 warm_start=path[-1]))
-        tick()
+    arm, path = wrap_belt_3d(theta, t0, degrees_per_step=degrees_per_step, tick=tick)
     wrap_seconds = time.perf_counter() - start
     ok = [eq.converged and eq.stable for eq in path]
     eq, times, ratios = path[-1], [], []
