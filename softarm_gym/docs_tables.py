@@ -291,7 +291,7 @@ def friction_table() -> str:
             f"increment, load average {m['load_before'][0]:.1f} before and {m['load_after'][0]:.1f} after.")
 
 
-def friction_3d_table() -> str:
+def friction_spatial_table() -> str:
     """Coulomb friction's time against error on the 3D oracles' paths, the oblique stylus and
     the capstan round a tilted drum (``docs/bench/friction_3d.json``, as ``softarm bench
     --friction --3d`` prints it)."""
@@ -435,7 +435,7 @@ def fresh_machine_table() -> str:
 
 
 SECTIONS = {"ids_table": ids_table, "headline_table": headline_table, "solver_table": solver_table,
-            "friction_table": friction_table, "friction_3d_table": friction_3d_table,
+            "friction_table": friction_table, "friction_spatial_table": friction_spatial_table,
             "thresholds_table": thresholds_table,
             "env_table": env_table, "contact_table": contact_table,
             "first_episode_table": first_episode_table,
