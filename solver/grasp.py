@@ -344,6 +344,10 @@ class _Balance:
             return None
         rows, adopted = self.lean
         if adopted is not warm:
+            if warm.scene.has_friction and not rows.friction:
+                # The object's friction turned off since the warm start: this batch keeps no
+                # tangential state to adopt it with; the general path sets it aside.
+                return None
             rows.set_scene(0, warm.scene)
             rows.adopt(0, warm)
             self.lean[1] = warm

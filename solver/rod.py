@@ -156,10 +156,20 @@ def rotation_to_quaternion(r, out):
 
 
 @njit
-def _unit_quaternion(y):
-    """The normalised quaternion (w, x, y, z) at ``y[SP_Q:SP_Q + 4]``."""
+def unit_quaternion(y):
+    """The normalised quaternion (w, x, y, z) at ``y[SP_Q:SP_Q + 4]`` (``CS_Q == SP_Q``: the
+    contact state keeps it in the same place)."""
     qn = math.sqrt(y[SP_Q] ** 2 + y[SP_Q + 1] ** 2 + y[SP_Q + 2] ** 2 + y[SP_Q + 3] ** 2)
     return y[SP_Q] / qn, y[SP_Q + 1] / qn, y[SP_Q + 2] / qn, y[SP_Q + 3] / qn
+
+
+@njit
+def renormalise_quaternion(y):
+    """Scale the quaternion at ``y[SP_Q:SP_Q + 4]`` back to unit length in place (an RK4 step
+    drifts it off the unit sphere)."""
+    qn = math.sqrt(y[SP_Q] ** 2 + y[SP_Q + 1] ** 2 + y[SP_Q + 2] ** 2 + y[SP_Q + 3] ** 2)
+    for d in range(SP_Q, SP_Q + 4):
+        y[d] /= qn
 
 
 @njit
@@ -727,7 +737,7 @@ def spatial_rhs(sig, y, dy, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i):
     """Derivative of the spatial state (r, β, m, δφ, δm; ``SP_*``) at local coordinate
     ``sig`` into ``dy`` (NSTATE,). ``loads_i`` (6,): n_end and q of the section (``SL_*``).
     Written out in scalars: it runs 4× per RK4 step and must not allocate."""
-    w, x, yy, z = _unit_quaternion(y)
+    w, x, yy, z = unit_quaternion(y)
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(w, x, yy, z)
     rest = length - sig
     n0 = loads_i[SL_N] + loads_i[SL_Q] * rest
@@ -794,9 +804,7 @@ def spatial_rk4_step(y, sig, h, work, length, ca, cg, ci, cj, u1r, u2r, v3r, loa
     spatial_rhs(sig + h, tmp, k4, length, ca, cg, ci, cj, u1r, u2r, v3r, loads_i)
     for d in range(NSTATE):
         y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
-    qn = math.sqrt(y[SP_Q] ** 2 + y[SP_Q + 1] ** 2 + y[SP_Q + 2] ** 2 + y[SP_Q + 3] ** 2)
-    for d in range(SP_Q, SP_Q + 4):
-        y[d] /= qn
+    renormalise_quaternion(y)
 
 
 @njit(inline="always")
@@ -805,7 +813,7 @@ def spatial_state_rhs(y, dy, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles):
     (N_CSTATE,): the law of :func:`spatial_rhs` with the internal force as state,
     n' = −q − f_contact (``q`` (3,) the section's load per length, N/m; ``obstacles``
     (k, 8) spatial penalty obstacles, :func:`solver.kernels.obstacles.contact_force_3d`)."""
-    w, x, yy, z = _unit_quaternion(y)  # the quaternion sits at CS_Q == SP_Q
+    w, x, yy, z = unit_quaternion(y)  # the quaternion sits at CS_Q == SP_Q
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(w, x, yy, z)
     n0 = y[CS_N]
     n1 = y[CS_N + 1]
@@ -852,9 +860,7 @@ def spatial_state_rk4_step(y, h, work, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacl
     spatial_state_rhs(tmp, k4, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
     for d in range(N_CSTATE):
         y[d] += (h / 6.0) * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
-    qn = math.sqrt(y[CS_Q] ** 2 + y[CS_Q + 1] ** 2 + y[CS_Q + 2] ** 2 + y[CS_Q + 3] ** 2)
-    for d in range(CS_Q, CS_Q + 4):
-        y[d] /= qn
+    renormalise_quaternion(y)
 
 
 @njit(inline="always")
@@ -909,7 +915,7 @@ def record_spatial_row(y, out_pos, out_rot, out_m, row):
     """Write the position, directors (columns d1 d2 d3) and moment of the spatial state
     ``y`` into row ``row`` of ``out_pos`` (N, 3), ``out_rot`` (N, 3, 3) and ``out_m``
     (N, 3)."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(*_unit_quaternion(y))
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_rows(*unit_quaternion(y))
     out_rot[row, 0, 0] = r00
     out_rot[row, 0, 1] = r01
     out_rot[row, 0, 2] = r02

@@ -1044,12 +1044,6 @@ def set_level(t, a, b, now):
             now[L_DISCS][i, d] = a[L_DISCS][i, d] + t * (b[L_DISCS][i, d] - a[L_DISCS][i, d])
 
 
-def new_level(a):
-    """Scratch arrays shaped like the level tuple ``a`` (planar or spatial), with copies
-    of its tangential state (``L_MU`` on)."""
-    return (*(np.empty_like(x) for x in a[:L_MU]), *(x.copy() for x in a[L_MU:]))
-
-
 @njit
 def start_friction(a, now):
     """A path from level ``a`` starts from its tangential state: ``a``'s friction samples

@@ -98,11 +98,13 @@ from solver.layout import (
     TOL,
 )
 from solver.rod import (
+    renormalise_quaternion,
     rest_strains_into,
     rotation_rows,
     rotation_to_quaternion,
     spatial_state_rhs,
     spatial_state_rk4_step,
+    unit_quaternion,
 )
 
 
@@ -185,11 +187,7 @@ def _tangent_rhs(y, dy, P, dP, ca, cg, ci, cj, obstacles):
     A_v = R diag(cg, cg, ca) Rᵀ and A_u = R diag(ci, ci, cj) Rᵀ the world compliances and
     K = ∂f/∂r the penalty's stiffness (:func:`solver.kernels.obstacles.contact_stiffness_3d`).
     """
-    qn = math.sqrt(y[CS_Q] ** 2 + y[CS_Q + 1] ** 2 + y[CS_Q + 2] ** 2 + y[CS_Q + 3] ** 2)
-    w = y[CS_Q] / qn
-    x = y[CS_Q + 1] / qn
-    yy = y[CS_Q + 2] / qn
-    z = y[CS_Q + 3] / qn
+    w, x, yy, z = unit_quaternion(y)  # at CS_Q == SP_Q
     t0 = 2.0 * (x * z + w * yy)  # the third director d3 (R's third column)
     t1 = 2.0 * (yy * z - w * x)
     t2 = w * w - x * x - yy * yy + z * z
@@ -284,9 +282,7 @@ def _rk4_tangent(y, P, h, work, tw, ca, cg, ci, cj, u1r, u2r, v3r, q, obstacles)
     for d in range(N_CTANGENT):
         for e in range(c):
             P[d, e] += (h / 6.0) * (K1[d, e] + 2.0 * K2[d, e] + 2.0 * K3[d, e] + K4[d, e])
-    qn = math.sqrt(y[CS_Q] ** 2 + y[CS_Q + 1] ** 2 + y[CS_Q + 2] ** 2 + y[CS_Q + 3] ** 2)
-    for d in range(CS_Q, CS_Q + 4):
-        y[d] /= qn
+    renormalise_quaternion(y)
 
 
 @njit

@@ -17,6 +17,12 @@ from solver.results import Equilibrium
 NODES = NEAR_SUBSTEPS + 1
 
 
+def new_level(a: tuple) -> tuple:
+    """Scratch arrays shaped like the level tuple ``a`` (planar or spatial) for a path to
+    fill, with copies of its tangential state (``layout.L_MU`` on), which a path carries."""
+    return (*(np.empty_like(x) for x in a[:L.L_MU]), *(x.copy() for x in a[L.L_MU:]))
+
+
 def new_samples(rows: int, n_obstacles: int) -> np.ndarray:
     """Friction samples (rows, NODES, n_obstacles, N_FS) with no tangential state: no anchor
     (NaN), no impulse, slip or work."""

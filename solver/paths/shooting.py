@@ -14,7 +14,13 @@ from solver.kernels import planar as planar_kernels
 from solver.kernels import relax as relax_kernels
 from solver.kernels.grid import section_needs
 from solver.kernels.self_contact import far_parts_clear
-from solver.paths.friction import friction_fields, landed, start_samples, start_self_samples
+from solver.paths.friction import (
+    friction_fields,
+    landed,
+    new_level,
+    start_samples,
+    start_self_samples,
+)
 from solver.paths.grid import section_rows
 from solver.problem import Problem, rest_strains, shooting_layout, shooting_terms
 from solver.results import Equilibrium
@@ -113,7 +119,7 @@ def solve_shooting(problem: Problem, shooting: tuple, load_moments: bool,
                                     converged=False, stable=False, iterations=iterations,
                                     residual=math.inf, model=model, pressures=p_inputs,
                                     channel_pressures=p_channel, arm=arm)
-    now = contact_kernels.new_level(goal)
+    now = new_level(goal)
     rest = np.empty((3, len(arm.sections)))
     grid = shooting_grid(arm, scene, layout, segs, sec_start)
     snapped = False
@@ -378,7 +384,7 @@ def _loaded_nodes(arm, layout, segs, sec_start, scene, ctx, settings, load_momen
                  rubs)
         goal = (p0, ctx.q, plate, target, discs, mu, samples, rubs)
         grid = shooting_grid(arm, scene, layout, segs, sec_start)
-        now = contact_kernels.new_level(goal)
+        now = new_level(goal)
         ok, stable, _, its, _, _, _ = contact_kernels.follow(
             nodes, grid, (layout.tubes_i, layout.tubes_f), start, goal,
             shooting_params(scene, settings, predict_cap=MAX_STEP),

@@ -10,10 +10,10 @@ import numpy as np
 
 from solver import layout as L
 from solver.kernels import spatial_contact as kernel
-from solver.kernels.contact import TUNNEL_SLACK, new_level
+from solver.kernels.contact import TUNNEL_SLACK
 from solver.kernels.obstacles import smallest_clearance_3d, tunnels_3d
 from solver.paths.contact import free_contact_result
-from solver.paths.friction import friction_fields, landed, start_samples
+from solver.paths.friction import friction_fields, landed, new_level, start_samples
 from solver.paths.grid import section_rows
 from solver.paths.shooting import MAX_STEP
 from solver.paths.spatial import solve_spatial

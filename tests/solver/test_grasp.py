@@ -338,3 +338,19 @@ def test_a_snap_round_a_frictional_object_lands_at_the_frictionless_balance_with
     assert later.converged and not later.snapped
     fs = later.arm.friction_samples[:, :, 0]
     assert np.nanmax(np.abs(fs[..., L.FS_F:L.FS_F + 3])) > 0.0
+
+
+def test_turning_an_objects_friction_off_returns_it_to_the_frictionless_hold(held):
+    """μ may change between calls: a frictional grasp's arm warm-starts a frictionless settle
+    (its tangential state set aside), which comes back to the frictionless hold. The 0.5 kg
+    hold is gripped with μ = 0.7 and the pressures backed off to 88 %, where friction keeps
+    the object millimetres from where it would sit frictionless; at 90 % again without friction
+    it is where the frictionless hold put it."""
+    obj, h = held
+    grip = replace(obj, friction=0.7)
+    g = settle(ARM, _channels_i(0.9), SCENE, grip, center=h.center, warm_start=h.arm)
+    g = settle(ARM, _channels_i(0.88), SCENE, grip, center=g.center, warm_start=g.arm)
+    assert g.converged and g.held and np.hypot(*(g.center - h.center)) > 1e-3
+    off = settle(ARM, _channels_i(0.9), SCENE, obj, center=g.center, warm_start=g.arm)
+    assert off.converged and off.held and off.turn == 0.0
+    np.testing.assert_allclose(off.center, h.center, atol=1e-7)
