@@ -310,7 +310,8 @@ def profile_batched(env_id: str = "SoftArm/OctArmWrap-v2", n: int = 128, curl_st
     """Where a batched contact env's step goes once its arms hold wraps: ``n`` copies of the
     batched env (episodes longer than the run), each curled by a
     :class:`~softarm_gym.controllers.CurlController` (``ramp_steps`` 10, delta actions) for
-    ``curl_steps`` steps (a wrap env; none: any batched contact env from its reset), then ``steps`` timed steps of small random delta actions (uniform in
+    ``curl_steps`` steps (a wrap env; none: any batched contact env from its reset), then
+    ``steps`` timed steps of small random delta actions (uniform in
     ±``amplitude``, seeded). Per timed step: the lean row kernels' time, each general-path
     step (which copy, its state before — on the contact layout, touching a disc, touching
     itself —, the lean kernel's passes and refusal, the general path's time, snap and
@@ -319,8 +320,10 @@ def profile_batched(env_id: str = "SoftArm/OctArmWrap-v2", n: int = 128, curl_st
 
     Returns:
         dict: ``{"id", "num_envs", "curl_steps", "steps", "amplitude", "arm_steps_per_s",
-        "curl_arm_steps_per_s", "lean_s", "general_s", "other_s", "paths", "general"}``
-        (seconds over the timed steps; ``general`` one dict per general-path step).
+        "curl_arm_steps_per_s", "seconds", "lean_s", "general_s", "other_s", "paths",
+        "wrap_deg_quartiles", "general"}`` (seconds over the timed steps; ``paths`` the
+        timed arm-steps by the path that took them (:meth:`_BatchTimer.summary`);
+        ``general`` one dict per general-path step).
     """
     import gymnasium as gym
 
