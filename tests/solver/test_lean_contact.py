@@ -56,6 +56,20 @@ SCENES = {
 }
 
 
+def walked_stepper(name, steps):
+    """(arm, scene, stepper): a stepper in ``SCENES[name]`` after the first ``steps``
+    pressures of its curl walk (seed 7)."""
+    base, kwargs, scale, drift = SCENES[name]
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=base, **kwargs)
+    stepper = solver.Stepper(arm, scene)
+    walk = curl_walk(arm, steps, seed=7, scale=scale, drift=drift)
+    stepper.reset(walk[0])
+    for p in walk[1:]:
+        stepper.step(p)
+    return arm, scene, stepper
+
+
 @pytest.mark.parametrize("name", list(SCENES))
 def test_contact_steps_equal_warm_solves(name):
     base, kwargs, scale, drift = SCENES[name]
@@ -86,14 +100,7 @@ def test_large_jumps_in_contact_take_the_lean_continuation_and_equal_warm_solves
     the pressure range from states in contact. The lean step follows them as a short
     continuation (sub-steps predicted from the stored factors) and every step lands where
     solve() from the previous equilibrium lands."""
-    base, kwargs, scale, drift = SCENES[name]
-    arm = designs.octarm_v()
-    scene = solver.Scene(base_angle_deg=base, **kwargs)
-    stepper = solver.Stepper(arm, scene)
-    walk = curl_walk(arm, 30, seed=7, scale=scale, drift=drift)
-    stepper.reset(walk[0])
-    for p in walk[1:]:
-        stepper.step(p)
+    arm, scene, stepper = walked_stepper(name, 30)
     rng = np.random.default_rng(11)
     eq = stepper.equilibrium
     jumps = []  # the largest channel change (× p_max) of lean contact steps from contact
@@ -119,14 +126,7 @@ def test_self_touching_steps_keep_the_full_factors_and_equal_warm_solves():
     lean steps keep the full factors of the state before where Broyden's corrections alone
     converge (``full_factor_age`` > 1), and every step still lands where solve() from the
     previous equilibrium lands."""
-    base, kwargs, scale, drift = SCENES["self"]
-    arm = designs.octarm_v()
-    scene = solver.Scene(base_angle_deg=base, **kwargs)
-    stepper = solver.Stepper(arm, scene)
-    walk = curl_walk(arm, 45, seed=7, scale=scale, drift=drift)
-    stepper.reset(walk[0])
-    for p in walk[1:]:
-        stepper.step(p)
+    arm, scene, stepper = walked_stepper("self", 45)
     assert stepper.full_factor_age >= 1  # curled onto itself: full factors
     rng = np.random.default_rng(5)
     eq = stepper.equilibrium
