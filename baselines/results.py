@@ -38,6 +38,7 @@ import argparse
 import functools
 import json
 import os
+import re
 import shutil
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -694,6 +695,21 @@ INTRO = [
     "and OctArmTrack-v1, smoke-tested only), and the remaining remedies (entropy target, "
     "reward shaping, curriculum; planner demonstrations: below).",
     "",
+    "OctArmWrap-v2, gSDE PPO, a second round of the same setting (seeds 0–2 again, from scratch on "
+    "the current solver, three at once beside other jobs): `python -m baselines.train --env "
+    "SoftArm/OctArmWrap-v2 --algo ppo --batched --hyperparams-dir baselines/hyperparams/batched_gsde "
+    "--numba-threads 1 --threads 1 --seed S --timesteps 800000 --time-limit-min 85 --eval-freq 0 "
+    "--checkpoint-freq 100000 --quiet`, renamed `ppo_OctArmWrap-v2_batched_gsde_r2_sS`. The 800,000 "
+    "were meant as a longer budget; on the oversubscribed machine (load 6–10: 14 CPU-minutes each "
+    "in the 85-minute cap, 64–74 steps/s) the cap stopped them at 324,352, 326,528 and 379,264 "
+    "steps, hardly more than the first round. Deterministic on the same 50 unseen seeds: 90 %, "
+    "96 % and 36 % (seed 2, like two of the first round's, stays in the S-curl: median wrap 95°), "
+    "74 ± 33 % for this round and 63 ± 33 % over all six runs: the issue's 70 % is met by four "
+    "runs of six and by this round's mean, not by the mean of every run. The best run (the second "
+    "round's seed 1, 96 %, median wrap 233°, first success at step 9) is the shipped "
+    "`ppo_OctArmWrap-v2` now. A budget the curves flatten at still needs a machine that gives "
+    "a run a whole core.",
+    "",
     "CTWrap-v2 (success at 90°), gSDE PPO, 1 seed, with the time left: `python -m baselines.train --env "
     "SoftArm/CTWrap-v2 --algo ppo --batched --hyperparams-dir baselines/hyperparams/batched_gsde --run-name "
     "ppo_CTWrap-v2_batched_gsde_s0 --numba-threads 1 --threads 1 --seed 0 --time-limit-min 23 --eval-freq "
@@ -943,12 +959,22 @@ def _targets_section(main: pd.DataFrame, by_run: dict, kind) -> list[str]:
             line = (f"* {label} on {env_id}: best {100 * best:.0f} % against the target "
                     f"{100 * goal:.0f} % — {'met' if best >= goal else 'NOT met'} "
                     f"({len(rows)} run{'s' if len(rows) > 1 else ''} of {_episodes(rows['episodes'])})")
-            # The issues ask for the seed mean: one lucky seed is not a result.
-            seeds = rows.groupby(rows["agent_name"].str.replace(r"_s\d+$", "", regex=True))["success_rate"]
-            means = seeds.mean()[seeds.size() >= 2]
+            # The issues ask for the seed mean: one lucky seed is not a result. Runs are pooled
+            # as the tables pool them (every round of one setting together).
+            def setting_of(name: str) -> str:
+                if name not in by_run:
+                    return re.sub(r"_s\d+$", "", name)
+                variant, kwargs = _variant(by_run[name]), _kwargs(_setting(by_run[name]))
+                return (kind(name) + (f" ({variant})" if variant else "")
+                        + ("" if kwargs == "`{}`" else f" {kwargs}"))
+
+            setting = rows["agent_name"].map(setting_of)
+            seeds = rows.groupby(setting)["agent_name"]
+            means = rows.groupby(setting)["success_rate"].mean()[seeds.size() >= 2]
             if len(means):
                 config, mean = means.idxmax(), means.max()
-                line += (f"; best seed mean {100 * mean:.0f} % ({config}, {seeds.size()[config]} seeds) — "
+                line += (f"; best seed mean {100 * mean:.0f} % ({config}, "
+                         f"{_runs_label(seeds.get_group(config), by_run)}) — "
                          f"{'met' if mean >= goal else 'NOT met'}")
             lines.append(line + ".")
     return lines
@@ -1007,7 +1033,8 @@ def _main_rows(main: pd.DataFrame, env_id: str, by_run: dict, kind, measures, me
                 which = (algo + (f" ({same[0]})" if same[0] else "")
                          + ("" if observation == "true" else f" on {observation} observations"))
                 kwargs = f"{same[1]} | " if env_kwargs_column else ""
-                lines.append(f"| {env_id} | **{which} mean ± std over {len(learned)} seeds** | {kwargs}"
+                lines.append(f"| {env_id} | **{which} mean ± std over "
+                             f"{_runs_label(learned['agent_name'], by_run)}** | {kwargs}"
                              f"| | | | **{rates.mean():.0f} ± {rates.std():.0f} %** | "
                              + mean_measures(learned))
     return lines
@@ -1060,6 +1087,16 @@ def _obstacle_section(main: pd.DataFrame, env_ids: list[str], by_run: dict, kind
 
 def _percent(x) -> str:
     return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{100 * x:.0f} %"
+
+
+def _runs_label(names, by_run: dict) -> str:
+    """"N seeds" for the runs ``names`` of one setting, or "N runs, seeds …" where a seed was
+    trained more than once (two rounds of one setting): a repeated seed is named, not counted
+    as another seed."""
+    seeds = sorted(by_run[name].get("seed") for name in names if name in by_run)
+    if len(seeds) == len(names) and len(set(seeds)) < len(seeds):
+        return f"{len(names)} runs, seeds {', '.join(map(str, seeds))}"
+    return f"{len(names)} seeds"
 
 
 def _setting(summary: dict) -> dict:

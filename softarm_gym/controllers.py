@@ -588,17 +588,27 @@ class CEMPlanner(_PressureController):
 
     def _score_grasp(self, actions: np.ndarray, fraction: np.ndarray) -> np.ndarray:
         """Summed grasp rewards of (m, horizon, n) action sequences, each step settling arm and
-        object together from the last (an unconverged step keeps the state, as in the env)."""
+        object together from the last (an unconverged step keeps the state, as in the env).
+
+        Sequences that agree up to a step (clipped samples pile up on the action box's faces)
+        share its settle: ``settle`` is a function of its inputs, so a step is settled once
+        per state and command (a third of a first grasp decision's time went on repeats)."""
         new = np.empty((1, self._n))
         totals = np.zeros(actions.shape[0])
         penalty = self.task.solver_failure_penalty
+        settled = {}  # (id of the state stepped from, command bytes) → (state, its settle)
         for j, sequence in enumerate(actions):
             state, current = self._nominal, fraction.copy()
             for action in sequence:
                 fractions_from_actions(action[None], current[None], self.action_mode == "delta",
                                        self.delta_scale, new)
-                moved = settle(self.arm, new[0] * self.p_max, self.scene, self._object,
-                               center=state.center, warm_start=state.arm, max_solves=self.grasp_solves)
+                key = (id(state), new[0].tobytes())
+                if key not in settled:
+                    # The state is kept with its settle, so that its id is not reused.
+                    settled[key] = state, settle(self.arm, new[0] * self.p_max, self.scene,
+                                                 self._object, center=state.center,
+                                                 warm_start=state.arm, max_solves=self.grasp_solves)
+                moved = settled[key][1]
                 if moved.converged:
                     state, current = moved, new[0].copy()
                 terms = self.task.grasp_terms(state, self._object, current)[0]

@@ -41,6 +41,7 @@ from solver.paths.lean_contact import (
     ContactRows,
     lean_contact_reason,
     record_from_equilibrium,
+    refusal_names,
 )
 from solver.paths.lean_spatial_contact import SpatialContactRows, lean_spatial_contact_reason
 from solver.paths.planar import loaded_base_moment, not_lean, single_result
@@ -116,6 +117,10 @@ class Stepper:
         last_path: the path of the last step or reset: ``"lean"`` (the lean planar kernel,
             or in 3D the spatial one), ``"lean contact"`` or ``"general"``
             (:func:`solver.solve`'s paths).
+        last_refusals: why the planar lean contact step of the last step refused a try
+            (names of :data:`solver.paths.lean_contact.REFUSALS`, e.g. ``("not converged",
+            "budget spent")`` before a snap the general path took; empty where it refused
+            none or took no part).
     """
 
     def __init__(self, arm: ArmDesign, scene: Scene | None = None, *, model: str = "full",
@@ -140,6 +145,7 @@ class Stepper:
         self._eq = None
         self.record = None
         self.last_path = "general"
+        self.last_refusals = ()
         self.tip = np.zeros(2 if planar else 3)
         self.tip.flags.writeable = False
         self.pressures = np.zeros(self.n_inputs)
@@ -200,6 +206,7 @@ class Stepper:
             check_warm_start(warm_start, self.arm, self.scene, self.model, self.planar)
         eq = dispatch(self._problem.with_inputs(p_inputs, p_channel, warm_start), True)
         self.last_path = "general"
+        self.last_refusals = ()
         self._adopt(eq)
         return StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
 
@@ -254,6 +261,7 @@ class Stepper:
         if not rows.ready(0):
             return self._step_general(p_inputs)
         report = rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
+        self.last_refusals = refusal_names(report[6] if report.size > 6 else 0)
         if not report[0]:
             general = self._step_general(p_inputs)
             return general._replace(iterations=general.iterations + int(report[3]))
@@ -277,6 +285,13 @@ class Stepper:
             raise ValueError(f"contact_measures needs the lean contact path; {self!r} has none")
         measures = self._rows.contact_measures()[0]
         return float(measures[0]), float(measures[1])
+
+    @property
+    def full_factor_age(self) -> int:
+        """Planar lean contact steppers: how many accepted states the factored full Jacobian
+        of the current state (where parts of the arm touch each other) has served
+        (:meth:`solver.paths.lean_contact.ContactRows.full_factor_age`); 0 otherwise."""
+        return self._rows.full_factor_age(0) if isinstance(self._rows, ContactRows) else 0
 
     def pass_costs(self, repeats: int = 20) -> dict:
         """A profile of the current contact state (lean contact steppers whose state lies on

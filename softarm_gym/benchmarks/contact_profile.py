@@ -191,3 +191,174 @@ def format_table(result: dict) -> str:
             f"{costs['refined_fraction']:.0%}" if costs else "—"
         lines.append(f"| {name} | {shares} | {cost} |")
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------- batched contact envs
+
+def refusal_words(bits: int) -> str:
+    """The lean contact step's refusal bits (:func:`solver.paths.lean_contact.refusal_names`)
+    as words, ``"none"`` for none."""
+    if not bits:
+        return "none"
+    from solver.paths.lean_contact import refusal_names
+
+    return ", ".join(refusal_names(bits))
+
+
+def _refusal_bits(report: np.ndarray, k: int) -> int:
+    """Copy k's refusal bits in a report of the lean row kernels (0 from a tree whose
+    kernels report none: a side-by-side run against an older commit)."""
+    return int(report[k, 6]) if report.shape[1] > 6 else 0
+
+
+class _BatchTimer:
+    """Times the parts of a batched contact env's steps (:func:`profile_batched`): the lean
+    row kernels and each copy's general-path step, with what the lean kernel left behind for
+    it (the copy's state before, its report row, the general path's answer). ``per_copy``:
+    the row kernel is called copy by copy (serially; the same numbers, rows are
+    independent) to time each copy's lean step."""
+
+    def __init__(self, batch, per_copy: bool):
+        from solver.kernels import stepping as st
+
+        self.batch = batch
+        self.lean_s = 0.0
+        self.general = []  # one dict per general-path step
+        self.lean = []  # per copy and step: (path code, passes, refusal bits, self-touching, seconds)
+        rows = batch._rows
+        self._step, self._solve_in = rows.step, batch._solve_in
+        self._report = None
+        contact = rows.contact
+
+        def step(p_from, p_to, active, run):
+            coupled = np.array([f[0] for f in contact[st.CT_FLAGS]]) * contact[st.CT_OK]
+            seconds = np.zeros(rows.n)
+            start = time.perf_counter()
+            report = None
+            if per_copy:
+                for k in np.flatnonzero(active):
+                    one = np.zeros(rows.n, dtype=bool)
+                    one[k] = True
+                    begin = time.perf_counter()
+                    row = self._step(p_from, p_to, one, None)
+                    report = np.zeros_like(row) if report is None else report
+                    report[k] = row[k]
+                    seconds[k] = time.perf_counter() - begin
+            if report is None or not per_copy:
+                report = self._step(p_from, p_to, active, run)
+            self.lean_s += time.perf_counter() - start
+            self._report = report
+            for k in np.flatnonzero(active):
+                self.lean.append((report[k, 5], report[k, 3], _refusal_bits(report, k),
+                                  bool(coupled[k]), seconds[k]))
+            return report
+
+        def solve_in(k, p_inputs, p_channel, warm_start, scene):
+            state = {"copy": int(k), "on_contact_layout": bool(contact[st.CT_OK][k]),
+                     "touching": bool(contact[st.CT_TOUCHING][k]),
+                     "self_touching": bool(contact[st.CT_FLAGS][k][0] and contact[st.CT_OK][k]),
+                     "lean_passes": int(self._report[k, 3]),
+                     "lean_refusal": refusal_words(_refusal_bits(self._report, k))}
+            start = time.perf_counter()
+            eq = self._solve_in(k, p_inputs, p_channel, warm_start, scene)
+            state.update(seconds=time.perf_counter() - start, converged=bool(eq.converged),
+                         snapped=bool(eq.snapped), iterations=int(eq.iterations))
+            self.general.append(state)
+            return eq
+
+        rows.step = step
+        batch._solve_in = solve_in
+
+    def close(self):
+        del self.batch._rows.step
+        del self.batch._solve_in
+
+    def summary(self) -> dict:
+        """The lean steps by path (and the general ones), their passes and seconds, and the
+        refusals met (any try refused, on steps the lean kernel finished or handed over)."""
+        names = {1.0: "lean", 2.0: "lean contact", 0.0: "general"}
+        out = {}
+        for code, name in names.items():
+            rows = [r for r in self.lean if r[0] == code]
+            if not rows:
+                continue
+            passes = np.array([r[1] for r in rows])
+            seconds = np.array([r[4] for r in rows])
+            out[name] = {"steps": len(rows), "self_touching": int(sum(r[3] for r in rows)),
+                         "passes_median": float(np.median(passes)),
+                         "passes_mean": float(np.mean(passes)),
+                         "lean_kernel_s": float(seconds.sum()),
+                         "refusals": dict(Counter(refusal_words(r[2]) for r in rows if r[2]))}
+        return out
+
+
+def _curl_actions(controllers, obs, venv) -> np.ndarray:
+    """Delta actions that follow each copy's :class:`~softarm_gym.controllers.CurlController`."""
+    t = venv.template
+    slices = t.observation_slices["pressures"]
+    actions = np.empty((len(controllers), t.n_inputs))
+    for i, c in enumerate(controllers):
+        command = c.step_fraction(obs[i])
+        current = 0.5 * (np.asarray(obs[i][slices], dtype=float) + 1.0)
+        actions[i] = np.clip((command - current) / t.delta_scale, -1.0, 1.0)
+    return actions
+
+
+def profile_batched(env_id: str = "SoftArm/OctArmWrap-v2", n: int = 128, curl_steps: int = 30,
+                    steps: int = 20, amplitude: float = 0.2, seed: int = 0, per_copy: bool = False,
+                    progress=None) -> dict:
+    """Where a batched contact env's step goes once its arms hold wraps: ``n`` copies of the
+    batched env (episodes longer than the run), each curled by a
+    :class:`~softarm_gym.controllers.CurlController` (``ramp_steps`` 10, delta actions) for
+    ``curl_steps`` steps (a wrap env; none: any batched contact env from its reset), then
+    ``steps`` timed steps of small random delta actions (uniform in
+    ±``amplitude``, seeded). Per timed step: the lean row kernels' time, each general-path
+    step (which copy, its state before — on the contact layout, touching a disc, touching
+    itself —, the lean kernel's passes and refusal, the general path's time, snap and
+    iterations) and the rest (the env's Python: observations, rewards). ``per_copy``: time
+    each copy's lean step apart (:class:`_BatchTimer`; the batch's threads are not used).
+
+    Returns:
+        dict: ``{"id", "num_envs", "curl_steps", "steps", "amplitude", "arm_steps_per_s",
+        "curl_arm_steps_per_s", "seconds", "lean_s", "general_s", "other_s", "paths",
+        "wrap_deg_quartiles", "general"}`` (seconds over the timed steps; ``paths`` the
+        timed arm-steps by the path that took them (:meth:`_BatchTimer.summary`);
+        ``general`` one dict per general-path step).
+    """
+    import gymnasium as gym
+
+    from softarm_gym.controllers import CurlController
+
+    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                        max_episode_steps=10 ** 9)
+    obs, _ = venv.reset(seed=seed)
+    controllers = [CurlController(venv.template) for _ in range(n)] if curl_steps else []
+    start = time.perf_counter()
+    for k in range(curl_steps):
+        obs, *_ = venv.step(_curl_actions(controllers, obs, venv))
+        if progress:
+            progress(f"curl step {k + 1} of {curl_steps}")
+    curl_s = max(time.perf_counter() - start, 1e-300)
+    wrapped = venv.unwrapped
+    timer = _BatchTimer(wrapped._batch, per_copy)
+    rng = np.random.default_rng(seed)
+    actions = rng.uniform(-amplitude, amplitude, (steps, n, venv.single_action_space.shape[0]))
+    try:
+        start = time.perf_counter()
+        for k, a in enumerate(actions):
+            *_, info = venv.step(a)
+            if progress:
+                progress(f"timed step {k + 1} of {steps}")
+        seconds = time.perf_counter() - start
+    finally:
+        timer.close()
+    wrap_deg = np.asarray(info.get("wrap_angle_deg", np.zeros(n)))
+    general_s = sum(g["seconds"] for g in timer.general)
+    venv.close()
+    return {"id": env_id, "num_envs": n, "curl_steps": curl_steps, "steps": steps,
+            "amplitude": amplitude, "arm_steps_per_s": n * steps / seconds,
+            "curl_arm_steps_per_s": n * curl_steps / curl_s, "seconds": seconds,
+            "lean_s": timer.lean_s, "general_s": general_s,
+            "other_s": seconds - timer.lean_s - general_s, "paths": timer.summary(),
+            "wrap_deg_quartiles": np.percentile(wrap_deg, [25, 50, 75]).tolist(),
+            "general": timer.general}

@@ -1255,6 +1255,22 @@ LEAN_RATE = 0.25
 LEAN_TRIES = 32
 LEAN_JACOBIANS = 64
 
+# Why a lean contact step refused a try (bits of the ``refused`` it returns; a profile's
+# figures, :mod:`softarm_gym.benchmarks.contact_profile`): Broyden and damped Newton did not
+# converge; the state reached is unstable; it lies farther from the prediction than a step
+# of the path may (a branch jump); its Jacobian is singular or its recorded pass is not
+# converged; a sample tunnelled through a disc; the RK4 grid does not resolve the end state;
+# the tries or Jacobians of the budget ran out.
+(REFUSED_CONVERGENCE, REFUSED_UNSTABLE, REFUSED_JUMP, REFUSED_SINGULAR, REFUSED_TUNNEL,
+ REFUSED_GRID, REFUSED_BUDGET) = (1, 2, 4, 8, 16, 32, 64)
+
+# Where parts of the arm touch each other a state's full Jacobian (:func:`_coupled`) costs a
+# residual pass for every column of a node that shapes a piece in contact — most of a wrapped
+# arm's lean step. An accepted state whose try converged by Broyden's corrections alone keeps
+# the full factors of the state before (refreshing only the band Jacobian, which the
+# stability test needs), for at most this many accepted states in a row.
+LEAN_REUSE_AGE = 8
+
 
 @njit
 def new_factors(n, coupled):
@@ -1273,17 +1289,31 @@ def factor_state(Z, grid, rest, level, weights, F, blocks, out, factors):
     backbone into ``out``, its residual into ``F`` and its segment maps into ``blocks``,
     and factors its Jacobian into ``factors`` (:func:`new_factors`): the band one, and where
     parts of the arm touch each other the full one (:func:`_coupled`), which the next
-    solves from this state use instead (flags[0] = 1). Returns whether the Jacobian is
+    solves from this state use instead (flags[0] ≥ 1). Returns whether the Jacobian is
     regular."""
+    return _factor_state(Z, grid, rest, level, weights, F, blocks, out, factors, factors, False)
+
+
+@njit
+def _factor_state(Z, grid, rest, level, weights, F, blocks, out, factors, held, reuse):
+    """:func:`factor_state`; with ``reuse``, where parts of the arm touch and ``held``
+    (the factors of a nearby state) holds full factors younger than LEAN_REUSE_AGE, those are
+    copied instead of forming the full Jacobian afresh (flags[0]: 1 fresh, one more a reuse)."""
     lu, piv, dense, dense_piv, flags = factors
     partners = new_partners(grid)
     recorded_system(Z, grid, rest, level, F, lu, True, blocks, partners, out)
+    age = held[4][0] if reuse else 0
     flags[0] = 0
     if dense.shape[0] > 0 and _touched(partners):
-        _coupled(Z, grid, rest, level, F, lu, partners, weights, dense)
-        if not _dense_factor(dense, dense_piv):
-            return False
-        flags[0] = 1
+        if 0 < age < LEAN_REUSE_AGE:
+            dense[:, :] = held[2]
+            dense_piv[:] = held[3]
+            flags[0] = age + 1
+        else:
+            _coupled(Z, grid, rest, level, F, lu, partners, weights, dense)
+            if not _dense_factor(dense, dense_piv):
+                return False
+            flags[0] = 1
     return factor_band(lu, piv)
 
 
@@ -1447,9 +1477,13 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     is one prediction and a few corrections. Each accepted state gets its Jacobian,
     stability test and backbone from one more pass (:func:`factor_state`), and the last
     must be resolved by the RK4 grid (:func:`solver.kernels.grid.section_needs`, the
-    general path's check). Past LEAN_TRIES steps or LEAN_JACOBIANS Jacobians, or on
-    anything else, every input is left untouched and ``ok`` is False: the caller's general
-    path (continuation, snaps, refinement) takes the step.
+    general path's check). Where parts of the arm touch each other, a state reached by
+    Broyden's corrections alone keeps the full factors of the state before (up to
+    LEAN_REUSE_AGE states; its band Jacobian, stability test and backbone are its own):
+    forming them costs a residual pass per column of a node in contact. Past LEAN_TRIES
+    steps or LEAN_JACOBIANS Jacobians, or on anything else, every input is left untouched
+    and ``ok`` is False: the caller's general path (continuation, snaps, refinement) takes
+    the step.
 
     Args:
         Z: (N,) the nodes of the current equilibrium (:func:`newton_system`); the new ones on
@@ -1472,7 +1506,8 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             for the grid check.
 
     Returns:
-        (ok, stable, iterations, residual): iterations counts the passes of the step.
+        (ok, stable, iterations, residual, refused): iterations counts the passes of the
+        step; refused, the ``REFUSED_*`` bits of the tries it refused (a profile's figure).
     """
     rest, weights, res_weights = work
     rec, new = records
@@ -1512,6 +1547,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     jacobians = 0
     res = math.inf
     stable = False
+    refused = 0
     for _ in range(LEAN_TRIES):
         if jacobians >= LEAN_JACOBIANS:
             break
@@ -1531,11 +1567,13 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
         ok = res <= goal
         predicted = False
         first = F
+        quasi = ok  # converged without a Jacobian formed (the held full factors may serve)
         if not ok and math.isfinite(res):
             ok, its, first = _broyden(Z, grid, rest, now, F, res_weights, goal, held, res,
                                       partners)
             passes += its
             predicted = True
+            quasi = ok
             if not ok:
                 ok, its, res, stable = newton(
                     Z, grid, rest, now, weights, res_weights, goal,
@@ -1543,7 +1581,13 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
                     params[MAX_STEP])
                 passes += its
                 jacobians += its + 1
+                if not ok:
+                    refused |= REFUSED_CONVERGENCE
+                elif not stable:
+                    refused |= REFUSED_UNSTABLE
                 ok = ok and stable
+        elif not ok:
+            refused |= REFUSED_CONVERGENCE
         if ok:
             # Within 0.05 + 0.5·|prediction| of the prediction: the accepted state moved by
             # the first step (none if it held).
@@ -1554,18 +1598,29 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
                 corr += ((Z[i] - guess) / weights[i]) ** 2
                 pred += ((guess - accepted[i]) / weights[i]) ** 2
             ok = math.sqrt(corr / n) <= 0.05 + 0.5 * math.sqrt(pred / n)
+            if not ok:
+                refused |= REFUSED_JUMP
         stable = False
         if ok:
-            regular = factor_state(Z, grid, rest, now, weights, F, blocks, new, spare)
+            regular = _factor_state(Z, grid, rest, now, weights, F, blocks, new, spare, held,
+                                    quasi)
             passes += 1
             jacobians += 1
             res = weighted_norm(F, res_weights)
             stable = stability_test(blocks) > 0.0
-            ok = (res <= goal and stable and regular
-                  and not tunnels(before, new[:, C_X:C_Y + 1], discs_now, TUNNEL_SLACK)
-                  and (not final or section_needs(new[:, C_U:C_U + 1], new[:, C_NX:C_NY + 1],
-                                                  new[:, C_V1:C_V3 + 1], check[0], secf,
-                                                  check[1], need) <= 1.0))
+            ok = False
+            if not (res <= goal and regular):
+                refused |= REFUSED_SINGULAR
+            elif not stable:
+                refused |= REFUSED_UNSTABLE
+            elif tunnels(before, new[:, C_X:C_Y + 1], discs_now, TUNNEL_SLACK):
+                refused |= REFUSED_TUNNEL
+            elif final and section_needs(new[:, C_U:C_U + 1], new[:, C_NX:C_NY + 1],
+                                         new[:, C_V1:C_V3 + 1], check[0], secf, check[1],
+                                         need) > 1.0:
+                refused |= REFUSED_GRID
+            else:
+                ok = True
         if ok:
             t = t_new
             accepted[:] = Z
@@ -1583,7 +1638,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             dt *= 0.5
     if t < 1.0:
         Z[:] = start
-        return False, stable, passes, res
+        return False, stable, passes, res, refused | REFUSED_BUDGET
     _copy_factors(held, factors)
     for c in range(p_new.shape[0]):
         p_old[c] = p_new[c]
@@ -1592,4 +1647,4 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
         fs[...] = fs_now
     if rubs:
         sfs[...] = sfs_now
-    return True, stable, passes, res
+    return True, stable, passes, res, refused

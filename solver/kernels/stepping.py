@@ -141,10 +141,12 @@ def free_record_of(crec, m0, p_channel, free, k):
 def contact_row(k, free, contact, p_from, p_to, report):
     """One warm step of copy k from ``p_from[k]`` to ``p_to[k]`` (channel pressures, Pa),
     by the lean path its state allows (module docstring). ``report[k]``: (converged, stable,
-    snapped, iterations, residual, path): path ``PATH_LEAN`` the lean planar kernel,
-    ``PATH_CONTACT`` the lean contact one; unconverged: the state is as it was."""
+    snapped, iterations, residual, path, refused): path ``PATH_LEAN`` the lean planar kernel,
+    ``PATH_CONTACT`` the lean contact one; unconverged: the state is as it was; refused: the
+    lean contact step's ``REFUSED_*`` bits (:func:`solver.kernels.contact.lean_step`)."""
     report[k, 0] = 0.0
     report[k, 3] = 0.0
+    report[k, 6] = 0.0
     if contact[CT_OK][k] and contact[CT_TOUCHING][k]:
         _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
         return
@@ -190,7 +192,7 @@ def _contact_step(k, free, contact, p_to, discs_to, report):
     nodes, p_level, records = contact[CT_NODES], contact[CT_P], contact[CT_RECORDS]
     level = (p_level[k], contact[CT_Q], contact[CT_PLATE], contact[CT_TARGET], contact[CT_DISCS][k],
              contact[CT_MU][k], contact[CT_FRICTION][k], contact[CT_SELF_FRICTION][k])
-    ok, stable, its, res = lean_step(
+    ok, stable, its, res, refused = lean_step(
         nodes[k], grid, (free[FR_TUBES_I], free[FR_TUBES_F]), level, p_to[k], discs_to,
         contact[CT_PARAMS],
         (contact[CT_REST][k], contact[CT_WEIGHTS], contact[CT_RES_WEIGHTS]),
@@ -198,6 +200,7 @@ def _contact_step(k, free, contact, p_to, discs_to, report):
          contact[CT_FLAGS][k]),
         (records[k], contact[CT_SCRATCH][k]), (contact[CT_CHECK_Q], contact[CT_CHECK_ENDS]))
     report[k, 3] += its
+    report[k, 6] = refused
     if not ok:
         return
     records[k, :, :] = contact[CT_SCRATCH][k]
@@ -279,6 +282,7 @@ def moved_contact_row(k, free, contact, p_to, discs_to, report):
     (:mod:`solver.grasp`). ``report[k]`` as :func:`contact_row`'s."""
     report[k, 0] = 0.0
     report[k, 3] = 0.0
+    report[k, 6] = 0.0
     if contact[CT_OK][k]:
         _contact_step(k, free, contact, p_to, discs_to, report)
 

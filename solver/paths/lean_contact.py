@@ -41,6 +41,20 @@ FAR = 1e6
 # The kernels' path codes.
 PATHS = {int(stepping.PATH_LEAN): "lean", int(stepping.PATH_CONTACT): "lean contact"}
 
+# What the bits of a report's refusal column mean (solver.kernels.contact.lean_step).
+REFUSALS = {contact_kernels.REFUSED_CONVERGENCE: "not converged",
+            contact_kernels.REFUSED_UNSTABLE: "unstable",
+            contact_kernels.REFUSED_JUMP: "branch jump",
+            contact_kernels.REFUSED_SINGULAR: "singular or unconverged pass",
+            contact_kernels.REFUSED_TUNNEL: "tunnel",
+            contact_kernels.REFUSED_GRID: "grid refinement",
+            contact_kernels.REFUSED_BUDGET: "budget spent"}
+
+
+def refusal_names(bits) -> tuple[str, ...]:
+    """The names (:data:`REFUSALS`) of a report's refusal bits (its last column)."""
+    return tuple(name for bit, name in REFUSALS.items() if int(bits) & bit)
+
 
 def lean_contact_reason(problem: Problem) -> str | None:
     """Why steppers in this problem's scene cannot take lean steps with contact (None:
@@ -356,6 +370,13 @@ class ContactRows:
         """Whether copy k has a state the lean paths can step from."""
         return bool(self.free[stepping.FR_OK][k] or self.contact[stepping.CT_OK][k])
 
+    def full_factor_age(self, k: int) -> int:
+        """How many accepted states copy k's full factored Jacobian (where parts of the arm
+        touch each other) has served: 1 formed at this state, more where lean steps kept it
+        (:data:`solver.kernels.contact.LEAN_REUSE_AGE`); 0 for band factors or a state off
+        the contact layout."""
+        return int(self.contact[stepping.CT_FLAGS][k][0]) if self.contact[stepping.CT_OK][k] else 0
+
     def on_contact_layout(self, k: int) -> bool:
         """Whether copy k's state lies on the contact layout."""
         return bool(self.contact[stepping.CT_OK][k])
@@ -373,10 +394,11 @@ class ContactRows:
         kernel (a :meth:`ThreadPolicy.run`-like callable, or None: serial).
 
         Returns:
-            (n, 6) report rows (converged, stable, snapped, iterations, residual, path code
-            of :data:`PATHS`); an unconverged row kept its state (the general path's turn).
+            (n, 7) report rows (converged, stable, snapped, iterations, residual, path code
+            of :data:`PATHS`, the lean contact step's refusal bits, :data:`REFUSALS`); an
+            unconverged row kept its state (the general path's turn).
         """
-        report = np.zeros((self.n, 6))
+        report = np.zeros((self.n, 7))
         args = (self.free, self.contact, p_from, p_to, active, report)
         if run is None:
             stepping.contact_rows_serial(*args)
@@ -391,7 +413,7 @@ class ContactRows:
         pressures ``p_channel`` with its discs moved to those of ``scene`` (the same count
         and law): an object the arm holds, moved quasi-statically. Returns the report row
         (as :meth:`step`'s); on success the copy's scene is ``scene``."""
-        report = np.zeros((self.n, 6))
+        report = np.zeros((self.n, 7))
         discs = np.full((self.max_obstacles, 4), (FAR, FAR, 0.0, 0.0))
         given = scene.discs_array()
         discs[:given.shape[0]] = given

@@ -249,6 +249,8 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
             if relaxed is None:
                 return None
             states, state = relaxed
+        if _sunk_into_a_disc(states, level[L.L_DISCS], record):
+            return None
         landed = nodes_from_states(states, segs)
     # The relaxation's self-contact is a node-to-node stand-in: where the arm lands on itself,
     # the solver's law is brought in from a thousandth, Newton following each stiffening.
@@ -260,6 +262,19 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
         if not ok:
             return None
     return landed if stable else None
+
+
+def _sunk_into_a_disc(states, discs, record) -> bool:
+    """Whether a relaxed landing (``states``: (N, ≥2) x, y) has a sample deeper in a disc than
+    the deepest of the fold's ``record`` by more than TUNNEL_SLACK. The minimiser's first steps
+    can jump the backbone into an object (a grasp's landing 7 cm inside a 15 cm object,
+    measured), and no Newton polish brings such a state back out: it is refused before it
+    costs the stiffening stages."""
+    if discs.shape[0] == 0:
+        return False
+    rel = states[:, None, :2] - discs[None, :, L.CX:L.CY + 1]
+    depth = discs[None, :, L.RADIUS] - np.hypot(rel[..., 0], rel[..., 1])
+    return bool(depth.max() > max(float(record[:, L.C_PEN].max()), 0.0) + contact_kernels.TUNNEL_SLACK)
 
 
 def _clear_of_itself(record, layout, sp):

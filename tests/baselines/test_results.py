@@ -209,3 +209,17 @@ def test_remedies_table_keeps_cloned_and_warm_started_policies_apart_from_their_
     assert ("| BC warm start, then gSDE PPO | ppo (batched_gsde, from bc) | 1 | 100 % | **100 %** "
             "| 250 |") in text
     assert "**ppo (batched_gsde) mean ± std over 2 seeds** | `{}` | | | | | **60 ± 42 %**" in text
+
+
+def test_two_rounds_of_one_setting_pool_into_one_seed_mean_that_names_repeated_seeds(tmp_path):
+    # Saved files only: gSDE PPO trained twice on seeds 0 and 1 (a second round renamed _r2_). The
+    # rounds are one setting: the table and the target line pool all four runs, name the repeated
+    # seeds, and the better round alone does not make the target.
+    out = tmp_path / "results"
+    runs = {"ppo_OctArmWrap-v2_batched_gsde_s0": 0.3, "ppo_OctArmWrap-v2_batched_gsde_s1": 0.2,
+            "ppo_OctArmWrap-v2_batched_gsde_r2_s0": 0.9, "ppo_OctArmWrap-v2_batched_gsde_r2_s1": 0.8}
+    for name, rate in runs.items():
+        _wrap_v2_run(out, name, rate, 200.0, {"hyperparams_file": "baselines/hyperparams/batched_gsde/ppo.yml"})
+    text = results.report(out, tmp_path / "RESULTS.md")
+    assert "**ppo (batched_gsde) mean ± std over 4 runs, seeds 0, 0, 1, 1** | `{}` | | | | | **55 ± 35 %**" in text
+    assert ("best seed mean 55 % (ppo (batched_gsde), 4 runs, seeds 0, 0, 1, 1) — NOT met") in text

@@ -56,6 +56,20 @@ SCENES = {
 }
 
 
+def walked_stepper(name, steps):
+    """(arm, scene, stepper): a stepper in ``SCENES[name]`` after the first ``steps``
+    pressures of its curl walk (seed 7)."""
+    base, kwargs, scale, drift = SCENES[name]
+    arm = designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=base, **kwargs)
+    stepper = solver.Stepper(arm, scene)
+    walk = curl_walk(arm, steps, seed=7, scale=scale, drift=drift)
+    stepper.reset(walk[0])
+    for p in walk[1:]:
+        stepper.step(p)
+    return arm, scene, stepper
+
+
 @pytest.mark.parametrize("name", list(SCENES))
 def test_contact_steps_equal_warm_solves(name):
     base, kwargs, scale, drift = SCENES[name]
@@ -86,14 +100,7 @@ def test_large_jumps_in_contact_take_the_lean_continuation_and_equal_warm_solves
     the pressure range from states in contact. The lean step follows them as a short
     continuation (sub-steps predicted from the stored factors) and every step lands where
     solve() from the previous equilibrium lands."""
-    base, kwargs, scale, drift = SCENES[name]
-    arm = designs.octarm_v()
-    scene = solver.Scene(base_angle_deg=base, **kwargs)
-    stepper = solver.Stepper(arm, scene)
-    walk = curl_walk(arm, 30, seed=7, scale=scale, drift=drift)
-    stepper.reset(walk[0])
-    for p in walk[1:]:
-        stepper.step(p)
+    arm, scene, stepper = walked_stepper(name, 30)
     rng = np.random.default_rng(11)
     eq = stepper.equilibrium
     jumps = []  # the largest channel change (× p_max) of lean contact steps from contact
@@ -111,6 +118,30 @@ def test_large_jumps_in_contact_take_the_lean_continuation_and_equal_warm_solves
         got = assert_lands_on(stepper, ref)
         eq = got
     assert jumps and max(jumps) > 0.5, jumps
+
+
+def test_self_touching_steps_keep_the_full_factors_and_equal_warm_solves():
+    """An arm curled onto itself (the full Jacobian of touching parts, a residual pass per
+    column of a node in contact), then small steps as an env's delta actions give them: the
+    lean steps keep the full factors of the state before where Broyden's corrections alone
+    converge (``full_factor_age`` > 1), and every step still lands where solve() from the
+    previous equilibrium lands."""
+    arm, scene, stepper = walked_stepper("self", 45)
+    assert stepper.full_factor_age >= 1  # curled onto itself: full factors
+    rng = np.random.default_rng(5)
+    eq = stepper.equilibrium
+    ages = []
+    for _ in range(12):
+        p = np.clip(stepper.pressures + rng.uniform(-0.02, 0.02, arm.n_inputs(True)) * arm.max_pressure,
+                    0.0, arm.max_pressure)
+        report = stepper.step(p)
+        ref = solver.solve(arm, p, scene, warm_start=eq)
+        assert report.converged == ref.converged
+        if not report.converged:
+            continue
+        ages.append((stepper.last_path, stepper.full_factor_age))
+        eq = assert_lands_on(stepper, ref)
+    assert any(path == "lean contact" and age > 1 for path, age in ages), ages
 
 
 def test_contact_record_columns_are_the_planar_record_columns():
@@ -137,6 +168,8 @@ def test_a_failed_lean_contact_step_leaves_the_state_and_the_general_path_takes_
     jump = np.array([100, 0, 100, 0, 100, 0]) * PSI
     report = stepper.step(jump)
     assert stepper.last_path == "general"
+    # The lean continuation halved its way to the fold and spent its budget there.
+    assert {"not converged", "budget spent"} <= set(stepper.last_refusals), stepper.last_refusals
     ref = solver.solve(arm, jump, scene, warm_start=start)
     assert ref.snapped
     assert report.converged == ref.converged
