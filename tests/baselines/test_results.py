@@ -219,7 +219,9 @@ def test_two_rounds_of_one_setting_pool_into_one_seed_mean_that_names_repeated_s
     runs = {"ppo_OctArmWrap-v2_batched_gsde_s0": 0.3, "ppo_OctArmWrap-v2_batched_gsde_s1": 0.2,
             "ppo_OctArmWrap-v2_batched_gsde_r2_s0": 0.9, "ppo_OctArmWrap-v2_batched_gsde_r2_s1": 0.8}
     for name, rate in runs.items():
-        _wrap_v2_run(out, name, rate, 200.0, {"hyperparams_file": "baselines/hyperparams/batched_gsde/ppo.yml"})
+        _wrap_v2_run(out, name, rate, 200.0,
+                     {"hyperparams_file": "baselines/hyperparams/batched_gsde/ppo.yml"})
     text = results.report(out, tmp_path / "RESULTS.md")
-    assert "**ppo (batched_gsde) mean ± std over 4 runs, seeds 0, 0, 1, 1** | `{}` | | | | | **55 ± 35 %**" in text
-    assert ("best seed mean 55 % (ppo (batched_gsde), 4 runs, seeds 0, 0, 1, 1) — NOT met") in text
+    assert ("**ppo (batched_gsde) mean ± std over 4 runs, seeds 0, 0, 1, 1** | `{}` | | | | | "
+            "**55 ± 35 %**") in text
+    assert "best seed mean 55 % (ppo (batched_gsde), 4 runs, seeds 0, 0, 1, 1) — NOT met" in text
