@@ -12,6 +12,7 @@ Pure numerics: numpy, scipy and numba only (never gymnasium), usable on its own:
 from solver import actuator, designs, rod
 from solver.actuator import PSI, pressure_from_stretch, stretch_from_pressure
 from solver.batch_spatial import SpatialBatchStepper
+from solver.paths.lean_contact import refusal_names
 from solver.problem import rest_strains
 from solver.results import BatchState, Equilibrium
 from solver.scene import Cylinder, Disc, Scene, Sphere
@@ -24,5 +25,5 @@ __all__ = [
     "Scene", "Disc", "Cylinder", "Sphere", "MODELS", "Equilibrium", "Settings", "SolverError",
     "rest_strains", "solve",
     "solve_batch", "step_batch", "BatchState", "channel_pressures", "Stepper", "StepReport", "ThreadPolicy",
-    "BatchStepper", "BatchReport", "SpatialBatchStepper",
+    "BatchStepper", "BatchReport", "SpatialBatchStepper", "refusal_names",
 ]

@@ -196,13 +196,11 @@ def format_table(result: dict) -> str:
 # ---------------------------------------------------------------------- batched contact envs
 
 def refusal_words(bits: int) -> str:
-    """The lean contact step's refusal bits (:func:`solver.paths.lean_contact.refusal_names`)
-    as words, ``"none"`` for none."""
+    """The lean contact step's refusal bits (:func:`solver.refusal_names`) as words, ``"none"``
+    for none."""
     if not bits:
         return "none"
-    from solver.paths.lean_contact import refusal_names
-
-    return ", ".join(refusal_names(bits))
+    return ", ".join(solver.refusal_names(bits))
 
 
 def _refusal_bits(report: np.ndarray, k: int) -> int:
@@ -219,8 +217,6 @@ class _BatchTimer:
     independent) to time each copy's lean step."""
 
     def __init__(self, batch, per_copy: bool):
-        from solver.kernels import stepping as st
-
         self.batch = batch
         self.lean_s = 0.0
         self.general = []  # one dict per general-path step
@@ -228,10 +224,9 @@ class _BatchTimer:
         rows = batch._rows
         self._step, self._solve_in = rows.step, batch._solve_in
         self._report = None
-        contact = rows.contact
 
         def step(p_from, p_to, active, run):
-            coupled = np.array([f[0] for f in contact[st.CT_FLAGS]]) * contact[st.CT_OK]
+            coupled = [rows.full_factor_age(k) > 0 for k in range(rows.n)]  # parts touching
             seconds = np.zeros(rows.n)
             start = time.perf_counter()
             report = None
@@ -254,9 +249,8 @@ class _BatchTimer:
             return report
 
         def solve_in(k, p_inputs, p_channel, warm_start, scene):
-            state = {"copy": int(k), "on_contact_layout": bool(contact[st.CT_OK][k]),
-                     "touching": bool(contact[st.CT_TOUCHING][k]),
-                     "self_touching": bool(contact[st.CT_FLAGS][k][0] and contact[st.CT_OK][k]),
+            state = {"copy": int(k), "on_contact_layout": rows.on_contact_layout(k),
+                     "touching": rows.touching(k), "self_touching": rows.full_factor_age(k) > 0,
                      "lean_passes": int(self._report[k, 3]),
                      "lean_refusal": refusal_words(_refusal_bits(self._report, k))}
             start = time.perf_counter()

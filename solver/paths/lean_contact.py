@@ -370,6 +370,10 @@ class ContactRows:
         """Whether copy k has a state the lean paths can step from."""
         return bool(self.free[stepping.FR_OK][k] or self.contact[stepping.CT_OK][k])
 
+    def touching(self, k: int) -> bool:
+        """Whether copy k's state touches an obstacle (on the contact layout)."""
+        return bool(self.contact[stepping.CT_TOUCHING][k])
+
     def full_factor_age(self, k: int) -> int:
         """How many accepted states copy k's full factored Jacobian (where parts of the arm
         touch each other) has served: 1 formed at this state, more where lean steps kept it
