@@ -13,6 +13,7 @@ from solver.kernels import contact as contact_kernels
 from solver.kernels import planar as planar_kernels
 from solver.kernels import relax as relax_kernels
 from solver.kernels.grid import section_needs
+from solver.kernels.obstacles import clearance
 from solver.kernels.self_contact import far_parts_clear
 from solver.paths.friction import (
     friction_fields,
@@ -270,11 +271,8 @@ def _sunk_into_a_disc(states, discs, record) -> bool:
     can jump the backbone into an object (a grasp's landing 7 cm inside a 15 cm object,
     measured), and no Newton polish brings such a state back out: it is refused before it
     costs the stiffening stages."""
-    if discs.shape[0] == 0:
-        return False
-    rel = states[:, None, :2] - discs[None, :, L.CX:L.CY + 1]
-    depth = discs[None, :, L.RADIUS] - np.hypot(rel[..., 0], rel[..., 1])
-    return bool(depth.max() > max(float(record[:, L.C_PEN].max()), 0.0) + contact_kernels.TUNNEL_SLACK)
+    deepest = max(float(record[:, L.C_PEN].max()), 0.0) + contact_kernels.TUNNEL_SLACK
+    return any(clearance(x, y, discs) < -deepest for x, y in states[:, :2])
 
 
 def _clear_of_itself(record, layout, sp):
