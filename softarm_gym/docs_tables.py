@@ -287,8 +287,14 @@ def friction_table() -> str:
 
     friction = _json("friction.json")
     m = friction["measured"]
-    return (f"{format_table(friction)}\n\n`{m['command']}`, {m['date']}, {m['repeat']} timings per "
+    text = (f"{format_table(friction)}\n\n`{m['command']}`, {m['date']}, {m['repeat']} timings per "
             f"increment, load average {m['load_before'][0]:.1f} before and {m['load_after'][0]:.1f} after.")
+    own = friction.get("self_slip_measured")
+    if own:  # the self-contact row measured on its own, after the run above
+        text += (f" Self-contact row: `{own['command']}`, {own['date']}, {own['repeat']} timings per "
+                 f"increment, load average {own['load_before'][0]:.1f} before and "
+                 f"{own['load_after'][0]:.1f} after.")
+    return text
 
 
 def friction_spatial_table() -> str:

@@ -11,6 +11,11 @@ this module, docs/design.md §9.1), and the benchmark that times them at several
 * **Slip threshold.** A soft massless spring from the clamp, then a heavy stiff rod lying on a
   flat (a 10 km disc), pulled along it at its tip from 0 to 2 μW (W its weight): once it
   slides the flat's friction (the clamp's reaction less the pull) is μ times its normal force.
+* **Self-contact slip threshold** (``tests/solver/test_self_friction.py``). A hairpin: a stiff
+  straight layer clamped horizontal, a fold curled by pressure, and a heavy straight layer
+  lying back on the first, pulled along the layers at its tip: flat on flat, so one tangent
+  splits the contact's resultant (the statics of the upper layer) into friction and normal
+  force, and friction is μ times the normal force once the upper layer slides.
 
 The benchmark's error is the relative error against the closed form at the end of the load
 path (capstan: T₁/T₂ against e^{μθ}; slip: the largest |F/(μN) − 1| over the loads past
@@ -24,12 +29,14 @@ from __future__ import annotations
 import math
 import os
 import time
+from dataclasses import replace
 from datetime import datetime, timezone
 
 import numpy as np
 
 import solver
-from solver.designs import ArmDesign, Section
+from solver.actuator import tube_pressure
+from solver.designs import ArmDesign, Section, Tube, TubeMaterial
 from solver.settings import DEFAULT_SETTINGS, Settings
 
 R_DRUM, LEAD, TAIL, K_DRUM = 0.1, 0.1, 0.15, 1e5
@@ -139,6 +146,115 @@ def sled_forces(eq, pull: float) -> tuple[float, float]:
     return float(eq.base_force[0] - pull), float(eq.base_force[1] + SLED_WEIGHT_N)
 
 
+# ------------------------------------------------------------------ the self-contact hairpin
+
+HAIRPIN_HALF, HAIRPIN_LOWER, HAIRPIN_UPPER, HAIRPIN_FOLD_EI = 0.01, 0.3, 0.25, 1e-3
+"""The hairpin's half-thickness (m: its fold's radius, so the layers' backbones stand 2 × it
+apart), the lengths of its lower (clamped) and upper layers (m) and its fold's bending
+stiffness (N m²)."""
+
+HAIRPIN_CONTACT = 1e5
+"""The hairpin's self-contact penalty stiffness (N/m², the drum's)."""
+
+HAIRPIN_OVERCURL = 1.3
+"""How far the fold's rest curvature curls it, in half turns: past 180°, so the fold itself
+presses the upper layer onto the lower one before gravity does."""
+
+HAIRPIN_SETTINGS = Settings(max_iter=40)
+"""The hairpin's settings: the default resolution, 40 Newton iterations a level. Where the
+upper layer starts to slide, the samples pass from stick to slip a few at a time and
+Newton (the friction's Jacobian columns are differences) converges linearly: 22–25
+iterations at the onset, where the default 12 stop at a residual of 3.4e-10 (tolerance
+1e-10); the path then takes the stall for a fold and snaps, and the snap's landing passes
+the upper layer through the lower one (docs/design.md §9.1)."""
+
+_HAIRPIN_MUSCLE = TubeMaterial(youngs_modulus=1e8, shear_modulus=3e7, density=1000.0,
+                               inner_radius=0.003, outer_radius=0.004, wind_angle_deg=70.0)
+_HAIRPIN_MUSCLE_RADIUS = 0.005
+
+
+def hairpin() -> ArmDesign:
+    """A rod that folds back onto itself: a stiff massless lower layer (0.3 m, EI = 1e3 N m²)
+    to be clamped horizontal, a fold (π × 1 cm long, EI = 1e-3 N m²) curled by a muscle
+    (channel ``fold``, one tube 5 mm off the axis, in the fold only) and a heavy upper layer
+    (0.25 m, EI = 0.1 N m², 0.4 kg/m) that the fold lays back on the lower one; EA = GA =
+    1e5 N throughout. A passive ``skin`` tube on the axis (Ro = 1 cm, never pressurised:
+    :func:`hairpin_pressures` leaves it at 0) makes it 2 cm thick for the self-contact law."""
+    skin = TubeMaterial(youngs_modulus=1e6, shear_modulus=3e5, density=1000.0,
+                        inner_radius=0.9 * HAIRPIN_HALF, outer_radius=HAIRPIN_HALF, wind_angle_deg=70.0)
+    fold = math.pi * HAIRPIN_HALF
+    return ArmDesign(
+        name="hairpin", source="self-contact slip threshold test hairpin", max_pressure=1e7,
+        sections=(Section(HAIRPIN_LOWER, 1e5, 1e5, 1e3, 1e3, 0.0),
+                  Section(fold, 1e5, 1e5, HAIRPIN_FOLD_EI, HAIRPIN_FOLD_EI, 0.0),
+                  Section(HAIRPIN_UPPER, 1e5, 1e5, 0.1, 0.1, 0.4)),
+        tubes=(Tube(0, 0.0, 0.0, 0, 2, skin), Tube(1, 180.0, _HAIRPIN_MUSCLE_RADIUS, 1, 1, _HAIRPIN_MUSCLE)),
+        channels=("skin", "fold"), planar_channels=(("skin", (0,)), ("fold", (1,))))
+
+
+def hairpin_pressures(fraction: float = 1.0) -> np.ndarray:
+    """The planar pressures (skin, fold) (Pa) at ``fraction`` of the fold's: the muscle's
+    pressure whose force F = E·At·(λ − 1) (the actuator model) gives the fold the rest
+    curvature HAIRPIN_OVERCURL·π over its length (F × its offset = EI × the curvature)."""
+    m = _HAIRPIN_MUSCLE
+    force = HAIRPIN_FOLD_EI * HAIRPIN_OVERCURL / HAIRPIN_HALF / _HAIRPIN_MUSCLE_RADIUS
+    lam = 1.0 + force / (m.youngs_modulus * m.area)
+    p = tube_pressure(lam, m.youngs_modulus, (m.outer_radius**2 - m.inner_radius**2) / m.inner_radius**2,
+                      math.cos(math.radians(m.wind_angle_deg)))
+    return np.array([0.0, fraction * p])
+
+
+def hairpin_scene(mu: float, pull: float = 0.0, gravity: float = 9.81) -> solver.Scene:
+    """The hairpin clamped along +x, self-contact at HAIRPIN_CONTACT with friction ``mu``, the
+    upper layer's tip pulled along −x (along the layers, away from the fold) with ``pull`` (N)."""
+    return solver.Scene(base_angle_deg=90.0, gravity=gravity, tip_force=(-pull, 0.0),
+                        self_contact=HAIRPIN_CONTACT, self_friction=mu)
+
+
+def fold_hairpin(mu: float, settings: Settings = HAIRPIN_SETTINGS) -> tuple[ArmDesign, list]:
+    """The hairpin folded and laid on itself with friction ``mu``: the fold's pressure ramped
+    in without gravity (to 90 % in tenths, the last tenth, where the layers meet, in
+    hundredths: a longer step would pass the upper layer through the lower one before the
+    self-contact law sees them touch), then gravity switched on.
+
+    Returns:
+        ``(arm, path)``: the :func:`hairpin` and the equilibria of the folding, the laid
+        hairpin last (check ``converged`` and ``stable`` on each).
+    """
+    arm = hairpin()
+    path = [solver.solve(arm, hairpin_pressures(0.0), hairpin_scene(mu, gravity=0.0), settings=settings)]
+    for fraction in np.r_[np.linspace(0.1, 0.9, 9), np.linspace(0.91, 1.0, 10)]:
+        path.append(solver.solve(arm, hairpin_pressures(fraction), hairpin_scene(mu, gravity=0.0),
+                                 warm_start=path[-1], settings=settings))
+    path.append(solver.solve(arm, hairpin_pressures(), hairpin_scene(mu), warm_start=path[-1],
+                             settings=settings))
+    return arm, path
+
+
+def hairpin_forces(eq, pull: float) -> tuple[float, float, float]:
+    """``(friction, normal, spread)`` of the lower layer on the upper one, from the statics of
+    the upper layer cut at its first sample (the fold's end, where nothing touches: the
+    self-contact exclusion keeps the fold's neighbours apart): the contact's resultant
+    C = n(cut) − the tip force − the upper layer's weight, split along the layers' mean
+    direction t (the mean of the tangents of both layers where they touch, the upper one's
+    turned by π) into friction C·t (N, positive along +x: against the pull) and normal
+    force C·n̂ (n̂ = t turned +90°, N). ``spread`` (rad) is how far the touching samples'
+    tangents spread: no single direction is better defined than that."""
+    arm = eq.arm
+    cut = eq.section_ends[1]
+    upper = np.arange(cut + 1, eq.s.size)
+    lower = np.arange(eq.section_ends[0] + 1)
+    weight = arm.sections[2].mass_per_length * (arm.length - eq.s[cut]) * eq.scene.gravity
+    contact = eq.internal_force[cut] - np.array([-pull, 0.0]) - np.array([0.0, -weight])
+    angles = np.r_[eq.angles[lower][eq.penetration[lower] > 0],
+                   eq.angles[upper][eq.penetration[upper] > 0] - math.pi]
+    if angles.size == 0:
+        return 0.0, 0.0, math.nan
+    mean = float(angles.mean())
+    t = np.array([math.cos(mean), math.sin(mean)])
+    return float(contact @ t), float(contact @ np.array([-t[1], t[0]])), float(np.ptp(angles))
+
+
 # --------------------------------------------------------------------------------- in 3D
 
 TILT_DEG = 30.0
@@ -240,12 +356,13 @@ def stylus_forces(eq) -> tuple[np.ndarray, float]:
 
 # ------------------------------------------------------------------------------ the benchmark
 
-def _timed(repeat, arm, scene, warm_start, settings):
-    """The solve of ``scene`` from ``warm_start`` and the median of ``repeat`` timings (s)."""
+def _timed(repeat, arm, scene, warm_start, settings, pressures=()):
+    """The solve of ``scene`` at ``pressures`` from ``warm_start`` and the median of
+    ``repeat`` timings (s)."""
     times = []
     for _ in range(repeat):
         start = time.perf_counter()
-        eq = solver.solve(arm, [], scene, warm_start=warm_start, settings=settings)
+        eq = solver.solve(arm, pressures, scene, warm_start=warm_start, settings=settings)
         times.append(time.perf_counter() - start)
     return eq, float(np.median(times))
 
@@ -309,10 +426,44 @@ def slip(mu: float = SLIP_FRICTION, steps: int = 16, repeat: int = 3) -> dict:
             "max_friction_over_mu_normal": max(held), **_summary(times, ok)}
 
 
+def self_slip(mu: float = SLIP_FRICTION, steps: int = 16, repeat: int = 3) -> dict:
+    """One self-contact slip-threshold row: the :func:`hairpin` folded with friction ``mu``
+    (:func:`fold_hairpin`, not timed) and its upper layer pulled from 0.1 to 2 μN₀ (N₀ the
+    normal force at no pull) in 20 increments, at ``steps`` RK4 steps per section
+    (HAIRPIN_SETTINGS' Newton iterations).
+
+    Returns:
+        The row: ``relative_error`` the largest |F/(μN) − 1| over the pulls past 1.2 μN
+        (sliding; :func:`hairpin_forces`), ``max_friction_over_mu_normal`` the most friction
+        held along the path, ``spread`` the largest spread of the touching tangents (rad: the
+        split's resolution is spread/μ), the warm solves' times and the share of solves
+        (folding included) converged, stable and not snapped.
+    """
+    settings = replace(HAIRPIN_SETTINGS, steps_per_section=steps)
+    arm, path = fold_hairpin(mu, settings)
+    eq = path[-1]
+    ok = [e.converged and e.stable and not e.snapped for e in path]
+    n0 = hairpin_forces(eq, 0.0)[1]
+    times, sliding, held, spreads = [], [], [], []
+    for pull in np.linspace(0.1, 2.0, 20) * mu * n0:
+        eq, seconds = _timed(repeat, arm, hairpin_scene(mu, pull), eq, settings,
+                             hairpin_pressures())
+        times.append(seconds)
+        ok.append(eq.converged and eq.stable and not eq.snapped)
+        friction, normal, spread = hairpin_forces(eq, pull)
+        held.append(friction / (mu * normal))
+        spreads.append(spread)
+        if pull > 1.2 * mu * normal:
+            sliding.append(abs(friction / (mu * normal) - 1.0))
+    return {"mu": mu, "steps_per_section": steps, "relative_error": max(sliding, default=math.nan),
+            "max_friction_over_mu_normal": max(held), "spread": max(spreads), **_summary(times, ok)}
+
+
 def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN_CONFIGS, steps=STEPS,
         repeat=None) -> dict:
     """The friction benchmark: every capstan case of ``cases`` in every configuration of
-    ``configs``, and the slip case at every resolution of ``steps``.
+    ``configs``, the slip case at every resolution of ``steps``, and the self-contact slip
+    case at 16 steps (at 32 its sliding pulls stall and snap: docs/design.md §9.1).
 
     Args:
         quick: two capstan cases in the first and last configurations, 16 and 64 steps for
@@ -324,8 +475,9 @@ def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN
         repeat: timings per increment (default 3, 1 when ``quick``).
 
     Returns:
-        A JSON-able dict: ``capstan`` and ``slip`` rows (:func:`capstan`, :func:`slip`) and
-        ``measured`` (UTC date, load average before and after).
+        A JSON-able dict: ``capstan``, ``slip`` and ``self_slip`` rows (:func:`capstan`,
+        :func:`slip`, :func:`self_slip`) and ``measured`` (UTC date, load average before and
+        after).
     """
     tick = progress or (lambda *_: None)
     if quick:
@@ -341,6 +493,8 @@ def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN
     for n in steps:
         rows["slip"].append(slip(SLIP_FRICTION, n, repeat))
         tick(f"slip μ={SLIP_FRICTION:g}, {n} steps/section")
+    rows["self_slip"] = [self_slip(SLIP_FRICTION, 16, repeat)]
+    tick(f"self-contact slip μ={SLIP_FRICTION:g}, 16 steps/section")
     rows["measured"] = {"date": datetime.now(timezone.utc).strftime("%Y-%m-%d"), "repeat": repeat,
                         "load_before": list(load_before), "load_after": list(os.getloadavg())}
     return rows
@@ -503,4 +657,13 @@ def format_table(result: dict) -> str:
         lines.append(f"| {r['mu']:g} | {r['steps_per_section']} | {r['relative_error']:.1e} | "
                      f"{r['max_friction_over_mu_normal']:.4f} | {r['median_solve_ms']:.2f} | "
                      f"{r['path_seconds']:.2f} | {r['converged_fraction']:.0%} |")
+    if result.get("self_slip"):
+        lines += ["", "| self-contact slip (hairpin) μ | RK4 steps/section | sliding: max \\|F/μN − 1\\| "
+                  "| most held F/μN | tangents' spread / μ | warm solve (ms, median) | path (s) "
+                  "| converged |", "|---" * 8 + "|"]
+        for r in result["self_slip"]:
+            lines.append(f"| {r['mu']:g} | {r['steps_per_section']} | {r['relative_error']:.1e} | "
+                         f"{r['max_friction_over_mu_normal']:.4f} | {r['spread'] / r['mu']:.1e} | "
+                         f"{r['median_solve_ms']:.1f} | {r['path_seconds']:.2f} | "
+                         f"{r['converged_fraction']:.0%} |")
     return "\n".join(lines)

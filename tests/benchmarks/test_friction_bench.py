@@ -16,12 +16,16 @@ def test_friction_bench_reports_finite_errors_and_times_against_the_closed_forms
     assert row["relative_error"] == abs(row["ratio"] / row["capstan"] - 1.0) < 0.01
     (slip,) = result["slip"]
     assert slip["converged_fraction"] == 1.0 and slip["relative_error"] < 0.01
-    for r in (row, slip):
+    (self_slip,) = result["self_slip"]
+    assert self_slip["converged_fraction"] == 1.0
+    assert 0 < self_slip["relative_error"] < self_slip["spread"] / self_slip["mu"] < 0.01
+    for r in (row, slip, self_slip):
         assert r["increments"] > 0
         for key in ("relative_error", "median_solve_ms", "path_seconds"):
             assert np.isfinite(r[key]) and r[key] > 0, key
     table = friction_bench.format_table(result).splitlines()
     assert table[2].startswith("| 90° | 1 | 1e+05 | 16 |") and table[-1].startswith("| 0.5 | 16 |")
+    assert any(line.startswith("| self-contact slip") for line in table)
 
 
 def test_the_3d_friction_bench_reports_the_oblique_slip_threshold():

@@ -8,9 +8,11 @@ Oracles that do not trust the friction code:
 - dissipation never negative, and never decreasing, along a load–unload–reload path;
 - μ → 0 tends to the frictionless state, linearly;
 - the mirrored scene gives the mirrored answer;
-- stick then slip: a tangential tip load on a curl pressed on itself is held by friction
-  while it is small (the tip barely moves) and slides the contact past μ × the contact's
-  normal force (the samples on the cone).
+- slip threshold, flat on flat: a hairpin's upper layer lying on its lower one, pulled along
+  them, sticks while the pull is small (the tip moves < 0.1 × the frictionless tip) and
+  slides at F = μN past 1.2 μN, F and N the contact's resultant on the upper layer from
+  its statics (the cut's internal force, the tip load, its weight), split along the
+  layers; μ = 0 slides at once and reads F ≈ 0 (the split's resolution).
 """
 
 import math
@@ -19,6 +21,13 @@ import numpy as np
 import pytest
 
 import solver
+from softarm_gym.benchmarks.friction_bench import (
+    HAIRPIN_SETTINGS,
+    fold_hairpin,
+    hairpin_forces,
+    hairpin_pressures,
+    hairpin_scene,
+)
 from softarm_gym.benchmarks.stress import moment_balance_error
 from solver import layout as L
 from solver.problem import context, pack
@@ -168,3 +177,56 @@ def test_steppers_carry_the_tangential_state_on_the_lean_path():
     assert np.all(np.diff(dissipated) >= 0.0) and dissipated[-1] > 0.0
     assert eq.self_friction_samples.shape[0] > 0
     assert moment_balance_error(ARM, solver.Scene(), eq) < 1e-5
+
+
+@pytest.fixture(scope="module")
+def hairpin_pulls():
+    """The hairpin (``friction_bench.hairpin``) laid on itself with μ = 0.5 and without
+    friction, then pulled along its layers from 0.1 to 2 μN₀ (N₀ the normal force at no pull,
+    μ = 0.5 for both): per μ, (pull, friction, normal, spread, tip x) of every pull."""
+    out = {}
+    for mu in (0.5, 0.0):
+        arm, path = fold_hairpin(mu)
+        for eq in path:
+            assert eq.converged and eq.stable and not eq.snapped
+        eq = path[-1]
+        _, n0, _ = hairpin_forces(eq, 0.0)
+        rows = [(0.0, *hairpin_forces(eq, 0.0), eq.tip[0])]
+        for pull in np.linspace(0.1, 2.0, 20) * 0.5 * n0:
+            eq = solver.solve(arm, hairpin_pressures(), hairpin_scene(mu, pull), warm_start=eq,
+                              settings=HAIRPIN_SETTINGS)
+            assert eq.converged and eq.stable and not eq.snapped, (mu, pull)
+            rows.append((pull, *hairpin_forces(eq, pull), eq.tip[0]))
+        out[mu] = np.array(rows)
+    return out
+
+
+def test_a_fold_laid_on_itself_slips_at_mu_times_the_normal_force(hairpin_pulls):
+    """Flat on flat: a hairpin's heavy upper layer lies on its stiff lower layer, pulled
+    along them at its tip. From the statics of the upper layer (the internal force where it
+    leaves the fold, less the tip force and its weight) the contact's resultant, split along
+    the layers, is friction F and normal force N: F ≤ μN all along; while the pull is below
+    0.8 μN the upper layer sticks (the tip moves less than a tenth of the frictionless
+    layer's, which slides at once, held by the fold alone, and friction takes over 90 % of
+    each added pull); past 1.2 μN it slides, F = μN. The tolerance is the resolution of the
+    split: the touching samples' tangents spread by ``spread`` (2.4e-3–2.8e-3 rad, the
+    layers bend under the load), so F/μN is defined to spread/μ; frictionless, the split reads
+    |F| ≤ 6e-4 N of N ≈ 1.1 N."""
+    rows, free = hairpin_pulls[0.5], hairpin_pulls[0.0]
+    pull, friction, normal, spread, tip = rows.T
+    mu = 0.5
+    assert np.all(normal > 0.8) and np.all(spread < 5e-3)
+    ratio = friction / (mu * normal)
+    assert np.all(ratio <= 1.0 + spread / mu)
+    sticking = pull[1:] < 0.8 * mu * normal[1:]
+    moved, moved_free = np.abs(np.diff(tip)), np.abs(np.diff(free[:, 4]))
+    assert sticking.sum() >= 6
+    assert np.all(moved[sticking] < 0.1 * moved_free[sticking])
+    took = np.diff(friction) / np.diff(pull)
+    assert np.all(took[sticking] > 0.9)
+    sliding = pull > 1.2 * mu * normal
+    assert sliding.sum() >= 8
+    assert np.all(np.abs(ratio[sliding] - 1.0) < spread[sliding] / mu)
+    assert np.all(moved[sliding[1:]] > 0.3 * moved_free[sliding[1:]])
+    # frictionless: nothing holds the layer along the contact
+    assert np.all(np.abs(free[:, 1]) < 1e-3 * free[:, 2])
