@@ -29,7 +29,6 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import replace
 from datetime import datetime, timezone
 
 import numpy as np
@@ -160,13 +159,8 @@ HAIRPIN_OVERCURL = 1.3
 """How far the fold's rest curvature curls it, in half turns: past 180°, so the fold itself
 presses the upper layer onto the lower one before gravity does."""
 
-HAIRPIN_SETTINGS = Settings(max_iter=40)
-"""The hairpin's settings: the default resolution, 40 Newton iterations a level. Where the
-upper layer starts to slide, the samples pass from stick to slip a few at a time and
-Newton (the friction's Jacobian columns are differences) converges linearly: 22–25
-iterations at the onset, where the default 12 stop at a residual of 3.4e-10 (tolerance
-1e-10); the path then takes the stall for a fold and snaps, and the snap's landing passes
-the upper layer through the lower one (docs/design.md §9.1)."""
+HAIRPIN_STEPS = (16, 32, 64)
+"""RK4 steps per section of the benchmark's self-contact slip rows."""
 
 _HAIRPIN_MUSCLE = TubeMaterial(youngs_modulus=1e8, shear_modulus=3e7, density=1000.0,
                                inner_radius=0.003, outer_radius=0.004, wind_angle_deg=70.0)
@@ -211,7 +205,7 @@ def hairpin_scene(mu: float, pull: float = 0.0, gravity: float = 9.81) -> solver
                         self_contact=HAIRPIN_CONTACT, self_friction=mu)
 
 
-def fold_hairpin(mu: float, settings: Settings = HAIRPIN_SETTINGS) -> tuple[ArmDesign, list]:
+def fold_hairpin(mu: float, settings: Settings = DEFAULT_SETTINGS) -> tuple[ArmDesign, list]:
     """The hairpin folded and laid on itself with friction ``mu``: the fold's pressure ramped
     in without gravity (to 90 % in tenths, the last tenth, where the layers meet, in
     hundredths: a longer step would pass the upper layer through the lower one before the
@@ -429,8 +423,7 @@ def slip(mu: float = SLIP_FRICTION, steps: int = 16, repeat: int = 3) -> dict:
 def self_slip(mu: float = SLIP_FRICTION, steps: int = 16, repeat: int = 3) -> dict:
     """One self-contact slip-threshold row: the :func:`hairpin` folded with friction ``mu``
     (:func:`fold_hairpin`, not timed) and its upper layer pulled from 0.1 to 2 μN₀ (N₀ the
-    normal force at no pull) in 20 increments, at ``steps`` RK4 steps per section
-    (HAIRPIN_SETTINGS' Newton iterations).
+    normal force at no pull) in 20 increments, at ``steps`` RK4 steps per section.
 
     Returns:
         The row: ``relative_error`` the largest |F/(μN) − 1| over the pulls past 1.2 μN
@@ -439,7 +432,7 @@ def self_slip(mu: float = SLIP_FRICTION, steps: int = 16, repeat: int = 3) -> di
         split's resolution is spread/μ), the warm solves' times and the share of solves
         (folding included) converged, stable and not snapped.
     """
-    settings = replace(HAIRPIN_SETTINGS, steps_per_section=steps)
+    settings = solver.Settings(steps_per_section=steps)
     arm, path = fold_hairpin(mu, settings)
     eq = path[-1]
     ok = [e.converged and e.stable and not e.snapped for e in path]
@@ -460,19 +453,20 @@ def self_slip(mu: float = SLIP_FRICTION, steps: int = 16, repeat: int = 3) -> di
 
 
 def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN_CONFIGS, steps=STEPS,
-        repeat=None) -> dict:
+        repeat=None, hairpin_steps=HAIRPIN_STEPS) -> dict:
     """The friction benchmark: every capstan case of ``cases`` in every configuration of
     ``configs``, the slip case at every resolution of ``steps``, and the self-contact slip
-    case at 16 steps (at 32 its sliding pulls stall and snap: docs/design.md §9.1).
+    case at every resolution of ``hairpin_steps``.
 
     Args:
         quick: two capstan cases in the first and last configurations, 16 and 64 steps for
-            the slip case, one repeat (a smoke run).
+            the slip case, 16 for the self-contact one, one repeat (a smoke run).
         progress: called with a line per row (or None).
         cases: (θ in degrees, μ) of the capstan rows.
         configs: (drum stiffness (N/m²), RK4 steps per section) of the capstan rows.
         steps: RK4 steps per section of the slip rows.
         repeat: timings per increment (default 3, 1 when ``quick``).
+        hairpin_steps: RK4 steps per section of the self-contact slip rows.
 
     Returns:
         A JSON-able dict: ``capstan``, ``slip`` and ``self_slip`` rows (:func:`capstan`,
@@ -482,6 +476,7 @@ def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN
     tick = progress or (lambda *_: None)
     if quick:
         cases, configs, steps = cases[::3][:2], (configs[0], configs[-1]), steps[:2]
+        hairpin_steps = hairpin_steps[:1]
     repeat = repeat or (1 if quick else 3)
     load_before = os.getloadavg()
     slip(steps=steps[0], repeat=1)  # compiles what a first solve compiles; not timed
@@ -493,8 +488,10 @@ def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN
     for n in steps:
         rows["slip"].append(slip(SLIP_FRICTION, n, repeat))
         tick(f"slip μ={SLIP_FRICTION:g}, {n} steps/section")
-    rows["self_slip"] = [self_slip(SLIP_FRICTION, 16, repeat)]
-    tick(f"self-contact slip μ={SLIP_FRICTION:g}, 16 steps/section")
+    rows["self_slip"] = []
+    for n in hairpin_steps:
+        rows["self_slip"].append(self_slip(SLIP_FRICTION, n, repeat))
+        tick(f"self-contact slip μ={SLIP_FRICTION:g}, {n} steps/section")
     rows["measured"] = {"date": datetime.now(timezone.utc).strftime("%Y-%m-%d"), "repeat": repeat,
                         "load_before": list(load_before), "load_after": list(os.getloadavg())}
     return rows
