@@ -291,7 +291,7 @@ def friction_table() -> str:
             f"increment, load average {m['load_before'][0]:.1f} before and {m['load_after'][0]:.1f} after.")
     own = friction.get("self_slip_measured")
     if own:  # the self-contact row measured on its own, after the run above
-        text += (f" Self-contact row: `{own['command']}`, {own['date']}, {own['repeat']} timings per "
+        text += (f" Self-contact rows: `{own['command']}`, {own['date']}, {own['repeat']} timings per "
                  f"increment, load average {own['load_before'][0]:.1f} before and "
                  f"{own['load_after'][0]:.1f} after.")
     return text

@@ -9,7 +9,7 @@ from softarm_gym.benchmarks import friction_bench
 
 def test_friction_bench_reports_finite_errors_and_times_against_the_closed_forms():
     result = friction_bench.run(cases=((90.0, 1.0),), configs=((friction_bench.K_DRUM, 16),), steps=(16,),
-                                repeat=1)
+                                hairpin_steps=(16,), repeat=1)
     (row,) = result["capstan"]
     assert row["capstan"] == math.exp(math.pi / 2)  # e^{μθ}, μ = 1, θ = 90°
     assert row["slipped"] and row["converged_fraction"] == 1.0
