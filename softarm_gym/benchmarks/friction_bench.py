@@ -625,15 +625,23 @@ def format_table_3d(result: dict) -> str:
                      f"{r['max_ratio_over_capstan']:.4f} | {r['wrap_seconds']:.0f} | "
                      f"{r['median_solve_ms'] / 1e3:.2f} | {r['path_seconds']:.1f} | "
                      f"{r['converged_fraction']:.0%} |")
-    lines += ["", "| 3D slip threshold μ | RK4 steps/section | sliding: max \\|\\|F\\|/μN − 1\\| "
-              "| most held \\|F\\|/μN | worst cos(F, sliding) | warm solve (ms, median) | path (s) "
-              "| converged |", "|---" * 8 + "|"]
-    for r in result["slip_3d"]:
+    lines += _slip_table("3D slip threshold μ", "\\|F\\|/μN", "worst cos(F, sliding)", result["slip_3d"],
+                         lambda r: f"{r['worst_cos_to_sliding']:.5f}")
+    return "\n".join(lines)
+
+
+def _slip_table(title: str, ratio: str, extra: str, rows, cell) -> list[str]:
+    """The lines (a blank one first) of a slip-threshold table of ``rows``: ``ratio`` the
+    friction ratio's Markdown, ``extra`` a column's title between it and the timings and
+    ``cell`` its text for a row."""
+    lines = ["", f"| {title} | RK4 steps/section | sliding: max \\|{ratio} − 1\\| | most held {ratio} "
+             f"| {extra} | warm solve (ms, median) | path (s) | converged |", "|---" * 8 + "|"]
+    for r in rows:
         lines.append(f"| {r['mu']:g} | {r['steps_per_section']} | {r['relative_error']:.1e} | "
-                     f"{r['max_friction_over_mu_normal']:.4f} | {r['worst_cos_to_sliding']:.5f} | "
+                     f"{r['max_friction_over_mu_normal']:.4f} | {cell(r)} | "
                      f"{r['median_solve_ms']:.1f} | {r['path_seconds']:.2f} | "
                      f"{r['converged_fraction']:.0%} |")
-    return "\n".join(lines)
+    return lines
 
 
 def format_table(result: dict) -> str:
@@ -655,12 +663,6 @@ def format_table(result: dict) -> str:
                      f"{r['max_friction_over_mu_normal']:.4f} | {r['median_solve_ms']:.2f} | "
                      f"{r['path_seconds']:.2f} | {r['converged_fraction']:.0%} |")
     if result.get("self_slip"):
-        lines += ["", "| self-contact slip (hairpin) μ | RK4 steps/section | sliding: max \\|F/μN − 1\\| "
-                  "| most held F/μN | tangents' spread / μ | warm solve (ms, median) | path (s) "
-                  "| converged |", "|---" * 8 + "|"]
-        for r in result["self_slip"]:
-            lines.append(f"| {r['mu']:g} | {r['steps_per_section']} | {r['relative_error']:.1e} | "
-                         f"{r['max_friction_over_mu_normal']:.4f} | {r['spread'] / r['mu']:.1e} | "
-                         f"{r['median_solve_ms']:.1f} | {r['path_seconds']:.2f} | "
-                         f"{r['converged_fraction']:.0%} |")
+        lines += _slip_table("self-contact slip (hairpin) μ", "F/μN", "tangents' spread / μ",
+                             result["self_slip"], lambda r: f"{r['spread'] / r['mu']:.1e}")
     return "\n".join(lines)
