@@ -241,12 +241,13 @@ def hairpin_forces(eq, pull: float) -> tuple[float, float, float]:
     weight = arm.sections[2].mass_per_length * (arm.length - eq.s[cut]) * eq.scene.gravity
     contact = eq.internal_force[cut] - np.array([-pull, 0.0]) - np.array([0.0, -weight])
     angles = np.r_[eq.angles[lower][eq.penetration[lower] > 0],
-                   eq.angles[upper][eq.penetration[upper] > 0] - math.pi]
+                   eq.angles[upper][eq.penetration[upper] > 0] + math.pi]
     if angles.size == 0:
         return 0.0, 0.0, math.nan
-    mean = float(angles.mean())
+    mean = math.atan2(np.sin(angles).sum(), np.cos(angles).sum())
     t = np.array([math.cos(mean), math.sin(mean)])
-    return float(contact @ t), float(contact @ np.array([-t[1], t[0]])), float(np.ptp(angles))
+    spread = np.ptp((angles - mean + math.pi) % (2.0 * math.pi) - math.pi)
+    return float(contact @ t), float(contact @ np.array([-t[1], t[0]])), float(spread)
 
 
 # --------------------------------------------------------------------------------- in 3D
