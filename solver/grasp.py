@@ -57,7 +57,8 @@ MAX_ITER = 20
 MAX_MOVE = 0.1
 BACKTRACKS = 4
 # The object's stiffness counts as positive definite (Newton's step) when its smallest
-# eigenvalue exceeds this fraction of its largest; below, the step is shifted (see _newton).
+# eigenvalue exceeds this fraction of its largest (with friction after Jacobi scaling:
+# _definite); below, the step is shifted (see _newton).
 SHIFT = 1e-3
 # Finite-difference step of the pose Jacobian (m), relative to the contact radius: far above
 # the contact solve's own noise (its Newton tolerance), far below the contact decay length.
@@ -440,6 +441,27 @@ def _norm(v) -> float:
     return float(np.hypot(*v)) if v.size == 2 else float(np.linalg.norm(v))
 
 
+def _definite(sym, values) -> bool:
+    """Whether the object's stiffness K (its symmetric part ``sym``, eigenvalues ``values``
+    ascending) is safely positive definite for a plain Newton step: its smallest eigenvalue
+    above ``SHIFT`` times its largest.
+
+    With friction (a 3 × 3 ``sym``) the ratio is taken after Jacobi scaling,
+    K_ij/√(K_ii K_jj) (no positive diagonal: not definite). The pose then mixes the object's
+    centre, which its forks hold at 1e5 N/m, with its turn, which only the grip's tangential
+    springs hold (tens of N/m where an arm first touches it): the plain ratio takes that
+    contrast for indefiniteness and shifts every step to 1e-3 of the forks' stiffness, so the
+    turn creeps (docs/design.md §14). Frictionless poses keep the plain ratio: the fall of an
+    object the arm lets go onto its seat follows the shifted steps it gives."""
+    if sym.shape[0] == 2:
+        return bool(values[0] > SHIFT * values[-1])
+    diag = np.diag(sym)
+    if not np.all(diag > 0.0):
+        return False
+    scaled = np.linalg.eigvalsh(sym / np.sqrt(np.outer(diag, diag)))
+    return bool(scaled[0] > SHIFT * scaled[-1])
+
+
 def _newton(bal: _Balance, pose, eq: Equilibrium):
     """Newton on the object's pose from ``pose`` with the arm in ``eq`` (solved there).
 
@@ -482,9 +504,10 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
             if arm_jac is None:
                 break
         stiffness = -(arm_jac + bal.support_jacobian(x))
-        values = np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))
+        sym = 0.5 * (stiffness + stiffness.T)
+        values = np.linalg.eigvalsh(sym)
         low, high = values[0], values[-1]
-        shifted = move_on or not low > SHIFT * high
+        shifted = move_on or not _definite(sym, values)
         move_on = False
         if shifted:
             # At least |G|/max_move: an object nothing holds (K = 0) falls a full move.

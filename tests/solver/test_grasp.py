@@ -69,16 +69,19 @@ def test_held_object_is_in_equilibrium_by_an_independent_force_sum(held):
     assert math.degrees(solver_wrap(g.arm.positions, g.center, obj.radius)) > 270
 
 
-def _penalty_force(g, obj):
+def _penalty_force(g, obj, side=0):
     """(2,) the arm's normal force on the object of ``g`` (N), summed independently of the
     solver's base reaction: the penalty law applied to a spline through the recorded backbone,
-    on a fine grid."""
+    on a fine grid (``side`` +1 or −1: only where the backbone is right or left of the object's
+    centre)."""
     eq = g.arm
     distinct = np.concatenate([[True], np.diff(eq.s) > 0])  # section ends are sampled twice
     s = np.linspace(0.0, eq.s[-1], 100_001)
     rel = CubicSpline(eq.s[distinct], eq.positions[distinct])(s) - g.center
     dist = np.hypot(rel[:, 0], rel[:, 1])
     per_length = (obj.stiffness * np.maximum(obj.radius - dist, 0.0) / dist)[:, None] * rel
+    if side:
+        per_length[np.sign(rel[:, 0]) != side] = 0.0
     return -np.trapezoid(per_length, s, axis=0)
 
 
@@ -298,6 +301,90 @@ def test_friction_holds_what_the_same_arm_cannot_hold_frictionless():
     np.testing.assert_allclose(normal + tangential, [0.0, weight], atol=0.005 * weight)
     assert normal[1] < capacity * scene.gravity < weight
     assert tangential[1] > 0.3 * weight
+
+
+def _pinch(obj, lift_steps):
+    """A ∩ closing on ``obj`` in V-blocks and lifting it (docs/design.md §14, "A pure pinch").
+    OctArm V mounted upright (base 180°), channel I of section 1 at 30 % of p_max and channel II
+    of section 2 at 80 % arch it over the object; channel II of section 3 closes from 42 to
+    55 % in 1 % steps, squeezing the object between the arch's legs (its proximal end near the
+    base, its tip); then both channels of section 1 rise by 1 % of p_max a step, raising the
+    arch. Each state settled from the last; the states of the lift."""
+    scene = solver.Scene(base_angle_deg=180.0)
+    p = np.zeros(ARM.n_inputs(True))
+    p[0], p[3], p[5] = 0.3 * ARM.max_pressure, 0.8 * ARM.max_pressure, 0.4 * ARM.max_pressure
+    center, arm = obj.seat, solver.solve(ARM, p, scene)  # the arch just clear of the object
+    for fraction in np.arange(0.42, 0.5501, 0.01):
+        p[5] = fraction * ARM.max_pressure
+        g = settle(ARM, p, scene, obj, center=center, warm_start=arm)
+        assert g.converged
+        center, arm = g.center, g.arm
+    states = []
+    for _ in range(lift_steps):
+        p[[0, 1]] += 0.01 * ARM.max_pressure
+        g = settle(ARM, p, scene, obj, center=g.center, warm_start=g.arm)
+        states.append(g)
+    return states
+
+
+def test_a_pinch_lifts_by_friction_alone_an_object_the_same_arm_leaves_on_its_seat_frictionless():
+    """A pure pinch (docs/design.md §14): nothing under the object. A ∩ squeezes a 50 g
+    cylinder (contact radius 14.4 cm) standing in V-blocks between its legs, touching it only
+    within 15° of its left and right sides, where the normals are all but horizontal, and
+    lifts it as its arch rises. With μ = 0.7 the object leaves its blocks and rises more than a
+    fork's depth (2 cm), converged at every step, held and stable from the second on; the
+    friction samples' impulses (tangential) carry its weight, the penalty law summed on a spline
+    through the backbone (normal) pushes it down a little, and together they balance its weight;
+    the friction's moment about its axis vanishes (it turns freely). Frictionless, the same arm
+    along the same path leaves it in its blocks."""
+    seat = (-0.1418, 0.05)
+    obj = FreeObject(radius=0.144, mass_kg=0.05, seat=seat, stiffness=STIFFNESS, support="v_blocks")
+    weight = obj.mass_kg * 9.81
+    states = _pinch(replace(obj, friction=0.7), 18)
+    assert all(g.converged for g in states)
+    assert all(g.held and g.stable for g in states[1:])
+    g = states[-1]
+    assert g.lift > 0.02
+    fs = g.arm.friction_samples[:, :, 0]
+    r = fs[..., L.FS_R:L.FS_R + 2] - g.center
+    touching = np.isfinite(r[..., 0]) & (np.hypot(fs[..., L.FS_F], fs[..., L.FS_F + 1]) > 0.0)
+    side = np.degrees(np.arcsin(np.abs(r[touching][:, 1]) / np.hypot(*r[touching].T)))
+    assert touching.sum() > 4 and side.max() < 15.0  # two patches within 15° of horizontal
+    assert np.any(r[touching][:, 0] > 0) and np.any(r[touching][:, 0] < 0)
+    normal = _penalty_force(g, obj)
+    tangential = -np.array([np.nansum(fs[..., L.FS_F]), np.nansum(fs[..., L.FS_F + 1])])
+    # Each component to 0.5 % of the forces it sums: the vertical one sums the friction
+    # carrying the weight, the horizontal one the squeeze, one patch pushing against the other.
+    squeeze = _penalty_force(g, obj, side=-1)[0]
+    assert squeeze > weight
+    assert abs(normal[0] + tangential[0]) <= 0.005 * squeeze
+    assert abs(normal[1] + tangential[1] - weight) <= 0.005 * weight
+    assert normal[1] < 0.0 < weight < tangential[1]
+    moment = -np.nansum(r[..., 0] * fs[..., L.FS_F + 1] - r[..., 1] * fs[..., L.FS_F])
+    assert abs(moment) <= 1e-3 * weight * obj.radius
+
+    frictionless = _pinch(obj, 18)
+    assert all(f.converged and not f.held for f in frictionless)
+    assert abs(frictionless[-1].lift) < 1e-3
+
+
+def test_a_frictional_first_touch_of_an_object_in_its_forks_converges():
+    """The ∩ of the pinch (_pinch) closing on a 50 g cylinder standing in its forks, μ = 0.7:
+    channel II of section 3 from 40 to 42 % brings the arch's tip onto the object. The forks
+    hold its centre at 1e5 N/m, the grip's tangential springs its turn at tens of N/m; the
+    pose's stiffness is positive definite, and Newton's plain step finds the touch (a test of
+    definiteness on the unscaled eigenvalues took it for indefinite and crept towards it, 13 %
+    of the moment an iteration, until its budget ran out: docs/design.md §14)."""
+    scene = solver.Scene(base_angle_deg=180.0)
+    obj = FreeObject(radius=0.144, mass_kg=0.05, seat=(-0.145, 0.05), stiffness=STIFFNESS,
+                     friction=0.7)
+    p = np.zeros(ARM.n_inputs(True))
+    p[0], p[3], p[5] = 0.3 * ARM.max_pressure, 0.8 * ARM.max_pressure, 0.4 * ARM.max_pressure
+    arm = solver.solve(ARM, p, scene)
+    p[5] = 0.42 * ARM.max_pressure
+    g = settle(ARM, p, scene, obj, center=obj.seat, warm_start=arm)
+    assert g.converged and g.stable and g.arm.in_contact
+    assert g.arm_moment != 0.0 and g.residual < 1e-5  # friction acts, the moment balanced
 
 
 def test_a_snap_round_a_frictional_object_lands_at_the_frictionless_balance_with_fresh_anchors():
