@@ -437,6 +437,40 @@ def far_parts_clear(positions, s, half, exclusion, margin) -> bool:
 
 
 @njit
+def backbone_crosses(positions, s) -> bool:
+    """Whether the planar backbone polyline crosses itself: two of its chords that do not
+    meet along the arc (a chord ending where the other starts, or a run of zero-length
+    chords between them, as at a section's repeated end sample) intersect. A thick arm that
+    touches itself keeps its backbones a thickness apart; a crossing is an arm passed
+    through itself (docs/design.md §9.1).
+
+    Args:
+        positions: (N, 2) samples (m) in order along the arc. s: (N,) their arc lengths (m).
+    """
+    n = s.shape[0]
+    for i in range(n - 1):
+        ax, ay = positions[i, 0], positions[i, 1]
+        rx, ry = positions[i + 1, 0] - ax, positions[i + 1, 1] - ay
+        for j in range(i + 1, n - 1):
+            if s[j] <= s[i + 1]:
+                continue  # neighbours along the arc
+            bx, by = positions[j, 0], positions[j, 1]
+            qx, qy = positions[j + 1, 0] - bx, positions[j + 1, 1] - by
+            if max(bx, bx + qx) < min(ax, ax + rx) or min(bx, bx + qx) > max(ax, ax + rx) or \
+                    max(by, by + qy) < min(ay, ay + ry) or min(by, by + qy) > max(ay, ay + ry):
+                continue
+            den = rx * qy - ry * qx
+            if den == 0.0:
+                continue  # parallel (or zero-length) chords: no single crossing point
+            dx, dy = bx - ax, by - ay
+            t = (dx * qy - dy * qx) / den
+            u = (dx * ry - dy * rx) / den
+            if 0.0 <= t <= 1.0 and 0.0 <= u <= 1.0:
+                return True
+    return False
+
+
+@njit
 def canonical_slot(segs, seg, j):
     """The canonical (segment, node) of node j of segment ``seg``: a segment's first node is
     the previous segment's last (except at the base)."""

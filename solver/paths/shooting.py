@@ -14,7 +14,7 @@ from solver.kernels import planar as planar_kernels
 from solver.kernels import relax as relax_kernels
 from solver.kernels.grid import section_needs
 from solver.kernels.obstacles import clearance
-from solver.kernels.self_contact import far_parts_clear
+from solver.kernels.self_contact import backbone_crosses, far_parts_clear
 from solver.paths.friction import (
     friction_fields,
     landed,
@@ -218,13 +218,15 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
     discrete rod's energy reached from the last state (:func:`solver.kernels.relax.relax`) — from
     the scan's root if it lands in an obstacle; with ``over`` (a level past the ramp's end)
     it relaxes there first and then back at ``level``. Either is polished by Newton on the
-    shooting system and must be stable.
+    shooting system and must be stable, and (with self-contact) its backbone must not cross
+    itself where the fold's did not (:func:`_crosses_itself`).
     """
     theta0, segs = grid[L.G_THETA0], grid[L.G_SEGS]
     target = level[L.L_TARGET]
     rest = _level_rest(layout, level)
     record = np.zeros((layout.n_rows, L.C_COLUMNS))
     contact_kernels.record_backbone(nodes, grid, _level_rest(layout, now), now, record)
+    crossed = _crosses_itself(record, grid[L.G_SELF])
     landed = None
     if not record[:, L.C_PEN].any() and params[L.N_SCAN] > 0:
         loads = _planar_loads(layout, level)
@@ -262,6 +264,10 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
                                                   settings.tol, 4 * settings.max_iter, MAX_STEP)
         if not ok:
             return None
+    if not crossed:
+        contact_kernels.record_backbone(landed, grid, rest, level, record)
+        if _crosses_itself(record, grid[L.G_SELF]):
+            return None
     return landed if stable else None
 
 
@@ -273,6 +279,16 @@ def _sunk_into_a_disc(states, discs, record) -> bool:
     costs the stiffening stages."""
     deepest = max(float(record[:, L.C_PEN].max()), 0.0) + contact_kernels.TUNNEL_SLACK
     return any(clearance(x, y, discs) < -deepest for x, y in states[:, :2])
+
+
+def _crosses_itself(record, sp) -> bool:
+    """Whether the backbone of a contact ``record`` crosses itself, with self-contact (False
+    without: parts that do not see each other may cross). A landing whose backbone crosses
+    where the fold's did not has passed the arm through itself: the stiffening stages can
+    drop a layer through another while its press is a thousandth of the law's (a hairpin's
+    upper layer hung through the lower one, measured), and no contact is left to push it back.
+    """
+    return sp[L.SC_K] > 0 and backbone_crosses(record[:, [L.C_X, L.C_Y]], record[:, L.C_S])
 
 
 def _clear_of_itself(record, layout, sp):
