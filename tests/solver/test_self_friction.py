@@ -29,6 +29,7 @@ from softarm_gym.benchmarks.friction_bench import (
 )
 from softarm_gym.benchmarks.stress import moment_balance_error
 from solver import layout as L
+from solver.kernels.self_contact import backbone_crosses
 from solver.problem import context, pack
 
 ARM = solver.designs.octarm_v()
@@ -233,3 +234,30 @@ def test_a_fold_laid_on_itself_slips_at_mu_times_the_normal_force(steps):
     assert np.all(moved[sliding[1:]] > 0.3 * moved_free[sliding[1:]])
     # frictionless: nothing holds the layer along the contact
     assert np.all(np.abs(free[:, 1]) < 1e-3 * free[:, 2])
+
+
+def test_a_snap_does_not_land_the_hairpin_through_itself():
+    """Issue #38: with a small Newton budget (``max_iter=6``) the hairpin's path stalls at
+    the tenth pull (1.0 μN₀), takes the stall for a fold and snaps; the snap's stiffening
+    stages dropped the upper layer through the lower one (converged, stable, ``snapped``, no
+    contact left, the tip 17 cm below the clamp's line). A landing whose backbone crosses
+    itself is refused now: every pull reported converged keeps the layers touching and its
+    backbone uncrossed, and the pull that stalls is reported unconverged."""
+    mu = 0.5
+    settings = solver.Settings(max_iter=6)
+    arm, path = fold_hairpin(mu, settings)
+    eq = path[-1]
+    assert eq.converged and eq.stable and not eq.snapped
+    _, n0, _ = hairpin_forces(eq, 0.0)
+    done = 0
+    for pull in np.linspace(0.1, 2.0, 20) * mu * n0:
+        eq = solver.solve(arm, hairpin_pressures(), hairpin_scene(mu, pull), warm_start=eq,
+                          settings=settings)
+        if not eq.converged:
+            break
+        done += 1
+        upper = np.arange(eq.section_ends[1] + 1, eq.s.size)
+        assert (eq.penetration[upper] > 0).any(), pull / (mu * n0)
+        assert not backbone_crosses(np.ascontiguousarray(eq.positions[:, :2]), eq.s)
+        assert eq.tip[1] > 0.0  # the upper layer lies above the lower one's line (y = 0)
+    assert done >= 9  # the pulls up to where the path stalls (0.99 μN₀)
