@@ -82,9 +82,12 @@ CONDITIONS = {"clean": ("off", None), "noisy": ("thesis", None),
 WRAP_CONDITIONS = {name: CONDITIONS[name] for name in ("clean", "noisy")}
 """The conditions of the wrap grid (the issue asks for the estimators with and without noise)."""
 TARGETS = (("SoftArm/OctArmReach-v0", "sac", 0.90), ("SoftArm/OctArmReach-v0", "jacobian", 0.99),
-           ("SoftArm/OctArmWrap-v1", "learned", 0.70), ("SoftArm/OctArmWrap-v2", "learned", 0.70))
-"""(env, agent, success rate) targets of the issue, checked in the report; the agent is an
-algorithm, a controller's name prefix, or ``learned`` (the best trained agent of any algorithm)."""
+           ("SoftArm/OctArmWrap-v1", "learned", 0.70), ("SoftArm/OctArmWrap-v2", "learned", 0.70),
+           ("SoftArm/CTWrap-v2", "learned", 0.70), ("SoftArm/OctArmObstacleReach-v1", "learned", 0.80),
+           ("SoftArm/OctArmTrack-v1", "learned", 0.85), ("SoftArm/OctArmGrasp-v1", "learned", 0.50))
+"""(env, agent, success rate) targets of the issues (#37's on its recommended ids), checked in the
+report where the env has runs; the agent is an algorithm, a controller's name prefix, or
+``learned`` (the best trained agent of any algorithm)."""
 DEFINITIONS = ("Success = final true tip within the env's tolerance "
                "(2 cm) after the 100-step episode; errors are final |true tip − target|; steps to "
                "success = first step within tolerance, over the episodes that got there. "
@@ -110,7 +113,7 @@ OBSTACLE_DEFINITIONS = ("Success = final true tip within the env's tolerance (2 
                         "fraction of episodes in which the arm touched a disc at some step "
                         "(`info[\"in_contact\"]`); steps to success as on reach.")
 """What the obstacle-reach section's numbers mean."""
-REMEDY_ENV_IDS = ("SoftArm/OctArmWrap-v2",)
+REMEDY_ENV_IDS = ("SoftArm/OctArmWrap-v2", "SoftArm/CTWrap-v2")
 """Envs whose report has a table of issue #37's remedies (:func:`_remedies_section`)."""
 REMEDY_NAMES = {"batched": "none (plain PPO: per-step Gaussian noise)",
                 "batched_gsde": "exploration: gSDE",
