@@ -32,9 +32,10 @@ def test_yaml_budget_is_the_step_count_of_the_reported_run(summary):
     else:
         # The budget itself (a run stopped by its cap mid-rollout, whose YAML budget is the steps
         # it got), or where SB3 stops short of a cap: the first whole rollout (PPO: n_envs ×
-        # n_steps transitions; off-policy: one step of every env) at or past the budget, counted
-        # from where the session that finished began (a resumed run: its checkpoint).
-        rollout = params.get("n_envs", 1) * (params.get("n_steps", 2048) if run["algo"] == "ppo" else 1)
+        # n_steps transitions; off-policy: train_freq steps of every env) at or past the budget,
+        # counted from where the session that finished began (a resumed run: its checkpoint).
+        per_env = params.get("n_steps", 2048) if run["algo"] == "ppo" else params.get("train_freq", 1)
+        rollout = params.get("n_envs", 1) * (per_env if isinstance(per_env, int) else 1)
         start = run.get("resumed_from") or 0
         assert run["timesteps_done"] in (params["n_timesteps"],
                                          start + -(-(params["n_timesteps"] - start) // rollout) * rollout)
