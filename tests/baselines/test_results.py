@@ -35,8 +35,17 @@ def test_collect_ship_report_round_trip(tiny_sac_run, tmp_path, capsys):
         (out / "eval" / f"{tiny_sac_run.name}__{cell}.json").write_text(json.dumps(result))
     # Done cells are skipped.
     assert len(results.evaluation_jobs(runs_dir, out)) == 7 * n_cells + wrap_cells - 2
-    shipped = results.ship(runs_dir, out, tmp_path / "trained")
+    # A policy of another algorithm shipped earlier for the env is displaced (one per env);
+    # other envs' policies stay.
+    trained = tmp_path / "trained"
+    trained.mkdir()
+    earlier = [trained / name for name in ("ppo_OctArmReach-v0.zip", "ppo_OctArmReach-v0.json",
+                                           "ppo_OctArmReach-v0_vecnormalize.json", "ppo_CTReach-v0.zip")]
+    for path in earlier:
+        path.write_text("earlier")
+    shipped = results.ship(runs_dir, out, trained)
     assert [p.name for p in shipped] == ["sac_OctArmReach-v0.zip"]
+    assert [p.is_file() for p in earlier] == [False, False, False, True]
     meta = json.loads(shipped[0].with_suffix(".json").read_text())
     assert meta["selected_from"] == tiny_sac_run.name
     assert main(["--model", str(shipped[0]), "--episodes", "1", "--json", "--no-progress"]) == 0
