@@ -182,33 +182,52 @@ def _agent_kind(cell: dict) -> str:
 
 
 def baseline_rows() -> list[dict]:
-    """Per (task, arm, dims): the best learned agent (mean success over its seeds) and the best
-    reference controller, from the main evaluation cells."""
+    """Per (task, arm, dims), from the main evaluation cells: the best learned agent with
+    continuous actions and the best with discrete ones (the pressure box's corners), each by
+    mean success over its seeds, and every reference controller's best (planner, scripted
+    curl, Jacobian) — each as (mean success, seeds, agent name, env id) or None."""
     groups: dict = {}
     for cell in _eval_cells():
         facts = _facts(cell["env_id"])
         key = (facts["task"], facts["arm"], facts["dims"])
-        kind = _agent_kind(cell)
         name = re.sub(r"_s\d+$", "", cell["agent_name"])  # one agent, its seeds together
-        groups.setdefault(key, {}).setdefault((kind, name), []).append(cell["success_rate"])
+        groups.setdefault(key, {}).setdefault((_agent_kind(cell), name, cell["env_id"]), []).append(
+            cell["success_rate"])
     rows = []
     order = [title for title, _ in FAMILIES.values()]
     for (task, arm, dims), agents in sorted(groups.items(), key=lambda g: (order.index(g[0][0]), g[0][1:])):
-        learned = [(np.mean(v), len(v), n) for (k, n), v in agents.items() if k in LEARNED]
-        reference = [(np.mean(v), len(v), n) for (k, n), v in agents.items() if k in REFERENCE]
-        rows.append({"task": task, "arm": arm, "dims": dims,
-                     "learned": max(learned) if learned else None,
-                     "reference": max(reference) if reference else None})
+        scored = [(kind, "corners" in name, (float(np.mean(v)), len(v), name, env_id))
+                  for (kind, name, env_id), v in agents.items()]
+        learned = {corners: max((r for kind, c, r in scored if kind in LEARNED and c == corners),
+                                default=None) for corners in (False, True)}
+        rows.append({"task": task, "arm": arm, "dims": dims, "continuous": learned[False],
+                     "discrete": learned[True],
+                     "reference": {ref: max((r for kind, _, r in scored if kind == ref), default=None)
+                                   for ref in REFERENCE}})
     return rows
 
 
+def _version(env_id: str) -> str:
+    return env_id.rsplit("-", 1)[-1]
+
+
 def _agent(best) -> str:
-    if best is None:
-        return "—"
-    mean, seeds, name = best
+    mean, seeds, name, env_id = best
     algo = name.split("_")[0].upper() if not name.startswith("sac_her") else "SAC+HER"
     variant = " (corner actions)" if "corners" in name else (" (delta actions)" if "_delta" in name else "")
-    return f"{algo}{variant} {mean:.0%}" + (f" ({seeds} seeds)" if seeds > 1 else "")
+    detail = (f"{seeds} seeds, " if seeds > 1 else "") + _version(env_id)
+    return f"{algo}{variant} {mean:.0%} ({detail})"
+
+
+def _baseline_cell(row: dict) -> str:
+    """One arm's results: learned continuous and discrete, then each reference controller."""
+    parts = [f"{label} {_agent(row[key])}" for key, label in (("continuous", "learned"),
+                                                               ("discrete", "learned discrete"))
+             if row[key] is not None]
+    parts += [f"{ref} {mean:.0%} ({_version(env_id)})"
+              for ref, found in row["reference"].items() if found is not None
+              for mean, _, _, env_id in (found,)]
+    return f"{row['arm']}: " + ", ".join(parts or ["—"])
 
 
 def headline_table() -> str:
@@ -240,20 +259,12 @@ def headline_table() -> str:
     rows += contact_headline_rows()
     by_task: dict = {}
     for row in baseline_rows():
-        by_task.setdefault((row["task"], row["dims"]), []).append(
-            f"{row['arm']}: learned {_agent(row['learned'])}, reference {_agent_reference(row['reference'])}")
+        by_task.setdefault((row["task"], row["dims"]), []).append(_baseline_cell(row))
     for (task, dims), cells in by_task.items():
         rows.append(f"| {task} {dims}: success rate | {'; '.join(cells)} | [baselines](docs/baselines.md) |")
     rows += ["", f"Measured on: {solver['measured']['machine']}. Speeds are ratios measured side by side in "
              "one run; wall-clock figures carry over to another machine only as ratios."]
     return "\n".join(rows)
-
-
-def _agent_reference(best) -> str:
-    if best is None:
-        return "—"
-    mean, _, name = best
-    return f"{name.split('_')[0]} {mean:.0%}"
 
 
 def thresholds_table() -> str:
