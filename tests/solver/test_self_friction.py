@@ -202,7 +202,8 @@ def _hairpin_pulls(steps):
     return out
 
 
-@pytest.mark.parametrize("steps", [16, 32])
+# The finer grid checks the tolerance's resolution (24 s: run after make test, with the long oracles).
+@pytest.mark.parametrize("steps", [16, pytest.param(32, marks=pytest.mark.long_oracle)])
 def test_a_fold_laid_on_itself_slips_at_mu_times_the_normal_force(steps):
     """Flat on flat: a hairpin's heavy upper layer lies on its stiff lower layer, pulled
     along them at its tip (default settings, 16 and 32 RK4 steps a section). From the
