@@ -261,7 +261,8 @@ class Stepper:
         if not rows.ready(0):
             return self._step_general(p_inputs)
         report = rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
-        self.last_refusals = refusal_names(report[6] if report.size > 6 else 0)
+        # (The 3D rows report no refusal column: their lean step is a continuation of its own.)
+        self.last_refusals = refusal_names(report[6]) if isinstance(rows, ContactRows) else ()
         if not report[0]:
             general = self._step_general(p_inputs)
             return general._replace(iterations=general.iterations + int(report[3]))

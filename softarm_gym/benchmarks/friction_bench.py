@@ -34,7 +34,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 import solver
-from solver.actuator import tube_pressure
+from solver.actuator import pressure_from_stretch
 from solver.designs import ArmDesign, Section, Tube, TubeMaterial
 from solver.settings import DEFAULT_SETTINGS, Settings
 
@@ -193,8 +193,7 @@ def hairpin_pressures(fraction: float = 1.0) -> np.ndarray:
     m = _HAIRPIN_MUSCLE
     force = HAIRPIN_FOLD_EI * HAIRPIN_OVERCURL / HAIRPIN_HALF / _HAIRPIN_MUSCLE_RADIUS
     lam = 1.0 + force / (m.youngs_modulus * m.area)
-    p = tube_pressure(lam, m.youngs_modulus, (m.outer_radius**2 - m.inner_radius**2) / m.inner_radius**2,
-                      math.cos(math.radians(m.wind_angle_deg)))
+    p = pressure_from_stretch(lam, m.youngs_modulus, m.inner_radius, m.outer_radius, m.wind_angle_deg)
     return np.array([0.0, fraction * p])
 
 

@@ -264,11 +264,13 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
                                                   settings.tol, 4 * settings.max_iter, MAX_STEP)
         if not ok:
             return None
-    if not crossed:
+    if not stable:
+        return None
+    if k > 0 and not crossed:
         contact_kernels.record_backbone(landed, grid, rest, level, record)
         if _crosses_itself(record, grid[L.G_SELF]):
             return None
-    return landed if stable else None
+    return landed
 
 
 def _sunk_into_a_disc(states, discs, record) -> bool:
