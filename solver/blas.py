@@ -1,11 +1,11 @@
 """One BLAS thread for the solver's dense algebra (this package only).
 
 The solver's dense problems are small: the contact Newton's coupled columns (tens of
-unknowns), the relaxation's L-BFGS-B over a few hundred strains. A second BLAS thread does
-not speed them up, and where the cores are busy — vectorised envs, a training beside the
-envs, several sweeps — OpenBLAS's threads wait on each other at every call: a wrap step
-that snaps took ten times longer on a loaded 2-core machine (docs/design.md §8). Parallel
-work is across arms (``BatchStepper``, processes), never inside one solve.
+unknowns). A second BLAS thread does not speed them up, and where the cores are busy —
+vectorised envs, a training beside the envs, several sweeps — OpenBLAS's threads wait on
+each other at every call: a wrap step that snaps took ten times longer on a loaded 2-core
+machine (docs/design.md §8). Parallel work is across arms (``BatchStepper``, processes),
+never inside one solve.
 """
 
 from __future__ import annotations

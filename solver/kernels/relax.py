@@ -20,6 +20,12 @@ mid angle (θ_e + θ_{e+1})/2. Energy
 
 with ω_k the trapezoid weights and Φ the penalty potential ½ k pen²
 (:func:`solver.kernels.obstacles.penalty_energy`). The unshearable model (1/GA = 0) fixes v1 = 0.
+
+The minimiser is L-BFGS in one kernel call (:func:`minimise`: Nocedal & Wright's two-loop
+recursion over the last LBFGS_MEMORY steps, a strong-Wolfe line search, Algorithms 7.4, 3.5
+and 3.6), run to the bottom of the basin as the path's snaps need: until the energy stops
+falling in floating point. A snap used to spend two thirds of its relaxation in scipy's
+L-BFGS-B's Python loop around this module's energy (docs/design.md §10.1).
 """
 
 from __future__ import annotations
@@ -28,7 +34,6 @@ import math
 
 import numpy as np
 
-from solver.blas import single_blas_thread
 from solver.jit import njit
 from solver.kernels.obstacles import penalty_energy
 from solver.layout import (
@@ -193,6 +198,205 @@ def energy_and_gradient(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at,
     return e_total
 
 
+GRADIENT_TOL = 1e-12
+"""The scaled gradient's largest entry at which a relaxation stops (J per unit of the scaled
+unknowns: far below what any snap reaches first, the energy's floating-point floor)."""
+
+LBFGS_MEMORY = 10
+"""Step pairs the L-BFGS inverse Hessian keeps."""
+
+WOLFE_DECREASE, WOLFE_CURVATURE = 1e-4, 0.9
+"""The strong Wolfe conditions' constants (sufficient decrease, curvature)."""
+
+LINE_SEARCH_EVALUATIONS = 20
+"""Energy evaluations one line search may spend before the minimisation stops."""
+
+
+@njit
+def _dot(a, b):
+    """aᵀb of two (n,) vectors (a loop: no BLAS call, so no BLAS threads, in the minimiser)."""
+    total = 0.0
+    for i in range(a.shape[0]):
+        total += a[i] * b[i]
+    return total
+
+
+@njit
+def _scaled_energy(y, scale, x, grad, args):
+    """The energy (J) at the scaled unknowns ``y`` (x = y·scale) and its gradient with
+    respect to y into ``grad``; ``args`` are :func:`energy_and_gradient`'s after ``x``."""
+    for i in range(y.shape[0]):
+        x[i] = y[i] * scale[i]
+    energy = energy_and_gradient(x, args[0], args[1], args[2], args[3], args[4], args[5], args[6],
+                                 args[7], args[8], args[9], args[10], args[11], args[12], grad)
+    for i in range(y.shape[0]):
+        grad[i] *= scale[i]
+    return energy
+
+
+@njit
+def _cubic_minimiser(a, fa, da, b, fb, db):
+    """The minimiser of the cubic through (a, fa) and (b, fb) with slopes da, db, kept inside
+    the interval's middle 80 % (bisection where the cubic has none there)."""
+    lo, hi = min(a, b), max(a, b)
+    d1 = da + db - 3.0 * (fa - fb) / (a - b)
+    radicand = d1 * d1 - da * db
+    guess = 0.5 * (a + b)
+    if radicand >= 0.0:
+        d2 = math.copysign(math.sqrt(radicand), b - a)
+        denominator = db - da + 2.0 * d2
+        if denominator != 0.0:
+            guess = b - (b - a) * (db + d2 - d1) / denominator
+    margin = 0.1 * (hi - lo)
+    if not (lo + margin <= guess <= hi - margin):
+        guess = 0.5 * (a + b)
+    return guess
+
+
+@njit
+def _line_search(y, f0, g0, d, alpha, scale, x, y_new, g_new, args, budget):
+    """A step length along ``d`` from ``y`` (energy f0, gradient g0) that satisfies the strong
+    Wolfe conditions (Nocedal & Wright, Algorithms 3.5 and 3.6, cubic interpolation), starting
+    from ``alpha``. On success ``y_new`` and ``g_new`` hold the new point.
+
+    Returns:
+        (step, energy, evaluations): step 0 where none lowered the energy within ``budget``
+        evaluations.
+    """
+    n = y.shape[0]
+    slope0 = _dot(g0, d)
+    prev_a, prev_f, prev_slope = 0.0, f0, slope0
+    lo_a, lo_f, lo_slope, hi_a, hi_f, hi_slope = 0.0, f0, slope0, 0.0, f0, slope0
+    zooming = False
+    a = alpha
+    for used in range(1, budget + 1):
+        for i in range(n):
+            y_new[i] = y[i] + a * d[i]
+        f = _scaled_energy(y_new, scale, x, g_new, args)
+        slope = _dot(g_new, d)
+        if not (math.isfinite(f) and math.isfinite(slope)):
+            f = math.inf
+        sufficient = f <= f0 + WOLFE_DECREASE * a * slope0
+        if not zooming:
+            if not sufficient or (used > 1 and f >= prev_f):
+                lo_a, lo_f, lo_slope, hi_a, hi_f, hi_slope = prev_a, prev_f, prev_slope, a, f, slope
+                zooming = True
+            elif abs(slope) <= -WOLFE_CURVATURE * slope0:
+                return a, f, used
+            elif slope >= 0.0:
+                lo_a, lo_f, lo_slope, hi_a, hi_f, hi_slope = a, f, slope, prev_a, prev_f, prev_slope
+                zooming = True
+            else:  # still falling: a longer step
+                prev_a, prev_f, prev_slope = a, f, slope
+                lo_a, lo_f = a, f
+                a *= 2.0
+                continue
+        else:
+            if not sufficient or f >= lo_f:
+                hi_a, hi_f, hi_slope = a, f, slope
+            elif abs(slope) <= -WOLFE_CURVATURE * slope0:
+                return a, f, used
+            else:
+                if slope * (hi_a - lo_a) >= 0.0:
+                    hi_a, hi_f, hi_slope = lo_a, lo_f, lo_slope
+                lo_a, lo_f, lo_slope = a, f, slope
+        if not math.isfinite(hi_f):
+            a = 0.5 * (lo_a + hi_a)
+        else:
+            a = _cubic_minimiser(lo_a, lo_f, lo_slope, hi_a, hi_f, hi_slope)
+        if a == lo_a or a == hi_a:
+            break
+    # The budget is spent (or the bracket has shrunk to a point): the best point found, if
+    # it lowered the energy, is the step.
+    if lo_a > 0.0 and lo_f < f0:
+        for i in range(n):
+            y_new[i] = y[i] + lo_a * d[i]
+        f = _scaled_energy(y_new, scale, x, g_new, args)
+        return lo_a, f, budget + 1
+    return 0.0, f0, budget
+
+
+@njit
+def minimise(y, scale, args, max_iter, gtol):
+    """Minimise the discrete rod's energy over the scaled unknowns ``y`` (x = y·scale), in
+    place, by L-BFGS (Nocedal & Wright, Algorithm 7.4: the two-loop recursion over the last
+    LBFGS_MEMORY step pairs, the first step scaled to unit length, then H₀ = sᵀy/yᵀy) with a
+    strong-Wolfe line search, until the gradient's largest entry is at most ``gtol``, the
+    energy stops falling (the line search finds no lower point: the floating-point bottom of
+    the basin) or ``max_iter`` iterations.
+
+    Args:
+        y: (3N,) scaled unknowns; the minimum on return.
+        scale: (3N,) the unknowns' scales. args: :func:`energy_and_gradient`'s arguments after
+            ``x`` and before ``grad``.
+
+    Returns:
+        (energy, iterations, evaluations).
+    """
+    n = y.shape[0]
+    m = LBFGS_MEMORY
+    s_hist = np.zeros((m, n))
+    y_hist = np.zeros((m, n))
+    rho = np.zeros(m)
+    coef = np.zeros(m)
+    x = np.empty(n)
+    g = np.empty(n)
+    d = np.empty(n)
+    y_new = np.empty(n)
+    g_new = np.empty(n)
+    f = _scaled_energy(y, scale, x, g, args)
+    evaluations = 1
+    stored = 0
+    newest = -1
+    iterations = 0
+    if not math.isfinite(f):
+        return f, iterations, evaluations
+    while iterations < max_iter:
+        if np.max(np.abs(g)) <= gtol:
+            break
+        # d = −H g by the two-loop recursion.
+        for i in range(n):
+            d[i] = -g[i]
+        for j in range(stored):
+            k = (newest - j) % m
+            c = rho[k] * _dot(s_hist[k], d)
+            coef[k] = c
+            d -= c * y_hist[k]
+        if stored > 0:
+            d *= 1.0 / (rho[newest] * _dot(y_hist[newest], y_hist[newest]))
+        for j in range(stored - 1, -1, -1):
+            k = (newest - j) % m
+            b = rho[k] * _dot(y_hist[k], d)
+            d += (coef[k] - b) * s_hist[k]
+        slope = _dot(g, d)
+        if not slope < 0.0:  # not a descent direction: forget the curvature pairs
+            stored = 0
+            d[:] = -g
+            slope = -_dot(g, g)
+        alpha = 1.0 if stored > 0 else 1.0 / math.sqrt(-slope)
+        step, f_new, used = _line_search(y, f, g, d, alpha, scale, x, y_new, g_new, args,
+                                         LINE_SEARCH_EVALUATIONS)
+        evaluations += used
+        iterations += 1
+        if step == 0.0 or not f_new < f:
+            break
+        newest = (newest + 1) % m
+        sy = 0.0
+        for i in range(n):
+            s_hist[newest, i] = y_new[i] - y[i]
+            y_hist[newest, i] = g_new[i] - g[i]
+            sy += s_hist[newest, i] * y_hist[newest, i]
+        if sy > 0.0:
+            rho[newest] = 1.0 / sy
+            stored = min(stored + 1, m)
+        else:  # no positive curvature along the step: keep the older pairs
+            newest = (newest - 1) % m
+        y[:] = y_new
+        g[:] = g_new
+        f = f_new
+    return f, iterations, evaluations
+
+
 @njit
 def shooting_states(x, theta0, sec_of, h, secf, u_rest, v_rest, q, plate_at, plate, tip_force,
                     discs, self_params, states):
@@ -287,8 +491,6 @@ def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_momen
         ((Σ(steps + 1), 6) states (x, y, θ, n_x, n_y, m) on the record's rows, the minimum
         as a ``start``), or None if the minimisation failed.
     """
-    from scipy.optimize import minimize
-
     sec_of, h, ends = element_layout(secf, steps)
     n = h.size
     u_rest, v_rest = level_rest[1], level_rest[2]
@@ -304,7 +506,6 @@ def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_momen
         2.0 / (secf[CI, sec_of] * h),
         h / np.where(shearable, secf[CG], 1.0)[sec_of],
         h / secf[CA, sec_of]]))
-    grad = np.empty(3 * n)
     node_s = np.concatenate([[0.0], np.cumsum(h)])
     if self_contact is not None and self_contact[SC_K] > 0:
         half = np.asarray(self_contact[SC_HALF:])
@@ -313,16 +514,10 @@ def relax(start, theta0, secf, steps, level_rest, q, plate, tip_force, tip_momen
     else:
         self_params = (node_s, np.zeros(n + 1), 0.0, 0.0)
     args = (theta0, sec_of, h, secf, u_rest, v_rest, q, ends, plate, tip_force,
-            float(tip_moment), discs, self_params, grad)
-
-    def fun(y):
-        energy = energy_and_gradient(y * scale, *args)
-        return energy, grad * scale
-
-    with single_blas_thread():
-        result = minimize(fun, x0 / scale, jac=True, method="L-BFGS-B",
-                          options={"maxiter": max_iter, "gtol": 1e-12, "ftol": 0.0})
-    x = result.x * scale
+            float(tip_moment), discs, self_params)
+    y = x0 / scale
+    minimise(y, scale, args, max_iter, GRADIENT_TOL)
+    x = y * scale
     if not np.all(np.isfinite(x)):
         return None
     nodes = np.empty((n + 1, 6))
