@@ -816,7 +816,18 @@ class BatchStepper:
             raise ValueError(f"a copy's scene holds {len(scene.obstacles)} obstacles; this batch "
                              f"takes at most {self._rows.max_obstacles} (max_obstacles)")
 
-    def _solve_in(self, k, p_inputs, p_channel, warm_start, scene) -> Equilibrium:
+    @property
+    def contact_rows(self):
+        """The lean contact path of every copy (:class:`solver.paths.lean_contact.ContactRows`:
+        its ``step`` is the one kernel call of a batched contact step), None without contact.
+        For instrumentation (``softarm bench --contact-profile`` times its steps)."""
+        return self._rows
+
+    def solve_copy(self, k: int, p_inputs, p_channel, warm_start, scene) -> Equilibrium:
+        """The general path's solve for copy k (the steps its lean path cannot take, and a
+        contact reset): the equilibrium at the pressures ``p_inputs`` (n_inputs,) and
+        ``p_channel`` (n_channels,) (Pa) in ``scene``, from ``warm_start`` (an Equilibrium, or
+        None: cold). The copy's state is not changed."""
         problem = self._problem.in_scene(scene).with_inputs(p_inputs, p_channel, warm_start)
         return dispatch(problem, True)
 
@@ -839,7 +850,7 @@ class BatchStepper:
         for j, k in enumerate(rows):
             if scenes is not None:
                 self._rows.set_scene(k, scenes[j])
-            eq = self._solve_in(k, p[j], channel[j], None, self._rows.scenes[k])
+            eq = self.solve_copy(k, p[j], channel[j], None, self._rows.scenes[k])
             self._take(k, eq)
             report[j] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
         self._ready[rows] = True
@@ -870,7 +881,7 @@ class BatchStepper:
         self.channel_pressures[moved] = channel[moved]
         for k in np.flatnonzero(active & ~moved):
             # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.
-            eq = self._solve_in(k, p[k], channel[k], self.equilibrium(k), self._rows.scenes[k])
+            eq = self.solve_copy(k, p[k], channel[k], self.equilibrium(k), self._rows.scenes[k])
             report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations + report[k, 3],
                          eq.residual)
             if eq.converged:

@@ -221,8 +221,8 @@ class _BatchTimer:
         self.lean_s = 0.0
         self.general = []  # one dict per general-path step
         self.lean = []  # per copy and step: (path code, passes, refusal bits, self-touching, seconds)
-        rows = batch._rows
-        self._step, self._solve_in = rows.step, batch._solve_in
+        rows = batch.contact_rows
+        self._step, self._solve_copy = rows.step, batch.solve_copy
         self._report = None
 
         def step(p_from, p_to, active, run):
@@ -248,24 +248,25 @@ class _BatchTimer:
                                   bool(coupled[k]), seconds[k]))
             return report
 
-        def solve_in(k, p_inputs, p_channel, warm_start, scene):
+        def solve_copy(k, p_inputs, p_channel, warm_start, scene):
             state = {"copy": int(k), "on_contact_layout": rows.on_contact_layout(k),
                      "touching": rows.touching(k), "self_touching": rows.full_factor_age(k) > 0,
                      "lean_passes": int(self._report[k, 3]),
                      "lean_refusal": refusal_words(_refusal_bits(self._report, k))}
             start = time.perf_counter()
-            eq = self._solve_in(k, p_inputs, p_channel, warm_start, scene)
+            eq = self._solve_copy(k, p_inputs, p_channel, warm_start, scene)
             state.update(seconds=time.perf_counter() - start, converged=bool(eq.converged),
                          snapped=bool(eq.snapped), iterations=int(eq.iterations))
             self.general.append(state)
             return eq
 
+        # Instance attributes shadow the methods for the profile's steps (close() unshadows).
         rows.step = step
-        batch._solve_in = solve_in
+        batch.solve_copy = solve_copy
 
     def close(self):
-        del self.batch._rows.step
-        del self.batch._solve_in
+        del self.batch.contact_rows.step
+        del self.batch.solve_copy
 
     def summary(self) -> dict:
         """The lean steps by path (and the general ones), their passes and seconds, and the
