@@ -353,6 +353,7 @@ class ObstacleReachEnv(ReachEnv):
         # middle: they may then stand up to half the segment's length aside.
         spread = 0.5 * length if self.contact == "forbid" else 0.0
         discs = np.empty((0, 3))
+        points = np.vstack([np.zeros((1, 2)), target[None], avoid])  # base, target, avoid
         for _ in range(n):
             for _ in range(DISC_ATTEMPTS):
                 radius = float(rng.uniform(*self.obstacle_radius_range))
@@ -360,7 +361,6 @@ class ObstacleReachEnv(ReachEnv):
                 offset = rng.uniform(-1.0, 1.0) * (contact + spread)
                 center = tip + rng.uniform(*PLACEMENT_SPAN) * way + offset * across
                 disc = np.array([[center[0], center[1], radius]])
-                points = np.vstack([np.zeros((1, 2)), target[None], avoid])
                 if self._gap(points, disc) < self.clearance:
                     continue
                 if len(discs) and self._gap(center[None], discs) - contact < self.clearance:
