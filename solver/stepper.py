@@ -145,7 +145,7 @@ class Stepper:
         self._eq = None
         self.record = None
         self.last_path = "general"
-        self.last_refusals = ()
+        self._refusal_bits = 0
         self.tip = np.zeros(2 if planar else 3)
         self.tip.flags.writeable = False
         self.pressures = np.zeros(self.n_inputs)
@@ -206,7 +206,7 @@ class Stepper:
             check_warm_start(warm_start, self.arm, self.scene, self.model, self.planar)
         eq = dispatch(self._problem.with_inputs(p_inputs, p_channel, warm_start), True)
         self.last_path = "general"
-        self.last_refusals = ()
+        self._refusal_bits = 0
         self._adopt(eq)
         return StepReport(eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
 
@@ -262,7 +262,7 @@ class Stepper:
             return self._step_general(p_inputs)
         report = rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
         # (The 3D rows report no refusal column: their lean step is a continuation of its own.)
-        self.last_refusals = refusal_names(report[6]) if isinstance(rows, ContactRows) else ()
+        self._refusal_bits = int(report[6]) if isinstance(rows, ContactRows) else 0
         if not report[0]:
             general = self._step_general(p_inputs)
             return general._replace(iterations=general.iterations + int(report[3]))
@@ -286,6 +286,13 @@ class Stepper:
             raise ValueError(f"contact_measures needs the lean contact path; {self!r} has none")
         measures = self._rows.contact_measures()[0]
         return float(measures[0]), float(measures[1])
+
+    @property
+    def last_refusals(self) -> tuple[str, ...]:
+        """Why the planar lean contact step of the last step refused a try (names of
+        :data:`solver.paths.lean_contact.REFUSALS`; the class docstring's Attributes); named
+        when read, not at every step."""
+        return refusal_names(self._refusal_bits)
 
     @property
     def full_factor_age(self) -> int:
