@@ -238,6 +238,8 @@ def _scaled_energy(y, scale, x, grad, args):
 def _cubic_minimiser(a, fa, da, b, fb, db):
     """The minimiser of the cubic through (a, fa) and (b, fb) with slopes da, db, kept inside
     the interval's middle 80 % (bisection where the cubic has none there)."""
+    if a == b:
+        return a
     lo, hi = min(a, b), max(a, b)
     d1 = da + db - 3.0 * (fa - fb) / (a - b)
     radicand = d1 * d1 - da * db
@@ -269,7 +271,9 @@ def _line_search(y, f0, g0, d, alpha, scale, x, y_new, g_new, args, budget):
     lo_a, lo_f, lo_slope, hi_a, hi_f, hi_slope = 0.0, f0, slope0, 0.0, f0, slope0
     zooming = False
     a = alpha
-    for used in range(1, budget + 1):
+    used = 0
+    while used < budget:
+        used += 1
         for i in range(n):
             y_new[i] = y[i] + a * d[i]
         f = _scaled_energy(y_new, scale, x, g_new, args)
@@ -312,8 +316,8 @@ def _line_search(y, f0, g0, d, alpha, scale, x, y_new, g_new, args, budget):
         for i in range(n):
             y_new[i] = y[i] + lo_a * d[i]
         f = _scaled_energy(y_new, scale, x, g_new, args)
-        return lo_a, f, budget + 1
-    return 0.0, f0, budget
+        return lo_a, f, used + 1
+    return 0.0, f0, used
 
 
 @njit
@@ -380,17 +384,18 @@ def minimise(y, scale, args, max_iter, gtol):
         iterations += 1
         if step == 0.0 or not f_new < f:
             break
-        newest = (newest + 1) % m
         sy = 0.0
         for i in range(n):
-            s_hist[newest, i] = y_new[i] - y[i]
-            y_hist[newest, i] = g_new[i] - g[i]
-            sy += s_hist[newest, i] * y_hist[newest, i]
+            sy += (y_new[i] - y[i]) * (g_new[i] - g[i])
+        # A strong-Wolfe step has sᵀy > 0; a line search's fallback step may not, and such a
+        # pair is dropped (the older pairs kept).
         if sy > 0.0:
+            newest = (newest + 1) % m
+            for i in range(n):
+                s_hist[newest, i] = y_new[i] - y[i]
+                y_hist[newest, i] = g_new[i] - g[i]
             rho[newest] = 1.0 / sy
             stored = min(stored + 1, m)
-        else:  # no positive curvature along the step: keep the older pairs
-            newest = (newest - 1) % m
         y[:] = y_new
         g[:] = g_new
         f = f_new
