@@ -222,6 +222,20 @@ def _dot(a, b):
 
 
 @njit
+def _largest(v):
+    """max |v_i| of an (n,) vector, inf if one is not finite (a loop: no temporary array at
+    every iteration)."""
+    top = 0.0
+    for i in range(v.shape[0]):
+        size = abs(v[i])
+        if not math.isfinite(size):
+            return math.inf
+        if size > top:
+            top = size
+    return top
+
+
+@njit
 def _scaled_energy(y, scale, x, grad, args):
     """The energy (J) at the scaled unknowns ``y`` (x = y·scale) and its gradient with
     respect to y into ``grad``; ``args`` are :func:`energy_and_gradient`'s after ``x``."""
@@ -356,7 +370,7 @@ def minimise(y, scale, args, max_iter, gtol):
     if not math.isfinite(f):
         return f, iterations, evaluations
     while iterations < max_iter:
-        if np.max(np.abs(g)) <= gtol:
+        if _largest(g) <= gtol:
             break
         # d = −H g by the two-loop recursion.
         for i in range(n):
@@ -365,13 +379,15 @@ def minimise(y, scale, args, max_iter, gtol):
             k = (newest - j) % m
             c = rho[k] * _dot(s_hist[k], d)
             coef[k] = c
-            d -= c * y_hist[k]
+            for i in range(n):
+                d[i] -= c * y_hist[k, i]
         if stored > 0:
             d *= 1.0 / (rho[newest] * _dot(y_hist[newest], y_hist[newest]))
         for j in range(stored - 1, -1, -1):
             k = (newest - j) % m
             b = rho[k] * _dot(y_hist[k], d)
-            d += (coef[k] - b) * s_hist[k]
+            for i in range(n):
+                d[i] += (coef[k] - b) * s_hist[k, i]
         slope = _dot(g, d)
         if not slope < 0.0:  # not a descent direction: forget the curvature pairs
             stored = 0
