@@ -139,6 +139,7 @@ class Stepper:
             if lean_contact_reason(problem) is None else \
             SpatialContactRows(problem, 1) if lean_spatial_contact_reason(problem) is None else None
         self.lean_contact = self._rows is not None
+        self._row_views = {}  # read-only record and tip views of the rows' copy, per grid
         self.lean = self.lean_contact or not_lean(problem) is None
         self._section_ends = packed.section_ends
         self._p_max = arm.max_pressure * (1 + 1e-12)
@@ -322,10 +323,13 @@ class Stepper:
             tip.flags.writeable = False
             self.tip = tip
             return
-        record = self._rows.record(0).view()
-        record.flags.writeable = False
-        self.record = record
-        self.tip = record[-1, L.X:L.Y + 1]
+        on_layout = self._rows.on_contact_layout(0)
+        views = self._row_views.get(on_layout)
+        if views is None:  # (the rows step in place: a view per grid serves every step)
+            record = self._rows.record(0).view()
+            record.flags.writeable = False
+            views = self._row_views[on_layout] = (record, record[-1, L.X:L.Y + 1])
+        self.record, self.tip = views
 
     def _step_general(self, pressures) -> StepReport:
         self.last_path = "general"
@@ -380,6 +384,7 @@ class Stepper:
 
     def __setstate__(self, state):
         self.__dict__.update(state)
+        self._row_views = {}
         if self._rows is not None:
             if self._rows.ready(0) and (self.planar or self._eq is None):
                 self._bind_row_record()  # (a pickle copies views apart)

@@ -408,8 +408,7 @@ class ContactRows:
             stepping.contact_rows_serial(*args)
         else:
             run(stepping.contact_rows_parallel, stepping.contact_rows_serial, int(active.sum()), *args)
-        done = report[:, 0] != 0.0
-        self._flags[done] = report[done, :5]
+        np.copyto(self._flags, report[:, :5], where=report[:, :1] != 0.0)  # (the converged rows)
         return report
 
     def step_moved(self, k: int, p_channel: np.ndarray, scene: Scene) -> np.ndarray:
