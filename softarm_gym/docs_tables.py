@@ -316,8 +316,12 @@ def friction_spatial_table() -> str:
 
     friction = _json("friction_3d.json")
     m = friction["measured"]
-    return (f"{format_table_3d(friction)}\n\n`{m['command']}`, {m['date']}, one timing per "
+    text = (f"{format_table_3d(friction)}\n\n`{m['command']}`, {m['date']}, one timing per "
             f"increment, load average {m['load_before'][0]:.1f} before and {m['load_after'][0]:.1f} after.")
+    for own in friction.get("rows_measured_alone", []):  # rows added after the run above
+        text += (f" {own['rows']}: `{own['command']}`, {own['date']}, load average "
+                 f"{own['load_before'][0]:.1f} before and {own['load_after'][0]:.1f} after.")
+    return text
 
 
 def env_table() -> str:

@@ -499,7 +499,7 @@ def run(quick: bool = False, progress=None, cases=CAPSTAN_CASES, configs=CAPSTAN
 
 # --------------------------------------------------------------------------- the 3D rows
 
-CAPSTAN_3D_CASES = ((90.0, 0.3), (180.0, 0.3))
+CAPSTAN_3D_CASES = ((90.0, 0.3), (180.0, 0.3), (90.0, 1.0), (180.0, 1.0))
 """(θ in degrees, μ) of the 3D benchmark's capstan rows (the tilted drum, :func:`drum_scene_3d`)."""
 
 STYLUS_PULLS = tuple(np.linspace(0.0, 2.0, 21))

@@ -742,6 +742,16 @@ def record(Z, grid, rest, level, rec):
                  np.empty((0, N_CTANGENT, N_CTANGENT)))
 
 
+# Newton iterations the start of a path with friction may take to be corrected. A warm start
+# solved on another contact layout (the grid refines as a belt tightens on a drum) has its
+# anchors resampled onto this one, so it is no exact equilibrium of them, and correcting it is
+# Newton on the return mapping's kink (a slipping sample sits on the cone's edge), which crawls:
+# 25 iterations on the 3D capstan at 180°, μ = 1, where the default 12 ended the path at its
+# start and the solve took that for a fold and snapped, dropping the anchors (docs/design.md
+# §9.1). Where 12 sufficed the iterates are the same.
+FRICTION_START_ITER = 40
+
+
 @njit
 def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, max_iter,
            max_step, dt0, dt_min, rest, now):
@@ -770,7 +780,8 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     total = 0
     ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, scales, tol,
-                                  max_iter, max_step, NO_TETHER)
+                                  max(max_iter, FRICTION_START_ITER) if friction else max_iter,
+                                  max_step, NO_TETHER)
     total += its
     if not (ok and stable):
         return False, total, res, stable, 0.0
