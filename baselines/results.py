@@ -831,7 +831,8 @@ INTRO = [
     "median final distance 24 mm) and two DAgger rounds 44 %. Cloned alone with policy seeds 0, 1 "
     "and 2 (`python -m baselines.imitate bc --demos` both files `--out "
     "runs/bc_OctArmObstacleReach-v1_sS --seed S --epochs 60`): 46 %, 40 % and 50 % (45 ± 5 %; seed 0 "
-    "is DAgger's round 0 again, to the same loss). Two more DAgger rounds on top of those labels "
+    "is DAgger's round 0 again: the same figures to the last digit). Two more DAgger rounds on top "
+    "of those labels "
     "(`--demos` the two files and that run's `round1_labels.npz round2_labels.npz`, `--rounds 2 "
     "--episodes 40 --seed 2080 --out runs/dagger_OctArmObstacleReach-v1_big4_s0`) 34 % after the "
     "third and 50 % after the fourth (within 2 cm at some step of 86 %, median final distance 21 mm). "
@@ -839,7 +840,7 @@ INTRO = [
     "400,000 steps, with no reinforcement learning; DAgger's rounds move it between 34 % and 50 % "
     "without a trend, and the issue's 80 % is not reached. The clone still misses the hold: "
     "at the last step its tip is 2–3 cm off on half the episodes. Its times count the planner's "
-    "collection and labelling (wall 28–72 min, on the 2 shared cores beside other jobs).",
+    "collection and labelling (wall 24–72 min, on the 2 shared cores beside other jobs).",
     "",
     "Warm starts from planner demonstrations on OctArmWrap-v2 (`python -m baselines.imitate`; "
     "the remedies table below sets them beside the others). Demonstrations: `CEMPlanner` with its "
