@@ -57,6 +57,7 @@ networks are small and the machine's cores are better spent on the environment.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import json
 import math
@@ -65,6 +66,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -131,6 +133,27 @@ def _replay_path(model_path: Path) -> Path:
     return model_path.with_name(f"{model_path.stem}_replay_buffer.npz")
 
 
+@contextlib.contextmanager
+def _stops_deferred():
+    """Hold SIGINT and SIGTERM while a checkpoint is written, and deliver them once its files are
+    complete: a stop landing inside torch's zip writer breaks the save's clean-up, and the run
+    died with that traceback instead of saving its interrupted checkpoint (seen in
+    ``tests/baselines/test_resume.py``). Outside the main thread signals are not Python's to hold."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending = []
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum))
+                for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
+        for s in dict.fromkeys(pending):
+            signal.raise_signal(s)
+
+
 def save_checkpoint(model, model_path: Path | str, meta: dict, *, replay_buffer: bool = False) -> Path:
     """Save ``model`` with its sidecars, each file atomically, the metadata JSON last.
 
@@ -144,7 +167,11 @@ def save_checkpoint(model, model_path: Path | str, meta: dict, *, replay_buffer:
     Returns:
         The metadata path (its existence marks the checkpoint complete).
     """
-    model_path = Path(model_path)
+    with _stops_deferred():
+        return _save_checkpoint(model, Path(model_path), meta, replay_buffer)
+
+
+def _save_checkpoint(model, model_path: Path, meta: dict, replay_buffer: bool) -> Path:
     meta_path, norm_path = sidecar_paths(model_path)
     with atomic_write(model_path, "wb") as fh:
         model.save(fh)
