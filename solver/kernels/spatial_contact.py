@@ -668,7 +668,9 @@ def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, ma
     """Damped Newton on the spatial contact system at ``level``; ``Z`` updated in place.
 
     As :func:`solver.kernels.contact.newton`: weighted RMS norms, steps clipped to ``max_step``
-    and halved until the residual falls; a fresh Jacobian at every iteration. ``tether``:
+    and halved until the residual falls (at most 7 times: where it never falls, the last,
+    smallest trial is taken, as the planar Newton takes it); a fresh Jacobian at every
+    iteration. ``tether``:
     see :func:`newton_system` (:data:`NO_TETHER`: none). Returns (converged, iterations, |F|,
     stable) — stable by the test of the untethered problem.
     """
@@ -707,15 +709,20 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
         norm = weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         base[:, :] = Z
-        res_try = math.inf
         for _ in range(8):
             retract(base, step, -alpha, Z)
+            res_try = math.inf
             if newton_system(Z, grid, rest, level, F_try, J, False, blocks, scales, tether):
                 res_try = weighted_norm(F_try, res_weights)
                 if res_try < res:
                     break
             alpha *= 0.5
-        if not res_try < res:
+        # No trial lowered the residual: the Jacobian (forward differences) straddles a kink
+        # of the map — the penalty's at a contact's edge, the return mapping's at a slipping
+        # sample — and its direction is no descent direction there. Newton goes on from the
+        # smallest trial with a Jacobian formed on its side of the kink; stopping here stalled
+        # the 3D capstan at a residual of 1e-7 and snapped it (docs/design.md §9.1).
+        if not math.isfinite(res_try):
             Z[:, :] = base
             return False, it + 1, res, False
         if not _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
