@@ -150,8 +150,26 @@ def contact_row(k, free, contact, p_from, p_to, report):
     if contact[CT_OK][k] and contact[CT_TOUCHING][k]:
         _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
         return
-    if not free[FR_OK][k]:
+    if not free[FR_OK][k] or _free_step(k, free, contact[CT_DISCS], contact[CT_OK], p_from, p_to,
+                                        report):
         return
+    records = free[FR_RECORDS]
+    entered = False
+    if not contact[CT_OK][k] and records.shape[1] == contact[CT_RECORDS].shape[1]:
+        entered = _enter_contact(k, free, contact, p_from[k])
+    if contact[CT_OK][k]:
+        _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
+        if not report[k, 0] and entered:
+            contact[CT_OK][k] = False  # the copy's state stays the contact-free one
+
+
+@njit(inline="always")
+def _free_step(k, free, discs, contact_ok, p_from, p_to, report) -> bool:
+    """The guarded lean planar step of copy k (a state on the settings' grid;
+    :func:`solver.kernels.planar.warm_step` with ``discs`` (n, k, 4) and the self-contact
+    guard); on success its state and report (``contact_ok[k]`` cleared: its contact state is
+    the one before this step). Returns whether it stepped; where not, the state is as it
+    was."""
     states, records, scratch = free[FR_STATES], free[FR_RECORDS], free[FR_SCRATCH]
     loads, m_tip = free[FR_LOADS], free[FR_M_TIP]
     m_start = states[k, 0]
@@ -161,25 +179,33 @@ def contact_row(k, free, contact, p_from, p_to, report):
         free[FR_PARAMS],
         (free[FR_REST][k], free[FR_P_NOW][k], free[FR_LOADS_NOW][k], scratch[k], True),
         (free[FR_P_SEEN][k], free[FR_STRETCH][k], free[FR_REST_A][k], free[FR_GRAD][k]),
-        (contact[CT_DISCS][k], records[k], free[FR_HALF], free[FR_EXCLUSION]))
+        (discs[k], records[k], free[FR_HALF], free[FR_EXCLUSION]))
     report[k, 3] = its
-    if ok:
-        records[k, :, :] = scratch[k]
-        contact[CT_OK][k] = False  # its contact state is the one before this step
-        report[k, 0] = 1.0
-        report[k, 1] = stable
-        report[k, 2] = snapped
-        report[k, 4] = res
-        report[k, 5] = PATH_LEAN
-        return
-    states[k, 0] = m_start
-    entered = False
-    if not contact[CT_OK][k] and records.shape[1] == contact[CT_RECORDS].shape[1]:
-        entered = _enter_contact(k, free, contact, p_from[k])
-    if contact[CT_OK][k]:
-        _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
-        if not report[k, 0] and entered:
-            contact[CT_OK][k] = False  # the copy's state stays the contact-free one
+    if not ok:
+        states[k, 0] = m_start
+        return False
+    records[k, :, :] = scratch[k]
+    contact_ok[k] = False
+    report[k, 0] = 1.0
+    report[k, 1] = stable
+    report[k, 2] = snapped
+    report[k, 4] = res
+    report[k, 5] = PATH_LEAN
+    return True
+
+
+@njit
+def free_row(free, discs, contact_ok, touching, p_from, p_to, report) -> bool:
+    """:func:`contact_row` of copy 0 where its state touches nothing and the guarded lean
+    planar step takes it (the single :class:`solver.stepper.Stepper`'s common step, with a
+    third of the arrays to unbox). Returns whether it stepped; where not (a state in
+    contact or off the settings' grid, or a step that would touch), nothing changed but
+    ``report[0]`` and :func:`contact_row` takes the row whole."""
+    report[0, 0] = 0.0
+    report[0, 6] = 0.0
+    if (contact_ok[0] and touching[0]) or not free[FR_OK][0]:
+        return False
+    return _free_step(0, free, discs, contact_ok, p_from, p_to, report)
 
 
 @njit(inline="always")

@@ -403,6 +403,11 @@ class ContactRows:
             unconverged row kept its state (the general path's turn).
         """
         report = np.zeros((self.n, 7))
+        if self.n == 1 and run is None and active[0] and stepping.free_row(
+                self.free, self.contact[stepping.CT_DISCS], self.contact[stepping.CT_OK],
+                self.contact[stepping.CT_TOUCHING], p_from, p_to, report):
+            self._flags[0] = report[0, :5]
+            return report
         args = (self.free, self.contact, p_from, p_to, active, report)
         if run is None:
             stepping.contact_rows_serial(*args)
