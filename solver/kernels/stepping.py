@@ -153,9 +153,15 @@ def contact_row(k, free, contact, p_from, p_to, report):
     if not free[FR_OK][k] or _free_step(k, free, contact[CT_DISCS], contact[CT_OK], p_from, p_to,
                                         report):
         return
-    records = free[FR_RECORDS]
+    _enter_and_step(k, free, contact, p_from, p_to, report)
+
+
+@njit(inline="always")
+def _enter_and_step(k, free, contact, p_from, p_to, report):
+    """:func:`contact_row` of copy k after its guarded contact-free step would touch: the
+    state put on the contact layout (unless it is there) and the lean contact step."""
     entered = False
-    if not contact[CT_OK][k] and records.shape[1] == contact[CT_RECORDS].shape[1]:
+    if not contact[CT_OK][k] and free[FR_RECORDS].shape[1] == contact[CT_RECORDS].shape[1]:
         entered = _enter_contact(k, free, contact, p_from[k])
     if contact[CT_OK][k]:
         _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
@@ -195,17 +201,21 @@ def _free_step(k, free, discs, contact_ok, p_from, p_to, report) -> bool:
 
 
 @njit
-def free_row(free, discs, contact_ok, touching, p_from, p_to, report) -> bool:
-    """:func:`contact_row` of copy 0 where its state touches nothing and the guarded lean
-    planar step takes it (the single :class:`solver.stepper.Stepper`'s common step, with a
-    third of the arrays to unbox). Returns whether it stepped; where not (a state in
-    contact or off the settings' grid, or a step that would touch), nothing changed but
-    ``report[0]`` and :func:`contact_row` takes the row whole."""
+def free_row(free, discs, contact_ok, p_from, p_to, report) -> bool:
+    """:func:`contact_row` of copy 0, a state on the settings' grid that touches nothing, as
+    far as its guarded contact-free step: the single :class:`solver.stepper.Stepper`'s common
+    step, with a third of the arrays to unbox. Returns whether it stepped; where not (a step
+    that would touch), :func:`entered_row` goes on from there."""
     report[0, 0] = 0.0
+    report[0, 3] = 0.0
     report[0, 6] = 0.0
-    if (contact_ok[0] and touching[0]) or not free[FR_OK][0]:
-        return False
     return _free_step(0, free, discs, contact_ok, p_from, p_to, report)
+
+
+@njit
+def entered_row(free, contact, p_from, p_to, report):
+    """The rest of :func:`contact_row` of copy 0 where :func:`free_row` did not step."""
+    _enter_and_step(0, free, contact, p_from, p_to, report)
 
 
 @njit(inline="always")

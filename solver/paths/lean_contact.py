@@ -403,10 +403,16 @@ class ContactRows:
             unconverged row kept its state (the general path's turn).
         """
         report = np.zeros((self.n, 7))
-        if self.n == 1 and run is None and active[0] and stepping.free_row(
-                self.free, self.contact[stepping.CT_DISCS], self.contact[stepping.CT_OK],
-                self.contact[stepping.CT_TOUCHING], p_from, p_to, report):
-            self._flags[0] = report[0, :5]
+        free, contact = self.free, self.contact
+        if self.n == 1 and run is None and active[0] and free[stepping.FR_OK][0] and not (
+                contact[stepping.CT_OK][0] and contact[stepping.CT_TOUCHING][0]):
+            # One copy touching nothing (a single Stepper's common step): the contact-free
+            # step unboxes only the settings' grid; contact_row's numbers either way.
+            if not stepping.free_row(free, contact[stepping.CT_DISCS], contact[stepping.CT_OK],
+                                     p_from, p_to, report):
+                stepping.entered_row(free, contact, p_from, p_to, report)
+            if report[0, 0]:
+                self._flags[0] = report[0, :5]
             return report
         args = (self.free, self.contact, p_from, p_to, active, report)
         if run is None:
