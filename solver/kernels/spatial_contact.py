@@ -677,16 +677,30 @@ def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, ma
     n = weights.shape[0]
     return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
                        max_step, tether, np.empty(n), np.empty((n, n)),
-                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_DIFFERENCES)
+                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_DIFFERENCES, True)
+
+
+@njit
+def probe(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step, tether):
+    """:func:`newton` from a guessed start (a snap's push along the critical mode), which
+    gives up where no trial of the line search lowers the residual: there the guess lies in
+    no basin worth following, and going on would spend every iteration's Jacobian to find
+    that out (a 3D wrap's snap took 4× as long). Same returns."""
+    n = weights.shape[0]
+    return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
+                       max_step, tether, np.empty(n), np.empty((n, n)),
+                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_DIFFERENCES, False)
 
 
 @njit
 def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step,
-                tether, F, J, blocks, jacobian):
+                tether, F, J, blocks, jacobian, past_kinks):
     """:func:`newton` with its residual ``F`` (n,), Jacobian ``J`` (n, n) and segment maps
     ``blocks`` (K, 12, 12) in the caller's arrays — where it converges they hold those of
     the returned state — and its Jacobian formed as ``jacobian`` says (``JAC_DIFFERENCES``
-    or, untethered, ``JAC_VARIATIONAL``: :func:`_system`)."""
+    or, untethered, ``JAC_VARIATIONAL``: :func:`_system`). ``past_kinks``: where no trial
+    lowers the residual, go on from the smallest (:func:`newton`) rather than give up
+    (:func:`probe`)."""
     n = weights.shape[0]
     F_try = np.empty(n)
     step = np.empty(n)
@@ -722,7 +736,7 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
         # sample — and its direction is no descent direction there. Newton goes on from the
         # smallest trial with a Jacobian formed on its side of the kink; stopping here stalled
         # the 3D capstan at a residual of 1e-7 and snapped it (docs/design.md §9.1).
-        if not math.isfinite(res_try):
+        if not math.isfinite(res_try) or not (past_kinks or res_try < res):
             Z[:, :] = base
             return False, it + 1, res, False
         if not _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
@@ -1100,7 +1114,7 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
                 ok, its, res, stable = newton_into(
                     Z, grid, rest, now, weights, res_weights, scales, goal,
                     min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
-                    params[MAX_STEP], NO_TETHER, F, J, blocks, JAC_VARIATIONAL)
+                    params[MAX_STEP], NO_TETHER, F, J, blocks, JAC_VARIATIONAL, True)
                 passes += its + 1
                 jacobians += its + 1
                 solved = ok

@@ -314,7 +314,8 @@ def _solve_from(k, contact, Z, level, rest, quasi):
     ok, its, _, stable = newton_into(Z, _grid(contact), rest, level, weights, res_weights, scales,
                                      params[TOL], int(params[MAX_ITER]), params[MAX_STEP], NO_TETHER,
                                      np.empty(n), np.empty((n, n)),
-                                     np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL)
+                                     np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL,
+                                     True)
     return ok and stable, passes + its + 1
 
 

@@ -204,9 +204,9 @@ def _switch_branch(nodes, origin, grid, layout, start, goal, t, terms, settings,
             for sign in (1.0, -1.0):
                 trial = np.empty_like(nodes)
                 kernel.retract(nodes, mode, sign * amplitude * math.sqrt(n), trial)
-                ok, _, _, stable = kernel.newton(trial, grid, rest, level, weights, res_weights,
-                                                 scales, settings.tol, 4 * settings.max_iter,
-                                                 MAX_STEP, kernel.NO_TETHER)
+                ok, _, _, stable = kernel.probe(trial, grid, rest, level, weights, res_weights,
+                                                scales, settings.tol, 4 * settings.max_iter,
+                                                MAX_STEP, kernel.NO_TETHER)
                 if not (ok and stable):
                     continue
                 after = kernel.new_record(layout.n_rows)
