@@ -113,7 +113,7 @@ OBSTACLE_DEFINITIONS = ("Success = final true tip within the env's tolerance (2 
                         "fraction of episodes in which the arm touched a disc at some step "
                         "(`info[\"in_contact\"]`); steps to success as on reach.")
 """What the obstacle-reach section's numbers mean."""
-REMEDY_ENV_IDS = ("SoftArm/OctArmWrap-v2", "SoftArm/CTWrap-v2")
+REMEDY_ENV_IDS = ("SoftArm/OctArmWrap-v2", "SoftArm/CTWrap-v2", "SoftArm/OctArmObstacleReach-v1")
 """Envs whose report has a table of issue #37's remedies (:func:`_remedies_section`)."""
 REMEDY_NAMES = {"batched": "none (plain PPO: per-step Gaussian noise)",
                 "batched_gsde": "exploration: gSDE",
@@ -1011,21 +1011,26 @@ def _wrap_section(main: pd.DataFrame, wrap_ids: list[str], by_run: dict, kind) -
 def _remedies_section(main: pd.DataFrame, by_run: dict) -> list[str]:
     """Per :data:`REMEDY_ENV_IDS` env: one row per training setting (:func:`_seed_groups`: algorithm,
     :func:`_variant`, env kwargs) of the runs evaluated there on true observations — what each
-    remedy gave, the seeds' success rates, their mean ± std and median final wrap."""
+    remedy gave, the seeds' success rates, their mean ± std and median final wrap (wraps) or
+    final distance to the target (obstacle reach)."""
     lines = []
     for env_id in REMEDY_ENV_IDS:
         rows = main[(main["env_id"] == env_id) & main["agent_name"].isin(list(by_run))
                     & (main["trained_on"] == "true")] if len(main) else main
         if not len(rows):
             continue
+        wrap = is_wrap(env_id)
         groups = _seed_groups([by_run[name] for name in rows["agent_name"]])
         lines += ["", f"## Remedies on {env_id}", "",
                   f"What each remedy of issue #37 gave on {env_id} ({_episodes(rows['episodes'])} per run, "
-                  "deterministic, true observations; the runs are rows of the wrap table above, and the "
-                  "introduction gives their commands). Steps: environment steps per run (for imitation, "
-                  "the planner's steps in the demonstrations and DAgger's labelled rollouts).", "",
-                  "| remedy | agent | runs | success per run | success mean ± std | median wrap (°, mean) "
-                  "| steps per run |",
+                  "deterministic, true observations; the runs are rows of the "
+                  f"{'wrap' if wrap else 'obstacle'} table above, and the introduction gives their "
+                  "commands). Steps: environment steps per run (for imitation, the planner's steps in "
+                  "the demonstrations and DAgger's labelled rollouts; for a warm start, the steps "
+                  "after it).", "",
+                  "| remedy | agent | runs | success per run | success mean ± std | "
+                  + ("median wrap (°, mean)" if wrap else "median final error (mm, mean)")
+                  + " | steps per run |",
                   "|---|---|---|---|---|---|---|"]
         for (_, algo, variant, _), members in sorted(groups.items(), key=lambda item: item[0][2]):
             names = sorted(m["run"] for m in members)
@@ -1035,9 +1040,10 @@ def _remedies_section(main: pd.DataFrame, by_run: dict) -> list[str]:
                 f"{rates.iloc[0]:.0f} %"
             steps = ", ".join(f"{by_run[n]['timesteps_done']:,}" for n in names)
             remedy = REMEDY_NAMES.get(variant, variant or "none")
+            median = _deg(mine["median_wrap_angle_deg"].mean()) if wrap else \
+                _mm(mine["median_final_error_m"].mean())
             lines.append(f"| {remedy} | {algo} ({variant}) | {len(names)} "
-                         f"| {' / '.join(f'{r:.0f} %' for r in rates)} | **{spread}** "
-                         f"| {_deg(mine['median_wrap_angle_deg'].mean())} | {steps} |")
+                         f"| {' / '.join(f'{r:.0f} %' for r in rates)} | **{spread}** | {median} | {steps} |")
         if env_id in REMEDY_NOTES:
             lines += ["", REMEDY_NOTES[env_id]]
     return lines
