@@ -385,9 +385,10 @@ def contact_table() -> str:
     for r in sbs["ratios"]["rows"][1:]:
         target = CONTACT_TARGETS.get(r["name"])
         kwargs = "".join(f", {k}={v}" for k, v in r["kwargs"].items())
+        now = bench[r["name"]]["times_unit"]  # this tree's figure: the one a target is judged on
         rows.append(f"| {r['name']} (`{r['env_id']}`{kwargs}) | {r['unit']} | {r['before']:.1f} | "
-                    f"{r['after']:.1f} | {bench[r['name']]['times_unit']:.1f} | "
-                    + (f"≤ {target:g} | {_verdict(r['after'], target)} |" if target else "— | |"))
+                    f"{r['after']:.1f} | {now:.1f} | "
+                    + (f"≤ {target:g} | {_verdict(now, target)} |" if target else "— | |"))
     batched = envs["batched_contact"]
     rows += ["", f"| batched env, {batched['num_envs']} arms, random actions | arm-steps/s (median of "
              f"{batched['repeats']}) | share of batched reach | converged | target | |",
