@@ -66,6 +66,7 @@ from solver.kernels.spatial_contact import (
     newton_system,
     nodes_from_record,
 )
+from solver.kernels.stepping import PATH_CONTACT, report_lean
 from solver.layout import CA, CG, CI, CS_M, FS_A, L_FRICTION, MAX_ITER, MAX_STEP, N_CTANGENT, TOL
 from solver.rod import rest_strains_into, spatial_strains_into
 
@@ -79,9 +80,6 @@ N_FREE3 = 21
  C3_NODES, C3_P, C3_OBSTACLES, C3_REST, C3_LU, C3_PIV, C3_S, C3_POS, C3_ROT, C3_FORCE, C3_MOM,
  C3_CONTACT, C3_PEN, C3_V, C3_U, C3_OK, C3_TOUCHING, C3_MU, C3_FRICTION) = range(36)
 N_CONTACT3 = 36
-
-# Path codes of the report's last column (as :mod:`solver.kernels.stepping`'s).
-PATH_LEAN, PATH_CONTACT = 1.0, 2.0
 
 
 @njit(inline="always")
@@ -187,11 +185,7 @@ def _free_step(k, free, contact, p_from, p_to, report):
             contact[C3_OK][k] = False  # its contact state is the one before this step
             # A contact-free state carries no anchors (the general path's shortcut either).
             contact[C3_FRICTION][k][:, :, :, FS_A:FS_A + 3] = math.nan
-            report[k, 0] = 1.0
-            report[k, 1] = stable
-            report[k, 2] = snapped
-            report[k, 4] = res
-            report[k, 5] = PATH_LEAN
+            report_lean(report, k, stable, snapped, res)
             return gap
     for d in range(3):
         m0[d] = m_start[d]

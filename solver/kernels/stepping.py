@@ -192,12 +192,19 @@ def _free_step(k, free, discs, contact_ok, p_from, p_to, report) -> bool:
         return False
     records[k, :, :] = scratch[k]
     contact_ok[k] = False
+    report_lean(report, k, stable, snapped, res)
+    return True
+
+
+@njit(inline="always")
+def report_lean(report, k, stable, snapped, res):
+    """``report[k]`` of a converged contact-free step (path ``PATH_LEAN``), planar or 3D; its
+    iterations are the caller's."""
     report[k, 0] = 1.0
     report[k, 1] = stable
     report[k, 2] = snapped
     report[k, 4] = res
     report[k, 5] = PATH_LEAN
-    return True
 
 
 @njit
