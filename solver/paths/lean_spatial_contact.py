@@ -33,9 +33,6 @@ from solver.problem import Problem, contact_layout
 from solver.results import Equilibrium
 from solver.rod import rest_strains_into
 
-# The kernels' path codes.
-PATHS = {int(stepping.PATH_LEAN): "lean", int(stepping.PATH_CONTACT): "lean contact"}
-
 
 def lean_spatial_contact_reason(problem: Problem) -> str | None:
     """Why 3D steppers in this problem's scene cannot take lean steps (None: they can):
@@ -196,7 +193,8 @@ class SpatialContactRows:
 
         Returns:
             (n, 6) report rows (converged, stable, snapped, iterations, residual, path code
-            of :data:`PATHS`); an unconverged row kept its state (the general path's turn).
+            of :data:`solver.paths.lean_contact.PATHS`); an unconverged row kept its state
+            (the general path's turn).
         """
         report = np.zeros((self.n, 6))
         stepping.spatial_contact_rows(self.free, self.contact, p_from, p_to, active, report)
