@@ -957,13 +957,36 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     Residuals and steps are measured in weighted RMS norms (weights: metres for positions,
     radians, the force and moment scales); a step is clipped to ``max_step`` and then halved
     until the residual decreases (a long wrap against a stiff penalty is far from linear
-    over a full Newton step). The factored Jacobian is kept while the residual falls at
+    over a full Newton step; where it never decreases, the smallest trial is taken and
+    Newton goes on). The factored Jacobian is kept while the residual falls at
     least twentyfold per iteration (a Jacobian costs about two passes over the arm, a
     residual one) and recomputed otherwise, and at a converged state for its stability
     test. Where parts of the arm touch each other the system is not banded: its full
     Jacobian (:func:`_coupled`) is formed and solved densely, afresh at every iteration.
     Returns (converged, iterations, |F|, stable).
     """
+    return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
+                         True)
+
+
+@njit
+def probe(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
+    """:func:`newton` that gives up where no trial of its line search lowers the residual
+    (as :func:`solver.kernels.spatial_contact.probe`): a snap's polish from a relaxed state,
+    which converges within a few iterations where it converges at all, and otherwise stalls
+    on a plateau for every one of its iterations (measured on obstacle-reach snaps: every
+    polish that failed after 48 iterations had stalled by its 22nd, none that converged ever
+    had). Same returns."""
+    return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
+                         False)
+
+
+@njit
+def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
+                  past_kinks):
+    """:func:`newton` (``past_kinks``: where no trial of the line search lowers the residual,
+    go on from the smallest) or :func:`probe` (give up there, the state restored to the
+    iteration's start). Same returns."""
     n = Z.shape[0]
     F = np.empty(n)
     F_try = np.empty(n)
@@ -1011,6 +1034,10 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
             if res_try < res:
                 break
             alpha *= 0.5
+        if not (past_kinks or res_try < res):
+            for k in range(n):
+                Z[k] = base[k]
+            return False, it + 1, res, False
         slow = not res_try <= 0.05 * res
         res = res_try
         for k in range(n):
@@ -1179,9 +1206,13 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
             guess[k] = accepted[k] + cap * slope[k] * (t_new - t)
             Z[k] = guess[k]
         final = t_new >= 1.0
-        ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights,
-                                      tol if final else 1e3 * tol, max_iter if final else 8,
-                                      max_step)
+        # A try whose line search stalls is given up there (it would spend the rest of its
+        # iterations on the plateau: most of a fold's approach, measured) and the step
+        # halved, except with friction, whose return mapping's kinks Newton must go past.
+        ok, its, res, stable = damped_newton(Z, grid, rest, now, weights, res_weights,
+                                             tol if final else 1e3 * tol,
+                                             max_iter if final else 8, max_step,
+                                             friction or rubs)
         total += its
         corr = 0.0
         pred = 0.0

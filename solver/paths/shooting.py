@@ -260,8 +260,8 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
     k = grid[L.G_SELF][L.SC_K]
     for stiffness in k * np.logspace(-3.0, 0.0, SELF_STAGES) if k > 0 else (k,):
         staged = (*grid[:L.G_SELF], np.concatenate([[stiffness], grid[L.G_SELF][1:]]))
-        ok, _, _, stable = contact_kernels.newton(landed, staged, rest, level, weights, res_weights,
-                                                  settings.tol, 4 * settings.max_iter, MAX_STEP)
+        ok, _, _, stable = contact_kernels.probe(landed, staged, rest, level, weights, res_weights,
+                                                 settings.tol, 4 * settings.max_iter, MAX_STEP)
         if not ok:
             return None
     if not stable:

@@ -436,7 +436,12 @@ def test_turning_an_objects_friction_off_returns_it_to_the_frictionless_hold(hel
     obj, h = held
     grip = replace(obj, friction=0.7)
     g = settle(ARM, _channels_i(0.9), SCENE, grip, center=h.center, warm_start=h.arm)
-    g = settle(ARM, _channels_i(0.88), SCENE, grip, center=g.center, warm_start=g.arm)
+    # Backing off under μ = 0.7 takes 133–348 contact solves, by round-off: starts 1e-15 m
+    # apart take different substeps and stick in holds up to 1.3 mm apart (20 starts
+    # measured), and some need more than the default budget of 300. This test is about what
+    # comes after, so the budget here covers all of them.
+    g = settle(ARM, _channels_i(0.88), SCENE, grip, center=g.center, warm_start=g.arm,
+               max_solves=1000)
     assert g.converged and g.held and np.hypot(*(g.center - h.center)) > 1e-3
     off = settle(ARM, _channels_i(0.9), SCENE, obj, center=g.center, warm_start=g.arm)
     assert off.converged and off.held and off.turn == 0.0
