@@ -329,24 +329,31 @@ def _prepare_partners(Z, grid, rest, level, partners, recording):
         return
     sfs = level[L_SELF_FRICTION]
     clear_pieces(bounds)
-    if not may_touch(Z, grid, rest):  # no part near another: nothing to work out
+    theta0 = grid[G_THETA0]
+    # No part near another (the nodes alone, then with the tip segment integrated, as its
+    # piece needs): nothing to work out.
+    near = may_touch(Z, grid, rest, math.nan, math.nan)
+    tip_start = np.empty(6)
+    tip_end = np.empty(6)
+    if near:
+        _start_state(Z, n_seg - 1, theta0, tip_start)
+        none = (pts[:0], bounds[:0], loads[:0])
+        _integrate(tip_start, Z, n_seg - 1, n_seg, grid, rest, level, tip_end.reshape((1, 6)),
+                   False, np.empty((1, C_COLUMNS)), None, none)
+        near = may_touch(Z, grid, rest, tip_end[0], tip_end[1])
+    if not near:
         loads[:, :, :] = 0.0
         if recording:
             samples_untouched(sfs)
         return
     za = np.empty(6)
     zb = np.empty(6)
-    theta0 = grid[G_THETA0]
     segs = grid[G_SEGS]
     for seg in range(n_seg - 1):
         _start_state(Z, seg, theta0, za)
         _start_state(Z, seg + 1, theta0, zb)
         build_piece(za, zb, seg, grid, rest, level, pts, bounds)
-    _start_state(Z, n_seg - 1, theta0, za)
-    none = (pts[:0], bounds[:0], loads[:0])
-    _integrate(za, Z, n_seg - 1, n_seg, grid, rest, level, zb.reshape((1, 6)), False,
-               np.empty((1, C_COLUMNS)), None, none)
-    build_piece(za, zb, n_seg - 1, grid, rest, level, pts, bounds)
+    build_piece(tip_start, tip_end, n_seg - 1, grid, rest, level, pts, bounds)
     self_loads(grid, rest, pts, bounds, loads, _reuse(pts, segs), sfs, False)
     rows = 0
     for i in range(grid[G_STEPS].shape[0]):

@@ -336,46 +336,76 @@ def trace_piece(seg, states, end, target, grid, rest, level, loads, pts, bounds)
 
 
 @njit
-def may_touch(Z, grid, rest) -> bool:
+def may_touch(Z, grid, rest, tip_x, tip_y) -> bool:
     """A cheap, conservative test on the shooting nodes ``Z`` alone: False when no two
-    segments farther apart along the arc than the exclusion can come within reach of each
-    other, so there is no self-contact to work out. A segment of arc length ℓ stretched at
-    most v lies within v·ℓ/2 of its end nodes' midpoint (the tip segment: within v·ℓ of its
-    start), v = 1.5 × the largest rest stretch."""
+    points farther apart along the arc than the exclusion can come within reach of each
+    other, so there is no self-contact to work out.
+
+    With v = 1.5 × the largest rest stretch bounding |r'|, a segment of arc length ℓ lies
+    within v·ℓ/2 of its end nodes' midpoint, and its first (last) δ of arc within v·δ of its
+    start (end) node. Of two segments a < b only the points of a before s₁(b) − exclusion
+    and those of b after s₀(a) + exclusion can touch: for a pair just beyond the exclusion,
+    short pieces at its far ends, which the end nodes bound much more tightly than the
+    segments' midpoints (the midpoints alone flag a straight arm: on it a pair whose far
+    ends are just beyond the exclusion has midpoints closer than their radii). The tip
+    segment ends at
+    (``tip_x``, ``tip_y``) where the caller has integrated it; with NaN it is bounded by v·ℓ
+    about its start."""
     segs = grid[G_SEGS]
     secf = grid[G_SECF]
     sp = grid[G_SELF]
     n_seg = segs.shape[0]
     stretch = _stretch_bound(rest)
     reach = 2.0 * _largest_half(sp)
-    cx = np.empty(n_seg)
-    cy = np.empty(n_seg)
-    radius = np.empty(n_seg)
+    exclusion = sp[SC_EXCLUSION]
+    ends_known = n_seg if math.isfinite(tip_x) and math.isfinite(tip_y) else n_seg - 1
+    px = np.zeros(n_seg + 1)  # node k starts segment k (node 0: the base, at the origin)
+    py = np.zeros(n_seg + 1)
     s0 = np.empty(n_seg)
     s1 = np.empty(n_seg)
     for seg in range(n_seg):
         i = segs[seg, SEG_SECTION]
         step = secf[LEN, i] / grid[G_STEPS][i]
-        ell = segs[seg, SEG_STEPS] * step
         s0[seg] = grid[G_START][i] + segs[seg, SEG_FIRST] * step
-        s1[seg] = s0[seg] + ell
-        ax = 0.0 if seg == 0 else Z[3 + 6 * (seg - 1)]
-        ay = 0.0 if seg == 0 else Z[4 + 6 * (seg - 1)]
+        s1[seg] = s0[seg] + segs[seg, SEG_STEPS] * step
         if seg < n_seg - 1:
-            cx[seg] = 0.5 * (ax + Z[3 + 6 * seg])
-            cy[seg] = 0.5 * (ay + Z[4 + 6 * seg])
-            radius[seg] = 0.5 * stretch * ell
-        else:
-            cx[seg] = ax
-            cy[seg] = ay
-            radius[seg] = stretch * ell
+            px[seg + 1] = Z[3 + 6 * seg]
+            py[seg + 1] = Z[4 + 6 * seg]
+    px[n_seg] = tip_x
+    py[n_seg] = tip_y
     for a in range(n_seg):
         for b in range(a + 1, n_seg):
-            if s1[b] - s0[a] <= sp[SC_EXCLUSION]:
+            if s1[b] - s0[a] <= exclusion:
                 continue
-            if math.hypot(cx[a] - cx[b], cy[a] - cy[b]) < radius[a] + radius[b] + reach:
-                return True
+            # Points that may touch: a's within v·near_a of its start node, b's within
+            # v·near_b of its end node (where known), each also within its segment's circle.
+            near_a = stretch * (min(s1[a], s1[b] - exclusion) - s0[a])
+            near_b = stretch * (s1[b] - max(s0[b], s0[a] + exclusion))
+            ax, ay, ra = _circle(a, px, py, s0, s1, stretch, ends_known)
+            bx, by, rb = _circle(b, px, py, s0, s1, stretch, ends_known)
+            if _far(ax, ay, ra, bx, by, rb, reach) or _far(px[a], py[a], near_a, bx, by, rb, reach):
+                continue
+            if b < ends_known and (_far(ax, ay, ra, px[b + 1], py[b + 1], near_b, reach) or _far(
+                    px[a], py[a], near_a, px[b + 1], py[b + 1], near_b, reach)):
+                continue
+            return True
     return False
+
+
+@njit
+def _circle(seg, px, py, s0, s1, stretch, ends_known):
+    """A circle (x, y, radius) holding segment ``seg`` of :func:`may_touch`: about its end
+    nodes' midpoint, or about its start where its end is not known."""
+    ell = s1[seg] - s0[seg]
+    if seg < ends_known:
+        return 0.5 * (px[seg] + px[seg + 1]), 0.5 * (py[seg] + py[seg + 1]), 0.5 * stretch * ell
+    return px[seg], py[seg], stretch * ell
+
+
+@njit
+def _far(x1, y1, r1, x2, y2, r2, reach) -> bool:
+    """Whether no point of circle 1 is within ``reach`` of a point of circle 2."""
+    return math.hypot(x1 - x2, y1 - y2) >= r1 + r2 + reach
 
 
 # Samples per chunk of :func:`far_parts_clear`'s bounding circles.

@@ -159,3 +159,47 @@ def test_self_contact_tip_error_at_default_resolution(name):
     if name == "middle_on_base_end":
         finer = solver.solve(ARM, psi * _P, scene, settings=solver.Settings(steps_per_section=128))
         assert np.linalg.norm(finer.tip - tips[64]) <= 2e-5 * ARM.length
+
+
+EXACT = solver.Settings(shortcuts=False)
+
+
+def _may_touch(eq, arm=ARM):
+    """:func:`solver.kernels.self_contact.may_touch` of ``eq``'s shooting nodes, with its tip
+    segment's end (the tip) and without."""
+    from solver.kernels.self_contact import may_touch
+    from solver.paths.shooting import shooting_grid
+    from solver.problem import contact_layout, rest_strains
+    layout, segs, sec_start = contact_layout(arm, pack(arm, "full", EXACT), eq.scene)
+    grid = shooting_grid(arm, eq.scene, layout, segs, sec_start)
+    rest = np.vstack(rest_strains(arm, eq.channel_pressures, layout))
+    nodes = eq.shooting_nodes
+    assert nodes.shape == (6 * (len(segs) - 1) + 3,)
+    return (may_touch(nodes, grid, rest, *eq.tip), may_touch(nodes, grid, rest, math.nan, math.nan))
+
+
+def test_may_touch_never_misses_a_close_pair_and_clears_an_open_arm():
+    """The bound that skips self-contact's work is conservative — every state whose far parts
+    overlap or come within a centimetre (brute force over the recorded backbone,
+    ``far_gap``) is flagged, with the tip known or not — and tight enough to clear an arm
+    bent well open, which its segments' midpoint circles alone never did (a pair just beyond
+    the exclusion is bounded by its end nodes). States: channel I ramped to the full curl
+    (the arm snaps onto itself) and backed off until it springs open, at two mountings."""
+    close = cleared = 0
+    for angle in (13.44, -30.0):
+        scene = solver.Scene(base_angle_deg=angle, self_contact=RING)
+        eq = None
+        for fraction in np.concatenate([np.linspace(0.0, 1.0, 11), np.linspace(0.98, 0.5, 25)]):
+            # (the general path, whose nodes lie on the contact layout)
+            eq = solver.solve(ARM, fraction * CURL, scene, warm_start=eq, settings=EXACT)
+            assert eq.converged
+            with_tip, without = _may_touch(eq)
+            assert with_tip <= without  # knowing the tip only tightens it
+            gap = far_gap(eq)
+            if gap < 0.01:
+                assert with_tip, (angle, fraction, gap)
+                close += 1
+            elif gap > 0.1:
+                assert not with_tip and without, (angle, fraction, gap)
+                cleared += 1
+    assert close >= 10 and cleared >= 10  # both kinds met
