@@ -350,13 +350,17 @@ def _verdict(value: float, target: float, at_most: bool = True) -> str:
 
 def contact_headline_rows() -> list[str]:
     """The README's contact rows: contact steps against a free step before and after the lean
-    contact step, the batched contact envs against batched reach, the planner's decisions
-    (``docs/bench/contact_side_by_side.json`` and the contact keys of ``envs.json``)."""
+    contact step, the recommended versions' steps now, the batched contact envs against
+    batched reach, the planner's decisions (``docs/bench/contact_side_by_side.json`` and the
+    contact keys of ``envs.json``)."""
     sbs = _json("contact_side_by_side.json")
     ratios = {r["name"]: r for r in sbs["ratios"]["rows"]}
     cells = [f"{name} {ratios[name]['before']:.1f}× → {ratios[name]['after']:.1f}×"
-             for name in CONTACT_TARGETS]
-    batched = _json("envs.json")["batched_contact"]
+             for name in CONTACT_TARGETS if name in ratios]
+    envs = _json("envs.json")
+    later = [r for r in envs["contact_ratios"]["rows"] if r["name"] in CONTACT_TARGETS
+             and r["name"] not in ratios]  # cases the bench gained after that comparison
+    batched = envs["batched_contact"]
     reach = batched["rows"][0]
     shares = [f"{r['name']} {r['env_steps_per_s'] / 1000:.0f}k ({r['ratio_to_reach']:.0%})"
               for r in batched["rows"][1:]]
@@ -364,6 +368,10 @@ def contact_headline_rows() -> list[str]:
     return [f"| contact env steps, × a free `OctArmReach-v1` step (3D wrap: × a 3D reach step), "
             f"before → after the lean contact step | {'; '.join(cells)} | "
             "[benchmarks](docs/benchmarks.md#contact) |",
+            "| recommended contact versions (self-contact on), × a free `OctArmReach-v1` step "
+            "(`softarm bench --env --contact`) | "
+            + "; ".join(f"{r['name']} {r['times_unit']:.1f}× (target ≤ {CONTACT_TARGETS[r['name']]:g}×)"
+                        for r in later) + " | [benchmarks](docs/benchmarks.md#contact) |",
             f"| batched contact envs, {batched['num_envs']} arms (share of batched reach's "
             f"{reach['env_steps_per_s'] / 1000:.0f}k arm-steps/s) | {'; '.join(shares)} | "
             "[benchmarks](docs/benchmarks.md#contact) |",
@@ -382,13 +390,18 @@ def contact_table() -> str:
     bench = {r["name"]: r for r in envs["contact_ratios"]["rows"]}
     rows = ["| single env, random actions | unit step | × unit, before | × unit, after | "
             "× unit, `softarm bench --env` | target | |", "|---|---|---|---|---|---|---|"]
-    for r in sbs["ratios"]["rows"][1:]:
-        target = CONTACT_TARGETS.get(r["name"])
+    compared = {r["name"]: r for r in sbs["ratios"]["rows"][1:]}
+    # The side-by-side's rows, then the bench's later ones (no tree before to compare).
+    # (friction's cases have their own table: their cost against their frictionless twins)
+    later = [n for n in bench if n not in compared and n != "free reach" and "friction" not in n]
+    for name in [*compared, *later]:
+        r = compared.get(name, bench[name])
+        target = CONTACT_TARGETS.get(name)
         kwargs = "".join(f", {k}={v}" for k, v in r["kwargs"].items())
-        now = bench[r["name"]]["times_unit"]  # this tree's figure: the one a target is judged on
-        rows.append(f"| {r['name']} (`{r['env_id']}`{kwargs}) | {r['unit']} | {r['before']:.1f} | "
-                    f"{r['after']:.1f} | {now:.1f} | "
-                    + (f"≤ {target:g} | {_verdict(now, target)} |" if target else "— | |"))
+        now = bench[name]["times_unit"]  # this tree's figure: the one a target is judged on
+        before, after = (f"{r['before']:.1f}", f"{r['after']:.1f}") if name in compared else ("—", "—")
+        rows.append(f"| {name} (`{r['env_id']}`{kwargs}) | {r['unit']} | {before} | {after} | "
+                    f"{now:.1f} | " + (f"≤ {target:g} | {_verdict(now, target)} |" if target else "— | |"))
     batched = envs["batched_contact"]
     rows += ["", f"| batched env, {batched['num_envs']} arms, random actions | arm-steps/s (median of "
              f"{batched['repeats']}) | share of batched reach | converged | target | |",
