@@ -351,8 +351,8 @@ def _verdict(value: float, target: float, at_most: bool = True) -> str:
 def contact_headline_rows() -> list[str]:
     """The README's contact rows: contact steps against a free step before and after the lean
     contact step, the recommended versions' steps now, the batched contact envs against
-    batched reach, the planner's decisions (``docs/bench/contact_side_by_side.json`` and the
-    contact keys of ``envs.json``)."""
+    batched reach, the planner's decisions (``docs/bench/contact_side_by_side.json``,
+    ``planner_side_by_side.json`` and the contact keys of ``envs.json``)."""
     sbs = _json("contact_side_by_side.json")
     ratios = {r["name"]: r for r in sbs["ratios"]["rows"]}
     cells = [f"{name} {ratios[name]['before']:.1f}× → {ratios[name]['after']:.1f}×"
@@ -364,7 +364,7 @@ def contact_headline_rows() -> list[str]:
     reach = batched["rows"][0]
     shares = [f"{r['name']} {r['env_steps_per_s'] / 1000:.0f}k ({r['ratio_to_reach']:.0%})"
               for r in batched["rows"][1:]]
-    wrap = sbs["planner"]["ids"]["SoftArm/OctArmWrap-v1"]
+    wrap = _json("planner_side_by_side.json")["planner"]["ids"]["SoftArm/OctArmWrap-v1"]
     return [f"| contact env steps, × a free `OctArmReach-v1` step (3D wrap: × a 3D reach step), "
             f"before → after the lean contact step | {'; '.join(cells)} | "
             "[benchmarks](docs/benchmarks.md#contact) |",
@@ -384,8 +384,10 @@ def contact_headline_rows() -> list[str]:
 
 def contact_table() -> str:
     """Contact speed against the issue's targets: single-env ratios before and after, batched
-    contact envs, planner decisions (``docs/bench/contact_side_by_side.json``, ``envs.json``)."""
+    contact envs, planner decisions (``docs/bench/contact_side_by_side.json``,
+    ``planner_side_by_side.json``, ``envs.json``)."""
     sbs = _json("contact_side_by_side.json")
+    planners = _json("planner_side_by_side.json")  # the planner against the same tree before
     envs = _json("envs.json")
     bench = {r["name"]: r for r in envs["contact_ratios"]["rows"]}
     rows = ["| single env, random actions | unit step | × unit, before | × unit, after | "
@@ -414,7 +416,7 @@ def contact_table() -> str:
         rows.append(f"| {r['name']} (`{r['env_id']}`{kwargs}) | {r['env_steps_per_s']:,.0f} | "
                     f"{r['ratio_to_reach']:.0%} | {r['converged_fraction']:.2%} | {target} | {verdict} |")
     for key, threads in (("planner", "numba's default threads"), ("planner_one_thread", "one numba thread")):
-        planner = sbs[key]
+        planner = planners[key]
         kwargs = ", ".join(f"{k}={v}" for k, v in planner["kwargs"].items())
         seeds = f"seeds {planner['seeds'][0]}–{planner['seeds'][-1]}"
         rows += ["", f"| `CEMPlanner`, {threads} ({kwargs}, {seeds}) | decision before (ms) | after (ms) | "
@@ -429,9 +431,10 @@ def contact_table() -> str:
                         + (f"≥ {target:g}× | {_verdict(e['speedup'], target, at_most=False)} |" if target
                            else "— | |"))
     m = envs["contact_measured"]
-    rows += ["", f"Before: {sbs['before']}; after: {sbs['after']}."]
+    rows += ["", f"Single-env rows: before {sbs['before']}; after {sbs['after']}."]
+    rows.append(f"Planner rows: before {planners['before']}; after {planners['after']}.")
     for key in ("ratios", "planner", "planner_one_thread"):
-        part = sbs[key]
+        part = sbs[key] if key == "ratios" else planners[key]
         rows.append(f"`{part['command']}`, {part['date']}, {part['rounds']} alternating rounds, load average "
                     f"{part['load_before'][0]:.1f} before and {part['load_after'][0]:.1f} after.")
     rows.append(f"`{m['command']}`, {m['date']}, load average {m['load_before'][0]:.1f} before and "
