@@ -335,14 +335,26 @@ class ObstacleReachEnv(ReachEnv):
     def _gap(self, points: np.ndarray, discs: np.ndarray) -> float:
         """Smallest distance (m) from ``points`` (m, 2) to the contact circles of ``discs``
         (n, 3: x, y, obstacle radius)."""
+        return float(np.min(self._gaps(points, discs)))
+
+    def _gaps(self, points: np.ndarray, discs: np.ndarray) -> np.ndarray:
+        """(m, n) distances (m) from each of ``points`` (m, 2) to the contact circle of each of
+        ``discs`` (n, 3: x, y, obstacle radius)."""
         distance = np.hypot(points[:, None, 0] - discs[None, :, 0], points[:, None, 1] - discs[None, :, 1])
-        return float(np.min(distance - discs[None, :, 2] - self.half_thickness))
+        return distance - discs[None, :, 2] - self.half_thickness
 
     def _place_discs(self, n: int, tip: np.ndarray, target: np.ndarray,
                      avoid: np.ndarray) -> np.ndarray | None:
         """``n`` discs (n, 3) across the segment from the start ``tip`` to ``target``, clear of
         the base, the target, ``avoid`` (backbone samples, m) and each other by ``clearance``;
-        None if one finds no place."""
+        None if one finds no place.
+
+        Each disc tries up to DISC_ATTEMPTS random placements (radius, offset across the
+        segment, place along it: three draws each) and takes the first that fits. The
+        attempts are drawn and tested at once (a reset's placements, one at a time, were a
+        sixth of an obstacle-reach reset), and the generator is then advanced by exactly the
+        draws the attempts up to the one taken used, so the episode is the one-at-a-time
+        loop's: same discs, same later draws."""
         rng = self.np_random
         way = target - tip
         length = float(np.hypot(*way))
@@ -354,21 +366,26 @@ class ObstacleReachEnv(ReachEnv):
         spread = 0.5 * length if self.contact == "forbid" else 0.0
         discs = np.empty((0, 3))
         points = np.vstack([np.zeros((1, 2)), target[None], avoid])  # base, target, avoid
+        low, high = self.obstacle_radius_range
+        first, last = PLACEMENT_SPAN
         for _ in range(n):
-            for _ in range(DISC_ATTEMPTS):
-                radius = float(rng.uniform(*self.obstacle_radius_range))
-                contact = radius + self.half_thickness
-                offset = rng.uniform(-1.0, 1.0) * (contact + spread)
-                center = tip + rng.uniform(*PLACEMENT_SPAN) * way + offset * across
-                disc = np.array([[center[0], center[1], radius]])
-                if self._gap(points, disc) < self.clearance:
-                    continue
-                if len(discs) and self._gap(center[None], discs) - contact < self.clearance:
-                    continue
-                discs = np.vstack([discs, disc])
-                break
-            else:
-                return None
+            state = rng.bit_generator.state
+            draws = rng.random((DISC_ATTEMPTS, 3))  # as rng.uniform(a, b): a + (b − a)·u
+            radius = low + (high - low) * draws[:, 0]
+            contact = radius + self.half_thickness
+            offset = (-1.0 + 2.0 * draws[:, 1]) * (contact + spread)
+            centers = tip + (first + (last - first) * draws[:, 2])[:, None] * way \
+                + offset[:, None] * across
+            candidates = np.column_stack([centers, radius])
+            fits = ~(np.min(self._gaps(points, candidates), axis=0) < self.clearance)
+            if len(discs):
+                fits &= ~(np.min(self._gaps(centers, discs), axis=1) - contact < self.clearance)
+            if not fits.any():
+                return None  # every attempt's draws spent, as the loop spent them
+            taken = int(np.argmax(fits))
+            rng.bit_generator.state = state
+            rng.random(3 * (taken + 1))
+            discs = np.vstack([discs, candidates[taken:taken + 1]])
         return discs
 
     # ------------------------------------------------------------------ step
