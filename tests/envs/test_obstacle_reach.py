@@ -213,3 +213,62 @@ def test_planner_scores_an_action_as_the_env_rewards_it(contact):
     _, reward, _, _, info = env.step(action)
     assert info["in_contact"] or info["contact_rejected"]
     assert score == pytest.approx(reward, rel=1e-3, abs=1e-4)
+
+
+def _place_one_at_a_time(env, n, tip, target, avoid):
+    """The plain reference of ``ObstacleReachEnv._place_discs``: each disc's placements drawn
+    and tested one at a time, the first that fits taken."""
+    from softarm_gym.envs.obstacle import DISC_ATTEMPTS, PLACEMENT_SPAN
+    rng = env.np_random
+    way = target - tip
+    length = float(np.hypot(*way))
+    across = np.array([-way[1], way[0]]) / length
+    spread = 0.5 * length if env.contact == "forbid" else 0.0
+    discs = np.empty((0, 3))
+    points = np.vstack([np.zeros((1, 2)), target[None], avoid])
+
+    def gap(p, d):
+        return float(np.min(np.hypot(p[:, None, 0] - d[None, :, 0], p[:, None, 1] - d[None, :, 1])
+                            - d[None, :, 2] - env.half_thickness))
+    for _ in range(n):
+        for _ in range(DISC_ATTEMPTS):
+            radius = float(rng.uniform(*env.obstacle_radius_range))
+            contact = radius + env.half_thickness
+            offset = rng.uniform(-1.0, 1.0) * (contact + spread)
+            center = tip + rng.uniform(*PLACEMENT_SPAN) * way + offset * across
+            disc = np.array([[center[0], center[1], radius]])
+            if gap(points, disc) < env.clearance:
+                continue
+            if len(discs) and gap(center[None], discs) - contact < env.clearance:
+                continue
+            discs = np.vstack([discs, disc])
+            break
+        else:
+            return None
+    return discs
+
+
+@pytest.mark.parametrize("contact", ["penalize", "forbid"])
+def test_disc_placement_is_the_one_at_a_time_loops_draw_for_draw(contact):
+    """The placements tried at once take the same discs as the plain loop and leave the
+    generator where it left it (so the rest of the episode is the same), placed or not."""
+    env = gym.make("SoftArm/OctArmObstacleReach-v0", contact=contact).unwrapped
+    env.reset(seed=0)
+    cases = np.random.default_rng(1)
+    outcomes = set()
+    for seed in range(40):
+        tip = cases.uniform(-0.3, 0.3, 2) + (0.0, -0.6)
+        target = cases.uniform(-0.5, 0.5, 2)
+        avoid = tip + cases.uniform(-0.2, 0.2, (30, 2))
+        n = int(cases.integers(1, 4))
+        env.np_random = np.random.default_rng(seed)
+        placed = env._place_discs(n, tip, target, avoid)
+        after = env.np_random.random()
+        env.np_random = np.random.default_rng(seed)
+        expected = _place_one_at_a_time(env, n, tip, target, avoid)
+        assert (placed is None) == (expected is None)
+        if placed is not None:
+            np.testing.assert_array_equal(placed, expected)
+        assert after == env.np_random.random()
+        outcomes.add(placed is None)
+    assert outcomes == {True, False}  # both placed and refused draws were met
