@@ -348,9 +348,8 @@ def may_touch(Z, grid, rest, tip_x, tip_y) -> bool:
     short pieces at its far ends, which the end nodes bound much more tightly than the
     segments' midpoints (the midpoints alone flag a straight arm: on it a pair whose far
     ends are just beyond the exclusion has midpoints closer than their radii). The tip
-    segment ends at
-    (``tip_x``, ``tip_y``) where the caller has integrated it; with NaN it is bounded by v·ℓ
-    about its start."""
+    segment ends at (``tip_x``, ``tip_y``) where the caller has integrated it; with NaN it is
+    bounded by v·ℓ about its start."""
     segs = grid[G_SEGS]
     secf = grid[G_SECF]
     sp = grid[G_SELF]
