@@ -373,6 +373,7 @@ def may_touch(Z, grid, rest, tip_x, tip_y) -> bool:
     px[n_seg] = tip_x
     py[n_seg] = tip_y
     for a in range(n_seg):
+        ax, ay, ra = _circle(a, px, py, s0, s1, stretch, ends_known)
         for b in range(a + 1, n_seg):
             if s1[b] - s0[a] <= exclusion:
                 continue
@@ -380,7 +381,6 @@ def may_touch(Z, grid, rest, tip_x, tip_y) -> bool:
             # v·near_b of its end node (where known), each also within its segment's circle.
             near_a = stretch * (min(s1[a], s1[b] - exclusion) - s0[a])
             near_b = stretch * (s1[b] - max(s0[b], s0[a] + exclusion))
-            ax, ay, ra = _circle(a, px, py, s0, s1, stretch, ends_known)
             bx, by, rb = _circle(b, px, py, s0, s1, stretch, ends_known)
             if _far(ax, ay, ra, bx, by, rb, reach) or _far(px[a], py[a], near_a, bx, by, rb, reach):
                 continue
