@@ -38,6 +38,7 @@ import numpy as np
 from solver import layout as L
 from solver.designs import ArmDesign
 from solver.inputs import check_request, checked_pressures
+from solver.kernels.homotopy import halved
 from solver.paths.dispatch import dispatch
 from solver.paths.friction import turn_anchors
 from solver.paths.lean_contact import ContactRows, lean_contact_reason
@@ -704,8 +705,8 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
                 now, t, dt = attempt, t_new, min(2.0 * dt, 0.75 * failed)
                 snapped = snapped or attempt.snapped
             elif dt > MIN_SUBSTEP:
-                failed = dt
-                dt *= 0.5
+                dt = halved(dt, t_new - t, MIN_SUBSTEP)
+                failed = 2.0 * dt  # (the last substep halving alone would have seen fail)
             else:
                 return _result(bal, attempt, False, iterations, snapped)
     except _Exhausted:

@@ -38,6 +38,7 @@ import numpy as np
 
 from solver.jit import njit
 from solver.kernels.grid import section_needs
+from solver.kernels.homotopy import halved
 from solver.kernels.obstacles import (
     accept_friction,
     contact_force,
@@ -1248,7 +1249,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
                 dt = min(2.0 * dt, 1.0)
                 continue
         if dt > dt_min:
-            dt *= 0.5
+            dt = halved(dt, t_new - t, dt_min)
             continue
         break
     if t < 1.0:
@@ -1681,7 +1682,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             dt = min(2.0 * dt, 1.0)
         else:
             Z[:] = accepted
-            dt *= 0.5
+            dt = halved(dt, t_new - t, 0.0)
     if t < 1.0:
         Z[:] = start
         return False, stable, passes, res, refused | REFUSED_BUDGET

@@ -65,6 +65,21 @@ def ramp_crowding(p_a, p_b, tubes_i, tubes_f):
     return crowding
 
 
+@njit(inline="always")
+def halved(dt, tried, dt_min):
+    """The next continuation step after a try of length ``tried`` (t_new − t) at the nominal
+    step ``dt`` failed: ``dt`` halved — and halved again while it would still reach as far as
+    the failed try, never below ``dt_min`` (0: no floor). Near the end of a ramp a try is
+    clipped at t = 1 (``tried`` < ``dt``), and a halved nominal step that still reaches past
+    it would repeat the same try from the same state, and its failure. The steps tried are
+    those halving alone would try, less the repeats."""
+    while dt > dt_min:
+        dt *= 0.5
+        if dt < tried:
+            break
+    return dt
+
+
 @njit
 def smallest_step(dt, dt_min, params, p_a, p_b, tubes_i, tubes_f):
     """The smallest continuation step of a ramp from ``p_a`` to ``p_b``: ``params[DT_MIN]``

@@ -31,7 +31,7 @@ import numpy as np
 
 from solver.jit import njit, prange
 from solver.kernels.grid import planar_fine
-from solver.kernels.homotopy import GIVE_UP, big_change
+from solver.kernels.homotopy import GIVE_UP, big_change, halved
 from solver.kernels.obstacles import clearance, tunnels
 from solver.kernels.self_contact import far_parts_clear
 from solver.kernels.spatial import planar_state_stable
@@ -542,7 +542,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
                     return root, False, total, snapped, False, res, x, y, th
                 if tunnels(rec_prev[:, X:Y + 1], rec_new[:, X:Y + 1], discs, -half_h):
                     if dt > dt_min:
-                        dt *= 0.5
+                        dt = halved(dt, t_new - t, dt_min)
                         continue
                     return root, False, total, snapped, False, res, x, y, th
                 rec_prev, rec_new = rec_new, rec_prev
@@ -564,7 +564,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
             stable = True
             continue
         if dt > dt_min:
-            dt *= 0.5
+            dt = halved(dt, t_new - t, dt_min)
             continue
         if c_j_3d.shape[0] > 0:  # a fold or bifurcation: the 3D path may leave the plane here
             return root, False, total, snapped, False, res, x, y, th

@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.kernels.homotopy import GIVE_UP, big_change, smallest_step
+from solver.kernels.homotopy import GIVE_UP, big_change, halved, smallest_step
 from solver.layout import (
     CA,
     CG,
@@ -254,7 +254,10 @@ def _path(m0, quat0, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, loads_a, load
             continue
         fresh = False
         if dt > dt_min:
-            dt *= 0.5
+            # (The floor is worked out now, not when a try first comes down to it: the
+            # halving may pass that try.)
+            dt_min = smallest_step(0.0, dt_min, params, p_a, p_b, tubes_i, tubes_f)
+            dt = halved(dt, t_new - t, dt_min)
             continue
         if snaps >= 8 or params[N_SCAN] == 0:  # no snapping without the fallbacks
             break

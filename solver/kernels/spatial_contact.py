@@ -46,6 +46,7 @@ from solver.kernels.contact import (
     weighted_norm,
 )
 from solver.kernels.grid import section_needs
+from solver.kernels.homotopy import halved
 from solver.kernels.obstacles import (
     accept_friction,
     clearance_3d,
@@ -847,7 +848,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
                 dt = min(2.0 * dt, 1.0)
                 continue
         if dt > dt_min:
-            dt *= 0.5
+            dt = halved(dt, t_new - t, dt_min)
             continue
         break
     if t < 1.0:
@@ -1149,7 +1150,7 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
             dt = min(2.0 * dt, 1.0)
         else:
             Z[:, :] = accepted
-            dt *= 0.5
+            dt = halved(dt, t_new - t, 0.0)
     if t < 1.0:
         Z[:, :] = start
         return False, stable, passes, res

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from solver.jit import njit
-from solver.kernels.homotopy import smallest_step
+from solver.kernels.homotopy import halved, smallest_step
 from solver.kernels.spatial import fields_back, mirror_symmetric, set_level
 from solver.layout import (
     CA,
@@ -469,7 +469,10 @@ def follow(quats, moms, segs, secf, steps, c_j, tubes_i, tubes_f, p_a, p_b, load
             dt = min(2.0 * dt, 1.0)
             continue
         if dt > dt_min:
-            dt *= 0.5
+            # (The floor is worked out now, not when a try first comes down to it: the
+            # halving may pass that try.)
+            dt_min = smallest_step(0.0, dt_min, params, p_a, p_b, tubes_i, tubes_f)
+            dt = halved(dt, t_new - t, dt_min)
             continue
         if snaps >= 8 or params[N_SCAN] == 0:  # no snapping without the fallbacks
             break

@@ -146,6 +146,24 @@ def test_spatial_warm_solve_in_one_kernel_call_is_the_general_path(monkeypatch, 
                                    planar=False)
 
 
+@pytest.mark.parametrize("floor", [0.0, 1.0 / 256.0, 0.003])
+@pytest.mark.parametrize("t", [0.0, 0.625, 0.75, 0.9375, 1.0 - 3.0 / 64.0, 1.0 - 1.0 / 512.0])
+def test_a_failed_try_is_halved_to_the_next_different_try(t, floor):
+    """After a failed try, the continuation loops' next step is the one plain halving reaches
+    at its first try that differs from the failed one, or at the floor if that comes first:
+    a try past the ramp's end is clipped at t = 1, and halving a step that still reaches past
+    it would repeat the same try from the same state (and its failure)."""
+    from solver.kernels.homotopy import halved
+    for dt in (1.0, 0.5, 0.25, 0.125, 0.0625):
+        t_new = min(1.0, t + dt)
+        step = dt
+        while step > floor:  # plain halving, each try made as a loop makes it
+            step *= 0.5
+            if min(1.0, t + step) != t_new:
+                break
+        assert halved(dt, t_new - t, floor) == step
+
+
 def test_warm_start_across_payload_change():
     arm = designs.octarm_v()
     p = np.array([20, 0, 0, 30, 10, 0]) * PSI
