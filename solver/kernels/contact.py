@@ -970,7 +970,7 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     least twentyfold per iteration (a Jacobian costs about two passes over the arm, a
     residual one) and recomputed otherwise, and at a converged state for its stability
     test. Where parts of the arm touch each other the system is not banded: its full
-    Jacobian (:func:`_coupled`) is formed and solved densely, afresh at every iteration.
+    Jacobian (:func:`_coupled`) is formed and solved densely, and kept as the band one is.
     Returns (converged, iterations, |F|, stable).
     """
     return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
@@ -1005,6 +1005,7 @@ def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max
     step = np.empty(n)
     partners = new_partners(grid)
     dense = np.empty((n, n)) if partners[1].shape[0] else np.empty((0, 0))
+    rubs = level[L_SELF_FRICTION].shape[0] > 0
     newton_system(Z, grid, rest, level, F, J, True, blocks, partners)
     fresh = True
     coupled = _touched(partners)
@@ -1019,9 +1020,10 @@ def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max
         if it == max_iter:
             break
         if coupled:
-            _coupled(Z, grid, rest, level, F, J, partners, weights, dense)
-            if not np.all(np.isfinite(dense)) or np.linalg.det(dense) == 0.0:
-                return False, it, res, False
+            if fresh:
+                _coupled(Z, grid, rest, level, F, J, partners, weights, dense)
+                if not np.all(np.isfinite(dense)) or np.linalg.det(dense) == 0.0:
+                    return False, it, res, False
             step[:] = np.linalg.solve(dense, F)
         else:
             if fresh and not factor_band(J, piv):
@@ -1051,7 +1053,12 @@ def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max
         for k in range(n):
             F[k] = F_try[k]
         fresh = False
-        if slow or coupled or _touched(partners):
+        # The Jacobian is kept while the residual falls twentyfold an iteration — the full
+        # one of touching parts too (a residual pass per column of their nodes: most of such
+        # a solve's cost) while parts still touch, unless they rub with friction (a kept one
+        # there lost a tip-moment curl's ramp: 237 iterations, unconverged) — and formed
+        # afresh otherwise.
+        if slow or _touched(partners) != coupled or (coupled and rubs):
             newton_system(Z, grid, rest, level, F, J, True, blocks, partners)
             res = weighted_norm(F, res_weights)
             fresh = True
