@@ -706,7 +706,7 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
                 snapped = snapped or attempt.snapped
             elif dt > MIN_SUBSTEP:
                 dt = halved(dt, t_new - t, MIN_SUBSTEP)
-                failed = 2.0 * dt  # (the last substep halving alone would have seen fail)
+                failed = 2.0 * dt  # (the last that failed, as plain halving's repeats leave it)
             else:
                 return _result(bal, attempt, False, iterations, snapped)
     except _Exhausted:
