@@ -925,7 +925,8 @@ def _coupled(Z, grid, rest, level, F, J, partners, weights, A):
     """The full Jacobian (N, N) of the system into ``A`` where parts of the arm touch: the
     band ``J`` (exact at fixed self-contact loads) in the columns of nodes that shape no
     piece in contact, and forward differences of the residual ``F`` in the columns of those
-    that do (the loads move with them, on their own segments and on the parts they touch)."""
+    that do (the loads move with them, on their own segments and on the parts they touch).
+    Returns the columns differenced (a residual pass each)."""
     n = Z.shape[0]
     A[:, :] = 0.0
     for j in range(n):
@@ -947,15 +948,18 @@ def _coupled(Z, grid, rest, level, F, J, partners, weights, A):
     moved = Z.copy()
     F_moved = np.empty(n)
     no_blocks = np.empty((0, 6, 6))
+    differenced = 0
     for c in range(n):
         if not columns[c]:
             continue
         eps = 1e-7 * max(abs(Z[c]), weights[c])
         moved[c] = Z[c] + eps
         newton_system(moved, grid, rest, level, F_moved, J, False, no_blocks, scratch)
+        differenced += 1
         moved[c] = Z[c]
         for i in range(n):
             A[i, c] = (F_moved[i] - F[i]) / eps
+    return differenced
 
 
 @njit
@@ -974,7 +978,7 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     Returns (converged, iterations, |F|, stable).
     """
     return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                         True)
+                         True, np.zeros(1, dtype=np.int64))
 
 
 @njit
@@ -986,15 +990,16 @@ def probe(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     polish that failed after 48 iterations had stalled by its 22nd, none that converged ever
     had). Same returns."""
     return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                         False)
+                         False, np.zeros(1, dtype=np.int64))
 
 
 @njit
 def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                  past_kinks):
+                  past_kinks, differenced):
     """:func:`newton` (``past_kinks``: where no trial of the line search lowers the residual,
     go on from the smallest) or :func:`probe` (give up there, the state restored to the
-    iteration's start). Same returns."""
+    iteration's start); ``differenced`` (1,) counts the residual passes of the full
+    Jacobians formed (:func:`_coupled`). Same returns."""
     n = Z.shape[0]
     F = np.empty(n)
     F_try = np.empty(n)
@@ -1021,7 +1026,7 @@ def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max
             break
         if coupled:
             if fresh:
-                _coupled(Z, grid, rest, level, F, J, partners, weights, dense)
+                differenced[0] += _coupled(Z, grid, rest, level, F, J, partners, weights, dense)
                 if not np.all(np.isfinite(dense)) or np.linalg.det(dense) == 0.0:
                     return False, it, res, False
             step[:] = np.linalg.solve(dense, F)
@@ -1177,6 +1182,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     _start_samples(a[L_SELF_FRICTION], now[L_SELF_FRICTION])
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
+    differenced = np.zeros(1, dtype=np.int64)
     newton_system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)), new_partners(grid))
     res = weighted_norm(F, res_weights)
     total += 1
@@ -1227,7 +1233,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
         ok, its, res, stable = damped_newton(Z, grid, rest, now, weights, res_weights,
                                              tol if final else 1e3 * tol,
                                              max_iter if final else 8, max_step,
-                                             friction or rubs)
+                                             friction or rubs, differenced)
         total += its
         corr = 0.0
         pred = 0.0
@@ -1309,6 +1315,15 @@ LEAN_RATE = 0.25
 LEAN_TRIES = 32
 LEAN_JACOBIANS = 64
 
+# ... and, where parts of the arm touch each other, the residual passes of the full Jacobians
+# it forms (:func:`_coupled`: a pass per column of a node in contact, ~14 band Jacobians'
+# worth each on a wrapped grasp). Measured on the lean moved steps of a scripted curl on
+# OctArmGrasp-v1 (docs/design.md §10.1): the accepted ones formed ≤ 14 full Jacobians (204 of
+# 207; at most 29), each refused one all 64 of LEAN_JACOBIANS (~70 ms, four times what the
+# general path then spent on the step, a snap). Past this many such passes (~14 full
+# Jacobians there) the step is handed over.
+LEAN_COLUMNS = 256
+
 # Why a lean contact step refused a try (bits of the ``refused`` it returns; a profile's
 # figures, :mod:`softarm_gym.benchmarks.contact_profile`): Broyden and damped Newton did not
 # converge; the state reached is unstable; it lies farther from the prediction than a step
@@ -1345,14 +1360,17 @@ def factor_state(Z, grid, rest, level, weights, F, blocks, out, factors):
     parts of the arm touch each other the full one (:func:`_coupled`), which the next
     solves from this state use instead (flags[0] ≥ 1). Returns whether the Jacobian is
     regular."""
-    return _factor_state(Z, grid, rest, level, weights, F, blocks, out, factors, factors, False)
+    return _factor_state(Z, grid, rest, level, weights, F, blocks, out, factors, factors, False,
+                         np.zeros(1, dtype=np.int64))
 
 
 @njit
-def _factor_state(Z, grid, rest, level, weights, F, blocks, out, factors, held, reuse):
+def _factor_state(Z, grid, rest, level, weights, F, blocks, out, factors, held, reuse,
+                  differenced):
     """:func:`factor_state`; with ``reuse``, where parts of the arm touch and ``held``
     (the factors of a nearby state) holds full factors younger than LEAN_REUSE_AGE, those are
-    copied instead of forming the full Jacobian afresh (flags[0]: 1 fresh, one more a reuse)."""
+    copied instead of forming the full Jacobian afresh (flags[0]: 1 fresh, one more a reuse).
+    ``differenced`` (1,) counts the residual passes of a full Jacobian formed."""
     lu, piv, dense, dense_piv, flags = factors
     partners = new_partners(grid)
     recorded_system(Z, grid, rest, level, F, lu, True, blocks, partners, out)
@@ -1364,7 +1382,7 @@ def _factor_state(Z, grid, rest, level, weights, F, blocks, out, factors, held, 
             dense_piv[:] = held[3]
             flags[0] = age + 1
         else:
-            _coupled(Z, grid, rest, level, F, lu, partners, weights, dense)
+            differenced[0] += _coupled(Z, grid, rest, level, F, lu, partners, weights, dense)
             if not _dense_factor(dense, dense_piv):
                 return False
             flags[0] = 1
@@ -1535,7 +1553,8 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     Broyden's corrections alone keeps the full factors of the state before (up to
     LEAN_REUSE_AGE states; its band Jacobian, stability test and backbone are its own):
     forming them costs a residual pass per column of a node in contact. Past LEAN_TRIES
-    steps or LEAN_JACOBIANS Jacobians, or on anything else, every input is left untouched
+    steps, LEAN_JACOBIANS Jacobians or LEAN_COLUMNS passes of full ones (not counted in the
+    passes it returns), or on anything else, every input is left untouched
     and ``ok`` is False: the caller's general path (continuation, snaps, refinement) takes
     the step.
 
@@ -1602,8 +1621,9 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     res = math.inf
     stable = False
     refused = 0
+    differenced = np.zeros(1, dtype=np.int64)  # the passes of full Jacobians formed
     for _ in range(LEAN_TRIES):
-        if jacobians >= LEAN_JACOBIANS:
+        if jacobians >= LEAN_JACOBIANS or differenced[0] >= LEAN_COLUMNS:
             break
         t_new = min(1.0, t + dt)
         final = t_new >= 1.0
@@ -1629,10 +1649,10 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             predicted = True
             quasi = ok
             if not ok:
-                ok, its, res, stable = newton(
+                ok, its, res, stable = damped_newton(
                     Z, grid, rest, now, weights, res_weights, goal,
                     min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
-                    params[MAX_STEP])
+                    params[MAX_STEP], True, differenced)
                 passes += its
                 jacobians += its + 1
                 if not ok:
@@ -1657,7 +1677,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
         stable = False
         if ok:
             regular = _factor_state(Z, grid, rest, now, weights, F, blocks, new, spare, held,
-                                    quasi)
+                                    quasi, differenced)
             passes += 1
             jacobians += 1
             res = weighted_norm(F, res_weights)
