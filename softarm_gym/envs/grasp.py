@@ -178,7 +178,12 @@ class GraspEnv(WrapEnv):
 
     def _advance(self, pressures):
         """Arm and object to ``pressures`` together (:func:`solver.grasp.settle`); an
-        unconverged step keeps both where they were."""
+        unconverged step keeps both where they were. Pressures equal to the current ones (a
+        hold, or delta actions pushing against p_max or 0) move nothing: the state stands, no
+        solve (settle's answer from it is the same state, to round-off)."""
+        g = self._grasp
+        if np.array_equal(pressures, g.arm.pressures):
+            return solver.StepReport(True, g.stable, False, 0, g.arm.residual), True
         g = settle(self._sim_arm, pressures, self._free_scene, self._object,
                    center=self._grasp.center, warm_start=self._grasp.arm, model=self.model)
         report = solver.StepReport(g.converged, g.stable, g.arm.snapped or g.snapped, g.solves,

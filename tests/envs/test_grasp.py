@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import softarm_gym  # noqa: F401  (registers the ids)
+from solver.grasp import settle
 
 ENV_ID = "SoftArm/OctArmGrasp-v0"
 
@@ -62,6 +63,22 @@ def test_reward_terms_sum_to_the_reward_and_lift_is_rewarded(lifted):
     assert reward == pytest.approx(sum(terms.values()))
     assert terms["reward_lift"] == pytest.approx(base.lift_weight)
     assert terms["reward_success"] == base.success_bonus and terms["reward_margin"] == 0.0
+
+
+def test_holding_the_pressures_keeps_the_state_settle_would_return(lifted):
+    # A hold moves nothing, so the env keeps the state without a solve: settling arm and object
+    # from it at the same pressures returns that very state, bit for bit.
+    env, _ = lifted
+    base = env.unwrapped
+    before = base._grasp
+    again = settle(base._sim_arm, before.arm.pressures, base._free_scene, base._object,
+                   center=before.center, warm_start=before.arm, model=base.model)
+    assert again.converged and again.held == before.held and again.stable == before.stable
+    np.testing.assert_array_equal(again.center, before.center)
+    np.testing.assert_array_equal(again.arm.positions, before.arm.positions)
+    np.testing.assert_array_equal(again.stiffness, before.stiffness)
+    _, _, _, _, info = env.step(2 * base._fraction - 1)
+    assert base._grasp is before and info["converged"]
 
 
 def test_observation_goal_holds_the_moving_centre_and_the_seat(lifted):
