@@ -1,9 +1,12 @@
-"""Imitation of the sampling planner: demonstrations, behaviour cloning and DAgger.
+"""Imitation of the sampling planner (or a scripted controller): demonstrations, behaviour
+cloning and DAgger.
 
 Usage::
 
     python -m baselines.imitate collect --env SoftArm/OctArmWrap-v2 --episodes 40 --seed 0 \\
         --out runs/demos/planner_OctArmWrap-v2_s0.npz
+    python -m baselines.imitate collect --env SoftArm/OctArmGrasp-v1 --expert curl --episodes 100 \\
+        --out runs/demos/curl_OctArmGrasp-v1_s0.npz
     python -m baselines.imitate bc --demos runs/demos/planner_OctArmWrap-v2_s0.npz \\
         --out runs/bc_OctArmWrap-v2_s0
     python -m baselines.imitate dagger --demos runs/demos/planner_OctArmWrap-v2_s0.npz \\
@@ -18,12 +21,15 @@ sidecars, ``summary.json``, whose steps and times are the expert's environment s
 collection and fitting time), so ``python -m baselines.results collect/evaluate/report`` treat
 it as one.
 
-The expert is :class:`softarm_gym.controllers.CEMPlanner` with its defaults, made afresh at
-every episode start and seeded with the episode's seed (as ``baselines.evaluate --controller
-planner`` runs it). A demonstration records, at every step, the observation the policy sees
-(the env's raw flat observation) and the action the planner sent (the env's action space:
-delta actions on the recommended ids). The files are ``.npz`` arrays (``allow_pickle=False``)
-with a ``.json`` sidecar (env id, seeds, the planner's success, wall time).
+The expert (:data:`EXPERTS`) is :class:`softarm_gym.controllers.CEMPlanner` with its defaults,
+made afresh at every episode start and seeded with the episode's seed (as ``baselines.evaluate
+--controller planner`` runs it), or the scripted :class:`softarm_gym.controllers.CurlController`
+(``--expert curl``: where the planner is too slow to demonstrate — a grasp decision takes it
+minutes — the curl is a teacher at the cost of a step). A demonstration records, at every
+step, the observation the policy sees (the env's raw flat observation) and the action the
+expert sent (the env's action space: delta actions on the recommended ids). The files are
+``.npz`` arrays (``allow_pickle=False``) with a ``.json`` sidecar (env id, expert, seeds, the
+expert's success, wall time).
 
 Behaviour cloning (:func:`behaviour_clone`) fits the policy of a PPO model built with the
 hyperparameters PPO itself trains with (default ``baselines/hyperparams/batched_gsde/ppo.yml``),
@@ -70,35 +76,41 @@ from baselines.config import (
 )
 from baselines.train import project_path, save_checkpoint
 from softarm_gym.commands.common import add_numba_threads_argument, add_quiet_argument, apply_numba_threads
-from softarm_gym.controllers import CEMPlanner
+from softarm_gym.controllers import CEMPlanner, CurlController
 from softarm_gym.files import write_json
 
-__all__ = ["DEMO_FIELDS", "collect", "save_demonstrations", "load_demonstrations", "behaviour_clone",
-           "dagger", "main"]
+__all__ = ["DEMO_FIELDS", "EXPERTS", "collect", "save_demonstrations", "load_demonstrations",
+           "behaviour_clone", "dagger", "main"]
 
 DEMO_FIELDS = ("observations", "actions", "episodes")
 """Per-step arrays of a demonstration file: (T, obs) float32 observations, (T, n) float32
 actions, (T,) int64 index of the episode each step belongs to."""
+_EXPERT_NAMES = {"planner": "CEMPlanner", "curl": "CurlController"}
+EXPERTS = {"planner": lambda env, seed: CEMPlanner(env, seed=seed),
+           "curl": lambda env, seed: CurlController(env)}
+"""What :func:`collect` can take demonstrations from: ``name -> (env, episode seed) -> expert``,
+an object with ``act(obs)``, made afresh at every episode start."""
 DEFAULT_HYPERPARAMS_DIR = HYPERPARAMS_DIR / "batched_gsde"
 """The PPO settings a cloned policy takes its architecture from (the gSDE remedy's)."""
 
 
-def _expert_rollouts(env, episode_seeds, act, progress: bool, label: str) -> dict:
-    """Run one episode per seed; ``act(obs, planner_action)`` is the action sent. Returns the
-    visited observations with the planner's action at each, and per-episode outcomes."""
+def _expert_rollouts(env, episode_seeds, act, progress: bool, label: str, expert: str = "planner") -> dict:
+    """Run one episode per seed; ``act(obs, expert_action)`` is the action sent. Returns the
+    visited observations with the expert's (:data:`EXPERTS`) action at each, and per-episode
+    outcomes."""
     observations, actions, episodes = [], [], []
     success, wrap = [], []
     for k, seed in enumerate(tqdm(episode_seeds, disable=not progress, file=sys.stderr, unit="episode",
                                   desc=label)):
         obs, info = env.reset(seed=int(seed))
-        planner = CEMPlanner(env, seed=int(seed))
+        teacher = EXPERTS[expert](env, int(seed))
         done = False
         while not done:
-            expert = planner.act(obs)
+            label_action = teacher.act(obs)
             observations.append(np.asarray(obs, dtype=np.float32))
-            actions.append(expert)
+            actions.append(label_action)
             episodes.append(k)
-            obs, _, terminated, truncated, info = env.step(act(obs, expert))
+            obs, _, terminated, truncated, info = env.step(act(obs, label_action))
             done = terminated or truncated
         success.append(bool(info["is_success"]))
         wrap.append(float(info.get("wrap_angle_deg", np.nan)))
@@ -109,27 +121,30 @@ def _expert_rollouts(env, episode_seeds, act, progress: bool, label: str) -> dic
 
 
 def collect(env_id: str, episodes: int, seed: int = 0, env_kwargs: dict | None = None,
-            progress: bool = False) -> dict:
-    """Planner demonstrations: ``episodes`` whole episodes, episode ``i`` reset with ``seed + i``.
+            progress: bool = False, expert: str = "planner") -> dict:
+    """Demonstrations of ``expert`` (a name in :data:`EXPERTS`): ``episodes`` whole episodes,
+    episode ``i`` reset with ``seed + i``.
 
     Returns:
-        The :data:`DEMO_FIELDS` arrays plus ``episode_seeds``, ``success`` (the planner's, at
+        The :data:`DEMO_FIELDS` arrays plus ``episode_seeds``, ``success`` (the expert's, at
         the last step) and ``final_wrap_deg`` (NaN off wrap), one per episode, and
-        ``meta`` (env id and kwargs, wall time in s).
+        ``meta`` (env id and kwargs, expert, wall time in s).
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1; got {episodes}")
+    if expert not in EXPERTS:
+        raise ValueError(f"unknown expert {expert!r}; choose one of {', '.join(EXPERTS)}")
     env = make_env(check_env_id(env_id), env_kwargs)
     start, cpu = time.perf_counter(), time.process_time()
     try:
-        demos = _expert_rollouts(env, range(seed, seed + episodes), lambda obs, expert: expert, progress,
-                                 "planner")
+        demos = _expert_rollouts(env, range(seed, seed + episodes), lambda obs, label: label, progress,
+                                 expert, expert)
     finally:
         env.close()
-    demos["meta"] = {"env_id": env_id, "env_kwargs": dict(env_kwargs or {}), "expert": "CEMPlanner",
-                     "first_seed": seed, "episodes": episodes, "wall_time_s": time.perf_counter() - start,
-                     "cpu_time_s": time.process_time() - cpu,
-                     "planner_success_rate": float(np.mean(demos["success"]))}
+    demos["meta"] = {"env_id": env_id, "env_kwargs": dict(env_kwargs or {}),
+                     "expert": _EXPERT_NAMES[expert], "first_seed": seed, "episodes": episodes,
+                     "wall_time_s": time.perf_counter() - start, "cpu_time_s": time.process_time() - cpu,
+                     "expert_success_rate": float(np.mean(demos["success"]))}
     return demos
 
 
@@ -145,14 +160,14 @@ def save_demonstrations(demos: dict, path: Path | str) -> Path:
 
 
 def load_demonstrations(paths) -> dict:
-    """Load and concatenate demonstration files (one env id among them).
+    """Load and concatenate demonstration files (one env id and expert among them).
 
     Returns:
         The :data:`DEMO_FIELDS` arrays (episode indices renumbered across files) and ``meta``
-        with ``env_id``, ``env_kwargs``, ``files`` and the number of ``episodes``.
+        with ``env_id``, ``env_kwargs``, ``expert``, ``files`` and the number of ``episodes``.
 
     Raises:
-        ValueError: a missing or malformed file, or files of different envs.
+        ValueError: a missing or malformed file, or files of different envs or experts.
     """
     parts, metas = [], []
     for path in map(Path, paths):
@@ -170,6 +185,9 @@ def load_demonstrations(paths) -> dict:
     keys = {(m["env_id"], json.dumps(m.get("env_kwargs", {}), sort_keys=True)) for m in metas}
     if len(keys) > 1:
         raise ValueError(f"the demonstrations come from different envs: {sorted(keys)}")
+    experts = {m.get("expert", "CEMPlanner") for m in metas}
+    if len(experts) > 1:
+        raise ValueError(f"the demonstrations come from different experts: {sorted(experts)}")
     offset, episodes = 0, []
     for part in parts:
         episodes.append(part["episodes"] + offset)
@@ -178,6 +196,7 @@ def load_demonstrations(paths) -> dict:
             "actions": np.concatenate([p["actions"] for p in parts]),
             "episodes": np.concatenate(episodes),
             "meta": {"env_id": metas[0]["env_id"], "env_kwargs": metas[0].get("env_kwargs", {}),
+                     "expert": experts.pop(),
                      "files": [str(p) for p in paths], "episodes": offset,
                      "wall_time_s": sum(m.get("wall_time_s", 0.0) for m in metas),
                      "cpu_time_s": sum(m.get("cpu_time_s", 0.0) for m in metas)}}
@@ -247,7 +266,7 @@ def _clone(demos: dict, model_path: Path, *, hyperparams_dir: Path | str = DEFAU
                   learning_rate=learning_rate, ent_weight=ent_weight, seed=seed, progress=progress)
     info = {"env_id": meta["env_id"], "algo": "ppo", "seed": seed, "env_kwargs": meta["env_kwargs"],
             "hyperparams": params, "batched": False,
-            "imitation": {"method": "bc", "expert": "CEMPlanner", "demonstrations": meta["files"],
+            "imitation": {"method": "bc", "expert": meta["expert"], "demonstrations": meta["files"],
                           "episodes": meta["episodes"], "samples": int(len(demos["actions"])),
                           "epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate,
                           "ent_weight": ent_weight, "loss_per_epoch": losses,
@@ -333,6 +352,11 @@ def dagger(demos: dict, run_dir: Path | str, *, rounds: int = 2, episodes: int =
     """
     if rounds < 1 or episodes < 1:
         raise ValueError(f"rounds and episodes must be >= 1; got {rounds}, {episodes}")
+    if demos["meta"]["expert"] != _EXPERT_NAMES["planner"]:
+        # A scripted controller keeps state over its episode (its side, its ramp): it cannot
+        # label a state the learner reached.
+        raise ValueError(f"DAgger labels with the planner; these demonstrations are "
+                         f"{demos['meta']['expert']}'s (clone them with bc)")
     run_dir = _check_run_dir(run_dir)
     first = demos
     current = run_dir / "round0_model.zip"
@@ -356,7 +380,7 @@ def dagger(demos: dict, run_dir: Path | str, *, rounds: int = 2, episodes: int =
         labelled["meta"] = {**first["meta"], "expert": "CEMPlanner", "labels_for": current.name,
                             "wall_time_s": time.perf_counter() - start,
                             "cpu_time_s": time.process_time() - cpu,
-                            "planner_success_rate": None, **history[-1]}
+                            "expert_success_rate": None, **history[-1]}
         saved = save_demonstrations(labelled, run_dir / f"round{k}_labels.npz")
         meta = demos["meta"]
         demos = {"observations": np.concatenate([demos["observations"], labelled["observations"]]),
@@ -374,12 +398,14 @@ def dagger(demos: dict, run_dir: Path | str, *, rounds: int = 2, episodes: int =
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m baselines.imitate", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    col = sub.add_parser("collect", help="record planner demonstrations")
+    col = sub.add_parser("collect", help="record demonstrations")
     col.add_argument("--env", default="SoftArm/OctArmWrap-v2")
     col.add_argument("--episodes", type=int, default=40)
     col.add_argument("--seed", type=int, default=0, help="episode i is reset with seed + i")
     col.add_argument("--env-kwargs", default=None, help="extra gym.make kwargs as a JSON object")
     col.add_argument("--out", required=True, help="the demonstration file (.npz)")
+    col.add_argument("--expert", choices=sorted(EXPERTS), default="planner",
+                     help="who demonstrates: the sampling planner or the scripted curl (default %(default)s)")
     for name, help_text in (("bc", "behaviour cloning"), ("dagger", "DAgger with the planner as the expert")):
         p = sub.add_parser(name, help=help_text)
         p.add_argument("--demos", nargs="+", required=True, help="demonstration files (.npz)")
@@ -408,11 +434,12 @@ def main(argv=None) -> int:
             env_kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
             if env_kwargs is not None and not isinstance(env_kwargs, dict):
                 raise ValueError("--env-kwargs must be a JSON object")
-            demos = collect(args.env, args.episodes, args.seed, env_kwargs, progress=not args.quiet)
+            demos = collect(args.env, args.episodes, args.seed, env_kwargs, progress=not args.quiet,
+                            expert=args.expert)
             path = save_demonstrations(demos, args.out)
             m = demos["meta"]
-            print(f"{path}: {len(demos['actions'])} steps of {m['episodes']} episodes, planner success "
-                  f"{100 * m['planner_success_rate']:.0f} %, {m['wall_time_s']:.0f} s")
+            print(f"{path}: {len(demos['actions'])} steps of {m['episodes']} episodes, {m['expert']} success "
+                  f"{100 * m['expert_success_rate']:.0f} %, {m['wall_time_s']:.0f} s")
             return 0
         demos = load_demonstrations(args.demos)
         kwargs = dict(hyperparams_dir=args.hyperparams_dir, epochs=args.epochs, batch_size=args.batch_size,

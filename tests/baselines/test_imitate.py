@@ -10,6 +10,7 @@ from baselines.config import load_policy, make_env, sidecar_paths
 from baselines.evaluate import evaluate
 from baselines.imitate import behaviour_clone, collect, dagger, load_demonstrations, main, save_demonstrations
 from baselines.train import train
+from softarm_gym.controllers import CurlController
 from tests.baselines.conftest import TINY, tiny_hyperparams
 
 ENV_ID = "SoftArm/OctArmReach-v1"  # delta actions, like the recommended wrap; the planner is fast here
@@ -104,3 +105,28 @@ def test_dagger_labels_the_learners_states_and_clones_again(demo_file, tiny_dir,
     imitation = json.loads((run / "summary.json").read_text())["imitation"]
     assert imitation["method"] == "dagger" and imitation["samples"] == 2 * steps
     assert [r["round"] for r in imitation["rounds"]] == [1]
+
+
+def test_the_scripted_curl_demonstrates_where_the_planner_is_too_slow(tmp_path):
+    # The curl's demonstrations are the actions it sends on the observations it sees: replayed
+    # from the same reset, a fresh CurlController sends the same ones.
+    env_id = "SoftArm/CTWrap-v2"
+    demos = collect(env_id, 1, seed=5, expert="curl")
+    assert demos["meta"]["expert"] == "CurlController"
+    env = make_env(env_id)
+    obs, _ = env.reset(seed=5)
+    curl = CurlController(env)
+    for k in range(3):
+        np.testing.assert_array_equal(demos["observations"][k], obs)
+        action = curl.act(obs)
+        np.testing.assert_array_equal(demos["actions"][k], action)
+        obs = env.step(action)[0]
+    env.close()
+    path = save_demonstrations(demos, tmp_path / "curl.npz")
+    with pytest.raises(ValueError, match="different experts"):
+        planner = save_demonstrations(collect(env_id, 1, seed=5), tmp_path / "planner.npz")
+        load_demonstrations([path, planner])
+    with pytest.raises(ValueError, match="DAgger labels with the planner"):
+        dagger(load_demonstrations([path]), tmp_path / "dagger")
+    with pytest.raises(ValueError, match="unknown expert"):
+        collect(env_id, 1, expert="oracle")
