@@ -1182,7 +1182,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     _start_samples(a[L_SELF_FRICTION], now[L_SELF_FRICTION])
     _at_level(0.0, a, b, now, tubes_i, tubes_f, secf, rest)
     F = np.empty(n)
-    differenced = np.zeros(1, dtype=np.int64)
+    differenced = np.zeros(1, dtype=np.int64)  # (counted by Newton; this path budgets no passes)
     newton_system(Z, grid, rest, now, F, rec_new, False, np.empty((0, 6, 6)), new_partners(grid))
     res = weighted_norm(F, res_weights)
     total += 1
