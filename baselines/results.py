@@ -647,6 +647,23 @@ INTRO = [
     "--only RUN` per run and for `planner_OctArmGrasp-v0` and `curl_OctArmGrasp-v0`; the main "
     "cell only; not shipped.",
     "",
+    "Grasp v1 (issue #37; `SoftArm/OctArmGrasp-v1`: friction μ = 0.7, self-contact, delta actions; "
+    "success as v0's, with the deepest penetration within 5 mm): no batched grasp env exists, and "
+    "`CEMPlanner` takes minutes per decision there (docs/design.md §14), so the only teacher at "
+    "hand is the scripted curl. Demonstrations: `python -m baselines.imitate collect --env "
+    "SoftArm/OctArmGrasp-v1 --expert curl --episodes 100 --seed S --env-kwargs "
+    "'{\"margin_directions\": 0}' --out runs/demos/curl_OctArmGrasp-v1_sS.npz` (S = 0, 100; "
+    "two at once, 17 and 18 min): 20,000 (observation, delta action) pairs, the curl successful on "
+    "16.5 % of its 200 episodes. Cloned into the gSDE PPO policy (`python -m baselines.imitate bc "
+    "--demos` both files `--out runs/bc_curl_OctArmGrasp-v1_s0 --seed 0 --epochs 60`; the "
+    "`SoftArm/OctArmGrasp-v1` entry of `hyperparams/batched_gsde/ppo.yml`) and evaluated as the "
+    "clones above (`python -m baselines.results evaluate --runs runs --main-only --episodes 50 "
+    "--seed 100000 --policy-file final_model.zip --only bc_curl_OctArmGrasp-v1_s0`): 2 % (1 of 50; "
+    "median final wrap 255°), against the issue's 50 %. A clone is no better than its teacher, "
+    "and the curl fails on v1 mostly at the success rule's margins — the object pulled onto the "
+    "base clamp, or held with 5–6 mm of penetration (docs/design.md §14) — so v1's calibration, "
+    "not the learner, is the next step. Not shipped.",
+    "",
     "3D wrap (`SoftArm/OctArmWrap3D-v0`, success at 75° about the cylinder's axis): SAC, 3 "
     "seeds, wrap's settings on the registered defaults (the YAML's 54,496 steps: what a "
     "first seed got in a 25-min cap), two trainings at a time on the 2-core machine: "
