@@ -300,7 +300,7 @@ register(
     id="SoftArm/OctArmGrasp-v1",
     entry_point="softarm_gym.envs:GraspEnv",
     max_episode_steps=100,
-    reward_threshold=105.0,
+    reward_threshold=107.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125),
             "friction": 0.7, **_SEQUENTIAL},
 )

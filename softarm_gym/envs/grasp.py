@@ -180,7 +180,7 @@ class GraspEnv(WrapEnv):
         """Arm and object to ``pressures`` together (:func:`solver.grasp.settle`); an
         unconverged step keeps both where they were. Pressures equal to the current ones (a
         hold, or delta actions pushing against p_max or 0) move nothing: the state stands, no
-        solve (settling from it returns that very state: tests/envs/test_grasp.py)."""
+        solve (settling from it returns that state to round-off: tests/envs/test_grasp.py)."""
         g = self._grasp
         if np.array_equal(pressures, g.arm.pressures):
             return solver.StepReport(True, g.stable, False, 0, g.arm.residual), True

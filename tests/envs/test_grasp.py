@@ -67,7 +67,7 @@ def test_reward_terms_sum_to_the_reward_and_lift_is_rewarded(lifted):
 
 def test_holding_the_pressures_keeps_the_state_settle_would_return(lifted):
     # A hold moves nothing, so the env keeps the state without a solve: settling arm and object
-    # from it at the same pressures returns that very state, bit for bit.
+    # from it at the same pressures returns that state (here bit for bit; elsewhere to round-off).
     env, _ = lifted
     base = env.unwrapped
     before = base._grasp
