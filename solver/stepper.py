@@ -37,6 +37,7 @@ from solver.inputs import (
 from solver.kernels import planar as planar_kernels
 from solver.paths.dispatch import dispatch
 from solver.paths.lean_contact import (
+    PATH_HELD,
     PATHS,
     ContactRows,
     lean_contact_reason,
@@ -115,8 +116,9 @@ class Stepper:
             (:mod:`solver.paths.lean_contact`: planar penalty contact;
             :mod:`solver.paths.lean_spatial_contact`: cylinders, spheres and discs in 3D).
         last_path: the path of the last step or reset: ``"lean"`` (the lean planar kernel,
-            or in 3D the spatial one), ``"lean contact"`` or ``"general"``
-            (:func:`solver.solve`'s paths).
+            or in 3D the spatial one), ``"lean contact"``, ``"general"``
+            (:func:`solver.solve`'s paths) or, in a planar scene with contact, ``"held"``
+            (the same pressures again: the state stands, no solve).
         last_refusals: why the planar lean contact step of the last step refused a try
             (names of :data:`solver.paths.lean_contact.REFUSALS`, e.g. ``("not converged",
             "budget spent")`` before a snap the general path took; empty where it refused
@@ -264,6 +266,9 @@ class Stepper:
         report = rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
         # (The 3D rows report no refusal column: their lean step is a continuation of its own.)
         self._refusal_bits = int(report[6]) if isinstance(rows, ContactRows) else 0
+        if report[5] == PATH_HELD:  # the same pressures: the state stands as it is
+            self.last_path = PATHS[int(PATH_HELD)]
+            return StepReport(True, bool(report[1]), False, 0, float(report[4]))
         if not report[0]:
             general = self._step_general(p_inputs)
             return general._replace(iterations=general.iterations + int(report[3]))
@@ -882,16 +887,17 @@ class BatchStepper:
 
     def _step_contact(self, p, channel, active) -> BatchReport:
         lean = active & np.array([self._rows.ready(k) for k in range(self.n)])
-        report = self._rows.step(self.channel_pressures, channel, lean,
-                                 self.thread_policies["step"].run)[:, :5]
+        full = self._rows.step(self.channel_pressures, channel, lean, self.thread_policies["step"].run)
+        report = full[:, :5]
         report[~active, :2] = 1.0
-        moved = lean & (report[:, 0] != 0)
+        held = lean & (full[:, 5] == PATH_HELD)  # (standing as it was)
+        moved = lean & (report[:, 0] != 0) & ~held
         for k in np.flatnonzero(moved):
             self._eqs[k] = None
             self.tips[k] = self._rows.record(k)[-1, L.X:L.Y + 1]
         self.pressures[moved] = p[moved]
         self.channel_pressures[moved] = channel[moved]
-        for k in np.flatnonzero(active & ~moved):
+        for k in np.flatnonzero(active & ~moved & ~held):
             # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.
             eq = self.solve_copy(k, p[k], channel[k], self.equilibrium(k), self._rows.scenes[k])
             report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations + report[k, 3],

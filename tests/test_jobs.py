@@ -638,7 +638,7 @@ def test_rl_sweep_ctrl_c_saves_the_running_training_then_resume_finishes_it(tmp_
     run = tmp_path / "out" / "runs" / RL_RUNS[0]
     # Long enough that the interrupt lands mid-training: on a fast machine 400 steps could
     # finish between the first checkpoint and the signal ("1 of 1 runs finished").
-    total = 1200
+    total = 3000
     argv = _rl_sweep_args(tmp_path, "--eval-freq", "0", "--evaluate", "none", seeds="0", timesteps=total)
     proc = _sweep(argv + ["--backend", "ray", "--address", cluster.address])
     _wait_for_checkpoint(proc, run, 100)

@@ -38,8 +38,11 @@ from solver.scene import Scene, self_contact_exclusion
 # refinement or a tunnel).
 FAR = 1e6
 
-# The kernels' path codes.
-PATHS = {int(stepping.PATH_LEAN): "lean", int(stepping.PATH_CONTACT): "lean contact"}
+# The kernels' path codes, and the code of a copy held at its own pressures (no kernel ran:
+# :meth:`ContactRows.step`).
+PATH_HELD = 3.0
+PATHS = {int(stepping.PATH_LEAN): "lean", int(stepping.PATH_CONTACT): "lean contact",
+         int(PATH_HELD): "held"}
 
 # What the bits of a report's refusal column mean (solver.kernels.contact.lean_step).
 REFUSALS = {contact_kernels.REFUSED_CONVERGENCE: "not converged",
@@ -395,7 +398,11 @@ class ContactRows:
     def step(self, p_from: np.ndarray, p_to: np.ndarray, active: np.ndarray, run) -> np.ndarray:
         """Warm steps of the ``active`` copies from the channel pressures ``p_from`` to
         ``p_to`` (n, n_channels) by the lean paths; ``run`` calls the parallel or the serial
-        kernel (a :meth:`ThreadPolicy.run`-like callable, or None: serial).
+        kernel (a :meth:`ThreadPolicy.run`-like callable, or None: serial). A ready copy whose
+        ``p_to`` equals its ``p_from`` is held: a quasi-static state nothing moves stands, so no
+        kernel runs for it and its row reports it converged as it was, path :data:`PATH_HELD`
+        (a wrap or a reach held at p_max or 0 — most steps of a trained policy's episode —
+        would otherwise cost a full contact step that returns the same state).
 
         Returns:
             (n, 7) report rows (converged, stable, snapped, iterations, residual, path code
@@ -404,6 +411,15 @@ class ContactRows:
         """
         report = np.zeros((self.n, 7))
         free, contact = self.free, self.contact
+        held = active & (free[stepping.FR_OK] | contact[stepping.CT_OK]) & np.all(p_from == p_to, axis=1)
+        if held.any():
+            report[held, 0] = 1.0
+            report[held, 1:5] = self._flags[held, 1:5]
+            report[held, 2:4] = 0.0  # (no snap, no pass)
+            report[held, 5] = PATH_HELD
+            active = active & ~held
+            if not active.any():
+                return report
         if self.n == 1 and run is None and active[0] and free[stepping.FR_OK][0] and not (
                 contact[stepping.CT_OK][0] and contact[stepping.CT_TOUCHING][0]):
             # One copy touching nothing (a single Stepper's common step): the contact-free
@@ -419,7 +435,8 @@ class ContactRows:
             stepping.contact_rows_serial(*args)
         else:
             run(stepping.contact_rows_parallel, stepping.contact_rows_serial, int(active.sum()), *args)
-        np.copyto(self._flags, report[:, :5], where=report[:, :1] != 0.0)  # (the converged rows)
+        # (the converged rows that moved: a held one keeps the flags of the solve that reached it)
+        np.copyto(self._flags, report[:, :5], where=(report[:, :1] != 0.0) & (report[:, 5:6] != PATH_HELD))
         return report
 
     def step_moved(self, k: int, p_channel: np.ndarray, scene: Scene) -> np.ndarray:

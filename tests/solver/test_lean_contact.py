@@ -196,3 +196,35 @@ def test_a_pickled_contact_stepper_steps_as_the_original():
         assert a == b and copy.last_path == stepper.last_path
         np.testing.assert_array_equal(copy.tip, stepper.tip)
         np.testing.assert_array_equal(copy.record, stepper.record)
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_the_same_pressures_again_hold_the_state_a_warm_solve_returns(name):
+    # A hold runs no kernel ("held"): the state must be the one a warm solve from it at the
+    # same pressures lands on, and stay the same arrays; a step elsewhere then goes on as usual.
+    arm, scene, stepper = walked_stepper(name, 30)
+    before = stepper.equilibrium
+    tip = stepper.tip.copy()
+    report = stepper.step(stepper.pressures.copy())
+    assert stepper.last_path == "held" and report.converged and report.iterations == 0
+    assert report.stable == before.stable and not report.snapped
+    np.testing.assert_array_equal(stepper.tip, tip)
+    assert stepper.equilibrium is before
+    assert_lands_on(stepper, solver.solve(arm, before.pressures, scene, warm_start=before))
+    moved = np.clip(stepper.pressures + 0.02 * arm.max_pressure, 0.0, arm.max_pressure)
+    stepper.step(moved)
+    assert stepper.last_path != "held"
+    assert_lands_on(stepper, solver.solve(arm, moved, scene, warm_start=before))
+
+
+def test_a_batch_holds_the_copies_whose_pressures_stay_and_steps_the_others():
+    arm, scene, single = walked_stepper("wrap", 20)
+    batch = solver.BatchStepper(arm, scene, 2)
+    batch.adopt(single.equilibrium)
+    tips = batch.tips.copy()
+    moved = np.clip(single.pressures + 0.05 * arm.max_pressure, 0.0, arm.max_pressure)
+    report = batch.step(np.stack([single.pressures, moved]))
+    assert report.converged.all() and report.iterations[0] == 0 and report.iterations[1] > 0
+    np.testing.assert_array_equal(batch.tips[0], tips[0])
+    single.step(moved)
+    np.testing.assert_allclose(batch.tips[1], single.tip, atol=1e-12)
