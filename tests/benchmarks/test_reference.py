@@ -25,10 +25,15 @@ def test_registered_threshold_is_the_rule_applied_to_the_recorded_mean(env_id):
 @pytest.mark.parametrize("env_id", env_ids())
 def test_recorded_returns_are_reproduced(env_id):
     # Any change to the env, its defaults or the controllers shows up here: rerun the command
-    # in docs/bench/reference_returns.json and update the registered thresholds.
+    # in docs/bench/reference_returns.json and update the registered thresholds. (The grasp
+    # margin is an info field no registered reward reads, margin_weight being 0: skipping it
+    # leaves the return bit for bit and spares most of a grasp episode's time.)
+    grasp = gym.spec(env_id).entry_point == "softarm_gym.envs:GraspEnv"
+    assert not grasp or gym.spec(env_id).kwargs.get("margin_weight", 0.0) == 0.0
     for seed in (0, 1):
         recorded = RECORD["ids"][env_id]["returns"][seed]
-        assert episode(env_id, seed)["return"] == pytest.approx(recorded, rel=1e-9)
+        got = episode(env_id, seed, {"margin_directions": 0} if grasp else None)["return"]
+        assert got == pytest.approx(recorded, rel=1e-9)
 
 
 def test_rule_and_arguments():
