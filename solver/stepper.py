@@ -117,7 +117,7 @@ class Stepper:
             :mod:`solver.paths.lean_spatial_contact`: cylinders, spheres and discs in 3D).
         last_path: the path of the last step or reset: ``"lean"`` (the lean planar kernel,
             or in 3D the spatial one), ``"lean contact"``, ``"general"``
-            (:func:`solver.solve`'s paths) or, in a planar scene with contact, ``"held"``
+            (:func:`solver.solve`'s paths) or, in a scene with contact, ``"held"``
             (the same pressures again: the state stands, no solve).
         last_refusals: why the planar lean contact step of the last step refused a try
             (names of :data:`solver.paths.lean_contact.REFUSALS`, e.g. ``("not converged",

@@ -54,6 +54,22 @@ REFUSALS = {contact_kernels.REFUSED_CONVERGENCE: "not converged",
             contact_kernels.REFUSED_BUDGET: "budget spent"}
 
 
+def hold_rows(ready: np.ndarray, p_from: np.ndarray, p_to: np.ndarray, active: np.ndarray,
+              flags: np.ndarray, report: np.ndarray) -> np.ndarray:
+    """Hold the ``active`` copies that are ``ready`` (n,) and stepped to the pressures they
+    stand at (``p_to`` rows equal to ``p_from``'s): a quasi-static state nothing moves stands.
+    Their ``report`` rows (n, ≥ 6) say converged, their ``flags`` (n, 5: the last solve's
+    converged, stable, snapped, iterations, residual) stability and residual, no snap, no pass,
+    path :data:`PATH_HELD`. Returns the active copies left to step."""
+    held = active & ready & np.all(p_from == p_to, axis=1)
+    if held.any():
+        report[held, 0] = 1.0
+        report[held, 1] = flags[held, 1]
+        report[held, 4] = flags[held, 4]
+        report[held, 5] = PATH_HELD
+    return active & ~held
+
+
 def refusal_names(bits) -> tuple[str, ...]:
     """The names (:data:`REFUSALS`) of a report's refusal bits (its last column)."""
     return tuple(name for bit, name in REFUSALS.items() if int(bits) & bit)
@@ -411,15 +427,10 @@ class ContactRows:
         """
         report = np.zeros((self.n, 7))
         free, contact = self.free, self.contact
-        held = active & (free[stepping.FR_OK] | contact[stepping.CT_OK]) & np.all(p_from == p_to, axis=1)
-        if held.any():
-            report[held, 0] = 1.0
-            report[held, 1:5] = self._flags[held, 1:5]
-            report[held, 2:4] = 0.0  # (no snap, no pass)
-            report[held, 5] = PATH_HELD
-            active = active & ~held
-            if not active.any():
-                return report
+        active = hold_rows(free[stepping.FR_OK] | contact[stepping.CT_OK], p_from, p_to, active,
+                           self._flags, report)
+        if not active.any():
+            return report
         if self.n == 1 and run is None and active[0] and free[stepping.FR_OK][0] and not (
                 contact[stepping.CT_OK][0] and contact[stepping.CT_TOUCHING][0]):
             # One copy touching nothing (a single Stepper's common step): the contact-free

@@ -24,7 +24,7 @@ from solver.kernels.obstacles import clearance_3d
 from solver.paths.contact import free_contact_result
 from solver.paths.friction import new_samples
 from solver.paths.grid import section_rows
-from solver.paths.lean_contact import median_seconds
+from solver.paths.lean_contact import hold_rows, median_seconds
 from solver.paths.planar import not_single
 from solver.paths.shooting import shooting_params
 from solver.paths.spatial import base_quaternion, spatial_result, spatial_samples
@@ -189,7 +189,8 @@ class SpatialContactRows:
     def step(self, p_from: np.ndarray, p_to: np.ndarray, active: np.ndarray, run=None) -> np.ndarray:
         """Warm steps of the ``active`` copies from the channel pressures ``p_from`` to
         ``p_to`` (n, n_channels) by the lean path (``run`` unused: the copies run serially,
-        as the planar rows' signature has it).
+        as the planar rows' signature has it); a copy stepped to its own pressures is held
+        (:func:`solver.paths.lean_contact.hold_rows`).
 
         Returns:
             (n, 6) report rows (converged, stable, snapped, iterations, residual, path code
@@ -197,8 +198,11 @@ class SpatialContactRows:
             (the general path's turn).
         """
         report = np.zeros((self.n, 6))
-        stepping.spatial_contact_rows(self.free, self.contact, p_from, p_to, active, report)
-        done = report[:, 0] != 0.0
+        moving = hold_rows(self.free[stepping.F3_OK] | self.contact[stepping.C3_OK], p_from, p_to,
+                           active, self._flags, report)
+        if moving.any():
+            stepping.spatial_contact_rows(self.free, self.contact, p_from, p_to, moving, report)
+        done = moving & (report[:, 0] != 0.0)
         self._flags[done] = report[done, :5]
         return report
 

@@ -133,3 +133,19 @@ def test_pass_costs_of_a_3d_contact_state():
     free = solver.Stepper(designs.octarm_v(), solver.Scene(), planar=False)
     with pytest.raises(ValueError, match="lean contact path"):
         free.pass_costs()
+
+
+def test_3d_same_pressures_again_hold_the_state_a_warm_solve_returns():
+    arm, scene, stepper, scale, drift = _stepper("cylinder")
+    pressures = curl_walk_3d(arm, 25, seed=7, scale=scale, drift=drift)
+    stepper.reset(pressures[0])
+    for p in pressures[1:]:
+        stepper.step(p)
+    before = stepper.equilibrium
+    assert before.in_contact
+    tip = stepper.tip.copy()
+    report = stepper.step(stepper.pressures.copy())
+    assert stepper.last_path == "held" and report.converged and report.iterations == 0
+    np.testing.assert_array_equal(stepper.tip, tip)
+    ref = solver.solve(arm, before.channel_pressures, scene, planar=False, warm_start=before)
+    np.testing.assert_allclose(stepper.equilibrium.positions, ref.positions, atol=1e-9)
