@@ -417,8 +417,8 @@ class ContactRows:
         kernel (a :meth:`ThreadPolicy.run`-like callable, or None: serial). A ready copy whose
         ``p_to`` equals its ``p_from`` is held: a quasi-static state nothing moves stands, so no
         kernel runs for it and its row reports it converged as it was, path :data:`PATH_HELD`
-        (a wrap or a reach held at p_max or 0 — most steps of a trained policy's episode —
-        would otherwise cost a full contact step that returns the same state).
+        (a scripted curl holding p_max, or a delta policy pushing against a bound on every
+        channel, would otherwise pay a full contact step that returns the same state).
 
         Returns:
             (n, 7) report rows (converged, stable, snapped, iterations, residual, path code
