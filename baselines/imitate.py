@@ -85,11 +85,9 @@ __all__ = ["DEMO_FIELDS", "EXPERTS", "collect", "save_demonstrations", "load_dem
 DEMO_FIELDS = ("observations", "actions", "episodes")
 """Per-step arrays of a demonstration file: (T, obs) float32 observations, (T, n) float32
 actions, (T,) int64 index of the episode each step belongs to."""
-_EXPERT_NAMES = {"planner": "CEMPlanner", "curl": "CurlController"}
-EXPERTS = {"planner": lambda env, seed: CEMPlanner(env, seed=seed),
-           "curl": lambda env, seed: CurlController(env)}
-"""What :func:`collect` can take demonstrations from: ``name -> (env, episode seed) -> expert``,
-an object with ``act(obs)``, made afresh at every episode start."""
+EXPERTS = {"planner": CEMPlanner, "curl": CurlController}
+"""What :func:`collect` can take demonstrations from: name -> controller class (``act(obs)``),
+one made afresh at every episode start (the planner seeded with the episode's seed)."""
 DEFAULT_HYPERPARAMS_DIR = HYPERPARAMS_DIR / "batched_gsde"
 """The PPO settings a cloned policy takes its architecture from (the gSDE remedy's)."""
 
@@ -103,7 +101,7 @@ def _expert_rollouts(env, episode_seeds, act, progress: bool, label: str, expert
     for k, seed in enumerate(tqdm(episode_seeds, disable=not progress, file=sys.stderr, unit="episode",
                                   desc=label)):
         obs, info = env.reset(seed=int(seed))
-        teacher = EXPERTS[expert](env, int(seed))
+        teacher = CEMPlanner(env, seed=int(seed)) if expert == "planner" else EXPERTS[expert](env)
         done = False
         while not done:
             label_action = teacher.act(obs)
@@ -142,7 +140,7 @@ def collect(env_id: str, episodes: int, seed: int = 0, env_kwargs: dict | None =
     finally:
         env.close()
     demos["meta"] = {"env_id": env_id, "env_kwargs": dict(env_kwargs or {}),
-                     "expert": _EXPERT_NAMES[expert], "first_seed": seed, "episodes": episodes,
+                     "expert": EXPERTS[expert].__name__, "first_seed": seed, "episodes": episodes,
                      "wall_time_s": time.perf_counter() - start, "cpu_time_s": time.process_time() - cpu,
                      "expert_success_rate": float(np.mean(demos["success"]))}
     return demos
@@ -185,7 +183,7 @@ def load_demonstrations(paths) -> dict:
     keys = {(m["env_id"], json.dumps(m.get("env_kwargs", {}), sort_keys=True)) for m in metas}
     if len(keys) > 1:
         raise ValueError(f"the demonstrations come from different envs: {sorted(keys)}")
-    experts = {m.get("expert", "CEMPlanner") for m in metas}
+    experts = {m.get("expert", CEMPlanner.__name__) for m in metas}
     if len(experts) > 1:
         raise ValueError(f"the demonstrations come from different experts: {sorted(experts)}")
     offset, episodes = 0, []
@@ -352,7 +350,7 @@ def dagger(demos: dict, run_dir: Path | str, *, rounds: int = 2, episodes: int =
     """
     if rounds < 1 or episodes < 1:
         raise ValueError(f"rounds and episodes must be >= 1; got {rounds}, {episodes}")
-    if demos["meta"]["expert"] != _EXPERT_NAMES["planner"]:
+    if demos["meta"]["expert"] != CEMPlanner.__name__:
         # A scripted controller keeps state over its episode (its side, its ramp): it cannot
         # label a state the learner reached.
         raise ValueError(f"DAgger labels with the planner; these demonstrations are "
@@ -377,7 +375,7 @@ def dagger(demos: dict, run_dir: Path | str, *, rounds: int = 2, episodes: int =
                         "learner_success_rate": float(np.mean(labelled["success"])),
                         "learner_median_wrap_deg": float(np.median(labelled["final_wrap_deg"])),
                         "label_wall_time_s": time.perf_counter() - start})
-        labelled["meta"] = {**first["meta"], "expert": "CEMPlanner", "labels_for": current.name,
+        labelled["meta"] = {**first["meta"], "expert": CEMPlanner.__name__, "labels_for": current.name,
                             "wall_time_s": time.perf_counter() - start,
                             "cpu_time_s": time.process_time() - cpu,
                             "expert_success_rate": None, **history[-1]}
