@@ -55,7 +55,7 @@ from softarm_gym.envs.terms import (
     reach_rewards,
     reward_sums,
 )
-from solver.grasp import CLAMP_GAP, FreeObject, settle
+from solver.grasp import CLAMP_GAP, FreeObject, Settler
 
 __all__ = ["JacobianController", "CurlController", "CEMPlanner", "observation_slices"]
 
@@ -517,7 +517,7 @@ class CEMPlanner(_PressureController):
         """Forget the nominal state, the disc and the plan (call at every episode start)."""
         self._nominal = None
         self._rollout = None
-        self._object = None
+        self._settler = None
         self._plan = np.zeros((self.horizon, self._n))
         self._stalled = None
         self._pending = None  # with ``commit``: the rest of the sequence being followed
@@ -573,16 +573,15 @@ class CEMPlanner(_PressureController):
         if self._nominal is None:
             goal = obs[self._slices["goal"]]
             task = self.task
-            self._object = FreeObject(radius=float(goal[2]), mass_kg=float(np.mean(task.object_mass_range)),
-                                      seat=(float(goal[3]), float(goal[4])),
-                                      stiffness=task.contact_stiffness, fork_depth=task.fork_depth,
-                                      friction=task.friction)
+            obj = FreeObject(radius=float(goal[2]), mass_kg=float(np.mean(task.object_mass_range)),
+                             seat=(float(goal[3]), float(goal[4])), stiffness=task.contact_stiffness,
+                             fork_depth=task.fork_depth, friction=task.friction)
+            self._settler = Settler(self.arm, self.scene, obj)
             free = solver.solve(self.arm, pressures, self.scene, planar=True)
-            self._nominal = settle(self.arm, pressures, self.scene, self._object, center=goal[:2],
-                                   warm_start=free)
+            self._nominal = self._settler.settle(pressures, center=goal[:2], warm_start=free)
         elif np.any(self._nominal.arm.pressures != pressures):
-            moved = settle(self.arm, pressures, self.scene, self._object, center=self._nominal.center,
-                           warm_start=self._nominal.arm)
+            moved = self._settler.settle(pressures, center=self._nominal.center,
+                                         warm_start=self._nominal.arm)
             if moved.converged:
                 self._nominal = moved
 
@@ -605,13 +604,13 @@ class CEMPlanner(_PressureController):
                 key = (id(state), new[0].tobytes())
                 if key not in settled:
                     # The state is kept with its settle, so that its id is not reused.
-                    settled[key] = state, settle(self.arm, new[0] * self.p_max, self.scene,
-                                                 self._object, center=state.center,
-                                                 warm_start=state.arm, max_solves=self.grasp_solves)
+                    settled[key] = state, self._settler.settle(
+                        new[0] * self.p_max, center=state.center, warm_start=state.arm,
+                        max_solves=self.grasp_solves)
                 moved = settled[key][1]
                 if moved.converged:
                     state, current = moved, new[0].copy()
-                terms = self.task.grasp_terms(state, self._object, current)[0]
+                terms = self.task.grasp_terms(state, self._settler.obj, current)[0]
                 totals[j] += sum(terms.values()) + (0.0 if moved.converged else -penalty)
         return totals
 
@@ -740,7 +739,7 @@ class CEMPlanner(_PressureController):
 
     def _succeeds(self, fraction: np.ndarray) -> bool:
         if self.grasp:
-            return self.task.grasp_terms(self._nominal, self._object, fraction)[1]
+            return self.task.grasp_terms(self._nominal, self._settler.obj, fraction)[1]
         eq = self._nominal.equilibrium
         if self.wrap:
             penetration = float(eq.penetration.max()) if eq.penetration.size else 0.0

@@ -47,7 +47,7 @@ from solver.results import Equilibrium
 from solver.scene import MAX_EXTENT, Disc, Scene, check_friction
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
 
-__all__ = ["FreeObject", "Grasp", "settle", "grasp_margin", "SUPPORTS"]
+__all__ = ["FreeObject", "Grasp", "Settler", "settle", "grasp_margin", "SUPPORTS"]
 
 SUPPORTS = ("fork", "v_blocks")
 
@@ -258,13 +258,28 @@ class Grasp:
     snapped: bool = False
 
 
-class _Balance:
-    """G at a pose for one arm, pressures, scene, object and disturbance; counts the contact
-    solves. A pose is the centre c (2,), and with friction (c, r·ψ) (3,), ψ the object's turn
-    since the solve began (rad) and r its contact radius (so that every coordinate is a length
-    and every component of G a force: the moment over r)."""
+class Settler:
+    """:func:`settle` for one arm, scene, object, model and settings, called again and again
+    (an env's steps, a planner's rollouts, a margin's pushes): the request is checked, the arm
+    packed and the lean contact rows built once, not at every call.
 
-    def __init__(self, arm, pressures, scene, obj, external_force, model, settings):
+    ``Settler(arm, scene, obj).settle(pressures, ...)`` returns what ``settle(arm, pressures,
+    scene, obj, ...)`` does, bit for bit: a call's result depends on its arguments only (the
+    rows adopt each call's warm start afresh). Not for use from two threads at once (the rows
+    are scratch).
+
+    Args:
+        arm: the design. scene: mounting and loads, without obstacles (the object is the only
+            one). obj: the object. model, settings: as in :func:`solver.solve`.
+
+    Raises:
+        ValueError: a request :func:`settle` refuses (naming what is wrong).
+    """
+
+    def __init__(self, arm: ArmDesign, scene: Scene, obj: FreeObject, *, model: str = "full",
+                 settings: Settings = DEFAULT_SETTINGS):
+        if model not in MODELS:
+            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
         if not isinstance(obj, FreeObject):
             raise ValueError(f"obj must be a solver.grasp.FreeObject; got {type(obj).__name__}")
         check_request(arm, scene, model, True, settings)
@@ -274,26 +289,61 @@ class _Balance:
         if scene.obstacles:
             raise ValueError("the scene of a grasp must have no obstacles of its own: the object "
                              "is the only one (its contact force is read off the arm's balance)")
+        self.arm, self.scene, self.obj, self.model, self.settings = arm, scene, obj, model, settings
+        self.packed = pack(arm, model, settings)
+        # D: the internal force at the base with no contact (weights and tip force).
+        self.dead = context(arm, self.packed, scene, 2, settings).base_force[:2]
+        # The lean contact path of the arm's solves: row 0 holds the warm start last adopted
+        # (the list's second item), row 1 takes each step from a copy of it.
+        template = replace(scene, obstacles=(obj.disc(obj.seat),))
+        zeros = np.zeros(arm.n_inputs(True))
+        problem = Problem(arm, self.packed, template, model, True, settings, zeros,
+                          zeros[self.packed.spatial_of_planar])
+        self.lean = [ContactRows(problem, 2, 1), None] if lean_contact_reason(problem) is None \
+            else None
+        self._frictionless = None
+
+    @property
+    def frictionless(self) -> Settler:
+        """This settler with the object frictionless (a snap's landing, :func:`_land`)."""
+        if self._frictionless is None:
+            self._frictionless = Settler(self.arm, self.scene, replace(self.obj, friction=0.0),
+                                         model=self.model, settings=self.settings)
+        return self._frictionless
+
+    def balance(self, pressures, external_force=(0.0, 0.0)) -> _Balance:
+        """The object's balance G at ``pressures`` under ``external_force`` (checked)."""
+        return _Balance(self, pressures, external_force)
+
+    def settle(self, pressures, *, center=None, warm_start: Equilibrium | None = None,
+               external_force=(0.0, 0.0), max_solves: int = MAX_SOLVES) -> Grasp:
+        """As :func:`settle` with this settler's arm, scene, object, model and settings."""
+        if isinstance(max_solves, bool) or int(max_solves) != max_solves or max_solves < 1:
+            raise ValueError(f"max_solves must be an integer >= 1; got {max_solves!r}")
+        return _settle_path(self.balance(pressures, external_force), center, warm_start,
+                            int(max_solves))
+
+
+class _Balance:
+    """G at a pose for one arm, pressures, scene, object and disturbance; counts the contact
+    solves. A pose is the centre c (2,), and with friction (c, r·ψ) (3,), ψ the object's turn
+    since the solve began (rad) and r its contact radius (so that every coordinate is a length
+    and every component of G a force: the moment over r)."""
+
+    def __init__(self, settler: Settler, pressures, external_force):
         f = np.asarray(external_force, dtype=float).ravel()
         if f.shape != (2,) or not np.all(np.isfinite(f)):
             raise ValueError(f"external_force must be two finite numbers (N); got {external_force!r}")
-        self.arm, self.scene, self.obj, self.model, self.settings = arm, scene, obj, model, settings
-        self.dim = 3 if obj.friction > 0.0 else 2
-        self.packed = pack(arm, model, settings)
-        self.p_inputs, self.p_channel = checked_pressures(arm, pressures, True, self.packed)
-        # D: the internal force at the base with no contact (weights and tip force).
-        self.dead = context(arm, self.packed, scene, 2, settings).base_force[:2]
+        self.settler = settler
+        self.arm, self.scene, self.obj = settler.arm, settler.scene, settler.obj
+        self.model, self.settings, self.packed = settler.model, settler.settings, settler.packed
+        self.dead, self.lean = settler.dead, settler.lean
+        self.dim = 3 if self.obj.friction > 0.0 else 2
+        self.p_inputs, self.p_channel = checked_pressures(self.arm, pressures, True, self.packed)
         self.external = f
-        self.load = np.array([0.0, -obj.mass_kg * scene.gravity]) + f
+        self.load = np.array([0.0, -self.obj.mass_kg * self.scene.gravity]) + f
         self.counter = [0]  # contact solves, shared with the copies of at()
         self.budget = math.inf
-        # The lean contact path of the arm's solves (shared with the copies of at()): row 0
-        # holds the warm start last adopted, row 1 takes each step from a copy of it.
-        template = replace(scene, obstacles=(obj.disc(obj.seat),))
-        problem = Problem(arm, self.packed, template, model, True, settings, self.p_inputs,
-                          self.p_channel)
-        self.lean = [ContactRows(problem, 2, 1), None] if lean_contact_reason(problem) is None \
-            else None
 
     def at(self, p_inputs) -> _Balance:
         """This balance at other (valid) input pressures; the solve count is shared."""
@@ -307,8 +357,7 @@ class _Balance:
     def frictionless(self) -> _Balance:
         """This balance with the object frictionless (a snap's landing, :func:`_land`); the
         solve count and budget are shared."""
-        other = _Balance(self.arm, self.p_inputs, self.scene, replace(self.obj, friction=0.0),
-                         self.external, self.model, self.settings)
+        other = self.settler.frictionless.balance(self.p_inputs, self.external)
         other.counter, other.budget = self.counter, self.budget
         return other
 
@@ -664,11 +713,14 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
         The :class:`Grasp` at ``pressures``; where the path could not be followed to the end
         (or the budget ran out), the last state reached, with ``converged=False``.
     """
-    if model not in MODELS:
-        raise ValueError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
-    if isinstance(max_solves, bool) or int(max_solves) != max_solves or max_solves < 1:
-        raise ValueError(f"max_solves must be an integer >= 1; got {max_solves!r}")
-    bal = _Balance(arm, pressures, scene, obj, external_force, model, settings)
+    return Settler(arm, scene, obj, model=model, settings=settings).settle(
+        pressures, center=center, warm_start=warm_start, external_force=external_force,
+        max_solves=max_solves)
+
+
+def _settle_path(bal: _Balance, center, warm_start: Equilibrium | None, max_solves: int) -> Grasp:
+    """The body of :func:`settle`: the quasi-static path to ``bal``'s pressures."""
+    obj = bal.obj
     start = np.array(obj.seat if center is None else center, dtype=float)
     if start.shape != (2,) or not np.all(np.isfinite(start)):
         raise ValueError(f"center must be two finite numbers (m); got {center!r}")
@@ -679,7 +731,7 @@ def settle(arm: ArmDesign, pressures, scene: Scene, obj: FreeObject, *, center=N
         origin = np.asarray(warm_start.pressures, dtype=float)
         if origin.shape != target.shape:
             raise ValueError("warm_start was solved with another number of input pressures")
-    bal.budget = int(max_solves)
+    bal.budget = max_solves
     iterations = 0
     snapped = False
     x0 = bal.pose(start)
@@ -734,19 +786,18 @@ def _settle(bal: _Balance, start, warm_start, fall_back: bool) -> _Pose:
 
 
 class _Push:
-    """A disturbance along ``unit`` on the object held in ``eq``'s arm and scene."""
+    """A disturbance along ``unit`` on the object held in ``eq``'s arm (``settler``: its scene
+    and object)."""
 
-    def __init__(self, eq, scene, obj, unit, settings):
-        self.eq, self.scene, self.obj, self.unit, self.settings = eq, scene, obj, unit, settings
+    def __init__(self, eq, settler, unit):
+        self.eq, self.settler, self.unit = eq, settler, unit
 
     def holds(self, force, state):
         """Whether the object stays held under ``force`` (N) from ``state`` (pose, arm
         equilibrium), and the state it is held in."""
-        eq = self.eq
-        bal = _Balance(eq.arm, eq.pressures, self.scene, self.obj, force * self.unit, eq.model,
-                       self.settings)
+        bal = self.settler.balance(self.eq.pressures, force * self.unit)
         reached = _settle(bal, state[0], state[1], fall_back=False)
-        return reached.converged and self.obj.clear(reached.pose[:2]), (reached.pose, reached.arm)
+        return reached.converged and self.settler.obj.clear(reached.pose[:2]), (reached.pose, reached.arm)
 
 
 def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_force: float | None = None,
@@ -783,10 +834,10 @@ def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_forc
     margins = np.zeros(int(directions))
     if not (grasp.converged and grasp.held):
         return 0.0, margins
-    scene = replace(eq.scene, obstacles=())
+    settler = Settler(eq.arm, replace(eq.scene, obstacles=()), obj, model=eq.model, settings=settings)
     for k in range(int(directions)):
         phi = 2.0 * math.pi * k / directions
-        push = _Push(eq, scene, obj, np.array([-math.sin(phi), math.cos(phi)]), settings)
+        push = _Push(eq, settler, np.array([-math.sin(phi), math.cos(phi)]))
         state = (np.append(grasp.center, [0.0] * (obj.friction > 0.0)), eq)
         low, high = 0.0, None
         f = max(0.1 * weight, 1e-3)

@@ -358,6 +358,28 @@ class Stepper:
             raise ValueError("the equilibrium was solved with record=False; adopt needs its backbone")
         self._adopt(eq)
 
+    def adopt_moved(self, eq: Equilibrium) -> None:
+        """Make ``eq`` the current state where it was solved in this stepper's scene with its
+        discs moved — their centres only, as a free object the arm carries moves
+        (:mod:`solver.grasp`) — and its scene this stepper's: what ``with_scene(eq.scene)``
+        then ``adopt(eq)`` give, without building a stepper at every move."""
+        if not isinstance(eq, Equilibrium):
+            raise ValueError("adopt_moved() takes an Equilibrium returned by solve()")
+        old, new = self.scene, eq.scene
+        if new is not old and not (
+                new.without_contact == old.without_contact and len(new.obstacles) == len(old.obstacles)
+                and (new.self_contact, new.self_friction) == (old.self_contact, old.self_friction)
+                and all(type(a) is Disc and type(b) is Disc
+                        and (a.radius, a.stiffness, a.friction) == (b.radius, b.stiffness, b.friction)
+                        for a, b in zip(new.obstacles, old.obstacles))):
+            raise ValueError(f"the equilibrium was solved in {new}, which is not this stepper's "
+                             f"scene {old} with its discs moved; use with_scene(eq.scene)")
+        self.scene = new
+        self._problem = self._problem.in_scene(new)
+        if self._rows is not None:
+            self._rows.set_scene(0, new)
+        self.adopt(eq)
+
     def _adopt(self, eq: Equilibrium) -> None:
         """Make ``eq`` the current state (and, on the lean path, its record and predictor)."""
         self._eq = eq

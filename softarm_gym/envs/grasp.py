@@ -10,7 +10,7 @@ import numpy as np
 import solver
 from softarm_gym.envs.config import check_options, finite_number, value_range
 from softarm_gym.envs.wrap import WrapEnv
-from solver.grasp import CLAMP_GAP, FreeObject, Grasp, grasp_margin, settle
+from solver.grasp import CLAMP_GAP, FreeObject, Grasp, Settler, grasp_margin
 
 __all__ = ["GraspEnv"]
 
@@ -136,6 +136,7 @@ class GraspEnv(WrapEnv):
                              "model has no contact")
         self._object = None
         self._grasp = None
+        self._settler = None
         self._margin = (None, math.nan, np.zeros(0))
         super().__init__(design, wrap_weight=wrap_weight, **kwargs)
 
@@ -157,12 +158,12 @@ class GraspEnv(WrapEnv):
         free = replace(self._scene, obstacles=())
         if math.hypot(*obj.seat) <= obj.radius + CLAMP_GAP:
             return None  # seated against the arm's base clamp
+        settler = Settler(self._sim_arm, free, obj, model=self.model)
         # From the start state itself: the object is placed clear of it.
-        grasp = settle(self._sim_arm, start.pressures, free, obj, center=obj.seat,
-                       warm_start=start, model=self.model)
+        grasp = settler.settle(start.pressures, center=obj.seat, warm_start=start)
         if not grasp.converged:
             return None
-        self._object, self._grasp, self._free_scene = obj, grasp, free
+        self._object, self._grasp, self._settler = obj, grasp, settler
         self._center = grasp.center.copy()
         self._object_radius = radius
         self._contact_radius = obj.radius
@@ -184,17 +185,14 @@ class GraspEnv(WrapEnv):
         g = self._grasp
         if np.array_equal(pressures, g.arm.pressures):
             return solver.StepReport(True, g.stable, False, 0, g.arm.residual), True
-        g = settle(self._sim_arm, pressures, self._free_scene, self._object,
-                   center=self._grasp.center, warm_start=self._grasp.arm, model=self.model)
+        g = self._settler.settle(pressures, center=g.center, warm_start=g.arm)
         report = solver.StepReport(g.converged, g.stable, g.arm.snapped or g.snapped, g.solves,
                                    g.arm.residual if g.converged else g.residual)
         if not g.converged:
             return report, False
         self._grasp = g
         self._center = g.center.copy()
-        stepper = self._stepper.with_scene(g.arm.scene)
-        stepper.adopt(g.arm)
-        self._stepper = stepper
+        self._stepper.adopt_moved(g.arm)
         return report, True
 
     def _fill_goal(self, obs):

@@ -71,7 +71,7 @@ def test_holding_the_pressures_keeps_the_state_settle_would_return(lifted):
     env, _ = lifted
     base = env.unwrapped
     before = base._grasp
-    again = settle(base._sim_arm, before.arm.pressures, base._free_scene, base._object,
+    again = settle(base._sim_arm, before.arm.pressures, base._settler.scene, base._object,
                    center=before.center, warm_start=before.arm, model=base.model)
     assert again.converged and again.held == before.held and again.stable == before.stable
     np.testing.assert_array_equal(again.center, before.center)
@@ -147,5 +147,5 @@ def test_v1_is_sequential_self_contacting_and_frictional_and_its_planner_knows_i
     assert info["object_mass_kg"] > 0
     planner = CEMPlanner(env, seed=0)
     planner._track(obs, 0.5 * (obs[planner._slices["pressures"]] + 1.0))
-    assert planner._object.friction == 0.7
+    assert planner._settler.obj.friction == 0.7
     env.close()

@@ -9,7 +9,7 @@ from scipy.interpolate import CubicSpline
 
 import solver
 from solver import layout as L
-from solver.grasp import FreeObject, grasp_margin, settle
+from solver.grasp import FreeObject, Settler, grasp_margin, settle
 
 ARM = solver.designs.octarm_v()
 # The distal section's outer half-thickness (tube offset + outer radius) and its tubes' ring
@@ -139,6 +139,35 @@ def test_a_cup_holds_against_gravity_but_not_an_upward_push_beyond_the_weight():
     _, per = grasp_margin(g, obj, directions=4, max_force=20 * weight)
     assert 0.95 * weight <= per[0] <= weight * (1 + 1e-12)  # at m g exactly it floats, neutral
     assert per[2] > weight  # pushed down, the cup takes it
+
+
+def _assert_same_grasp(a, b):
+    assert (a.converged, a.held, a.stable, a.snapped, a.solves) == (b.converged, b.held, b.stable,
+                                                                     b.snapped, b.solves)
+    np.testing.assert_array_equal(a.center, b.center)
+    np.testing.assert_array_equal(a.arm.positions, b.arm.positions)
+    np.testing.assert_array_equal(a.arm.friction_samples, b.arm.friction_samples)
+    np.testing.assert_array_equal(a.stiffness, b.stiffness)
+
+
+def test_a_settler_called_again_and_again_returns_what_settle_does_bit_for_bit(held):
+    """A :class:`Settler` keeps its lean contact rows between calls (the last warm start they
+    adopted among them); each call's result still depends on its arguments only: a chain of
+    steps, then a step from an earlier state (the rows hold another one), give exactly what
+    fresh :func:`settle` calls give."""
+    obj, h = held
+    settler = Settler(ARM, SCENE, obj)
+    states = [h]
+    for fraction in (0.88, 0.87, 0.92):
+        g = settler.settle(_channels_i(fraction), center=states[-1].center, warm_start=states[-1].arm)
+        fresh = settle(ARM, _channels_i(fraction), SCENE, obj, center=states[-1].center,
+                       warm_start=states[-1].arm)
+        assert g.converged and g.arm.in_contact
+        _assert_same_grasp(g, fresh)
+        states.append(g)
+    again = settler.settle(_channels_i(0.89), center=states[1].center, warm_start=states[1].arm)
+    _assert_same_grasp(again, settle(ARM, _channels_i(0.89), SCENE, obj, center=states[1].center,
+                                     warm_start=states[1].arm))
 
 
 def test_not_held_has_zero_margin():
@@ -401,16 +430,19 @@ def test_a_snap_round_a_frictional_object_lands_at_the_frictionless_balance_with
     obj = FreeObject(radius=0.1463, mass_kg=0.3655, seat=(-0.1559, -0.0812), stiffness=STIFFNESS,
                      friction=0.7)
     start = np.array([35.29, 65.53, 9.94, 65.41, 21.5, 29.19]) * 1e3
-    g = settle(ARM, start, scene, obj)
+    settler = Settler(ARM, scene, obj)  # one for the whole curl, as the env keeps
+    g = settler.settle(start)
     assert g.converged and not g.snapped
     for k in range(9):
         p = np.zeros(ARM.n_inputs(True))
         p[0::2] = start[0::2] + 69e3 * (k + 1)
-        before, g = g, settle(ARM, p, scene, obj, center=g.center, warm_start=g.arm)
+        before, g = g, settler.settle(p, center=g.center, warm_start=g.arm)
         assert g.converged
         if g.snapped:
             break
     assert k == 8  # the step that closes the wrap
+    # (the landing solves the frictionless balance: the settler's own, as a fresh call's)
+    _assert_same_grasp(g, settle(ARM, p, scene, obj, center=before.center, warm_start=before.arm))
     assert math.degrees(solver_wrap(before.arm.positions, before.center, obj.radius)) < 60
     assert math.degrees(solver_wrap(g.arm.positions, g.center, obj.radius)) > 240
     assert g.lift > 0.07 and g.lift - before.lift > 0.05

@@ -6,6 +6,7 @@ same equilibrium to the solver's tolerance, on the lean path and on every genera
 """
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -359,3 +360,39 @@ def test_pickled_steppers_continue_identically():
                 original.step(np.stack([q, q]))
                 np.testing.assert_array_equal(clone.tips, original.tips)
                 np.testing.assert_array_equal(clone.tips, clone.records[:, -1, L.X:L.Y + 1])
+
+
+def test_adopt_moved_is_with_scene_then_adopt():
+    """A free object the arm presses on, moved by the arm (:mod:`solver.grasp`): adopting the
+    arm's equilibrium solved there keeps the stepper and gives what a new stepper in that
+    scene adopting it gives (the next steps bit for bit); a scene that differs in more than
+    the discs' centres is refused, naming the way that takes it."""
+    from solver.grasp import FreeObject, settle
+
+    arm = designs.octarm_v()
+    obj = FreeObject(radius=0.1, mass_kg=0.3, seat=(-0.16, -0.25), stiffness=2e4)
+    free = solver.Scene(self_contact=2e4)
+    p = np.zeros(arm.n_inputs(True))
+    p[0::2] = 0.6 * arm.max_pressure
+    before = settle(arm, p, free, obj)
+    stepper = solver.Stepper(arm, before.arm.scene)
+    stepper.adopt(before.arm)
+    p[0::2] = 0.62 * arm.max_pressure
+    after = settle(arm, p, free, obj, center=before.center, warm_start=before.arm)
+    assert after.converged and after.arm.in_contact and np.all(after.center != before.center)
+    fresh = stepper.with_scene(after.arm.scene)
+    fresh.adopt(after.arm)
+    stepper.adopt_moved(after.arm)
+    assert stepper.scene == after.arm.scene
+    for q in (0.63, 0.65, 0.5):
+        p[0::2] = q * arm.max_pressure
+        assert stepper.step(p) == fresh.step(p)
+        np.testing.assert_array_equal(stepper.record, fresh.record)
+        np.testing.assert_array_equal(stepper.equilibrium.positions, fresh.equilibrium.positions)
+    disc = stepper.scene.obstacles[0]
+    for other in (solver.Scene(obstacles=(replace(disc, radius=0.11),), self_contact=2e4),
+                  solver.Scene(obstacles=(disc,), self_contact=2e4, payload_kg=0.1),
+                  solver.Scene(obstacles=(disc, replace(disc, center=(0.3, -0.3))), self_contact=2e4)):
+        eq = solver.solve(arm, p, other)
+        with pytest.raises(ValueError, match="with_scene"):
+            stepper.adopt_moved(eq)
