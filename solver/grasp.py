@@ -375,7 +375,7 @@ class _Balance:
         if self.counter[0] >= self.budget:
             raise _Exhausted
         self.counter[0] += 1
-        scene = replace(self.scene, obstacles=(self.obj.disc(center),))
+        scene = self.scene.with_obstacles((self.obj.disc(center),))
         turn = float(pose[2] - warm_pose[2]) / self.obj.radius if self.dim == 3 else 0.0
         lean = self._lean_step(scene, warm, turn)
         if lean is not None:
@@ -641,7 +641,7 @@ def _land(bal: _Balance, pose, eq: Equilibrium, iterations: int) -> _Pose:
     free = bal.frictionless()
     center = pose[:2]
     # The landed arm, its anchors dropped, in the frictionless scene.
-    bare = replace(eq, scene=replace(eq.scene, obstacles=(free.obj.disc(center),)),
+    bare = replace(eq, scene=eq.scene.with_obstacles((free.obj.disc(center),)),
                    friction_samples=eq.friction_samples[:0])
     start = free.arm_at(center, bare, center)
     state = _Pose(pose, eq, *bal.forces(pose, eq), False, iterations, True)

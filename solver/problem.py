@@ -466,8 +466,15 @@ class Problem:
         return other
 
     def in_scene(self, scene: Scene, warm_start: Equilibrium | None = None) -> Problem:
-        """This request in another scene (and from another warm start)."""
-        return replace(self, scene=scene, warm_start=warm_start)
+        """This request in another scene (and from another warm start). A scene that differs
+        only in its obstacles keeps the context (obstacles do not enter one): a grasped
+        object's disc moves at every trial pose."""
+        if scene.without_contact is not self.scene.without_contact \
+                and scene.without_contact != self.scene.without_contact:
+            return replace(self, scene=scene, warm_start=warm_start)
+        other = object.__new__(Problem)
+        other.__dict__.update(self.__dict__, scene=scene, warm_start=warm_start)
+        return other
 
     def equilibrium(self, **fields) -> Equilibrium:
         """An :class:`Equilibrium` of this request: its arm, scene, model, mode and pressures,

@@ -189,6 +189,20 @@ def obstacle_row(obstacle) -> list:
     return [*obstacle.center, 0.0, 0.0, 0.0, obstacle.radius, obstacle.stiffness]
 
 
+def _checked_obstacles(obstacles) -> tuple:
+    """``obstacles`` as a tuple, each a :class:`Disc`, :class:`Cylinder` or :class:`Sphere`
+    clear of the arm's base (ValueError naming the first that is not)."""
+    checked = tuple(obstacles) if isinstance(obstacles, (tuple, list)) else None
+    if checked is None or not all(isinstance(o, (Disc, Cylinder, Sphere)) for o in checked):
+        raise ValueError("Scene.obstacles must be a tuple of solver.Disc, solver.Cylinder or "
+                         f"solver.Sphere; got {obstacles!r}")
+    for k, d in enumerate(checked):
+        if core_distance(d, np.zeros(3))[0] <= d.radius:
+            raise ValueError(f"Scene.obstacles[{k}] ({d}) covers the arm's base at the origin: "
+                             "the clamp cannot sit inside an obstacle")
+    return checked
+
+
 @dataclass(frozen=True)
 class Scene:
     """Everything outside the arm that sets its equilibrium (docs/design.md §1–4 conventions).
@@ -245,15 +259,7 @@ class Scene:
         if moment.size not in (1, 3) or not np.all(np.isfinite(moment)):
             raise ValueError(
                 f"Scene.tip_moment must be 1 (Mz) or 3 finite numbers (N m); got {self.tip_moment!r}")
-        obstacles = tuple(self.obstacles) if isinstance(self.obstacles, (tuple, list)) else None
-        if obstacles is None or not all(isinstance(o, (Disc, Cylinder, Sphere)) for o in obstacles):
-            raise ValueError("Scene.obstacles must be a tuple of solver.Disc, solver.Cylinder or "
-                             f"solver.Sphere; got {self.obstacles!r}")
-        for k, d in enumerate(obstacles):
-            if core_distance(d, np.zeros(3))[0] <= d.radius:
-                raise ValueError(f"Scene.obstacles[{k}] ({d}) covers the arm's base at the origin: "
-                                 "the clamp cannot sit inside an obstacle")
-        object.__setattr__(self, "obstacles", obstacles)
+        object.__setattr__(self, "obstacles", _checked_obstacles(self.obstacles))
         k = self.self_contact
         if k is not None:
             if isinstance(k, bool) or not isinstance(k, (int, float, np.floating, np.integer)) \
@@ -270,11 +276,27 @@ class Scene:
         object.__setattr__(self, "tip_moment",
                            float(moment[0]) if moment.size == 1 else tuple(float(m) for m in moment))
         # Derived once (not fields: they follow from the fields above).
-        m3 = self.tip_moment_3d()
-        object.__setattr__(self, "_is_planar", bool(self.tip_force_3d()[2] == 0.0 and m3[0] == 0.0
-                                                    and m3[1] == 0.0
-                                                    and all(isinstance(o, Disc) for o in obstacles)))
+        object.__setattr__(self, "_is_planar", self._planar_with(self.obstacles))
         object.__setattr__(self, "_base_theta", math.radians(self.base_angle_deg - 90.0))
+
+    def with_obstacles(self, obstacles) -> Scene:
+        """This scene with ``obstacles`` instead of its own (checked as the constructor checks
+        them), the rest taken as it is: ``replace(scene, obstacles=...)`` without checking the
+        other fields again, and sharing :attr:`without_contact` — an object the arm carries
+        moves its disc at every trial pose of a grasp's balance (:mod:`solver.grasp`)."""
+        other = object.__new__(Scene)
+        other.__dict__.update(self.__dict__)
+        obstacles = _checked_obstacles(obstacles)
+        object.__setattr__(other, "obstacles", obstacles)
+        object.__setattr__(other, "_is_planar", self._planar_with(obstacles))
+        object.__setattr__(other, "_without_contact", self.without_contact)
+        return other
+
+    def _planar_with(self, obstacles) -> bool:
+        """Whether this scene's loads with ``obstacles`` stay in the x–y plane."""
+        m3 = self.tip_moment_3d()
+        return bool(self.tip_force_3d()[2] == 0.0 and m3[0] == 0.0 and m3[1] == 0.0
+                    and all(isinstance(o, Disc) for o in obstacles))
 
     @property
     def base_theta(self) -> float:

@@ -306,6 +306,9 @@ class ContactRows:
         """Copies ``dst`` take copy ``src``'s scene and state."""
         for k in dst:
             self.scenes[k] = self.scenes[src]
+        # One copy (a grasp's trial pose, at every contact solve): a plain row assignment,
+        # several times faster than the fancy-indexed one over a list.
+        dst = dst[0] if len(dst) == 1 else dst
         for array in self._per_copy:
             array[dst] = array[src]
 

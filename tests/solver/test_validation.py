@@ -53,6 +53,33 @@ def test_scene_without_contact_is_built_once_and_pickles():
     assert copy == scene and copy.without_contact == free
 
 
+@pytest.mark.parametrize("scene", [
+    solver.Scene(payload_kg=0.1, obstacles=(solver.Disc((0.2, -0.3), 0.05),), self_contact=1e5),
+    solver.Scene(base_angle_deg=30.0),
+    solver.Scene(tip_force=(0.0, 0.0, 1.0)),
+])
+def test_with_obstacles_is_replace_sharing_the_scene_without_contact(scene):
+    """``with_obstacles`` gives the scene ``replace`` gives (planarity worked out again), shares
+    ``without_contact``, keeps the original as it was and checks the obstacles as the
+    constructor does."""
+    own = scene.obstacles
+    for obstacles in ((), (solver.Disc((-0.3, -0.2), 0.1),),
+                      (solver.Sphere((0.1, -0.4, 0.2), 0.05), solver.Disc((0.3, 0.1), 0.02))):
+        moved = scene.with_obstacles(obstacles)
+        expected = replace(scene, obstacles=obstacles)
+        assert moved == expected and moved.is_planar == expected.is_planar
+        assert moved.has_contact == expected.has_contact
+        assert moved.without_contact is scene.without_contact
+        assert moved.without_contact == expected.without_contact
+        assert moved.obstacles == expected.obstacles and moved.base_theta == expected.base_theta
+        assert pickle.loads(pickle.dumps(moved)) == expected
+    assert scene.obstacles is own and scene.is_planar == replace(scene).is_planar
+    with pytest.raises(ValueError, match=r"obstacles\[0\].*covers the arm's base"):
+        scene.with_obstacles((solver.Disc((0.0, -0.05), 0.1),))
+    with pytest.raises(ValueError, match="must be a tuple of solver.Disc"):
+        scene.with_obstacles(({"center": (0.3, 0.3)},))
+
+
 def test_bad_model_arm_scene_and_mode():
     with pytest.raises(ValueError, match="unknown model"):
         solver.solve(ARM, np.zeros(6), model="pcc")
