@@ -57,7 +57,7 @@ from softarm_gym.envs.terms import (
 )
 from solver.grasp import CLAMP_GAP, FreeObject, Settler
 
-__all__ = ["JacobianController", "CurlController", "CEMPlanner", "observation_slices"]
+__all__ = ["JacobianController", "CurlController", "CEMPlanner", "distinct_scores", "observation_slices"]
 
 
 def observation_slices(env) -> dict[str, slice]:
@@ -330,6 +330,27 @@ def _section_corners(arm) -> np.ndarray:
                 row[channels] = 2.0 * on - 1.0
             rows.append(row)
     return np.unique(np.array(rows), axis=0)
+
+
+def distinct_scores(score, candidates: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+    """``score(candidates, fraction)`` with each distinct sequence rolled out once: (m,) scores
+    of the (m, horizon, n) action sequences (``score`` takes the distinct ones in the order
+    they first appear, with ``fraction``, and returns theirs). Actions are clipped to [−1, 1] before they act,
+    so sequences equal after clipping reach the same states and score the same — and they
+    repeat: random corners of the pressure box, the mean's sign among them, clipped draws
+    piled up on the box's faces (a quarter of a wrap search's general-path solves were
+    repeats). The rows of a rollout are independent, so the scores are those of rolling out
+    every candidate, bit for bit."""
+    flat = np.clip(candidates, -1.0, 1.0).reshape(candidates.shape[0], -1)
+    _, first, inverse = np.unique(flat, axis=0, return_index=True, return_inverse=True)
+    if first.size == candidates.shape[0]:
+        return score(candidates, fraction)
+    # The distinct sequences in the order they first appear (the rows they had), each
+    # candidate given its sequence's score.
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return score(candidates[first[order]], fraction)[rank[inverse.ravel()]]
 
 
 def _corner_bits(n: int) -> np.ndarray:
@@ -791,7 +812,7 @@ class CEMPlanner(_PressureController):
             else:
                 corners = self.rng.choice([-1.0, 1.0], size=(n_corners, *mean.shape))
             candidates = np.concatenate([hold[None], np.sign(mean)[None], corners, draws])
-            scores = score(candidates, fraction)
+            scores = distinct_scores(score, candidates, fraction)
             order = np.argsort(-scores, kind="stable")
             if scores[order[0]] > best_score:
                 best, best_score = candidates[order[0]], scores[order[0]]
@@ -833,8 +854,9 @@ class CEMPlanner(_PressureController):
         rows = self._batch.n if self._batch is not None else self.samples
 
         def scored(candidates):
-            return np.concatenate([score(candidates[i:i + rows], fraction, final=True)
-                                   for i in range(0, len(candidates), rows)])
+            return distinct_scores(lambda distinct, start: np.concatenate(
+                [score(distinct[i:i + rows], start, final=True) for i in range(0, len(distinct), rows)]),
+                candidates, fraction)
 
         corners = _corner_bits(self._n) if 2 ** self._n <= _MAX_CORNERS else \
             self.rng.integers(0, 2, (self.samples, self._n)).astype(float)

@@ -6,7 +6,13 @@ import pytest
 
 import softarm_gym  # noqa: F401
 from baselines.evaluate import evaluate
-from softarm_gym.controllers import CEMPlanner, CurlController, JacobianController, observation_slices
+from softarm_gym.controllers import (
+    CEMPlanner,
+    CurlController,
+    JacobianController,
+    distinct_scores,
+    observation_slices,
+)
 
 
 def test_observation_slices_match_the_dict_layout():
@@ -228,3 +234,24 @@ def test_planner_bad_arguments_are_named():
         CEMPlanner(env, escape="yes")
     with pytest.raises(ValueError, match="planar"):
         CEMPlanner(gym.make("SoftArm/OctArmReach-v0", planar=False))
+
+
+def test_distinct_scores_rolls_each_sequence_out_once_and_scores_every_candidate():
+    """Candidates equal after clipping (a corner drawn twice, a draw past the box's face) are
+    scored once, in the order they first appear, and every candidate gets its sequence's score."""
+    rng = np.random.default_rng(0)
+    candidates = np.clip(2.0 * rng.standard_normal((12, 2, 3)), -1.0, 1.0)
+    candidates[5] = candidates[1]
+    candidates[9] = np.sign(candidates[9])
+    candidates[11] = 3.0 * candidates[9]  # the same corner after clipping
+    rolled = []
+
+    def score(sequences, fraction):
+        rolled.append(sequences.copy())
+        return np.clip(sequences, -1.0, 1.0) @ np.array([1.0, 10.0, 100.0]) @ np.ones(2) + fraction
+
+    scores = distinct_scores(score, candidates, 0.5)
+    assert np.array_equal(scores, score(candidates, 0.5))
+    (distinct,) = rolled[:1]
+    assert len(distinct) == 10
+    assert np.array_equal(distinct, candidates[[0, 1, 2, 3, 4, 6, 7, 8, 9, 10]])
