@@ -302,7 +302,7 @@ register(
     max_episode_steps=100,
     reward_threshold=107.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 0.0, "object_radius": (0.11, 0.125),
-            "friction": 0.7, **_SEQUENTIAL},
+            "friction": 0.7, "margin_directions": 0, **_SEQUENTIAL},
 )
 
 # Every id, whatever registered it above: gym.make adds GoalAPI outermost, so that the env it

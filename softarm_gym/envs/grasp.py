@@ -79,18 +79,20 @@ class GraspEnv(WrapEnv):
     ``object_mass_kg`` (a number or ``(low, high)`` range, kg; default (0.2, 0.4)),
     ``fork_depth`` (m, 0.02), ``success_lift`` (m, 0.03; at least ``fork_depth``),
     ``lift_weight`` (1), ``margin_directions`` (directions of the grasp margin, 4; 0 skips
-    it), ``margin_weight`` (0).
+    it; v1 registers 0), ``margin_weight`` (0).
 
     ## Info
 
     WrapEnv's keys (``wrap_angle_deg``, ``penetration``, ``gap``, ``object_center``, …), plus
     ``held`` (bool), ``lift`` (m), ``object_mass_kg``, ``arm_force`` (N, on the object),
     ``support_force`` (N, forks and clamp), ``object_stable`` (the object sits in a potential
-    well and the arm's equilibrium is stable) and ``grasp_margin_n``: the smallest disturbance
-    force, over ``margin_directions`` planar directions from straight up, that the held grasp
-    resists before the object is no longer held (:func:`solver.grasp.grasp_margin`; 0 when
-    not held, NaN with ``margin_directions=0``). A margin costs tens of contact solves per
-    direction: it is worked out only on held steps, once per state.
+    well and the arm's equilibrium is stable) and, with ``margin_directions`` > 0,
+    ``grasp_margin_n``: the smallest disturbance force, over ``margin_directions`` planar
+    directions from straight up, that the held grasp resists before the object is no longer
+    held (:func:`solver.grasp.grasp_margin`; 0 when not held), and ``grasp_margins_n``, per
+    direction. A margin costs tens of contact solves per direction: it is worked out only on
+    held steps, once per state; with ``margin_directions=0`` it is not, and the two keys are
+    absent.
 
     ## Version History
 
@@ -101,7 +103,10 @@ class GraspEnv(WrapEnv):
       actions (``action_mode="delta"``, ``delta_scale=0.1``: at most 10 % of p_max per channel
       per step) and ``friction=0.7`` (Coulomb μ between the arm's rubber and the object; rubber
       on common dry objects lies around 0.5–1). v0's objects, forks and success rule otherwise
-      (docs/environments.md, "Grasp").
+      (docs/environments.md, "Grasp"). Its grasp margin is off by default since 2026-12-06
+      (``margin_directions=0``: no ``grasp_margin_n`` in ``info``; pass ``margin_directions=4``
+      for it): an info field that cost seconds per held state, paid at every step by a policy
+      that holds the object. Rewards, observations and dynamics are v1's as before.
     """
 
     def __init__(self, design="octarm_v", *, object_mass_kg=(0.2, 0.4), fork_depth: float = 0.02,
@@ -224,8 +229,9 @@ class GraspEnv(WrapEnv):
         info.update({"object_center": g.center.copy(), "object_radius": self._object_radius,
                      "contact_radius": self._contact_radius, "object_mass_kg": self._object.mass_kg,
                      "held": g.held, "lift": g.lift, "arm_force": g.arm_force.copy(),
-                     "support_force": g.support_force.copy(), "object_stable": g.stable,
-                     "grasp_margin_n": margin, "grasp_margins_n": per.copy()})
+                     "support_force": g.support_force.copy(), "object_stable": g.stable})
+        if self.margin_directions:
+            info.update({"grasp_margin_n": margin, "grasp_margins_n": per.copy()})
         return terms, success, info
 
     def grasp_terms(self, grasp: Grasp, obj: FreeObject, fraction: np.ndarray,

@@ -1,6 +1,5 @@
 """The grasp task (``SoftArm/OctArmGrasp-v0``): a free object lifted out of its forks."""
 
-import math
 
 import gymnasium as gym
 import numpy as np
@@ -99,10 +98,29 @@ def test_margin_reward_is_the_margin_in_object_weights():
     assert info["reward_margin"] == pytest.approx(2.0 * min(info["grasp_margin_n"] / weight, 1.0))
 
 
-def test_without_margin_directions_the_margin_is_not_worked_out():
-    env = gym.make(ENV_ID, margin_directions=0)
-    info = env.reset(seed=0)[1]
-    assert math.isnan(info["grasp_margin_n"]) and info["grasp_margins_n"].size == 0
+def test_v1_leaves_the_margin_out_unless_asked():
+    """v1 registers ``margin_directions=0`` (an info field that cost seconds per held state);
+    the kwarg brings it back."""
+    env = gym.make("SoftArm/OctArmGrasp-v1")
+    assert env.unwrapped.margin_directions == 0
+    _, info = env.reset(seed=0)
+    assert "grasp_margin_n" not in info and info["reward_margin"] == 0.0
+    _, info = gym.make("SoftArm/OctArmGrasp-v1", margin_directions=4).reset(seed=0)
+    assert info["grasp_margin_n"] == 0.0 and info["grasp_margins_n"].shape == (4,)  # not held
+
+
+def test_without_margin_directions_the_margin_is_not_worked_out(monkeypatch):
+    """The lifted fixture's curl with ``margin_directions=0``: held, and no margin worked out
+    (the solver's function is not called) or reported."""
+    import softarm_gym.envs.grasp as grasp_module
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("grasp_margin called with margin_directions=0")
+
+    monkeypatch.setattr(grasp_module, "grasp_margin", refuse)
+    infos = _curl(gym.make(ENV_ID, margin_directions=0), 1, [0.1 * k for k in range(1, 10)])
+    assert infos[-1]["held"]
+    assert not any("grasp_margin_n" in info or "grasp_margins_n" in info for info in infos)
 
 
 def test_resting_object_is_not_held_and_sinks_by_its_weight():
