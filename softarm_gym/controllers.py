@@ -335,12 +335,13 @@ def _section_corners(arm) -> np.ndarray:
 def distinct_scores(score, candidates: np.ndarray, fraction: np.ndarray) -> np.ndarray:
     """``score(candidates, fraction)`` with each distinct sequence rolled out once: (m,) scores
     of the (m, horizon, n) action sequences (``score`` takes the distinct ones in the order
-    they first appear, with ``fraction``, and returns theirs). Actions are clipped to [−1, 1] before they act,
-    so sequences equal after clipping reach the same states and score the same — and they
-    repeat: random corners of the pressure box, the mean's sign among them, clipped draws
-    piled up on the box's faces (a quarter of a wrap search's general-path solves were
-    repeats). The rows of a rollout are independent, so the scores are those of rolling out
-    every candidate, bit for bit."""
+    they first appear, with ``fraction``, and returns theirs).
+
+    Actions are clipped to [−1, 1] before they act, so sequences equal after clipping reach
+    the same states and score the same — and they repeat: random corners of the pressure box,
+    the mean's sign among them, clipped draws piled up on the box's faces (a quarter of a wrap
+    search's general-path solves were repeats). The rows of a rollout are independent, so the
+    scores are those of rolling out every candidate, bit for bit."""
     flat = np.clip(candidates, -1.0, 1.0).reshape(candidates.shape[0], -1)
     _, first, inverse = np.unique(flat, axis=0, return_index=True, return_inverse=True)
     if first.size == candidates.shape[0]:

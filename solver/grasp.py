@@ -311,7 +311,7 @@ class Settler:
                                          model=self.model, settings=self.settings)
         return self._frictionless
 
-    def balance(self, pressures, external_force=(0.0, 0.0)) -> _Balance:
+    def _balance(self, pressures, external_force=(0.0, 0.0)) -> _Balance:
         """The object's balance G at ``pressures`` under ``external_force`` (checked)."""
         return _Balance(self, pressures, external_force)
 
@@ -320,7 +320,7 @@ class Settler:
         """As :func:`settle` with this settler's arm, scene, object, model and settings."""
         if isinstance(max_solves, bool) or int(max_solves) != max_solves or max_solves < 1:
             raise ValueError(f"max_solves must be an integer >= 1; got {max_solves!r}")
-        return _settle_path(self.balance(pressures, external_force), center, warm_start,
+        return _settle_path(self._balance(pressures, external_force), center, warm_start,
                             int(max_solves))
 
 
@@ -357,7 +357,7 @@ class _Balance:
     def frictionless(self) -> _Balance:
         """This balance with the object frictionless (a snap's landing, :func:`_land`); the
         solve count and budget are shared."""
-        other = self.settler.frictionless.balance(self.p_inputs, self.external)
+        other = self.settler.frictionless._balance(self.p_inputs, self.external)
         other.counter, other.budget = self.counter, self.budget
         return other
 
@@ -795,7 +795,7 @@ class _Push:
     def holds(self, force, state):
         """Whether the object stays held under ``force`` (N) from ``state`` (pose, arm
         equilibrium), and the state it is held in."""
-        bal = self.settler.balance(self.eq.pressures, force * self.unit)
+        bal = self.settler._balance(self.eq.pressures, force * self.unit)
         reached = _settle(bal, state[0], state[1], fall_back=False)
         return reached.converged and self.settler.obj.clear(reached.pose[:2]), (reached.pose, reached.arm)
 
