@@ -80,6 +80,27 @@ def test_with_obstacles_is_replace_sharing_the_scene_without_contact(scene):
         scene.with_obstacles(({"center": (0.3, 0.3)},))
 
 
+def test_problem_in_scene_keeps_the_context_only_where_obstacles_alone_differ():
+    """Obstacles do not enter a context: a problem moved to a scene that differs only in them
+    keeps its context (the same object); one that differs in anything else gets the context
+    ``replace`` builds."""
+    from solver.problem import Problem, pack
+    from solver.settings import DEFAULT_SETTINGS
+
+    scene = solver.Scene(payload_kg=0.1, self_contact=1e5)
+    packed = pack(ARM, "full", DEFAULT_SETTINGS)
+    problem = Problem(ARM, packed, scene, "full", True, DEFAULT_SETTINGS, np.zeros(6),
+                      np.zeros(ARM.n_channels))
+    moved = problem.in_scene(scene.with_obstacles((solver.Disc((-0.3, -0.2), 0.1),)))
+    assert moved.ctx is problem.ctx and moved.scene.obstacles and moved.warm_start is None
+    assert problem.in_scene(replace(scene, obstacles=(solver.Disc((0.3, -0.2), 0.1),))).ctx is problem.ctx
+    heavier = problem.in_scene(replace(scene, payload_kg=0.2))
+    rebuilt = replace(problem, scene=replace(scene, payload_kg=0.2))
+    assert heavier.ctx is not problem.ctx
+    np.testing.assert_array_equal(heavier.ctx.loads, rebuilt.ctx.loads)
+    assert not np.array_equal(heavier.ctx.loads, problem.ctx.loads)
+
+
 def test_bad_model_arm_scene_and_mode():
     with pytest.raises(ValueError, match="unknown model"):
         solver.solve(ARM, np.zeros(6), model="pcc")
