@@ -366,6 +366,9 @@ class Stepper:
         if not isinstance(eq, Equilibrium):
             raise ValueError("adopt_moved() takes an Equilibrium returned by solve()")
         old, new = self.scene, eq.scene
+        if not self.planar:
+            raise ValueError("adopt_moved() moves the discs of a planar stepper; a spatial one's "
+                             "contact rows keep their obstacles: use with_scene(eq.scene)")
         if new is not old and not (
                 new.without_contact == old.without_contact and len(new.obstacles) == len(old.obstacles)
                 and (new.self_contact, new.self_friction) == (old.self_contact, old.self_friction)
@@ -374,11 +377,15 @@ class Stepper:
                         for a, b in zip(new.obstacles, old.obstacles))):
             raise ValueError(f"the equilibrium was solved in {new}, which is not this stepper's "
                              f"scene {old} with its discs moved; use with_scene(eq.scene)")
+        # adopt()'s checks, against the new scene, before anything changes.
+        check_warm_start(eq, self.arm, new, self.model, self.planar)
+        if not eq.s.size:
+            raise ValueError("the equilibrium was solved with record=False; adopt needs its backbone")
         self.scene = new
         self._problem = self._problem.in_scene(new)
         if self._rows is not None:
             self._rows.set_scene(0, new)
-        self.adopt(eq)
+        self._adopt(eq)
 
     def _adopt(self, eq: Equilibrium) -> None:
         """Make ``eq`` the current state (and, on the lean path, its record and predictor)."""

@@ -396,3 +396,12 @@ def test_adopt_moved_is_with_scene_then_adopt():
         eq = solver.solve(arm, p, other)
         with pytest.raises(ValueError, match="with_scene"):
             stepper.adopt_moved(eq)
+    assert stepper.scene == after.arm.scene  # a refused equilibrium changed nothing
+    with pytest.raises(ValueError, match="record=False"):
+        stepper.adopt_moved(solver.solve(arm, p, after.arm.scene, record=False))
+    assert stepper.scene == after.arm.scene
+    spatial = solver.Stepper(arm, solver.Scene(obstacles=(solver.Disc((-0.3, -0.3), 0.1),)), planar=False)
+    with pytest.raises(ValueError, match="planar stepper"):
+        spatial.adopt_moved(solver.solve(arm, np.zeros(arm.n_inputs(False)),
+                                         solver.Scene(obstacles=(solver.Disc((-0.31, -0.3), 0.1),)),
+                                         planar=False))
