@@ -348,15 +348,20 @@ class Stepper:
     def adopt(self, eq: Equilibrium) -> None:
         """Make ``eq``, an equilibrium of this arm, model and mode solved in this scene (with
         ``record=True``), the current state."""
+        self._check_adoptable(eq, self.scene)
+        self._adopt(eq)
+
+    def _check_adoptable(self, eq, scene: Scene) -> None:
+        """ValueError unless ``eq`` is an equilibrium of this arm, model and mode solved in
+        ``scene`` with a record (what :meth:`adopt` and :meth:`adopt_moved` take)."""
         if not isinstance(eq, Equilibrium):
             raise ValueError("adopt() takes an Equilibrium returned by solve()")
-        check_warm_start(eq, self.arm, self.scene, self.model, self.planar)
-        if eq.scene != self.scene:
+        check_warm_start(eq, self.arm, scene, self.model, self.planar)
+        if eq.scene != scene:
             raise ValueError(f"the equilibrium was solved in {eq.scene}, not in this stepper's "
-                             f"scene {self.scene}")
+                             f"scene {scene}")
         if not eq.s.size:
             raise ValueError("the equilibrium was solved with record=False; adopt needs its backbone")
-        self._adopt(eq)
 
     def adopt_moved(self, eq: Equilibrium) -> None:
         """Make ``eq`` the current state where it was solved in this stepper's scene with its
@@ -377,10 +382,7 @@ class Stepper:
                         for a, b in zip(new.obstacles, old.obstacles))):
             raise ValueError(f"the equilibrium was solved in {new}, which is not this stepper's "
                              f"scene {old} with its discs moved; use with_scene(eq.scene)")
-        # adopt()'s checks, against the new scene, before anything changes.
-        check_warm_start(eq, self.arm, new, self.model, self.planar)
-        if not eq.s.size:
-            raise ValueError("the equilibrium was solved with record=False; adopt needs its backbone")
+        self._check_adoptable(eq, new)  # before anything changes
         self.scene = new
         self._problem = self._problem.in_scene(new)
         if self._rows is not None:

@@ -54,10 +54,6 @@ REFUSALS = {contact_kernels.REFUSED_CONVERGENCE: "not converged",
             contact_kernels.REFUSED_BUDGET: "budget spent"}
 
 
-_READY = np.ones(1, dtype=bool)
-_READY.flags.writeable = False  # (one ready copy, for hold_rows)
-
-
 def hold_rows(ready: np.ndarray, p_from: np.ndarray, p_to: np.ndarray, active: np.ndarray,
               flags: np.ndarray, report: np.ndarray) -> np.ndarray:
     """Hold the ``active`` copies that are ``ready`` (n,) and stepped to the pressures they
@@ -65,12 +61,20 @@ def hold_rows(ready: np.ndarray, p_from: np.ndarray, p_to: np.ndarray, active: n
     Their ``report`` rows (n, ≥ 6) say converged, their ``flags`` (n, 5: the last solve's
     converged, stable, snapped, iterations, residual) stability and residual, no snap, no pass,
     path :data:`PATH_HELD`. Returns the active copies left to step."""
-    held = active & ready & np.all(p_from == p_to, axis=1)
-    if held.any():
-        report[held, 0] = 1.0
-        report[held, 1] = flags[held, 1]
-        report[held, 4] = flags[held, 4]
-        report[held, 5] = PATH_HELD
+    if active.shape[0] == 1:
+        # One copy (a single Stepper's every step): the test on scalars, a few microseconds
+        # less than the array operations on a ~40 µs self-contact env step.
+        if not (active[0] and ready[0] and (p_from[0] == p_to[0]).all()):
+            return active
+        held = active
+    else:
+        held = active & ready & np.all(p_from == p_to, axis=1)
+        if not held.any():
+            return active
+    report[held, 0] = 1.0
+    report[held, 1] = flags[held, 1]
+    report[held, 4] = flags[held, 4]
+    report[held, 5] = PATH_HELD
     return active & ~held
 
 
@@ -434,20 +438,10 @@ class ContactRows:
         """
         report = np.zeros((self.n, 7))
         free, contact = self.free, self.contact
-        if self.n == 1 and run is None:
-            # One copy (a single Stepper's every step): hold_rows' test on scalars, a few
-            # microseconds less than its array operations on a ~40 µs self-contact env step.
-            if not active[0]:
-                return report
-            if (free[stepping.FR_OK][0] or contact[stepping.CT_OK][0]) \
-                    and bool((p_from[0] == p_to[0]).all()):
-                hold_rows(_READY, p_from, p_to, active, self._flags, report)
-                return report
-        else:
-            active = hold_rows(free[stepping.FR_OK] | contact[stepping.CT_OK], p_from, p_to, active,
-                               self._flags, report)
-            if not active.any():
-                return report
+        active = hold_rows(free[stepping.FR_OK] | contact[stepping.CT_OK], p_from, p_to, active,
+                           self._flags, report)
+        if not active.any():
+            return report
         if self.n == 1 and run is None and active[0] and free[stepping.FR_OK][0] and not (
                 contact[stepping.CT_OK][0] and contact[stepping.CT_TOUCHING][0]):
             # One copy touching nothing (a single Stepper's common step): the contact-free
