@@ -288,7 +288,9 @@ class Scene:
         other.__dict__.update(self.__dict__)
         obstacles = _checked_obstacles(obstacles)
         object.__setattr__(other, "obstacles", obstacles)
-        object.__setattr__(other, "_is_planar", self._planar_with(obstacles))
+        # (A planar scene with discs for discs stays planar: its loads are in the plane.)
+        planar = self._is_planar and all(isinstance(o, Disc) for o in obstacles)
+        object.__setattr__(other, "_is_planar", planar or self._planar_with(obstacles))
         object.__setattr__(other, "_without_contact", self.without_contact)
         return other
 
