@@ -10,7 +10,9 @@ nothing is ``eval``-ed). Keys other than the ones below go to the SB3 algorithm 
 * ``env_kwargs`` (mapping, default empty): keyword arguments of ``gym.make``, and
   ``action_wrapper``, a name from :data:`ACTION_WRAPPERS` (``"corners"``: discrete bang-bang
   actions, :class:`softarm_gym.wrappers.CornerActions`) put round the env wherever it is made;
-* ``noise_type`` / ``noise_std`` (off-policy only): ``"normal"`` action noise of that std;
+* ``noise_type`` / ``noise_std`` (off-policy only): ``"normal"`` action noise of that std, or
+  ``"ornstein-uhlenbeck"``, temporally correlated noise of that σ (SB3's defaults θ = 0.15,
+  dt = 0.01; rl-zoo3's names for both);
 * ``replay_buffer_class`` (off-policy only): a name from :data:`REPLAY_BUFFERS`
   (``HerReplayBuffer``, with ``replay_buffer_kwargs`` a mapping), as rl-zoo3 writes it.
 
@@ -56,13 +58,13 @@ import numpy as np
 import yaml
 from gymnasium import spaces
 from stable_baselines3 import PPO, SAC, TD3, HerReplayBuffer
-from stable_baselines3.common.noise import NormalActionNoise
+from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 
 import softarm_gym  # noqa: F401  (registers the SoftArm/* environments)
 from softarm_gym.files import write_json
 from softarm_gym.wrappers import CornerActions
 
-__all__ = ["ACTION_WRAPPERS", "ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams",
+__all__ = ["ACTION_NOISES", "ACTION_WRAPPERS", "ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams",
            "split_hyperparams", "make_env",
            "check_env_id", "check_model_env", "is_grasp", "is_wrap", "registered_equivalent", "sidecar_paths",
            "legacy_normalization_path",
@@ -75,6 +77,8 @@ ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3, "sac_her": SAC}
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 REPLAY_BUFFERS = {"HerReplayBuffer": HerReplayBuffer}
 """Replay buffers a ``replay_buffer_class`` entry may name."""
+ACTION_NOISES = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
+"""Action noises a ``noise_type`` entry may name (rl-zoo3's names)."""
 _SPECIAL_KEYS = ("policy", "n_timesteps", "n_envs", "normalize", "env_kwargs", "noise_type", "noise_std")
 
 
@@ -130,13 +134,13 @@ def action_noise(special: dict, action_space: spaces.Space):
     kind = special.get("noise_type")
     if kind is None:
         return None
-    if kind != "normal":
-        raise ValueError(f"noise_type must be 'normal'; got {kind!r}")
+    if kind not in ACTION_NOISES:
+        raise ValueError(f"noise_type must be one of {', '.join(map(repr, ACTION_NOISES))}; got {kind!r}")
     if not isinstance(action_space, spaces.Box):
         raise ValueError(f"noise_type needs a continuous (Box) action space; got {action_space}")
     n_actions = action_space.shape[0]
     std = float(special.get("noise_std", 0.1))
-    return NormalActionNoise(mean=np.zeros(n_actions), sigma=std * np.ones(n_actions))
+    return ACTION_NOISES[kind](mean=np.zeros(n_actions), sigma=std * np.ones(n_actions))
 
 
 def check_env_id(env_id) -> str:

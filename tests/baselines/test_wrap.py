@@ -127,7 +127,21 @@ def test_unknown_action_wrapper_and_noise_on_discrete_actions_are_named():
         make_env("SoftArm/CTWrap-v1", {"action_wrapper": "steps"})
     with pytest.raises(ValueError, match="noise_type needs a continuous"):
         action_noise({"noise_type": "normal"}, spaces.Discrete(4))
+    with pytest.raises(ValueError, match="noise_type must be one of 'normal', 'ornstein-uhlenbeck'; got 'pink'"):
+        action_noise({"noise_type": "pink"}, spaces.Box(-1, 1, (2,)))
     assert make_env("SoftArm/CTWrap-v1", {"action_wrapper": "corners"}).action_space == spaces.Discrete(16)
     with pytest.raises(ValueError, match="--batched does not take an action_wrapper"):
         build("SoftArm/OctArmReach-v1", "ppo", {**TINY["ppo"], "env_kwargs": {"action_wrapper": "corners"}},
               seed=0, batched=True)
+
+
+def test_ornstein_uhlenbeck_noise_is_correlated_in_time_and_reset_to_zero():
+    noise = action_noise({"noise_type": "ornstein-uhlenbeck", "noise_std": 0.5}, spaces.Box(-1, 1, (3,)))
+    draws = np.array([noise() for _ in range(400)])
+    assert draws.shape == (400, 3)
+    # Consecutive draws of an OU process share most of their value (theta·dt = 1.5e-3 per
+    # step); independent Gaussian draws would correlate at 0.
+    lag_one = np.corrcoef(draws[:-1].ravel(), draws[1:].ravel())[0, 1]
+    assert lag_one > 0.9
+    noise.reset()
+    np.testing.assert_array_equal(noise.noise_prev, np.zeros(3))
