@@ -64,8 +64,8 @@ import softarm_gym  # noqa: F401  (registers the SoftArm/* environments)
 from softarm_gym.files import write_json
 from softarm_gym.wrappers import CornerActions
 
-__all__ = ["ACTION_NOISES", "ACTION_WRAPPERS", "ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS", "load_hyperparams",
-           "split_hyperparams", "make_env",
+__all__ = ["ACTION_NOISES", "ACTION_WRAPPERS", "ALGOS", "HYPERPARAMS_DIR", "REPLAY_BUFFERS",
+           "load_hyperparams", "split_hyperparams", "make_env",
            "check_env_id", "check_model_env", "is_grasp", "is_wrap", "registered_equivalent", "sidecar_paths",
            "legacy_normalization_path",
            "policy_metadata",

@@ -127,7 +127,8 @@ def test_unknown_action_wrapper_and_noise_on_discrete_actions_are_named():
         make_env("SoftArm/CTWrap-v1", {"action_wrapper": "steps"})
     with pytest.raises(ValueError, match="noise_type needs a continuous"):
         action_noise({"noise_type": "normal"}, spaces.Discrete(4))
-    with pytest.raises(ValueError, match="noise_type must be one of 'normal', 'ornstein-uhlenbeck'; got 'pink'"):
+    with pytest.raises(ValueError, match="noise_type must be one of 'normal', 'ornstein-uhlenbeck'; "
+                                         "got 'pink'"):
         action_noise({"noise_type": "pink"}, spaces.Box(-1, 1, (2,)))
     assert make_env("SoftArm/CTWrap-v1", {"action_wrapper": "corners"}).action_space == spaces.Discrete(16)
     with pytest.raises(ValueError, match="--batched does not take an action_wrapper"):
