@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
-import numba
 import numpy as np
 
 from solver.designs import ArmDesign
@@ -12,7 +9,7 @@ from solver.results import Equilibrium
 from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
 from solver.solve import solve
-from solver.stepper import BatchReport, Stepper, StepReport, ThreadPolicy
+from solver.stepper import BatchReport, CopyPool, Stepper, StepReport, ThreadPolicy
 
 __all__ = ["SpatialBatchStepper"]
 
@@ -54,7 +51,7 @@ class SpatialBatchStepper:
         self.section_ends = ()
         self.thread_policies = {"cold": ThreadPolicy(self.PARALLEL_MIN),
                                 "step": ThreadPolicy(self.PARALLEL_MIN)}
-        self._pool = None
+        self._pool = CopyPool()
 
     def _map(self, kind: str, job, rows) -> list:
         """``job(i)`` for every i of ``rows``, on the pool or serially as the ``kind``
@@ -63,9 +60,7 @@ class SpatialBatchStepper:
         return self.thread_policies[kind].run(self._pooled, self._serial, len(rows), job, rows)
 
     def _pooled(self, job, rows) -> list:
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(numba.get_num_threads())
-        return list(self._pool.map(job, rows))
+        return self._pool.map(job, rows)
 
     @staticmethod
     def _serial(job, rows) -> list:
@@ -128,11 +123,6 @@ class SpatialBatchStepper:
         if not 0 <= k < self.n:
             raise ValueError(f"copy {k} does not exist; n = {self.n}")
         return self._steppers[k].equilibrium
-
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state["_pool"] = None
-        return state
 
     def __repr__(self) -> str:
         return f"SpatialBatchStepper({self.arm.name!r}, {self.scene}, n={self.n}, model={self.model!r})"

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numba
@@ -51,7 +52,7 @@ from solver.results import Equilibrium
 from solver.scene import Disc, Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
 
-__all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy"]
+__all__ = ["Stepper", "StepReport", "BatchStepper", "BatchReport", "ThreadPolicy", "CopyPool"]
 
 
 class StepReport(NamedTuple):
@@ -440,6 +441,35 @@ class Stepper:
                 f"planar={self.planar}, lean={self.lean}, lean_contact={self.lean_contact})")
 
 
+class CopyPool:
+    """Jobs over a batch's copies on ``numba.get_num_threads()`` Python threads: the
+    general path's solves (and the spatial steppers') run in kernels that release the GIL,
+    so copies solved side by side share the cores. Each job must touch only its own copy's
+    data; :meth:`map` returns the results in order, as the serial loop would. The pool is
+    made on first use (and again if numba's thread count changed); a pickled copy has none.
+    """
+
+    def __init__(self):
+        self._pool = None
+        self._workers = 0
+
+    def map(self, job, items) -> list:
+        """``[job(item) for item in items]``, on the threads where there are two items and
+        two threads or more."""
+        items = list(items)
+        workers = numba.get_num_threads()
+        if len(items) < 2 or workers < 2:
+            return [job(item) for item in items]
+        if self._pool is None or self._workers != workers:
+            if self._pool is not None:
+                self._pool.shutdown()
+            self._pool, self._workers = ThreadPoolExecutor(workers), workers
+        return list(self._pool.map(job, items))
+
+    def __getstate__(self):
+        return {"_pool": None, "_workers": 0}
+
+
 class ThreadPolicy:
     """Whether a batch of ``rows`` copies runs on numba's threads or on one thread.
 
@@ -550,7 +580,8 @@ class BatchStepper:
     and obstacle stiffness): :meth:`reset` and :meth:`adopt` take the copies' scenes. A copy
     touching nothing is stepped by the lean planar kernel, guarded; one on the contact
     layout by the lean contact kernel (:mod:`solver.kernels.stepping`); cold solves and the
-    steps those cannot take by the general path, one copy at a time.
+    steps those cannot take by the general path, copy by copy on Python threads (its kernels
+    release the GIL; the equilibria are those of one copy after another, bit for bit).
 
     Example::
 
@@ -637,6 +668,7 @@ class BatchStepper:
         # Cold solves and warm steps cost very different times per row: one policy each.
         self.thread_policies = {"cold": ThreadPolicy(self.PARALLEL_MIN),
                                 "step": ThreadPolicy(self.PARALLEL_MIN)}
+        self._general_pool = CopyPool()
 
     # ------------------------------------------------------------------ inputs
 
@@ -879,6 +911,16 @@ class BatchStepper:
         problem = self._problem.in_scene(scene).with_inputs(p_inputs, p_channel, warm_start)
         return dispatch(problem, True)
 
+    def _solve_copies(self, jobs) -> list[Equilibrium]:
+        """:meth:`solve_copy` of every ``(k, p_inputs, p_channel, warm_start, scene)`` in
+        ``jobs``, on up to ``numba.get_num_threads()`` Python threads. The general path's
+        kernels release the GIL, and each copy's solve reads only its own arguments and the
+        batch's read-only layout, so the equilibria are, bit for bit, those of solving the
+        copies one after another; the caller takes them in order. Wrap candidates that snap
+        (a planner's corners, a batch of arms curling) reach the general path together: their
+        solves are most of such a step's time."""
+        return self._general_pool.map(lambda job: self.solve_copy(*job), jobs)
+
     def _take(self, k, eq: Equilibrium) -> None:
         """Copy k's state becomes ``eq`` (solved in its scene by the general path)."""
         self._rows.adopt(k, eq)
@@ -895,10 +937,11 @@ class BatchStepper:
             for scene in scenes:
                 self._check_copy_scene(scene)
         report = np.zeros((rows.size, 5))
-        for j, k in enumerate(rows):
-            if scenes is not None:
+        if scenes is not None:
+            for j, k in enumerate(rows):
                 self._rows.set_scene(k, scenes[j])
-            eq = self.solve_copy(k, p[j], channel[j], None, self._rows.scenes[k])
+        jobs = [(k, p[j], channel[j], None, self._rows.scenes[k]) for j, k in enumerate(rows)]
+        for j, (k, eq) in enumerate(zip(rows, self._solve_copies(jobs))):
             self._take(k, eq)
             report[j] = (eq.converged, eq.stable, eq.snapped, eq.iterations, eq.residual)
         self._ready[rows] = True
@@ -928,9 +971,10 @@ class BatchStepper:
             self.tips[k] = self._rows.record(k)[-1, L.X:L.Y + 1]
         self.pressures[moved] = p[moved]
         self.channel_pressures[moved] = channel[moved]
-        for k in np.flatnonzero(active & ~moved & ~held):
-            # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.
-            eq = self.solve_copy(k, p[k], channel[k], self.equilibrium(k), self._rows.scenes[k])
+        # As Stepper.step: the general path (with its fallbacks) from the kept equilibrium.
+        general = np.flatnonzero(active & ~moved & ~held)
+        jobs = [(k, p[k], channel[k], self.equilibrium(k), self._rows.scenes[k]) for k in general]
+        for k, eq in zip(general, self._solve_copies(jobs)):
             report[k] = (eq.converged, eq.stable, eq.snapped, eq.iterations + report[k, 3],
                          eq.residual)
             if eq.converged:

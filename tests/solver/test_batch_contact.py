@@ -3,8 +3,10 @@ self-contact): every copy, with obstacles of its own, steps bit for bit as a sin
 :class:`solver.Stepper` in that copy's scene — on the lean planar path, the lean contact
 path and the general one, on one thread and on numba's threads."""
 
+import threading
 from dataclasses import replace
 
+import numba
 import numpy as np
 import pytest
 
@@ -88,3 +90,43 @@ def test_bad_copy_scenes_are_named():
         solver.BatchStepper(arm, replace(template, obstacles=(solver.Disc((0.2, -0.5), 0.1, np.inf),)), 2)
     with pytest.raises(ValueError, match="max_obstacles"):
         solver.BatchStepper(arm, template, 2, max_obstacles=0)
+
+
+def test_general_path_rows_run_side_by_side_bit_for_bit(monkeypatch):
+    """Copies that all snap in one step (the general path) are solved on the CopyPool's
+    threads; the batch's states and reports are those of solving them one after another."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one numba thread on this machine: nothing runs side by side")
+    arm = designs.octarm_v()
+    n = 4
+    template = solver.Scene(base_angle_deg=0.0, obstacles=(solver.Disc((0.16, -0.55), 0.13, K_TUBE),))
+    scenes = _scenes(template, n, seed=2)  # three of the four copies leave the lean paths
+    jump = np.tile(np.array([0.0, 1.0, 0.0, 1.0, 0.0, 1.0]) * arm.max_pressure, (n, 1))
+    threads = set()
+    solve_copy = solver.BatchStepper.solve_copy
+
+    def spy(self, *args):
+        threads.add(threading.get_ident())
+        return solve_copy(self, *args)
+
+    monkeypatch.setattr(solver.BatchStepper, "solve_copy", spy)
+    runs = []
+    before = numba.get_num_threads()
+    try:
+        for count in (1, 2):
+            numba.set_num_threads(count)
+            batch = solver.BatchStepper(arm, template, n)
+            batch.reset(np.zeros((n, 6)), scenes=scenes)
+            threads.clear()
+            report = batch.step(jump)
+            runs.append((report, batch, len(threads)))
+    finally:
+        numba.set_num_threads(before)
+    (serial, one, serial_threads), (threaded, two, pool_threads) = runs
+    assert serial_threads == 1 and pool_threads >= 2
+    assert np.all(serial.converged)
+    for field in ("converged", "stable", "snapped", "iterations", "residual"):
+        np.testing.assert_array_equal(getattr(serial, field), getattr(threaded, field))
+    for k in range(n):
+        np.testing.assert_array_equal(one.equilibrium(k).positions, two.equilibrium(k).positions)
+    np.testing.assert_array_equal(one.tips, two.tips)
