@@ -72,6 +72,7 @@ from softarm_gym.envs.terms import (
 )
 from softarm_gym.envs.track import path_easing
 from solver import layout as L
+from solver.stepper import CopyPool
 
 __all__ = ["BatchedReachVectorEnv", "BatchedSelfContactReachVectorEnv", "BatchedTrackVectorEnv",
            "BatchedObstacleReachVectorEnv", "BatchedWrapVectorEnv"]
@@ -491,12 +492,17 @@ class BatchedReachVectorEnv(_BatchedVectorEnv):
 class _CopyResets:
     """Resets by one single env per copy (mixed into a batched env): copy i's env is reset
     where ``SyncVectorEnv`` would reset its env i, with the same seed and options, and its
-    start state adopted into the batch's row i (:meth:`_take`)."""
+    start state adopted into the batch's row i (:meth:`_take`). The copies' envs share nothing,
+    so the copies that reset together (every copy, where episodes end in step) reset side by
+    side on a :class:`solver.stepper.CopyPool` — their draws' solves and ramps are kernels that
+    release the GIL — and are taken into the batch in order: the same rows as one after
+    another, bit for bit."""
 
     def _make_copies(self, env_class, kwargs) -> None:
         self._copies = [env_class(**kwargs) for _ in range(self.num_envs)]
         self._next_seeds = [None] * self.num_envs
         self._measures = np.zeros((self.num_envs, 2))  # penetration (m), total contact force (N)
+        self._reset_pool = CopyPool()
 
     @property
     def np_random_seed(self):
@@ -508,9 +514,10 @@ class _CopyResets:
 
     def _reset_rows(self, rows: np.ndarray, options) -> solver.BatchReport:
         report = np.zeros((rows.size, 5))
-        for j, i in enumerate(rows):
+        infos = self._reset_pool.map(
+            lambda i: self._copies[i].reset(seed=self._next_seeds[i], options=options)[1], rows)
+        for j, (i, info) in enumerate(zip(rows, infos)):
             env = self._copies[i]
-            _, info = env.reset(seed=self._next_seeds[i], options=options)
             self._next_seeds[i] = None
             self._batch.adopt(env.stepper.equilibrium, rows=[i])
             self._fraction[i] = env.pressure_fractions
