@@ -119,7 +119,10 @@ REMEDY_NAMES = {"batched": "none (plain PPO: per-step Gaussian noise)",
                 "batched_gsde": "exploration: gSDE",
                 "batched_gsde, bc": "behaviour cloning of planner demonstrations (no RL)",
                 "batched_gsde, dagger": "DAgger, the planner labelling the learner's states (no RL)",
-                "batched_gsde, from bc": "BC warm start, then gSDE PPO"}
+                "batched_gsde, from bc": "BC warm start, then gSDE PPO",
+                "batched_noise": "action noise: Ornstein-Uhlenbeck, temporally correlated (TD3)",
+                "batched_entropy": "entropy target 0 nats instead of −dim(A) (SAC, no gSDE)",
+                "lag": "pneumatic lag: absolute commands the channels follow with τ = 0.2 s (SAC + gSDE)"}
 """The remedy each training variant (:func:`_variant`) stands for in the remedies table."""
 REMEDY_NOTES = {"SoftArm/OctArmWrap-v2": (
     "Not in the table, for want of machine time (the introduction has the measurements): DAgger "
