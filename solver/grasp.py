@@ -46,6 +46,7 @@ from solver.problem import Problem, context, pack
 from solver.results import Equilibrium
 from solver.scene import MAX_EXTENT, Disc, Scene, check_friction
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
+from solver.stepper import CopyPool
 
 __all__ = ["FreeObject", "Grasp", "Settler", "settle", "grasp_margin", "SUPPORTS"]
 
@@ -808,7 +809,9 @@ def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_forc
     object is increased from zero — doubling from a tenth of the object's weight, then
     bisected to ``rel_tol`` — while the object stays held: in equilibrium, nearest the last
     one, off its support. The largest force it stays held under is that direction's margin.
-    Not held to begin with: every margin is 0.
+    Not held to begin with: every margin is 0. The directions are independent: they are
+    worked out side by side on numba's thread count of Python threads (each on a settler of
+    its own), each margin what it would be alone.
 
     Args:
         grasp: a converged result of :func:`settle` (its arm, pressures and scene are used).
@@ -834,8 +837,13 @@ def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_forc
     margins = np.zeros(int(directions))
     if not (grasp.converged and grasp.held):
         return 0.0, margins
-    settler = Settler(eq.arm, replace(eq.scene, obstacles=()), obj, model=eq.model, settings=settings)
-    for k in range(int(directions)):
+    scene = replace(eq.scene, obstacles=())
+
+    def along(k: int) -> float:
+        """The margin along direction k, on a settler of its own (its lean rows are scratch):
+        the directions are independent, so they run side by side (:class:`CopyPool`), each
+        what it would be alone."""
+        settler = Settler(eq.arm, scene, obj, model=eq.model, settings=settings)
         phi = 2.0 * math.pi * k / directions
         push = _Push(eq, settler, np.array([-math.sin(phi), math.cos(phi)]))
         state = (np.append(grasp.center, [0.0] * (obj.friction > 0.0)), eq)
@@ -855,8 +863,7 @@ def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_forc
             else:
                 high = cap
         if high is None:
-            margins[k] = low
-            continue
+            return low
         while high - low > rel_tol * high:
             mid = 0.5 * (low + high)
             ok, new = push.holds(mid, state)
@@ -864,5 +871,7 @@ def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_forc
                 low, state = mid, new
             else:
                 high = mid
-        margins[k] = low
+        return low
+
+    margins = np.array(CopyPool().map(along, range(int(directions))), dtype=float)
     return float(margins.min()), margins
