@@ -1,15 +1,13 @@
 """The batched vector envs are, copy by copy and bit for bit, the single envs (as SyncVectorEnv runs them)."""
 
-import threading
-
 import gymnasium as gym
-import numba
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
 import solver
 from softarm_gym.vector import BatchedReachVectorEnv
+from tests.threads import by_thread_count, needs_two_threads
 
 
 def _assert_same(a, b, where):
@@ -350,36 +348,21 @@ def test_contact_batches_run_on_threads_as_on_one():
     _assert_same(runs[0], runs[1], "threaded")
 
 
-def test_copies_reset_side_by_side_as_one_after_another(monkeypatch):
+@needs_two_threads
+def test_copies_reset_side_by_side_as_one_after_another():
     """The copies that reset together reset on the CopyPool's threads; the batch is the one
     that resetting them one after another gives, bit for bit."""
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("one numba thread on this machine: nothing runs side by side")
     from softarm_gym.envs import ObstacleReachEnv
 
-    threads = set()
-    reset = ObstacleReachEnv.reset
+    def run(_):
+        env = gym.make_vec("SoftArm/OctArmObstacleReach-v1", num_envs=4,
+                           vectorization_mode="vector_entry_point", max_episode_steps=2)
+        out = [env.reset(seed=7)]
+        for k in range(3):  # the third step resets every copy again
+            out.append(env.step(np.full((4, 6), 0.5 * np.cos(k), dtype=np.float32)))
+        env.close()
+        return tuple(out)
 
-    def spy(self, *args, **kwargs):
-        threads.add(threading.get_ident())
-        return reset(self, *args, **kwargs)
-
-    monkeypatch.setattr(ObstacleReachEnv, "reset", spy)
-    runs, seen = [], []
-    before = numba.get_num_threads()
-    try:
-        for count in (1, 2):
-            numba.set_num_threads(count)
-            threads.clear()
-            env = gym.make_vec("SoftArm/OctArmObstacleReach-v1", num_envs=4,
-                               vectorization_mode="vector_entry_point", max_episode_steps=2)
-            out = [env.reset(seed=7)]
-            for k in range(3):  # the third step resets every copy again
-                out.append(env.step(np.full((4, 6), 0.5 * np.cos(k), dtype=np.float32)))
-            runs.append(tuple(out))
-            seen.append(len(threads))
-            env.close()
-    finally:
-        numba.set_num_threads(before)
-    assert seen[0] == 1 and seen[1] >= 2
-    _assert_same(runs[0], runs[1], "copies reset side by side")
+    (serial, serial_threads), (threaded, pool_threads) = by_thread_count(run, ObstacleReachEnv, "reset")
+    assert serial_threads == 1 and pool_threads >= 2
+    _assert_same(serial, threaded, "copies reset side by side")

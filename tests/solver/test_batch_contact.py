@@ -3,16 +3,15 @@ self-contact): every copy, with obstacles of its own, steps bit for bit as a sin
 :class:`solver.Stepper` in that copy's scene — on the lean planar path, the lean contact
 path and the general one, on one thread and on numba's threads."""
 
-import threading
 from dataclasses import replace
 
-import numba
 import numpy as np
 import pytest
 
 import solver
 from solver import designs
 from tests.solver.test_lean_contact import K_TUBE, curl_walk
+from tests.threads import by_thread_count, needs_two_threads
 
 
 def _scenes(template, n, seed):
@@ -92,37 +91,23 @@ def test_bad_copy_scenes_are_named():
         solver.BatchStepper(arm, template, 2, max_obstacles=0)
 
 
-def test_general_path_rows_run_side_by_side_bit_for_bit(monkeypatch):
+@needs_two_threads
+def test_general_path_rows_run_side_by_side_bit_for_bit():
     """Copies that all snap in one step (the general path) are solved on the CopyPool's
     threads; the batch's states and reports are those of solving them one after another."""
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("one numba thread on this machine: nothing runs side by side")
     arm = designs.octarm_v()
     n = 4
     template = solver.Scene(base_angle_deg=0.0, obstacles=(solver.Disc((0.16, -0.55), 0.13, K_TUBE),))
     scenes = _scenes(template, n, seed=2)  # three of the four copies leave the lean paths
     jump = np.tile(np.array([0.0, 1.0, 0.0, 1.0, 0.0, 1.0]) * arm.max_pressure, (n, 1))
-    threads = set()
-    solve_copy = solver.BatchStepper.solve_copy
 
-    def spy(self, *args):
-        threads.add(threading.get_ident())
-        return solve_copy(self, *args)
+    def reset():
+        batch = solver.BatchStepper(arm, template, n)
+        batch.reset(np.zeros((n, 6)), scenes=scenes)
+        return batch
 
-    monkeypatch.setattr(solver.BatchStepper, "solve_copy", spy)
-    runs = []
-    before = numba.get_num_threads()
-    try:
-        for count in (1, 2):
-            numba.set_num_threads(count)
-            batch = solver.BatchStepper(arm, template, n)
-            batch.reset(np.zeros((n, 6)), scenes=scenes)
-            threads.clear()
-            report = batch.step(jump)
-            runs.append((report, batch, len(threads)))
-    finally:
-        numba.set_num_threads(before)
-    (serial, one, serial_threads), (threaded, two, pool_threads) = runs
+    ((serial, one), serial_threads), ((threaded, two), pool_threads) = by_thread_count(
+        lambda batch: (batch.step(jump), batch), solver.BatchStepper, "solve_copy", reset)
     assert serial_threads == 1 and pool_threads >= 2
     assert np.all(serial.converged)
     for field in ("converged", "stable", "snapped", "iterations", "residual"):

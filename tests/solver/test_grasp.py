@@ -1,10 +1,8 @@
 """A free object held by the arm (:mod:`solver.grasp`): its balance, its support, the margin."""
 
 import math
-import threading
 from dataclasses import replace
 
-import numba
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
@@ -12,6 +10,7 @@ from scipy.interpolate import CubicSpline
 import solver
 from solver import layout as L
 from solver.grasp import FreeObject, Settler, grasp_margin, settle
+from tests.threads import by_thread_count, needs_two_threads
 
 ARM = solver.designs.octarm_v()
 # The distal section's outer half-thickness (tube offset + outer radius) and its tubes' ring
@@ -121,33 +120,16 @@ def test_margin_is_a_force_the_grasp_resists_and_beyond_which_it_does_not(held):
             assert not _push(g, obj, unit, np.linspace(0.0, 1.1 * m / 0.95, 12)[1:]), (k, m)
 
 
-def test_margin_directions_run_side_by_side_each_as_alone(held, monkeypatch):
-    """The directions of a margin are worked out on threads, each on a settler of its own:
-    the margins are those of one direction after another, bit for bit."""
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("one numba thread on this machine: nothing runs side by side")
+@needs_two_threads
+def test_margin_directions_run_side_by_side_each_as_alone(held):
+    """The directions of a margin are worked out on threads, each on a settler of its own
+    (made where it runs): the margins are those of one direction after another, bit for bit."""
     obj, g = held
-    threads = set()
-    make = Settler.__init__
-
-    def spy(self, *args, **kwargs):  # each direction makes its settler where it runs
-        threads.add(threading.get_ident())
-        make(self, *args, **kwargs)
-
-    monkeypatch.setattr(Settler, "__init__", spy)
-    results, seen = [], []
-    before = numba.get_num_threads()
-    try:
-        for count in (1, 2):
-            numba.set_num_threads(count)
-            threads.clear()
-            results.append(grasp_margin(g, obj, directions=4, max_force=60.0, rel_tol=0.05))
-            seen.append(len(threads))
-    finally:
-        numba.set_num_threads(before)
-    assert seen[0] == 1 and seen[1] >= 2
-    assert results[0][0] == results[1][0]
-    np.testing.assert_array_equal(results[0][1], results[1][1])
+    ((margin_1, per_1), serial_threads), ((margin_2, per_2), pool_threads) = by_thread_count(
+        lambda _: grasp_margin(g, obj, directions=4, max_force=60.0, rel_tol=0.05), Settler, "__init__")
+    assert serial_threads == 1 and pool_threads >= 2
+    assert margin_1 == margin_2
+    np.testing.assert_array_equal(per_1, per_2)
 
 
 def test_a_cup_holds_against_gravity_but_not_an_upward_push_beyond_the_weight():
