@@ -873,5 +873,6 @@ def grasp_margin(grasp: Grasp, obj: FreeObject, *, directions: int = 8, max_forc
                 high = mid
         return low
 
-    margins = np.array(CopyPool().map(along, range(int(directions))), dtype=float)
+    with CopyPool() as pool:
+        margins = np.array(pool.map(along, range(int(directions))), dtype=float)
     return float(margins.min()), margins

@@ -446,7 +446,8 @@ class CopyPool:
     general path's solves (and the spatial steppers') run in kernels that release the GIL,
     so copies solved side by side share the cores. Each job must touch only its own copy's
     data; :meth:`map` returns the results in order, as the serial loop would. The pool is
-    made on first use (and again if numba's thread count changed); a pickled copy has none.
+    made on first use (and again if numba's thread count changed); a pickled copy has none;
+    ``with CopyPool() as pool:`` lets its threads go at the block's end (a pool for one call).
     """
 
     def __init__(self):
@@ -461,10 +462,21 @@ class CopyPool:
         if len(items) < 2 or workers < 2:
             return [job(item) for item in items]
         if self._pool is None or self._workers != workers:
-            if self._pool is not None:
-                self._pool.shutdown()
+            self.close()
             self._pool, self._workers = ThreadPoolExecutor(workers), workers
         return list(self._pool.map(job, items))
+
+    def close(self) -> None:
+        """Let the pool's threads go (a later :meth:`map` makes a new pool)."""
+        if self._pool is not None:
+            self._pool.shutdown()
+        self._pool, self._workers = None, 0
+
+    def __enter__(self) -> CopyPool:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     def __getstate__(self):
         return {"_pool": None, "_workers": 0}

@@ -1,6 +1,5 @@
 """The grasp task (``SoftArm/OctArmGrasp-v0``): a free object lifted out of its forks."""
 
-
 import gymnasium as gym
 import numpy as np
 import pytest
