@@ -163,7 +163,7 @@ register(
     entry_point="softarm_gym.envs:ObstacleReachEnv",
     vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
     max_episode_steps=100,
-    reward_threshold=31.0,
+    reward_threshold=40.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0, "action_mode": "delta", "delta_scale": 0.1},
 )
 
@@ -184,7 +184,7 @@ register(
     entry_point="softarm_gym.envs:ObstacleReachEnv",
     vector_entry_point="softarm_gym.vector:BatchedObstacleReachVectorEnv",
     max_episode_steps=100,
-    reward_threshold=31.0,
+    reward_threshold=40.0,
     kwargs={"design": "octarm_v", "base_angle_deg": 90.0, **_SEQUENTIAL},
 )
 

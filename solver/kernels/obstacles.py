@@ -32,6 +32,9 @@ from solver.layout import (
     O_STIFFNESS,
     RADIUS,
     STIFFNESS,
+    THETA,
+    X,
+    Y,
 )
 
 # A point whose squared distance from a disc's centre is at least this multiple of R² lies
@@ -126,6 +129,43 @@ def clearance(x, y, discs):
         if g < gap:
             gap = g
     return gap
+
+
+# A backbone between two samples departs from their chord by at most its sag, ℓ·|Δθ|/8 for a
+# circular arc of chord ℓ turning Δθ; the allowance doubles that (curvature varying along it)
+# and adds CHORD_SLACK·ℓ for the change of stretch and shear (strains of order 1e-3).
+CHORD_SLACK = 0.01
+
+
+@njit
+def chord_allowance(rec) -> float:
+    """The largest departure (m) of the backbone of ``rec`` (rows, ≥ THETA + 1: columns x, y,
+    θ of the settings' grid) from the chord between two consecutive samples:
+    ℓ·(|Δθ|/4 + CHORD_SLACK) (the module's sag bound), over the chords."""
+    allowance = 0.0
+    for r in range(rec.shape[0] - 1):
+        length = math.hypot(rec[r + 1, X] - rec[r, X], rec[r + 1, Y] - rec[r, Y])
+        allowance = max(allowance, length * (0.25 * abs(rec[r + 1, THETA] - rec[r, THETA]) + CHORD_SLACK))
+    return allowance
+
+
+@njit
+def chords_clear(rec, discs) -> bool:
+    """True when the backbone of ``rec`` (rows, ≥ THETA + 1: x, y, θ) clears every disc of
+    ``discs`` (n, 4) between every two consecutive samples: the straight chord between them
+    stays out of the disc by more than the backbone can depart from it there,
+    ℓ·(|Δθ|/4 + CHORD_SLACK) (:func:`chord_allowance`'s bound, chord by chord). Then no
+    point of the backbone — not only the samples — touches a disc, so every penalty force
+    along it is zero."""
+    for r in range(rec.shape[0] - 1):
+        ax, ay, bx, by = rec[r, X], rec[r, Y], rec[r + 1, X], rec[r + 1, Y]
+        allowance = math.hypot(bx - ax, by - ay) * (0.25 * abs(rec[r + 1, THETA] - rec[r, THETA])
+                                                    + CHORD_SLACK)
+        for d in range(discs.shape[0]):
+            if _segment_depth(ax, ay, bx, by, discs[d, CX], discs[d, CY],
+                              discs[d, RADIUS]) >= -allowance:
+                return False
+    return True
 
 
 @njit

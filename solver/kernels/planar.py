@@ -32,7 +32,7 @@ import numpy as np
 from solver.jit import njit, prange
 from solver.kernels.grid import planar_fine
 from solver.kernels.homotopy import GIVE_UP, big_change, halved
-from solver.kernels.obstacles import clearance, tunnels
+from solver.kernels.obstacles import chord_allowance, chords_clear, clearance, tunnels
 from solver.kernels.self_contact import far_parts_clear
 from solver.kernels.spatial import planar_state_stable
 from solver.layout import (
@@ -357,9 +357,11 @@ def warm_step(state, grid, tubes, a, b, params, work, memo, guard):
             contact-free step of a scene with obstacles (``discs``, else empty) or
             self-contact (``half`` the samples' half-thicknesses, else empty; ``exclusion``
             the self-contact exclusion length, m), which holds only while no contact comes
-            into play (:func:`solver.paths.contact.solve_contact`): the returned state must
-            clear every disc by half an RK4 step, no sample may pass through a disc from
-            ``prev`` (the start's record, as the stepper keeps it) and, with self-contact, no
+            into play (:func:`solver.paths.contact.solve_contact`): the returned backbone must
+            clear every disc between every two samples
+            (:func:`solver.kernels.obstacles.chords_clear`), no sample may pass within the
+            chords' allowance of a disc from ``prev`` (the start's record, as the stepper
+            keeps it; :func:`solver.kernels.obstacles.tunnels`) and, with self-contact, no
             two parts farther apart than the exclusion may come within their half-thicknesses
             plus an RK4 step of each other; the continuation is guarded the same way
             (:func:`_path`). Then ``work`` must record.
@@ -392,11 +394,8 @@ def warm_step(state, grid, tubes, a, b, params, work, memo, guard):
     snapped = False
     direct = ok and stable and abs(root - guess) <= jump
     if direct and discs.shape[0] > 0:
-        half_h = 0.0
-        for i in range(steps.shape[0]):
-            half_h = max(half_h, 0.5 * secf[LEN, i] / steps[i])
-        direct = clear_of(out, discs, half_h) and not tunnels(prev[:, X:Y + 1], out[:, X:Y + 1],
-                                                              discs, -half_h)
+        direct = chords_clear(out, discs) and not tunnels(
+            prev[:, X:Y + 1], out[:, X:Y + 1], discs, -max(chord_allowance(prev), chord_allowance(out)))
     if direct:
         state[0] = root
         state[1] = x
@@ -459,8 +458,9 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     or snap, where the 3D path may leave the plane — ends the path unconverged, so that the
     caller hands the solve to the spatial kernels: the planar shortcut never changes the
     answer. ``discs`` ((k, 4) obstacles, or empty) guards a contact-free solve of a scene
-    with obstacles: the backbone must stay clear of every disc by half an RK4 step at every
-    accepted state, and no sample may pass through a disc between accepted states
+    with obstacles: the backbone must stay clear of every disc between every two samples
+    (:func:`solver.kernels.obstacles.chords_clear`) at every accepted state, and no sample
+    may pass within the chords' allowance of a disc between accepted states
     (:func:`solver.kernels.obstacles.tunnels`; a step that fails only that is halved); a
     snap must land clear of them as well (the contact path's snap lands there too).
 
@@ -487,19 +487,17 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     x = y = th = math.nan
     guard = c_j_3d.shape[0] > 0 or discs.shape[0] > 0
     rows = 1
-    half_h = 0.0
     if discs.shape[0] > 0:
         rows = 0
         for i in range(steps.shape[0]):
             rows += steps[i] + 1
-            half_h = max(half_h, 0.5 * secf[LEN, i] / steps[i])
     rec_prev = np.empty((rows, N_COLUMNS))
     rec_new = np.empty((rows, N_COLUMNS))
     if discs.shape[0] > 0:
         _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
         integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
-        if not clear_of(rec_prev, discs, half_h):
+        if not chords_clear(rec_prev, discs):
             return m0, False, 1, snapped, False, math.inf, x, y, th
     # Tangent predictor for the first step (the later steps use the secant through accepted
     # points). Small warm steps (env steps) start from the previous state directly, so the
@@ -538,9 +536,10 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
             if discs.shape[0] > 0:
                 integrate_planar(root, theta0, secf, steps, rest, loads_now, True, rec_new)
                 total += 1
-                if not clear_of(rec_new, discs, half_h):
+                if not chords_clear(rec_new, discs):
                     return root, False, total, snapped, False, res, x, y, th
-                if tunnels(rec_prev[:, X:Y + 1], rec_new[:, X:Y + 1], discs, -half_h):
+                if tunnels(rec_prev[:, X:Y + 1], rec_new[:, X:Y + 1], discs,
+                           -max(chord_allowance(rec_prev), chord_allowance(rec_new))):
                     if dt > dt_min:
                         dt = halved(dt, t_new - t, dt_min)
                         continue
@@ -614,7 +613,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
             # relaxation finds where it comes to rest.
             integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
             total += 1
-            if not (ok and clear_of(rec_prev, discs, half_h)):
+            if not (ok and chords_clear(rec_prev, discs)):
                 return m0, False, total, snapped, False, res, x, y, th
         t = t_new
         dt = dt0

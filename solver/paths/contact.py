@@ -87,9 +87,10 @@ def solve_contact(problem: Problem, moving: bool = False) -> Equilibrium:
       if no part of its backbone comes near another (:func:`clear_of_itself`; always, without
       self-contact);
     * a cold solve, or a warm step from a state that touched nothing: single shooting
-      without contact, guarded — if the backbone stays clear of every disc by half an RK4
-      step at every accepted state (loading stage included) and no sample passes through a
-      disc between them (:func:`solver.kernels.planar.follow`), the contact-free path *is* the
+      without contact, guarded — if the backbone stays clear of every disc between every
+      two samples (:func:`solver.kernels.obstacles.chords_clear`) at every accepted state
+      (loading stage included) and no sample passes through a disc between them
+      (:func:`solver.kernels.planar.follow`), the contact-free path *is* the
       path with obstacles (every penalty force is zero along it), obtained in tens of
       microseconds instead of milliseconds. Otherwise the contact kernels follow the path.
       The shortcut solves at the settings' resolution, the contact kernels at the finer

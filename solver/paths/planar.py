@@ -314,8 +314,8 @@ def solve_single(problem: Problem, guard_3d=False, guard_discs=NO_DISCS) -> Equi
 
     With ``guard_3d`` (the in-plane shortcut of a spatial solve) the result is unconverged
     as soon as the path leaves the states that are stable in 3D, loading stage included;
-    with ``guard_discs`` (the contact-free shortcut) as soon as it comes within half an RK4
-    step of a disc.
+    with ``guard_discs`` (the contact-free shortcut) as soon as its backbone comes within the
+    chords' allowance of a disc (:func:`solver.kernels.obstacles.chords_clear`).
     """
     arm, packed, scene, warm_start, ctx = (problem.arm, problem.packed, problem.scene,
                                            problem.warm_start, problem.ctx)

@@ -150,22 +150,81 @@ def test_contact_free_shortcut_is_the_contact_solution():
     assert touched[0] is False and any(touched) and touched[-1] is False
 
 
-def test_shortcut_not_taken_within_half_a_step_of_a_disc():
-    """A disc whose surface passes just outside the free backbone (closer than half an RK4
-    step) gets the full contact solve, with the same result."""
+def test_shortcut_not_taken_where_the_path_meets_a_disc_its_end_clears():
+    """A disc 2 mm outside the free backbone at its end, on the cold ramp's way: the ramp
+    meets it (the arm ends pressed on it), so the guarded contact-free shortcut must not
+    answer; the full contact solve does, the same with shortcuts off."""
     arm = designs.octarm_v()
     p = np.array([30, 0, 0, 40, 60, 0]) * PSI
     free = solver.solve(arm, p, solver.Scene(base_angle_deg=45))
     mid = free.positions[len(free.positions) // 2]
     normal = np.array([-np.sin(free.angles[len(free.angles) // 2]),
                        np.cos(free.angles[len(free.angles) // 2])])
-    radius, gap = 0.05, 2e-3  # clear of the samples, but closer than h/2 ≈ 9 mm
+    radius, gap = 0.05, 2e-3
     scene = solver.Scene(base_angle_deg=45, obstacles=(
         solver.Disc(center=tuple(mid + (radius + gap) * normal), radius=radius),))
     fast = solver.solve(arm, p, scene)
     slow = solver.solve(arm, p, scene, settings=solver.Settings(shortcuts=False))
+    assert slow.in_contact and slow.penetration.max() > 1e-3
     assert fast.iterations == slow.iterations  # the multiple-shooting path, both times
     np.testing.assert_allclose(fast.positions, slow.positions, atol=1e-12)
+
+
+def test_shortcut_taken_short_of_a_disc_agrees_with_the_contact_solve():
+    """A warm step that stops 2 mm short of a disc (a tenth of a sample spacing; the guard's
+    allowance is under a millimetre here) is the contact-free step, in the general path and
+    in the stepper: the full contact solve of the same step touches nothing and lands on the
+    same state to the grids' discretisation error."""
+    arm = designs.octarm_v()
+    p = np.array([30, 0, 0, 40, 60, 0]) * PSI
+    bare = solver.Scene(base_angle_deg=45)
+    before = solver.solve(arm, 0.9 * p, bare)
+    free = solver.solve(arm, p, bare, warm_start=before)
+    i = len(free.positions) // 2
+    move = free.positions[i] - before.positions[i]
+    ahead = move / np.linalg.norm(move)  # the disc ahead of the step's motion
+    radius, gap = 0.05, 2e-3
+    scene = solver.Scene(base_angle_deg=45, obstacles=(
+        solver.Disc(center=tuple(free.positions[i] + (radius + gap) * ahead), radius=radius),))
+    start = solver.solve(arm, 0.9 * p, scene)
+    assert not start.in_contact
+    fast = solver.solve(arm, p, scene, warm_start=start)
+    slow = solver.solve(arm, p, scene, warm_start=start, settings=solver.Settings(shortcuts=False))
+    assert not slow.in_contact and not slow.penetration.any()
+    np.testing.assert_array_equal(fast.positions, free.positions)  # the shortcut's answer
+    assert np.abs(fast.positions - slow.positions).max() < 1e-7
+    stepper = solver.Stepper(arm, scene)
+    stepper.reset(0.9 * p)
+    assert stepper.step(p).converged and stepper.last_path == "lean"
+    np.testing.assert_allclose(stepper.tip, fast.tip, atol=1e-12)
+
+
+def test_chord_guard_sees_a_disc_between_samples():
+    """``chords_clear`` on an exact circular arc sampled every 20 mm: a disc on its convex
+    side that the arc enters between two samples (both samples clear of it) is not clear; a
+    disc the arc clears by more than the allowance ℓ·(|Δθ|/4 + CHORD_SLACK) at every chord is."""
+    from solver.kernels.obstacles import CHORD_SLACK, chord_allowance, chords_clear
+    from solver.layout import N_COLUMNS, THETA, X, Y
+
+    bend, h = 0.2, 0.02  # arc radius (m), sample spacing along it (m)
+    s = np.arange(0.0, 0.3 + 1e-12, h)
+    rec = np.zeros((s.size, N_COLUMNS))
+    rec[:, X], rec[:, Y] = bend * np.sin(s / bend), bend * (1.0 - np.cos(s / bend))
+    rec[:, THETA] = s / bend
+    allowance = h * (0.25 * h / bend + CHORD_SLACK)
+    assert chord_allowance(rec) == pytest.approx(2.0 * bend * np.sin(0.5 * h / bend)
+                                                 * (0.25 * h / bend + CHORD_SLACK), rel=1e-12)
+    # Between samples 4 and 5, the arc's outward normal at their middle.
+    phi = 4.5 * h / bend
+    at, outward = np.array([np.sin(phi), 1 - np.cos(phi)]) * bend, np.array([np.sin(phi), -np.cos(phi)])
+    radius = 0.04
+    sag = bend * (1.0 - np.cos(0.5 * h / bend))  # the arc's departure from the chord there
+    entering = np.array([[*(at + (radius - 0.5 * sag) * outward), radius, 1e5]])
+    sample_gaps = np.hypot(rec[:, X] - entering[0, 0], rec[:, Y] - entering[0, 1]) - radius
+    assert sample_gaps.min() > 0.0  # every sample clears it; the arc does not
+    assert not chords_clear(rec, entering)
+    clear = np.array([[*(at + (radius + 1.01 * allowance) * outward), radius, 1e5]])
+    assert chords_clear(rec, clear)
 
 
 def test_cold_solve_loads_the_arm_with_its_obstacles():
