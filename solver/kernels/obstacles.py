@@ -137,6 +137,13 @@ def clearance(x, y, discs):
 CHORD_SLACK = 0.01
 
 
+@njit(inline="always")
+def _chord_allowance(rec, r) -> float:
+    """ℓ·(|Δθ|/4 + CHORD_SLACK) of the chord from sample r to r + 1 of ``rec`` (m)."""
+    length = math.hypot(rec[r + 1, X] - rec[r, X], rec[r + 1, Y] - rec[r, Y])
+    return length * (0.25 * abs(rec[r + 1, THETA] - rec[r, THETA]) + CHORD_SLACK)
+
+
 @njit
 def chord_allowance(rec) -> float:
     """The largest departure (m) of the backbone of ``rec`` (rows, ≥ THETA + 1: columns x, y,
@@ -144,8 +151,7 @@ def chord_allowance(rec) -> float:
     ℓ·(|Δθ|/4 + CHORD_SLACK) (the module's sag bound), over the chords."""
     allowance = 0.0
     for r in range(rec.shape[0] - 1):
-        length = math.hypot(rec[r + 1, X] - rec[r, X], rec[r + 1, Y] - rec[r, Y])
-        allowance = max(allowance, length * (0.25 * abs(rec[r + 1, THETA] - rec[r, THETA]) + CHORD_SLACK))
+        allowance = max(allowance, _chord_allowance(rec, r))
     return allowance
 
 
@@ -158,12 +164,10 @@ def chords_clear(rec, discs) -> bool:
     point of the backbone — not only the samples — touches a disc, so every penalty force
     along it is zero."""
     for r in range(rec.shape[0] - 1):
-        ax, ay, bx, by = rec[r, X], rec[r, Y], rec[r + 1, X], rec[r + 1, Y]
-        allowance = math.hypot(bx - ax, by - ay) * (0.25 * abs(rec[r + 1, THETA] - rec[r, THETA])
-                                                    + CHORD_SLACK)
+        allowance = _chord_allowance(rec, r)
         for d in range(discs.shape[0]):
-            if _segment_depth(ax, ay, bx, by, discs[d, CX], discs[d, CY],
-                              discs[d, RADIUS]) >= -allowance:
+            if _segment_depth(rec[r, X], rec[r, Y], rec[r + 1, X], rec[r + 1, Y], discs[d, CX],
+                              discs[d, CY], discs[d, RADIUS]) >= -allowance:
                 return False
     return True
 
