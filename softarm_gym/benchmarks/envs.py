@@ -146,6 +146,7 @@ CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("reach self-contact", "SoftArm/OctArmReach-v1", {"self_contact": True}),
                        ("3D reach", "SoftArm/OctArmReach-v1", {"planar": False}),
                        ("3D wrap", "SoftArm/OctArmWrap3D-v0", {}),
+                       ("3D wrap v1", "SoftArm/OctArmWrap3D-v1", {}),
                        ("wrap friction", "SoftArm/OctArmWrap-v1", {"friction": FRICTION}),
                        ("wrap delta friction", "SoftArm/OctArmWrap-v1",
                         {"action_mode": "delta", "friction": FRICTION}),
@@ -154,16 +155,18 @@ CONTACT_RATIO_CASES = (("free reach", "SoftArm/OctArmReach-v1", {}),
                        ("3D wrap friction", "SoftArm/OctArmWrap3D-v0", {"friction": FRICTION}))
 """The single-env cases :func:`contact_ratios` times against their unit step: name, ID,
 kwargs (``true`` observations, random actions): the issue's IDs, and the recommended
-versions, whose self-contact is on (``wrap v2``, ``obstacle reach v1``, ``grasp v1``). The
+versions, whose self-contact is on (``wrap v2``, ``obstacle reach v1``, ``grasp v1``), and the
+recommended 3D wrap (``3D wrap v1``: friction and delta actions; 3D has no self-contact). The
 unit is a free ``OctArmReach-v1`` step (the first case) unless :data:`RATIO_UNITS` names
 another case. A case with ``friction`` is also timed against the same case without it
 (docs/design.md §9.1)."""
 
-RATIO_UNITS = {"3D wrap": "3D reach", "3D wrap friction": "3D reach"}
+RATIO_UNITS = {"3D wrap": "3D reach", "3D wrap v1": "3D reach", "3D wrap friction": "3D reach"}
 """Case name → the case whose step is its unit (the issue holds 3D wrap to a 3D reach step)."""
 
 CONTACT_TARGETS = {"wrap": 4.0, "obstacle reach": 4.0, "grasp": 6.0, "reach self-contact": 1.5,
-                   "3D wrap": 6.0, "wrap v2": 4.0, "obstacle reach v1": 4.0, "grasp v1": 6.0}
+                   "3D wrap": 6.0, "wrap v2": 4.0, "obstacle reach v1": 4.0, "grasp v1": 6.0,
+                   "3D wrap v1": 6.0}
 """Issue targets: the most a case's step may cost, as a multiple of its unit step (a
 recommended version is held to its task's)."""
 

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["PLANNER_IDS", "PLANNER_KWARGS", "PLANNER_SPEEDUP_TARGET", "time_ratio_cases", "plan_episodes",
-           "run_worker", "in_tree", "run", "format_table", "main"]
+           "run_worker", "in_tree", "run", "select_cases", "format_table", "main"]
 
 PLANNER_IDS = ("SoftArm/OctArmWrap-v1", "SoftArm/OctArmObstacleReach-v0")
 """Envs the planner measurement plans on."""
@@ -282,6 +282,24 @@ def format_table(result: dict) -> str:
     return "\n".join(lines)
 
 
+def select_cases(names) -> list:
+    """The cases of :data:`softarm_gym.benchmarks.envs.CONTACT_RATIO_CASES` named in
+    ``names``, after the unit cases they are timed against (the free reach first).
+
+    Raises:
+        ValueError: a name that is not a case's (the message lists them).
+    """
+    from softarm_gym.benchmarks.envs import CONTACT_RATIO_CASES, RATIO_UNITS
+
+    by_name = {c[0]: c for c in CONTACT_RATIO_CASES}
+    unknown = [name for name in names if name not in by_name]
+    if unknown:
+        raise ValueError(f"--cases: no case named {', '.join(map(repr, unknown))}; "
+                         f"the cases are {', '.join(by_name)}")
+    units = [CONTACT_RATIO_CASES[0][0], *(RATIO_UNITS[n] for n in names if n in RATIO_UNITS)]
+    return [by_name[n] for n in dict.fromkeys([*units, *names])]
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m softarm_gym.benchmarks.side_by_side",
                                      description=__doc__.splitlines()[0])
@@ -292,6 +310,9 @@ def main(argv=None) -> int:
     parser.add_argument("--episodes", type=int, default=3,
                         help="planner episodes per ID and round (default 3)")
     parser.add_argument("--only", choices=("ratios", "planner"), help="run one of the two measurements")
+    parser.add_argument("--cases", default=None,
+                        help="comma-separated ratio case names to time (with their unit cases; "
+                             "default every frictionless case)")
     parser.add_argument("--numba-threads", type=int, default=None,
                         help="NUMBA_NUM_THREADS of the subprocesses")
     parser.add_argument("--json", type=Path, default=None, help="also write the result to this file")
@@ -306,7 +327,9 @@ def main(argv=None) -> int:
     if args.numba_threads is not None and args.numba_threads < 1:
         parser.error("--numba-threads must be >= 1")
     try:
-        result = run(args.before, args.rounds, args.steps, args.episodes, numba_threads=args.numba_threads,
+        cases = select_cases(args.cases.split(",")) if args.cases else None
+        result = run(args.before, args.rounds, args.steps, args.episodes, cases=cases,
+                     numba_threads=args.numba_threads,
                      measure=(args.only,) if args.only else ("ratios", "planner"),
                      progress=lambda m: print(f"[side_by_side] {m}", file=sys.stderr, flush=True))
     except ValueError as exc:
@@ -314,6 +337,7 @@ def main(argv=None) -> int:
     command = "python -m softarm_gym.benchmarks.side_by_side --before <checkout of the commit before>"
     command += f" --rounds {args.rounds} --steps {args.steps} --episodes {args.episodes}"
     command += (f" --only {args.only}" if args.only else "") + \
+        (f" --cases {args.cases}" if args.cases else "") + \
         (f" --numba-threads {args.numba_threads}" if args.numba_threads else "")
     result["command"] = command + (f" --json {args.json}" if args.json else "")
     result["date"] = time.strftime("%Y-%m-%d")

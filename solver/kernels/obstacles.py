@@ -213,11 +213,6 @@ def tunnels(prev_xy, new_xy, discs, slack):
     return False
 
 
-# Points along a move at which a spatial tunnel is looked for (the move's chord is not
-# straight against a cylinder's axis in closed form as simply as against a disc's centre).
-TUNNEL_SAMPLES = 9
-
-
 @njit(inline="always")
 def _offset_3d(r0, r1, r2, obstacles, d):
     """The vector (3 floats) from the core of spatial obstacle ``d`` — the nearest point of
@@ -323,27 +318,107 @@ def smallest_clearance_3d(points, obstacles):
     return gap
 
 
+@njit(inline="always")
+def _chord_allowance_3d(points, tangents, r) -> float:
+    """ℓ·(|Δθ|/4 + CHORD_SLACK) of the chord from sample r to r + 1 (m): ℓ its length, Δθ
+    the angle between the backbone's tangents there."""
+    e0 = points[r + 1, 0] - points[r, 0]
+    e1 = points[r + 1, 1] - points[r, 1]
+    e2 = points[r + 1, 2] - points[r, 2]
+    a0, a1, a2 = tangents[r, 0], tangents[r, 1], tangents[r, 2]
+    b0, b1, b2 = tangents[r + 1, 0], tangents[r + 1, 1], tangents[r + 1, 2]
+    turn = math.atan2(math.sqrt((a1 * b2 - a2 * b1) ** 2 + (a2 * b0 - a0 * b2) ** 2
+                                + (a0 * b1 - a1 * b0) ** 2), a0 * b0 + a1 * b1 + a2 * b2)
+    return math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) * (0.25 * turn + CHORD_SLACK)
+
+
+@njit
+def chord_allowance_3d(points, tangents) -> float:
+    """:func:`chord_allowance` of a spatial backbone: samples ``points`` (N, ≥3; m) and unit
+    tangents ``tangents`` (N, 3; the d3 directors), Δθ the angle between two samples'
+    tangents (the turn of the circular arc through them, of any plane)."""
+    allowance = 0.0
+    for r in range(points.shape[0] - 1):
+        allowance = max(allowance, _chord_allowance_3d(points, tangents, r))
+    return allowance
+
+
+@njit(inline="always")
+def _segment_depth_3d(a0, a1, a2, b0, b1, b2, obstacles, d):
+    """Deepest penetration of the straight segment a → b into spatial obstacle ``d`` (m).
+    The offset from the obstacle's core (:func:`_offset_3d`) is affine along the segment,
+    o + t·Pe (P the projection off a cylinder's axis, the identity about a sphere's centre),
+    so its smallest length is at t = −o·Pe / |Pe|², clamped to [0, 1]."""
+    o0, o1, o2, _ = _offset_3d(a0, a1, a2, obstacles, d)
+    e0 = b0 - a0
+    e1 = b1 - a1
+    e2 = b2 - a2
+    along = e0 * obstacles[d, O_AXIS] + e1 * obstacles[d, O_AXIS + 1] + e2 * obstacles[d, O_AXIS + 2]
+    e0 -= along * obstacles[d, O_AXIS]
+    e1 -= along * obstacles[d, O_AXIS + 1]
+    e2 -= along * obstacles[d, O_AXIS + 2]
+    length2 = e0 * e0 + e1 * e1 + e2 * e2
+    t = 0.0
+    if length2 > 0.0:
+        t = min(1.0, max(0.0, -(o0 * e0 + o1 * e1 + o2 * e2) / length2))
+    o0 += t * e0
+    o1 += t * e1
+    o2 += t * e2
+    return obstacles[d, O_RADIUS] - math.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+
+
+@njit
+def chords_clear_3d(points, tangents, obstacles) -> bool:
+    """:func:`chords_clear` against spatial obstacles: True when every straight chord
+    between consecutive samples ``points`` (N, ≥3; m) stays out of every obstacle of
+    ``obstacles`` (n, 8) by more than the backbone can depart from it there,
+    ℓ·(|Δθ|/4 + CHORD_SLACK) (:func:`chord_allowance_3d`, ``tangents`` (N, 3) the unit d3
+    directors). Then no point of the backbone touches an obstacle."""
+    for r in range(points.shape[0] - 1):
+        allowance = _chord_allowance_3d(points, tangents, r)
+        for d in range(obstacles.shape[0]):
+            if _segment_depth_3d(points[r, 0], points[r, 1], points[r, 2], points[r + 1, 0],
+                                 points[r + 1, 1], points[r + 1, 2], obstacles, d) >= -allowance:
+                return False
+    return True
+
+
 @njit
 def tunnels_3d(prev, new, obstacles, slack):
     """:func:`tunnels` against spatial obstacles: True when a sample, moved along the
     straight segment between its positions in ``prev`` and ``new`` (N, ≥3; m), goes deeper
-    into an obstacle, at any of TUNNEL_SAMPLES points, than the deeper of its two ends by
-    more than ``slack`` (m)."""
+    into an obstacle (:func:`_segment_depth_3d`) than the deeper of its two ends by more
+    than ``slack`` (m)."""
     for k in range(prev.shape[0]):
         for d in range(obstacles.shape[0]):
             radius = obstacles[d, O_RADIUS]
             end = max(radius - _offset_3d(prev[k, 0], prev[k, 1], prev[k, 2], obstacles, d)[3],
                       radius - _offset_3d(new[k, 0], new[k, 1], new[k, 2], obstacles, d)[3])
-            limit = max(end, 0.0) + slack
-            for j in range(1, TUNNEL_SAMPLES - 1):
-                t = j / (TUNNEL_SAMPLES - 1.0)
-                depth = radius - _offset_3d(prev[k, 0] + t * (new[k, 0] - prev[k, 0]),
-                                            prev[k, 1] + t * (new[k, 1] - prev[k, 1]),
-                                            prev[k, 2] + t * (new[k, 2] - prev[k, 2]),
-                                            obstacles, d)[3]
-                if depth > limit:
-                    return True
+            if _segment_depth_3d(prev[k, 0], prev[k, 1], prev[k, 2], new[k, 0], new[k, 1],
+                                 new[k, 2], obstacles, d) > max(end, 0.0) + slack:
+                return True
     return False
+
+
+@njit
+def free_step_gap(start, end, tangents, obstacles):
+    """How a contact-free step from the backbone samples ``start`` to ``end`` (N, ≥3; m;
+    the same arc lengths) stands to the spatial ``obstacles`` (n, 8): (gap, clear).
+
+    ``gap``: the smallest clearance (m) of either state's samples, −inf where a sample moving
+    straight between them passes through an obstacle (:func:`tunnels_3d`, no slack).
+    ``clear``: the step touches nothing — ``end`` clears every obstacle chord by chord
+    (:func:`chords_clear_3d`, ``tangents`` (N, 3) its unit d3 directors) and no sample came
+    within that state's chord allowance of one on the way (the contact-free path between
+    accepted states is not straight; a step that leaves the obstacles' reach and comes back
+    is not caught, and a warm step seldom does). One test for the stepper's kernel and the
+    general path, so that they stay bit for bit."""
+    if tunnels_3d(start, end, obstacles, 0.0):
+        return -math.inf, False
+    gap = min(smallest_clearance_3d(start, obstacles), smallest_clearance_3d(end, obstacles))
+    clear = chords_clear_3d(end, tangents, obstacles) and not tunnels_3d(
+        start, end, obstacles, -chord_allowance_3d(end, tangents))
+    return gap, clear
 
 
 # ----------------------------------------------------------------------------- friction

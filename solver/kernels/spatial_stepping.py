@@ -9,10 +9,11 @@ spatial contact kernels: its nodes, level, factored Jacobian and backbone).
 (:func:`solver.paths.spatial_contact.solve_contact_spatial`):
 
 * from a state in contact, the lean contact step (:func:`solver.kernels.spatial_contact.lean_step`);
-* from one that touches nothing, the contact-free step first, kept where it and its start
-  clear every obstacle by an RK4 step and no sample passed through one on the way; where
-  they clear them by less, that state corrected on the contact layout (:func:`_near_step`;
-  not with friction, as the general path);
+* from one that touches nothing, the contact-free step first, kept where its backbone
+  clears every obstacle between every two samples and no sample came near one on the way
+  (:func:`solver.kernels.obstacles.free_step_gap`); where the samples clear them but not
+  so, that state corrected on the contact layout (:func:`_near_step`; not with friction,
+  as the general path);
   where they do not clear them, the lean contact step from the start (put on the contact
   layout first, :func:`_enter_contact`, if it is not there).
 
@@ -26,10 +27,10 @@ for the step's (1).
 
 * ``free``: the settings' grid (base quaternion, secf, steps, 1/GJ), the tubes, dead loads
   (ns, 6), tip moment and path parameters; the samples' sections (N,), arc lengths (N,) and
-  internal forces (N, 3), which depend on the scene alone; the longest RK4 step (m); the grid
-  check's |q| (ns,) and section-end rows (ns,); the copies' base moments (n, 3), backbones
-  (positions (n, 2, N, 3), frames (n, 2, N, 3, 3), moments (n, 2, N, 3)), the rest strains of
-  a contact-free state (n, 3, ns) and ``ok`` (n,) bool: copy k touches nothing, and the
+  internal forces (N, 3), which depend on the scene alone; the grid check's |q| (ns,) and
+  section-end rows (ns,); the copies' base moments (n, 3), backbones (positions
+  (n, 2, N, 3), frames (n, 2, N, 3, 3), moments (n, 2, N, 3)), the rest strains of a
+  contact-free state (n, 3, ns) and ``ok`` (n,) bool: copy k touches nothing, and the
   contact-free step may start from its base moment and positions.
 * ``contact``: the contact layout tuple (``GS_*``, flattened), path parameters, the norms'
   weights and the tangent coordinates' scales; the level's loads (q, plate, target); the
@@ -53,7 +54,7 @@ import numpy as np
 from solver.jit import njit
 from solver.kernels.contact import weighted_norm
 from solver.kernels.grid import section_needs
-from solver.kernels.obstacles import accept_friction, smallest_clearance_3d, tunnels_3d
+from solver.kernels.obstacles import accept_friction, free_step_gap
 from solver.kernels.spatial import follow as free_follow
 from solver.kernels.spatial_contact import (
     JAC_VARIATIONAL,
@@ -71,9 +72,9 @@ from solver.layout import CA, CG, CI, CS_M, FS_A, L_FRICTION, MAX_ITER, MAX_STEP
 from solver.rod import rest_strains_into, spatial_strains_into
 
 (F3_QUAT0, F3_SECF, F3_STEPS, F3_CJ, F3_TUBES_I, F3_TUBES_F, F3_LOADS, F3_M_TIP, F3_PARAMS,
- F3_SEG, F3_S, F3_FORCE, F3_H, F3_CHECK_Q, F3_ENDS, F3_M0, F3_POS, F3_ROT, F3_MOM, F3_REST,
- F3_OK) = range(21)
-N_FREE3 = 21
+ F3_SEG, F3_S, F3_FORCE, F3_CHECK_Q, F3_ENDS, F3_M0, F3_POS, F3_ROT, F3_MOM, F3_REST,
+ F3_OK) = range(20)
+N_FREE3 = 20
 
 (C3_QUAT0, C3_SEGS, C3_SECF, C3_STEPS, C3_CJ, C3_START, C3_PARAMS, C3_WEIGHTS, C3_RES_WEIGHTS,
  C3_SCALES, C3_Q, C3_PLATE, C3_TARGET, C3_ARCS, C3_SECTIONS, C3_CHECK_Q, C3_CHECK_ENDS,
@@ -153,9 +154,11 @@ def _free_step(k, free, contact, p_from, p_to, report):
     """The contact-free step of copy k (the single-shooting kernel from its base moment, as
     the general path's contact-free solve takes it) into its scratch slot, and the smallest
     gap (m) of its start and end samples to an obstacle (−inf where a sample moving
-    straight between them passes through one). Where both clear every obstacle by the
-    longest RK4 step and the grid resolves the state, it is copy k's new state (reported
-    converged). NaN: it failed (the general path's turn)."""
+    straight between them passes through one). Where the end state clears every obstacle
+    chord by chord (:func:`solver.kernels.obstacles.chords_clear_3d`), no sample came within
+    that state's chord allowance of one on the way and the grid resolves the state, it is
+    copy k's new state (reported converged). NaN: it failed, or cleared the obstacles on a
+    grid that does not resolve it (the general path's turn)."""
     m0 = free[F3_M0][k]
     m_start = m0.copy()
     ns = free[F3_SECF].shape[1]
@@ -172,24 +175,23 @@ def _free_step(k, free, contact, p_from, p_to, report):
     gap = math.nan
     if ok and res <= 10.0 * params[TOL] and stable:
         obstacles = contact[C3_OBSTACLES][k]
-        if tunnels_3d(pos[0], pos[1], obstacles, 0.0):
-            gap = -math.inf
-        else:
-            gap = min(smallest_clearance_3d(pos[0], obstacles),
-                      smallest_clearance_3d(pos[1], obstacles))
-        if gap > free[F3_H] and _resolved(free, rest, pos[1], rot[1], mom[1]):
-            pos[0] = pos[1]
-            rot[0] = rot[1]
-            mom[0] = mom[1]
-            free[F3_REST][k] = rest
-            contact[C3_OK][k] = False  # its contact state is the one before this step
-            # A contact-free state carries no anchors (the general path's shortcut either).
-            contact[C3_FRICTION][k][:, :, :, FS_A:FS_A + 3] = math.nan
-            report_lean(report, k, stable, snapped, res)
-            return gap
+        gap, clear = free_step_gap(pos[0], pos[1], rot[1][:, :, 2], obstacles)
+        if clear:
+            if not _resolved(free, rest, pos[1], rot[1], mom[1]):
+                gap = math.nan
+            else:
+                pos[0] = pos[1]
+                rot[0] = rot[1]
+                mom[0] = mom[1]
+                free[F3_REST][k] = rest
+                contact[C3_OK][k] = False  # its contact state is the one before this step
+                # A contact-free state carries no anchors (the general path's shortcut either).
+                contact[C3_FRICTION][k][:, :, :, FS_A:FS_A + 3] = math.nan
+                report_lean(report, k, stable, snapped, res)
+                return gap
     for d in range(3):
         m0[d] = m_start[d]
-    return gap if gap <= free[F3_H] else math.nan
+    return gap
 
 
 @njit(inline="always")
@@ -345,8 +347,9 @@ def _factored(k, contact, Z, level, rest, resolved):
 
 @njit(inline="always")
 def _near_step(k, free, contact, p_to, report):
-    """The contact-free step of copy k (in its scratch slot) ends within an RK4 step of an
-    obstacle, clear of it, and got there without passing through one: as the general path
+    """The contact-free step of copy k (in its scratch slot) ends with its samples clear of
+    the obstacles but not its chords by their allowance, and got there without passing
+    through one: as the general path
     does, that state is corrected by Newton on the contact layout (where a stage point may
     graze the obstacle) — from Broyden's corrections on the factors of copy k's state there
     if it has one — and is the step's answer if converged, stable and resolved."""

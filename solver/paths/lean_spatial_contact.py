@@ -86,7 +86,6 @@ class SpatialContactRows:
         free[stepping.F3_LOADS], free[stepping.F3_M_TIP] = ctx.loads, ctx.m_tip
         free[stepping.F3_PARAMS] = ctx.params
         free[stepping.F3_SEG], free[stepping.F3_S], free[stepping.F3_FORCE] = seg, s, force
-        free[stepping.F3_H] = float(np.max(np.diff(s)))
         free[stepping.F3_CHECK_Q] = packed.mass_per_length * scene.gravity
         free[stepping.F3_ENDS] = section_rows(packed.section_ends)
         free[stepping.F3_M0] = np.zeros((n, 3))

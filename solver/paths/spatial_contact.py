@@ -11,7 +11,7 @@ import numpy as np
 from solver import layout as L
 from solver.kernels import spatial_contact as kernel
 from solver.kernels.contact import TUNNEL_SLACK
-from solver.kernels.obstacles import smallest_clearance_3d, tunnels_3d
+from solver.kernels.obstacles import free_step_gap, tunnels_3d
 from solver.paths.contact import free_contact_result
 from solver.paths.friction import friction_fields, landed, new_level, start_samples
 from solver.paths.grid import section_rows
@@ -56,9 +56,9 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
     if settings.shortcuts and warm_start is not None and warm_start.s.size \
             and not warm_start.in_contact:
         free = solve_spatial(problem.in_scene(free_scene, warm_start))
-        gap = _free_step_gap(free, warm_start, obstacles) if free.converged and free.stable \
-            else -math.inf
-        if gap > float(np.max(np.diff(free.s))):
+        gap, clear = _free_step_gap(free, warm_start, obstacles) \
+            if free.converged and free.stable else (-math.inf, False)
+        if clear:
             return free_contact_result(free, scene, before)
         # With friction the ramp takes it: Newton at the end would land without anchors (as
         # if frictionless), where the ramp forms them at its start.
@@ -72,9 +72,9 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
     goal = (p_target, ctx.q, terms[0], terms[1], obstacles, mu, samples)
     rest = np.empty((3, len(arm.sections)))
     if near:
-        # The free step ends within an RK4 step of an obstacle, clear of it, and got there
-        # without passing through one: that state, corrected by Newton on the contact grid
-        # (where a stage point may graze the obstacle), is the answer.
+        # The free step's samples end clear of the obstacles, but not its chords by their
+        # allowance, and got there without passing through one: that state, corrected by
+        # Newton on the contact grid (where a stage point may graze the obstacle), is the answer.
         nodes = _nodes_from_record(free, grid, layout, segs, sec_start)
         _level_rest(goal, layout, rest)
         ok, its, res, stable = kernel.newton(nodes, grid, rest, goal, *terms[2:], settings.tol,
@@ -355,21 +355,15 @@ def _level_rest(level, layout, rest):
     rest_strains_into(level[L.L_P], layout.tubes_i, layout.tubes_f, layout.secf, rest)
 
 
-def _free_step_gap(free, start, obstacles) -> float:
-    """How far the contact-free step from the recorded ``start`` to ``free`` stays from the
-    obstacles: the smallest gap (m) of either backbone's samples to an obstacle's surface
-    (``start`` resampled at ``free``'s arc lengths if on another grid), or −inf where a
-    sample moving straight between them passes through one
-    (:func:`solver.kernels.obstacles.tunnels_3d`, no slack). A contact-free path that leaves the
-    obstacles' reach of either end and comes back is not caught (a warm step seldom does)."""
+def _free_step_gap(free, start, obstacles):
+    """:func:`solver.kernels.obstacles.free_step_gap` of the contact-free step from the
+    recorded ``start`` to ``free``: (gap, clear), ``start`` resampled at ``free``'s arc
+    lengths if on another grid (a contact state, on the finer contact grid)."""
     before = start.positions
-    if before.shape != free.positions.shape:  # a contact state, on the finer contact grid
+    if before.shape != free.positions.shape:
         before = np.column_stack([np.interp(free.s, start.s, start.positions[:, c])
                                   for c in range(3)])
-    if tunnels_3d(before, free.positions, obstacles, 0.0):
-        return -math.inf
-    return min(smallest_clearance_3d(before, obstacles),
-               smallest_clearance_3d(free.positions, obstacles))
+    return free_step_gap(before, free.positions, free.orientations[:, :, 2], obstacles)
 
 
 def grid_and_terms(arm, layout, segs, sec_start, scene, ctx):

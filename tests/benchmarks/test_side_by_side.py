@@ -55,3 +55,11 @@ def test_env_bench_units_and_targets_name_its_cases():
     with pytest.raises(ValueError, match="unit case.s. 3D reach missing"):
         contact_ratios(1, rounds=1, cases=(("free reach", "SoftArm/OctArmReach-v1", {}),
                                            ("3D wrap", "SoftArm/OctArmWrap3D-v0", {})))
+
+
+def test_selected_cases_come_after_their_units(tmp_path, capsys):
+    cases = side_by_side.select_cases(["3D wrap v1", "wrap"])
+    assert [c[0] for c in cases] == ["free reach", "3D reach", "3D wrap v1", "wrap"]
+    with pytest.raises(SystemExit) as exit_:
+        side_by_side.main(["--before", str(ROOT), "--cases", "3D wrap,warp"])
+    assert exit_.value.code == 2 and "no case named 'warp'" in capsys.readouterr().err

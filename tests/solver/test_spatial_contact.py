@@ -237,3 +237,113 @@ def test_planar_solve_refuses_cylinders_and_spheres():
     assert not scene.is_planar
     with pytest.raises(ValueError, match="planar=False"):
         solver.solve(arm, np.zeros(6), scene)
+
+
+@pytest.mark.parametrize("shape", ["cylinder", "sphere"])
+def test_shortcut_taken_short_of_an_obstacle_agrees_with_the_contact_solve(shape):
+    """A warm 3D step that stops 2 mm short of a cylinder or sphere (an eighth of a sample
+    spacing; the chord guard's allowance is under a millimetre here) is the contact-free
+    step, in the general path and in the stepper: the full contact solve of the same step
+    touches nothing and lands on the same state to the grids' discretisation error."""
+    arm = designs.octarm_v()
+    p = np.array([0.45, 0.0, 0.15, 0.25, 0.0, 0.0, 0.3, 0.0, 0.1]) * arm.max_pressure
+    before = solver.solve(arm, 0.9 * p, solver.Scene(), planar=False)
+    free = solver.solve(arm, p, solver.Scene(), planar=False, warm_start=before)
+    i = free.s.size // 2
+    move = free.positions[i] - before.positions[i]
+    ahead = move / np.linalg.norm(move)  # the obstacle ahead of the step's motion
+    radius, gap = 0.08, 2e-3
+    centre = tuple(free.positions[i] + (radius + gap) * ahead)
+    if shape == "cylinder":
+        axis = np.cross(ahead, free.orientations[i][:, 2])
+        obstacle = solver.Cylinder(centre, tuple(axis / np.linalg.norm(axis)), radius, 1e5)
+    else:
+        obstacle = solver.Sphere(centre, radius, 1e5)
+    scene = solver.Scene(obstacles=(obstacle,))
+    start = solver.solve(arm, 0.9 * p, scene, planar=False)
+    assert not start.in_contact
+    fast = solver.solve(arm, p, scene, planar=False, warm_start=start)
+    slow = solver.solve(arm, p, scene, planar=False, warm_start=start,
+                        settings=solver.Settings(shortcuts=False))
+    assert slow.converged and not slow.in_contact and not slow.penetration.any()
+    # The shortcut's answer (the starts differ in round-off: a cold solve against a warm one).
+    np.testing.assert_allclose(fast.positions, free.positions, rtol=0, atol=1e-12)
+    assert np.abs(fast.tip - slow.tip).max() < 1e-7
+    stepper = solver.Stepper(arm, scene, planar=False)
+    stepper.reset(0.9 * p)
+    assert stepper.step(p).converged and stepper.last_path == "lean"
+    np.testing.assert_allclose(stepper.tip, fast.tip, atol=1e-12)
+
+
+def _tilted_arc(bend, h, length):
+    """An exact circular arc of radius ``bend`` in a tilted plane, sampled every ``h`` along
+    it: (points (N, 3), unit tangents (N, 3), the plane's unit normal, its in-plane axes)."""
+    s = np.arange(0.0, length + 1e-12, h)
+    e1 = np.array([1.0, 0.5, 0.2]) / np.linalg.norm([1.0, 0.5, 0.2])
+    e2 = np.cross(np.array([0.3, -0.2, 1.0]), e1)
+    e2 /= np.linalg.norm(e2)
+    points = bend * (np.sin(s / bend)[:, None] * e1 + (1.0 - np.cos(s / bend))[:, None] * e2)
+    tangents = np.cos(s / bend)[:, None] * e1 + np.sin(s / bend)[:, None] * e2
+    return points, tangents, np.cross(e1, e2), e1, e2
+
+
+@pytest.mark.parametrize("shape", ["cylinder", "sphere"])
+def test_chord_guard_3d_sees_an_obstacle_between_samples(shape):
+    """``chords_clear_3d`` on an exact circular arc in a tilted plane sampled every 20 mm: an
+    obstacle on its convex side that the arc enters between two samples (both samples clear
+    of it) is not clear; one the arc clears by more than the allowance ℓ·(|Δθ|/4 +
+    CHORD_SLACK) at every chord is. The cylinder's axis is normal to the arc's plane."""
+    from solver.kernels.obstacles import CHORD_SLACK, chord_allowance_3d, chords_clear_3d
+
+    bend, h = 0.2, 0.02
+    points, tangents, normal, e1, e2 = _tilted_arc(bend, h, 0.3)
+    assert chord_allowance_3d(points, tangents) == pytest.approx(
+        2.0 * bend * np.sin(0.5 * h / bend) * (0.25 * h / bend + CHORD_SLACK), rel=1e-12)
+    phi = 4.5 * h / bend  # between samples 4 and 5
+    at = bend * (np.sin(phi) * e1 + (1 - np.cos(phi)) * e2)
+    outward = np.sin(phi) * e1 - np.cos(phi) * e2
+    radius = 0.04
+    sag = bend * (1.0 - np.cos(0.5 * h / bend))
+    allowance = h * (0.25 * h / bend + CHORD_SLACK)
+
+    def obstacle(distance):
+        centre = at + distance * outward
+        axis = normal if shape == "cylinder" else np.zeros(3)
+        return np.array([[*centre, *axis, radius, 1e5]])
+
+    entering = obstacle(radius - 0.5 * sag)
+    offsets = points - entering[0, :3]
+    offsets -= np.outer(offsets @ entering[0, 3:6], entering[0, 3:6])
+    assert (np.linalg.norm(offsets, axis=1) - radius).min() > 0.0  # every sample clears it
+    assert not chords_clear_3d(points, tangents, entering)
+    assert chords_clear_3d(points, tangents, obstacle(radius + 1.01 * allowance))
+
+
+def test_tunnel_test_3d_is_the_segments_deepest_point():
+    """``tunnels_3d`` against a brute-force depth along each sample's straight move (10⁴
+    points): skew cylinders and spheres, random moves; the closed form decides the same
+    wherever the brute force's depth is not within 1e-9 m of the limit."""
+    from solver.kernels.obstacles import tunnels_3d
+
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 1.0, 10_001)[:, None]
+    decided = {True: 0, False: 0}
+    for _ in range(400):
+        axis = rng.normal(size=3) * rng.integers(0, 2)  # zero: a sphere
+        if axis.any():
+            axis /= np.linalg.norm(axis)
+        radius = rng.uniform(0.05, 0.2)
+        obstacles = np.array([[*rng.normal(scale=0.2, size=3), *axis, radius, 1e5]])
+        prev, new = rng.normal(scale=0.3, size=(2, 1, 3))
+        slack = rng.uniform(-0.02, 0.02)
+        path = prev + t * (new - prev)
+        offsets = path - obstacles[0, :3]
+        offsets -= np.outer(offsets @ axis, axis)
+        depth = radius - np.linalg.norm(offsets, axis=1)
+        limit = max(depth[0], depth[-1], 0.0) + slack
+        if abs(depth.max() - limit) < 1e-9:
+            continue
+        expected = bool(depth.max() > limit)
+        assert tunnels_3d(prev, new, obstacles, slack) == expected
+        decided[expected] += 1
+    assert min(decided.values()) > 20  # both answers were exercised
