@@ -250,7 +250,7 @@ register(
     id="SoftArm/OctArmWrap3D-v0",
     entry_point="softarm_gym.envs:WrapEnv",
     max_episode_steps=200,
-    reward_threshold=157.0,
+    reward_threshold=158.0,
     kwargs={"design": "octarm_v", "planar": False, "base_angle_deg": 0.0,
             "object_radius": (0.11, 0.125), "success_wrap_deg": 75.0},
 )

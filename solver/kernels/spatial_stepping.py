@@ -157,8 +157,8 @@ def _free_step(k, free, contact, p_from, p_to, report):
     straight between them passes through one). Where the end state clears every obstacle
     chord by chord (:func:`solver.kernels.obstacles.chords_clear_3d`), no sample came within
     that state's chord allowance of one on the way and the grid resolves the state, it is
-    copy k's new state (reported converged). NaN: it failed, or cleared the obstacles on a
-    grid that does not resolve it (the general path's turn)."""
+    copy k's new state (reported converged). NaN: it failed or snapped, or cleared the
+    obstacles on a grid that does not resolve it (the general path's turn)."""
     m0 = free[F3_M0][k]
     m_start = m0.copy()
     ns = free[F3_SECF].shape[1]
@@ -173,7 +173,9 @@ def _free_step(k, free, contact, p_from, p_to, report):
         (np.empty(0), np.empty((0, 4))))
     report[k, 3] += its
     gap = math.nan
-    if ok and res <= 10.0 * params[TOL] and stable:
+    # A snap's way between the two states is not known: the contact path follows the
+    # step with the obstacles present and lands it by its own branch switch.
+    if ok and res <= 10.0 * params[TOL] and stable and not snapped:
         obstacles = contact[C3_OBSTACLES][k]
         gap, clear = free_step_gap(pos[0], pos[1], rot[1][:, :, 2], obstacles)
         if clear:

@@ -28,8 +28,12 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
     (:mod:`solver.kernels.spatial_contact`), the obstacles present all along the quasi-static path.
 
     Obstacles beyond the arm's reach (:func:`solver.problem.reach`): the contact-free spatial
-    solve (``settings.shortcuts``). Otherwise multiple shooting at the planar contact
-    resolution (:func:`solver.problem.contact_layout`). Start: a spatial contact
+    solve (``settings.shortcuts``). From a warm start that touches nothing, the contact-free
+    step answers where it did not snap and its end clears every obstacle between every two
+    samples with no sample coming near one on the way
+    (:func:`solver.kernels.obstacles.free_step_gap`); where its samples clear them but not
+    so, Newton on the contact grid from it (not with friction). Otherwise multiple shooting
+    at the planar contact resolution (:func:`solver.problem.contact_layout`). Start: a spatial contact
     ``warm_start`` on this grid continues from its nodes, another recorded spatial warm start
     from its samples interpolated to the nodes (Newton corrects them at the start of the
     ramp); a cold solve from the arm loaded with the obstacles in place
@@ -56,8 +60,10 @@ def solve_contact_spatial(problem: Problem) -> Equilibrium:
     if settings.shortcuts and warm_start is not None and warm_start.s.size \
             and not warm_start.in_contact:
         free = solve_spatial(problem.in_scene(free_scene, warm_start))
+        # A snap's way between the two states is not known: the ramp below follows the step
+        # with the obstacles present and lands it by its own branch switch.
         gap, clear = _free_step_gap(free, warm_start, obstacles) \
-            if free.converged and free.stable else (-math.inf, False)
+            if free.converged and free.stable and not free.snapped else (-math.inf, False)
         if clear:
             return free_contact_result(free, scene, before)
         # With friction the ramp takes it: Newton at the end would land without anchors (as

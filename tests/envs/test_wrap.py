@@ -218,6 +218,31 @@ def test_3d_wrap_curl_towards_the_cylinder_wraps_it():
     assert info["wrap_angle_deg"] > 45.0 and info["penetration"] < env.penetration_tolerance
 
 
+def test_3d_wrap_step_whose_free_step_snaps_is_the_contact_path():
+    """OctArmWrap3D-v0 seed 8 under its reference curl: at step 6 the contact-free step snaps,
+    ending clear of the cylinder. A snap's way is not known, so the stepper's answer must be
+    the contact path's — the same solve with the shortcuts off (the tree before kept the free
+    kernel's landing, 0.23 m away)."""
+    import gymnasium as gym
+
+    from softarm_gym.controllers import CurlController
+
+    env = gym.make("SoftArm/OctArmWrap3D-v0")
+    controller = CurlController(env)
+    obs, _ = env.reset(seed=8)
+    controller.reset()
+    for _ in range(5):
+        obs = env.step(controller.act(obs))[0]
+    stepper = env.unwrapped.stepper
+    start = stepper.equilibrium
+    env.step(controller.act(obs))
+    eq = env.unwrapped.stepper.equilibrium
+    slow = solver.solve(env.unwrapped.simulated_arm, eq.pressures, stepper.scene, planar=False,
+                        warm_start=start, settings=solver.Settings(shortcuts=False))
+    assert eq.converged and eq.snapped and slow.converged
+    np.testing.assert_allclose(eq.positions, slow.positions, rtol=0, atol=1e-12)
+
+
 def test_grasp_is_planar_only():
     from softarm_gym.envs import GraspEnv
 
