@@ -685,10 +685,11 @@ def planar_state_rk4_step(st, h, ca, cg, ci, ur, vr, qx, qy, discs):
 @njit(inline="always")
 def _spatial_strains(r00, r01, r02, r10, r11, r12, r20, r21, r22, n0, n1, n2, m0, m1, m2, ca,
                      cg, ci, cj, u1r, u2r, v3r):
-    """The constitutive law in 3D, in scalars: from the directors (rows of R), the internal
-    force and moment (world frame) and the section's compliances and rest strains, the strains
-    in the body frame, v = (cg·n1, cg·n2, v3* + ca·n3) and u = (u1* + ci·m1, u2* + ci·m2,
-    cj·m3) with n, m in the body frame; returns (v0, v1, v2, u0, u1, u2)."""
+    """The constitutive law in 3D, in scalars: from R (given row by row; its columns are the
+    directors d1, d2, d3), the internal force and moment (world frame) and the section's
+    compliances and rest strains, the strains in the body frame, v = (cg·n1, cg·n2,
+    v3* + ca·n3) and u = (u1* + ci·m1, u2* + ci·m2, cj·m3) with n, m in the body frame;
+    returns (v0, v1, v2, u0, u1, u2)."""
     # Body-frame components (Rᵀ n, Rᵀ m).
     nb0 = r00 * n0 + r10 * n1 + r20 * n2
     nb1 = r01 * n0 + r11 * n1 + r21 * n2
@@ -717,7 +718,7 @@ def spatial_strains_into(rot, force, mom, rest, seg, ca, cg, ci, cj, strain_v, s
     """The body-frame strains of a spatial record by :func:`_spatial_strains`.
 
     Args:
-        rot: (N, 3, 3) frames (rows: directors). force, mom: (N, 3) internal force and moment
+        rot: (N, 3, 3) frames R (columns: the directors). force, mom: (N, 3) internal force and moment
             (N, N m; world frame). rest: (3, ns) rest strains. seg: (N,) section of each sample.
         ca, cg, ci, cj: (ns,) compliances 1/EA, 1/GA, 1/EI, 1/GJ.
         strain_v, strain_u: (N, 3) written: v and u.
