@@ -102,6 +102,24 @@ def _solver_kernels() -> None:
     solver.solve_batch(arm, np.stack([p, p * 0.5]), scene)
 
 
+def spatial_snap_kernels() -> list:
+    """A 3D contact ramp that snaps (a curl pressed on a stiff skew cylinder slides along it
+    past a fold) through the stepper: the general 3D contact path — its continuation, branch
+    switch and relaxation — and the stepper's adoption of its result, which random warm-up
+    episodes seldom reach (a 3D wrap's first snap otherwise compiled them inside a user's
+    episode: ~50 s). Returns the steps' reports."""
+    arm = solver.designs.octarm_v()
+    cylinder = solver.Cylinder((0.10460203587953945, -0.5475680762119925, 0.0),
+                               (0.28131600500456516, 0.3821969774030357, 0.8802197315399463),
+                               0.060812627916281614, 324467.14)
+    scene = solver.Scene(base_angle_deg=10.699935900401458, payload_kg=0.26209498971417583,
+                         obstacles=(cylinder,))
+    stepper = solver.Stepper(arm, scene, model="unshearable", planar=False)
+    stepper.reset(np.zeros(arm.n_inputs(False)))
+    return [stepper.step(np.array([0, 1, 1, 0, 1, 1, 0, 1, 1.0]) * arm.max_pressure * k / 7)
+            for k in range(1, 8)]
+
+
 def _episode(env, seed: int) -> None:
     rng = np.random.default_rng(seed)
     env.reset(seed=seed)
@@ -131,8 +149,9 @@ def warm_group(group: str) -> float:
 
     ``solver``: the solver's kernels on the named designs (cold, warm, spatial, batch);
     ``reach``, ``contact``, ``spatial_contact``: a short episode of each of their
-    :func:`cases`; ``batch``: the batched vector env (one-thread and parallel sizes) and both
-    batch kernels both ways (:func:`batch_kernels`).
+    :func:`cases` (``spatial_contact`` also a 3D ramp that snaps, :func:`spatial_snap_kernels`);
+    ``batch``: the batched vector env (one-thread and parallel sizes) and both batch kernels
+    both ways (:func:`batch_kernels`).
     """
     from softarm_gym.registry import make_unwrapped
 
@@ -158,6 +177,8 @@ def warm_group(group: str) -> float:
         for k, (env_id, kwargs) in enumerate(cases()):
             if group_of(env_id, kwargs) == group:
                 _episode(make_unwrapped(env_id, **kwargs), seed=k)
+        if group == "spatial_contact":
+            spatial_snap_kernels()
     return time.perf_counter() - start
 
 

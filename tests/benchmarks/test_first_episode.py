@@ -10,7 +10,7 @@ import pytest
 import softarm_gym  # noqa: F401
 from softarm_gym.benchmarks.first_episode import format_table, measure, run
 from softarm_gym.cli import main
-from softarm_gym.commands.warmup import GROUPS, batch_kernels, cases, group_of
+from softarm_gym.commands.warmup import GROUPS, batch_kernels, cases, group_of, spatial_snap_kernels
 from softarm_gym.registry import is_deprecated, latest, make, make_unwrapped, recommended_ids
 from softarm_gym.sensing import ESTIMATORS
 
@@ -67,6 +67,14 @@ def test_warmup_runs_bothbatch_kernels_both_ways():
     batch = batch_kernels()
     for kind, policy in batch.thread_policies.items():
         assert np.isfinite(policy.per_row_s).all(), (kind, policy.per_row_s)
+
+
+def test_warmup_takes_a_3d_contact_step_through_a_snap():
+    """The spatial_contact group's ramp reaches the general 3D contact path's branch switch
+    (a step that snaps), every step converged and stable: its kernels are compiled up front."""
+    reports = spatial_snap_kernels()
+    assert all(r.converged and r.stable for r in reports)
+    assert any(r.snapped for r in reports)
 
 
 def test_measure_times_the_first_and_the_steady_episodes():
