@@ -413,12 +413,13 @@ def free_step_gap(start, end, tangents, obstacles):
     accepted states is not straight; a step that leaves the obstacles' reach and comes back
     is not caught, and a warm step seldom does). One test for the stepper's kernel and the
     general path, so that they stay bit for bit."""
-    if tunnels_3d(start, end, obstacles, 0.0):
+    # A move that passes through an obstacle (no slack) also comes within the allowance of
+    # it: the no-slack test runs only where the one with the allowance has found a sample.
+    near = tunnels_3d(start, end, obstacles, -chord_allowance_3d(end, tangents))
+    if near and tunnels_3d(start, end, obstacles, 0.0):
         return -math.inf, False
     gap = min(smallest_clearance_3d(start, obstacles), smallest_clearance_3d(end, obstacles))
-    clear = chords_clear_3d(end, tangents, obstacles) and not tunnels_3d(
-        start, end, obstacles, -chord_allowance_3d(end, tangents))
-    return gap, clear
+    return gap, not near and chords_clear_3d(end, tangents, obstacles)
 
 
 # ----------------------------------------------------------------------------- friction
