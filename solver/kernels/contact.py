@@ -978,7 +978,7 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     Returns (converged, iterations, |F|, stable).
     """
     return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                         True, np.zeros(1, dtype=np.int64))
+                         True, np.zeros(1, dtype=np.int64), newton_work(Z.shape[0], grid))
 
 
 @njit
@@ -990,25 +990,35 @@ def probe(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     polish that failed after 48 iterations had stalled by its 22nd, none that converged ever
     had). Same returns."""
     return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                         False, np.zeros(1, dtype=np.int64))
+                         False, np.zeros(1, dtype=np.int64), newton_work(Z.shape[0], grid))
+
+
+@njit
+def newton_work(n, grid):
+    """The arrays :func:`damped_newton` works in, for ``n`` unknowns on ``grid``: (residual
+    (n,), band Jacobian (BAND_ROWS, n), segment maps (M, 6, 6), self-contact scratch
+    (:func:`new_partners`), the record of the converged state: one row, none)."""
+    return (np.empty(n), np.empty((BAND_ROWS, n)), np.empty((grid[G_SEGS].shape[0], 6, 6)),
+            new_partners(grid), np.empty((1, C_COLUMNS)))
 
 
 @njit
 def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                  past_kinks, differenced):
+                  past_kinks, differenced, work):
     """:func:`newton` (``past_kinks``: where no trial of the line search lowers the residual,
     go on from the smallest) or :func:`probe` (give up there, the state restored to the
     iteration's start); ``differenced`` (1,) counts the residual passes of the full
-    Jacobians formed (:func:`_coupled`). Same returns."""
+    Jacobians formed (:func:`_coupled`). ``work`` (:func:`newton_work`): on convergence its
+    residual, band Jacobian (not factored), segment maps and self-contact scratch are the
+    converged state's, and its record (if it has rows) that state's backbone, from the
+    pass the stability test needs anyway (a caller that would record and differentiate the
+    state again saves that pass: :func:`lean_step`). Same returns."""
     n = Z.shape[0]
-    F = np.empty(n)
+    F, J, blocks, partners, out = work
     F_try = np.empty(n)
-    J = np.empty((BAND_ROWS, n))
     piv = np.empty(n, dtype=np.int64)
-    blocks = np.empty((grid[G_SEGS].shape[0], 6, 6))
     base = np.empty(n)
     step = np.empty(n)
-    partners = new_partners(grid)
     dense = np.empty((n, n)) if partners[1].shape[0] else np.empty((0, 0))
     rubs = level[L_SELF_FRICTION].shape[0] > 0
     newton_system(Z, grid, rest, level, F, J, True, blocks, partners)
@@ -1019,8 +1029,9 @@ def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max
         if not math.isfinite(res):
             return False, it, math.inf, False
         if res <= tol:
-            if not fresh:
-                newton_system(Z, grid, rest, level, F, J, True, blocks, partners)
+            if not fresh or out.shape[0] > 1:
+                # (Where the Jacobian is Z's already, a residual pass records: the same numbers.)
+                recorded_system(Z, grid, rest, level, F, J, not fresh, blocks, partners, out)
             return True, it, res, stability_test(blocks) > 0.0
         if it == max_iter:
             break
@@ -1233,7 +1244,8 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
         ok, its, res, stable = damped_newton(Z, grid, rest, now, weights, res_weights,
                                              tol if final else 1e3 * tol,
                                              max_iter if final else 8, max_step,
-                                             friction or rubs, differenced)
+                                             friction or rubs, differenced,
+                                             newton_work(n, grid))
         total += its
         corr = 0.0
         pred = 0.0
@@ -1547,7 +1559,8 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     corrected by Broyden's updates of it (:func:`_broyden`), with damped Newton
     (:func:`newton`) only where those stall. The first try is the whole step: a small move
     is one prediction and a few corrections. Each accepted state gets its Jacobian,
-    stability test and backbone from one more pass (:func:`factor_state`), and the last
+    stability test and backbone from one more pass (:func:`factor_state`; a state Newton
+    reached, from Newton's last pass, which records it), and the last
     must be resolved by the RK4 grid (:func:`solver.kernels.grid.section_needs`, the
     general path's check). Where parts of the arm touch each other, a state reached by
     Broyden's corrections alone keeps the full factors of the state before (up to
@@ -1622,6 +1635,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     stable = False
     refused = 0
     differenced = np.zeros(1, dtype=np.int64)  # the passes of full Jacobians formed
+    converged = (F, spare[0], blocks, partners, new)  # (Newton's work, each call its own)
     for _ in range(LEAN_TRIES):
         if jacobians >= LEAN_JACOBIANS or differenced[0] >= LEAN_COLUMNS:
             break
@@ -1642,6 +1656,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
         predicted = False
         first = F
         quasi = ok  # converged without a Jacobian formed (the held full factors may serve)
+        newton_recorded = False
         if not ok and math.isfinite(res):
             ok, its, first = _broyden(Z, grid, rest, now, F, res_weights, goal, held, res,
                                       partners)
@@ -1649,10 +1664,16 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             predicted = True
             quasi = ok
             if not ok:
+                # Newton works in the accepted state's scratch: its converged state comes
+                # back recorded into ``new``, its band Jacobian and maps into ``spare`` and
+                # ``blocks`` (the pass the stability test needs), which the acceptance below
+                # then need not make again.
+                converged = (F, spare[0], blocks, new_partners(grid), new)
                 ok, its, res, stable = damped_newton(
                     Z, grid, rest, now, weights, res_weights, goal,
                     min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
-                    params[MAX_STEP], True, differenced)
+                    params[MAX_STEP], True, differenced, converged)
+                newton_recorded = ok
                 passes += its
                 jacobians += its + 1
                 if not ok:
@@ -1676,8 +1697,15 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
                 refused |= REFUSED_JUMP
         stable = False
         if ok:
-            regular = _factor_state(Z, grid, rest, now, weights, F, blocks, new, spare, held,
-                                    quasi, differenced)
+            if newton_recorded and not _touched(converged[3]):
+                # Newton's last pass recorded the state with its band Jacobian (the pass
+                # counted below, as the one it saves); parts that touch each other need the
+                # full Jacobian, which _factor_state forms (or keeps) from its own pass.
+                spare[4][0] = 0
+                regular = factor_band(spare[0], spare[1])
+            else:
+                regular = _factor_state(Z, grid, rest, now, weights, F, blocks, new, spare,
+                                        held, quasi, differenced)
             passes += 1
             jacobians += 1
             res = weighted_norm(F, res_weights)
