@@ -144,6 +144,65 @@ def test_self_touching_steps_keep_the_full_factors_and_equal_warm_solves():
     assert any(path == "lean contact" and age > 1 for path, age in ages), ages
 
 
+@pytest.mark.parametrize("name", ["wrap", "obstacles"])
+def test_a_lean_contact_step_keeps_the_record_and_band_factors_of_the_state_it_reached(name):
+    """After every lean contact step from contact — random absolute jumps, where Broyden's
+    corrections mostly fail and damped Newton converges the tries — the copy's record and
+    band LU factors are those of its state, bit for bit: what
+    :func:`solver.kernels.contact.factor_state` makes of the copy's nodes at its level. (The
+    acceptance takes them from Newton's last pass where Newton converged; they must not be a
+    nearby iterate's.)"""
+    from solver.inputs import checked_pressures
+    from solver.kernels import contact as contact_kernels
+    from solver.kernels import stepping
+    from solver.paths.lean_contact import ContactRows
+    from solver.problem import Problem, pack
+    from solver.rod import rest_strains_into
+
+    arm, scene, stepper = walked_stepper(name, 30)
+    settings = solver.Settings()
+    packed = pack(arm, "full", settings)
+    rows = ContactRows(Problem(arm, packed, scene, "full", True, settings,
+                               np.zeros(arm.n_inputs(True)), np.zeros(arm.n_channels)), 1,
+                       len(scene.obstacles))
+    rows.adopt(0, stepper.equilibrium)
+    contact = rows.contact
+    grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(30):
+        touching = bool(contact[stepping.CT_OK][0] and contact[stepping.CT_TOUCHING][0])
+        p_inputs = rng.uniform(0.0, 1.0, arm.n_inputs(True)) * arm.max_pressure
+        p_channel = checked_pressures(arm, p_inputs, True, packed)[1]
+        if not contact[stepping.CT_OK][0]:  # off the contact layout: hand the copy a solved state
+            rows.adopt(0, solver.solve(arm, p_inputs, scene))
+            continue
+        p_from = contact[stepping.CT_P][:1].copy()
+        report = rows.step(p_from, p_channel[None], np.ones(1, dtype=bool), None)[0]
+        if not report[0]:  # the general path's step: walk on from a solved state
+            rows.adopt(0, solver.solve(arm, p_inputs, scene))
+            continue
+        if not (touching and report[5] == stepping.PATH_CONTACT):
+            continue
+        level = (contact[stepping.CT_P][0], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
+                 contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][0],
+                 contact[stepping.CT_MU][0], contact[stepping.CT_FRICTION][0].copy(),
+                 contact[stepping.CT_SELF_FRICTION][0].copy())
+        rest = np.empty_like(contact[stepping.CT_REST][0])
+        rest_strains_into(level[L.L_P], packed.tubes_i, packed.tubes_f, packed.secf, rest)
+        nodes = contact[stepping.CT_NODES][0].copy()
+        record = np.empty_like(contact[stepping.CT_RECORDS][0])
+        factors = contact_kernels.new_factors(nodes.size, False)
+        blocks = np.empty((contact[stepping.CT_SEGS].shape[0], 6, 6))
+        assert contact_kernels.factor_state(nodes, grid, rest, level, contact[stepping.CT_WEIGHTS],
+                                            np.empty_like(nodes), blocks, record, factors)
+        np.testing.assert_array_equal(contact[stepping.CT_RECORDS][0], record)
+        np.testing.assert_array_equal(contact[stepping.CT_LU][0], factors[0])
+        np.testing.assert_array_equal(contact[stepping.CT_PIV][0], factors[1])
+        checked += 1
+    assert checked >= 5, checked
+
+
 def test_contact_record_columns_are_the_planar_record_columns():
     """What reads a planar record's backbone (the envs' true observations) reads a contact
     record's: the columns s … u share their places."""
