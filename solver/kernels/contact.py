@@ -997,7 +997,7 @@ def probe(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
 def newton_work(n, grid):
     """The arrays :func:`damped_newton` works in, for ``n`` unknowns on ``grid``: (residual
     (n,), band Jacobian (BAND_ROWS, n), segment maps (M, 6, 6), self-contact scratch
-    (:func:`new_partners`), the record of the converged state: one row, none)."""
+    (:func:`new_partners`), and the converged state's record (one row here: nothing recorded))."""
     return (np.empty(n), np.empty((BAND_ROWS, n)), np.empty((grid[G_SEGS].shape[0], 6, 6)),
             new_partners(grid), np.empty((1, C_COLUMNS)))
 
@@ -1635,7 +1635,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     stable = False
     refused = 0
     differenced = np.zeros(1, dtype=np.int64)  # the passes of full Jacobians formed
-    converged = (F, spare[0], blocks, partners, new)  # (Newton's work, each call its own)
+    newton_partners = partners  # (each Newton call gets its own, fresh)
     for _ in range(LEAN_TRIES):
         if jacobians >= LEAN_JACOBIANS or differenced[0] >= LEAN_COLUMNS:
             break
@@ -1668,11 +1668,12 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
                 # back recorded into ``new``, its band Jacobian and maps into ``spare`` and
                 # ``blocks`` (the pass the stability test needs), which the acceptance below
                 # then need not make again.
-                converged = (F, spare[0], blocks, new_partners(grid), new)
+                newton_partners = new_partners(grid)
                 ok, its, res, stable = damped_newton(
                     Z, grid, rest, now, weights, res_weights, goal,
                     min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
-                    params[MAX_STEP], True, differenced, converged)
+                    params[MAX_STEP], True, differenced,
+                    (F, spare[0], blocks, newton_partners, new))
                 newton_recorded = ok
                 passes += its
                 jacobians += its + 1
@@ -1697,7 +1698,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
                 refused |= REFUSED_JUMP
         stable = False
         if ok:
-            if newton_recorded and not _touched(converged[3]):
+            if newton_recorded and not _touched(newton_partners):
                 # Newton's last pass recorded the state with its band Jacobian (the pass
                 # counted below, as the one it saves); parts that touch each other need the
                 # full Jacobian, which _factor_state forms (or keeps) from its own pass.

@@ -35,7 +35,7 @@ from softarm_gym.benchmarks.friction_bench import (
 from solver import designs
 from solver import layout as L
 from solver.grasp import FreeObject
-from tests.solver.test_lean_contact import curl_walk
+from tests.solver.test_lean_contact import contact_level, curl_walk
 
 # ---------------------------------------------------------------------------- bad input
 
@@ -283,9 +283,7 @@ def test_self_contact_tracing_leaves_the_friction_samples_to_the_recording_pass(
     contact = rows.contact
     assert contact[stepping.CT_OK][0]
     grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
-    level = (contact[stepping.CT_P][0], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
-             contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][0], contact[stepping.CT_MU][0],
-             contact[stepping.CT_FRICTION][0], contact[stepping.CT_SELF_FRICTION][0])
+    level = contact_level(contact, 0)
     fs = level[L.L_FRICTION]
     assert np.any(np.isfinite(fs[..., L.FS_R]))  # samples near the disc
     before = fs.copy()

@@ -56,6 +56,16 @@ SCENES = {
 }
 
 
+def contact_level(contact, k):
+    """Copy k's level tuple (``layout.L_*``) from the contact tuple of a
+    :class:`solver.paths.lean_contact.ContactRows` (its arrays, not copies)."""
+    from solver.kernels import stepping
+
+    return (contact[stepping.CT_P][k], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
+            contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][k], contact[stepping.CT_MU][k],
+            contact[stepping.CT_FRICTION][k], contact[stepping.CT_SELF_FRICTION][k])
+
+
 def walked_stepper(name, steps):
     """(arm, scene, stepper): a stepper in ``SCENES[name]`` after the first ``steps``
     pressures of its curl walk (seed 7)."""
@@ -184,10 +194,7 @@ def test_a_lean_contact_step_keeps_the_record_and_band_factors_of_the_state_it_r
             continue
         if not (touching and report[5] == stepping.PATH_CONTACT):
             continue
-        level = (contact[stepping.CT_P][0], contact[stepping.CT_Q], contact[stepping.CT_PLATE],
-                 contact[stepping.CT_TARGET], contact[stepping.CT_DISCS][0],
-                 contact[stepping.CT_MU][0], contact[stepping.CT_FRICTION][0].copy(),
-                 contact[stepping.CT_SELF_FRICTION][0].copy())
+        level = contact_level(contact, 0)  # (frictionless scenes: no samples to record into)
         rest = np.empty_like(contact[stepping.CT_REST][0])
         rest_strains_into(level[L.L_P], packed.tubes_i, packed.tubes_f, packed.secf, rest)
         nodes = contact[stepping.CT_NODES][0].copy()
