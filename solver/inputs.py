@@ -139,6 +139,10 @@ def check_warm_start(warm_start, arm, scene, model, planar):
     if warm_start.scene.base_angle_deg != scene.base_angle_deg:
         raise ValueError(f"warm_start was solved at a different base angle "
                          f"({warm_start.scene.base_angle_deg:g} deg, not {scene.base_angle_deg:g})")
+    if warm_start.scene.obstacles == scene.obstacles:
+        # Nothing new (a stepper adopting its own result: every grasp env step), without
+        # building the frictionless copies below (two per obstacle, a twentieth of the step).
+        return
     # (An obstacle whose friction alone changed is the same obstacle: μ carries no geometry.)
     before = [replace(d, friction=0.0) for d in warm_start.scene.obstacles]
     new = [k for k, d in enumerate(scene.obstacles) if replace(d, friction=0.0) not in before]
