@@ -403,10 +403,14 @@ def _nodes_from_record(eq, grid, layout, segs, sec_start):
     """Node states (K, N_CSTATE) from a recorded spatial equilibrium at another resolution
     (:func:`solver.kernels.spatial_contact.nodes_from_record`)."""
     nodes = np.empty((segs.shape[0], L.N_CSTATE))
-    kernel.nodes_from_record(eq.s, eq.positions, eq.orientations, eq.internal_force,
-                             eq.internal_moment, section_rows(eq.section_ends),
-                             node_arcs(layout, segs, sec_start), segs[:, L.SEG_SECTION],
-                             grid[L.GS_QUAT0], nodes)
+    # Writable C arrays whatever their source (a stepper's read-only records, a column of the
+    # segment table): each other layout is a signature of its own, which `softarm warmup`
+    # does not compile (a 3D wrap planner's first episode compiled one, ~5 s, measured).
+    arrays = (eq.s, eq.positions, eq.orientations, eq.internal_force, eq.internal_moment)
+    kernel.nodes_from_record(*(np.require(a, requirements="CW") for a in arrays),
+                             section_rows(eq.section_ends), node_arcs(layout, segs, sec_start),
+                             np.ascontiguousarray(segs[:, L.SEG_SECTION]), grid[L.GS_QUAT0],
+                             nodes)
     return nodes
 
 

@@ -216,6 +216,40 @@ def test_out_of_reach_obstacle_takes_the_contact_free_solve():
     assert far.contact_force.shape == (far.s.size, 3) and not far.contact_force.any()
 
 
+def test_a_warm_start_at_another_resolution_loads_one_kernel_signature_whatever_its_arrays():
+    """A 3D contact solve from a warm start whose nodes do not fit the contact grid (another
+    resolution) takes its nodes from the warm start's record: read-only arrays (a stepper's)
+    and writable ones (a solve's) must reach the kernel as the same signature, or the one
+    ``softarm warmup`` compiled does not serve the other (a 3D wrap planner's first episode
+    compiled a second one). Both solves give the same state."""
+    from dataclasses import replace
+
+    from solver.kernels import spatial_contact
+
+    arm = designs.octarm_v()
+    cylinder = solver.Cylinder((0.10460203587953945, -0.5475680762119925, 0.0),
+                               (0.28131600500456516, 0.3821969774030357, 0.8802197315399463),
+                               0.060812627916281614, 324467.14)
+    scene = solver.Scene(base_angle_deg=10.7, payload_kg=0.26, obstacles=(cylinder,))
+    p = np.array([0, 1, 1, 0, 1, 1, 0, 1, 1.0]) * arm.max_pressure / 7
+    warm = solver.solve(arm, np.zeros(9), scene, model="unshearable", planar=False,
+                        settings=solver.Settings(steps_per_section=32))
+
+    def read_only(a):
+        a = a.copy()
+        a.flags.writeable = False
+        return a
+
+    frozen = replace(warm, **{name: read_only(getattr(warm, name)) for name in (
+        "s", "positions", "orientations", "internal_force", "internal_moment")})
+    results = [solver.solve(arm, p, scene, model="unshearable", planar=False, warm_start=start)
+               for start in (warm, frozen)]
+    assert warm.shooting_nodes.shape != results[0].shooting_nodes.shape  # (the record's branch)
+    assert all(eq.converged and eq.in_contact for eq in results)
+    np.testing.assert_array_equal(results[0].tip, results[1].tip)
+    assert len(spatial_contact.nodes_from_record.signatures) == 1
+
+
 @pytest.mark.parametrize("make, match", [
     (lambda: solver.Cylinder(axis=(0, 0, 0)), "axis.*nonzero"),
     (lambda: solver.Cylinder(point=(0, np.nan, 0)), "point"),
