@@ -1165,8 +1165,10 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     move longer than ``predict_cap`` in the weighted RMS norm is shortened to it) and no
     backbone sample tunnelled through a disc on the way (:func:`solver.kernels.obstacles.tunnels`:
     a penalty disc stops pushing once the backbone has crossed it, so a long step could
-    land beyond an obstacle that the quasi-static path runs into). No fold scan: if the step
-    falls below ``dt_min`` the last accepted state is returned, flagged unconverged.
+    land beyond an obstacle that the quasi-static path runs into). A refused step is halved
+    from the try it made (:func:`solver.kernels.homotopy.halved`); an accepted one doubles it,
+    unless a try failed since the last acceptance. No fold scan: if the step falls below
+    ``dt_min`` the last accepted state is returned, flagged unconverged.
 
     Returns (converged, iterations, |residual|, stable, t, dt): t the level reached (1 when
     converged) and dt the step that failed beyond it (0 if the start itself could not be
@@ -1226,6 +1228,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
     # correction is small in absolute terms — five or six converged steps thrown away.
     _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, slope)
     total += 1
+    failed = False  # a try since the last acceptance failed
     while t < 1.0:
         t_new = min(1.0, t + dt)
         _at_level(t_new, a, b, now, tubes_i, tubes_f, secf, rest)
@@ -1271,9 +1274,16 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
                     accepted[k] = Z[k]
                 rec_prev, rec_new = rec_new, rec_prev
                 t = t_new
-                dt = min(2.0 * dt, 1.0)
+                # Doubled after an acceptance, but kept after one that followed a failure:
+                # towards a fold the distance left halves with every acceptance, and the
+                # doubled try failed there every time (a try of 2h failed, then h, then h/2
+                # was accepted: a third of a fold's approach spent on tries bound to fail).
+                if not failed:
+                    dt = min(2.0 * dt, 1.0)
+                failed = False
                 continue
         if dt > dt_min:
+            failed = True
             dt = halved(dt, t_new - t, dt_min)
             continue
         break
