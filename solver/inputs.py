@@ -141,7 +141,8 @@ def check_warm_start(warm_start, arm, scene, model, planar):
                          f"({warm_start.scene.base_angle_deg:g} deg, not {scene.base_angle_deg:g})")
     if warm_start.scene.obstacles == scene.obstacles:
         # Nothing new (a stepper adopting its own result: every grasp env step), without
-        # building the frictionless copies below (two per obstacle, a twentieth of the step).
+        # building the frictionless copies below (two per obstacle: 6 % of a profiled grasp
+        # env step).
         return
     # (An obstacle whose friction alone changed is the same obstacle: μ carries no geometry.)
     before = [replace(d, friction=0.0) for d in warm_start.scene.obstacles]

@@ -1,12 +1,14 @@
 """Spatial contact: cylinders, spheres and discs in 3D (solver.kernels.spatial_contact)."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import solver
 from solver import designs
+from solver.kernels import spatial_contact
 from tests.solver.naive import solve_bvp_rod_on_obstacle
 
 
@@ -222,10 +224,6 @@ def test_a_warm_start_at_another_resolution_loads_one_kernel_signature_whatever_
     and writable ones (a solve's) must reach the kernel as the same signature, or the one
     ``softarm warmup`` compiled does not serve the other (a 3D wrap planner's first episode
     compiled a second one). Both solves give the same state."""
-    from dataclasses import replace
-
-    from solver.kernels import spatial_contact
-
     arm = designs.octarm_v()
     cylinder = solver.Cylinder((0.10460203587953945, -0.5475680762119925, 0.0),
                                (0.28131600500456516, 0.3821969774030357, 0.8802197315399463),
