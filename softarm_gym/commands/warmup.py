@@ -100,6 +100,22 @@ def _solver_kernels() -> None:
     solver.solve(arm, p * 1.1, scene, warm_start=eq)
     solver.solve(arm, np.array([20, 5, 0, 10, 0, 0, 0, 0, 0]) * solver.PSI, scene, planar=False)
     solver.solve_batch(arm, np.stack([p, p * 0.5]), scene)
+    planar_snap_kernels()
+
+
+def planar_snap_kernels() -> solver.Equilibrium:
+    """A cold planar contact solve that snaps clear of its disc and of the arm itself (OctArm V
+    horizontal, a disc below it, self-contact on): the general path's landing found by the fold
+    scan, whose clearance tests run from Python (:mod:`solver.paths.shooting`) and which the
+    warm-up's random episodes do not reach (one compiled on a user's first such snap after a
+    warm-up). Returns the solve."""
+    arm = solver.designs.octarm_v()
+    stiffness = 98061.91107846839
+    disc = solver.Disc((0.5700159379114514, -0.5864276060318443), 0.07517650045941565, stiffness)
+    scene = solver.Scene(base_angle_deg=90.0, self_contact=stiffness, obstacles=(disc,))
+    p = np.array([10022.412505394157, 643435.2292238332, 59174.79990378651, 582556.5226653588,
+                  253644.84076263456, 655707.2635570455])
+    return solver.solve(arm, p, scene)
 
 
 def spatial_snap_kernels() -> list:

@@ -10,7 +10,14 @@ import pytest
 import softarm_gym  # noqa: F401
 from softarm_gym.benchmarks.first_episode import format_table, measure, run
 from softarm_gym.cli import main
-from softarm_gym.commands.warmup import GROUPS, batch_kernels, cases, group_of, spatial_snap_kernels
+from softarm_gym.commands.warmup import (
+    GROUPS,
+    batch_kernels,
+    cases,
+    group_of,
+    planar_snap_kernels,
+    spatial_snap_kernels,
+)
 from softarm_gym.registry import is_deprecated, latest, make, make_unwrapped, recommended_ids
 from softarm_gym.sensing import ESTIMATORS
 
@@ -75,6 +82,20 @@ def test_warmup_takes_a_3d_contact_step_through_a_snap():
     reports = spatial_snap_kernels()
     assert all(r.converged and r.stable for r in reports)
     assert any(r.snapped for r in reports)
+
+
+def test_warmup_lands_a_planar_snap_by_the_fold_scan(monkeypatch):
+    """The solver group's cold solve snaps, and lands where the fold scan finds the new branch
+    clear of the disc and of the arm: that clearance test is called from Python, so the warm-up
+    compiles it only if the solve reaches it."""
+    from solver.kernels import planar
+
+    calls = []
+    clear_of = planar.clear_of
+    monkeypatch.setattr(planar, "clear_of", lambda *args: calls.append(args) or clear_of(*args))
+    eq = planar_snap_kernels()
+    assert eq.converged and eq.stable and eq.snapped
+    assert calls
 
 
 def test_measure_times_the_first_and_the_steady_episodes():
