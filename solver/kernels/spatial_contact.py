@@ -671,14 +671,16 @@ def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, ma
     As :func:`solver.kernels.contact.newton`: weighted RMS norms, steps clipped to ``max_step``
     and halved until the residual falls (at most 7 times: where it never falls, the last,
     smallest trial is taken, as the planar Newton takes it); a fresh Jacobian at every
-    iteration. ``tether``:
+    iteration, by the variational equations (:func:`tangent_system`'s: one pass where forward
+    differences take thirteen, the two agreeing to the RK4 truncation; a tether's springs
+    enter the node rows, outside the segment maps). ``tether``:
     see :func:`newton_system` (:data:`NO_TETHER`: none). Returns (converged, iterations, |F|,
     stable) — stable by the test of the untethered problem.
     """
     n = weights.shape[0]
     return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
                        max_step, tether, np.empty(n), np.empty((n, n)),
-                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_DIFFERENCES, True)
+                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL, True)
 
 
 @njit
@@ -690,7 +692,7 @@ def probe(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max
     n = weights.shape[0]
     return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
                        max_step, tether, np.empty(n), np.empty((n, n)),
-                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_DIFFERENCES, False)
+                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL, False)
 
 
 @njit
@@ -699,7 +701,7 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
     """:func:`newton` with its residual ``F`` (n,), Jacobian ``J`` (n, n) and segment maps
     ``blocks`` (K, 12, 12) in the caller's arrays — where it converges they hold those of
     the returned state — and its Jacobian formed as ``jacobian`` says (``JAC_DIFFERENCES``
-    or, untethered, ``JAC_VARIATIONAL``: :func:`_system`). ``past_kinks``: where no trial
+    or ``JAC_VARIATIONAL``: :func:`_system`). ``past_kinks``: where no trial
     lowers the residual, go on from the smallest (:func:`newton`) rather than give up
     (:func:`probe`)."""
     n = weights.shape[0]
@@ -732,9 +734,10 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
                 if res_try < res:
                     break
             alpha *= 0.5
-        # No trial lowered the residual: the Jacobian (forward differences) straddles a kink
-        # of the map — the penalty's at a contact's edge, the return mapping's at a slipping
-        # sample — and its direction is no descent direction there. Newton goes on from the
+        # No trial lowered the residual: the Jacobian holds one side of a kink of the map
+        # (forward differences may straddle it) — the penalty's at a contact's edge, the
+        # return mapping's at a slipping sample — and its direction is no descent direction
+        # there. Newton goes on from the
         # smallest trial with a Jacobian formed on its side of the kink; stopping here stalled
         # the 3D capstan at a residual of 1e-7 and snapped it (docs/design.md §9.1).
         if not math.isfinite(res_try) or not (past_kinks or res_try < res):
