@@ -249,12 +249,14 @@ def _critical_mode(nodes, grid, rest, level, terms):
 
 
 # Proximal relaxation (see _relax): iterations, the first spring (the force scale per
-# RELAX_START of the arm's length), the move under which the springs slacken, and how far
-# they slacken before the arm is let go.
+# RELAX_START of the arm's length), the move under which the springs slacken, how far they
+# slacken before the arm is let go, and how far the springs' pull may change from one
+# iteration to the next where they slacken as the arm slides on.
 RELAX_STEPS = 400
 RELAX_START = 1e-3
 RELAX_MOVE = 1e-3
 RELAX_END = 1e-6
+RELAX_STRAIGHT = 0.1
 
 
 def _relax(nodes, grid, layout, level, terms, settings):
@@ -264,16 +266,18 @@ def _relax(nodes, grid, layout, level, terms, settings):
     solved by Newton, and the anchors move there. The springs are conservative, so each
     iteration lowers the arm's energy: it follows its energy downhill, as a damped arm
     does. k starts stiff (the force scale per RELAX_START of the length); it slackens
-    fourfold while the arm moves less than RELAX_MOVE of its length per iteration, and
-    stiffens fourfold where Newton fails or a node would pass through an obstacle. Below
-    RELAX_END of its start the arm is let go: the untethered Newton must land on a stable
-    state. Returns the nodes or None."""
+    fourfold while the arm moves less than RELAX_MOVE of its length per iteration, halves
+    while it slides on at an even pace (the springs' pull within RELAX_STRAIGHT of the last
+    iteration's), and stiffens fourfold where Newton fails or a node would pass through an
+    obstacle. Below RELAX_END of its start the arm is let go: the untethered Newton must
+    land on a stable state. Returns the nodes or None."""
     weights, res_weights, scales = terms[2:]
     rest = np.empty((3, layout.secf.shape[1]))
     _level_rest(level, layout, rest)
     start = scales[L.CT_N] / (RELAX_START * scales[L.CT_R])
     stiffness = start
     state = nodes.copy()
+    last_pull = None
     for _ in range(RELAX_STEPS):
         anchors = state[:, L.CS_R:L.CS_R + 3].copy()
         trial = state.copy()
@@ -285,9 +289,20 @@ def _relax(nodes, grid, layout, level, terms, settings):
             if stiffness > start / RELAX_END:
                 return None
             continue
-        move = float(np.abs(trial[:, L.CS_R:L.CS_R + 3] - anchors).max())
+        # The springs' pull (N per node: k times the move) is the energy's downhill force at
+        # the new state, so an iteration is an implicit Euler step of the arm's gradient flow,
+        # of time step 1/k. Where the pull keeps within RELAX_STRAIGHT of the last one the flow
+        # runs straight at an even pace, and a step twice as long still follows it (a
+        # snap's arm crept ~1 mm an iteration for 250 of them, just over RELAX_MOVE).
+        pull = stiffness * (trial[:, L.CS_R:L.CS_R + 3] - anchors)
+        move = float(np.abs(pull).max()) / stiffness
         state = trial
-        if move < RELAX_MOVE * scales[L.CT_R]:
+        even = last_pull is not None and \
+            float(np.abs(pull - last_pull).max()) <= RELAX_STRAIGHT * stiffness * move
+        last_pull = pull
+        if even and move >= RELAX_MOVE * scales[L.CT_R]:
+            stiffness = max(0.5 * stiffness, RELAX_END * start)
+        elif move < RELAX_MOVE * scales[L.CT_R]:
             stiffness *= 0.25
             if stiffness < RELAX_END * start:
                 final = state.copy()
