@@ -144,9 +144,11 @@ def run_worker(job: dict) -> dict:
     raise ValueError(f"unknown job kind {kind!r}; choose ratios or planner")
 
 
-def in_tree(tree: Path, job: dict, numba_threads: int | None) -> dict:
-    """``job`` (:func:`run_worker`'s) run by this file in a fresh interpreter that imports
-    ``tree``'s packages (``PYTHONPATH=tree``, working directory ``tree``); its result.
+def in_tree(tree: Path, job: dict, numba_threads: int | None, script: Path | None = None) -> dict:
+    """``job`` (:func:`run_worker`'s) run by this file (or by ``script``, another module of this
+    tree with a ``--worker`` mode that reads a job on stdin and prints its result's JSON last) in
+    a fresh interpreter that imports ``tree``'s packages (``PYTHONPATH=tree``, working directory
+    ``tree``); its result, which names the ``module`` it imported ``softarm_gym`` from.
 
     Raises:
         RuntimeError: the job failed, or ``softarm_gym`` came from elsewhere than ``tree``.
@@ -155,7 +157,7 @@ def in_tree(tree: Path, job: dict, numba_threads: int | None) -> dict:
     if numba_threads:
         env["NUMBA_NUM_THREADS"] = str(numba_threads)
     code = ("import runpy, sys; sys.argv = ['side_by_side', '--worker']; "
-            f"runpy.run_path({str(Path(__file__).resolve())!r}, run_name='__main__')")
+            f"runpy.run_path({str(Path(script or __file__).resolve())!r}, run_name='__main__')")
     done = subprocess.run([sys.executable, "-c", code], input=json.dumps(job), cwd=tree, env=env,
                           capture_output=True, text=True)
     if done.returncode != 0:
@@ -166,7 +168,8 @@ def in_tree(tree: Path, job: dict, numba_threads: int | None) -> dict:
     return result
 
 
-def _commit(tree: Path) -> str:
+def commit_of(tree: Path) -> str:
+    """The last commit of the checkout at ``tree``: short hash and subject."""
     return subprocess.run(["git", "-C", str(tree), "log", "-1", "--format=%h %s"], capture_output=True,
                           text=True, check=True).stdout.strip()
 
@@ -212,7 +215,7 @@ def run(before: Path, rounds: int = 3, n_steps: int = 300, episodes: int = 3, ca
     cases = [list(c) for c in (cases or [c for c in CONTACT_RATIO_CASES if "friction" not in c[2]])]
     planner_kwargs = dict(planner_kwargs or PLANNER_KWARGS)
     seeds = list(range(episodes))
-    out = {"after": _commit(ROOT), "before": _commit(before), "rounds": rounds,
+    out = {"after": commit_of(ROOT), "before": commit_of(before), "rounds": rounds,
            "numba_threads": numba_threads or "numba default", "load_before": os.getloadavg()}
     ratio_runs = {side: [] for side in trees}
     plan_runs = {side: {env_id: [] for env_id in planner_ids} for side in trees}

@@ -1,0 +1,209 @@
+"""The general path's steps, captured from seeded episodes and replayed side by side with an
+earlier commit.
+
+A contact env's steps mostly take a stepper's lean paths; the few its lean paths refuse (snaps,
+mostly) go to the general path and cost tens to hundreds of times as much. Their share of an
+episode's time is too small and too noisy to resolve a change to them at the env level on a
+shared machine, so they are measured on their own:
+
+* ``capture`` takes seeded random-action steps (``gym.make``, reset with the seed and the
+  action space seeded with it; a new episode, unseeded, where one ends) and keeps, for every
+  step whose ``Stepper.last_path`` was ``"general"``, the env's stepper as it stood before the
+  step (pickled) and the step's pressures;
+* ``replay`` steps each kept stepper again, in this tree and in ``--before`` (a checkout of the
+  commit before), alternately in fresh processes (:func:`softarm_gym.benchmarks.side_by_side.in_tree`),
+  and reports per step its milliseconds (median over rounds), ``StepReport.iterations``,
+  flags and tip, and where the two trees' landings differ::
+
+    python -m softarm_gym.benchmarks.general_steps capture --ids SoftArm/OctArmWrap3D-v0 \\
+        --seeds 0-5 --steps 300 --out steps.pkl
+    python -m softarm_gym.benchmarks.general_steps replay steps.pkl --before PATH --rounds 3 \\
+        --json OUT.json
+
+The capture file holds pickles: replay only files you made (unpickling runs code). Both trees
+must unpickle this tree's steppers (the class's state unchanged between them). This file also
+runs inside the other tree's interpreter (``--worker``): its module level imports nothing from
+``softarm_gym``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pickle
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def capture(env_ids, seeds, n_steps: int, progress=None) -> list[dict]:
+    """The general steps among ``n_steps`` seeded random-action steps per seed and id (a new
+    episode where one ends): per such step its ``id``, ``seed``, ``step`` (index from the
+    seeded reset), ``stepper`` (pickled, as it stood before the step) and ``pressures`` (the
+    step's inputs, Pa)."""
+    import gymnasium as gym
+
+    import softarm_gym  # noqa: F401  (registers the ids)
+
+    kept = []
+    for env_id in env_ids:
+        env = gym.make(env_id)
+        for seed in seeds:
+            env.reset(seed=seed)
+            env.action_space.seed(seed)
+            for step in range(n_steps):
+                before = pickle.dumps(env.unwrapped.stepper)
+                _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+                stepper = env.unwrapped.stepper
+                if stepper.last_path == "general":
+                    kept.append({"id": env_id, "seed": seed, "step": step, "stepper": before,
+                                 "pressures": stepper.pressures.copy()})
+                if terminated or truncated:
+                    env.reset()
+            if progress:
+                progress(f"{env_id} seed {seed}: {len(kept)} general steps so far")
+        env.close()
+    return kept
+
+
+def replay(steps: list[dict]) -> dict:
+    """Each captured step taken again from its pickled stepper: per step ``ms``, ``iterations``,
+    ``converged``, ``stable``, ``snapped`` and ``tip`` (m); and ``module`` (where
+    ``softarm_gym`` came from)."""
+    import softarm_gym
+
+    rows = []
+    for kept in steps:
+        stepper = pickle.loads(kept["stepper"])
+        start = time.perf_counter()
+        report = stepper.step(kept["pressures"])
+        seconds = time.perf_counter() - start
+        eq = stepper.equilibrium
+        rows.append({"case": f"{kept['id']} seed {kept['seed']} step {kept['step']}",
+                     "ms": 1e3 * seconds, "iterations": int(report.iterations),
+                     "converged": bool(report.converged), "stable": bool(eq.stable),
+                     "snapped": bool(eq.snapped), "path": stepper.last_path,
+                     "tip": [float(x) for x in eq.tip]})
+    return {"rows": rows, "module": softarm_gym.__file__}
+
+
+def run(capture_file: Path, before: Path, rounds: int = 3, progress=None) -> dict:
+    """:func:`replay` of ``capture_file`` in this tree (``after``) and ``before``, rounds
+    alternating (this tree first in even rounds). Returns per step the median ms of each tree,
+    both trees' iterations, flags and the largest difference between their tips (m); totals."""
+    from softarm_gym.benchmarks.side_by_side import commit_of, in_tree
+
+    if rounds < 1:
+        raise ValueError(f"rounds must be >= 1; got {rounds}")
+    before = Path(before).resolve()
+    if not (before / "softarm_gym" / "__init__.py").is_file():
+        raise ValueError(f"--before {before} is not a softarm-gym checkout (no softarm_gym/__init__.py)")
+    trees = {"after": ROOT, "before": before}
+    job = {"capture": str(Path(capture_file).resolve())}
+    runs = {side: [] for side in trees}
+    for r in range(rounds):
+        for side in (("after", "before") if r % 2 == 0 else ("before", "after")):
+            runs[side].append(in_tree(trees[side], dict(job), None, script=Path(__file__))["rows"])
+            if progress:
+                progress(f"round {r + 1} of {rounds}: {side} done")
+    rows = []
+    for k, first in enumerate(runs["after"][0]):
+        other = runs["before"][0][k]
+        rows.append({"case": first["case"],
+                     **{f"ms_{side}": statistics.median(run_[k]["ms"] for run_ in runs[side])
+                        for side in trees},
+                     **{f"{key}_{side}": runs[side][0][k][key] for side in trees
+                        for key in ("iterations", "converged", "stable", "snapped")},
+                     "tip_difference_m": max(abs(a - b) for a, b in zip(first["tip"], other["tip"]))})
+    totals = {f"ms_{side}": sum(row[f"ms_{side}"] for row in rows) for side in trees}
+    totals.update({f"iterations_{side}": sum(row[f"iterations_{side}"] for row in rows) for side in trees})
+    totals["largest_tip_difference_m"] = max((row["tip_difference_m"] for row in rows), default=0.0)
+    totals["same_flags"] = sum(all(row[f"{key}_after"] == row[f"{key}_before"]
+                                   for key in ("converged", "stable", "snapped")) for row in rows)
+    return {"after": commit_of(ROOT), "before": commit_of(before), "rounds": rounds,
+            "steps": len(rows), "rows": rows, "totals": totals, "load": os.getloadavg()}
+
+
+def format_table(result: dict) -> str:
+    """The replay as a text table: one line per step, then the totals."""
+    lines = [f"{'step':<46} {'ms before':>9} {'ms after':>9} {'its before':>10} {'its after':>9} "
+             f"{'tip diff (m)':>12}"]
+    for row in result["rows"]:
+        lines.append(f"{row['case']:<46} {row['ms_before']:9.0f} {row['ms_after']:9.0f} "
+                     f"{row['iterations_before']:10d} {row['iterations_after']:9d} "
+                     f"{row['tip_difference_m']:12.1e}")
+    t = result["totals"]
+    lines.append(f"{'total':<46} {t['ms_before']:9.0f} {t['ms_after']:9.0f} "
+                 f"{t['iterations_before']:10d} {t['iterations_after']:9d} "
+                 f"{t['largest_tip_difference_m']:12.1e}")
+    lines.append(f"same converged/stable/snapped flags on {t['same_flags']} of {result['steps']} steps")
+    return "\n".join(lines)
+
+
+def _seeds(text: str) -> list[int]:
+    """``"0-5"`` or ``"0,3,7"`` as a list of seeds."""
+    if "-" in text:
+        low, high = (int(x) for x in text.split("-", 1))
+        return list(range(low, high + 1))
+    return [int(x) for x in text.split(",")]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m softarm_gym.benchmarks.general_steps",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    sub = parser.add_subparsers(dest="command")
+    cap = sub.add_parser("capture", help="keep the general steps of seeded episodes")
+    cap.add_argument("--ids", required=True, help="comma-separated env ids")
+    cap.add_argument("--seeds", default="0-2", help="episode seeds: 0-5 or 0,3,7 (default 0-2)")
+    cap.add_argument("--steps", type=int, default=300, help="steps per seed (default 300)")
+    cap.add_argument("--out", type=Path, required=True, help="the capture file (a pickle)")
+    rep = sub.add_parser("replay", help="replay a capture here and in --before, side by side")
+    rep.add_argument("capture", type=Path, help="a file written by capture")
+    rep.add_argument("--before", type=Path, required=True, help="root of the other checkout")
+    rep.add_argument("--rounds", type=int, default=3, help="alternating rounds (default 3)")
+    rep.add_argument("--json", type=Path, default=None, help="also write the result to this file")
+    args = parser.parse_args(argv)
+    if args.worker:
+        job = json.loads(sys.stdin.read())
+        with open(job["capture"], "rb") as f:
+            print(json.dumps(replay(pickle.load(f))))
+        return 0
+    say = lambda m: print(f"[general_steps] {m}", file=sys.stderr, flush=True)  # noqa: E731
+    if args.command == "capture":
+        if args.steps < 1:
+            parser.error("--steps must be >= 1")
+        try:
+            seeds = _seeds(args.seeds)
+        except ValueError:
+            parser.error(f"--seeds {args.seeds!r}: give a range like 0-5 or a list like 0,3,7")
+        kept = capture(args.ids.split(","), seeds, args.steps, progress=say)
+        with open(args.out, "wb") as f:
+            pickle.dump(kept, f)
+        say(f"{len(kept)} general steps written to {args.out}")
+        return 0
+    if args.command != "replay":
+        parser.error("choose capture or replay")
+    if not args.capture.is_file():
+        parser.error(f"no capture file {args.capture}")
+    try:
+        result = run(args.capture, args.before, args.rounds, progress=say)
+    except ValueError as exc:
+        parser.error(str(exc))
+    result["command"] = (f"python -m softarm_gym.benchmarks.general_steps replay {args.capture} "
+                         f"--before <checkout of the commit before> --rounds {args.rounds}")
+    result["date"] = time.strftime("%Y-%m-%d")
+    print(format_table(result))
+    if args.json:
+        from softarm_gym.files import write_json
+
+        write_json(args.json, result)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,58 @@
+"""The general steps' side-by-side benchmark: a capture keeps the general steps of seeded
+episodes, and a replay takes each again from its stepper, as the episode took it."""
+
+import pickle
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from softarm_gym.benchmarks import general_steps, side_by_side
+
+ROOT = Path(__file__).resolve().parents[2]
+# CTWrap3D-v0, seed 3: its 36th random step snaps and goes to the general path.
+CASE = ("SoftArm/CTWrap3D-v0", 3, 36)
+
+
+@pytest.fixture(scope="module")
+def kept():
+    env_id, seed, n_steps = CASE
+    return general_steps.capture([env_id], [seed], n_steps)
+
+
+def test_a_capture_keeps_the_general_steps_and_a_replay_takes_them_as_the_episode_did(kept):
+    env_id, seed, n_steps = CASE
+    assert [(k["id"], k["seed"]) for k in kept] == [(env_id, seed)] * len(kept) and kept
+    env = gym.make(env_id)
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    tips = {}
+    for step in range(n_steps):
+        env.step(env.action_space.sample())
+        tips[step] = env.unwrapped.stepper.tip.copy()
+    result = general_steps.replay(pickle.loads(pickle.dumps(kept)))
+    assert result["module"].startswith(str(ROOT))
+    for k, row in zip(kept, result["rows"]):
+        assert row["path"] == "general" and row["iterations"] > 0
+        np.testing.assert_array_equal(row["tip"], tips[k["step"]])
+
+
+def test_a_replay_runs_in_the_tree_it_is_sent_to(kept, tmp_path):
+    capture = tmp_path / "steps.pkl"
+    capture.write_bytes(pickle.dumps(kept[:1]))
+    result = side_by_side.in_tree(ROOT, {"capture": str(capture)}, None,
+                                  script=Path(general_steps.__file__))
+    assert result["module"].startswith(str(ROOT)) and len(result["rows"]) == 1
+
+
+def test_the_other_tree_must_be_a_checkout(tmp_path, capsys):
+    capture = tmp_path / "steps.pkl"
+    capture.write_bytes(pickle.dumps([]))
+    with pytest.raises(SystemExit):
+        general_steps.main(["replay", str(capture), "--before", str(tmp_path)])
+    assert "not a softarm-gym checkout" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        general_steps.main(["capture", "--ids", "SoftArm/CTWrap3D-v0", "--seeds", "x", "--out",
+                            str(capture)])
+    assert "--seeds 'x'" in capsys.readouterr().err
