@@ -786,7 +786,9 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     by Newton first; a step is accepted if Newton converges on a stable state with a
     correction small against the secant prediction and no sample tunnelled through an
     obstacle (:func:`solver.kernels.obstacles.tunnels_3d`); otherwise it is halved, down to
-    ``dt_min``. No fold is passed: the last accepted state is then returned, unconverged.
+    ``dt_min`` (a try short of the last level whose line search stalls is given up there,
+    without friction). No fold is passed: the last accepted state is then returned,
+    unconverged.
 
     Returns (converged, iterations, |residual|, stable, t): ``Z`` holds the returned state,
     ``now`` its level and ``rest`` its rest strains.
@@ -814,6 +816,9 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     slope = np.zeros(n)
     guess = np.empty_like(Z)
     moved = np.empty(n)
+    F = np.empty(n)
+    J = np.empty((n, n))
+    blocks = np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT))
     if has_obstacles:
         record(Z, grid, rest, now, rec_prev)
         if friction:  # the start, corrected, is the path's first accepted state
@@ -826,9 +831,16 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
         retract(accepted, slope, t_new - t, guess)
         Z[:, :] = guess
         final = t_new >= 1.0
-        ok, its, res, stable = newton(Z, grid, rest, now, weights, res_weights, scales,
-                                      tol if final else 1e3 * tol, max_iter if final else 8,
-                                      max_step, NO_TETHER)
+        # A try whose line search stalls is given up there and the step halved, as the
+        # planar path's are (solver.kernels.contact._path): on 45 general steps of the 3D
+        # wraps no stalled try went on to be accepted (every landing the same to the last
+        # bit), and a stalled iteration spends eight residual passes. Not with friction, nor
+        # at the last level: there Newton must go past the kinks (the 3D capstan,
+        # docs/design.md §9.1).
+        ok, its, res, stable = newton_into(
+            Z, grid, rest, now, weights, res_weights, scales, tol if final else 1e3 * tol,
+            max_iter if final else 8, max_step, NO_TETHER, F, J, blocks, JAC_VARIATIONAL,
+            friction or final)
         total += its
         _between(Z, guess, moved)
         corr = weighted_norm(moved, weights)
