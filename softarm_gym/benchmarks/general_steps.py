@@ -40,11 +40,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def capture(env_ids, seeds, n_steps: int, progress=None) -> list[dict]:
+def capture(env_ids, seeds, n_steps: int, progress=None, path: str = "general") -> list[dict]:
     """The general steps among ``n_steps`` seeded random-action steps per seed and id (a new
     episode where one ends): per such step its ``id``, ``seed``, ``step`` (index from the
     seeded reset), ``stepper`` (pickled, as it stood before the step) and ``pressures`` (the
-    step's inputs, Pa)."""
+    step's inputs, Pa). ``path``: keep the steps of that ``Stepper.last_path`` instead (e.g.
+    ``"lean contact"``)."""
     import gymnasium as gym
 
     import softarm_gym  # noqa: F401  (registers the ids)
@@ -59,13 +60,13 @@ def capture(env_ids, seeds, n_steps: int, progress=None) -> list[dict]:
                 before = pickle.dumps(env.unwrapped.stepper)
                 _, _, terminated, truncated, _ = env.step(env.action_space.sample())
                 stepper = env.unwrapped.stepper
-                if stepper.last_path == "general":
+                if stepper.last_path == path:
                     kept.append({"id": env_id, "seed": seed, "step": step, "stepper": before,
                                  "pressures": stepper.pressures.copy()})
                 if terminated or truncated:
                     env.reset()
             if progress:
-                progress(f"{env_id} seed {seed}: {len(kept)} general steps so far")
+                progress(f"{env_id} seed {seed}: {len(kept)} {path} steps so far")
         env.close()
     return kept
 
@@ -162,6 +163,8 @@ def main(argv=None) -> int:
     cap.add_argument("--seeds", default="0-2", help="episode seeds: 0-5 or 0,3,7 (default 0-2)")
     cap.add_argument("--steps", type=int, default=300, help="steps per seed (default 300)")
     cap.add_argument("--out", type=Path, required=True, help="the capture file (a pickle)")
+    cap.add_argument("--path", default="general",
+                     help="keep the steps of this Stepper.last_path (default general)")
     rep = sub.add_parser("replay", help="replay a capture here and in --before, side by side")
     rep.add_argument("capture", type=Path, help="a file written by capture")
     rep.add_argument("--before", type=Path, required=True, help="root of the other checkout")
@@ -181,10 +184,10 @@ def main(argv=None) -> int:
             seeds = _seeds(args.seeds)
         except ValueError:
             parser.error(f"--seeds {args.seeds!r}: give a range like 0-5 or a list like 0,3,7")
-        kept = capture(args.ids.split(","), seeds, args.steps, progress=say)
+        kept = capture(args.ids.split(","), seeds, args.steps, progress=say, path=args.path)
         with open(args.out, "wb") as f:
             pickle.dump(kept, f)
-        say(f"{len(kept)} general steps written to {args.out}")
+        say(f"{len(kept)} {args.path} steps written to {args.out}")
         return 0
     if args.command != "replay":
         parser.error("choose capture or replay")

@@ -1,4 +1,4 @@
-"""The general steps' side-by-side benchmark: a capture keeps the general steps of seeded
+"""The general steps' side-by-side benchmark: a capture keeps the general (or other) steps of seeded
 episodes, and a replay takes each again from its stepper, as the episode took it."""
 
 import pickle
@@ -56,3 +56,9 @@ def test_the_other_tree_must_be_a_checkout(tmp_path, capsys):
         general_steps.main(["capture", "--ids", "SoftArm/CTWrap3D-v0", "--seeds", "x", "--out",
                             str(capture)])
     assert "--seeds 'x'" in capsys.readouterr().err
+
+
+def test_a_capture_keeps_the_steps_of_the_path_it_is_given():
+    env_id, seed, n_steps = CASE
+    kept = general_steps.capture([env_id], [seed], 12, path="lean contact")
+    assert kept and {row["path"] for row in general_steps.replay(kept)["rows"]} == {"lean contact"}
