@@ -9,7 +9,8 @@ shared machine, so they are measured on their own:
 * ``capture`` takes seeded random-action steps (``gym.make``, reset with the seed and the
   action space seeded with it; a new episode, unseeded, where one ends) and keeps, for every
   step whose ``Stepper.last_path`` was ``"general"``, the env's stepper as it stood before the
-  step (pickled) and the step's pressures;
+  step (pickled) and the step's pressures (``--path`` keeps another path's steps instead, e.g.
+  ``"lean contact"``);
 * ``replay`` steps each kept stepper again, in this tree and in ``--before`` (a checkout of the
   commit before), alternately in fresh processes (:func:`softarm_gym.benchmarks.side_by_side.in_tree`),
   and reports per step its milliseconds (median over rounds), ``StepReport.iterations``,
@@ -197,14 +198,11 @@ def main(argv=None) -> int:
         result = run(args.capture, args.before, args.rounds, progress=say)
     except ValueError as exc:
         parser.error(str(exc))
-    result["command"] = (f"python -m softarm_gym.benchmarks.general_steps replay {args.capture} "
-                         f"--before <checkout of the commit before> --rounds {args.rounds}")
-    result["date"] = time.strftime("%Y-%m-%d")
-    print(format_table(result))
-    if args.json:
-        from softarm_gym.files import write_json
+    from softarm_gym.benchmarks.side_by_side import publish
 
-        write_json(args.json, result)
+    publish(result, f"python -m softarm_gym.benchmarks.general_steps replay {args.capture} "
+            f"--before <checkout of the commit before> --rounds {args.rounds}"
+            + (f" --json {args.json}" if args.json else ""), format_table, args.json)
     return 0
 
 

@@ -342,14 +342,20 @@ def main(argv=None) -> int:
     command += (f" --only {args.only}" if args.only else "") + \
         (f" --cases {args.cases}" if args.cases else "") + \
         (f" --numba-threads {args.numba_threads}" if args.numba_threads else "")
-    result["command"] = command + (f" --json {args.json}" if args.json else "")
-    result["date"] = time.strftime("%Y-%m-%d")
-    print(format_table(result))
-    if args.json:
-        from softarm_gym.files import write_json
-
-        write_json(args.json, result)
+    publish(result, command + (f" --json {args.json}" if args.json else ""), format_table, args.json)
     return 0
+
+
+def publish(result: dict, command: str, table, path: Path | None) -> None:
+    """Stamp ``result`` with the ``command`` that produced it and today's date, print
+    ``table(result)`` and, given a ``path``, write the result there (strict JSON)."""
+    from softarm_gym.files import write_json
+
+    result["command"] = command
+    result["date"] = time.strftime("%Y-%m-%d")
+    print(table(result))
+    if path:
+        write_json(path, result)
 
 
 if __name__ == "__main__":
