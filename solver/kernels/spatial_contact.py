@@ -737,9 +737,9 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
         # No trial lowered the residual: the Jacobian holds one side of a kink of the map
         # (forward differences may straddle it) — the penalty's at a contact's edge, the
         # return mapping's at a slipping sample — and its direction is no descent direction
-        # there. Newton goes on from the
-        # smallest trial with a Jacobian formed on its side of the kink; stopping here stalled
-        # the 3D capstan at a residual of 1e-7 and snapped it (docs/design.md §9.1).
+        # there. Newton goes on from the smallest trial with a Jacobian formed on its side of
+        # the kink; stopping here stalled the 3D capstan at a residual of 1e-7 and snapped it
+        # (docs/design.md §9.1).
         if not math.isfinite(res_try) or not (past_kinks or res_try < res):
             Z[:, :] = base
             return False, it + 1, res, False
