@@ -54,7 +54,6 @@ import argparse
 import contextlib
 import json
 import os
-import re
 import shlex
 import shutil
 import signal
@@ -77,7 +76,12 @@ from baselines.config import (
     split_hyperparams,
 )
 from baselines.train import CONFIG_FILE, check_counts, latest_checkpoint, resume, train
-from softarm_gym.commands.common import add_numba_threads_argument, add_quiet_argument, apply_numba_threads
+from softarm_gym.commands.common import (
+    add_numba_threads_argument,
+    add_quiet_argument,
+    apply_numba_threads,
+    parse_seeds,
+)
 from softarm_gym.files import write_json
 from softarm_gym.jobs import (
     BACKENDS,
@@ -137,19 +141,6 @@ class RunSpec:
         """The run folder's name: ``<algo>_<env>[_<observation>]_s<seed>``."""
         observation = "" if self.observation == "true" else f"_{self.observation}"
         return f"{self.algo}_{self.env_id.split('/')[-1]}{observation}_s{self.seed}"
-
-
-def parse_seeds(text: str) -> list[int]:
-    """``"0-9"``, ``"0,3,5"`` or ``"0-4,10"`` → sorted distinct seeds (integers >= 0)."""
-    seeds = set()
-    for part in str(text).split(","):
-        match = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", part)
-        if not match or (match.group(2) is not None and int(match.group(2)) < int(match.group(1))):
-            raise ValueError(f"--seeds {text!r}: expected seeds >= 0 and ranges A-B with A <= B, "
-                             "separated by commas (e.g. 0-9 or 0,3,5)")
-        first = int(match.group(1))
-        seeds.update(range(first, int(match.group(2) or first) + 1))
-    return sorted(seeds)
 
 
 def _names(text: str, choices, what: str) -> list[str]:

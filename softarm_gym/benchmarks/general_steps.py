@@ -146,14 +146,6 @@ def format_table(result: dict) -> str:
     return "\n".join(lines)
 
 
-def _seeds(text: str) -> list[int]:
-    """``"0-5"`` or ``"0,3,7"`` as a list of seeds."""
-    if "-" in text:
-        low, high = (int(x) for x in text.split("-", 1))
-        return list(range(low, high + 1))
-    return [int(x) for x in text.split(",")]
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m softarm_gym.benchmarks.general_steps",
                                      description=__doc__.splitlines()[0])
@@ -161,7 +153,7 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command")
     cap = sub.add_parser("capture", help="keep the general steps of seeded episodes")
     cap.add_argument("--ids", required=True, help="comma-separated env ids")
-    cap.add_argument("--seeds", default="0-2", help="episode seeds: 0-5 or 0,3,7 (default 0-2)")
+    cap.add_argument("--seeds", default="0-2", help="seeds: 0-5, 0,3,7 or 0-4,10 (default 0-2)")
     cap.add_argument("--steps", type=int, default=300, help="steps per seed (default 300)")
     cap.add_argument("--out", type=Path, required=True, help="the capture file (a pickle)")
     cap.add_argument("--path", default="general",
@@ -181,10 +173,12 @@ def main(argv=None) -> int:
     if args.command == "capture":
         if args.steps < 1:
             parser.error("--steps must be >= 1")
+        from softarm_gym.commands.common import parse_seeds
+
         try:
-            seeds = _seeds(args.seeds)
-        except ValueError:
-            parser.error(f"--seeds {args.seeds!r}: give a range like 0-5 or a list like 0,3,7")
+            seeds = parse_seeds(args.seeds)
+        except ValueError as exc:
+            parser.error(str(exc))
         kept = capture(args.ids.split(","), seeds, args.steps, progress=say, path=args.path)
         with open(args.out, "wb") as f:
             pickle.dump(kept, f)

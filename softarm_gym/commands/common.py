@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 
 import numpy as np
 
@@ -45,6 +46,19 @@ def parse_floats(text: str, what: str) -> np.ndarray:
 # One vocabulary across the commands (and ``python -m baselines.*``): ``--json`` prints the
 # result on stdout, ``--output FILE.json`` also writes it, ``--quiet`` hides progress, masses
 # are ``--payload-kg``. Older spellings stay as hidden aliases of the same option.
+
+def parse_seeds(text: str) -> list[int]:
+    """``"0-9"``, ``"0,3,5"`` or ``"0-4,10"`` → sorted distinct seeds (integers >= 0)."""
+    seeds = set()
+    for part in str(text).split(","):
+        match = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", part)
+        if not match or (match.group(2) is not None and int(match.group(2)) < int(match.group(1))):
+            raise ValueError(f"--seeds {text!r}: expected seeds >= 0 and ranges A-B with A <= B, "
+                             "separated by commas (e.g. 0-9 or 0,3,5)")
+        first = int(match.group(1))
+        seeds.update(range(first, int(match.group(2) or first) + 1))
+    return sorted(seeds)
+
 
 def add_quiet_argument(parser, help="no progress bar on stderr") -> None:
     """``--quiet`` (and its older spelling ``--no-progress``, hidden) into ``args.quiet``."""

@@ -294,8 +294,9 @@ def _relax(nodes, grid, layout, level, terms, settings):
         # of time step 1/k. Where the pull keeps within RELAX_STRAIGHT of the last one the flow
         # runs straight at an even pace, and a step twice as long still follows it (a
         # snap's arm crept ~1 mm an iteration for 250 of them, just over RELAX_MOVE).
-        pull = stiffness * (trial[:, L.CS_R:L.CS_R + 3] - anchors)
-        move = float(np.abs(pull).max()) / stiffness
+        moved = trial[:, L.CS_R:L.CS_R + 3] - anchors
+        move = float(np.abs(moved).max())
+        pull = stiffness * moved
         state = trial
         even = last_pull is not None and \
             float(np.abs(pull - last_pull).max()) <= RELAX_STRAIGHT * stiffness * move
