@@ -14,10 +14,11 @@ The arm is cut into the segments of the planar contact layout
 obstacle with the same smoothstep blend). The unknowns are (n, m) at the clamped base and
 the 12 tangent coordinates (δr, world rotation δφ, δn, δm) of every later segment start;
 the residuals are the jumps at segment ends (the rotation jump as the rotation vector of
-R_end R_nextᵀ) and n(L⁻), m(L) against the tip loads. Each segment map's Jacobian is formed
-by forward differences in those tangent coordinates (13 passes over the segment), which
-also carries the blend and the contact law's kink without special cases; the block-banded
-Newton system is solved by :func:`solver.kernels.spatial_shooting.banded_solve`.
+R_end R_nextᵀ) and n(L⁻), m(L) against the tip loads. Each segment map's Jacobian in those
+tangent coordinates is integrated along with the segment by the variational equations (one
+pass: :func:`tangent_system`, which Newton uses) or formed by forward differences (13 passes:
+:func:`newton_system`, kept for the critical mode of a snap); the block-banded Newton system
+is solved by :func:`solver.kernels.spatial_shooting.banded_solve`.
 
 Stability is the planar contact test in 3D: the Jacobi fields of the free tip, δ(r, φ)(L) = I
 and δ(n, m)(L) = 0, carried back to the base through the inverse segment maps; no real
@@ -956,16 +957,16 @@ def factor_state(Z, grid, rest, level, F, J, blocks, rec, factors):
     ``blocks``."""
     if not tangent_system(Z, grid, rest, level, F, J, blocks):
         return False, False
-    return factor_jacobian(Z, grid, rest, level, J, blocks, rec, factors)
+    return factor_jacobian(Z, grid, rest, level, J, rec, factors), stability_test(blocks)
 
 
 @njit
-def factor_jacobian(Z, grid, rest, level, J, blocks, rec, factors):
+def factor_jacobian(Z, grid, rest, level, J, rec, factors):
     """The backbone of the node states ``Z`` into the record tuple ``rec``
     (:func:`record`), and the band LU of their Jacobian ``J`` (n, n) into ``factors``
-    (:func:`new_factors`), which the next lean step from this state predicts and corrects
-    with. Returns (regular, stable): whether ``J`` is regular, and the stability test of the
-    segment maps ``blocks``."""
+    (:func:`new_factors`), which the next step from this state predicts and corrects with.
+    Returns whether ``J`` is regular. (A state Newton converged on has its stability test
+    from Newton: :func:`newton_into`.)"""
     record(Z, grid, rest, level, rec)
     lu, piv = factors
     n = J.shape[0]
@@ -973,7 +974,7 @@ def factor_jacobian(Z, grid, rest, level, J, blocks, rec, factors):
     for j in range(n):
         for i in range(max(0, j - BAND), min(n, j + BAND + 1)):
             lu[2 * BAND + i - j, j] = J[i, j]
-    return factor_band(lu, piv), stability_test(blocks)
+    return factor_band(lu, piv)
 
 
 @njit
@@ -1143,7 +1144,7 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
             ok = weighted_norm(moved, weights) <= 0.05 + 0.5 * weighted_norm(first, weights)
         if ok:
             if solved:
-                regular = factor_jacobian(Z, grid, rest, now, J, blocks, new, fresh)[0]
+                regular = factor_jacobian(Z, grid, rest, now, J, new, fresh)
             else:
                 regular, stable = factor_state(Z, grid, rest, now, F, J, blocks, new, fresh)
                 res = weighted_norm(F, res_weights)
