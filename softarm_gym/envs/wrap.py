@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
@@ -59,10 +60,21 @@ def _axial_coordinates(positions: np.ndarray, center, axis) -> tuple[np.ndarray,
     rel = np.asarray(positions, dtype=float) - np.asarray(center, dtype=float)
     if axis is None:
         return rel[:, 0], rel[:, 1]
-    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    e1, e2 = _axial_basis(tuple(float(c) for c in axis))
+    return rel @ e1, rel @ e2
+
+
+@functools.lru_cache(maxsize=256)
+def _axial_basis(axis: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal (e1, e2) (3,) spanning the plane normal to ``axis``, (e1, e2, axis)
+    right-handed. Cached: an episode's object keeps its axis, and two ``np.cross`` calls
+    per step were most of a 3D wrap step's reward (read-only arrays)."""
+    a = np.asarray(axis) / np.linalg.norm(axis)
     e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)
-    return rel @ e1, rel @ np.cross(a, e1)
+    e2 = np.cross(a, e1)
+    e1.flags.writeable = e2.flags.writeable = False
+    return e1, e2
 
 
 def wrap_angle(positions: np.ndarray, center, contact_radius: float, margin: float,
