@@ -430,3 +430,64 @@ def test_the_proximal_relaxation_strides_down_a_straight_slide_to_where_it_crept
     (crept, crawl), (strode, strides) = landed.values()
     assert np.abs(strode - crept).max() < 1e-9
     assert crawl > 100 and strides < crawl / 3
+
+
+def test_the_initial_tangent_predicts_nearby_equilibria_to_second_order(monkeypatch):
+    """The 3D continuation's tangent at the start of a ramp (dZ/dt = −J⁻¹ ∂F/∂t, from which it
+    decides which first steps are worth trying) against equilibria Newton finds at small
+    steps δ along the ramp of a solve pressed on a cylinder: the start moved by δ·slope
+    misses them by O(δ²) — a quarter as far at half the step — and by under a thousandth of
+    the move itself at δ = 2e-3."""
+    arm = designs.octarm_v()
+    ring = arm.tubes[0].material.ring_stiffness
+    scene = solver.Scene(obstacles=(
+        solver.Cylinder((-0.17, -0.5, 0.0), (0.0, 0.0, 1.0), 0.12, ring),))
+    p = np.zeros(arm.n_channels)
+    p[::3] = 0.3 * arm.max_pressure
+    pressed = solver.solve(arm, p, scene, planar=False)
+    assert pressed.converged and pressed.in_contact
+    ramps = []
+
+    def follow(*args):
+        ramps.append(tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args))
+        return spatial_contact.follow(*args)
+
+    kernels = types.ModuleType("kernels")
+    kernels.__dict__.update(vars(spatial_contact))
+    kernels.follow = follow
+    monkeypatch.setattr(spatial_paths, "kernel", kernels)
+    solver.solve(arm, 1.3 * p, scene, planar=False, warm_start=pressed)
+    (Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, max_iter, max_step,
+     *_) = ramps[0]
+    secf = grid[spatial_contact.GS_SECF]
+    now = tuple(x.copy() for x in a)
+    rest = np.empty((3, secf.shape[1]))
+
+    def at(t):
+        spatial_contact.set_level(t, a, b, now)
+        solver.rod.rest_strains_into(now[0], tubes_i, tubes_f, secf, rest)
+
+    def equilibrium(t, start):
+        at(t)
+        nodes = start.copy()
+        assert spatial_contact.newton(nodes, grid, rest, now, weights, res_weights, scales,
+                                      1e-3 * tol, max_iter, max_step, spatial_contact.NO_TETHER)[0]
+        return nodes
+
+    start = equilibrium(0.0, Z)
+    n = weights.shape[0]
+    F, J, slope = np.empty(n), np.empty((n, n)), np.empty(n)
+    blocks = np.empty((start.shape[0], 12, 12))
+    assert spatial_contact.tangent_system(start, grid, rest, now, F, J, blocks)
+    spatial_contact.initial_tangent(start, grid, tubes_i, tubes_f, a, b, rest, now, scales, F,
+                                    J, slope)
+    assert np.abs(slope).max() > 0.0
+    misses, moves = [], []
+    for step in (2e-3, 1e-3):
+        exact = equilibrium(step, start)
+        predicted = np.empty_like(start)
+        spatial_contact.retract(start, slope, step, predicted)
+        misses.append(np.abs(predicted[:, :3] - exact[:, :3]).max())
+        moves.append(np.abs(exact[:, :3] - start[:, :3]).max())
+    assert misses[0] < 1e-3 * moves[0]
+    assert 3.0 < misses[0] / misses[1] < 5.0
