@@ -856,15 +856,16 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     # The first step is judged against a zero prediction, so it is accepted only where the
     # arm moves less than 0.05 (weighted RMS); the halving that finds it converged a try at
     # each larger step first, every one refused (six or seven a ramp on the general steps of
-    # the 3D wraps, a sixth of their Newton iterations). The path's tangent at the start
+    # the 3D wraps, a quarter of the continuation's Newton iterations). The path's tangent at the start
     # (:func:`initial_tangent`, one residual pass) predicts that move to first order: the
     # halving skips the steps whose predicted move is FIRST_MOVE or more, where a try would
     # be accepted only if the path bent back by half. The steps tried are the halving's
     # (the same t-grid); the prediction stays zero, as with the tangent as predictor a large
     # first step's lenient bound (0.05 + half the predicted move) let a path jump branches.
-    initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, scales, F, J, moved)
+    tangent = np.empty(n)
+    initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, scales, F, J, tangent)
     total += 1
-    reach = weighted_norm(moved, weights)
+    reach = weighted_norm(tangent, weights)
     dt = dt0
     while dt > dt_min and reach * min(dt, 1.0) >= FIRST_MOVE:
         dt = halved(dt, min(dt, 1.0), dt_min)

@@ -465,7 +465,7 @@ def test_the_initial_tangent_predicts_nearby_equilibria_to_second_order(monkeypa
 
     def at(t):
         spatial_contact.set_level(t, a, b, now)
-        solver.rod.rest_strains_into(now[0], tubes_i, tubes_f, secf, rest)
+        solver.rod.rest_strains_into(now[spatial_contact.L_P], tubes_i, tubes_f, secf, rest)
 
     def equilibrium(t, start):
         at(t)
@@ -477,7 +477,7 @@ def test_the_initial_tangent_predicts_nearby_equilibria_to_second_order(monkeypa
     start = equilibrium(0.0, Z)
     n = weights.shape[0]
     F, J, slope = np.empty(n), np.empty((n, n)), np.empty(n)
-    blocks = np.empty((start.shape[0], 12, 12))
+    blocks = np.empty((start.shape[0], spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
     assert spatial_contact.tangent_system(start, grid, rest, now, F, J, blocks)
     spatial_contact.initial_tangent(start, grid, tubes_i, tubes_f, a, b, rest, now, scales, F,
                                     J, slope)
