@@ -42,11 +42,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def capture(env_ids, seeds, n_steps: int, progress=None, path: str = "general") -> list[dict]:
-    """The general steps among ``n_steps`` seeded random-action steps per seed and id (a new
+    """The steps that took ``path`` (a ``Stepper.last_path``: by default the general path's; e.g.
+    ``"lean contact"``) among ``n_steps`` seeded random-action steps per seed and id (a new
     episode where one ends): per such step its ``id``, ``seed``, ``step`` (index from the
     seeded reset), ``stepper`` (pickled, as it stood before the step) and ``pressures`` (the
-    step's inputs, Pa). ``path``: keep the steps of that ``Stepper.last_path`` instead (e.g.
-    ``"lean contact"``)."""
+    step's inputs, Pa)."""
     import gymnasium as gym
 
     import softarm_gym  # noqa: F401  (registers the ids)

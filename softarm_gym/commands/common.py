@@ -43,10 +43,6 @@ def parse_floats(text: str, what: str) -> np.ndarray:
         raise UsageError(f"{what} must be comma-separated numbers; got {text!r}") from None
 
 
-# One vocabulary across the commands (and ``python -m baselines.*``): ``--json`` prints the
-# result on stdout, ``--output FILE.json`` also writes it, ``--quiet`` hides progress, masses
-# are ``--payload-kg``. Older spellings stay as hidden aliases of the same option.
-
 def parse_seeds(text: str) -> list[int]:
     """``"0-9"``, ``"0,3,5"`` or ``"0-4,10"`` → sorted distinct seeds (integers >= 0)."""
     seeds = set()
@@ -59,6 +55,10 @@ def parse_seeds(text: str) -> list[int]:
         seeds.update(range(first, int(match.group(2) or first) + 1))
     return sorted(seeds)
 
+
+# One vocabulary across the commands (and ``python -m baselines.*``): ``--json`` prints the
+# result on stdout, ``--output FILE.json`` also writes it, ``--quiet`` hides progress, masses
+# are ``--payload-kg``. Older spellings stay as hidden aliases of the same option.
 
 def add_quiet_argument(parser, help="no progress bar on stderr") -> None:
     """``--quiet`` (and its older spelling ``--no-progress``, hidden) into ``args.quiet``."""
