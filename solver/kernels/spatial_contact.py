@@ -704,7 +704,15 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
     the returned state — and its Jacobian formed as ``jacobian`` says (``JAC_DIFFERENCES``
     or ``JAC_VARIATIONAL``: :func:`_system`). ``past_kinks``: where no trial
     lowers the residual, go on from the smallest (:func:`newton`) rather than give up
-    (:func:`probe`)."""
+    (:func:`probe`).
+
+    An iteration's first trial is formed with its Jacobian in one pass where the iteration
+    before accepted its first trial (and at the first iteration): the Jacobian pass at the
+    accepted trial would otherwise follow its residual pass, at five times a residual pass's
+    cost, and a pass computes the residual the same way with or without the Jacobian (the
+    same numbers). Where that trial is refused the line search goes on with residual passes
+    as before, so every iterate is the same; only where first trials keep being refused (a
+    fold's approach) would forming their Jacobians cost more than it saves."""
     n = weights.shape[0]
     F_try = np.empty(n)
     step = np.empty(n)
@@ -713,6 +721,7 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
     if not _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
         return False, 0, math.inf, False
     res = weighted_norm(F, res_weights)
+    first_taken = jacobian == JAC_VARIATIONAL  # whether the last first trial was accepted
     for it in range(max_iter + 1):
         if not math.isfinite(res):
             return False, it, math.inf, False
@@ -727,14 +736,19 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
         norm = weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         base[:, :] = Z
-        for _ in range(8):
+        formed = False  # F_try, J and blocks hold the accepted trial's
+        for trial in range(8):
             retract(base, step, -alpha, Z)
             res_try = math.inf
-            if newton_system(Z, grid, rest, level, F_try, J, False, blocks, scales, tether):
+            formed = trial == 0 and first_taken
+            if _system(Z, grid, rest, level, F_try, J, jacobian if formed else JAC_NONE, blocks,
+                       scales, tether):
                 res_try = weighted_norm(F_try, res_weights)
                 if res_try < res:
                     break
+            formed = False
             alpha *= 0.5
+        first_taken = jacobian == JAC_VARIATIONAL and trial == 0 and res_try < res
         # No trial lowered the residual: the Jacobian holds one side of a kink of the map
         # (forward differences may straddle it) — the penalty's at a contact's edge, the
         # return mapping's at a slipping sample — and its direction is no descent direction
@@ -744,7 +758,9 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
         if not math.isfinite(res_try) or not (past_kinks or res_try < res):
             Z[:, :] = base
             return False, it + 1, res, False
-        if not _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
+        if formed:
+            F[:] = F_try
+        elif not _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
             return False, it + 1, math.inf, False
         res = weighted_norm(F, res_weights)
     return False, max_iter, res, stability_test(blocks)

@@ -11,6 +11,9 @@
 * The fold scan visiting every interval of its grid (the solver's stops early).
 * The predictor's rest-strain gradient by forward sensitivities, one linearised system per
   parameter (the solver's kernel takes the discrete adjoint of the same scheme).
+* The 3D contact Newton's textbook iteration: a residual pass for every trial of the line
+  search, then a Jacobian pass at the accepted trial (the kernel forms a first trial's
+  residual with its Jacobian where the iteration before accepted its first trial).
 """
 
 from __future__ import annotations
@@ -427,3 +430,64 @@ def solve_bvp_rod_on_obstacle(rod, scene, obstacle, guess_eq, tol=1e-6, nodes=40
     if not sol.success:
         raise RuntimeError(f"solve_bvp failed: {sol.message}")
     return sol.sol(length)[:3]
+
+
+def newton_spatial_contact_plain(Z, grid, rest, level, weights, res_weights, scales, tol,
+                                 max_iter, max_step, past_kinks):
+    """Damped Newton on the 3D contact system at ``level`` from the node states ``Z`` (updated
+    in place), the textbook way: at each iterate a Jacobian pass (residual, Jacobian and segment
+    maps by the variational equations), the step clipped to ``max_step`` (weighted RMS) and
+    halved up to seven times until a residual pass finds the residual lower; where none does,
+    go on from the smallest trial (``past_kinks``) or stop. The rules of
+    :func:`solver.kernels.spatial_contact.newton_into`, in its order of passes before it
+    formed first trials with their Jacobians.
+
+    Returns:
+        (converged, iterations, residual, F (n,), J (n, n), blocks (K, 12, 12), first trials
+        accepted, first trials refused).
+    """
+    from solver.kernels.contact import weighted_norm
+    from solver.kernels.spatial_contact import N_CTANGENT, NO_TETHER, newton_system, retract, tangent_system
+    from solver.kernels.spatial_shooting import banded_solve
+
+    n = weights.shape[0]
+    F, F_try, J = np.empty(n), np.empty(n), np.empty((n, n))
+    blocks = np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT))
+    no_jacobian = np.empty((0, 0))
+    taken = refused = 0
+    if not tangent_system(Z, grid, rest, level, F, J, blocks):
+        return False, 0, math.inf, F, J, blocks, taken, refused
+    res = weighted_norm(F, res_weights)
+    for it in range(max_iter + 1):
+        if not math.isfinite(res):
+            return False, it, math.inf, F, J, blocks, taken, refused
+        if res <= tol:
+            return True, it, res, F, J, blocks, taken, refused
+        if it == max_iter:
+            break
+        step = np.empty(n)
+        if not banded_solve(J.copy(), F.copy(), step):
+            return False, it, res, F, J, blocks, taken, refused
+        norm = weighted_norm(step, weights)
+        alpha = max_step / norm if norm > max_step else 1.0
+        base = Z.copy()
+        first_taken = False
+        for trial in range(8):
+            retract(base, step, -alpha, Z)
+            res_try = math.inf
+            if newton_system(Z, grid, rest, level, F_try, no_jacobian, False, blocks, scales,
+                             NO_TETHER):
+                res_try = weighted_norm(F_try, res_weights)
+                if res_try < res:
+                    first_taken = trial == 0
+                    break
+            alpha *= 0.5
+        taken += first_taken
+        refused += not first_taken
+        if not math.isfinite(res_try) or not (past_kinks or res_try < res):
+            Z[:, :] = base
+            return False, it + 1, res, F, J, blocks, taken, refused
+        if not tangent_system(Z, grid, rest, level, F, J, blocks):
+            return False, it + 1, math.inf, F, J, blocks, taken, refused
+        res = weighted_norm(F, res_weights)
+    return False, max_iter, res, F, J, blocks, taken, refused

@@ -432,12 +432,9 @@ def test_the_proximal_relaxation_strides_down_a_straight_slide_to_where_it_crept
     assert crawl > 100 and strides < crawl / 3
 
 
-def test_the_initial_tangent_predicts_nearby_equilibria_to_second_order(monkeypatch):
-    """The 3D continuation's tangent at the start of a ramp (dZ/dt = −J⁻¹ ∂F/∂t, from which it
-    decides which first steps are worth trying) against equilibria Newton finds at small
-    steps δ along the ramp of a solve pressed on a cylinder: the start moved by δ·slope
-    misses them by O(δ²) — a quarter as far at half the step — and by under a thousandth of
-    the move itself at δ = 2e-3."""
+def _ramp_on_a_cylinder(monkeypatch):
+    """The arguments of the first 3D continuation (:func:`solver.kernels.spatial_contact.follow`)
+    of a warm solve of OctArm V pressed on a cylinder, channels I from 30 to 39 % of p_max."""
     arm = designs.octarm_v()
     ring = arm.tubes[0].material.ring_stiffness
     scene = solver.Scene(obstacles=(
@@ -457,8 +454,17 @@ def test_the_initial_tangent_predicts_nearby_equilibria_to_second_order(monkeypa
     kernels.follow = follow
     monkeypatch.setattr(spatial_paths, "kernel", kernels)
     solver.solve(arm, 1.3 * p, scene, planar=False, warm_start=pressed)
+    return ramps[0]
+
+
+def test_the_initial_tangent_predicts_nearby_equilibria_to_second_order(monkeypatch):
+    """The 3D continuation's tangent at the start of a ramp (dZ/dt = −J⁻¹ ∂F/∂t, from which it
+    decides which first steps are worth trying) against equilibria Newton finds at small
+    steps δ along the ramp of a solve pressed on a cylinder: the start moved by δ·slope
+    misses them by O(δ²) — a quarter as far at half the step — and by under a thousandth of
+    the move itself at δ = 2e-3."""
     (Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, max_iter, max_step,
-     *_) = ramps[0]
+     *_) = _ramp_on_a_cylinder(monkeypatch)
     secf = grid[spatial_contact.GS_SECF]
     now = tuple(x.copy() for x in a)
     rest = np.empty((3, secf.shape[1]))
@@ -491,3 +497,37 @@ def test_the_initial_tangent_predicts_nearby_equilibria_to_second_order(monkeypa
         moves.append(np.abs(exact[:, :3] - start[:, :3]).max())
     assert misses[0] < 1e-3 * moves[0]
     assert 3.0 < misses[0] / misses[1] < 5.0
+
+
+@pytest.mark.parametrize("past_kinks", [True, False])
+def test_newton_forming_first_trials_with_their_jacobians_takes_the_textbook_iterates(
+        monkeypatch, past_kinks):
+    """The 3D contact Newton forms an iteration's first trial with its Jacobian in one pass
+    where the iteration before accepted its first trial: every iterate, the residual, the
+    Jacobian and the segment maps it ends with are the textbook line search's to the last bit
+    (a residual pass per trial, then a Jacobian pass at the accepted one:
+    ``tests/solver/naive.py``). OctArm V pressed on a cylinder, channels I from 30 to 90 % of
+    p_max in one Newton solve: six iterations, two of whose first trials are refused."""
+    from tests.solver.naive import newton_spatial_contact_plain
+
+    (Z, grid, tubes_i, tubes_f, a, _, weights, res_weights, scales, tol, *_) = \
+        _ramp_on_a_cylinder(monkeypatch)
+    secf = grid[spatial_contact.GS_SECF]
+    level = tuple(x.copy() for x in a)
+    level[spatial_contact.L_P][:] *= 3.0
+    rest = np.empty((3, secf.shape[1]))
+    solver.rod.rest_strains_into(level[spatial_contact.L_P], tubes_i, tubes_f, secf, rest)
+    n = weights.shape[0]
+    kernel_nodes, plain_nodes = Z.copy(), Z.copy()
+    F, J = np.empty(n), np.empty((n, n))
+    blocks = np.empty((Z.shape[0], spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
+    ok, its, res, _ = spatial_contact.newton_into(
+        kernel_nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
+        spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, past_kinks)
+    plain = newton_spatial_contact_plain(plain_nodes, grid, rest, level, weights, res_weights,
+                                         scales, tol, 40, 2.0, past_kinks)
+    assert (ok, its, res) == plain[:3] and ok
+    assert plain[6] > 0 and plain[7] > 0  # first trials taken and refused
+    assert np.array_equal(kernel_nodes, plain_nodes)
+    assert np.array_equal(F, plain[3]) and np.array_equal(J, plain[4])
+    assert np.array_equal(blocks, plain[5])
