@@ -447,7 +447,13 @@ def newton_spatial_contact_plain(Z, grid, rest, level, weights, res_weights, sca
         accepted, first trials refused).
     """
     from solver.kernels.contact import weighted_norm
-    from solver.kernels.spatial_contact import N_CTANGENT, NO_TETHER, newton_system, retract, tangent_system
+    from solver.kernels.spatial_contact import (
+        N_CTANGENT,
+        NO_TETHER,
+        newton_system,
+        retract,
+        tangent_system,
+    )
     from solver.kernels.spatial_shooting import banded_solve
 
     n = weights.shape[0]
