@@ -723,7 +723,8 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
     if not _system(Z, grid, rest, level, F, J, jacobian, blocks, scales, tether):
         return False, 0, math.inf, False
     res = weighted_norm(F, res_weights)
-    first_taken = jacobian == JAC_VARIATIONAL  # whether the last first trial was accepted
+    ahead = jacobian == JAC_VARIATIONAL  # first trials may be formed with their Jacobians
+    first_taken = ahead  # whether the last iteration's first trial was accepted
     for it in range(max_iter + 1):
         if not math.isfinite(res):
             return False, it, math.inf, False
@@ -738,19 +739,17 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
         norm = weighted_norm(step, weights)
         alpha = max_step / norm if norm > max_step else 1.0
         base[:, :] = Z
-        formed = False  # F_try, J and blocks hold the accepted trial's
         for trial in range(8):
             retract(base, step, -alpha, Z)
             res_try = math.inf
-            formed = trial == 0 and first_taken
+            formed = trial == 0 and first_taken  # F_try, J and blocks: this trial's
             if _system(Z, grid, rest, level, F_try, J, jacobian if formed else JAC_NONE, blocks,
                        scales, tether):
                 res_try = weighted_norm(F_try, res_weights)
                 if res_try < res:
                     break
-            formed = False
             alpha *= 0.5
-        first_taken = jacobian == JAC_VARIATIONAL and trial == 0 and res_try < res
+        first_taken = ahead and trial == 0 and res_try < res
         # No trial lowered the residual: the Jacobian holds one side of a kink of the map
         # (forward differences may straddle it) — the penalty's at a contact's edge, the
         # return mapping's at a slipping sample — and its direction is no descent direction
