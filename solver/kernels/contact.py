@@ -148,6 +148,14 @@ BAND_ROWS = 3 * 8 + 1
 # chord of a slide round the disc's surface (sagitta c²/8R) without counting as a tunnel.
 TUNNEL_SLACK = 2e-3
 
+# A path refuses a converged try whose state lies too far from its prediction (a branch jump:
+# :func:`_path`, :func:`lean_step` and their 3D twins), so its Newton may give up as soon as
+# the root lies beyond that fence. From an iterate whose steps then shrink at least twofold
+# an iteration (Newton near a root: quadratically) the root lies within twice the iterate's
+# Newton step, so an iterate farther out than the fence by more than that has its root
+# beyond it (docs/design.md §10.1, "Newton gives up behind the fence").
+FENCE_STEPS = 2.0
+
 
 @njit(inline="always")
 def _write_row(x, y, th, nx, ny, m, c, sn, s, out, row, ca, cg, ci, ur, vr, discs):
@@ -911,6 +919,15 @@ def weighted_norm(v, weights):
 
 
 @njit
+def _distance(a, b, weights):
+    """The weighted RMS distance between the states ``a`` and ``b`` (N,)."""
+    acc = 0.0
+    for k in range(a.shape[0]):
+        acc += ((a[k] - b[k]) / weights[k]) ** 2
+    return math.sqrt(acc / a.shape[0])
+
+
+@njit
 def _touched(partners) -> bool:
     """Whether parts of the arm press on each other (a piece is in contact)."""
     bounds = partners[1]
@@ -978,7 +995,8 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     Returns (converged, iterations, |F|, stable).
     """
     return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                         True, np.zeros(1, dtype=np.int64), newton_work(Z.shape[0], grid))
+                         True, np.zeros(1, dtype=np.int64), newton_work(Z.shape[0], grid), Z,
+                         math.inf)
 
 
 @njit
@@ -990,7 +1008,8 @@ def probe(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     polish that failed after 48 iterations had stalled by its 22nd, none that converged ever
     had). Same returns."""
     return damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                         False, np.zeros(1, dtype=np.int64), newton_work(Z.shape[0], grid))
+                         False, np.zeros(1, dtype=np.int64), newton_work(Z.shape[0], grid), Z,
+                         math.inf)
 
 
 @njit
@@ -1004,7 +1023,7 @@ def newton_work(n, grid):
 
 @njit
 def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step,
-                  past_kinks, differenced, work):
+                  past_kinks, differenced, work, fence_center, fence):
     """:func:`newton` (``past_kinks``: where no trial of the line search lowers the residual,
     go on from the smallest) or :func:`probe` (give up there, the state restored to the
     iteration's start); ``differenced`` (1,) counts the residual passes of the full
@@ -1012,7 +1031,11 @@ def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max
     residual, band Jacobian (not factored), segment maps and self-contact scratch are the
     converged state's, and its record (if it has rows) that state's backbone, from the
     pass the stability test needs anyway (a caller that would record and differentiate the
-    state again saves that pass: :func:`lean_step`). Same returns."""
+    state again saves that pass: :func:`lean_step`). ``fence_center`` (n,) and ``fence``: give
+    up (unconverged, ``Z`` at the iterate) where an iterate lies farther than ``fence``
+    (weighted RMS) from the centre by more than twice its Newton step, as
+    :func:`solver.kernels.spatial_contact.newton_into` does (its ``FENCE_STEPS``);
+    ``math.inf``: no fence. Same returns."""
     n = Z.shape[0]
     F, J, blocks, partners, out = work
     F_try = np.empty(n)
@@ -1048,6 +1071,8 @@ def damped_newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max
                 step[k] = F[k]
             band_lu_solve(J, piv, step)
         norm = weighted_norm(step, weights)
+        if fence < math.inf and _distance(Z, fence_center, weights) - FENCE_STEPS * norm > fence:
+            return False, it, res, False
         alpha = max_step / norm if norm > max_step else 1.0
         for k in range(n):
             base[k] = Z[k]
@@ -1241,6 +1266,12 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
             guess[k] = accepted[k] + cap * slope[k] * (t_new - t)
             Z[k] = guess[k]
         final = t_new >= 1.0
+        # A try is refused beyond 0.05 + half the predicted move from its prediction (a
+        # branch jump), except at the smallest step: its Newton gives up there (FENCE_STEPS).
+        pred = 0.0
+        for k in range(n):
+            pred += ((guess[k] - accepted[k]) / weights[k]) ** 2
+        fence = 0.05 + 0.5 * math.sqrt(pred / n) if dt > dt_min else math.inf
         # A try whose line search stalls is given up there (it would spend the rest of its
         # iterations on the plateau: most of a fold's approach, measured) and the step
         # halved, except with friction, whose return mapping's kinks Newton must go past.
@@ -1248,16 +1279,9 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
                                              tol if final else 1e3 * tol,
                                              max_iter if final else 8, max_step,
                                              friction or rubs, differenced,
-                                             newton_work(n, grid))
+                                             newton_work(n, grid), guess, fence)
         total += its
-        corr = 0.0
-        pred = 0.0
-        for k in range(n):
-            corr += ((Z[k] - guess[k]) / weights[k]) ** 2
-            pred += ((guess[k] - accepted[k]) / weights[k]) ** 2
-        corr = math.sqrt(corr / n)
-        pred = math.sqrt(pred / n)
-        if ok and stable and (corr <= 0.05 + 0.5 * pred or dt <= dt_min):
+        if ok and stable and _distance(Z, guess, weights) <= fence:
             through = False
             if has_discs or rubs:
                 record_backbone(Z, grid, rest, now, rec_new)
@@ -1632,6 +1656,7 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
     F = np.empty(n)
     start = Z.copy()
     accepted = Z.copy()
+    guess = np.empty(n)
     before = rec[:, C_X:C_Y + 1].copy()  # the accepted state's backbone (the tunnel check's start)
     coupled = factors[2].shape[0] > 0
     held = new_factors(n, coupled)  # the factors of the accepted state
@@ -1673,37 +1698,38 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
             passes += its
             predicted = True
             quasi = ok
+        # A step is accepted within 0.05 + 0.5·|prediction| of its prediction: the accepted
+        # state moved by the first step (none if it held). Newton gives up where its root
+        # lies beyond that (FENCE_STEPS).
+        pred = 0.0
+        for i in range(n):
+            guess[i] = accepted[i] + (first[i] if predicted else 0.0)
+            pred += ((guess[i] - accepted[i]) / weights[i]) ** 2
+        fence = 0.05 + 0.5 * math.sqrt(pred / n)
+        if predicted and not ok:
+            # Newton works in the accepted state's scratch: its converged state comes
+            # back recorded into ``new``, its band Jacobian and maps into ``spare`` and
+            # ``blocks`` (the pass the stability test needs), which the acceptance below
+            # then need not make again.
+            newton_partners = new_partners(grid)
+            ok, its, res, stable = damped_newton(
+                Z, grid, rest, now, weights, res_weights, goal,
+                min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
+                params[MAX_STEP], True, differenced,
+                (F, spare[0], blocks, newton_partners, new), guess, fence)
+            newton_recorded = ok
+            passes += its
+            jacobians += its + 1
             if not ok:
-                # Newton works in the accepted state's scratch: its converged state comes
-                # back recorded into ``new``, its band Jacobian and maps into ``spare`` and
-                # ``blocks`` (the pass the stability test needs), which the acceptance below
-                # then need not make again.
-                newton_partners = new_partners(grid)
-                ok, its, res, stable = damped_newton(
-                    Z, grid, rest, now, weights, res_weights, goal,
-                    min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
-                    params[MAX_STEP], True, differenced,
-                    (F, spare[0], blocks, newton_partners, new))
-                newton_recorded = ok
-                passes += its
-                jacobians += its + 1
-                if not ok:
-                    refused |= REFUSED_CONVERGENCE
-                elif not stable:
-                    refused |= REFUSED_UNSTABLE
-                ok = ok and stable
+                refused |= REFUSED_JUMP if _distance(Z, guess, weights) > fence \
+                    else REFUSED_CONVERGENCE
+            elif not stable:
+                refused |= REFUSED_UNSTABLE
+            ok = ok and stable
         elif not ok:
             refused |= REFUSED_CONVERGENCE
         if ok:
-            # Within 0.05 + 0.5·|prediction| of the prediction: the accepted state moved by
-            # the first step (none if it held).
-            corr = 0.0
-            pred = 0.0
-            for i in range(n):
-                guess = accepted[i] + (first[i] if predicted else 0.0)
-                corr += ((Z[i] - guess) / weights[i]) ** 2
-                pred += ((guess - accepted[i]) / weights[i]) ** 2
-            ok = math.sqrt(corr / n) <= 0.05 + 0.5 * math.sqrt(pred / n)
+            ok = _distance(Z, guess, weights) <= fence
             if not ok:
                 refused |= REFUSED_JUMP
         stable = False

@@ -33,6 +33,7 @@ import numpy as np
 
 from solver.jit import njit
 from solver.kernels.contact import (
+    FENCE_STEPS,
     LEAN_ITER,
     LEAN_JACOBIANS,
     LEAN_RATE,
@@ -654,7 +655,7 @@ def retract(base, delta, amount, Z):
 
 
 @njit
-def _between(a, b, out):
+def between(a, b, out):
     """The unknowns' vector (n,) taking node states ``b`` to ``a``."""
     gap = np.empty(N_CTANGENT)
     for k in range(a.shape[0]):
@@ -681,7 +682,8 @@ def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, ma
     n = weights.shape[0]
     return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
                        max_step, tether, np.empty(n), np.empty((n, n)),
-                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL, True)
+                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL, True, Z,
+                       math.inf)
 
 
 @njit
@@ -693,18 +695,22 @@ def probe(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max
     n = weights.shape[0]
     return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
                        max_step, tether, np.empty(n), np.empty((n, n)),
-                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL, False)
+                       np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL, False, Z,
+                       math.inf)
 
 
 @njit
 def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step,
-                tether, F, J, blocks, jacobian, past_kinks):
+                tether, F, J, blocks, jacobian, past_kinks, fence_center, fence):
     """:func:`newton` with its residual ``F`` (n,), Jacobian ``J`` (n, n) and segment maps
     ``blocks`` (K, 12, 12) in the caller's arrays — where it converges they hold those of
     the returned state — and its Jacobian formed as ``jacobian`` says (``JAC_DIFFERENCES``
     or ``JAC_VARIATIONAL``: :func:`_system`). ``past_kinks``: where no trial
     lowers the residual, go on from the smallest (:func:`newton`) rather than give up
-    (:func:`probe`).
+    (:func:`probe`). ``fence_center`` (K, N_CSTATE) and ``fence``: give up (unconverged, ``Z``
+    at the iterate) where an iterate lies farther than ``fence`` (weighted RMS) from the
+    centre by more than twice its Newton step — a caller that refuses a root beyond the fence
+    would refuse this one (:data:`FENCE_STEPS`); ``math.inf``: no fence.
 
     With the variational Jacobian, an iteration's first trial is formed with its Jacobian in
     one pass where the iteration before accepted its first trial (and at the first
@@ -737,6 +743,10 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
         if not banded_solve(J, rhs, step):
             return False, it, res, False
         norm = weighted_norm(step, weights)
+        if fence < math.inf:
+            between(Z, fence_center, rhs)
+            if weighted_norm(rhs, weights) - FENCE_STEPS * norm > fence:
+                return False, it, res, False
         alpha = max_step / norm if norm > max_step else 1.0
         base[:, :] = Z
         for trial in range(8):
@@ -859,7 +869,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     ok, total, res, stable = newton_into(
         Z, grid, rest, now, weights, res_weights, scales, tol,
         max(max_iter, FRICTION_START_ITER) if friction else max_iter, max_step, NO_TETHER, F, J,
-        blocks, JAC_VARIATIONAL, True)
+        blocks, JAC_VARIATIONAL, True, Z, math.inf)
     if not (ok and stable):
         return False, total, res, stable, 0.0
     accepted = Z.copy()
@@ -893,6 +903,10 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
         retract(accepted, slope, t_new - t, guess)
         Z[:, :] = guess
         final = t_new >= 1.0
+        # A try is refused beyond 0.05 + half the predicted move from its prediction (a
+        # branch jump), except at the smallest step: its Newton gives up there (FENCE_STEPS).
+        between(guess, accepted, moved)
+        fence = 0.05 + 0.5 * weighted_norm(moved, weights) if dt > dt_min else math.inf
         # A try whose line search stalls is given up there and the step halved, as the
         # planar path's are (solver.kernels.contact._path): on 45 general steps of the 3D
         # wraps no stalled try went on to be accepted (every landing the same to the last
@@ -902,13 +916,10 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
         ok, its, res, stable = newton_into(
             Z, grid, rest, now, weights, res_weights, scales, tol if final else 1e3 * tol,
             max_iter if final else 8, max_step, NO_TETHER, F, J, blocks, JAC_VARIATIONAL,
-            friction or final)
+            friction or final, guess, fence)
         total += its
-        _between(Z, guess, moved)
-        corr = weighted_norm(moved, weights)
-        _between(guess, accepted, moved)
-        pred = weighted_norm(moved, weights)
-        if ok and stable and (corr <= 0.05 + 0.5 * pred or dt <= dt_min):
+        between(Z, guess, moved)
+        if ok and stable and weighted_norm(moved, weights) <= fence:
             through = False
             if has_obstacles:
                 record(Z, grid, rest, now, rec_new)
@@ -916,7 +927,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
             if not through:
                 if friction:
                     accept_friction(now[L_FRICTION])
-                _between(Z, accepted, slope)
+                between(Z, accepted, slope)
                 for k in range(n):
                     slope[k] /= t_new - t
                 accepted[:, :] = Z
@@ -1188,21 +1199,23 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
             ok, res, its, first = broyden(Z, grid, rest, now, F, scales, res_weights, goal, held,
                                           res)
             passes += its
-            if not ok:
-                ok, its, res, stable = newton_into(
-                    Z, grid, rest, now, weights, res_weights, scales, goal,
-                    min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
-                    params[MAX_STEP], NO_TETHER, F, J, blocks, JAC_VARIATIONAL, True)
-                passes += its + 1
-                jacobians += its + 1
-                solved = ok
         else:
             ok = res <= goal
+        # A step is accepted within 0.05 + 0.5·|prediction| of its prediction (the first
+        # correction); Newton gives up where its root lies beyond that (FENCE_STEPS).
+        retract(accepted, first, 1.0, guess)
+        fence = 0.05 + 0.5 * weighted_norm(first, weights)
+        if not ok and math.isfinite(res):
+            ok, its, res, stable = newton_into(
+                Z, grid, rest, now, weights, res_weights, scales, goal,
+                min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
+                params[MAX_STEP], NO_TETHER, F, J, blocks, JAC_VARIATIONAL, True, guess, fence)
+            passes += its + 1
+            jacobians += its + 1
+            solved = ok
         if ok:
-            # Within 0.05 + 0.5·|prediction| of the prediction (the first correction).
-            retract(accepted, first, 1.0, guess)
-            _between(Z, guess, moved)
-            ok = weighted_norm(moved, weights) <= 0.05 + 0.5 * weighted_norm(first, weights)
+            between(Z, guess, moved)
+            ok = weighted_norm(moved, weights) <= fence
         if ok:
             if solved:
                 regular = factor_jacobian(Z, grid, rest, now, J, new, fresh)

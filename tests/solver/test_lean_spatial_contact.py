@@ -97,12 +97,13 @@ def _walk_into_contact(name, n=40):
 
 def test_a_failed_lean_3d_contact_step_leaves_the_state_and_the_general_path_takes_it():
     """A jump across the pressure range from a state in contact, which the lean step cannot
-    follow within its budget: the general path takes it from the same state, as solve()
-    does, and the state is the one solve() returns."""
+    follow within its budget (every channel I to p_max; channels II or III alone it follows,
+    to solve()'s state): the general path takes it from the same state, as solve() does, and
+    the state is the one solve() returns."""
     arm, scene, stepper, _ = _walk_into_contact("cylinder")
     start = stepper.equilibrium
     jump = np.zeros(arm.n_inputs(False))
-    jump[1::3] = arm.max_pressure
+    jump[0::3] = arm.max_pressure
     report = stepper.step(jump)
     assert stepper.last_path == "general"
     ref = solver.solve(arm, jump, scene, planar=False, warm_start=start)

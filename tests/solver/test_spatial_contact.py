@@ -523,7 +523,8 @@ def test_newton_forming_first_trials_with_their_jacobians_takes_the_textbook_ite
     blocks = np.empty((Z.shape[0], spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
     ok, its, res, _ = spatial_contact.newton_into(
         kernel_nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
-        spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, past_kinks)
+        spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, past_kinks,
+        kernel_nodes, math.inf)
     plain = newton_spatial_contact_plain(plain_nodes, grid, rest, level, weights, res_weights,
                                          scales, tol, 40, 2.0, past_kinks)
     assert (ok, its, res) == plain[:3] and ok
@@ -531,3 +532,42 @@ def test_newton_forming_first_trials_with_their_jacobians_takes_the_textbook_ite
     assert np.array_equal(kernel_nodes, plain_nodes)
     assert np.array_equal(F, plain[3]) and np.array_equal(J, plain[4])
     assert np.array_equal(blocks, plain[5])
+
+
+@pytest.mark.parametrize("reach", [0.5, 0.8, 1.2, 2.0])
+def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(monkeypatch, reach):
+    """A path refuses a converged try that lies too far from its prediction, so its Newton
+    is fenced: it gives up once an iterate lies beyond the fence by more than twice its
+    Newton step (``FENCE_STEPS``), where the root lies beyond it too. OctArm V pressed on a
+    cylinder, channels I from 30 to 90 % of p_max in one Newton solve, fenced round the
+    start at ``reach`` times the root's distance: a fence short of the root stops Newton
+    before it converges; one past it changes no iterate."""
+    (Z, grid, tubes_i, tubes_f, a, _, weights, res_weights, scales, tol, *_) = \
+        _ramp_on_a_cylinder(monkeypatch)
+    secf = grid[spatial_contact.GS_SECF]
+    level = tuple(x.copy() for x in a)
+    level[spatial_contact.L_P][:] *= 3.0
+    rest = np.empty((3, secf.shape[1]))
+    solver.rod.rest_strains_into(level[spatial_contact.L_P], tubes_i, tubes_f, secf, rest)
+    n = weights.shape[0]
+
+    def newton(nodes, fence):
+        F, J = np.empty(n), np.empty((n, n))
+        blocks = np.empty((Z.shape[0], spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
+        return spatial_contact.newton_into(
+            nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
+            spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, True, Z,
+            fence)
+
+    root = Z.copy()
+    ok, its, *_ = newton(root, math.inf)
+    assert ok and its >= 4
+    moved = np.empty(n)
+    spatial_contact.between(root, Z, moved)
+    distance = spatial_contact.weighted_norm(moved, weights)
+    fenced = Z.copy()
+    fenced_ok, fenced_its, *_ = newton(fenced, reach * distance)
+    if reach < 1.0:
+        assert not fenced_ok and fenced_its < its
+    else:
+        assert fenced_ok and fenced_its == its and np.array_equal(fenced, root)
