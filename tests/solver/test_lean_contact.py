@@ -7,6 +7,8 @@ equilibrium to the solver's tolerance on every path the stepper takes — lean c
 lean, general — and the walks below must take each of them.
 """
 
+import math
+
 import numpy as np
 import pytest
 
@@ -294,3 +296,43 @@ def test_a_batch_holds_the_copies_whose_pressures_stay_and_steps_the_others():
     np.testing.assert_array_equal(batch.tips[0], tips[0])
     single.step(moved)
     np.testing.assert_allclose(batch.tips[1], single.tip, atol=1e-12)
+
+
+@pytest.mark.parametrize("reach", [0.5, 0.95, 1.05, 2.0])
+def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(reach):
+    """The planar contact Newton under a fence (the paths' branch-jump bound round their
+    prediction) gives up once an iterate lies beyond it by more than twice its Newton step
+    (``FENCE_STEPS``), there already beyond the fence, where its root lies too. The wrap
+    scene's arm pressed on its disc, every channel's pressure doubled (plus a tenth of p_max)
+    in one solve, fenced round the start at ``reach`` times the root's distance: a fence short
+    of the root stops Newton before it converges; one past it changes no iterate."""
+    from solver.kernels import contact as contact_kernels
+    from solver.kernels import stepping
+    from solver.rod import rest_strains_into
+
+    arm, _, stepper = walked_stepper("wrap", 30)
+    contact, layout = stepper._rows.contact, stepper._rows.layout
+    assert contact[stepping.CT_OK][0] and contact[stepping.CT_TOUCHING][0]
+    grid = tuple(contact[i] for i in range(stepping.CT_THETA0, stepping.CT_SELF + 1))
+    level = tuple(np.array(x, copy=True) for x in contact_level(contact, 0))
+    level[L.L_P][:] = np.minimum(2.0 * level[L.L_P] + 0.1 * arm.max_pressure, arm.max_pressure)
+    rest = np.empty_like(contact[stepping.CT_REST][0])
+    rest_strains_into(level[L.L_P], layout.tubes_i, layout.tubes_f, layout.secf, rest)
+    start = contact[stepping.CT_NODES][0].copy()
+    weights, params = contact[stepping.CT_WEIGHTS], contact[stepping.CT_PARAMS]
+
+    def newton(fence):
+        nodes = start.copy()
+        ok, its, *_ = contact_kernels.damped_newton(
+            nodes, grid, rest, level, weights, contact[stepping.CT_RES_WEIGHTS], params[L.TOL],
+            40, params[L.MAX_STEP], True, np.zeros(1, dtype=np.int64),
+            contact_kernels.newton_work(nodes.size, grid), start, fence)
+        return nodes, ok, its, np.sqrt(np.mean(((nodes - start) / weights) ** 2))
+
+    root, ok, its, distance = newton(math.inf)
+    assert ok and its >= 4
+    fenced, fenced_ok, fenced_its, where = newton(reach * distance)
+    if reach < 1.0:
+        assert not fenced_ok and fenced_its < its and where > reach * distance
+    else:
+        assert fenced_ok and fenced_its == its and np.array_equal(fenced, root)

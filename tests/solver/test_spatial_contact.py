@@ -538,10 +538,10 @@ def test_newton_forming_first_trials_with_their_jacobians_takes_the_textbook_ite
 def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(monkeypatch, reach):
     """A path refuses a converged try that lies too far from its prediction, so its Newton
     is fenced: it gives up once an iterate lies beyond the fence by more than twice its
-    Newton step (``FENCE_STEPS``), where the root lies beyond it too. OctArm V pressed on a
-    cylinder, channels I from 30 to 90 % of p_max in one Newton solve, fenced round the
-    start at ``reach`` times the root's distance: a fence short of the root stops Newton
-    before it converges; one past it changes no iterate."""
+    Newton step (``FENCE_STEPS``), there already beyond the fence, where its root lies too.
+    OctArm V pressed on a cylinder, channels I from 30 to 90 % of p_max in one Newton solve,
+    fenced round the start at ``reach`` times the root's distance: a fence short of the root
+    stops Newton before it converges; one past it changes no iterate."""
     (Z, grid, tubes_i, tubes_f, a, _, weights, res_weights, scales, tol, *_) = \
         _ramp_on_a_cylinder(monkeypatch)
     secf = grid[spatial_contact.GS_SECF]
@@ -559,15 +559,18 @@ def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(monkeypatch, reach)
             spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, True, Z,
             fence)
 
+    def from_start(nodes):
+        moved = np.empty(n)
+        spatial_contact.between(nodes, Z, moved)
+        return spatial_contact.weighted_norm(moved, weights)
+
     root = Z.copy()
     ok, its, *_ = newton(root, math.inf)
     assert ok and its >= 4
-    moved = np.empty(n)
-    spatial_contact.between(root, Z, moved)
-    distance = spatial_contact.weighted_norm(moved, weights)
+    distance = from_start(root)
     fenced = Z.copy()
     fenced_ok, fenced_its, *_ = newton(fenced, reach * distance)
     if reach < 1.0:
-        assert not fenced_ok and fenced_its < its
+        assert not fenced_ok and fenced_its < its and from_start(fenced) > reach * distance
     else:
         assert fenced_ok and fenced_its == its and np.array_equal(fenced, root)
