@@ -457,6 +457,20 @@ def _ramp_on_a_cylinder(monkeypatch):
     return ramps[0]
 
 
+def _one_solve_on_a_cylinder(monkeypatch):
+    """One Newton solve's arguments: the start of :func:`_ramp_on_a_cylinder` (channels I at
+    30 % of p_max, pressed on the cylinder) at channels I of 90 %: (Z, grid, rest, level,
+    weights, res_weights, scales, tol)."""
+    (Z, grid, tubes_i, tubes_f, a, _, weights, res_weights, scales, tol, *_) = \
+        _ramp_on_a_cylinder(monkeypatch)
+    secf = grid[spatial_contact.GS_SECF]
+    level = tuple(x.copy() for x in a)
+    level[spatial_contact.L_P][:] *= 3.0
+    rest = np.empty((3, secf.shape[1]))
+    solver.rod.rest_strains_into(level[spatial_contact.L_P], tubes_i, tubes_f, secf, rest)
+    return Z, grid, rest, level, weights, res_weights, scales, tol
+
+
 def test_the_initial_tangent_predicts_nearby_equilibria_to_second_order(monkeypatch):
     """The 3D continuation's tangent at the start of a ramp (dZ/dt = −J⁻¹ ∂F/∂t, from which it
     decides which first steps are worth trying) against equilibria Newton finds at small
@@ -510,13 +524,7 @@ def test_newton_forming_first_trials_with_their_jacobians_takes_the_textbook_ite
     p_max in one Newton solve: six iterations, two of whose first trials are refused."""
     from tests.solver.naive import newton_spatial_contact_plain
 
-    (Z, grid, tubes_i, tubes_f, a, _, weights, res_weights, scales, tol, *_) = \
-        _ramp_on_a_cylinder(monkeypatch)
-    secf = grid[spatial_contact.GS_SECF]
-    level = tuple(x.copy() for x in a)
-    level[spatial_contact.L_P][:] *= 3.0
-    rest = np.empty((3, secf.shape[1]))
-    solver.rod.rest_strains_into(level[spatial_contact.L_P], tubes_i, tubes_f, secf, rest)
+    (Z, grid, rest, level, weights, res_weights, scales, tol) = _one_solve_on_a_cylinder(monkeypatch)
     n = weights.shape[0]
     kernel_nodes, plain_nodes = Z.copy(), Z.copy()
     F, J = np.empty(n), np.empty((n, n))
@@ -542,13 +550,7 @@ def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(monkeypatch, reach)
     OctArm V pressed on a cylinder, channels I from 30 to 90 % of p_max in one Newton solve,
     fenced round the start at ``reach`` times the root's distance: a fence short of the root
     stops Newton before it converges; one past it changes no iterate."""
-    (Z, grid, tubes_i, tubes_f, a, _, weights, res_weights, scales, tol, *_) = \
-        _ramp_on_a_cylinder(monkeypatch)
-    secf = grid[spatial_contact.GS_SECF]
-    level = tuple(x.copy() for x in a)
-    level[spatial_contact.L_P][:] *= 3.0
-    rest = np.empty((3, secf.shape[1]))
-    solver.rod.rest_strains_into(level[spatial_contact.L_P], tubes_i, tubes_f, secf, rest)
+    (Z, grid, rest, level, weights, res_weights, scales, tol) = _one_solve_on_a_cylinder(monkeypatch)
     n = weights.shape[0]
 
     def newton(nodes, fence):
