@@ -158,6 +158,13 @@ FENCE_STEPS = 2.0
 
 
 @njit(inline="always")
+def jump_fence(move):
+    """How far (weighted RMS) a path's converged try may lie from its prediction, which moved
+    the accepted state by ``move``: 0.05 + half the move; farther is a branch jump, refused."""
+    return 0.05 + 0.5 * move
+
+
+@njit(inline="always")
 def _write_row(x, y, th, nx, ny, m, c, sn, s, out, row, ca, cg, ci, ur, vr, discs):
     """Record the state (x, y, θ, n_x, n_y, m), (c, sn) = (cos θ, sin θ), at arc length ``s``
     into row ``row`` of ``out``."""
@@ -1268,10 +1275,7 @@ def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, 
         final = t_new >= 1.0
         # A try is refused beyond 0.05 + half the predicted move from its prediction (a
         # branch jump), except at the smallest step: its Newton gives up there (FENCE_STEPS).
-        pred = 0.0
-        for k in range(n):
-            pred += ((guess[k] - accepted[k]) / weights[k]) ** 2
-        fence = 0.05 + 0.5 * math.sqrt(pred / n) if dt > dt_min else math.inf
+        fence = jump_fence(_distance(guess, accepted, weights)) if dt > dt_min else math.inf
         # A try whose line search stalls is given up there (it would spend the rest of its
         # iterations on the plateau: most of a fold's approach, measured) and the step
         # halved, except with friction, whose return mapping's kinks Newton must go past.
@@ -1701,11 +1705,9 @@ def lean_step(Z, grid, tubes, level, p_new, discs_new, params, work, factors, re
         # A step is accepted within 0.05 + 0.5·|prediction| of its prediction: the accepted
         # state moved by the first step (none if it held). Newton gives up where its root
         # lies beyond that (FENCE_STEPS).
-        pred = 0.0
         for i in range(n):
             guess[i] = accepted[i] + (first[i] if predicted else 0.0)
-            pred += ((guess[i] - accepted[i]) / weights[i]) ** 2
-        fence = 0.05 + 0.5 * math.sqrt(pred / n)
+        fence = jump_fence(_distance(guess, accepted, weights))
         if predicted and not ok:
             # Newton works in the accepted state's scratch: its converged state comes
             # back recorded into ``new``, its band Jacobian and maps into ``spare`` and

@@ -43,6 +43,7 @@ from solver.kernels.contact import (
     band_lu_solve,
     broyden_update,
     factor_band,
+    jump_fence,
     set_level,
     start_friction,
     weighted_norm,
@@ -906,7 +907,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
         # A try is refused beyond 0.05 + half the predicted move from its prediction (a
         # branch jump), except at the smallest step: its Newton gives up there (FENCE_STEPS).
         between(guess, accepted, moved)
-        fence = 0.05 + 0.5 * weighted_norm(moved, weights) if dt > dt_min else math.inf
+        fence = jump_fence(weighted_norm(moved, weights)) if dt > dt_min else math.inf
         # A try whose line search stalls is given up there and the step halved, as the
         # planar path's are (solver.kernels.contact._path): on 45 general steps of the 3D
         # wraps no stalled try went on to be accepted (every landing the same to the last
@@ -1204,7 +1205,7 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
         # A step is accepted within 0.05 + 0.5·|prediction| of its prediction (the first
         # correction); Newton gives up where its root lies beyond that (FENCE_STEPS).
         retract(accepted, first, 1.0, guess)
-        fence = 0.05 + 0.5 * weighted_norm(first, weights)
+        fence = jump_fence(weighted_norm(first, weights))
         if not ok and math.isfinite(res):
             ok, its, res, stable = newton_into(
                 Z, grid, rest, now, weights, res_weights, scales, goal,
