@@ -360,7 +360,7 @@ def _planar_dead_rhs(sig, c, sn, m, a, b, length, ca, cg, ci, ur, vr, nex, ney, 
 
 
 @njit
-def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second=False):
+def integrate_planar(m0, theta0, secf, steps, rest, loads, record, out, second):
     """One RK4 pass base → tip from base moment ``m0`` under dead loads.
 
     Args:

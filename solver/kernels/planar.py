@@ -202,7 +202,7 @@ def fold_scan(theta0, secf, steps, rest, loads, m_tip, params, n_scan, guess, ou
         for j in (k - 1, k):
             if not seen[j]:
                 th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(
-                    _grid_m(j, m_bound, n_scan), theta0, secf, steps, rest, loads, False, out)
+                    _grid_m(j, m_bound, n_scan), theta0, secf, steps, rest, loads, False, out, False)
                 residual[j] = m - m_tip
                 seen[j] = True
                 its += 1
@@ -257,7 +257,7 @@ def _bracket_root(prev_m, prev_r, mk, r, theta0, secf, steps, rest, loads, m_tip
         for _ in range(60):
             mid = 0.5 * (lo + hi)
             th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(mid, theta0, secf, steps, rest,
-                                                                loads, False, out)
+                                                                loads, False, out, False)
             its += 1
             r_mid = m - m_tip
             if not math.isfinite(r_mid):
@@ -286,11 +286,11 @@ def _tangent(m0, eps, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
     mt0 = _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     th0, m_a, b_a, x0, y0, bm0, _, _, _, _ = integrate_planar(m0, theta0, secf, steps, rest,
-                                                              loads_now, False, out)
+                                                              loads_now, False, out, False)
     mt1 = _level(eps, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     th1, m_b, b_b, x1, y1, bm1, _, _, _, _ = integrate_planar(m0, theta0, secf, steps, rest,
-                                                              loads_now, False, out)
+                                                              loads_now, False, out, False)
     slope = -((m_b - mt1) - (m_a - mt0)) / eps / b_a if b_a != 0.0 else 0.0
     return slope if math.isfinite(slope) else 0.0
 
@@ -320,7 +320,7 @@ def follow(state, grid, tubes, a, b, params, work, guard):
     c_j_3d, discs = guard
     m0, ok, total, snapped, stable, res, x, y, th = _path(
         state[0], theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-        mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs)
+        mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs, math.nan, math.nan)
     state[0] = m0
     state[1] = x
     state[2] = y
@@ -436,8 +436,8 @@ def warm_step(state, grid, tubes, a, b, params, work, memo, guard):
 
 @njit
 def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b, mtip_a,
-          mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs, slope0=math.nan,
-          dt_first=math.nan):
+          mtip_b, params, rest, p_now, loads_now, out, record, c_j_3d, discs, slope0,
+          dt_first):
     """Quasi-static path following from the equilibrium ``m0`` at t = 0 to t = 1.
 
     The homotopy ramps pressures and loads linearly from state A to state B. Each step
@@ -496,7 +496,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
     if discs.shape[0] > 0:
         _level(0.0, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
         rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
-        integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
+        integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev, False)
         if not chords_clear(rec_prev, discs):
             return m0, False, 1, snapped, False, math.inf, x, y, th
     # Tangent predictor for the first step (the later steps use the secant through accepted
@@ -534,7 +534,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
                                                                c_j_3d, rest, loads_now):
                 return root, False, total, snapped, False, res, x, y, th
             if discs.shape[0] > 0:
-                integrate_planar(root, theta0, secf, steps, rest, loads_now, True, rec_new)
+                integrate_planar(root, theta0, secf, steps, rest, loads_now, True, rec_new, False)
                 total += 1
                 if not chords_clear(rec_new, discs):
                     return root, False, total, snapped, False, res, x, y, th
@@ -611,7 +611,7 @@ def _path(m0, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, loads_b,
             # Where the arm snaps clear of every disc, the contact path lands where this one
             # does (solver.paths.shooting); where it would land on one, the contact path's
             # relaxation finds where it comes to rest.
-            integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev)
+            integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec_prev, False)
             total += 1
             if not (ok and chords_clear(rec_prev, discs)):
                 return m0, False, total, snapped, False, res, x, y, th
@@ -631,7 +631,7 @@ def resolved(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, lo
     _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     rec = np.empty(((steps + 1).sum(), N_COLUMNS))
-    integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec)
+    integrate_planar(m0, theta0, secf, steps, rest, loads_now, True, rec, False)
     return planar_fine(rec, secf, steps, loads_now)
 
 
@@ -644,7 +644,7 @@ def _give_back(m0, t, theta0, secf, steps, tubes_i, tubes_f, p_a, p_b, loads_a, 
     _level(t, p_a, p_b, loads_a, loads_b, mtip_a, mtip_b, p_now, loads_now)
     rest_strains_into(p_now, tubes_i, tubes_f, secf, rest)
     th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(m0, theta0, secf, steps, rest, loads_now,
-                                                        False, out)
+                                                        False, out, False)
     return m0, False, total + 1, snapped, bmin > 0.0, res, x, y, th
 
 
@@ -703,7 +703,7 @@ def batch(m0_start, p_start, theta0, secf, steps, tubes_i, tubes_f, p_targets, l
             root = m0_start[k]
             rest_strains_into(p_start[k], tubes_i, tubes_f, secf, rest)
             th, m, b, x, y, bmin, _, _, _, _ = integrate_planar(root, theta0, secf, steps, rest,
-                                                                loads, record, shapes[k])
+                                                                loads, record, shapes[k], False)
             if record:
                 forget_first_variations(shapes[k])
         tips[k, 0] = x

@@ -131,7 +131,7 @@ def free_record_of(crec, m0, p_channel, free, k):
             for c in range(S, U + 1):
                 rec[r, c] = crec[r, c]
     else:
-        integrate_planar(m0, free[FR_THETA0], secf, steps, rest_a, free[FR_LOADS], True, rec)
+        integrate_planar(m0, free[FR_THETA0], secf, steps, rest_a, free[FR_LOADS], True, rec, False)
     rec[:, D_THETA:] = math.nan
     planar_rest_gradient(rec, secf, steps, rest_a, grad)
     free[FR_STATES][k, 0] = m0

@@ -184,7 +184,7 @@ def _loaded_record(arm, packed, scene, ctx, m0):
     rest = np.vstack(rest_strains(arm, np.zeros(max(arm.n_channels, 1)), packed))
     out = np.empty((packed.n_rows, L.N_COLUMNS))
     bmin = integrate_planar(m0, scene.base_theta, packed.secf, packed.sec_steps, rest, ctx.loads,
-                            True, out)[5]
+                            True, out, False)[5]
     return out, bmin
 
 
@@ -345,7 +345,7 @@ def solve_single(problem: Problem, guard_3d=False, guard_discs=NO_DISCS) -> Equi
         packed, scene, p_start, p_target, start_ctx, ctx, m0, out, guard_3d, guard_discs)
     if not ok:  # the returned (last good) state was not recorded by a final Newton pass
         integrate_planar(state[0], scene.base_theta, packed.secf, packed.sec_steps, rest,
-                         loads_now, True, out)
+                         loads_now, True, out, False)
     return single_result(problem, out, state[0], converged=bool(ok), stable=bool(stable),
                          iterations=int(iterations + its), residual=float(res),
                          snapped=bool(snapped or snap))

@@ -98,7 +98,7 @@ def solve_shooting(problem: Problem, shooting: tuple, load_moments: bool,
             free = np.empty((layout.n_rows, L.N_COLUMNS))
             integrate_planar(float(warm_start.base_moment[-1]), scene.base_theta, layout.secf,
                              layout.sec_steps, np.vstack(rest_strains(arm, p_start, layout)),
-                             start_ctx.loads, True, free)
+                             start_ctx.loads, True, free, False)
             nodes = nodes_from_states(free[:, _FREE_STATE], segs)
         start_plate, start_target = shooting_terms(arm, layout, segs, start_scene, start_ctx,
                                                    load_moments)[:2]
@@ -235,7 +235,7 @@ def _snap(nodes, grid, layout, now, level, over, weights, res_weights, settings,
                                                 float(nodes[2]), _NO_RECORD)
         if found:
             free = np.empty((layout.n_rows, L.N_COLUMNS))
-            integrate_planar(m0, theta0, layout.secf, layout.sec_steps, rest, loads, True, free)
+            integrate_planar(m0, theta0, layout.secf, layout.sec_steps, rest, loads, True, free, False)
             landed = nodes_from_states(free[:, _FREE_STATE], segs)
             if not (planar_kernels.clear_of(free, level[L.L_DISCS], 0.0)
                     and _clear_of_itself(free, layout, grid[L.G_SELF])):

@@ -29,10 +29,10 @@ def test_scan_picks_the_nearest_stable_root_of_the_full_scan(design, payload, an
     out = np.empty((packed.n_rows, L.N_COLUMNS))
 
     def residual(m0):
-        return integrate_planar(m0, *grid, False, out)[1] - ctx.m_tip
+        return integrate_planar(m0, *grid, False, out, False)[1] - ctx.m_tip
 
     def stable(m0):
-        return integrate_planar(m0, *grid, False, out)[5] > 0.0
+        return integrate_planar(m0, *grid, False, out, False)[5] > 0.0
 
     bound = ctx.params[L.M_BOUND]
     n_scan = solver.Settings().n_scan
@@ -90,7 +90,7 @@ def test_newton_finishing_through_first_variations_is_a_pass_there(design, paylo
         for offset in (30.0, -300.0, 3000.0):
             m0, ok, its, res, stable, _, x, y, th = planar_kernels.newton(root + offset * tol, *args)
             fresh = np.empty_like(out)
-            th_p, m_p, _, x_p, y_p, *_ = integrate_planar(m0, *grid, True, fresh)
+            th_p, m_p, _, x_p, y_p, *_ = integrate_planar(m0, *grid, True, fresh, False)
             assert ok and abs(m_p - ctx.m_tip) <= tol
             assert max(abs(x - x_p), abs(y - y_p), abs(th - th_p)) <= 1e-12  # m, rad
             assert np.isnan(out[:, L.D_THETA:]).all()  # the scratch the finish used is forgotten

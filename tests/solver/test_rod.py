@@ -49,7 +49,7 @@ def test_a_shifted_record_is_the_pass_from_the_shifted_moment(design, payload, a
 
     def record(m0):
         out = np.empty((packed.n_rows, L.N_COLUMNS))
-        rod.integrate_planar(m0, *grid, True, out)
+        rod.integrate_planar(m0, *grid, True, out, False)
         return out
 
     moved = [L.X, L.Y, L.THETA, L.M, L.V1, L.V3, L.U]

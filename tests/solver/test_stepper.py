@@ -172,7 +172,8 @@ def test_jumps_land_where_a_fine_march_does(design, angle, payload):
         def residual(t, m0, c_a=c_a, c_b=c_b):
             rest = np.vstack(solver.rest_strains(arm, c_a + t * (c_b - c_a)))
             _, m, b, _, _, bmin, *_ = integrate_planar(m0, scene.base_theta, packed.secf,
-                                                      packed.sec_steps, rest, ctx.loads, False, out)
+                                                      packed.sec_steps, rest, ctx.loads, False, out,
+                                                      False)
             return m - ctx.m_tip, b, bmin > 0.0
 
         marched = naive.march_planar(residual, m_start, max_move=ctx.params[L.JUMP])
