@@ -9,12 +9,13 @@ STAMP   = $(VENV)/.installed
 
 .PHONY: demo test test-long docs lint bench clean
 
+# torch by pip, which takes the local CPU wheel (any other torch spec, and uv, which does not look
+# on this disk, pull gigabytes of CUDA packages); the rest by uv, which resolves the same versions
+# as pip in an eighth of the time (5 s against 40 s here) and keeps the installed torch.
 $(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install -q --upgrade pip
-	# The local CPU wheel; any other torch spec pulls gigabytes of CUDA packages.
-	$(BIN)/pip install -q torch==2.13.0
-	$(BIN)/pip install -q -e ".[dev,baselines,ray,docs]"
+	$(BIN)/pip install -q torch==2.13.0 uv
+	$(BIN)/uv pip install -q --python $(BIN)/python -e ".[dev,baselines,ray,docs]"
 	touch $(STAMP)
 
 demo: $(STAMP)
