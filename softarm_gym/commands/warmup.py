@@ -44,13 +44,31 @@ STEPS = 3
 KERNEL_MODULES = ("solver", "softarm_gym.sensing.kernels", "softarm_gym.envs.terms")
 """Modules whose import defines every project kernel (for ``--clear``)."""
 
-GROUPS = ("spatial_contact", "reach", "contact", "batch", "solver")
+GROUPS = ("spatial_contact", "reach", "contact", "batch_contact", "batch", "solver")
 """Warm-up groups, each one process's work (see :func:`warm_group`), in the order the pool
-starts them: the longest first (the 3-D contact kernels take one process most of the run), and
-``reach`` (whose self-contacting track ids compile the planar contact stepper) before the
-groups that reuse its kernels, so that two processes do not compile the same kernel at once
-(in the order solver, reach, contact, ..., ``contact`` compiled the planar contact stepper
-again beside ``reach``: solver+contact 426 s against reach 378 s in one run)."""
+starts them. Compiling is most of the warm-up, and a kernel is compiled by the first group that
+runs it, so the order decides both the balance and whether two processes compile one kernel at
+once. ``spatial_contact`` (the 3-D contact kernels) starts first and keeps one process for most
+of the run; the other compiles ``reach``, then ``contact`` (the planar contact stepper and its
+Newton), then the batched contact rows (``batch_contact``: the parallel row kernel, whose
+callees ``contact`` has compiled by then), while the first process,
+free by then, takes the batched reach kernels (``batch``) and ``solver``'s few. On an empty
+cache, 2 cores: spatial_contact 225 s, batch 19 s, solver 6 s in one process; reach 45 s,
+contact 163 s, batch_contact 46 s in the other; 258 s in all. As one group, the two batched
+groups left the second process running 50 s after the first had finished (271 s in all)."""
+
+_WIDE = solver.BatchStepper.PARALLEL_MIN
+
+BATCHED = {
+    "batch_contact": (("SoftArm/OctArmWrap-v2", 2), ("SoftArm/OctArmWrap-v2", _WIDE),
+                      ("SoftArm/OctArmObstacleReach-v1", 2)),
+    "batch": (("SoftArm/OctArmReach-v1", 2), ("SoftArm/OctArmReach-v1", _WIDE),
+              ("SoftArm/OctArmTrack-v1", 2)),
+}
+"""(env_id, num_envs) of each batched group's vector-env episodes. Small batches run the
+one-thread kernels, larger ones the parallel ones: both are warmed, for reach and for the
+contact rows (wrap, obstacle reach: the recommended versions, with self-contact), and the track
+task's terms."""
 
 
 def add_arguments(p):
@@ -166,8 +184,8 @@ def warm_group(group: str) -> float:
     ``solver``: the solver's kernels on the named designs (cold, warm, spatial, batch);
     ``reach``, ``contact``, ``spatial_contact``: a short episode of each of their
     :func:`cases` (``spatial_contact`` also a 3D ramp that snaps, :func:`spatial_snap_kernels`);
-    ``batch``: the batched vector env (one-thread and parallel sizes) and both batch kernels
-    both ways (:func:`batch_kernels`).
+    ``batch_contact``, ``batch``: the batched vector envs of :data:`BATCHED` (one-thread and
+    parallel sizes), ``batch`` also both batch kernels both ways (:func:`batch_kernels`).
     """
     from softarm_gym.registry import make_unwrapped
 
@@ -176,19 +194,14 @@ def warm_group(group: str) -> float:
     start = time.perf_counter()
     if group == "solver":
         _solver_kernels()
-    elif group == "batch":
+    elif group in BATCHED:
         import gymnasium as gym
 
-        # Small batches run the one-thread kernels, larger ones the parallel ones: warm both,
-        # for reach and for the contact rows (wrap, obstacle reach: the recommended versions,
-        # with self-contact) and the track task's terms.
-        wide = solver.BatchStepper.PARALLEL_MIN
-        for env_id, num_envs in (("SoftArm/OctArmReach-v1", 2), ("SoftArm/OctArmReach-v1", wide),
-                                 ("SoftArm/OctArmWrap-v2", 2), ("SoftArm/OctArmWrap-v2", wide),
-                                 ("SoftArm/OctArmObstacleReach-v1", 2), ("SoftArm/OctArmTrack-v1", 2)):
+        for env_id, num_envs in BATCHED[group]:
             _episode(gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point"),
                      seed=0)
-        batch_kernels()
+        if group == "batch":
+            batch_kernels()
     else:
         for k, (env_id, kwargs) in enumerate(cases()):
             if group_of(env_id, kwargs) == group:

@@ -35,7 +35,7 @@ def test_warmup_runs_every_registered_id_in_every_observation_mode():
 
 def test_every_warmup_case_belongs_to_a_group_and_every_env_group_has_cases():
     groups = {group_of(env_id, kw) for env_id, kw in cases()}
-    assert groups == set(GROUPS) - {"solver", "batch"}
+    assert groups == set(GROUPS) - {"solver", "batch", "batch_contact"}
     assert group_of("SoftArm/OctArmWrap3D-v0", {}) == "spatial_contact"
     assert group_of("SoftArm/OctArmWrap-v1", {}) == "contact"
     assert group_of("SoftArm/CTReach-v1", {"planar": False}) == "reach"
