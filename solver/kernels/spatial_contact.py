@@ -684,7 +684,7 @@ def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, ma
     return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
                        max_step, tether, np.empty(n), np.empty((n, n)),
                        np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL, True, Z,
-                       math.inf)
+                       math.inf, math.inf)
 
 
 @njit
@@ -697,12 +697,12 @@ def probe(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max
     return newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter,
                        max_step, tether, np.empty(n), np.empty((n, n)),
                        np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL, False, Z,
-                       math.inf)
+                       math.inf, math.inf)
 
 
 @njit
 def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step,
-                tether, F, J, blocks, jacobian, past_kinks, fence_center, fence):
+                tether, F, J, blocks, jacobian, past_kinks, fence_center, fence, plateau):
     """:func:`newton` with its residual ``F`` (n,), Jacobian ``J`` (n, n) and segment maps
     ``blocks`` (K, 12, 12) in the caller's arrays — where it converges they hold those of
     the returned state — and its Jacobian formed as ``jacobian`` says (``JAC_DIFFERENCES``
@@ -711,7 +711,10 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
     (:func:`probe`). ``fence_center`` (K, N_CSTATE) and ``fence``: give up (unconverged, ``Z``
     at the iterate) where an iterate lies farther than ``fence`` (weighted RMS) from the
     centre by more than twice its Newton step — a caller that refuses a root beyond the fence
-    would refuse this one (:data:`FENCE_STEPS`); ``math.inf``: no fence.
+    would refuse this one (:data:`FENCE_STEPS`); ``math.inf``: no fence. ``plateau``: give up,
+    too, where a Newton step is longer than ``plateau`` fences — the iterate sits on a fold's
+    plateau, where the linear model's root is no root the caller would take (the lean step's
+    :data:`PLATEAU_FENCES`; ``math.inf``: never).
 
     With the variational Jacobian, an iteration's first trial is formed with its Jacobian in
     one pass where the iteration before accepted its first trial (and at the first
@@ -746,7 +749,7 @@ def newton_into(Z, grid, rest, level, weights, res_weights, scales, tol, max_ite
         norm = weighted_norm(step, weights)
         if fence < math.inf:
             between(Z, fence_center, rhs)
-            if weighted_norm(rhs, weights) - FENCE_STEPS * norm > fence:
+            if weighted_norm(rhs, weights) - FENCE_STEPS * norm > fence or norm > plateau * fence:
                 return False, it, res, False
         alpha = max_step / norm if norm > max_step else 1.0
         base[:, :] = Z
@@ -870,7 +873,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
     ok, total, res, stable = newton_into(
         Z, grid, rest, now, weights, res_weights, scales, tol,
         max(max_iter, FRICTION_START_ITER) if friction else max_iter, max_step, NO_TETHER, F, J,
-        blocks, JAC_VARIATIONAL, True, Z, math.inf)
+        blocks, JAC_VARIATIONAL, True, Z, math.inf, math.inf)
     if not (ok and stable):
         return False, total, res, stable, 0.0
     accepted = Z.copy()
@@ -917,7 +920,7 @@ def follow(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, scales, tol, m
         ok, its, res, stable = newton_into(
             Z, grid, rest, now, weights, res_weights, scales, tol if final else 1e3 * tol,
             max_iter if final else 8, max_step, NO_TETHER, F, J, blocks, JAC_VARIATIONAL,
-            friction or final, guess, fence)
+            friction or final, guess, fence, math.inf)
         total += its
         between(Z, guess, moved)
         if ok and stable and weighted_norm(moved, weights) <= fence:
@@ -1106,6 +1109,16 @@ def broyden(Z, grid, rest, level, F, scales, res_weights, tol, factors, res):
         k += 1
 
 
+PLATEAU_FENCES = 3.0
+"""A try of the lean step gives up where a Newton step is longer than this many fences (its
+branch-jump bound round the prediction): the iterate sits on a fold's plateau, where Newton's
+steps point far off and shrink little, and the lean step's remedy, a halved step, is cheaper
+than Newton's remaining iterations there. Of 25 lean attempts before general 3D steps (the
+3D wraps' random steps, docs/design.md §10.1), 6 reached t = 1 within the Jacobian budget
+without it; 11, 12, 9 and 9 with 2, 3, 5 and 10 fences, each landing within 4.5e-10 m of the
+general path's state. With 3 fences the 81 lean steps of the control landed where they had
+(with 2, two moved by 3e-11 m; with 1, 61 moved and the Jacobians rose by a third)."""
+
 @njit
 def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, check):
     """A warm step of the 3D contact stepper in one kernel call: from the equilibrium ``Z``
@@ -1210,7 +1223,8 @@ def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, chec
             ok, its, res, stable = newton_into(
                 Z, grid, rest, now, weights, res_weights, scales, goal,
                 min(int(params[MAX_ITER]) if final else 8, LEAN_JACOBIANS - jacobians - 1),
-                params[MAX_STEP], NO_TETHER, F, J, blocks, JAC_VARIATIONAL, True, guess, fence)
+                params[MAX_STEP], NO_TETHER, F, J, blocks, JAC_VARIATIONAL, True, guess, fence,
+                PLATEAU_FENCES)
             passes += its + 1
             jacobians += its + 1
             solved = ok

@@ -313,7 +313,7 @@ def _solve_from(k, contact, Z, level, rest, quasi):
                                      params[TOL], int(params[MAX_ITER]), params[MAX_STEP], NO_TETHER,
                                      np.empty(n), np.empty((n, n)),
                                      np.empty((Z.shape[0], N_CTANGENT, N_CTANGENT)), JAC_VARIATIONAL,
-                                     True, Z, math.inf)
+                                     True, Z, math.inf, math.inf)
     return ok and stable, passes + its + 1
 
 

@@ -532,7 +532,7 @@ def test_newton_forming_first_trials_with_their_jacobians_takes_the_textbook_ite
     ok, its, res, _ = spatial_contact.newton_into(
         kernel_nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
         spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, past_kinks,
-        kernel_nodes, math.inf)
+        kernel_nodes, math.inf, math.inf)
     plain = newton_spatial_contact_plain(plain_nodes, grid, rest, level, weights, res_weights,
                                          scales, tol, 40, 2.0, past_kinks)
     assert (ok, its, res) == plain[:3] and ok
@@ -559,7 +559,7 @@ def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(monkeypatch, reach)
         return spatial_contact.newton_into(
             nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
             spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, True, Z,
-            fence)
+            fence, math.inf)
 
     def from_start(nodes):
         moved = np.empty(n)
@@ -576,3 +576,47 @@ def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(monkeypatch, reach)
         assert not fenced_ok and fenced_its < its and from_start(fenced) > reach * distance
     else:
         assert fenced_ok and fenced_its == its and np.array_equal(fenced, root)
+
+
+def test_newton_gives_up_where_its_step_is_longer_than_plateau_fences(monkeypatch):
+    """The lean step's Newton also gives up where a Newton step is longer than ``plateau``
+    fences (``PLATEAU_FENCES``: a fold's plateau). The same solve as above, fenced at twice its
+    root's distance (where the fence alone changes no iterate); its first Newton step, worked out
+    here by a dense forward-difference Jacobian, is its longest: a plateau 2 % short of that step
+    stops Newton at the start, one 2 % past it changes no iterate."""
+    (Z, grid, rest, level, weights, res_weights, scales, tol) = _one_solve_on_a_cylinder(monkeypatch)
+    n = weights.shape[0]
+
+    def newton(nodes, fence, plateau):
+        F, J = np.empty(n), np.empty((n, n))
+        blocks = np.empty((Z.shape[0], spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
+        return spatial_contact.newton_into(
+            nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
+            spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, True, Z,
+            fence, plateau)
+
+    def residual(nodes):
+        F = np.empty(n)
+        blocks = np.empty((0, spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
+        assert spatial_contact.newton_system(nodes, grid, rest, level, F, np.empty((0, 0)), False,
+                                             blocks, scales, spatial_contact.NO_TETHER)
+        return F
+
+    F0, h, jacobian = residual(Z), 1e-7, np.empty((n, n))
+    for k in range(n):
+        moved = Z.copy()
+        spatial_contact.retract(Z, np.eye(n)[k], h, moved)
+        jacobian[:, k] = (residual(moved) - F0) / h
+    first_step = spatial_contact.weighted_norm(np.linalg.solve(jacobian, F0), weights)
+
+    root = Z.copy()
+    ok, its, *_ = newton(root, math.inf, math.inf)
+    moved = np.empty(n)
+    spatial_contact.between(root, Z, moved)
+    fence = 2.0 * spatial_contact.weighted_norm(moved, weights)
+    short = Z.copy()
+    assert newton(short, fence, 0.98 * first_step / fence)[:2] == (False, 0)
+    assert np.array_equal(short, Z)
+    past = Z.copy()
+    assert newton(past, fence, 1.02 * first_step / fence)[:2] == (True, its) and ok
+    assert np.array_equal(past, root)
