@@ -1115,9 +1115,10 @@ branch-jump bound round the prediction): the iterate sits on a fold's plateau, w
 steps point far off and shrink little, and the lean step's remedy, a halved step, is cheaper
 than Newton's remaining iterations there. Of 25 lean attempts before general 3D steps (the
 3D wraps' random steps, docs/design.md §10.1), 6 reached t = 1 within the Jacobian budget
-without it; 11, 12, 9 and 9 with 2, 3, 5 and 10 fences, each landing within 4.5e-10 m of the
-general path's state. With 3 fences the 81 lean steps of the control landed where they had
-(with 2, two moved by 3e-11 m; with 1, 61 moved and the Jacobians rose by a third)."""
+without it; 11, 12, 9 and 9 with 2, 3, 5 and 10 fences (the landings, checked at 2, 3 and 10,
+within 4.5e-10 m of the general path's state). With 3 fences the 81 lean steps of the control
+landed where they had (with 2, two moved by 3e-11 m; with 1, 61 moved and the Jacobians rose
+by a third)."""
 
 @njit
 def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, check):
