@@ -542,6 +542,28 @@ def test_newton_forming_first_trials_with_their_jacobians_takes_the_textbook_ite
     assert np.array_equal(blocks, plain[5])
 
 
+def _fenced_newton(solve, nodes, fence, plateau=math.inf):
+    """``newton_into`` on ``solve`` (:func:`_one_solve_on_a_cylinder`'s arguments) from
+    ``nodes`` (changed in place), fenced round the solve's start with ``fence`` and
+    ``plateau``."""
+    (Z, grid, rest, level, weights, res_weights, scales, tol) = solve
+    n = weights.shape[0]
+    F, J = np.empty(n), np.empty((n, n))
+    blocks = np.empty((Z.shape[0], spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
+    return spatial_contact.newton_into(
+        nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
+        spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, True, Z, fence,
+        plateau)
+
+
+def _from_start(solve, nodes):
+    """Weighted RMS distance of ``nodes`` from ``solve``'s start."""
+    Z, weights = solve[0], solve[4]
+    moved = np.empty(weights.shape[0])
+    spatial_contact.between(nodes, Z, moved)
+    return spatial_contact.weighted_norm(moved, weights)
+
+
 @pytest.mark.parametrize("reach", [0.5, 0.8, 1.2, 2.0])
 def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(monkeypatch, reach):
     """A path refuses a converged try that lies too far from its prediction, so its Newton
@@ -550,30 +572,16 @@ def test_newton_gives_up_behind_a_fence_its_root_lies_beyond(monkeypatch, reach)
     OctArm V pressed on a cylinder, channels I from 30 to 90 % of p_max in one Newton solve,
     fenced round the start at ``reach`` times the root's distance: a fence short of the root
     stops Newton before it converges; one past it changes no iterate."""
-    (Z, grid, rest, level, weights, res_weights, scales, tol) = _one_solve_on_a_cylinder(monkeypatch)
-    n = weights.shape[0]
-
-    def newton(nodes, fence):
-        F, J = np.empty(n), np.empty((n, n))
-        blocks = np.empty((Z.shape[0], spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
-        return spatial_contact.newton_into(
-            nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
-            spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, True, Z,
-            fence, math.inf)
-
-    def from_start(nodes):
-        moved = np.empty(n)
-        spatial_contact.between(nodes, Z, moved)
-        return spatial_contact.weighted_norm(moved, weights)
-
+    solve = _one_solve_on_a_cylinder(monkeypatch)
+    Z = solve[0]
     root = Z.copy()
-    ok, its, *_ = newton(root, math.inf)
+    ok, its, *_ = _fenced_newton(solve, root, math.inf)
     assert ok and its >= 4
-    distance = from_start(root)
+    distance = _from_start(solve, root)
     fenced = Z.copy()
-    fenced_ok, fenced_its, *_ = newton(fenced, reach * distance)
+    fenced_ok, fenced_its, *_ = _fenced_newton(solve, fenced, reach * distance)
     if reach < 1.0:
-        assert not fenced_ok and fenced_its < its and from_start(fenced) > reach * distance
+        assert not fenced_ok and fenced_its < its and _from_start(solve, fenced) > reach * distance
     else:
         assert fenced_ok and fenced_its == its and np.array_equal(fenced, root)
 
@@ -584,16 +592,9 @@ def test_newton_gives_up_where_its_step_is_longer_than_plateau_fences(monkeypatc
     root's distance (where the fence alone changes no iterate); its first Newton step, worked out
     here by a dense forward-difference Jacobian, is its longest: a plateau 2 % short of that step
     stops Newton at the start, one 2 % past it changes no iterate."""
-    (Z, grid, rest, level, weights, res_weights, scales, tol) = _one_solve_on_a_cylinder(monkeypatch)
+    solve = _one_solve_on_a_cylinder(monkeypatch)
+    (Z, grid, rest, level, weights, res_weights, scales, tol) = solve
     n = weights.shape[0]
-
-    def newton(nodes, fence, plateau):
-        F, J = np.empty(n), np.empty((n, n))
-        blocks = np.empty((Z.shape[0], spatial_contact.N_CTANGENT, spatial_contact.N_CTANGENT))
-        return spatial_contact.newton_into(
-            nodes, grid, rest, level, weights, res_weights, scales, tol, 40, 2.0,
-            spatial_contact.NO_TETHER, F, J, blocks, spatial_contact.JAC_VARIATIONAL, True, Z,
-            fence, plateau)
 
     def residual(nodes):
         F = np.empty(n)
@@ -602,21 +603,19 @@ def test_newton_gives_up_where_its_step_is_longer_than_plateau_fences(monkeypatc
                                              blocks, scales, spatial_contact.NO_TETHER)
         return F
 
-    F0, h, jacobian = residual(Z), 1e-7, np.empty((n, n))
+    F0, h, jacobian, unit = residual(Z), 1e-7, np.empty((n, n)), np.eye(n)
     for k in range(n):
         moved = Z.copy()
-        spatial_contact.retract(Z, np.eye(n)[k], h, moved)
+        spatial_contact.retract(Z, unit[k], h, moved)
         jacobian[:, k] = (residual(moved) - F0) / h
     first_step = spatial_contact.weighted_norm(np.linalg.solve(jacobian, F0), weights)
 
     root = Z.copy()
-    ok, its, *_ = newton(root, math.inf, math.inf)
-    moved = np.empty(n)
-    spatial_contact.between(root, Z, moved)
-    fence = 2.0 * spatial_contact.weighted_norm(moved, weights)
+    ok, its, *_ = _fenced_newton(solve, root, math.inf)
+    fence = 2.0 * _from_start(solve, root)
     short = Z.copy()
-    assert newton(short, fence, 0.98 * first_step / fence)[:2] == (False, 0)
+    assert _fenced_newton(solve, short, fence, 0.98 * first_step / fence)[:2] == (False, 0)
     assert np.array_equal(short, Z)
     past = Z.copy()
-    assert newton(past, fence, 1.02 * first_step / fence)[:2] == (True, its) and ok
+    assert _fenced_newton(solve, past, fence, 1.02 * first_step / fence)[:2] == (True, its) and ok
     assert np.array_equal(past, root)
