@@ -244,12 +244,14 @@ def _worker(out: str, sweep_id: str, fingerprint: str, ray_cpus: int | None):
         return
     import numba
 
+    threads_before = numba.get_num_threads()
     numba.set_num_threads(max(1, min(ray_cpus, numba.config.NUMBA_NUM_THREADS)))
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        numba.set_num_threads(threads_before)
 
 
 def train_run(spec: RunSpec, settings: dict, out: str, sweep_id: str, fingerprint: str,

@@ -211,14 +211,19 @@ def run(env_id: str, agents=tuple(AGENTS), seeds=(0,), *, target: float = 0.9, b
         raise ValueError(f"target must lie in (0, 1]; got {target}")
     if not budget_min > 0 or not eval_every_s > 0:
         raise ValueError("budget_min and eval_every_s must be > 0")
+    threads_before = torch.get_num_threads(), numba.get_num_threads()
     torch.set_num_threads(1)
     numba.set_num_threads(numba_threads)
     start = time.perf_counter()
     load_before = os.getloadavg()
-    runs = [race(env_id, agent, seed, target=target, budget_min=budget_min, eval_every_s=eval_every_s,
-                 hyperparams_dir=hyperparams_dir, batched_hyperparams_dir=batched_hyperparams_dir,
-                 progress=progress)
-            for seed in seeds for agent in agents]
+    try:
+        runs = [race(env_id, agent, seed, target=target, budget_min=budget_min, eval_every_s=eval_every_s,
+                     hyperparams_dir=hyperparams_dir, batched_hyperparams_dir=batched_hyperparams_dir,
+                     progress=progress)
+                for seed in seeds for agent in agents]
+    finally:  # the caller's thread counts, as found (a caller's later work is not pinned to one)
+        torch.set_num_threads(threads_before[0])
+        numba.set_num_threads(threads_before[1])
     budget_s = 60.0 * budget_min
     single, batched = _best(runs, False, budget_s), _best(runs, True, budget_s)
     both = single is not None and batched is not None
