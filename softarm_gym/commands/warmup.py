@@ -119,6 +119,7 @@ def _solver_kernels() -> None:
     solver.solve(arm, np.array([20, 5, 0, 10, 0, 0, 0, 0, 0]) * solver.PSI, scene, planar=False)
     solver.solve_batch(arm, np.stack([p, p * 0.5]), scene)
     planar_snap_kernels()
+    spatial_multiple_shooting_kernels()
 
 
 def planar_snap_kernels() -> solver.Equilibrium:
@@ -134,6 +135,18 @@ def planar_snap_kernels() -> solver.Equilibrium:
     p = np.array([10022.412505394157, 643435.2292238332, 59174.79990378651, 582556.5226653588,
                   253644.84076263456, 655707.2635570455])
     return solver.solve(arm, p, scene)
+
+
+def spatial_multiple_shooting_kernels() -> solver.Equilibrium:
+    """A cold 3D solve that single shooting cannot take (OctArm V hanging from a base pointed
+    straight down, a payload, every section bent out of the plane), which the solver hands to
+    spatial multiple shooting (:mod:`solver.kernels.spatial_shooting`): no env reaches it in a
+    few random steps, so it was compiled inside the first such solve of a user's (~20 s).
+    Returns the solve."""
+    arm = solver.designs.octarm_v()
+    scene = solver.Scene(base_angle_deg=180.0, payload_kg=0.109)
+    p = np.array([95.2, 44.4, 44.4, 0.0, 51.6, 51.6, 52.1, 89.7, 89.7]) * solver.PSI
+    return solver.solve(arm, p, scene, planar=False)
 
 
 def spatial_snap_kernels() -> list:

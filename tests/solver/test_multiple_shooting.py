@@ -228,3 +228,24 @@ def test_near_lockup_spatial_solve_converges(model, base, payload, fractions):
     assert eq.converged and eq.stable
     # Curls of ~1 cm radius: Simpson's rule over the samples is itself good to ~2e-5 here.
     assert _global_moment_balance(arm, scene, eq) < 1e-4
+
+
+def test_the_warmups_3d_solve_is_taken_by_spatial_multiple_shooting(monkeypatch):
+    """``softarm warmup`` compiles spatial multiple shooting through a cold 3D solve that single
+    shooting cannot take: solve() hands it to multiple shooting, which converges to a stable
+    state there (else a user's first such solve compiled the kernels, ~20 s)."""
+    import solver.paths.spatial as spatial
+    from softarm_gym.commands.warmup import spatial_multiple_shooting_kernels
+
+    taken = []
+
+    def spy(problem):
+        eq = solve_spatial_multiple(problem)
+        taken.append(eq)
+        return eq
+
+    monkeypatch.setattr(spatial, "solve_spatial_multiple", spy)
+    eq = spatial_multiple_shooting_kernels()
+    assert len(taken) == 1 and taken[0] is not None
+    assert eq.converged and eq.stable and taken[0].converged
+    np.testing.assert_array_equal(eq.tip, taken[0].tip)
