@@ -437,8 +437,9 @@ def contact_table() -> str:
         part = sbs[key] if key == "ratios" else planners[key]
         rows.append(f"`{part['command']}`, {part['date']}, {part['rounds']} alternating rounds, load average "
                     f"{part['load_before'][0]:.1f} before and {part['load_after'][0]:.1f} after.")
+    after = "not read" if m["load_after"] is None else f"{m['load_after'][0]:.1f}"
     rows.append(f"`{m['command']}`, {m['date']}, load average {m['load_before'][0]:.1f} before and "
-                f"{m['load_after'][0]:.1f} after.")
+                f"{after} after.")
     return "\n".join(rows)
 
 
