@@ -211,7 +211,7 @@ def run(env_id: str, agents=tuple(AGENTS), seeds=(0,), *, target: float = 0.9, b
         raise ValueError(f"target must lie in (0, 1]; got {target}")
     if not budget_min > 0 or not eval_every_s > 0:
         raise ValueError("budget_min and eval_every_s must be > 0")
-    threads_before = torch.get_num_threads(), numba.get_num_threads()
+    torch_threads, numba_threads_before = torch.get_num_threads(), numba.get_num_threads()
     torch.set_num_threads(1)
     numba.set_num_threads(numba_threads)
     start = time.perf_counter()
@@ -222,8 +222,8 @@ def run(env_id: str, agents=tuple(AGENTS), seeds=(0,), *, target: float = 0.9, b
                      progress=progress)
                 for seed in seeds for agent in agents]
     finally:  # the caller's thread counts, as found (a caller's later work is not pinned to one)
-        torch.set_num_threads(threads_before[0])
-        numba.set_num_threads(threads_before[1])
+        torch.set_num_threads(torch_threads)
+        numba.set_num_threads(numba_threads_before)
     budget_s = 60.0 * budget_min
     single, batched = _best(runs, False, budget_s), _best(runs, True, budget_s)
     both = single is not None and batched is not None

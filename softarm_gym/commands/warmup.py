@@ -52,10 +52,11 @@ once. ``spatial_contact`` (the 3-D contact kernels) starts first and keeps one p
 of the run; the other compiles ``reach``, then ``contact`` (the planar contact stepper and its
 Newton), then the batched contact rows (``batch_contact``: the parallel row kernel, whose
 callees ``contact`` has compiled by then), while the first process, free by then, takes the
-batched reach kernels (``batch``) and ``solver``'s few. On an empty cache, 2 cores:
-spatial_contact 225 s, batch 19 s, solver 6 s in one process; reach 45 s, contact 163 s,
-batch_contact 46 s in the other; 258 s in all. As one group, the two batched groups left the
-second process running 50 s after the first had finished (271 s in all)."""
+batched reach kernels (``batch``) and ``solver``'s. On an empty cache, 2 cores:
+spatial_contact 222 s, batch 19 s, solver 23 s (6 s before it compiled spatial multiple
+shooting) in one process; reach 48 s, contact 164 s, batch_contact 49 s in the other; 269 s in
+all. As one group, the two batched groups left the second process running 50 s after the first
+had finished."""
 
 _WIDE = solver.BatchStepper.PARALLEL_MIN
 
