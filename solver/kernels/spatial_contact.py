@@ -1120,6 +1120,7 @@ within 4.5e-10 m of the general path's state). With 3 fences the 81 lean steps o
 landed where they had (with 2, two moved by 3e-11 m; with 1, 61 moved and the Jacobians rose
 by a third)."""
 
+
 @njit
 def lean_step(Z, grid, tubes, level, p_new, params, work, factors, records, check):
     """A warm step of the 3D contact stepper in one kernel call: from the equilibrium ``Z``
