@@ -28,6 +28,13 @@ literal values: numba otherwise compiles a callee once per constant a caller pas
 here, a variable flag there, ``0`` for a start index: four copies of the contact integrator). A
 callee that only types with the value itself (an index into a heterogeneous tuple) is still
 compiled for it (:func:`_typed_without_literals`).
+
+Every kernel compiled on its own (one called from Python, or from other kernels without
+``inline="always"``) links the machine code of everything it calls and optimises that whole
+call graph again: a one-line wrapper round the contact integrator costs as long to compile as
+the integrator (5–7 s each). So a kernel with a single caller is inlined into it
+(``@njit(inline="always")``), and a wrapper that only allocates scratch arrays for Python is a
+plain Python function; compiling is most of ``softarm warmup`` and of a fresh ``make test``.
 """
 
 from __future__ import annotations

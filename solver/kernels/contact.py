@@ -317,7 +317,7 @@ def _self_row(loads, segs, seg, node, out, row):
     out[row, C_PEN] = max(out[row, C_PEN], loads[a, b, SELF_PEN])
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def _prepare_partners(Z, grid, rest, level, partners, recording):
     """The self-contact loads of the state ``Z`` into ``partners`` (nothing without
     self-contact). Functions of Z alone (and, with self-contact friction, of the anchors of
@@ -669,7 +669,7 @@ def _start_state(Z, seg, theta0, z):
             z[d] = Z[base + d]
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
     """Residuals F (N,) of the multiple-shooting system and, if ``want_jac``, its Jacobian J.
 
@@ -986,7 +986,7 @@ def _coupled(Z, grid, rest, level, F, J, partners, weights, A):
     return differenced
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     """Damped Newton on the multiple-shooting system at ``level``; ``Z`` is updated in place.
 
@@ -1006,7 +1006,6 @@ def newton(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
                          math.inf)
 
 
-@njit
 def probe(Z, grid, rest, level, weights, res_weights, tol, max_iter, max_step):
     """:func:`newton` that gives up where no trial of its line search lowers the residual
     (as :func:`solver.kernels.spatial_contact.probe`): a snap's polish from a relaxed state,
@@ -1183,7 +1182,7 @@ def follow(Z, grid, tubes, a, b, params, work, guard):
     return ok, stable, False, total, res, t, dt
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def _path(Z, grid, tubes_i, tubes_f, a, b, weights, res_weights, tol, max_iter, max_step, dt0,
           dt_min, rest, now, predict_cap):
     """Quasi-static ramp from level ``a`` to level ``b`` (tuples, see ``L_P``…``L_DISCS``;
@@ -1331,7 +1330,7 @@ def record_backbone(Z, grid, rest, level, out):
                     np.empty((0, 6, 6)), new_partners(grid), out)
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def _initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, slope):
     """dZ/dt = −J⁻¹ ∂F/∂t at the start state (an equilibrium of level ``a``), ∂F/∂t by a
     forward difference, into ``slope``; zero where J or the result is not finite."""
@@ -1525,7 +1524,7 @@ def broyden_update(steps, norms, k, z):
     return True
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def _broyden(Z, grid, rest, level, F, res_weights, tol, factors, res, partners):
     """Quasi-Newton corrections of the nodes ``Z`` at ``level`` from their residual ``F``
     (its weighted norm ``res``): the first step by the factored Jacobian ``factors`` (of a

@@ -485,7 +485,7 @@ def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
                    blocks, scales, tether)
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def tangent_system(Z, grid, rest, level, F, J, blocks):
     """:func:`newton_system` (untethered) with the segment maps' Jacobians integrated along
     with the segments by the variational equations (:func:`_segment`) instead of forward
@@ -667,7 +667,6 @@ def between(a, b, out):
                 out[col] = gap[c]
 
 
-@njit
 def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step, tether):
     """Damped Newton on the spatial contact system at ``level``; ``Z`` updated in place.
 
@@ -687,7 +686,6 @@ def newton(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, ma
                        math.inf, math.inf)
 
 
-@njit
 def probe(Z, grid, rest, level, weights, res_weights, scales, tol, max_iter, max_step, tether):
     """:func:`newton` from a guessed start (a snap's push along the critical mode), which
     gives up where no trial of the line search lowers the residual: there the guess lies in
@@ -818,7 +816,7 @@ TANGENT_DT = 1e-4
 FIRST_MOVE = 0.1
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, scales, F, J, slope):
     """The path's tangent dZ/dt = −J⁻¹ ∂F/∂t (n,) at its start ``Z``, an equilibrium of level
     ``a`` on the ramp to ``b`` (:func:`follow`), into ``slope``: ``F`` (n,) and ``J`` (n, n)
@@ -1024,7 +1022,7 @@ def new_factors(n):
     return np.empty((BAND_ROWS, n)), np.empty(n, dtype=np.int64)
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def factor_state(Z, grid, rest, level, F, J, blocks, rec, factors):
     """One Jacobian pass at the node states ``Z`` (``level``, ``rest`` its rest strains):
     the residual into ``F``, the Jacobian into ``J`` (n, n) and the segment maps into
@@ -1036,7 +1034,7 @@ def factor_state(Z, grid, rest, level, F, J, blocks, rec, factors):
     return factor_jacobian(Z, grid, rest, level, J, rec, factors), stability_test(blocks)
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def factor_jacobian(Z, grid, rest, level, J, rec, factors):
     """The backbone of the node states ``Z`` into the record tuple ``rec``
     (:func:`record`), and the band LU of their Jacobian ``J`` (n, n) into ``factors``
@@ -1053,7 +1051,7 @@ def factor_jacobian(Z, grid, rest, level, J, rec, factors):
     return factor_band(lu, piv)
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def broyden(Z, grid, rest, level, F, scales, res_weights, tol, factors, res):
     """Quasi-Newton corrections of the node states ``Z`` at ``level`` from the residual
     ``F`` (its weighted norm ``res``): the first step by the factored Jacobian

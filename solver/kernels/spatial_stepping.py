@@ -111,7 +111,7 @@ def _level_at(p, contact, k):
             contact[C3_MU][k], contact[C3_FRICTION][k])
 
 
-@njit
+@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
 def spatial_contact_row(k, free, contact, p_from, p_to, report):
     """One warm step of copy k from ``p_from[k]`` to ``p_to[k]`` (channel pressures, Pa),
     by the lean path its state allows (module docstring). ``report[k]``: (converged, stable,

@@ -212,7 +212,7 @@ def free_row(free, discs, contact_ok, p_from, p_to, report) -> bool:
     """:func:`contact_row` of copy 0, a state on the settings' grid that touches nothing, as
     far as its guarded contact-free step: the single :class:`solver.stepper.Stepper`'s common
     step, with a third of the arrays to unbox. Returns whether it stepped; where not (a step
-    that would touch), :func:`entered_row` goes on from there."""
+    that would touch), :func:`single_row` goes on from there."""
     report[0, 0] = 0.0
     report[0, 3] = 0.0
     report[0, 6] = 0.0
@@ -220,9 +220,23 @@ def free_row(free, discs, contact_ok, p_from, p_to, report) -> bool:
 
 
 @njit
-def entered_row(free, contact, p_from, p_to, report):
-    """The rest of :func:`contact_row` of copy 0 where :func:`free_row` did not step."""
-    _enter_and_step(0, free, contact, p_from, p_to, report)
+def single_row(k, free, contact, p_from, p_to, discs_to, moved, report):
+    """Copy k's contact step outside the batch kernels, both kinds in one compiled kernel (each
+    links the lean contact step: solver.jit says what a separate compile costs). Without
+    ``moved``: the rest of :func:`contact_row` where :func:`free_row` did not step (the state
+    put on the contact layout unless it is there, and the lean contact step; ``discs_to``
+    unused). With ``moved``: the lean contact step of a copy on the contact layout to
+    ``p_to[k]`` with its discs moved to ``discs_to`` (k, 4), an object the arm holds moved
+    quasi-statically (:mod:`solver.grasp`; ``p_from`` unused), ``report[k]`` as
+    :func:`contact_row`'s."""
+    if not moved:
+        _enter_and_step(k, free, contact, p_from, p_to, report)
+        return
+    report[k, 0] = 0.0
+    report[k, 3] = 0.0
+    report[k, 6] = 0.0
+    if contact[CT_OK][k]:
+        _contact_step(k, free, contact, p_to, discs_to, report)
 
 
 @njit(inline="always")
@@ -316,18 +330,6 @@ def _enter_contact(k, free, contact, p_start):
     contact[CT_OK][k] = True
     contact[CT_TOUCHING][k] = touches(contact[CT_RECORDS][k])
     return True
-
-
-@njit
-def moved_contact_row(k, free, contact, p_to, discs_to, report):
-    """The lean contact step of copy k (on the contact layout) to ``p_to[k]`` with its discs
-    moved to ``discs_to`` (k, 4): an object the arm holds, moved quasi-statically
-    (:mod:`solver.grasp`). ``report[k]`` as :func:`contact_row`'s."""
-    report[k, 0] = 0.0
-    report[k, 3] = 0.0
-    report[k, 6] = 0.0
-    if contact[CT_OK][k]:
-        _contact_step(k, free, contact, p_to, discs_to, report)
 
 
 @njit(parallel=True)

@@ -448,7 +448,8 @@ class ContactRows:
             # step unboxes only the settings' grid; contact_row's numbers either way.
             if not stepping.free_row(free, contact[stepping.CT_DISCS], contact[stepping.CT_OK],
                                      p_from, p_to, report):
-                stepping.entered_row(free, contact, p_from, p_to, report)
+                stepping.single_row(0, free, contact, p_from, p_to, contact[stepping.CT_DISCS][0],
+                                    False, report)
             if report[0, 0]:
                 self._flags[0] = report[0, :5]
             return report
@@ -472,7 +473,7 @@ class ContactRows:
         discs[:given.shape[0]] = given
         p_to = np.zeros_like(self.contact[stepping.CT_P])
         p_to[k] = p_channel
-        stepping.moved_contact_row(k, self.free, self.contact, p_to, discs, report)
+        stepping.single_row(k, self.free, self.contact, p_to, p_to, discs, True, report)
         if report[k, 0]:
             self.scenes[k] = scene
             self._flags[k] = report[k, :5]
