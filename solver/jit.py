@@ -34,25 +34,31 @@ Every kernel compiled on its own (one called from Python, or from other kernels 
 call graph again: a one-line wrapper round the contact integrator costs as long to compile as
 the integrator (5–7 s each). So a kernel with a single caller is inlined into it
 (``@njit(inline="always")``), and a wrapper that only allocates scratch arrays for Python is a
-plain Python function; compiling is most of ``softarm warmup`` and of a fresh ``make test``.
+plain Python function; compiling is most of ``softarm warmup`` and of a fresh ``make test``. A
+kernel that Python calls (the paths, or the tests, which call kernels directly) is compiled on its
+own whatever its flag, so it is not inlined: that would compile it twice. :func:`record_compiles`
+(``softarm warmup --profile``) measures what each compile costs.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import glob
 import os
 import stat
 import sys
 import tempfile
+import time
 import warnings
 from pathlib import Path
 
 import numba
-from numba.core import config, errors, types
+from numba.core import config, errors, event, types
 from numba.core.caching import FunctionCache
 
-__all__ = ["njit", "prange", "CacheWarning", "clear_cache", "fallback_cache_dir", "announce_compiles"]
+__all__ = ["njit", "prange", "CacheWarning", "clear_cache", "fallback_cache_dir", "announce_compiles",
+           "record_compiles"]
 
 _FLAGS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 _KERNELS: list = []
@@ -74,6 +80,37 @@ def _announce_compile(cache_path: str) -> None:
         _ANNOUNCE["done"] = True
         print(f"softarm: compiling numba kernels on first use (once; cached in {cache_path}; "
               "`softarm warmup` compiles them all up front)", file=sys.stderr, flush=True)
+
+
+class _CompileListener(event.Listener):
+    """Numba's compile events as (kernel, seconds, exclusive seconds) rows: a kernel's time
+    includes the kernels it compiles in turn, its exclusive time does not."""
+
+    def __init__(self, rows: list):
+        self.rows = rows
+        self.open: list = []  # [name, start, seconds of nested compiles] per compile under way
+
+    def on_start(self, ev):
+        fn = ev.data["dispatcher"].py_func
+        self.open.append([f"{fn.__module__}.{fn.__qualname__}", time.perf_counter(), 0.0])
+
+    def on_end(self, ev):
+        name, start, nested = self.open.pop()
+        seconds = time.perf_counter() - start
+        if self.open:
+            self.open[-1][2] += seconds
+        self.rows.append({"kernel": name, "seconds": seconds, "exclusive_seconds": seconds - nested})
+
+
+@contextlib.contextmanager
+def record_compiles():
+    """Record every numba compile in this process while the context is open (``softarm warmup
+    --profile``): yields a list that fills with one dict per compile, ``kernel`` (module and
+    name; numba's own overloads too), ``seconds`` and ``exclusive_seconds`` (less the kernels
+    it compiled in turn, which have rows of their own). Loads from the cache are not compiles."""
+    rows: list = []
+    with event.install_listener("numba:compile", _CompileListener(rows)):
+        yield rows
 
 
 class CacheWarning(UserWarning):

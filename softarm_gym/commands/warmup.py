@@ -33,7 +33,9 @@ import numpy as np
 
 import solver
 from softarm_gym.cli import UsageError
-from solver.jit import announce_compiles, clear_cache
+from softarm_gym.commands.long_jobs import check_outputs
+from softarm_gym.files import atomic_write, json_text
+from solver.jit import announce_compiles, clear_cache, record_compiles
 
 NAME = "warmup"
 HELP = "compile the numba kernels the solver and the registered envs use into the on-disk cache"
@@ -80,6 +82,9 @@ def add_arguments(p):
                    help="processes compiling in parallel (default: one per core)")
     p.add_argument("--only", default=None, metavar="GROUP[,GROUP]",
                    help=f"compile only these groups, of {', '.join(GROUPS)}")
+    p.add_argument("--profile", default=None, metavar="FILE.json",
+                   help="write each group's compiles (kernel, seconds, seconds less the kernels it "
+                        "compiled in turn) to this JSON file; run it on an empty cache (--clear)")
 
 
 def cases() -> list[tuple[str, dict]]:
@@ -225,29 +230,45 @@ def warm_group(group: str) -> float:
     return time.perf_counter() - start
 
 
-def _warm_group_quietly(group: str) -> tuple[str, float]:
-    announce_compiles(False)  # the warm-up says what it compiles itself
-    return group, warm_group(group)
+def _warm_group_recorded(group: str, quiet: bool) -> tuple[str, float, list[dict], int]:
+    """:func:`warm_group` with its compiles recorded (:func:`solver.jit.record_compiles`), and
+    this process's id; ``quiet``: no line of its own on the first compile (the warm-up says
+    what it compiles)."""
+    if quiet:
+        announce_compiles(False)
+    with record_compiles() as compiles:
+        seconds = warm_group(group)
+    return group, seconds, compiles, os.getpid()
 
 
-def warm(progress=None, groups=GROUPS, jobs: int = 1) -> float:
+def warm(progress=None, groups=GROUPS, jobs: int = 1, profile: dict | None = None) -> float:
     """Compile the kernels of ``groups``, ``jobs`` processes at a time (1: in this process);
-    ``progress(message)`` after each group. Returns the seconds taken."""
+    ``progress(message)`` after each group. With a dict ``profile``, each group's entry is set
+    to its seconds, the process that ran it and its compiles (:func:`solver.jit.record_compiles`,
+    the costliest first). Returns the seconds taken."""
     start = time.perf_counter()
+
+    workers: dict[int, int] = {}  # process id → 0, 1, ... in the order they first report
+
+    def done(group, seconds, compiles, pid):
+        if profile is not None:
+            worker = workers.setdefault(pid, len(workers))
+            profile[group] = {"seconds": seconds, "process": worker, "compile_seconds": sum(
+                c["exclusive_seconds"] for c in compiles), "compiles": sorted(
+                compiles, key=lambda c: -c["exclusive_seconds"])}
+        if progress:
+            progress(f"{group} ({seconds:.1f} s)")
+
     if jobs <= 1:
         for group in groups:
-            seconds = warm_group(group)
-            if progress:
-                progress(f"{group} ({seconds:.1f} s)")
+            done(*_warm_group_recorded(group, quiet=False))
         return time.perf_counter() - start
     # spawn: a fork would copy this process's numba and thread-pool state into the workers.
     with ProcessPoolExecutor(max_workers=min(jobs, len(groups)),
                              mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = [pool.submit(_warm_group_quietly, group) for group in groups]
+        futures = [pool.submit(_warm_group_recorded, group, True) for group in groups]
         for future in as_completed(futures):
-            group, seconds = future.result()
-            if progress:
-                progress(f"{group} ({seconds:.1f} s)")
+            done(*future.result())
     return time.perf_counter() - start
 
 
@@ -261,6 +282,7 @@ def run(args) -> int:
     jobs = (os.cpu_count() or 1) if args.jobs is None else args.jobs
     if jobs < 1:
         raise UsageError(f"--jobs must be at least 1; got {args.jobs}")
+    check_outputs(args, files=("profile",))
     if args.clear:
         for module in KERNEL_MODULES:
             importlib.import_module(module)
@@ -274,6 +296,15 @@ def run(args) -> int:
     if not args.quiet:
         progress(f"compiling the kernels of {', '.join(groups)} in {min(jobs, len(groups))} process(es)")
     announce_compiles(False)
-    seconds = warm(None if args.quiet else progress, groups=groups, jobs=jobs)
+    profile = None if args.profile is None else {}
+    seconds = warm(None if args.quiet else progress, groups=groups, jobs=jobs, profile=profile)
     print(f"numba kernels ready in {seconds:.1f} s")
+    if profile is not None:
+        with atomic_write(args.profile) as fh:
+            fh.write(json_text({"command": "softarm warmup " + " ".join(sys.argv[2:]), "jobs": jobs,
+                                "seconds": seconds, "groups": profile}))
+        costliest = sorted((c for g in profile.values() for c in g["compiles"]),
+                           key=lambda c: -c["exclusive_seconds"])[:3]
+        print(f"compile profile written to {args.profile}; costliest: " + ", ".join(
+            f"{c['kernel']} {c['exclusive_seconds']:.1f} s" for c in costliest))
     return 0

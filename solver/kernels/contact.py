@@ -669,7 +669,7 @@ def _start_state(Z, seg, theta0, z):
             z[d] = Z[base + d]
 
 
-@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
+@njit  # the tests call it: compiled on its own anyway (solver.jit)
 def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, partners):
     """Residuals F (N,) of the multiple-shooting system and, if ``want_jac``, its Jacobian J.
 

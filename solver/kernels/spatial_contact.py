@@ -485,7 +485,7 @@ def newton_system(Z, grid, rest, level, F, J, want_jac, blocks, scales, tether):
                    blocks, scales, tether)
 
 
-@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
+@njit  # the tests call it: compiled on its own anyway (solver.jit)
 def tangent_system(Z, grid, rest, level, F, J, blocks):
     """:func:`newton_system` (untethered) with the segment maps' Jacobians integrated along
     with the segments by the variational equations (:func:`_segment`) instead of forward
@@ -816,7 +816,7 @@ TANGENT_DT = 1e-4
 FIRST_MOVE = 0.1
 
 
-@njit(inline="always")  # inlined: solver.jit says what a separate compile costs
+@njit  # the tests call it: compiled on its own anyway (solver.jit)
 def initial_tangent(Z, grid, tubes_i, tubes_f, a, b, rest, now, scales, F, J, slope):
     """The path's tangent dZ/dt = −J⁻¹ ∂F/∂t (n,) at its start ``Z``, an equilibrium of level
     ``a`` on the ramp to ``b`` (:func:`follow`), into ``slope``: ``F`` (n,) and ``J`` (n, n)

@@ -1,5 +1,6 @@
 """``softarm warmup`` covers every registered env configuration; the first-episode benchmark."""
 
+import json
 import warnings
 
 import gymnasium as gym
@@ -10,6 +11,7 @@ import pytest
 import softarm_gym  # noqa: F401
 from softarm_gym.benchmarks.first_episode import format_table, measure, run
 from softarm_gym.cli import main
+from softarm_gym.commands import warmup
 from softarm_gym.commands.warmup import (
     GROUPS,
     batch_kernels,
@@ -58,11 +60,32 @@ def test_warmup_builds_out_of_date_ids_without_a_deprecation_warning():
         gym.make("SoftArm/CTWrap-v0").close()  # a user who types an old id is told
 
 
-def test_warmup_rejects_unknown_groups_and_bad_job_counts(capsys):
+def test_warmup_rejects_unknown_groups_and_bad_job_counts(capsys, tmp_path):
     assert main(["warmup", "--only", "solver,nope"]) == 2
     assert "unknown group(s) nope" in capsys.readouterr().err
     assert main(["warmup", "--jobs", "0"]) == 2
     assert "--jobs must be at least 1" in capsys.readouterr().err
+    assert main(["warmup", "--profile", str(tmp_path / "no" / "p.json")]) == 2  # before compiling
+    assert "directory" in capsys.readouterr().err and not (tmp_path / "no").exists()
+
+
+def test_warmup_profile_lists_each_groups_compiles(monkeypatch, tmp_path, capsys):
+    """``--profile`` writes every group's seconds and compiles, the costliest first; here the
+    group's work is one fresh kernel compiled in this process."""
+    def fake_group(group):
+        numba.njit(lambda x: x + 1.0)(1.0)
+        return 0.5
+
+    monkeypatch.setattr(warmup, "warm_group", fake_group)
+    path = tmp_path / "profile.json"
+    assert main(["warmup", "--only", "solver,batch", "--jobs", "1", "--quiet", "--profile", str(path)]) == 0
+    assert "compile profile written to" in capsys.readouterr().out
+    profile = json.loads(path.read_text())
+    assert profile["jobs"] == 1 and set(profile["groups"]) == {"solver", "batch"}
+    for group in profile["groups"].values():
+        assert group["seconds"] == 0.5 and group["process"] == 0
+        assert [c["kernel"].rsplit(".", 1)[-1] for c in group["compiles"]] == ["<lambda>"]
+        assert group["compile_seconds"] == group["compiles"][0]["exclusive_seconds"] > 0.0
 
 
 @pytest.mark.skipif(numba.get_num_threads() < 2,

@@ -177,3 +177,29 @@ def test_a_kernel_that_takes_a_kernel_is_compiled_again_in_every_process(tmp_pat
     assert _run(env, code, cwd=tmp_path).stdout.split() == ["0", "0"]  # first process: compiled
     # The second process loads rhs (a plain kernel) from the cache, but compiles step again.
     assert _run(env, code, cwd=tmp_path).stdout.split() == ["0", "1"]
+
+
+def test_record_compiles_times_each_kernel_less_the_kernels_it_compiles_in_turn():
+    """A kernel that compiles its callee on first call has two rows: the callee's, and its own
+    whose exclusive time leaves the callee's out; a call that loads nothing new adds none."""
+    import numba
+
+    @numba.njit
+    def callee(x):
+        return x * 2.0
+
+    @numba.njit
+    def caller(x):
+        return callee(x) + 1.0
+
+    with jit.record_compiles() as rows:
+        assert caller(1.0) == 3.0
+        before = len(rows)
+        caller(2.0)
+    caller(3)  # a new argument type outside the context: not recorded
+    by_name = {row["kernel"].rsplit(".", 1)[-1]: row for row in rows}
+    assert before == len(rows) == 2 and set(by_name) == {"callee", "caller"}
+    outer, inner = by_name["caller"], by_name["callee"]
+    assert outer["seconds"] >= inner["seconds"] > 0.0
+    assert outer["exclusive_seconds"] == pytest.approx(outer["seconds"] - inner["seconds"])
+    assert inner["exclusive_seconds"] == inner["seconds"]
