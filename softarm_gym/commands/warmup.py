@@ -54,11 +54,11 @@ once. ``spatial_contact`` (the 3-D contact kernels) starts first and keeps one p
 of the run; the other compiles ``reach``, then ``contact`` (the planar contact stepper and its
 Newton), then the batched contact rows (``batch_contact``: the parallel row kernel, whose
 callees ``contact`` has compiled by then), while the first process, free by then, takes the
-batched reach kernels (``batch``) and ``solver``'s. On an empty cache, 2 cores:
-spatial_contact 222 s, batch 19 s, solver 23 s (6 s before it compiled spatial multiple
-shooting) in one process; reach 48 s, contact 164 s, batch_contact 49 s in the other; 269 s in
-all. As one group, the two batched groups left the second process running 50 s after the first
-had finished."""
+batched reach kernels (``batch``) and ``solver``'s. On an empty cache, 2 cores (``--clear
+--profile``, docs/bench/warmup_profile.json): spatial_contact 178 s, batch 19 s, solver 21 s in
+one process; reach 45 s, contact 129 s, batch_contact 47 s in the other; 225 s in all. As one
+group, the two batched groups left the second process running 50 s after the first had
+finished."""
 
 _WIDE = solver.BatchStepper.PARALLEL_MIN
 
@@ -301,8 +301,11 @@ def run(args) -> int:
     print(f"numba kernels ready in {seconds:.1f} s")
     if profile is not None:
         with atomic_write(args.profile) as fh:
-            fh.write(json_text({"command": "softarm warmup " + " ".join(sys.argv[2:]), "jobs": jobs,
-                                "seconds": seconds, "groups": profile}))
+            command = ("softarm warmup" + (" --clear" if args.clear else "")
+                       + (f" --only {','.join(groups)}" if args.only else "")
+                       + f" --jobs {jobs} --profile {args.profile}")
+            fh.write(json_text({"command": command, "jobs": jobs, "seconds": seconds,
+                                "groups": profile}))
         costliest = sorted((c for g in profile.values() for c in g["compiles"]),
                            key=lambda c: -c["exclusive_seconds"])[:3]
         print(f"compile profile written to {args.profile}; costliest: " + ", ".join(

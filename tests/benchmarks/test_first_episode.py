@@ -81,6 +81,7 @@ def test_warmup_profile_lists_each_groups_compiles(monkeypatch, tmp_path, capsys
     assert main(["warmup", "--only", "solver,batch", "--jobs", "1", "--quiet", "--profile", str(path)]) == 0
     assert "compile profile written to" in capsys.readouterr().out
     profile = json.loads(path.read_text())
+    assert profile["command"] == f"softarm warmup --only solver,batch --jobs 1 --profile {path}"
     assert profile["jobs"] == 1 and set(profile["groups"]) == {"solver", "batch"}
     for group in profile["groups"].values():
         assert group["seconds"] == 0.5 and group["process"] == 0
