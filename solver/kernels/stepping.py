@@ -144,9 +144,7 @@ def contact_row(k, free, contact, p_from, p_to, report):
     snapped, iterations, residual, path, refused): path ``PATH_LEAN`` the lean planar kernel,
     ``PATH_CONTACT`` the lean contact one; unconverged: the state is as it was; refused: the
     lean contact step's ``REFUSED_*`` bits (:func:`solver.kernels.contact.lean_step`)."""
-    report[k, 0] = 0.0
-    report[k, 3] = 0.0
-    report[k, 6] = 0.0
+    clear_report(report, k)
     if contact[CT_OK][k] and contact[CT_TOUCHING][k]:
         _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
         return
@@ -197,6 +195,15 @@ def _free_step(k, free, discs, contact_ok, p_from, p_to, report) -> bool:
 
 
 @njit(inline="always")
+def clear_report(report, k):
+    """``report[k]`` before a step of copy k: not converged, no iterations, no refusals (the
+    other columns are written only where it converges)."""
+    report[k, 0] = 0.0
+    report[k, 3] = 0.0
+    report[k, 6] = 0.0
+
+
+@njit(inline="always")
 def report_lean(report, k, stable, snapped, res):
     """``report[k]`` of a converged contact-free step (path ``PATH_LEAN``), planar or 3D; its
     iterations are the caller's."""
@@ -213,9 +220,7 @@ def free_row(free, discs, contact_ok, p_from, p_to, report) -> bool:
     far as its guarded contact-free step: the single :class:`solver.stepper.Stepper`'s common
     step, with a third of the arrays to unbox. Returns whether it stepped; where not (a step
     that would touch), :func:`single_row` goes on from there."""
-    report[0, 0] = 0.0
-    report[0, 3] = 0.0
-    report[0, 6] = 0.0
+    clear_report(report, 0)
     return _free_step(0, free, discs, contact_ok, p_from, p_to, report)
 
 
@@ -232,9 +237,7 @@ def single_row(k, free, contact, p_from, p_to, discs_to, moved, report):
     if not moved:
         _enter_and_step(k, free, contact, p_from, p_to, report)
         return
-    report[k, 0] = 0.0
-    report[k, 3] = 0.0
-    report[k, 6] = 0.0
+    clear_report(report, k)
     if contact[CT_OK][k]:
         _contact_step(k, free, contact, p_to, discs_to, report)
 
