@@ -254,7 +254,9 @@ def ray_payload(args) -> bytes:
     return pickle.dumps(args, protocol=5)
 
 
-def _timed_call(fn, args):
+def timed_call(fn, args):
+    """``(fn(*args), seconds)``: every chunk of either backend is computed here (the local
+    backend in this process, Ray in its worker)."""
     start = time.perf_counter()
     result = fn(*args)
     return result, time.perf_counter() - start
@@ -272,7 +274,7 @@ def _ray_call(fn, payload: bytes):
     import ray
 
     numba.set_num_threads(1)
-    result, seconds = _timed_call(fn, pickle.loads(payload))
+    result, seconds = timed_call(fn, pickle.loads(payload))
     return result, seconds, code_fingerprint(), ray.util.get_node_ip_address()
 
 
@@ -349,7 +351,7 @@ class Runner:
             try:
                 if self.backend == "local":
                     for i in todo:
-                        record(i, *_timed_call(chunks[i].fn, chunks[i].args))
+                        record(i, *timed_call(chunks[i].fn, chunks[i].args))
                 elif todo:
                     self._run_ray(ray, chunks, todo, record, outputs)
             except KeyboardInterrupt:
