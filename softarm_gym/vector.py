@@ -72,7 +72,7 @@ from softarm_gym.envs.terms import (
 )
 from softarm_gym.envs.track import path_easing
 from solver import layout as L
-from solver.stepper import CopyPool
+from solver.threads import CopyPool
 
 __all__ = ["BatchedReachVectorEnv", "BatchedSelfContactReachVectorEnv", "BatchedTrackVectorEnv",
            "BatchedObstacleReachVectorEnv", "BatchedWrapVectorEnv"]
@@ -494,7 +494,7 @@ class _CopyResets:
     where ``SyncVectorEnv`` would reset its env i, with the same seed and options, and its
     start state adopted into the batch's row i (:meth:`_take`). The copies' envs share nothing,
     so the copies that reset together (every copy, where episodes end in step) reset side by
-    side on a :class:`solver.stepper.CopyPool` — their draws' solves and ramps are kernels that
+    side on a :class:`solver.threads.CopyPool` — their draws' solves and ramps are kernels that
     release the GIL — and are taken into the batch in order: the same rows as one after
     another, bit for bit."""
 

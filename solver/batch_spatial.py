@@ -9,7 +9,8 @@ from solver.results import Equilibrium
 from solver.scene import Scene
 from solver.settings import DEFAULT_SETTINGS, Settings
 from solver.solve import solve
-from solver.stepper import BatchReport, CopyPool, Stepper, StepReport, ThreadPolicy
+from solver.stepper import BatchReport, Stepper, StepReport, ThreadPolicy
+from solver.threads import CopyPool
 
 __all__ = ["SpatialBatchStepper"]
 

@@ -46,7 +46,7 @@ from solver.problem import Problem, context, pack
 from solver.results import Equilibrium
 from solver.scene import MAX_EXTENT, Disc, Scene, check_friction
 from solver.settings import DEFAULT_SETTINGS, MODELS, Settings
-from solver.stepper import CopyPool
+from solver.threads import CopyPool
 
 __all__ = ["FreeObject", "Grasp", "Settler", "settle", "grasp_margin", "SUPPORTS"]
 

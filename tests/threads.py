@@ -1,5 +1,5 @@
 """Runs of one job under numba's thread counts: the tests that check work done side by side
-(:class:`solver.stepper.CopyPool`) gives, bit for bit, what one thread gives."""
+(:class:`solver.threads.CopyPool`) gives, bit for bit, what one thread gives."""
 
 import threading
 

@@ -1,5 +1,5 @@
 """The steppers' row kernels in scenes with contact: one warm step of one copy, by the lean
-path its state allows, and the same over many copies (numba ``prange``).
+path its state allows, and the same over many copies (:func:`contact_rows`).
 
 A copy's state lives on one of two grids: the settings' (a contact-free equilibrium, stepped
 by the lean planar kernel :func:`solver.kernels.planar.warm_step`, guarded against touching)
@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from solver.jit import njit, prange
+from solver.jit import njit
 from solver.kernels.contact import factor_state, lean_step, newton
 from solver.kernels.obstacles import accept_friction
 from solver.kernels.planar import warm_step
@@ -335,17 +335,11 @@ def _enter_contact(k, free, contact, p_start):
     return True
 
 
-@njit(parallel=True)
-def contact_rows_parallel(free, contact, p_from, p_to, active, report):
-    """:func:`contact_row` of every copy where ``active`` (n,), over numba's threads."""
-    for k in prange(p_to.shape[0]):
-        if active[k]:
-            contact_row(k, free, contact, p_from, p_to, report)
-
-
 @njit
-def contact_rows_serial(free, contact, p_from, p_to, active, report):
-    """:func:`contact_rows_parallel` on one thread: the same numbers."""
+def contact_rows(free, contact, p_from, p_to, active, report):
+    """:func:`contact_row` of every copy where ``active`` (n,), in order. Batches run it on
+    Python threads, each over its own copies (:class:`solver.threads.CopyPool`): one compiled
+    kernel either way."""
     for k in range(p_to.shape[0]):
         if active[k]:
             contact_row(k, free, contact, p_from, p_to, report)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import time
 
+import numba
 import numpy as np
 
 from solver import layout as L
@@ -32,6 +33,7 @@ from solver.problem import Problem, contact_layout, shooting_terms
 from solver.results import Equilibrium
 from solver.rod import forget_first_variations, planar_rest_gradient, rest_strains_into
 from solver.scene import Scene, self_contact_exclusion
+from solver.threads import CopyPool
 
 # Where a copy with fewer obstacles than the most keeps its unused disc rows: so far away
 # that no sample comes near one (its force is an exact zero, it never sets a step's
@@ -43,6 +45,11 @@ FAR = 1e6
 PATH_HELD = 3.0
 PATHS = {int(stepping.PATH_LEAN): "lean", int(stepping.PATH_CONTACT): "lean contact",
          int(PATH_HELD): "held"}
+
+# Blocks of copies per thread in a threaded batch (:meth:`ContactRows.step`): a lean contact
+# step costs 10–100 times a contact-free one, so a thread that finishes its block takes the
+# next instead of waiting for an even share's slowest copies.
+BLOCKS_PER_THREAD = 4
 
 # What the bits of a report's refusal column mean (solver.kernels.contact.lean_step).
 REFUSALS = {contact_kernels.REFUSED_CONVERGENCE: "not converged",
@@ -230,6 +237,7 @@ class ContactRows:
             [start_self_samples(scene, contact[stepping.CT_SEGS], None)] * n)
         self.free, self.contact = tuple(free), tuple(contact)
         self._flags = np.zeros((n, 5))
+        self._pool = CopyPool()
         self._dissipated = np.zeros(n)  # each copy's dissipation before its samples' work
         # Every array with a row per copy (what copy_rows copies).
         self._per_copy = [free[i] for i in range(stepping.FR_STATES, stepping.FR_HALF)]
@@ -455,12 +463,26 @@ class ContactRows:
             return report
         args = (self.free, self.contact, p_from, p_to, active, report)
         if run is None:
-            stepping.contact_rows_serial(*args)
+            stepping.contact_rows(*args)
         else:
-            run(stepping.contact_rows_parallel, stepping.contact_rows_serial, int(active.sum()), *args)
+            run(self._threaded_rows, stepping.contact_rows, int(active.sum()), *args)
         # (the converged rows that moved: a held one keeps the flags of the solve that reached it)
         np.copyto(self._flags, report[:, :5], where=(report[:, :1] != 0.0) & (report[:, 5:6] != PATH_HELD))
         return report
+
+    def _threaded_rows(self, free, contact, p_from, p_to, active, report) -> None:
+        """:func:`solver.kernels.stepping.contact_rows` over the ``active`` copies on the
+        pool's threads, BLOCKS_PER_THREAD blocks of them a thread: each row is its own copy's
+        work, so the numbers are the one-thread call's."""
+        rows = np.flatnonzero(active)
+        blocks = np.array_split(rows, min(rows.size, BLOCKS_PER_THREAD * numba.get_num_threads()))
+
+        def step_block(block):
+            mask = np.zeros_like(active)
+            mask[block] = True
+            stepping.contact_rows(free, contact, p_from, p_to, mask, report)
+
+        self._pool.map(step_block, blocks)
 
     def step_moved(self, k: int, p_channel: np.ndarray, scene: Scene) -> np.ndarray:
         """The lean contact step of copy k (a state on the contact layout) to the channel

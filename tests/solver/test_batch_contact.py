@@ -10,6 +10,7 @@ import pytest
 
 import solver
 from solver import designs
+from solver.kernels import stepping
 from tests.solver.test_lean_contact import K_TUBE, curl_walk
 from tests.threads import by_thread_count, needs_two_threads
 
@@ -115,3 +116,41 @@ def test_general_path_rows_run_side_by_side_bit_for_bit():
     for k in range(n):
         np.testing.assert_array_equal(one.equilibrium(k).positions, two.equilibrium(k).positions)
     np.testing.assert_array_equal(one.tips, two.tips)
+
+
+@needs_two_threads
+def test_lean_rows_run_side_by_side_bit_for_bit():
+    """A threaded batch steps its copies in blocks on the CopyPool's threads, each block one
+    call of the one-thread row kernel: the states and reports are those of one call over
+    every copy."""
+    arm = designs.octarm_v()
+    n = 8
+    template = solver.Scene(base_angle_deg=0.0, obstacles=(solver.Disc((0.16, -0.55), 0.13, K_TUBE),))
+    rng = np.random.default_rng(4)  # discs on the side the walks curl to: most copies press on theirs
+    scenes = [replace(template, obstacles=(solver.Disc(
+        (-0.16 + 0.04 * rng.uniform(), -0.5 - 0.1 * rng.uniform()), 0.11 + 0.02 * rng.uniform(),
+        K_TUBE),)) for _ in range(n)]
+    walks = [curl_walk(arm, 12, seed=20 + k, drift=0.03) for k in range(n)]
+
+    def reset():
+        batch = solver.BatchStepper(arm, template, n)
+        batch.thread_policies["step"].choose = lambda rows: True  # threads for a batch this small
+        batch.reset(np.array([w[0] for w in walks]), scenes=scenes)
+        return batch
+
+    def walk(batch):
+        reports, touching = [], 0
+        for t in range(1, len(walks[0])):
+            reports.append(batch.step(np.array([w[t] for w in walks])))
+            touching += int(np.sum(batch.contact_measures()[:, 1] > 0))
+        return (reports, touching), batch
+
+    (((serial, touching), one), serial_threads), (((threaded, _), two), pool_threads) = \
+        by_thread_count(walk, stepping, "contact_rows", reset)
+    assert serial_threads == 1 and pool_threads >= 2
+    assert touching >= 4 * n  # (copy-steps pressing on their discs: the lean contact step ran)
+    for a, b in zip(serial, threaded):
+        for field in ("converged", "stable", "snapped", "iterations", "residual"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+    np.testing.assert_array_equal(one.tips, two.tips)
+    np.testing.assert_array_equal(one.backbones(), two.backbones())
