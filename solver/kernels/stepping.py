@@ -80,6 +80,13 @@ N_CONTACT = 30
 # Path codes of the report's last column.
 PATH_LEAN, PATH_CONTACT = 1.0, 2.0
 
+# What :func:`contact_rows` does with each active copy (its ``kind``): the whole warm step
+# (:func:`contact_row`); the rest of it where :func:`free_row` did not step (the state put on
+# the contact layout unless it is there, and the lean contact step); the lean contact step of
+# a copy on the contact layout with its discs moved (an object the arm holds, moved
+# quasi-statically: :mod:`solver.grasp`).
+ROW_STEP, ROW_ENTER, ROW_MOVED = 0, 1, 2
+
 
 @njit
 def touches(record) -> bool:
@@ -138,18 +145,24 @@ def free_record_of(crec, m0, p_channel, free, k):
 
 
 @njit(inline="always")
-def contact_row(k, free, contact, p_from, p_to, report):
+def contact_row(k, free, contact, p_from, p_to, report, kind, discs_to):
     """One warm step of copy k from ``p_from[k]`` to ``p_to[k]`` (channel pressures, Pa),
-    by the lean path its state allows (module docstring). ``report[k]``: (converged, stable,
-    snapped, iterations, residual, path, refused): path ``PATH_LEAN`` the lean planar kernel,
+    by the lean path its state allows (module docstring), or the part of it ``kind`` names
+    (``ROW_*``; with ``ROW_MOVED`` its discs move to ``discs_to`` (k, 4), else they stand
+    still and ``discs_to`` is unused). ``report[k]``: (converged, stable, snapped,
+    iterations, residual, path, refused): path ``PATH_LEAN`` the lean planar kernel,
     ``PATH_CONTACT`` the lean contact one; unconverged: the state is as it was; refused: the
-    lean contact step's ``REFUSED_*`` bits (:func:`solver.kernels.contact.lean_step`)."""
-    clear_report(report, k)
-    if contact[CT_OK][k] and contact[CT_TOUCHING][k]:
-        _contact_step(k, free, contact, p_to, contact[CT_DISCS][k], report)
+    lean contact step's ``REFUSED_*`` bits (:func:`solver.kernels.contact.lean_step`). Each
+    step kernel has one call site here: an inlined one is compiled once per site."""
+    if kind != ROW_ENTER:  # (after free_row, whose iterations the report keeps)
+        clear_report(report, k)
+    if kind == ROW_MOVED or (kind == ROW_STEP and contact[CT_OK][k] and contact[CT_TOUCHING][k]):
+        if contact[CT_OK][k]:
+            discs = discs_to if kind == ROW_MOVED else contact[CT_DISCS][k]
+            _contact_step(k, free, contact, p_to, discs, report)
         return
-    if not free[FR_OK][k] or _free_step(k, free, contact[CT_DISCS], contact[CT_OK], p_from, p_to,
-                                        report):
+    if kind == ROW_STEP and (not free[FR_OK][k] or _free_step(k, free, contact[CT_DISCS],
+                                                              contact[CT_OK], p_from, p_to, report)):
         return
     _enter_and_step(k, free, contact, p_from, p_to, report)
 
@@ -219,27 +232,9 @@ def free_row(free, discs, contact_ok, p_from, p_to, report) -> bool:
     """:func:`contact_row` of copy 0, a state on the settings' grid that touches nothing, as
     far as its guarded contact-free step: the single :class:`solver.stepper.Stepper`'s common
     step, with a third of the arrays to unbox. Returns whether it stepped; where not (a step
-    that would touch), :func:`single_row` goes on from there."""
+    that would touch), :func:`contact_rows` with ``ROW_ENTER`` goes on from there."""
     clear_report(report, 0)
     return _free_step(0, free, discs, contact_ok, p_from, p_to, report)
-
-
-@njit
-def single_row(k, free, contact, p_from, p_to, discs_to, moved, report):
-    """Copy k's contact step outside the batch kernels, both kinds in one compiled kernel (each
-    links the lean contact step: solver.jit says what a separate compile costs). Without
-    ``moved``: the rest of :func:`contact_row` where :func:`free_row` did not step (the state
-    put on the contact layout unless it is there, and the lean contact step; ``discs_to``
-    unused). With ``moved``: the lean contact step of a copy on the contact layout to
-    ``p_to[k]`` with its discs moved to ``discs_to`` (k, 4), an object the arm holds moved
-    quasi-statically (:mod:`solver.grasp`; ``p_from`` unused), ``report[k]`` as
-    :func:`contact_row`'s."""
-    if not moved:
-        _enter_and_step(k, free, contact, p_from, p_to, report)
-        return
-    clear_report(report, k)
-    if contact[CT_OK][k]:
-        _contact_step(k, free, contact, p_to, discs_to, report)
 
 
 @njit(inline="always")
@@ -336,10 +331,12 @@ def _enter_contact(k, free, contact, p_start):
 
 
 @njit
-def contact_rows(free, contact, p_from, p_to, active, report):
-    """:func:`contact_row` of every copy where ``active`` (n,), in order. Batches run it on
-    Python threads, each over its own copies (:class:`solver.threads.CopyPool`): one compiled
-    kernel either way."""
+def contact_rows(free, contact, p_from, p_to, active, report, kind, discs_to):
+    """:func:`contact_row` (``kind``, ``discs_to``) of every copy where ``active`` (n,), in
+    order: batches, and the single stepper's steps that :func:`free_row` does not take or that
+    move its discs, in one compiled kernel (each caller compiled apart would link and optimise
+    the whole lean contact step again: :mod:`solver.jit`). Batches run it on Python threads,
+    each over its own copies (:class:`solver.threads.CopyPool`)."""
     for k in range(p_to.shape[0]):
         if active[k]:
-            contact_row(k, free, contact, p_from, p_to, report)
+            contact_row(k, free, contact, p_from, p_to, report, kind, discs_to)

@@ -456,12 +456,13 @@ class ContactRows:
             # step unboxes only the settings' grid; contact_row's numbers either way.
             if not stepping.free_row(free, contact[stepping.CT_DISCS], contact[stepping.CT_OK],
                                      p_from, p_to, report):
-                stepping.single_row(0, free, contact, p_from, p_to, contact[stepping.CT_DISCS][0],
-                                    False, report)
+                stepping.contact_rows(free, contact, p_from, p_to, active, report, stepping.ROW_ENTER,
+                                      contact[stepping.CT_DISCS][0])
             if report[0, 0]:
                 self._flags[0] = report[0, :5]
             return report
-        args = (self.free, self.contact, p_from, p_to, active, report)
+        args = (self.free, self.contact, p_from, p_to, active, report, stepping.ROW_STEP,
+                contact[stepping.CT_DISCS][0])  # (the discs_to a ROW_STEP does not use)
         if run is None:
             stepping.contact_rows(*args)
         else:
@@ -470,7 +471,7 @@ class ContactRows:
         np.copyto(self._flags, report[:, :5], where=(report[:, :1] != 0.0) & (report[:, 5:6] != PATH_HELD))
         return report
 
-    def _threaded_rows(self, free, contact, p_from, p_to, active, report) -> None:
+    def _threaded_rows(self, free, contact, p_from, p_to, active, report, kind, discs_to) -> None:
         """:func:`solver.kernels.stepping.contact_rows` over the ``active`` copies on the
         pool's threads, BLOCKS_PER_THREAD blocks of them a thread: each row is its own copy's
         work, so the numbers are the one-thread call's."""
@@ -480,7 +481,7 @@ class ContactRows:
         def step_block(block):
             mask = np.zeros_like(active)
             mask[block] = True
-            stepping.contact_rows(free, contact, p_from, p_to, mask, report)
+            stepping.contact_rows(free, contact, p_from, p_to, mask, report, kind, discs_to)
 
         self._pool.map(step_block, blocks)
 
@@ -495,7 +496,9 @@ class ContactRows:
         discs[:given.shape[0]] = given
         p_to = np.zeros_like(self.contact[stepping.CT_P])
         p_to[k] = p_channel
-        stepping.single_row(k, self.free, self.contact, p_to, p_to, discs, True, report)
+        row = np.zeros(self.n, dtype=bool)
+        row[k] = True
+        stepping.contact_rows(self.free, self.contact, p_to, p_to, row, report, stepping.ROW_MOVED, discs)
         if report[k, 0]:
             self.scenes[k] = scene
             self._flags[k] = report[k, :5]
