@@ -51,14 +51,15 @@ GROUPS = ("spatial_contact", "reach", "contact", "batch_contact", "batch", "solv
 starts them. Compiling is most of the warm-up, and a kernel is compiled by the first group that
 runs it, so the order decides both the balance and whether two processes compile one kernel at
 once. ``spatial_contact`` (the 3-D contact kernels) starts first and keeps one process for most
-of the run; the other compiles ``reach``, then ``contact`` (the planar contact stepper and its
-Newton), then the batched contact rows (``batch_contact``: the parallel row kernel, whose
-callees ``contact`` has compiled by then), while the first process, free by then, takes the
-batched reach kernels (``batch``) and ``solver``'s. On an empty cache, 2 cores (``--clear
---profile``, docs/bench/warmup_profile.json): spatial_contact 178 s, batch 19 s, solver 21 s in
-one process; reach 45 s, contact 129 s, batch_contact 47 s in the other; 225 s in all. As one
-group, the two batched groups left the second process running 50 s after the first had
-finished."""
+of the run; the other compiles ``reach``, then ``contact`` (the planar contact stepper, its
+row kernel and its Newton), then the batched contact envs' terms (``batch_contact``: their rows
+run ``contact``'s row kernel on Python threads), and the batched reach kernels (``batch``),
+and ``solver``'s, while the first process compiles the 3-D group. On an empty cache, 2 cores
+(a fresh clone's ``softarm warmup --profile``, docs/bench/warmup_profile.json, the machine
+~1.35× slower than when the groups took 225 s before the batched rows lost their ``prange``
+kernel): spatial_contact 240 s in one process; reach 60 s, contact 153 s, batch_contact 4 s,
+batch 20 s, solver 29 s in the other; 272 s in all. As one group, the two batched groups left
+the second process running 50 s after the first had finished."""
 
 _WIDE = solver.BatchStepper.PARALLEL_MIN
 
