@@ -442,7 +442,8 @@ class Stepper:
 
 
 class ThreadPolicy:
-    """Whether a batch of ``rows`` copies runs on numba's threads or on one thread.
+    """Whether a batch of ``rows`` copies runs on threads (numba's parallel loops; for the
+    contact rows, :class:`solver.threads.CopyPool`'s Python threads) or on one thread.
 
     Threads pay off only when the machine has idle cores: on a shared machine a parallel
     region waits at its barrier for a thread the OS has descheduled, and a batch can take
