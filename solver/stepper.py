@@ -612,7 +612,9 @@ class BatchStepper:
         if max_obstacles and not scene.obstacles:
             raise ValueError("max_obstacles needs a scene with an obstacle: its stiffness is the "
                              "copies' law")
-        self._rows = ContactRows(problem, self.n, int(max_obstacles)) if self.contact else None
+        self._general_pool = CopyPool()  # (the contact rows' threaded batches share it)
+        self._rows = ContactRows(problem, self.n, int(max_obstacles), self._general_pool) \
+            if self.contact else None
         if not self.contact:
             self._loaded = loaded_base_moment(problem)  # as solve_single's stage 1
         ns, nc, n_tubes = len(arm.sections), arm.n_channels, packed.tubes_i.shape[0]
@@ -640,7 +642,6 @@ class BatchStepper:
         # Cold solves and warm steps cost very different times per row: one policy each.
         self.thread_policies = {"cold": ThreadPolicy(self.PARALLEL_MIN),
                                 "step": ThreadPolicy(self.PARALLEL_MIN)}
-        self._general_pool = CopyPool()
 
     # ------------------------------------------------------------------ inputs
 

@@ -161,6 +161,8 @@ class ContactRows:
         problem: a request in the template scene (its pressures and warm start unused);
             its obstacles are every copy's until :meth:`set_scene`.
         n: copies. max_obstacles: the most obstacles a copy may hold.
+        pool: the threads a threaded batch's rows run on (a batch's own, which its general
+            path's solves share; None: a pool of its own, made on first use).
 
     Attributes:
         scenes: (n,) each copy's scene.
@@ -168,7 +170,7 @@ class ContactRows:
             settings' grid and on the contact layout.
     """
 
-    def __init__(self, problem: Problem, n: int, max_obstacles: int):
+    def __init__(self, problem: Problem, n: int, max_obstacles: int, pool: CopyPool | None = None):
         reason = lean_contact_reason(problem)
         if reason is not None:
             raise ValueError(f"no lean contact path for {reason}")
@@ -238,7 +240,7 @@ class ContactRows:
             [start_self_samples(scene, contact[stepping.CT_SEGS], None)] * n)
         self.free, self.contact = tuple(free), tuple(contact)
         self._flags = np.zeros((n, 5))
-        self._pool = CopyPool()
+        self._pool = CopyPool() if pool is None else pool
         self._dissipated = np.zeros(n)  # each copy's dissipation before its samples' work
         # Every array with a row per copy (what copy_rows copies).
         self._per_copy = [free[i] for i in range(stepping.FR_STATES, stepping.FR_HALF)]
