@@ -517,14 +517,18 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
     """Newton on the object's pose from ``pose`` with the arm in ``eq`` (solved there).
 
     The Jacobian is the support's, exact, plus the arm's: by finite differences, then
-    Broyden-updated along the steps taken, rebuilt when a step fails. Where the object's
+    Broyden-updated along the steps taken, rebuilt when a step fails. A step (halved up to
+    ``BACKTRACKS`` times) is taken when the correction Newton would make from where it lands,
+    K⁻¹G there with the same K, is shorter than its own (an affine-invariant test: G's force
+    components span decades of stiffness, and a max |G| test refuses a good step along the
+    soft direction for the small error it leaves in a stiff one; docs/design.md §14). Where the object's
     stiffness K = −∂G/∂(pose) is not positive definite (the arm pulls it the more, the further
     it goes), Newton's step would head for an unstable root against the net force; the step is
     then (K + μI)⁻¹G with μ making K + μI positive definite, its smallest eigenvalue at least
     |G| over the largest move — along the net force, as the object would move, a full move
-    where nothing holds it (K = 0) — and taken without the |G| test (pseudo-transient
+    where nothing holds it (K = 0) — and taken without that test (pseudo-transient
     continuation), until a stable root is near. The same step is taken where Newton's step
-    from a fresh Jacobian cuts |G| at no length.
+    from a fresh Jacobian passes the test at no length.
 
     With friction, where the arm snaps (in ``eq`` or at a trial pose) the step is a snap's
     landing instead (:func:`_land`).
@@ -564,17 +568,14 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
             # At least |G|/max_move: an object nothing holds (K = 0) falls a full move.
             floor = max(SHIFT * max(abs(high), abs(low)), _norm(g) / max_move)
             stiffness = stiffness + (floor - low) * eye
-        try:
-            step = np.linalg.solve(stiffness, g)
-        except np.linalg.LinAlgError:
-            step = np.linalg.lstsq(stiffness, g, rcond=None)[0]
+        step = _correction(stiffness, g)
         norm = _norm(step)
         if not math.isfinite(norm):
             break
         if norm > max_move:
             step *= max_move / norm
         accepted = False
-        for _ in range(BACKTRACKS):  # backtracking on |G|
+        for _ in range(BACKTRACKS):  # backtracking on the size of Newton's next correction
             trial = x + step
             moved = bal.arm_at(trial, eq, x) if origin is None else bal.arm_at(trial, origin[1],
                                                                                 origin[0])
@@ -582,7 +583,7 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
                 return _land(bal, trial, moved, it)
             if moved is not None and moved.converged:
                 g_new, f_new, s_new = bal.forces(trial, moved)
-                if shifted or np.abs(g_new).max() < np.abs(g).max():
+                if shifted or _norm(_correction(stiffness, g_new)) < norm:
                     accepted = True
                     break
             step = 0.5 * step
@@ -590,8 +591,8 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
             if fresh:
                 if shifted:
                     break
-                # Newton's step from a fresh Jacobian cuts |G| at no length: the nearest root
-                # lies past a rise in |G| (the object climbing out of a fork's chamfer, say).
+                # Newton's step from a fresh Jacobian passes the test at no length: the nearest
+                # root lies past a rise in |G| (the object climbing out of a fork's chamfer, say).
                 move_on = True
                 continue
             arm_jac = None  # a stale (Broyden) Jacobian: rebuild it and try again
@@ -605,6 +606,14 @@ def _newton(bal: _Balance, pose, eq: Equilibrium):
         fresh = False
         x, eq, g, arm_force, support = trial, moved, g_new, f_new, s_new
     return _Pose(x, eq, g, arm_force, support, False, it)
+
+
+def _correction(stiffness, g) -> np.ndarray:
+    """Newton's correction K⁻¹G of the pose (least squares where K is singular)."""
+    try:
+        return np.linalg.solve(stiffness, g)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(stiffness, g, rcond=None)[0]
 
 
 class _Pose(NamedTuple):
