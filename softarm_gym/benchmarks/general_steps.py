@@ -10,8 +10,10 @@ shared machine, so they are measured on their own:
   action space seeded with it; a new episode, unseeded, where one ends) and keeps, for every
   step whose ``Stepper.last_path`` was ``"general"``, the env's stepper as it stood before the
   step (pickled) and the step's pressures (``--path`` keeps another path's steps instead, e.g.
-  ``"lean contact"``);
-* ``replay`` steps each kept stepper again, in this tree and in ``--before`` (a checkout of the
+  ``"lean contact"``; ``--whole-env`` keeps every step as the whole env before it and its
+  action — a grasp env's steps settle arm and object outside the stepper — and ``--expert
+  curl`` acts with the scripted curl instead of random actions, to hold objects);
+* ``replay`` steps each kept stepper (or env) again, in this tree and in ``--before`` (a checkout of the
   commit before), alternately in fresh processes (:func:`softarm_gym.benchmarks.side_by_side.in_tree`),
   and reports per step its milliseconds (median over rounds), ``StepReport.iterations``,
   flags and tip, and where the two trees' landings differ::
@@ -20,9 +22,11 @@ shared machine, so they are measured on their own:
         --seeds 0-5 --steps 300 --out steps.pkl
     python -m softarm_gym.benchmarks.general_steps replay steps.pkl --before PATH --rounds 3 \\
         --json OUT.json
+    python -m softarm_gym.benchmarks.general_steps capture --ids SoftArm/OctArmGrasp-v1 \\
+        --seeds 0-1 --steps 100 --whole-env --expert curl --out grasp.pkl
 
 The capture file holds pickles: replay only files you made (unpickling runs code). Both trees
-must unpickle this tree's steppers (the class's state unchanged between them). This file also
+must unpickle this tree's steppers or envs (the classes' state unchanged between them). This file also
 runs inside the other tree's interpreter (``--worker``): its module level imports nothing from
 ``softarm_gym``.
 """
@@ -39,37 +43,71 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+EXPERTS = ("random", "curl")
 
 
-def capture(env_ids, seeds, n_steps: int, progress=None, path: str = "general") -> list[dict]:
+def capture(env_ids, seeds, n_steps: int, progress=None, path: str = "general",
+            whole_env: bool = False, expert: str = "random") -> list[dict]:
     """The steps that took ``path`` (a ``Stepper.last_path``: by default the general path's; e.g.
-    ``"lean contact"``) among ``n_steps`` seeded random-action steps per seed and id (a new
-    episode where one ends): per such step its ``id``, ``seed``, ``step`` (index from the
-    seeded reset), ``stepper`` (pickled, as it stood before the step) and ``pressures`` (the
-    step's inputs, Pa)."""
+    ``"lean contact"``) among ``n_steps`` seeded steps per seed and id (a new episode where one
+    ends): per such step its ``id``, ``seed``, ``step`` (index from the seeded reset),
+    ``stepper`` (pickled, as it stood before the step) and ``pressures`` (the step's inputs, Pa).
+
+    With ``whole_env`` every step is kept as the env before it (``env``, pickled) and its
+    ``action``, whatever path it took: a grasp env's steps settle the arm and its object
+    (:func:`solver.grasp.settle`) outside the stepper. The actions are random (the action
+    space seeded with the seed) or, with ``expert="curl"``, the scripted
+    :class:`~softarm_gym.controllers.CurlController`'s (wrap and grasp envs), which holds the
+    objects a random walk of the pressures rarely does."""
     import gymnasium as gym
 
     import softarm_gym  # noqa: F401  (registers the ids)
+    from softarm_gym.controllers import CurlController
 
+    if expert not in EXPERTS:
+        raise ValueError(f"unknown expert {expert!r}; choose one of {', '.join(EXPERTS)}")
     kept = []
     for env_id in env_ids:
         env = gym.make(env_id)
+        curl = CurlController(env) if expert == "curl" else None
         for seed in seeds:
-            env.reset(seed=seed)
+            obs, _ = env.reset(seed=seed)
             env.action_space.seed(seed)
+            if curl is not None:
+                curl.reset()
             for step in range(n_steps):
-                before = pickle.dumps(env.unwrapped.stepper)
-                _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+                action = env.action_space.sample() if curl is None else curl.act(obs)
+                before = pickle.dumps(env.unwrapped if whole_env else env.unwrapped.stepper)
+                obs, _, terminated, truncated, _ = env.step(action)
                 stepper = env.unwrapped.stepper
-                if stepper.last_path == path:
+                if whole_env:
+                    kept.append({"id": env_id, "seed": seed, "step": step, "env": before,
+                                 "action": action})
+                elif stepper.last_path == path:
                     kept.append({"id": env_id, "seed": seed, "step": step, "stepper": before,
                                  "pressures": stepper.pressures.copy()})
                 if terminated or truncated:
-                    env.reset()
+                    obs, _ = env.reset()
+                    if curl is not None:
+                        curl.reset()
             if progress:
-                progress(f"{env_id} seed {seed}: {len(kept)} {path} steps so far")
+                progress(f"{env_id} seed {seed}: {len(kept)} {'env' if whole_env else path} steps so far")
         env.close()
     return kept
+
+
+def _env_step(kept: dict) -> tuple[float, dict]:
+    """A kept env step taken again: its seconds and a row of :func:`replay`'s (the tip, and a
+    grasp's object centre after it, as its ``tip``)."""
+    env = pickle.loads(kept["env"])
+    start = time.perf_counter()
+    info = env.step(kept["action"])[4]
+    seconds = time.perf_counter() - start
+    report = info["solver"]
+    return seconds, {"iterations": int(report["iterations"]), "converged": bool(report["converged"]),
+                     "stable": bool(report["stable"]), "snapped": bool(report["snapped"]),
+                     "path": "env",
+                     "tip": [float(x) for x in (*info["tip_true"], *info.get("object_center", ()))]}
 
 
 def replay(steps: list[dict]) -> dict:
@@ -80,6 +118,11 @@ def replay(steps: list[dict]) -> dict:
 
     rows = []
     for kept in steps:
+        if "env" in kept:
+            seconds, row = _env_step(kept)
+            rows.append({"case": f"{kept['id']} seed {kept['seed']} step {kept['step']}",
+                         "ms": 1e3 * seconds, **row})
+            continue
         stepper = pickle.loads(kept["stepper"])
         start = time.perf_counter()
         report = stepper.step(kept["pressures"])
@@ -158,6 +201,10 @@ def main(argv=None) -> int:
     cap.add_argument("--out", type=Path, required=True, help="the capture file (a pickle)")
     cap.add_argument("--path", default="general",
                      help="keep the steps of this Stepper.last_path (default general)")
+    cap.add_argument("--whole-env", action="store_true",
+                     help="keep every step as the env before it and its action (grasp envs' settles)")
+    cap.add_argument("--expert", default="random", choices=EXPERTS,
+                     help="who acts: random actions (default) or the scripted curl (wrap, grasp)")
     rep = sub.add_parser("replay", help="replay a capture here and in --before, side by side")
     rep.add_argument("capture", type=Path, help="a file written by capture")
     rep.add_argument("--before", type=Path, required=True, help="root of the other checkout")
@@ -179,10 +226,11 @@ def main(argv=None) -> int:
             seeds = parse_seeds(args.seeds)
         except ValueError as exc:
             parser.error(str(exc))
-        kept = capture(args.ids.split(","), seeds, args.steps, progress=say, path=args.path)
+        kept = capture(args.ids.split(","), seeds, args.steps, progress=say, path=args.path,
+                       whole_env=args.whole_env, expert=args.expert)
         with open(args.out, "wb") as f:
             pickle.dump(kept, f)
-        say(f"{len(kept)} {args.path} steps written to {args.out}")
+        say(f"{len(kept)} {'env' if args.whole_env else args.path} steps written to {args.out}")
         return 0
     if args.command != "replay":
         parser.error("choose capture or replay")

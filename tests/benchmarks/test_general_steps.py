@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from softarm_gym.benchmarks import general_steps, side_by_side
+from softarm_gym.controllers import CurlController
 
 ROOT = Path(__file__).resolve().parents[2]
 # CTWrap3D-v0, seed 3: its 36th random step snaps and goes to the general path.
@@ -62,3 +63,28 @@ def test_a_capture_keeps_the_steps_of_the_path_it_is_given():
     env_id, seed, n_steps = CASE
     kept = general_steps.capture([env_id], [seed], 12, path="lean contact")
     assert kept and {row["path"] for row in general_steps.replay(kept)["rows"]} == {"lean contact"}
+
+
+def test_a_whole_env_capture_replays_a_grasp_episode_step_by_step():
+    # A grasp env's steps settle arm and object outside the stepper: the whole env is kept.
+    env_id, seed, n_steps = "SoftArm/OctArmGrasp-v0", 0, 10
+    kept = general_steps.capture([env_id], [seed], n_steps, whole_env=True, expert="curl")
+    assert [k["step"] for k in kept] == list(range(n_steps))
+    env = gym.make(env_id)
+    obs, _ = env.reset(seed=seed)
+    curl = CurlController(env)
+    curl.reset()
+    infos = []
+    for _ in range(n_steps):
+        obs, _, _, _, info = env.step(curl.act(obs))
+        infos.append(info)
+    rows = general_steps.replay(pickle.loads(pickle.dumps(kept)))["rows"]
+    assert any(info["solver"]["iterations"] > 1 for info in infos)  # the curl closed on the object
+    for info, row in zip(infos, rows):
+        assert row["path"] == "env" and row["iterations"] == info["solver"]["iterations"]
+        np.testing.assert_array_equal(row["tip"], [*info["tip_true"], *info["object_center"]])
+
+
+def test_an_unknown_expert_is_refused():
+    with pytest.raises(ValueError, match="unknown expert 'planner'"):
+        general_steps.capture(["SoftArm/OctArmGrasp-v0"], [0], 1, expert="planner")
