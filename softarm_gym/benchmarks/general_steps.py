@@ -111,9 +111,9 @@ def _env_step(kept: dict) -> tuple[float, dict]:
 
 
 def replay(steps: list[dict]) -> dict:
-    """Each captured step taken again from its pickled stepper: per step ``ms``, ``iterations``,
-    ``converged``, ``stable``, ``snapped`` and ``tip`` (m); and ``module`` (where
-    ``softarm_gym`` came from)."""
+    """Each captured step taken again from its pickled stepper (or env, :func:`_env_step`): per
+    step ``ms``, ``iterations``, ``converged``, ``stable``, ``snapped`` and ``tip`` (m); and
+    ``module`` (where ``softarm_gym`` came from)."""
     import softarm_gym
 
     rows = []
