@@ -96,6 +96,18 @@ def capture(env_ids, seeds, n_steps: int, progress=None, path: str = "general",
     return kept
 
 
+def _stepper_step(kept: dict) -> tuple[float, dict]:
+    """A kept stepper step taken again: its seconds and a row of :func:`replay`'s."""
+    stepper = pickle.loads(kept["stepper"])
+    start = time.perf_counter()
+    report = stepper.step(kept["pressures"])
+    seconds = time.perf_counter() - start
+    eq = stepper.equilibrium
+    return seconds, {"iterations": int(report.iterations), "converged": bool(report.converged),
+                     "stable": bool(eq.stable), "snapped": bool(eq.snapped),
+                     "path": stepper.last_path, "tip": [float(x) for x in eq.tip]}
+
+
 def _env_step(kept: dict) -> tuple[float, dict]:
     """A kept env step taken again: its seconds and a row of :func:`replay`'s (the tip, and a
     grasp's object centre after it, as its ``tip``)."""
@@ -111,28 +123,16 @@ def _env_step(kept: dict) -> tuple[float, dict]:
 
 
 def replay(steps: list[dict]) -> dict:
-    """Each captured step taken again from its pickled stepper (or env, :func:`_env_step`): per
-    step ``ms``, ``iterations``, ``converged``, ``stable``, ``snapped`` and ``tip`` (m); and
+    """Each captured step taken again from its pickled stepper (or env): per step ``ms``,
+    ``iterations``, ``converged``, ``stable``, ``snapped``, ``path`` and ``tip`` (m); and
     ``module`` (where ``softarm_gym`` came from)."""
     import softarm_gym
 
     rows = []
     for kept in steps:
-        if "env" in kept:
-            seconds, row = _env_step(kept)
-            rows.append({"case": f"{kept['id']} seed {kept['seed']} step {kept['step']}",
-                         "ms": 1e3 * seconds, **row})
-            continue
-        stepper = pickle.loads(kept["stepper"])
-        start = time.perf_counter()
-        report = stepper.step(kept["pressures"])
-        seconds = time.perf_counter() - start
-        eq = stepper.equilibrium
+        seconds, row = (_env_step if "env" in kept else _stepper_step)(kept)
         rows.append({"case": f"{kept['id']} seed {kept['seed']} step {kept['step']}",
-                     "ms": 1e3 * seconds, "iterations": int(report.iterations),
-                     "converged": bool(report.converged), "stable": bool(eq.stable),
-                     "snapped": bool(eq.snapped), "path": stepper.last_path,
-                     "tip": [float(x) for x in eq.tip]})
+                     "ms": 1e3 * seconds, **row})
     return {"rows": rows, "module": softarm_gym.__file__}
 
 
