@@ -57,7 +57,6 @@ networks are small and the machine's cores are better spent on the environment.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import copy
 import json
 import math
@@ -66,7 +65,6 @@ import os
 import re
 import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -97,7 +95,7 @@ from baselines.config import (
     split_hyperparams,
 )
 from softarm_gym.commands.common import add_numba_threads_argument, add_quiet_argument, apply_numba_threads
-from softarm_gym.files import atomic_write, write_json
+from softarm_gym.files import atomic_write, signals_deferred, write_json
 from softarm_gym.sb3 import BatchedVecEnv
 
 __all__ = ["train", "resume", "build", "TrainingInterrupted", "latest_checkpoint", "save_checkpoint",
@@ -133,27 +131,6 @@ def _replay_path(model_path: Path) -> Path:
     return model_path.with_name(f"{model_path.stem}_replay_buffer.npz")
 
 
-@contextlib.contextmanager
-def _stops_deferred():
-    """Hold SIGINT and SIGTERM while a checkpoint is written, and deliver them once its files are
-    complete: a stop landing inside torch's zip writer breaks the save's clean-up, and the run
-    died with that traceback instead of saving its interrupted checkpoint (seen in
-    ``tests/baselines/test_resume.py``). Outside the main thread signals are not Python's to hold."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    pending = []
-    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum))
-                for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, signal.SIG_DFL if handler is None else handler)
-        for s in dict.fromkeys(pending):
-            signal.raise_signal(s)
-
-
 def save_checkpoint(model, model_path: Path | str, meta: dict, *, replay_buffer: bool = False) -> Path:
     """Save ``model`` with its sidecars, each file atomically, the metadata JSON last.
 
@@ -167,7 +144,9 @@ def save_checkpoint(model, model_path: Path | str, meta: dict, *, replay_buffer:
     Returns:
         The metadata path (its existence marks the checkpoint complete).
     """
-    with _stops_deferred():
+    # A stop inside torch's zip writer broke the save's clean-up and the run died with that
+    # traceback instead of saving its interrupted checkpoint (seen in tests/baselines/test_resume.py).
+    with signals_deferred(signal.SIGINT, signal.SIGTERM):
         return _save_checkpoint(model, Path(model_path), meta, replay_buffer)
 
 

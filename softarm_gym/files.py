@@ -6,6 +6,8 @@
 * :func:`atomic_write` — write to a temporary file in the target's folder, flush it to disk,
   then rename it over the target: a reader, a crash or a ``kill -9`` sees the old file or the
   new one, never half of one.
+* :func:`signals_deferred` — hold Ctrl-C (and other stop signals) while files are written,
+  and deliver them once the block ends.
 """
 
 from __future__ import annotations
@@ -14,13 +16,15 @@ import json
 import math
 import os
 import secrets
+import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["jsonable", "json_text", "atomic_write", "write_json"]
+__all__ = ["jsonable", "json_text", "atomic_write", "write_json", "signals_deferred"]
 
 
 def jsonable(obj):
@@ -78,3 +82,36 @@ def write_json(path: str | Path, obj, indent: int | None = 2) -> None:
     text = json_text(obj, indent) + "\n"
     with atomic_write(path, "w", encoding="utf-8") as fh:
         fh.write(text)
+
+
+@contextmanager
+def signals_deferred(*signums: int) -> Iterator[None]:
+    """Hold ``signums`` (default SIGINT) for the block, then deliver each one that arrived.
+
+    A stop landing inside a zip or ``np.savez`` writer breaks the writer's clean-up, which then
+    raises in place of the ``KeyboardInterrupt``, and the interrupted save is lost. Outside the
+    main thread signals are not Python's to hold, and the block runs unguarded.
+
+    A held signal is delivered by calling the handler restored after the block, not by
+    re-raising the OS signal: Ray's gentle ``ray.cancel`` interrupts a task with a simulated
+    SIGINT while its worker's main thread blocks the real one, so a re-raised SIGINT stayed
+    pending for ever and the cancelled training ran on to its end. Only a signal whose restored
+    handler is the default action (e.g. SIGTERM terminating) is re-raised.
+    """
+    signums = signums or (signal.SIGINT,)
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    arrived = []
+    previous = {s: signal.signal(s, lambda signum, frame: arrived.append(signum)) for s in signums}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
+        for s in dict.fromkeys(arrived):
+            handler = previous[s]
+            if callable(handler):
+                handler(s, None)
+            elif handler in (signal.SIG_DFL, None):
+                signal.raise_signal(s)

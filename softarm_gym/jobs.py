@@ -38,11 +38,9 @@ import logging
 import os
 import pickle
 import re
-import signal
 import socket
 import sys
 import tempfile
-import threading
 import time
 import zipfile
 from collections.abc import Callable, Sequence
@@ -52,6 +50,8 @@ from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
+
+from softarm_gym.files import signals_deferred
 
 __all__ = ["BACKENDS", "DEFAULT_RETRIES", "Chunk", "Plan", "Runner", "ChunkStore", "JobError",
            "Interrupted", "default_chunk_dir", "code_fingerprint", "chunk_bounds", "atomic_path",
@@ -226,7 +226,7 @@ class ChunkStore:
 
     def save(self, key: str, result: dict, seconds: float) -> None:
         """Write one chunk; a Ctrl-C meanwhile takes effect once the file is complete."""
-        with _sigint_deferred(), atomic_path(self.path(key)) as tmp, open(tmp, "wb") as fh:
+        with signals_deferred(), atomic_path(self.path(key)) as tmp, open(tmp, "wb") as fh:
             np.savez(fh, **result, **{_SECONDS: np.float64(seconds)})
 
     def remove(self, keys) -> None:
@@ -529,24 +529,6 @@ def _check_reachable(address: str) -> None:
 
 
 # ----------------------------------------------------------------------------- output files
-
-
-@contextlib.contextmanager
-def _sigint_deferred():
-    """Hold SIGINT back for the block (main thread only), then deliver it to the previous
-    handler: a KeyboardInterrupt inside ``zipfile`` would leave a broken writer whose cleanup
-    raises a ValueError in its place."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received = []
-    previous = signal.signal(signal.SIGINT, lambda *args: received.append(args))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        if received and callable(previous):
-            previous(*received[0])
 
 
 @contextlib.contextmanager
