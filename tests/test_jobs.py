@@ -638,8 +638,10 @@ def test_rl_sweep_ctrl_c_saves_the_running_training_then_resume_finishes_it(tmp_
     """Ctrl-C cancels the Ray task gently: the training saves a checkpoint where it is; the
     sweep continues on any backend (here this process)."""
     run = tmp_path / "out" / "runs" / RL_RUNS[0]
-    # Long enough that the interrupt lands mid-training: on a fast machine 400 steps could
-    # finish between the first checkpoint and the signal ("1 of 1 runs finished").
+    # Long enough that the interrupt lands mid-training: the cancel reaches the task 1–3 s
+    # after the signal (100–250 tiny-SAC steps past the first checkpoint on this machine).
+    # A "1 of 1 runs finished" here was once a lost cancel, not a fast machine: see
+    # tests/test_files.py on a held interrupt in a Ray worker.
     total = 3000
     argv = _rl_sweep_args(tmp_path, "--eval-freq", "0", "--evaluate", "none", seeds="0", timesteps=total)
     proc = _sweep(argv + ["--backend", "ray", "--address", cluster.address])
