@@ -79,13 +79,12 @@ def capture(env_ids, seeds, n_steps: int, progress=None, path: str = "general",
                 action = env.action_space.sample() if curl is None else curl.act(obs)
                 before = pickle.dumps(env.unwrapped if whole_env else env.unwrapped.stepper)
                 obs, _, terminated, truncated, _ = env.step(action)
-                stepper = env.unwrapped.stepper
                 if whole_env:
                     kept.append({"id": env_id, "seed": seed, "step": step, "env": before,
                                  "action": action})
-                elif stepper.last_path == path:
+                elif env.unwrapped.stepper.last_path == path:
                     kept.append({"id": env_id, "seed": seed, "step": step, "stepper": before,
-                                 "pressures": stepper.pressures.copy()})
+                                 "pressures": env.unwrapped.stepper.pressures.copy()})
                 if terminated or truncated:
                     obs, _ = env.reset()
                     if curl is not None:
