@@ -146,6 +146,8 @@ class Stepper:
         self.lean = self.lean_contact or not_lean(problem) is None
         self._section_ends = packed.section_ends
         self._p_max = arm.max_pressure * (1 + 1e-12)
+        self._index = packed.spatial_of_planar  # the scalar check of a planar step's pressures
+        self._p_new = np.empty(arm.n_channels)
         self._eq = None
         self.record = None
         self.last_path = "general"
@@ -159,7 +161,6 @@ class Stepper:
         ns = len(arm.sections)
         n_tubes = packed.tubes_i.shape[0]
         self._ctx = ctx
-        self._index = packed.spatial_of_planar
         self._grid = (scene.base_theta, packed.secf, packed.sec_steps)
         self._tubes = (packed.tubes_i, packed.tubes_f)
         self._state = np.zeros(4)  # m0, tip x, y, θ
@@ -169,7 +170,6 @@ class Stepper:
         self._spare = 0
         self._memo = (np.full(n_tubes, np.nan), np.empty(n_tubes), np.empty((3, ns)),
                       np.full((2, ns), np.nan))
-        self._p_new = np.empty(arm.n_channels)
         self._target = (self._p_new, ctx.loads, ctx.m_tip)  # the kernel's goal levels
         self._bind_tips()
         self._flags = (True, True, False, 0, 0.0)  # of the current equilibrium
@@ -230,10 +230,7 @@ class Stepper:
             return self._step_rows(pressures)
         if not self.lean:
             return self._step_general(pressures)
-        p = np.asarray(pressures, dtype=float)
-        if p.shape != (self.n_inputs,) or not channels_of(p, self._index, self._p_max, self._p_new):
-            checked_pressures(self.arm, pressures, True, self._packed)  # raises, naming the fault
-            explain_bad_pressures(self.arm, p, True)
+        p = self._planar_inputs(pressures)
         ctx = self._ctx
         work = self._works[self._spare]
         m_start = self._state[0]
@@ -256,29 +253,49 @@ class Stepper:
         self._eq = None
         return report
 
+    def _planar_inputs(self, pressures) -> np.ndarray:
+        """A planar step's input pressures as an array (Pa), their channels' into
+        ``_p_new``: the scalar check, ``checked_pressures``' error where it fails."""
+        try:
+            p = np.asarray(pressures, dtype=float)
+        except (TypeError, ValueError):
+            p = None
+        if p is None or p.shape != (self.n_inputs,) or not channels_of(p, self._index, self._p_max,
+                                                                       self._p_new):
+            checked_pressures(self.arm, pressures, True, self._packed)  # raises, naming the fault
+            explain_bad_pressures(self.arm, p, True)
+        return p
+
     def _step_rows(self, pressures) -> StepReport:
         """A step in a scene with contact: the lean paths of :class:`ContactRows` or, in 3D,
         :class:`SpatialContactRows` (one copy), or where they cannot take it, the general
         path from the same state."""
-        p_inputs, p_channel = checked_pressures(self.arm, pressures, self.planar, self._packed)
         rows = self._rows
+        planar = isinstance(rows, ContactRows)
+        if planar:
+            p_inputs = self._planar_inputs(pressures).copy()
+            p_channel = self._p_new.copy()
+        else:
+            p_inputs, p_channel = checked_pressures(self.arm, pressures, self.planar, self._packed)
         if not rows.ready(0):
             return self._step_general(p_inputs)
-        report = rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
+        report = rows.step_one(self.channel_pressures, p_channel) if planar else \
+            rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
+        converged, stable, snapped, iterations, residual, path, *refused = report.tolist()
         # (The 3D rows report no refusal column: their lean step is a continuation of its own.)
-        self._refusal_bits = int(report[6]) if isinstance(rows, ContactRows) else 0
-        if report[5] == PATH_HELD:  # the same pressures: the state stands as it is
+        self._refusal_bits = int(refused[0]) if planar else 0
+        if path == PATH_HELD:  # the same pressures: the state stands as it is
             self.last_path = PATHS[int(PATH_HELD)]
-            return StepReport(True, bool(report[1]), False, 0, float(report[4]))
-        if not report[0]:
+            return StepReport(True, bool(stable), False, 0, residual)
+        if not converged:
             general = self._step_general(p_inputs)
-            return general._replace(iterations=general.iterations + int(report[3]))
-        self.last_path = PATHS[int(report[5])]
+            return general._replace(iterations=general.iterations + int(iterations))
+        self.last_path = PATHS[int(path)]
         self.pressures = p_inputs
         self.channel_pressures = p_channel
         self._eq = None
         self._bind_row_record()
-        return StepReport(True, bool(report[1]), bool(report[2]), int(report[3]), float(report[4]))
+        return StepReport(True, bool(stable), bool(snapped), int(iterations), residual)
 
     def contact_measures(self) -> tuple[float, float]:
         """The current state's deepest penetration at its samples (m) and total contact

@@ -213,14 +213,19 @@ def test_equilibria_handed_out_do_not_change():
     np.testing.assert_array_equal(first.positions, positions)
 
 
-def test_bad_input_is_named():
+@pytest.mark.parametrize("self_contact", [False, True], ids=["free", "self-contact"])
+def test_bad_input_is_named(self_contact):
+    # (With self-contact a step takes the contact rows' path, which checks its pressures too.)
     arm = designs.octarm_v()
-    stepper = solver.Stepper(arm)
+    scene = solver.Scene(self_contact=arm.tubes[0].material.ring_stiffness if self_contact else None)
+    stepper = solver.Stepper(arm, scene)
     with pytest.raises(RuntimeError, match="reset"):
         stepper.step(np.zeros(6))
     stepper.reset(np.zeros(6))
     with pytest.raises(ValueError, match="expects 6 pressures"):
         stepper.step(np.zeros(5))
+    with pytest.raises(ValueError, match="expects 6 pressures"):
+        stepper.step(["a"] * 6)
     with pytest.raises(ValueError, match="not finite"):
         stepper.step([0, 0, math.nan, 0, 0, 0])
     with pytest.raises(ValueError, match="negative"):
@@ -228,7 +233,7 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match="exceeds the design's rated maximum"):
         stepper.step(np.full(6, 2 * arm.max_pressure))
     np.testing.assert_array_equal(stepper.pressures, np.zeros(6))
-    other = solver.solve(arm, np.zeros(6), solver.Scene(payload_kg=0.3))
+    other = solver.solve(arm, np.zeros(6), solver.Scene(payload_kg=0.3, self_contact=scene.self_contact))
     with pytest.raises(ValueError, match="not in this stepper's scene"):
         stepper.adopt(other)
     with pytest.raises(ValueError, match="settings"):
