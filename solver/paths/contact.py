@@ -105,8 +105,9 @@ def solve_contact(problem: Problem, moving: bool = False) -> Equilibrium:
     if problem.settings.shortcuts:
         discs = scene.discs_array()
         before = warm_start.dissipated if warm_start is not None else 0.0
-        if np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]
-                  > reach(arm, packed, scene)):
+        # (No disc, only self-contact: nothing to bound, and the bound costs ~80 µs a solve.)
+        if discs.shape[0] == 0 or np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]
+                                         > reach(arm, packed, scene)):
             free = solve_planar(problem.in_scene(free_scene, warm_start))
             if clear_of_itself(arm, scene, free):
                 return free_contact_result(free, scene, before)
