@@ -105,7 +105,7 @@ def solve_contact(problem: Problem, moving: bool = False) -> Equilibrium:
     if problem.settings.shortcuts:
         discs = scene.discs_array()
         before = warm_start.dissipated if warm_start is not None else 0.0
-        # (No disc, only self-contact: nothing to bound, and the bound costs ~80 µs a solve.)
+        # (No disc, only self-contact: nothing to bound, and working out the bound is not free.)
         if discs.shape[0] == 0 or np.all(np.hypot(discs[:, L.CX], discs[:, L.CY]) - discs[:, L.RADIUS]
                                          > reach(arm, packed, scene)):
             free = solve_planar(problem.in_scene(free_scene, warm_start))

@@ -472,10 +472,10 @@ class ContactRows:
         the channel pressures ``p_from`` to ``p_to`` (n_channels,): its report row (7,).
 
         The same kernels in the same order as :meth:`step`, so the same numbers, with the
-        tests on scalars: the array form cost a single stepper ~10 µs a step, as much as the
-        contact-free kernel itself (a reach step with self-contact 1.8 stepper steps without
-        it, for that alone). A copy touching nothing steps by the contact-free kernel alone,
-        which unboxes only the settings' grid; where that would touch, by the contact row."""
+        tests on scalars: for one copy the batch form's array operations cost as much as the
+        contact-free kernel itself (docs/design.md §10.1, "A self-contact reach step's
+        bookkeeping"). A copy touching nothing steps by the contact-free kernel alone, which
+        unboxes only the settings' grid; where that would touch, by the contact row."""
         report = np.zeros((1, 7))
         free, contact = self.free, self.contact
         free_ok, contact_ok = free[stepping.FR_OK][0], contact[stepping.CT_OK][0]
