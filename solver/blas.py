@@ -21,10 +21,14 @@ def single_blas_thread():
     """A context manager limiting every loaded BLAS/LAPACK library to one thread for the block
     (the previous limits come back at its end; about 20 µs, so for solves of milliseconds).
 
-    The libraries are looked up once, at the first call: by then numpy's and scipy's (whose
-    LAPACK numba's ``np.linalg`` uses) are loaded.
+    The libraries are looked up once, at the first call, with scipy's loaded for it: numpy's
+    and scipy's OpenBLAS are two libraries, and scipy's (which numba's ``np.linalg`` and the
+    snap relaxation's L-BFGS call) is loaded only when ``scipy.linalg`` or ``scipy.optimize``
+    first is — a lookup before that left it out, on two threads in every later block.
     """
     global _controller
     if _controller is None:
+        import scipy.linalg  # noqa: F401  (loads scipy's OpenBLAS before the lookup)
+
         _controller = ThreadpoolController()
     return _controller.limit(limits=1, user_api="blas")

@@ -1,6 +1,9 @@
 """The solver's dense algebra runs on one BLAS thread (solver.blas; docs/design.md §8)."""
 
 import importlib
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -59,3 +62,24 @@ def test_a_contact_step_and_its_snap_relaxation_run_on_one_blas_thread(monkeypat
     assert seen["contact"] and seen["relax"], "the step no longer snaps: choose another"
     assert all(threads == {1} for threads in seen["contact"] + seen["relax"])
     assert _blas_threads() == two_blas_threads
+
+
+def test_scipys_blas_is_limited_even_when_loaded_after_the_first_block():
+    """numpy's and scipy's OpenBLAS are two libraries, and scipy's loads with scipy.linalg or
+    scipy.optimize (the snap relaxation's L-BFGS): a first block before that must still know
+    it. In a fresh process, where nothing has loaded scipy's yet."""
+    code = textwrap.dedent("""
+        from threadpoolctl import threadpool_info, threadpool_limits
+        from solver.blas import single_blas_thread
+        with threadpool_limits(limits=2, user_api="blas"):
+            with single_blas_thread():
+                pass
+            import scipy.optimize  # noqa: F401
+            with single_blas_thread():
+                inside = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+        print(len(inside), sorted(set(inside)))
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    count, threads = out.split(" ", 1)
+    assert int(count) >= 2, "numpy's and scipy's BLAS are no longer two libraries: rethink the test"
+    assert threads.strip() == "[1]"
