@@ -37,6 +37,7 @@ from solver.inputs import (
 from solver.kernels import planar as planar_kernels
 from solver.paths.dispatch import dispatch
 from solver.paths.lean_contact import (
+    ONE_COPY,
     PATH_HELD,
     PATHS,
     ContactRows,
@@ -84,7 +85,6 @@ def _record_equilibrium(record, flags, m0, pressures, channel_pressures,
                          residual=float(residual), snapped=bool(snapped))
 
 
-_ONE = np.ones(1, dtype=bool)  # the active mask of a stepper's one copy
 _NO_GUARD = (np.empty((0, 4)), np.empty((1, L.N_COLUMNS)), np.empty(0), 0.0)  # no contact
 
 
@@ -280,7 +280,7 @@ class Stepper:
         if not rows.ready(0):
             return self._step_general(p_inputs)
         report = rows.step_one(self.channel_pressures, p_channel) if planar else \
-            rows.step(self.channel_pressures[None], p_channel[None], _ONE, None)[0]
+            rows.step(self.channel_pressures[None], p_channel[None], ONE_COPY, None)[0]
         converged, stable, snapped, iterations, residual, path, *refused = report.tolist()
         # (The 3D rows report no refusal column: their lean step is a continuation of its own.)
         self._refusal_bits = int(refused[0]) if planar else 0

@@ -52,7 +52,10 @@ PATHS = {int(stepping.PATH_LEAN): "lean", int(stepping.PATH_CONTACT): "lean cont
 # rows' costs leave an even split within 7 % of the ideal, so the count matters little.
 BLOCKS_PER_THREAD = 4
 
-_ONE = np.ones(1, dtype=bool)  # the active mask of a batch of one
+# The active masks of a batch of one (writable: the row kernels are compiled for writable
+# masks, and a read-only one would be another signature to compile). Nothing writes them.
+ONE_COPY = np.ones(1, dtype=bool)
+NO_COPY = np.zeros(1, dtype=bool)
 
 # What the bits of a report's refusal column mean (solver.kernels.contact.lean_step).
 REFUSALS = {contact_kernels.REFUSED_CONVERGENCE: "not converged",
@@ -72,11 +75,12 @@ def hold_rows(ready: np.ndarray, p_from: np.ndarray, p_to: np.ndarray, active: n
     converged, stable, snapped, iterations, residual) stability and residual, no snap, no pass,
     path :data:`PATH_HELD`. Returns the active copies left to step."""
     if active.shape[0] == 1:
-        # One copy (a single Stepper's every step): the test on scalars, a few microseconds
-        # less than the array operations on a ~40 µs self-contact env step.
-        if not (active[0] and ready[0] and (p_from[0] == p_to[0]).all()):
+        # One copy (a single Stepper's every step): the test and the report on scalars, where
+        # the array operations cost as much as a contact-free kernel call.
+        if not (active[0] and ready[0] and p_from[0].tolist() == p_to[0].tolist()):
             return active
-        held = active
+        report[0, 0], report[0, 1], report[0, 4], report[0, 5] = 1.0, flags[0, 1], flags[0, 4], PATH_HELD
+        return NO_COPY
     else:
         held = active & ready & np.all(p_from == p_to, axis=1)
         if not held.any():
@@ -478,20 +482,18 @@ class ContactRows:
         unboxes only the settings' grid; where that would touch, by the contact row."""
         report = np.zeros((1, 7))
         free, contact = self.free, self.contact
-        free_ok, contact_ok = free[stepping.FR_OK][0], contact[stepping.CT_OK][0]
-        if (free_ok or contact_ok) and p_from.tolist() == p_to.tolist():
-            # (hold_rows' rule: a ready copy stepped to the pressures it stands at stands)
-            flags = self._flags[0]
-            report[0, 0], report[0, 1], report[0, 4], report[0, 5] = 1.0, flags[1], flags[4], PATH_HELD
-            return report[0]
         p_from, p_to = p_from[None], p_to[None]
+        if not hold_rows(free[stepping.FR_OK] | contact[stepping.CT_OK], p_from, p_to, ONE_COPY,
+                         self._flags, report)[0]:
+            return report[0]
         discs = contact[stepping.CT_DISCS]
-        if free_ok and not (contact_ok and contact[stepping.CT_TOUCHING][0]):
+        if free[stepping.FR_OK][0] and not (contact[stepping.CT_OK][0] and contact[stepping.CT_TOUCHING][0]):
             if not stepping.free_row(free, discs, contact[stepping.CT_OK], p_from, p_to, report):
-                stepping.contact_rows(free, contact, p_from, p_to, _ONE, report, stepping.ROW_ENTER,
+                stepping.contact_rows(free, contact, p_from, p_to, ONE_COPY, report, stepping.ROW_ENTER,
                                       discs[0])
         else:
-            stepping.contact_rows(free, contact, p_from, p_to, _ONE, report, stepping.ROW_STEP, discs[0])
+            stepping.contact_rows(free, contact, p_from, p_to, ONE_COPY, report, stepping.ROW_STEP,
+                                  discs[0])
         if report[0, 0]:
             self._flags[0] = report[0, :5]
         return report[0]
